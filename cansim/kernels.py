@@ -1,0 +1,98 @@
+"""Separable Gaussian kernels for local excitation and inhibition.
+
+A Gaussian with a diagonal covariance is the product of 1-D Gaussians (Eq 2.19
+for 3-D RatSLAM, Eq 5.10 for the 6-D grid), so every kernel here is stored as
+one 1-D array per axis and applied as successive periodic 1-D passes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from cansim.errors import InvalidInputError
+
+__all__ = ["gaussian_kernel_1d", "SeparableKernel"]
+
+
+def gaussian_kernel_1d(width: int, sigma: float, *, normalise: bool = True) -> np.ndarray:
+    """Sampled 1-D Gaussian ``exp(-d^2 / (2 sigma^2))`` for ``d = -(width//2) .. width//2``.
+
+    Parameters
+    ----------
+    width : int
+        Number of taps, odd and >= 1 (OpenRatSLAM's ``pc_w_e_dim`` / ``pc_w_i_dim``).
+    sigma : float
+        Standard deviation in cells (OpenRatSLAM's ``pc_w_e_var`` is used as sigma;
+        the thesis' Eq 5.10 gives a *variance*, pass ``sqrt(variance)``).
+    normalise : bool
+        Scale the taps to sum 1 (OpenRatSLAM does).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(width,)``, float64; index ``width//2`` is the centre.
+    """
+    if not isinstance(width, (int, np.integer)) or width < 1 or width % 2 == 0:
+        raise InvalidInputError(f"kernel width must be a positive odd integer, got {width!r}")
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise InvalidInputError(f"kernel sigma must be finite and > 0 cells, got {sigma!r}")
+    d = np.arange(width, dtype=np.float64) - width // 2
+    k = np.exp(-(d * d) / (2.0 * sigma * sigma))
+    if normalise:
+        k /= k.sum()
+    return k
+
+
+@dataclass(frozen=True)
+class SeparableKernel:
+    """A product kernel ``K(d_0, ..., d_{n-1}) = prod_a k_a(d_a)``, one 1-D tap array per axis.
+
+    Parameters
+    ----------
+    taps : tuple of numpy.ndarray
+        One odd-length 1-D array per axis, centre at ``len // 2``.
+    """
+
+    taps: tuple[np.ndarray, ...]
+
+    @classmethod
+    def gaussian(
+        cls,
+        widths: Sequence[int],
+        sigmas: Sequence[float],
+        *,
+        normalise: bool = True,
+    ) -> "SeparableKernel":
+        """Build a Gaussian product kernel; each 1-D factor sums to 1 if ``normalise``.
+
+        The product of normalised factors is the normalised N-D kernel, so this equals
+        OpenRatSLAM's kernel ``exp(-(dx^2+dy^2+dth^2)/(2 var^2))`` divided by its sum.
+        """
+        if len(widths) != len(sigmas):
+            raise InvalidInputError(
+                f"one kernel width per axis and one sigma per axis expected, "
+                f"got {len(widths)} widths and {len(sigmas)} sigmas"
+            )
+        taps = tuple(
+            gaussian_kernel_1d(int(w), float(s), normalise=normalise)
+            for w, s in zip(widths, sigmas)
+        )
+        for t in taps:
+            t.setflags(write=False)
+        return cls(taps=taps)
+
+    @property
+    def ndim(self) -> int:
+        """Number of axes."""
+        return len(self.taps)
+
+    def dense(self) -> np.ndarray:
+        """The full N-D kernel (outer product of the taps); for tests and plots only."""
+        out = np.ones((), dtype=np.float64)
+        for t in self.taps:
+            out = np.multiply.outer(out, t)
+        return out

@@ -1,0 +1,255 @@
+"""Path integration by weighted shifts of activity (SPEC §1.4, thesis Sec 5.1.2.3.3).
+
+RatSLAM moves the activity packet rather than integrating velocity. A shift by a
+real number ``s`` of cells along one axis is an integer roll by ``floor(s)`` plus
+the linear split ``(1 - frac, frac)`` of Fig 5.11; a shift over several axes is the
+product of the 1-D splits (bilinear in 2-D = the four areas of Fig 5.7-5.10,
+trilinear in 3-D).
+
+A *motion model* turns odometry into shifts for a given axis layout:
+
+* :class:`UniformMotion` - every axis shifts by ``velocity * dt / step`` (rings, any N-D grid);
+* :class:`PlanarMotion` - RatSLAM's (x', y', theta'): each theta layer translates its
+  (x', y') plane along its own heading, then theta shifts by ``vrot * dt / step``;
+* :class:`SixDofMotion` - WhiskerRatSLAM's (x, y, z, roll, pitch, yaw): each orientation
+  voxel translates its (x, y, z) block by ``R(roll, pitch, yaw) @ v * dt / step``.
+
+Euler convention (stated once, used everywhere in cansim): ``R(roll, pitch, yaw) =
+scipy.spatial.transform.Rotation.from_euler("xyz", [roll, pitch, yaw])`` - extrinsic
+rotations about the fixed x, y, z axes, in that order. The rotational part of 6-DoF
+odometry, a rotation vector ``omega`` (Eq 5.7), is read as Euler-rate increments
+``(d roll, d pitch, d yaw) = omega * dt`` as the thesis does; this is an approximation
+that is exact for rotations about a single axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from cansim.axes import Axis
+from cansim.errors import InvalidInputError, ShapeError
+
+__all__ = [
+    "split_weights",
+    "MotionShifts",
+    "MotionModel",
+    "UniformMotion",
+    "PlanarMotion",
+    "SixDofMotion",
+    "euler_grid_rotations",
+    "EULER_CONVENTION",
+]
+
+#: scipy ``Rotation.from_euler`` sequence used for the pose-cell orientation axes
+EULER_CONVENTION = "xyz"
+
+
+def split_weights(shift_cells: float) -> tuple[int, float, float]:
+    """Integer offset and the two weights of a fractional 1-D shift (Fig 5.11).
+
+    Parameters
+    ----------
+    shift_cells : float
+        Shift in cells (any sign or magnitude).
+
+    Returns
+    -------
+    (lo, w_lo, w_hi) : (int, float, float)
+        Activity moves ``lo`` cells with weight ``w_lo = 1 - frac`` and ``lo + 1``
+        cells with weight ``w_hi = frac``, ``frac = s - floor(s)``.
+
+    Examples
+    --------
+    158 deg at 72 deg per cell (Fig 5.11) moves 2 cells with 0.8 and 3 cells with 0.2:
+
+    >>> lo, w_lo, w_hi = split_weights(158 / 72)
+    >>> lo, round(w_lo, 6), round(w_hi, 6)
+    (2, 0.805556, 0.194444)
+    """
+    _finite(shift_cells, "shift")
+    lo = math.floor(shift_cells)
+    frac = shift_cells - lo
+    return int(lo), 1.0 - frac, frac
+
+
+def _finite(x: float, name: str) -> float:
+    try:
+        xf = float(x)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be a real number, got {x!r}") from None
+    if not math.isfinite(xf):
+        raise InvalidInputError(f"{name} must be finite, got {xf!r}; check the odometry source")
+    return xf
+
+
+def _finite_vec(v: Sequence[float] | np.ndarray, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(v, dtype=np.float64)
+    if arr.ndim == 0 and n == 1:
+        arr = arr.reshape(1)
+    if arr.shape != (n,):
+        raise ShapeError(f"{name} must have shape ({n},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidInputError(f"{name} must be finite, got {arr.tolist()}; check the odometry source")
+    return arr
+
+
+def check_dt(dt: float) -> float:
+    """Validate a time step in seconds: finite and >= 0."""
+    dtf = _finite(dt, "dt")
+    if dtf < 0:
+        raise InvalidInputError(f"dt must be >= 0 seconds, got {dtf}")
+    return dtf
+
+
+@dataclass(frozen=True)
+class MotionShifts:
+    """Shifts for one path-integration step, in cells.
+
+    Attributes
+    ----------
+    shift_axes : tuple of int or None
+        Axes translated per slice (conditional shift), or None.
+    cond_shifts : ndarray or None
+        Shape ``cond_shape + (len(shift_axes),)`` (see ``Backend.shift_conditional``).
+    uniform : ndarray or None
+        Shape ``(ndim,)``: a shift applied to the whole grid after the conditional one.
+    """
+
+    shift_axes: Optional[tuple[int, ...]]
+    cond_shifts: Optional[np.ndarray]
+    uniform: Optional[np.ndarray]
+
+
+class MotionModel:
+    """Turns odometry into :class:`MotionShifts` for a particular axis layout."""
+
+    def check_axes(self, axes: Sequence[Axis]) -> None:
+        """Raise :class:`ShapeError` if the model cannot drive a grid with these axes."""
+
+    def shifts(self, axes: Sequence[Axis], velocity, omega, dt: float) -> MotionShifts:  # pragma: no cover
+        """Shifts in cells for linear ``velocity``, angular ``omega`` over ``dt`` seconds."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class UniformMotion(MotionModel):
+    """Every axis shifts by ``velocity_k * dt / step_k`` cells.
+
+    ``velocity`` is one value per axis in the axis' physical units per second (m/s
+    or rad/s); ``omega`` is ignored. A head-direction ring is driven by its angular
+    velocity this way.
+    """
+
+    def shifts(self, axes, velocity, omega, dt):
+        v = _finite_vec(0.0 if velocity is None else velocity, len(axes), "velocity")
+        dt = check_dt(dt)
+        steps = np.array([a.step for a in axes])
+        return MotionShifts(None, None, v * dt / steps)
+
+
+@dataclass(frozen=True)
+class PlanarMotion(MotionModel):
+    """RatSLAM's heading-conditional translation on a (x', y', theta') grid (3-DoF).
+
+    Each theta layer ``k`` (heading ``th_k = k * step_theta``) shifts its plane by
+    ``vtrans * dt * (cos th_k, sin th_k) / (step_x, step_y)`` cells; then the whole grid
+    shifts along theta by ``vrot * dt / step_theta`` (translate first, as OpenRatSLAM).
+
+    Parameters
+    ----------
+    frame : {"standard", "openratslam"}
+        ``"standard"``: heading 0 moves along +x', 90 deg along +y'.
+        ``"openratslam"``: the C++ frame, heading 0 moves along +y' and 90 deg along +x',
+        i.e. ``(sin th, cos th)``; decoded (x, y) are mirrored against a standard frame.
+    """
+
+    frame: str = "standard"
+    _tables: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("standard", "openratslam"):
+            raise InvalidInputError(f"frame must be 'standard' or 'openratslam', got {self.frame!r}")
+
+    def check_axes(self, axes):
+        if len(axes) != 3 or axes[0].angular or axes[1].angular or not axes[2].angular:
+            raise ShapeError("PlanarMotion needs axes (x linear, y linear, theta angular)")
+
+    def _directions(self, axes) -> np.ndarray:
+        key = (axes[2].size, axes[0].step, axes[1].step)
+        tab = self._tables.get(key)
+        if tab is None:
+            th = np.arange(axes[2].size) * axes[2].step
+            if self.frame == "standard":
+                d = np.stack([np.cos(th), np.sin(th)], axis=1)
+            else:
+                d = np.stack([np.sin(th), np.cos(th)], axis=1)
+            tab = d / np.array([axes[0].step, axes[1].step])
+            tab.setflags(write=False)
+            self._tables[key] = tab
+        return tab
+
+    def shifts(self, axes, velocity, omega, dt):
+        v = _finite(0.0 if velocity is None else velocity, "vtrans")
+        w = _finite(0.0 if omega is None else omega, "vrot")
+        dt = check_dt(dt)
+        cond = (v * dt) * self._directions(axes) if v != 0.0 else None
+        rot = w * dt / axes[2].step
+        uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
+        return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
+
+
+def euler_grid_rotations(angle_axes: Sequence[Axis], convention: str = EULER_CONVENTION) -> np.ndarray:
+    """Rotation matrix of every (roll, pitch, yaw) cell of three angular axes.
+
+    Returns
+    -------
+    ndarray, shape (n_roll, n_pitch, n_yaw, 3, 3)
+        ``R[i, j, k] = Rotation.from_euler(convention, [i*step_r, j*step_p, k*step_y])``.
+    """
+    from scipy.spatial.transform import Rotation
+
+    grids = np.meshgrid(*[np.arange(a.size) * a.step for a in angle_axes], indexing="ij")
+    eul = np.stack([g.ravel() for g in grids], axis=1)
+    mats = Rotation.from_euler(convention, eul).as_matrix()
+    return mats.reshape(tuple(a.size for a in angle_axes) + (3, 3))
+
+
+@dataclass(frozen=True)
+class SixDofMotion(MotionModel):
+    """WhiskerRatSLAM's 6-DoF path integration on (x, y, z, roll, pitch, yaw).
+
+    Each orientation voxel shifts its (x, y, z) block by ``R(roll, pitch, yaw) @ v * dt``
+    divided by the cell sizes (``R`` per :data:`EULER_CONVENTION`), then each angular
+    axis shifts by ``omega_k * dt / step_k`` (``omega`` read as Euler-rate increments).
+    ``velocity`` is in m/s in the end-effector frame, ``omega`` in rad/s.
+    """
+
+    _tables: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def check_axes(self, axes):
+        if len(axes) != 6 or any(a.angular for a in axes[:3]) or not all(a.angular for a in axes[3:]):
+            raise ShapeError("SixDofMotion needs axes (x, y, z linear; roll, pitch, yaw angular)")
+
+    def _rotations(self, axes) -> np.ndarray:
+        key = tuple((a.size, a.step) for a in axes)
+        tab = self._tables.get(key)
+        if tab is None:
+            tab = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
+            tab.setflags(write=False)
+            self._tables[key] = tab
+        return tab
+
+    def shifts(self, axes, velocity, omega, dt):
+        v = _finite_vec(np.zeros(3) if velocity is None else velocity, 3, "velocity")
+        w = _finite_vec(np.zeros(3) if omega is None else omega, 3, "omega")
+        dt = check_dt(dt)
+        cond = None
+        if np.any(v != 0.0):
+            cond = self._rotations(axes) @ (v * dt)
+        rot = w * dt / np.array([a.step for a in axes[3:]])
+        uniform = np.concatenate([np.zeros(3), rot]) if np.any(rot != 0.0) else None
+        return MotionShifts((0, 1, 2) if cond is not None else None, cond, uniform)

@@ -1,0 +1,436 @@
+"""N-dimensional periodic continuous-attractor population (SPEC §1.1-1.2, 1.4, 1.6)."""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Optional, Sequence, Union
+
+import numpy as np
+
+from cansim.axes import Axis
+from cansim.backends import Backend, get_backend
+from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
+from cansim.params import AttractorParams
+from cansim.path_integration import (
+    MotionModel,
+    MotionShifts,
+    PlanarMotion,
+    SixDofMotion,
+    UniformMotion,
+    _finite_vec,
+)
+
+__all__ = ["Population"]
+
+log = logging.getLogger(__name__)
+
+IndexLike = Union[Sequence[int], np.ndarray]
+
+
+class Population:
+    """A grid of rate cells with periodic boundaries on every axis, activity ``A >= 0``.
+
+    One class serves as head-direction ring (1-D), RatSLAM pose cells (3-D), the
+    6-D WhiskerRatSLAM grid and any other N. All state is on the instance.
+
+    Parameters
+    ----------
+    axes : sequence of Axis
+        Name, size and physical step of every axis (C order of the activity array).
+    params : AttractorParams
+        Excitation / inhibition kernels and global inhibition.
+    dtype : numpy dtype
+        ``np.float32`` (default) or ``np.float64``.
+    backend : str or Backend
+        ``"numpy"`` (reference), ``"numba"`` or ``"opencl"``; see
+        :func:`cansim.available_backends`.
+    motion : MotionModel or None
+        How odometry becomes shifts in :meth:`integrate` / :meth:`step`;
+        default :class:`UniformMotion`.
+    decode_window : int
+        Half-width of the population-vector box (OpenRatSLAM ``pc_cells_to_avg``, 3).
+
+    Notes
+    -----
+    A new population holds one active cell (activity 1) at the centre
+    ``size // 2`` of every axis.
+    """
+
+    def __init__(
+        self,
+        axes: Sequence[Axis],
+        params: AttractorParams = AttractorParams(),
+        *,
+        dtype: np.dtype | type = np.float32,
+        backend: str | Backend = "numpy",
+        motion: Optional[MotionModel] = None,
+        decode_window: int = 3,
+    ) -> None:
+        axes = tuple(axes)
+        if not axes:
+            raise ShapeError("a population needs at least one axis; the grid would be empty")
+        if any(not isinstance(a, Axis) for a in axes):
+            raise InvalidInputError("axes must be cansim.Axis instances")
+        names = [a.name for a in axes]
+        if len(set(names)) != len(names):
+            raise InvalidInputError(f"axis names must be unique, got {names}")
+        dt = np.dtype(dtype)
+        if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+            raise InvalidInputError(f"dtype must be float32 or float64, got {dt}")
+        if not isinstance(decode_window, (int, np.integer)) or decode_window < 0:
+            raise InvalidInputError(f"decode_window must be an integer >= 0, got {decode_window!r}")
+        self._axes = axes
+        self._params = params
+        self._dtype = dt
+        self._motion = motion if motion is not None else UniformMotion()
+        self._motion.check_axes(axes)
+        exc, inh = params.kernels(len(axes))
+        self._exc = exc.taps
+        self._inh = inh.taps
+        self._phi = float(params.global_inhibition)
+        self._window = int(decode_window)
+        self._backend = get_backend(backend)
+        self._a = np.zeros(self.shape, dtype=dt)
+        self._spare = np.zeros(self.shape, dtype=dt)
+        self.reset_cell([a.size // 2 for a in axes])
+        self._last_decoded: Optional[np.ndarray] = None
+
+    # ------------------------------------------------------------------ presets
+    @classmethod
+    def openratslam(
+        cls,
+        dim_xy: int = 21,
+        dim_th: int = 36,
+        cell_size: float = 1.0,
+        *,
+        frame: str = "standard",
+        params: Optional[AttractorParams] = None,
+        **kwargs,
+    ) -> "Population":
+        """OpenRatSLAM pose cells: axes (x', y', theta'), default 21 x 21 x 36.
+
+        Parameters follow OpenRatSLAM's config: ``pc_dim_xy``, ``pc_dim_th``,
+        ``pc_cell_x_size`` (metres per cell); kernels 7-wide sigma 1 excitation,
+        5-wide sigma 2 inhibition, phi 2e-5. Starts with one cell at
+        ``(dim_xy//2, dim_xy//2, dim_th//2)`` (C++: (10, 10, 18)).
+        ``frame="openratslam"`` moves theta index 0 along +y' as the C++ does.
+        """
+        axes = (
+            Axis.linear("x", dim_xy, cell_size),
+            Axis.linear("y", dim_xy, cell_size),
+            Axis.angle("theta", dim_th),
+        )
+        return cls(axes, params or AttractorParams(), motion=PlanarMotion(frame), **kwargs)
+
+    @classmethod
+    def head_direction(cls, n: int = 360, *, params: Optional[AttractorParams] = None, **kwargs) -> "Population":
+        """A 1-D head-direction ring of ``n`` cells (step ``2*pi/n`` rad).
+
+        Default kernels are OpenRatSLAM's theta-axis kernels (excitation 7 taps sigma 1,
+        inhibition 5 taps sigma 2, phi 2e-5); :meth:`integrate` takes the angular
+        velocity in rad/s as ``velocity``.
+        """
+        return cls((Axis.angle("heading", n),), params or AttractorParams(), **kwargs)
+
+    @classmethod
+    def whisker6d(
+        cls,
+        n: int = 5,
+        cell_size: float = 0.02,
+        *,
+        n_angle: Optional[int] = None,
+        params: Optional[AttractorParams] = None,
+        **kwargs,
+    ) -> "Population":
+        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``n`` cells per axis.
+
+        Kernels per Eq 5.10: width 5 on every axis, excitation variance 1 (sigma 1),
+        inhibition variance 2 (sigma sqrt 2); phi 2e-5. ``cell_size`` is metres per
+        translational cell (the thesis does not give it; 0.02 m is this library's
+        default), angular steps are ``2*pi/n_angle`` (``n_angle`` defaults to ``n``).
+        """
+        na = n if n_angle is None else n_angle
+        axes = (
+            Axis.linear("x", n, cell_size),
+            Axis.linear("y", n, cell_size),
+            Axis.linear("z", n, cell_size),
+            Axis.angle("roll", na),
+            Axis.angle("pitch", na),
+            Axis.angle("yaw", na),
+        )
+        p = params or AttractorParams(exc_width=5, exc_sigma=1.0, inh_width=5, inh_sigma=math.sqrt(2.0))
+        return cls(axes, p, motion=SixDofMotion(), **kwargs)
+
+    # --------------------------------------------------------------- properties
+    @property
+    def axes(self) -> tuple[Axis, ...]:
+        """The axes, in the order of the activity array's dimensions."""
+        return self._axes
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Grid shape (cells per axis)."""
+        return tuple(a.size for a in self._axes)
+
+    @property
+    def ndim(self) -> int:
+        """Number of axes."""
+        return len(self._axes)
+
+    @property
+    def size(self) -> int:
+        """Total number of cells."""
+        return int(np.prod(self.shape))
+
+    @property
+    def dtype(self) -> np.dtype:
+        """Storage dtype of the activity."""
+        return self._dtype
+
+    @property
+    def params(self) -> AttractorParams:
+        """The attractor parameters."""
+        return self._params
+
+    @property
+    def motion(self) -> MotionModel:
+        """The motion model used by :meth:`integrate` and :meth:`step`."""
+        return self._motion
+
+    @property
+    def backend(self) -> str:
+        """Name of the backend in use."""
+        return self._backend.name
+
+    def set_backend(self, backend: str | Backend) -> None:
+        """Switch backend; the activity is kept."""
+        self._backend = get_backend(backend)
+
+    @property
+    def activity(self) -> np.ndarray:
+        """A copy of the activity grid, shape :attr:`shape`."""
+        return self._a.copy()
+
+    @activity.setter
+    def activity(self, value: np.ndarray) -> None:
+        arr = np.asarray(value)
+        if arr.shape != self.shape:
+            raise ShapeError(f"activity must have shape {self.shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError("activity must be finite (no NaN/inf)")
+        if np.any(arr < 0):
+            raise InvalidInputError("activity must be >= 0")
+        self._a = arr.astype(self._dtype, copy=True, order="C")
+        self._last_decoded = None
+
+    @property
+    def total(self) -> float:
+        """Sum of all activity."""
+        return float(self._a.sum(dtype=np.float64))
+
+    # ---------------------------------------------------------------- resetting
+    def _check_index(self, index: IndexLike) -> tuple[int, ...]:
+        idx = tuple(int(i) for i in np.asarray(index).ravel())
+        if len(idx) != self.ndim:
+            raise ShapeError(f"index must have {self.ndim} entries (one per axis), got {len(idx)}")
+        return tuple(i % n for i, n in zip(idx, self.shape))
+
+    def reset_cell(self, index: IndexLike) -> None:
+        """Silence all cells and set the cell at ``index`` (wrapped) to 1."""
+        idx = self._check_index(index)
+        a = np.zeros(self.shape, dtype=self._dtype)
+        a[idx] = 1.0
+        self._a = a
+        self._last_decoded = None
+
+    def reset_gaussian(self, center: Sequence[float], sigma: float | Sequence[float] = 1.0) -> None:
+        """Set a periodic Gaussian packet at fractional cell ``center``, normalised to sum 1.
+
+        Parameters
+        ----------
+        center : sequence of float, one per axis, in cells.
+        sigma : float or sequence of float, standard deviation in cells (> 0).
+        """
+        c = _finite_vec(center, self.ndim, "center")
+        s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (self.ndim,))
+        if not np.all(np.isfinite(s)) or np.any(s <= 0):
+            raise InvalidInputError(f"sigma must be finite and > 0 cells, got {sigma!r}")
+        a = np.ones((), dtype=np.float64)
+        for ax, n in enumerate(self.shape):
+            d = (np.arange(n) - c[ax] + n / 2.0) % n - n / 2.0  # wrapped distance, Eq 2.22
+            a = np.multiply.outer(a, np.exp(-(d * d) / (2.0 * s[ax] ** 2)))
+        self._a = (a / a.sum()).astype(self._dtype)
+        self._last_decoded = None
+
+    # ----------------------------------------------------------------- dynamics
+    def _commit(self, new: np.ndarray) -> None:
+        if new is self._spare:
+            self._spare = self._a
+        self._a = new
+        self._last_decoded = None
+
+    def inject(self, index: IndexLike, energy: float) -> None:
+        """Add ``energy`` (>= 0) to one cell (wrapped index)."""
+        idx = self._check_index(index)
+        e = float(energy)
+        if not math.isfinite(e) or e < 0:
+            raise InvalidInputError(f"energy must be finite and >= 0, got {energy!r}")
+        flat = np.array([np.ravel_multi_index(idx, self.shape)], dtype=np.int64)
+        self._commit(self._backend.inject(self._a, flat, np.array([e]), out=self._spare))
+
+    def inject_flat(self, flat_index: np.ndarray, values: np.ndarray) -> None:
+        """Scatter-add ``values`` (>= 0) at flat C-order indices (e.g. from learnt LV weights)."""
+        fi, vals = self._check_injection(flat_index, values)
+        if len(fi):
+            self._commit(self._backend.inject(self._a, fi, vals, out=self._spare))
+
+    def _check_injection(self, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
+        fi = np.asarray(flat_index, dtype=np.int64).ravel()
+        vals = np.asarray(values, dtype=np.float64).ravel()
+        if fi.shape != vals.shape:
+            raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
+        if len(fi) and (fi.min() < 0 or fi.max() >= self.size):
+            raise InvalidInputError(f"flat indices must lie in [0, {self.size})")
+        if not np.all(np.isfinite(vals)) or np.any(vals < 0):
+            raise InvalidInputError("injected values must be finite and >= 0")
+        return fi, vals
+
+    def dynamics(self) -> None:
+        """Local excitation, local inhibition, global inhibition, normalisation (SPEC §1.2 2-5).
+
+        Raises
+        ------
+        ZeroActivityError
+            Every cell would be silent; the activity is left as it was.
+        """
+        new = self._backend.dynamics(self._a, self._exc, self._inh, self._phi, out=self._spare)
+        if new is None:
+            raise ZeroActivityError(
+                "all activity fell below the global inhibition threshold; state left unchanged "
+                "(re-seed with reset_cell/reset_gaussian or inject energy)"
+            )
+        self._commit(new)
+
+    def shift(self, cells: Sequence[float]) -> None:
+        """Shift the whole grid by a real number of cells per axis (any magnitude)."""
+        s = _finite_vec(cells, self.ndim, "shift")
+        self._commit(self._backend.shift(self._a, s, out=self._spare))
+
+    def shift_conditional(self, shift_axes: Sequence[int], shifts: np.ndarray) -> None:
+        """Shift every slice along ``shift_axes`` by its own vector (see ``Backend.shift_conditional``).
+
+        Parameters
+        ----------
+        shift_axes : sequence of int
+            Translated axes, ascending.
+        shifts : ndarray, shape ``cond_shape + (len(shift_axes),)``, cells
+        """
+        ax, sh = self._check_conditional(shift_axes, shifts)
+        self._commit(self._backend.shift_conditional(self._a, ax, sh, out=self._spare))
+
+    def _check_conditional(self, shift_axes, shifts) -> tuple[tuple[int, ...], np.ndarray]:
+        ax = tuple(int(a) for a in shift_axes)
+        if not ax or list(ax) != sorted(set(ax)) or ax[0] < 0 or ax[-1] >= self.ndim:
+            raise InvalidInputError(f"shift_axes must be distinct ascending axes in [0, {self.ndim}), got {ax}")
+        cond_shape = tuple(n for i, n in enumerate(self.shape) if i not in ax)
+        sh = np.ascontiguousarray(shifts, dtype=np.float64)
+        if sh.shape != cond_shape + (len(ax),):
+            raise ShapeError(f"shifts must have shape {cond_shape + (len(ax),)}, got {sh.shape}")
+        if not np.all(np.isfinite(sh)):
+            raise InvalidInputError("shifts must be finite")
+        return ax, sh
+
+    def _motion_shifts(self, velocity, omega, dt) -> MotionShifts:
+        return self._motion.shifts(self._axes, velocity, omega, dt)
+
+    def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
+        """Path integration only (SPEC §1.4) with the population's motion model.
+
+        Parameters
+        ----------
+        velocity : float or ndarray
+            PlanarMotion: forward speed vtrans (m/s). SixDofMotion: (3,) m/s in the
+            end-effector frame. UniformMotion: one velocity per axis (units/s).
+        omega : float or ndarray
+            PlanarMotion: vrot (rad/s). SixDofMotion: (3,) rotation vector rate (rad/s).
+        dt : float
+            Seconds, >= 0.
+        """
+        ms = self._motion_shifts(velocity, omega, dt)
+        cur = self._a
+        if ms.cond_shifts is not None:
+            cur = self._backend.shift_conditional(cur, ms.shift_axes, ms.cond_shifts)
+        if ms.uniform is not None:
+            cur = self._backend.shift(cur, ms.uniform)
+        if cur is not self._a:
+            self._commit(cur)
+
+    def decode(self) -> np.ndarray:
+        """Population-vector estimate, fractional cell index per axis, shape (ndim,) (SPEC §1.6)."""
+        if self._last_decoded is None:
+            self._last_decoded = self._backend.decode(self._a, self._window)
+        return self._last_decoded.copy()
+
+    def decode_physical(self) -> np.ndarray:
+        """:meth:`decode` times each axis' step: metres for linear axes, radians for angular."""
+        return self.decode() * np.array([a.step for a in self._axes])
+
+    def step(
+        self,
+        velocity=None,
+        omega=None,
+        dt: float = 1.0,
+        *,
+        injection: Optional[tuple[np.ndarray, np.ndarray]] = None,
+    ) -> np.ndarray:
+        """One iteration: injection, dynamics, path integration, decoding (SPEC §1.2).
+
+        Parameters
+        ----------
+        velocity, omega, dt
+            As :meth:`integrate`.
+        injection : (flat_index, values) or None
+            Energy scatter-added before the dynamics (e.g. ``LocalViewCells.injection``).
+
+        Returns
+        -------
+        ndarray, shape (ndim,)
+            The decoded fractional cell index per axis.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            Bad odometry or injection; nothing changed.
+        ZeroActivityError
+            The dynamics collapsed; nothing changed.
+        """
+        ms = self._motion_shifts(velocity, omega, dt)
+        fi = vals = None
+        if injection is not None:
+            fi, vals = self._check_injection(*injection)
+        new, decoded = self._backend.step(
+            self._a,
+            flat_index=fi,
+            values=vals,
+            exc=self._exc,
+            inh=self._inh,
+            phi=self._phi,
+            shift_axes=ms.shift_axes,
+            cond_shifts=ms.cond_shifts,
+            uniform_shifts=ms.uniform,
+            window=self._window,
+            out=self._spare,
+        )
+        if new is None:
+            raise ZeroActivityError(
+                "all activity fell below the global inhibition threshold; state left unchanged "
+                "(re-seed with reset_cell/reset_gaussian or inject energy)"
+            )
+        self._commit(new)
+        self._last_decoded = decoded
+        return decoded.copy()
+
+    def __repr__(self) -> str:
+        ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
+        return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
