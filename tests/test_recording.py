@@ -1,0 +1,209 @@
+"""Tests of the whisk CSV / pose-log format (Sec 3.1.3): round trips, atomicity, typed errors."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+import numpy as np
+import pytest
+
+from whisker_io.errors import InvalidInputError, RecordingFormatError, WhiskerIOError
+from whisker_io.recording import (
+    POSE_LOG_NAME,
+    PoseLogWriter,
+    RecordingWriter,
+    WhiskRecord,
+    read_pose_log,
+    read_whisk_csv,
+    replay,
+    whisk_file_name,
+    write_whisk_csv,
+)
+
+
+def _record(module: str = "C2", cycle: int = 3, n: int = 50, seed: int = 0) -> WhiskRecord:
+    rng = np.random.default_rng(seed)
+    return WhiskRecord(
+        module=module,
+        angle_rad=np.linspace(-np.deg2rad(50), np.deg2rad(50), n) + rng.normal(0, 1e-3, n),
+        x_counts=rng.integers(-2048, 2048, n).astype(float),
+        y_counts=rng.normal(0, 300, n),
+        cycle=cycle,
+    )
+
+
+def _identity_quat() -> list[float]:
+    return [0.0, 0.0, 0.0, 1.0]
+
+
+def test_whisk_csv_round_trip_is_bit_identical(tmp_path):
+    rec = _record()
+    path = write_whisk_csv(tmp_path, rec)
+    assert path.name == "whisk_000003_C2.csv"
+    back = read_whisk_csv(path)
+    assert back.module == "C2" and back.cycle == 3 and back.sample_rate_hz == 2000.0
+    for name in ("angle_rad", "x_counts", "y_counts"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
+    np.testing.assert_array_equal(back.spare, np.zeros(rec.n_samples))
+    # header line + one line per sample, four columns each
+    lines = path.read_text().splitlines()
+    assert lines[0] == "angle_rad,x_deflection_counts,y_deflection_counts,spare"
+    assert len(lines) == rec.n_samples + 1
+    assert all(line.count(",") == 3 for line in lines)
+
+
+def test_degree_header_and_headerless_files_are_read(tmp_path):
+    p = tmp_path / "whisk_000001_A1.csv"
+    p.write_text("angle_deg,x_deflection_counts,y_deflection_counts,spare\n90,1,2,0\n-45,3,4,0\n")
+    rec = read_whisk_csv(p)
+    np.testing.assert_allclose(rec.angle_rad, [math.pi / 2, -math.pi / 4])
+    np.testing.assert_array_equal(rec.y_counts, [2, 4])
+    q = tmp_path / "whisk_000001_A2.csv"
+    q.write_text("0.5,1,2,0\n0.25,3,4,0\n")
+    np.testing.assert_array_equal(read_whisk_csv(q).angle_rad, [0.5, 0.25])
+
+
+def test_write_is_atomic_no_temp_file_left(tmp_path):
+    write_whisk_csv(tmp_path, _record())
+    assert sorted(os.listdir(tmp_path)) == ["whisk_000003_C2.csv"]
+
+
+@pytest.mark.parametrize(
+    ("content", "line", "what"),
+    [
+        ("angle_rad,x_deflection_counts,y_deflection_counts,spare\n0,1,2,0\n0,1,2\n", 3, "4 columns"),
+        ("angle_rad,x_deflection_counts,y_deflection_counts,spare\n0,1,2,0\n0,1,abc,0\n", 3, "not a number"),
+        ("angle_rad,x_deflection_counts,y_deflection_counts,spare\n0,1,2,0\n0,1,2,0\n0,nan,2,0\n", 4, "NaN"),
+        ("angle,x,y\n0,1,2,0\n", 1, "header"),
+        ("angle_rad,x_deflection_counts,y_deflection_counts,spare\n", 2, "no samples"),
+    ],
+)
+def test_malformed_whisk_csv_names_file_and_line(tmp_path, content, line, what):
+    p = tmp_path / "whisk_000000_B1.csv"
+    p.write_text(content)
+    with pytest.raises(RecordingFormatError) as err:
+        read_whisk_csv(p)
+    msg = str(err.value)
+    assert str(p) in msg and f"line {line}" in msg and what in msg
+    assert isinstance(err.value, WhiskerIOError)
+
+
+def test_unparseable_file_name_requires_module_and_cycle(tmp_path):
+    p = tmp_path / "data.csv"
+    p.write_text("0,1,2,0\n")
+    with pytest.raises(RecordingFormatError, match="file name"):
+        read_whisk_csv(p)
+    assert read_whisk_csv(p, module="F3", cycle=7).module == "F3"
+
+
+def test_whisk_record_rejects_nan_and_ragged_columns():
+    with pytest.raises(InvalidInputError, match="sample 2"):
+        WhiskRecord("A1", [0, 0, np.nan], [0, 0, 0], [0, 0, 0])
+    with pytest.raises(InvalidInputError, match="different lengths"):
+        WhiskRecord("A1", [0, 0, 0], [0, 0], [0, 0, 0])
+    with pytest.raises(InvalidInputError, match="module name"):
+        WhiskRecord("A 1", [0], [0], [0])
+    rec = WhiskRecord("A1", [0.0, 1.0], [0, 0], [0, 0])
+    with pytest.raises(ValueError):  # read-only arrays: a record cannot be changed behind a writer's back
+        rec.angle_rad[0] = 5.0
+
+
+def test_pose_log_round_trip_and_scalar_last_quaternion(tmp_path):
+    path = tmp_path / POSE_LOG_NAME
+    q = [0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8)]  # 45 deg about z, scalar last
+    with PoseLogWriter(path) as w:
+        w.append(1.0, [0.1, 0.2, 0.3], _identity_quat(), "whisk_000000")
+        w.append(2.5, [0.4, 0.5, 0.6], q, "whisk_000001")
+    entries = read_pose_log(path)
+    assert [e.time_s for e in entries] == [1.0, 2.5]
+    np.testing.assert_array_equal(entries[1].position_m, [0.4, 0.5, 0.6])
+    T = entries[1].as_matrix()
+    np.testing.assert_allclose(T[:3, 0], [math.sqrt(0.5), math.sqrt(0.5), 0], atol=1e-12)
+    np.testing.assert_allclose(T[:3, 3], [0.4, 0.5, 0.6])
+    # resuming a session appends after the existing lines and keeps the time order check
+    with PoseLogWriter(path) as w:
+        with pytest.raises(InvalidInputError, match="time order"):
+            w.append(2.0, [0, 0, 0], _identity_quat(), "whisk_000002")
+        w.append(3.0, [0, 0, 0], _identity_quat(), "whisk_000002")
+    assert len(read_pose_log(path)) == 3
+
+
+def test_pose_log_out_of_time_order_is_a_typed_error_with_line(tmp_path):
+    path = tmp_path / POSE_LOG_NAME
+    path.write_text(
+        "time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file\n"
+        "1.0,0,0,0,0,0,0,1,whisk_000000\n"
+        "3.0,0,0,0,0,0,0,1,whisk_000001\n"
+        "2.0,0,0,0,0,0,0,1,whisk_000002\n"
+    )
+    with pytest.raises(RecordingFormatError, match=r"line 4: .*out of time order"):
+        read_pose_log(path)
+
+
+@pytest.mark.parametrize(
+    ("row", "what"),
+    [
+        ("1.0,0,0,0,0,0,1,whisk_000000", "9 columns"),
+        ("1.0,0,x,0,0,0,0,1,whisk_000000", "not a number"),
+        ("1.0,0,0,0,0,0,0,2,whisk_000000", "unit norm"),
+        ("nan,0,0,0,0,0,0,1,whisk_000000", "NaN"),
+    ],
+)
+def test_malformed_pose_log_line(tmp_path, row, what):
+    path = tmp_path / POSE_LOG_NAME
+    path.write_text("time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file\n" + row + "\n")
+    with pytest.raises(RecordingFormatError) as err:
+        read_pose_log(path)
+    assert f"{path}: line 2" in str(err.value) and what in str(err.value)
+
+
+def test_torn_final_pose_line_is_ignored(tmp_path, caplog):
+    path = tmp_path / POSE_LOG_NAME
+    path.write_text("time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file\n1.0,0,0,0,0,0,0,1,whisk_000000\n2.0,0,0,0,0,0")
+    with caplog.at_level(logging.WARNING):
+        entries = read_pose_log(path)
+    assert len(entries) == 1 and "torn" in caplog.text
+
+
+def test_session_write_and_replay_in_pose_log_order(tmp_path):
+    modules = ["A1", "B2", "F3"]
+    times = [0.0, 1.0, 2.0]
+    written = []
+    with RecordingWriter(tmp_path) as w:
+        for cycle, t in enumerate(times):
+            recs = [_record(m, cycle, n=20 + cycle, seed=10 * cycle + i) for i, m in enumerate(modules)]
+            w.write_cycle(recs, time_s=t, position_m=[t, 0, 0], quaternion_xyzw=_identity_quat())
+            written.append(recs)
+    cycles = list(replay(tmp_path))
+    assert [c.pose.time_s for c in cycles] == times
+    for c, recs in zip(cycles, written):
+        assert list(c.records) == modules
+        for r in recs:
+            got = c.records[r.module]
+            assert got.cycle == r.cycle
+            np.testing.assert_array_equal(got.y_counts, r.y_counts)
+            np.testing.assert_array_equal(got.angle_rad, r.angle_rad)
+
+
+def test_write_cycle_out_of_order_leaves_directory_unchanged(tmp_path):
+    with RecordingWriter(tmp_path) as w:
+        w.write_cycle([_record("A1", 0)], time_s=5.0, position_m=[0, 0, 0], quaternion_xyzw=_identity_quat())
+        before = sorted(os.listdir(tmp_path))
+        with pytest.raises(InvalidInputError, match="time order"):
+            w.write_cycle([_record("A1", 1)], time_s=4.0, position_m=[0, 0, 0], quaternion_xyzw=_identity_quat())
+        with pytest.raises(InvalidInputError, match="duplicate"):
+            w.write_cycle([_record("A1", 1), _record("A1", 1)], 6.0, [0, 0, 0], _identity_quat())
+    assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_replay_reports_missing_whisk_files(tmp_path):
+    with RecordingWriter(tmp_path) as w:
+        w.write_cycle([_record("A1", 0)], 0.0, [0, 0, 0], _identity_quat())
+        w.write_cycle([_record("A1", 1)], 1.0, [0, 0, 0], _identity_quat())
+    os.remove(tmp_path / whisk_file_name(1, "A1"))
+    it = replay(tmp_path)
+    assert next(it).pose.whisk_file == "whisk_000000"
+    with pytest.raises(RecordingFormatError, match=r"line 3: .*missing"):
+        next(it)
