@@ -1,0 +1,533 @@
+"""Rigid-whisker sweep simulator: where and at which angle each whisker first touches a mesh.
+
+This is the "simulated ground truth" of Sec 4.1.2.3 of the thesis, also used
+for the contact features of Ch.5-6 (SPEC §4.7): every whisker is treated as a
+rigid straight segment of its length, swept about its base frame's z-axis from
+the retraction limit (-50 deg) to the protraction limit (+50 deg). The contact
+is the first touch nearest the retraction limit and, at that angle, nearest the
+whisker base. The surface slope is the hit face's normal projected on the
+shaft frame's x and y axes, ``slope = n_y / n_x`` (Eq 6.12-6.14).
+
+Algorithm (documented decision)
+-------------------------------
+1. **Coarse pass, one ray batch.** For all N whiskers and all M angles
+   (1-deg steps by default) cast one ray from the whisker base along the shaft
+   (max length = whisker length: the hit distance is the radial distance), and
+   one *chord* ray from the tip at step k to the tip at step k+1 (max length =
+   chord length). The chord catches thin features that pass between two
+   shaft rays near the tip (a 160 mm whisker's tip moves 2.8 mm per degree).
+   Step interval k is in contact when the chord k or the shaft at k+1 hits;
+   if the shaft already hits at the retraction limit the contact angle is the
+   retraction limit.
+2. **Refinement.** The first contacting interval ``[lo, hi]`` is split into
+   ``refine_subdivisions`` parts and the same test (shafts + chords, one
+   batch for all whiskers) repeated until it is narrower than
+   ``angle_tolerance_rad``. The earliest contacting sub-interval is kept, so
+   a non-monotone contact (a feature touched briefly) is not skipped. The
+   contact is the shaft hit at ``hi`` (or, for a tip contact found only by a
+   chord, the chord hit) and ``angle_rad = hi``, which is at most
+   ``angle_tolerance_rad`` past the exact first-touch angle.
+
+Limit: a feature that lies wholly inside one swept triangle (base, tip_k,
+tip_k+1) without crossing its edges is missed by the coarse pass; at a 1-deg
+step that means a feature narrower than about 1.7 % of its distance from the
+base on every side. Reduce ``step_rad`` for such scenes.
+
+Ray casting uses trimesh: Embree (``trimesh.ray.ray_pyembree`` through the
+``embreex`` package, float32 BVH, hit points recomputed in float64) when
+available, otherwise ``trimesh.ray.ray_triangle`` (pure numpy/rtree, exact
+float64, much slower). :class:`MeshTarget` builds the intersector once.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+from typing import Literal, Sequence
+
+import numpy as np
+import trimesh
+from numpy.typing import NDArray
+
+from whisker_io.errors import InvalidInputError
+from whisker_io.geometry import WhiskerArray
+from whisker_io.kinematics import Pose, as_transform, rot_z, whisker_base_transforms
+
+__all__ = [
+    "RayEngine",
+    "embree_available",
+    "MeshTarget",
+    "SweepParams",
+    "SweepContact",
+    "sweep_array",
+    "ContactNoise",
+    "add_contact_noise",
+]
+
+logger = logging.getLogger(__name__)
+
+RayEngine = Literal["auto", "embree", "triangle"]
+
+
+def embree_available() -> bool:
+    """True when trimesh can use Embree (the ``embreex`` package imports)."""
+    try:
+        from trimesh.ray import ray_pyembree  # noqa: F401
+        import embreex  # noqa: F401
+    except Exception:  # pragma: no cover - depends on the install
+        return False
+    return True
+
+
+class MeshTarget:
+    """A triangle mesh prepared for repeated ray casting.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The obstacle in the world frame (metres). Not copied; do not mutate
+        it while this target is in use.
+    engine : {"auto", "embree", "triangle"}
+        Ray engine. ``"auto"`` picks Embree when available.
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown engine, Embree requested but not installed, or an empty mesh.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, engine: RayEngine = "auto") -> None:
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise InvalidInputError("mesh must be a non-empty trimesh.Trimesh")
+        if engine not in ("auto", "embree", "triangle"):
+            raise InvalidInputError(
+                f"unknown ray engine {engine!r}; use 'auto', 'embree' or 'triangle'"
+            )
+        if engine == "auto":
+            engine = "embree" if embree_available() else "triangle"
+        if engine == "embree":
+            if not embree_available():
+                raise InvalidInputError(
+                    "engine='embree' needs the 'embreex' package (pip install embreex); "
+                    "use engine='triangle' or 'auto'"
+                )
+            from trimesh.ray.ray_pyembree import RayMeshIntersector as _Embree
+
+            self._intersector = _Embree(mesh)
+        else:
+            from trimesh.ray.ray_triangle import RayMeshIntersector as _Triangle
+
+            self._intersector = _Triangle(mesh)
+        self.mesh = mesh
+        self.engine: str = engine
+        self._bounds = np.asarray(mesh.bounds, dtype=float)
+        self._normals = np.asarray(mesh.face_normals, dtype=float)
+
+    @property
+    def face_normals(self) -> NDArray[np.float64]:
+        """Unit face normals of the mesh, shape (F, 3)."""
+        return self._normals
+
+    def first_hits(
+        self,
+        origins: NDArray[np.float64],
+        directions: NDArray[np.float64],
+        max_distance: NDArray[np.float64],
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+        """Nearest hit of each segment ``origin + t * direction, 0 <= t <= max_distance``.
+
+        Parameters
+        ----------
+        origins, directions : ndarray, shape (R, 3)
+            Directions must be unit vectors.
+        max_distance : ndarray, shape (R,)
+
+        Returns
+        -------
+        distance : ndarray (R,)
+            Distance to the nearest hit, ``inf`` when none within ``max_distance``.
+        face : ndarray (R,) int
+            Hit face index, -1 when none.
+        location : ndarray (R, 3)
+            Hit point, NaN when none.
+        """
+        R = len(origins)
+        distance = np.full(R, np.inf)
+        face = np.full(R, -1, dtype=np.int64)
+        location = np.full((R, 3), np.nan)
+        # cull segments whose bounding box misses the mesh's (cheap, helps the slow engine)
+        ends = origins + directions * max_distance[:, None]
+        lo = np.minimum(origins, ends)
+        hi = np.maximum(origins, ends)
+        live = np.flatnonzero(
+            np.all(hi >= self._bounds[0] - 1e-9, axis=1)
+            & np.all(lo <= self._bounds[1] + 1e-9, axis=1)
+        )
+        if live.size == 0:
+            return distance, face, location
+        tri, ray, loc = self._intersector.intersects_id(
+            origins[live],
+            directions[live],
+            multiple_hits=False,
+            return_locations=True,
+        )
+        if len(ray) == 0:
+            return distance, face, location
+        idx = live[ray]
+        d = np.einsum("ij,ij->i", loc - origins[idx], directions[idx])
+        ok = (d >= 0.0) & (d <= max_distance[idx] * (1.0 + 1e-12) + 1e-12)
+        idx, d, tri, loc = idx[ok], d[ok], tri[ok], loc[ok]
+        distance[idx] = d
+        face[idx] = tri
+        location[idx] = loc
+        return distance, face, location
+
+
+@dataclass(frozen=True)
+class SweepParams:
+    """Parameters of :func:`sweep_array`.
+
+    Attributes
+    ----------
+    step_rad : float
+        Coarse angular step, radians. Default 1 deg (Sec 4.1.2.3).
+    refine : bool
+        Refine the contact angle inside the first contacting step. Default True.
+    refine_subdivisions : int
+        Sub-intervals per refinement pass (>= 2). Default 16.
+    angle_tolerance_rad : float
+        Refinement stops when the bracket is narrower than this. Default 1e-6 rad.
+    tip_chords : bool
+        Also cast tip-to-tip chord rays between consecutive angles (see module
+        docstring). Default True.
+    """
+
+    step_rad: float = float(np.deg2rad(1.0))
+    refine: bool = True
+    refine_subdivisions: int = 16
+    angle_tolerance_rad: float = 1e-6
+    tip_chords: bool = True
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.step_rad) and self.step_rad > 0):
+            raise InvalidInputError(f"step_rad must be positive, got {self.step_rad!r}")
+        if int(self.refine_subdivisions) < 2:
+            raise InvalidInputError(
+                f"refine_subdivisions must be >= 2, got {self.refine_subdivisions!r}"
+            )
+        if not (np.isfinite(self.angle_tolerance_rad) and self.angle_tolerance_rad > 0):
+            raise InvalidInputError(
+                f"angle_tolerance_rad must be positive, got {self.angle_tolerance_rad!r}"
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class SweepContact:
+    """First contact of one whisker during a sweep.
+
+    Attributes
+    ----------
+    module : str
+        Module name (e.g. ``"C2"``).
+    angle_rad : float
+        Whisk angle ``theta_c`` at contact, radians (+ = protraction).
+    radial_distance_m : float
+        Distance from the whisker base to the contact point along the shaft, metres.
+    point : ndarray (3,)
+        Contact point in the world frame, metres.
+    normal : ndarray (3,)
+        Unit normal of the hit mesh face in the world frame, as the mesh's
+        winding orients it (outward for a watertight mesh).
+    slope : float
+        ``n_y / n_x`` with ``n_x = -n . x_tc``, ``n_y = -n . y_tc`` the face normal
+        projected on the shaft frame's axes at contact (Eq 6.12-6.14); ``+-inf``
+        when ``n_x = 0`` (NaN when both are 0).
+    whisker_length_m : float
+        Length of the whisker, metres.
+    frame : ndarray (4, 4)
+        Shaft frame at contact ``T_BWi Rz(theta_c)`` in the world (Eq 5.1);
+        ``point = frame[:3, 3] + radial_distance_m * frame[:3, 1]``.
+    face : int
+        Index of the hit mesh face.
+    tip_contact : bool
+        True when the contact was found by a tip chord rather than by the shaft
+        (the contact point then lies at the tip, radial distance ~ length).
+    """
+
+    module: str
+    angle_rad: float
+    radial_distance_m: float
+    point: NDArray[np.float64]
+    normal: NDArray[np.float64]
+    slope: float
+    whisker_length_m: float
+    frame: NDArray[np.float64]
+    face: int
+    tip_contact: bool = False
+
+
+def _slope(normal: NDArray[np.float64], frame: NDArray[np.float64]) -> float:
+    """Eq 6.12-6.14: ``slope = n_y / n_x`` in the shaft frame at contact."""
+    nx = -float(normal @ frame[:3, 0])
+    ny = -float(normal @ frame[:3, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.float64(ny) / np.float64(nx))
+
+
+class _SweepRays:
+    """Builds and casts the shaft + chord rays for a set of whiskers and angle grids."""
+
+    def __init__(
+        self, target: MeshTarget, base: NDArray, X: NDArray, Y: NDArray, L: NDArray, chords: bool
+    ) -> None:
+        self.target, self.base, self.X, self.Y, self.L = target, base, X, Y, L
+        self.chords = chords
+
+    def directions(self, idx: NDArray, phi: NDArray) -> NDArray:
+        """Unit shaft directions (W, K, 3) of whiskers ``idx`` at angles ``phi`` (W, K)."""
+        return np.cos(phi)[..., None] * self.Y[idx, None] - np.sin(phi)[..., None] * self.X[idx, None]
+
+    def cast(self, idx: NDArray, phi: NDArray) -> dict[str, NDArray]:
+        """Shaft rays at every ``phi`` column and chords between consecutive columns."""
+        W, K1 = phi.shape
+        d = self.directions(idx, phi)  # (W, K1, 3)
+        base = np.broadcast_to(self.base[idx, None], d.shape)
+        L = np.broadcast_to(self.L[idx, None], (W, K1))
+        origins = [base.reshape(-1, 3)]
+        dirs = [d.reshape(-1, 3)]
+        maxd = [L.reshape(-1)]
+        if self.chords and K1 > 1:
+            tips = base + L[..., None] * d
+            chord = tips[:, 1:] - tips[:, :-1]
+            clen = np.linalg.norm(chord, axis=-1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                cdir = chord / clen[..., None]
+            cdir = np.nan_to_num(cdir)
+            origins.append(tips[:, :-1].reshape(-1, 3))
+            dirs.append(cdir.reshape(-1, 3))
+            maxd.append(clen.reshape(-1))
+        dist, face, loc = self.target.first_hits(
+            np.concatenate(origins), np.concatenate(dirs), np.concatenate(maxd)
+        )
+        n_shaft = W * K1
+        out = {
+            "s_dist": dist[:n_shaft].reshape(W, K1),
+            "s_face": face[:n_shaft].reshape(W, K1),
+            "s_loc": loc[:n_shaft].reshape(W, K1, 3),
+        }
+        if self.chords and K1 > 1:
+            out["c_face"] = face[n_shaft:].reshape(W, K1 - 1)
+            out["c_loc"] = loc[n_shaft:].reshape(W, K1 - 1, 3)
+        else:
+            out["c_face"] = np.full((W, max(K1 - 1, 0)), -1, dtype=np.int64)
+            out["c_loc"] = np.full((W, max(K1 - 1, 0), 3), np.nan)
+        return out
+
+
+def _first_interval(hits: dict[str, NDArray]) -> NDArray[np.int64]:
+    """Index k of the first interval [phi_k, phi_k+1] in contact per row, -1 if none."""
+    contact = (hits["s_face"][:, 1:] >= 0) | (hits["c_face"] >= 0)
+    first = np.argmax(contact, axis=1)
+    return np.where(contact.any(axis=1), first, -1)
+
+
+def sweep_array(
+    array: WhiskerArray,
+    target: MeshTarget | trimesh.Trimesh,
+    pose: Pose,
+    params: SweepParams = SweepParams(),
+) -> tuple[SweepContact | None, ...]:
+    """Sweep every whisker from retraction to protraction and return its first contact.
+
+    Parameters
+    ----------
+    array : WhiskerArray
+        Array geometry (base frames, lengths, whisk range).
+    target : MeshTarget or trimesh.Trimesh
+        The obstacle in the world frame. Pass a :class:`MeshTarget` when sweeping
+        the same mesh repeatedly (a bare mesh builds its intersector each call).
+    pose : Pose
+        End-effector pose ``T_BE`` (4x4, or position + scalar-last quaternion).
+    params : SweepParams
+
+    Returns
+    -------
+    tuple of (SweepContact or None), length N
+        In array order; ``None`` for a whisker that touches nothing.
+    """
+    if not isinstance(target, MeshTarget):
+        target = MeshTarget(target)
+    T_BW = whisker_base_transforms(array, as_transform(pose))
+    base, X, Y = T_BW[:, :3, 3], T_BW[:, :3, 0], T_BW[:, :3, 1]
+    L = array.lengths_m
+    rays = _SweepRays(target, base, X, Y, L, params.tip_chords)
+    N = len(array)
+    all_idx = np.arange(N)
+
+    grid = array.whisk_angles(params.step_rad)
+    phi = np.broadcast_to(grid, (N, grid.size))
+    hits = rays.cast(all_idx, phi)
+
+    # per whisker: bracket [lo, hi] and the hit information at hi
+    lo = np.full(N, np.nan)
+    hi = np.full(N, np.nan)
+    s_face = np.full(N, -1, dtype=np.int64)
+    s_loc = np.full((N, 3), np.nan)
+    c_face = np.full(N, -1, dtype=np.int64)
+    c_loc = np.full((N, 3), np.nan)
+
+    at_start = hits["s_face"][:, 0] >= 0
+    k = _first_interval(hits)
+    found = at_start | (k >= 0)
+    for i in np.flatnonzero(at_start):
+        lo[i] = hi[i] = grid[0]
+        s_face[i], s_loc[i] = hits["s_face"][i, 0], hits["s_loc"][i, 0]
+    refine_idx = np.flatnonzero(~at_start & (k >= 0))
+    kk = k[refine_idx]
+    lo[refine_idx] = grid[kk]
+    hi[refine_idx] = grid[kk + 1]
+    s_face[refine_idx] = hits["s_face"][refine_idx, kk + 1]
+    s_loc[refine_idx] = hits["s_loc"][refine_idx, kk + 1]
+    c_face[refine_idx] = hits["c_face"][refine_idx, kk]
+    c_loc[refine_idx] = hits["c_loc"][refine_idx, kk]
+
+    if params.refine:
+        K = int(params.refine_subdivisions)
+        active = refine_idx
+        while active.size:
+            active = active[(hi[active] - lo[active]) > params.angle_tolerance_rad]
+            if not active.size:
+                break
+            frac = np.linspace(0.0, 1.0, K + 1)
+            sub = lo[active, None] + (hi[active] - lo[active])[:, None] * frac
+            h = rays.cast(active, sub)
+            ks = _first_interval(h)
+            lost = ks < 0
+            if lost.any():  # sub-chords missed a sliver the parent chord hit: keep bracket
+                logger.debug("refinement lost contact for modules %s", active[lost])
+            ok = ~lost
+            a, kk = active[ok], ks[ok]
+            rows = np.flatnonzero(ok)
+            lo[a] = sub[rows, kk]
+            hi[a] = sub[rows, kk + 1]
+            s_face[a] = h["s_face"][rows, kk + 1]
+            s_loc[a] = h["s_loc"][rows, kk + 1]
+            c_face[a] = h["c_face"][rows, kk]
+            c_loc[a] = h["c_loc"][rows, kk]
+            active = a
+
+    frames = T_BW @ rot_z(np.nan_to_num(hi))
+    normals = target.face_normals
+    out: list[SweepContact | None] = []
+    for i, module in enumerate(array.modules):
+        if not found[i]:
+            out.append(None)
+            continue
+        tip = s_face[i] < 0
+        f = int(c_face[i] if tip else s_face[i])
+        p = (c_loc[i] if tip else s_loc[i]).copy()
+        r = float(np.linalg.norm(p - base[i]))
+        n = normals[f].copy()
+        out.append(
+            SweepContact(
+                module=module.name,
+                angle_rad=float(hi[i]),
+                radial_distance_m=r,
+                point=p,
+                normal=n,
+                slope=_slope(n, frames[i]),
+                whisker_length_m=float(L[i]),
+                frame=frames[i].copy(),
+                face=f,
+                tip_contact=bool(tip),
+            )
+        )
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class ContactNoise:
+    """Contact-feature noise of the Ch.6 simulation (Sec 6.1.3.1.2, SPEC §4.7).
+
+    Attributes
+    ----------
+    position_sigma_fraction : float
+        Standard deviation of the contact-position noise as a fraction of the
+        whisker length (thesis: 0.25, "N(0, r_eta), r_eta = 25 % of the whisker's
+        length").
+    position_mode : {"shaft", "isotropic"}
+        ``"shaft"`` (default, decision): the noise perturbs the radial distance
+        along the shaft, because the estimated quantity is the radial distance
+        (the angle is measured); the result is clipped to ``[0, length]`` so the
+        point stays on the whisker. ``"isotropic"``: independent N(0, sigma) on
+        each world coordinate.
+    slope_sigma : float
+        Standard deviation of additive slope noise (thesis: 0.33).
+    registration_probability : float
+        Probability a contact is registered at all (thesis: 0.98).
+    """
+
+    position_sigma_fraction: float = 0.25
+    position_mode: Literal["shaft", "isotropic"] = "shaft"
+    slope_sigma: float = 0.33
+    registration_probability: float = 0.98
+
+    def __post_init__(self) -> None:
+        if self.position_mode not in ("shaft", "isotropic"):
+            raise InvalidInputError(
+                f"position_mode must be 'shaft' or 'isotropic', got {self.position_mode!r}"
+            )
+        if not (self.position_sigma_fraction >= 0 and self.slope_sigma >= 0):
+            raise InvalidInputError("noise standard deviations must be >= 0")
+        if not (0.0 <= self.registration_probability <= 1.0):
+            raise InvalidInputError(
+                f"registration_probability must be in [0, 1], got {self.registration_probability!r}"
+            )
+
+
+def add_contact_noise(
+    contacts: Sequence[SweepContact | None],
+    noise: ContactNoise = ContactNoise(),
+    rng: np.random.Generator | int | None = None,
+) -> tuple[SweepContact | None, ...]:
+    """Apply the Sec 6.1.3.1.2 noise model to sweep contacts (new objects; inputs untouched).
+
+    Each contact is dropped (``None``) with probability ``1 - registration_probability``;
+    otherwise its position is perturbed (see :class:`ContactNoise`) and
+    ``slope`` gets additive N(0, ``slope_sigma``) noise. Angle, normal and frame
+    are kept (they are measured, not estimated).
+
+    Parameters
+    ----------
+    contacts : sequence of SweepContact or None
+    noise : ContactNoise
+    rng : numpy Generator or int seed, optional
+        Source of randomness; pass a seed for reproducible noise.
+
+    Returns
+    -------
+    tuple of (SweepContact or None), same length as ``contacts``
+    """
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    out: list[SweepContact | None] = []
+    for c in contacts:
+        # draw the same number of variates per slot so results do not depend on earlier drops
+        keep = gen.random() < noise.registration_probability
+        e_pos = gen.normal(0.0, 1.0, size=3)
+        e_slope = gen.normal(0.0, 1.0)
+        if c is None or not keep:
+            out.append(None)
+            continue
+        sigma = noise.position_sigma_fraction * c.whisker_length_m
+        base = c.frame[:3, 3]
+        shaft = c.frame[:3, 1]
+        if noise.position_mode == "shaft":
+            r = float(np.clip(c.radial_distance_m + sigma * e_pos[0], 0.0, c.whisker_length_m))
+            point = base + r * shaft
+        else:
+            point = c.point + sigma * e_pos
+            r = float((point - base) @ shaft)
+        out.append(
+            replace(c, point=point, radial_distance_m=r, slope=c.slope + noise.slope_sigma * e_slope)
+        )
+    return tuple(out)
