@@ -1,0 +1,304 @@
+"""A fake UR RTDE server for tests, run as a *separate process* on 127.0.0.1.
+
+It speaks enough of the Universal Robots Real-Time Data Exchange protocol
+(RTDE, TCP port 30004, protocol version 2) for ``ur_rtde``'s unmodified
+``RTDEReceiveInterface`` to connect and receive a stream of robot states:
+
+======  ====================================  =====================================
+ type    request (client -> server)            reply (server -> client)
+======  ====================================  =====================================
+ ``V``   uint16 protocol version               uint8 accepted (1)
+ ``v``   (empty)                               4 x uint32 major, minor, bugfix, build
+ ``O``   float64 frequency + ``name,name,..``  uint8 recipe id + ``TYPE,TYPE,...``
+ ``I``   ``name,name,...``                     uint8 recipe id + ``TYPE,...``
+ ``S``   (empty)                               uint8 accepted; data packages follow
+ ``P``   (empty)                               uint8 accepted; data packages stop
+ ``U``   (server -> client) data package       uint8 recipe id + values, big-endian
+======  ====================================  =====================================
+
+Every package starts with a 3-byte header: big-endian uint16 total size
+(header included) and a uint8 type. Values in a data package are packed in
+recipe order, big-endian: DOUBLE ``d``, VECTOR3D ``3d``, VECTOR6D ``6d``,
+INT32 ``i``, UINT32 ``I``, VECTOR6INT32 ``6i``, VECTOR6UINT32 ``6I``,
+UINT64 ``Q``, UINT8 ``B``, BOOL ``?``.
+
+Why a separate process: the ``ur_rtde`` constructor is a C++ call that holds
+the Python interpreter lock while it blocks on the socket, so a server in a
+thread of the same interpreter can never answer it (deadlock).
+
+Modes (``--mode``):
+
+``stream``
+    Normal: answer the handshake and stream states at the requested frequency.
+    The TCP pose moves slowly on a circle of radius ``--radius`` m around
+    ``--centre`` so a client can see it change; ``timestamp`` advances by
+    ``1/frequency`` per package.
+``silent``
+    Accept connections and never answer (a hung controller), for the probe test.
+``freeze``
+    Answer the handshake, stream ``--packages`` packages, then keep the socket
+    open without sending anything (a link that stalls without closing).
+
+On start it prints ``READY <port>`` on stdout (and flushes) once listening, so
+a parent waits on that line instead of sleeping. It binds 127.0.0.1 only.
+
+Run: ``python -m whisker_io.hw.fake_rtde_server --port 30004``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import socket
+import struct
+import sys
+import threading
+import time
+
+__all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main"]
+
+_LOG = logging.getLogger(__name__)
+
+#: TCP port of the RTDE interface on a UR controller (fixed by ur_rtde).
+RTDE_PORT = 30004
+
+#: struct format (without byte order) of each RTDE type.
+TYPE_FORMATS = {
+    "DOUBLE": "d",
+    "VECTOR3D": "3d",
+    "VECTOR6D": "6d",
+    "INT32": "i",
+    "UINT32": "I",
+    "VECTOR6INT32": "6i",
+    "VECTOR6UINT32": "6I",
+    "UINT64": "Q",
+    "UINT8": "B",
+    "BOOL": "?",
+}
+
+_VECTOR6D = {
+    "target_q", "target_qd", "target_qdd", "target_current", "target_moment",
+    "actual_q", "actual_qd", "actual_current", "joint_control_output",
+    "actual_TCP_pose", "actual_TCP_speed", "actual_TCP_force", "target_TCP_pose",
+    "target_TCP_speed", "joint_temperatures", "actual_joint_voltage",
+    "ft_raw_wrench", "actual_current_window",
+}
+_DOUBLE = {
+    "timestamp", "actual_execution_time", "speed_scaling", "target_speed_fraction",
+    "actual_momentum", "actual_main_voltage", "actual_robot_voltage",
+    "actual_robot_current", "standard_analog_input0", "standard_analog_input1",
+    "standard_analog_output0", "standard_analog_output1", "tool_analog_input0",
+    "tool_analog_input1", "tool_output_current", "tool_temperature", "payload",
+}
+_INT32 = {"robot_mode", "safety_mode", "tool_mode"}
+_UINT32 = {"runtime_state", "robot_status_bits", "safety_status_bits", "safety_status",
+           "analog_io_types", "io_current"}
+_UINT64 = {"actual_digital_input_bits", "actual_digital_output_bits"}
+
+
+def variable_type(name: str) -> str:
+    """RTDE type name of an output/input variable, ``"NOT_FOUND"`` if unknown."""
+    if name in _VECTOR6D:
+        return "VECTOR6D"
+    if name in _DOUBLE or name.startswith("output_double_register_") \
+            or name.startswith("input_double_register_"):
+        return "DOUBLE"
+    if name in _INT32 or name.startswith("output_int_register_") \
+            or name.startswith("input_int_register_"):
+        return "INT32"
+    if name in _UINT32 or name.startswith("input_bit_registers"):
+        return "UINT32"
+    if name in _UINT64:
+        return "UINT64"
+    if name in ("joint_mode",):
+        return "VECTOR6INT32"
+    if name in ("actual_tool_accelerometer", "payload_cog"):
+        return "VECTOR3D"
+    if name.startswith("output_bit_register") or name.startswith("input_bit_register_"):
+        return "BOOL"
+    if name in ("speed_slider_mask", "standard_digital_output_mask",
+                "standard_digital_output", "tool_digital_output_mask",
+                "tool_digital_output"):
+        return "UINT8" if "digital" in name else "UINT32"
+    if name == "speed_slider_fraction":
+        return "DOUBLE"
+    return "NOT_FOUND"
+
+
+def _pack(ptype: str, payload: bytes) -> bytes:
+    return struct.pack(">HB", 3 + len(payload), ord(ptype)) + payload
+
+
+def _recv_exact(conn: socket.socket, n: int) -> bytes | None:
+    buf = b""
+    while len(buf) < n:
+        chunk = conn.recv(n - len(buf))
+        if not chunk:
+            return None
+        buf += chunk
+    return buf
+
+
+class _State:
+    """The simulated robot: a TCP pose moving on a circle, joints drifting."""
+
+    def __init__(self, centre: tuple[float, float, float], radius: float, period: float):
+        self.centre = centre
+        self.radius = radius
+        self.period = period
+
+    def value(self, name: str, t: float):
+        phase = 2.0 * math.pi * t / self.period
+        if name == "timestamp":
+            return (t,)
+        if name in ("actual_TCP_pose", "target_TCP_pose"):
+            cx, cy, cz = self.centre
+            return (cx + self.radius * math.cos(phase), cy + self.radius * math.sin(phase),
+                    cz, 0.0, math.pi, 0.0)
+        if name in ("actual_q", "target_q"):
+            return tuple(0.1 * math.sin(phase) + k * 0.2 for k in range(6))
+        if name in ("robot_mode",):
+            return (7,)  # RUNNING
+        if name in ("safety_mode",):
+            return (1,)  # NORMAL
+        if name == "speed_scaling" or name == "target_speed_fraction":
+            return (1.0,)
+        return None  # zeros of the right type
+
+
+def _values(names: list[str], types: list[str], state: _State, t: float) -> bytes:
+    out = [b"\x01"]  # recipe id
+    for name, typ in zip(names, types):
+        fmt = TYPE_FORMATS[typ]
+        v = state.value(name, t)
+        if v is None:
+            count = int(fmt[:-1]) if len(fmt) > 1 else 1
+            v = (False,) * count if fmt[-1] == "?" else (0,) * count
+        out.append(struct.pack(">" + fmt, *v))
+    return b"".join(out)
+
+
+def _serve_client(conn: socket.socket, args: argparse.Namespace, state: _State,
+                  stop: threading.Event) -> None:
+    names: list[str] = []
+    types: list[str] = []
+    frequency = 125.0
+    streaming = threading.Event()
+    sender: threading.Thread | None = None
+    lock = threading.Lock()
+
+    def stream() -> None:
+        k = 0
+        t0 = time.monotonic()
+        while not stop.is_set() and streaming.is_set():
+            if args.mode == "freeze" and k >= args.packages:
+                streaming.wait(3600)  # stall forever with the socket open
+                return
+            t = k / frequency
+            pkg = _pack("U", _values(names, types, state, t))
+            try:
+                with lock:
+                    conn.sendall(pkg)
+            except OSError:
+                return
+            k += 1
+            delay = t0 + k / frequency - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    try:
+        while not stop.is_set():
+            header = _recv_exact(conn, 3)
+            if header is None:
+                return
+            size, ptype = struct.unpack(">HB", header)
+            body = _recv_exact(conn, size - 3) if size > 3 else b""
+            if body is None:
+                return
+            cmd = chr(ptype)
+            if cmd == "V":
+                reply = _pack("V", b"\x01")
+            elif cmd == "v":
+                reply = _pack("v", struct.pack(">IIII", 5, 9, 0, 0))
+            elif cmd == "O":
+                frequency = struct.unpack(">d", body[:8])[0] if len(body) >= 8 else 125.0
+                if not (0 < frequency <= 500):
+                    frequency = 125.0
+                names = [n for n in body[8:].decode("ascii").split(",") if n]
+                types = [variable_type(n) for n in names]
+                reply = _pack("O", b"\x01" + ",".join(types).encode("ascii"))
+            elif cmd == "I":
+                in_names = [n for n in body.decode("ascii").split(",") if n]
+                in_types = [variable_type(n) for n in in_names]
+                reply = _pack("I", b"\x02" + ",".join(in_types).encode("ascii"))
+            elif cmd == "S":
+                ok = "NOT_FOUND" not in types
+                reply = _pack("S", b"\x01" if ok else b"\x00")
+                if ok and not streaming.is_set():
+                    streaming.set()
+                    sender = threading.Thread(target=stream, daemon=True)
+                    with lock:
+                        conn.sendall(reply)
+                    sender.start()
+                    continue
+            elif cmd == "P":
+                streaming.clear()
+                reply = _pack("P", b"\x01")
+            else:  # inputs from the client (data packages) are ignored
+                continue
+            with lock:
+                conn.sendall(reply)
+    except OSError:
+        return
+    finally:
+        streaming.clear()
+        try:
+            conn.close()
+        except OSError:
+            pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the fake server until killed. See the module docstring for options."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--port", type=int, default=RTDE_PORT)
+    p.add_argument("--mode", choices=("stream", "silent", "freeze"), default="stream")
+    p.add_argument("--packages", type=int, default=50,
+                   help="freeze mode: number of packages streamed before stalling")
+    p.add_argument("--centre", type=float, nargs=3, default=(0.4, 0.0, 0.4))
+    p.add_argument("--radius", type=float, default=0.05)
+    p.add_argument("--period", type=float, default=20.0)
+    args = p.parse_args(argv)
+    state = _State(tuple(args.centre), args.radius, args.period)
+    srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        srv.bind(("127.0.0.1", args.port))
+    except OSError as exc:
+        sys.stdout.write(f"BIND-FAILED {exc}\n")
+        sys.stdout.flush()
+        return 2
+    srv.listen(8)
+    sys.stdout.write(f"READY {srv.getsockname()[1]}\n")
+    sys.stdout.flush()
+    stop = threading.Event()
+    held: list[socket.socket] = []
+    try:
+        while True:
+            conn, _ = srv.accept()
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            if args.mode == "silent":
+                held.append(conn)  # keep it open, never answer
+                continue
+            threading.Thread(target=_serve_client, args=(conn, args, state, stop),
+                             daemon=True).start()
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        stop.set()
+        srv.close()
+
+
+if __name__ == "__main__":  # pragma: no cover - run as a subprocess
+    sys.exit(main())

@@ -1,0 +1,197 @@
+"""Crash-safe recording of live sessions, and replay through the same pipeline.
+
+:class:`Recorder` writes each whisk cycle as it arrives, with the session
+format of :mod:`whisker_io.recording` (per-module whisk CSVs written to a
+temporary name, fsynced and renamed; then the fsynced pose-log line). After a
+crash or an unplugged cable every completed whisk is on disk, complete, and
+readable by :func:`whisker_io.recording.replay`; a whisk in progress leaves
+nothing behind.
+
+A *pipeline* is any callable taking a
+:class:`~whisker_io.recording.ReplayedCycle` (pose-log entry + module
+records). The recorder hands every live cycle to it right after the cycle is
+on disk, and :func:`replay_session` hands every recorded cycle to it in the
+same form, so live and replayed data take the same path.
+
+:func:`explore` is the acquisition loop shared by the simulated and the
+hardware examples: move, whisk, record, guard.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Callable, Iterable, Optional, Sequence
+
+import numpy as np
+
+from whisker_io.errors import InvalidInputError
+from whisker_io.hw.arm import Arm, ArmState
+from whisker_io.hw.pose import PoseLike
+from whisker_io.hw.usb_array import Array
+from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle, WhiskRecord,
+                                  read_pose_log, replay)
+
+__all__ = ["Pipeline", "Recorder", "explore", "replay_session"]
+
+_LOG = logging.getLogger(__name__)
+
+Pipeline = Callable[[ReplayedCycle], Any]
+"""Consumer of whisk cycles, live or replayed."""
+
+
+class Recorder:
+    """Writes whisk cycles and poses to a session directory as they arrive.
+
+    Parameters
+    ----------
+    directory : path-like
+        Session directory (created if missing). An existing session is
+        resumed: cycle numbering continues after its last pose-log line.
+    pipeline : callable, optional
+        Called with each cycle (a ``ReplayedCycle``) once it is on disk; its
+        return values are collected in :attr:`results`.
+
+    Attributes
+    ----------
+    n_cycles : int
+        Cycles written by this recorder.
+    results : list
+        Pipeline outputs, one per cycle.
+
+    Notes
+    -----
+    Cycles are numbered by the recorder (0, 1, 2, ... in arrival order), not
+    by the device, so a device restart cannot overwrite earlier files.
+    Use as a context manager: on any exception the pose log is closed and
+    everything written so far stays valid.
+    """
+
+    def __init__(self, directory: str | os.PathLike[str],
+                 pipeline: Optional[Pipeline] = None) -> None:
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        log_path = self.directory / POSE_LOG_NAME
+        existing = read_pose_log(log_path) if log_path.exists() and log_path.stat().st_size else []
+        self._next_cycle = (max(int(e.whisk_file.rsplit("_", 1)[-1]) for e in existing) + 1
+                            if existing else 0)
+        self._writer = RecordingWriter(self.directory)
+        self._pipeline = pipeline
+        self.n_cycles = 0
+        self.results: list[Any] = []
+        self.closed = False
+
+    def record(self, state: ArmState, records: Sequence[WhiskRecord]) -> ReplayedCycle:
+        """Write one whisk cycle with the arm state it was taken at.
+
+        Parameters
+        ----------
+        state : ArmState
+            Its ``timestamp`` (s) and ``pose`` go to the pose log.
+        records : sequence of WhiskRecord
+            One per module, from :meth:`Array.read_whisk`.
+
+        Returns
+        -------
+        ReplayedCycle
+            The cycle exactly as :func:`replay_session` will yield it.
+
+        Raises
+        ------
+        InvalidInputError
+            Recorder closed, no records, or a time earlier than the previous
+            cycle's; nothing is written then.
+        """
+        if self.closed:
+            raise InvalidInputError(f"recorder for {self.directory} is closed")
+        cycle = self._next_cycle
+        relabelled = [r if r.cycle == cycle else _with_cycle(r, cycle) for r in records]
+        entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
+                                         position_m=state.pose.position,
+                                         quaternion_xyzw=state.pose.quaternion)
+        self._next_cycle += 1
+        self.n_cycles += 1
+        item = ReplayedCycle(pose=entry, records=MappingProxyType(
+            {r.module: r for r in sorted(relabelled, key=lambda r: r.module)}))
+        if self._pipeline is not None:
+            self.results.append(self._pipeline(item))
+        return item
+
+    def close(self) -> None:
+        """Close the pose log (idempotent). Files already written stay valid."""
+        if not self.closed:
+            self._writer.close()
+            self.closed = True
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def _with_cycle(record: WhiskRecord, cycle: int) -> WhiskRecord:
+    return WhiskRecord(record.module, record.angle_rad, record.x_counts, record.y_counts,
+                       sample_rate_hz=record.sample_rate_hz, cycle=cycle, spare=record.spare)
+
+
+def replay_session(directory: str | os.PathLike[str], pipeline: Pipeline) -> list[Any]:
+    """Drive ``pipeline`` with every cycle of a recorded session, in order.
+
+    The pipeline receives the same :class:`ReplayedCycle` objects it received
+    live from :class:`Recorder` (same poses, same samples, bit for bit).
+
+    Returns
+    -------
+    list
+        The pipeline's outputs, one per cycle.
+    """
+    return [pipeline(cycle) for cycle in replay(directory)]
+
+
+def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLike], *,
+            progress: bool = True, description: str = "exploring") -> int:
+    """Visit each target pose, take one whisk there, record it.
+
+    For each target: ``arm.move_linear(target)`` (checked by the arm's
+    safety envelope) -> ``array.read_whisk()`` -> a fresh ``arm.state()``
+    (stale or lost state raises here) -> ``recorder.record`` (on disk before
+    anything else can fail) -> ``arm.guard_deflection`` (stops the arm on
+    overload). This is the one loop used for the simulator and the robot.
+
+    Parameters
+    ----------
+    progress : bool
+        Show a tqdm progress bar.
+
+    Returns
+    -------
+    int
+        Number of cycles recorded.
+
+    Raises
+    ------
+    HardwareError
+        Any arm/array fault or safety refusal. The arm has been stopped and
+        every cycle completed before the fault is on disk; close the recorder
+        (or use it as a context manager) and inspect the error.
+    """
+    from tqdm.auto import tqdm
+
+    targets = list(targets)
+    n = 0
+    try:
+        for target in tqdm(targets, desc=description, disable=not progress, unit="whisk"):
+            arm.move_linear(target)
+            records = array.read_whisk()
+            state = arm.state()
+            recorder.record(state, records)
+            n += 1
+            arm.guard_deflection(np.concatenate([np.concatenate([r.x_counts, r.y_counts])
+                                                 for r in records]))
+    except BaseException:
+        arm.safe_stop()
+        raise
+    return n
