@@ -35,8 +35,10 @@ base on every side. Reduce ``step_rad`` for such scenes.
 
 Ray casting uses trimesh: Embree (``trimesh.ray.ray_pyembree`` through the
 ``embreex`` package, float32 BVH, hit points recomputed in float64) when
-available, otherwise ``trimesh.ray.ray_triangle`` (pure numpy/rtree, exact
-float64, much slower). :class:`MeshTarget` builds the intersector once.
+available, otherwise the exact float64 test of ``trimesh.ray.ray_triangle``
+(plane intersection + barycentric check) on candidate triangles from trimesh's
+r-tree, queried in bulk with each segment's bounding box (about 50x slower than
+Embree). :class:`MeshTarget` builds the intersector once.
 """
 
 from __future__ import annotations
@@ -113,11 +115,7 @@ class MeshTarget:
                 )
             from trimesh.ray.ray_pyembree import RayMeshIntersector as _Embree
 
-            self._intersector = _Embree(mesh)
-        else:
-            from trimesh.ray.ray_triangle import RayMeshIntersector as _Triangle
-
-            self._intersector = _Triangle(mesh)
+            self._embree = _Embree(mesh)
         self.mesh = mesh
         self.engine: str = engine
         self._bounds = np.asarray(mesh.bounds, dtype=float)
@@ -155,32 +153,69 @@ class MeshTarget:
         distance = np.full(R, np.inf)
         face = np.full(R, -1, dtype=np.int64)
         location = np.full((R, 3), np.nan)
-        # cull segments whose bounding box misses the mesh's (cheap, helps the slow engine)
         ends = origins + directions * max_distance[:, None]
         lo = np.minimum(origins, ends)
         hi = np.maximum(origins, ends)
-        live = np.flatnonzero(
-            np.all(hi >= self._bounds[0] - 1e-9, axis=1)
-            & np.all(lo <= self._bounds[1] + 1e-9, axis=1)
-        )
-        if live.size == 0:
-            return distance, face, location
-        tri, ray, loc = self._intersector.intersects_id(
-            origins[live],
-            directions[live],
-            multiple_hits=False,
-            return_locations=True,
-        )
+        if self.engine == "embree":
+            # cull segments whose bounding box misses the mesh's, then first hit per ray
+            live = np.flatnonzero(
+                np.all(hi >= self._bounds[0] - 1e-9, axis=1)
+                & np.all(lo <= self._bounds[1] + 1e-9, axis=1)
+            )
+            if live.size == 0:
+                return distance, face, location
+            tri, ray, loc = self._embree.intersects_id(
+                origins[live], directions[live], multiple_hits=False, return_locations=True
+            )
+            ray = live[ray]
+        else:
+            tri, ray, loc = self._segment_candidates_hits(origins, directions, lo, hi)
         if len(ray) == 0:
             return distance, face, location
-        idx = live[ray]
-        d = np.einsum("ij,ij->i", loc - origins[idx], directions[idx])
-        ok = (d >= 0.0) & (d <= max_distance[idx] * (1.0 + 1e-12) + 1e-12)
-        idx, d, tri, loc = idx[ok], d[ok], tri[ok], loc[ok]
-        distance[idx] = d
-        face[idx] = tri
-        location[idx] = loc
+        d = np.einsum("ij,ij->i", loc - origins[ray], directions[ray])
+        ok = (d >= -1e-12) & (d <= max_distance[ray] * (1.0 + 1e-12) + 1e-12)
+        ray, d, tri, loc = ray[ok], d[ok], tri[ok], loc[ok]
+        if len(ray) == 0:
+            return distance, face, location
+        # nearest hit per ray (embree already gives one; the triangle path may give several)
+        order = np.lexsort((d, ray))
+        ray, d, tri, loc = ray[order], d[order], tri[order], loc[order]
+        first = np.r_[True, ray[1:] != ray[:-1]]
+        ray, d, tri, loc = ray[first], d[first], tri[first], loc[first]
+        distance[ray] = np.maximum(d, 0.0)
+        face[ray] = tri
+        location[ray] = loc
         return distance, face, location
+
+    def _segment_candidates_hits(
+        self, origins: NDArray, directions: NDArray, lo: NDArray, hi: NDArray
+    ) -> tuple[NDArray, NDArray, NDArray]:
+        """All segment/triangle hits in float64, the test of ``trimesh.ray.ray_triangle``
+        (plane intersection + barycentric inside check) on candidates from one bulk query
+        of trimesh's r-tree of triangle bounds with each *segment's* bounding box (trimesh's
+        own intersector uses the infinite ray's box, which makes it far slower here)."""
+        from trimesh import intersections, triangles as tri_mod
+        from trimesh.constants import tol
+
+        pad = 1e-9
+        cand, counts = self.mesh.triangles_tree.intersection_v(lo - pad, hi + pad)
+        ray = np.repeat(np.arange(len(origins)), counts.astype(np.int64))
+        cand = np.asarray(cand, dtype=np.int64)
+        if cand.size == 0:
+            return cand, ray, np.zeros((0, 3))
+        tris = self.mesh.triangles[cand]
+        loc, valid = intersections.planes_lines(
+            plane_origins=tris[:, 0],
+            plane_normals=self._normals[cand],
+            line_origins=origins[ray],
+            line_directions=directions[ray],
+        )
+        cand, ray, tris = cand[valid], ray[valid], tris[valid]
+        if cand.size == 0:
+            return cand, ray, np.zeros((0, 3))
+        bary = tri_mod.points_to_barycentric(tris, loc)
+        inside = np.all(bary > -tol.zero, axis=1) & np.all(bary < 1 + tol.zero, axis=1)
+        return cand[inside], ray[inside], loc[inside]
 
 
 @dataclass(frozen=True)
@@ -237,7 +272,10 @@ class SweepContact:
         Contact point in the world frame, metres.
     normal : ndarray (3,)
         Unit normal of the hit mesh face in the world frame, as the mesh's
-        winding orients it (outward for a watertight mesh).
+        winding orients it (outward for a watertight mesh). When the first touch
+        is exactly on an edge or vertex (common for the first touch of a convex
+        faceted surface) it is the normal of one of the faces meeting there;
+        which one may differ between ray engines.
     slope : float
         ``n_y / n_x`` with ``n_x = -n . x_tc``, ``n_y = -n . y_tc`` the face normal
         projected on the shaft frame's axes at contact (Eq 6.12-6.14); ``+-inf``
