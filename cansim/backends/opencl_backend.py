@@ -1,0 +1,731 @@
+"""OpenCL backend: pyopencl kernels for PoCL on CPUs and any OpenCL device elsewhere.
+
+The kernels are the gather forms of the numpy reference (:mod:`cansim.backends.numpy_backend`):
+
+* ``conv_*`` - one separable periodic 1-D pass (Alg 3/4). The reference scatters
+  ``out[i + j - c] += a[i] * taps[j]`` with wrap-around; here every output cell gathers
+  ``out[m] = sum_j taps[j] * a[m + c - j]`` (the reversed kernel), so no atomics are
+  needed, taps longer than the axis wrap and add up exactly as ``np.roll`` sums do, and
+  the taps are visited in the reference's order.
+* ``inhibit`` - the last inhibition pass fused with ``b = e - e (*) I`` (Alg 4,
+  OpenRatSLAM semantics), global inhibition ``max(b - phi, 0)`` (Alg 5) and one partial
+  sum per work-group; ``sum_partials`` reduces those to the total for normalisation.
+* ``shift_*`` - the fractional shift of SPEC §1.4 over up to three axes in one gather:
+  the product of the 1-D splits ``(1 - f, f)`` over the ``2^k`` neighbour corners. The
+  split of a cell is looked up by its *condition index* (the flat index over the axes
+  that are not shifted), so one kernel serves the uniform shift (one condition) and the
+  heading-conditional translation (one shift vector per orientation slice). It also
+  applies the normalisation ``/ total`` on the fly and writes the storage dtype.
+* ``scatter_set`` - writes a few precomputed cells (local-view injection).
+
+Numerics: cells are stored in the grid's dtype; every intermediate (the excited and
+inhibited activity, sums, split weights) is held in ``double`` when the device supports
+``cl_khr_fp64`` (PoCL and Intel CPU runtimes do), as the numpy reference does, and in
+``float`` otherwise (float32 grids only; results then agree with numpy to ~1e-6
+relative). Floating-point contraction is disabled, so with fp64 the convolutions are
+the same operations in the same order as numpy's.
+
+Decoding (argmax + population vector, Eq 5.11-5.12) and standalone injection run on the
+host: the backend contract hands activity back as a host array after every call, so the
+whole grid is on the host anyway and :func:`cansim.decoding.population_vector_window`
+there is exact (first-argmax tie-breaking in C order) and cheaper than a device
+reduction plus a second read-back.
+
+Device choice: ``OpenCLBackend(device=...)`` or the environment variable
+``CANSIM_OPENCL_DEVICE``, either ``"P:D"`` (platform and device index, as pyopencl's
+``PYOPENCL_CTX``) or a case-insensitive substring of ``"<platform name> <device name>"``.
+By default a GPU is preferred, then the other devices in platform order; a device whose
+OpenCL compiler fails on the kernels is passed over (PoCL 3.0 of
+``pocl-binary-distribution`` bundles LLVM 14, which rejects CPUs it does not know, e.g.
+AMD Zen 5: "unknown target CPU 'generic'").
+
+Nothing happens at import. The device is looked up when the backend is constructed; the
+context, queue and program are created on first use (or by :meth:`OpenCLBackend.prepare`)
+and the built program is cached per storage dtype. pyopencl and PoCL also keep on-disk
+binary caches (``PYOPENCL_CACHE_DIR`` / ``POCL_CACHE_DIR``), so only a process's first
+build after a change of kernel source pays the full compile.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Optional, Sequence, Union
+
+import numpy as np
+import pyopencl as cl
+
+from cansim.backends.base import Backend
+from cansim.decoding import population_vector_window
+from cansim.errors import BackendUnavailableError
+
+__all__ = ["OpenCLBackend", "DEVICE_ENV_VAR", "list_devices"]
+
+log = logging.getLogger(__name__)
+
+#: environment variable naming the OpenCL device ("P:D" or a name substring)
+DEVICE_ENV_VAR = "CANSIM_OPENCL_DEVICE"
+
+_INSTALL_HINT = 'pip install "cansim[opencl]" (pyopencl + pocl-binary-distribution, a CPU OpenCL platform)'
+
+#: most axes one shift pass handles (2^3 = 8 corners per cell); more are chunked
+_MAX_SHIFT_AXES = 3
+
+_SOURCE = r"""
+#ifdef NEED_FP64
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+#pragma OPENCL FP_CONTRACT OFF
+
+/* Gather form of the periodic scatter convolution out[i + j - c] += in[i] * taps[j]
+   along one axis (length n, element stride `stride`): out[m] = sum_j taps[j] in[m + c - j]. */
+#define CONV_GATHER(IN)                                                   \
+    const int coord = (gid / stride) % n;                                 \
+    const int base = gid - coord * stride;                                \
+    int src = (coord + c) % n;                                            \
+    ACC s = 0;                                                            \
+    for (int j = 0; j < w; ++j) {                                         \
+        s += taps[toff + j] * (ACC)IN[base + src * stride];               \
+        src = (src == 0) ? n - 1 : src - 1;                               \
+    }
+
+#define CONV_KERNEL(NAME, IN_T)                                           \
+__kernel void NAME(__global const IN_T *in, __global ACC *out,            \
+                   __global const ACC *taps, const int toff, const int w, \
+                   const int c, const int n, const int stride,            \
+                   const int total)                                       \
+{                                                                         \
+    const int gid = get_global_id(0);                                     \
+    if (gid >= total) return;                                             \
+    CONV_GATHER(in)                                                       \
+    out[gid] = s;                                                         \
+}
+
+CONV_KERNEL(conv_store, T)
+CONV_KERNEL(conv_acc, ACC)
+
+/* Last inhibition pass + b = e - e(*)I + global inhibition + per-group partial sums. */
+__kernel void inhibit(__global const ACC *in, __global const ACC *e, __global ACC *out,
+                      __global const ACC *taps, const int toff, const int w,
+                      const int c, const int n, const int stride, const int total, const ACC phi,
+                      __global ACC *partial, __local ACC *scratch)
+{
+    const int gid = get_global_id(0);
+    const int lid = get_local_id(0);
+    ACC v = 0;
+    if (gid < total) {
+        CONV_GATHER(in)
+        const ACC b = e[gid] - s;
+        v = (b >= phi) ? b - phi : (ACC)0;
+        out[gid] = v;
+    }
+    scratch[lid] = v;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int o = get_local_size(0) / 2; o > 0; o >>= 1) {
+        if (lid < o) scratch[lid] += scratch[lid + o];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) partial[get_group_id(0)] = scratch[0];
+}
+
+/* One work-group adds the partial sums in a fixed order: total[0]. */
+__kernel void sum_partials(__global const ACC *partial, const int m, __global ACC *total,
+                           __local ACC *scratch)
+{
+    const int lid = get_local_id(0);
+    const int L = get_local_size(0);
+    ACC s = 0;
+    for (int i = lid; i < m; i += L) s += partial[i];
+    scratch[lid] = s;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int o = L / 2; o > 0; o >>= 1) {
+        if (lid < o) scratch[lid] += scratch[lid + o];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) total[0] = scratch[0];
+}
+
+/* Fractional shift over k <= MAXK axes, gathered from the 2^k neighbour corners.
+   meta = [ndim, k, shape[ndim], stride[ndim], cstride[ndim], axes[k]];
+   table[(cond * k + q) * 2 + {0, 1}] = (integer part mod n, fraction) of axis q
+   for the condition index cond = sum_ax coord[ax] * cstride[ax].
+   Optionally divides by norm[0] (normalisation) before storing. */
+#define MAXK 3
+#define SHIFT_KERNEL(NAME, IN_T, OUT_T)                                   \
+__kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
+                   __global const int *meta, __global const ACC *table,   \
+                   const int toff, __global const ACC *norm,              \
+                   const int use_norm,          \
+                   const int total)                                       \
+{                                                                         \
+    const int gid = get_global_id(0);                                     \
+    if (gid >= total) return;                                             \
+    const int nd = meta[0], k = meta[1];                                  \
+    __global const int *shape = meta + 2, *stride = meta + 2 + nd;        \
+    __global const int *cstride = meta + 2 + 2 * nd;                      \
+    __global const int *axes = meta + 2 + 3 * nd;                         \
+    int cond = 0;                                                         \
+    for (int ax = 0; ax < nd; ++ax)                                       \
+        if (cstride[ax] != 0)                                             \
+            cond += ((gid / stride[ax]) % shape[ax]) * cstride[ax];       \
+    int base = gid, coord[MAXK], nq[MAXK], sq[MAXK], lo[MAXK];            \
+    ACC f[MAXK];                                                          \
+    for (int q = 0; q < k; ++q) {                                         \
+        nq[q] = shape[axes[q]];                                           \
+        sq[q] = stride[axes[q]];                                          \
+        coord[q] = (gid / sq[q]) % nq[q];                                 \
+        base -= coord[q] * sq[q];                                         \
+        lo[q] = (int)table[toff + (cond * k + q) * 2];                    \
+        f[q] = table[toff + (cond * k + q) * 2 + 1];                      \
+    }                                                                     \
+    ACC acc = 0;                                                          \
+    for (int corner = 0; corner < (1 << k); ++corner) {                   \
+        ACC wgt = 1;                                                      \
+        int off = base;                                                   \
+        for (int q = 0; q < k; ++q) {                                     \
+            const int bit = (corner >> q) & 1;                            \
+            wgt *= bit ? f[q] : (ACC)1 - f[q];                            \
+            int s = coord[q] - lo[q] - bit;                               \
+            if (s < 0) s += nq[q];                                        \
+            off += s * sq[q];                                             \
+        }                                                                 \
+        if (wgt != 0) acc += wgt * (ACC)in[off];                          \
+    }                                                                     \
+    if (use_norm) acc = acc / norm[0];                                    \
+    out[gid] = (OUT_T)acc;                                                \
+}
+
+SHIFT_KERNEL(shift_store_store, T, T)
+SHIFT_KERNEL(shift_store_acc, T, ACC)
+SHIFT_KERNEL(shift_acc_store, ACC, T)
+SHIFT_KERNEL(shift_acc_acc, ACC, ACC)
+
+/* a[idx[i]] = val[i] for distinct indices (injection, values computed on the host). */
+__kernel void scatter_set(__global T *a, __global const int *idx, __global const T *val,
+                          const int m)
+{
+    const int i = get_global_id(0);
+    if (i < m) a[idx[i]] = val[i];
+}
+"""
+
+
+# ----------------------------------------------------------------------------- devices
+def _platforms() -> list:
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error as exc:  # e.g. PLATFORM_NOT_FOUND_KHR from the ICD loader
+        raise BackendUnavailableError(
+            f"the opencl backend found no OpenCL platform ({exc}); run: {_INSTALL_HINT}"
+        ) from exc
+    if not platforms:
+        raise BackendUnavailableError(f"the opencl backend found no OpenCL platform; run: {_INSTALL_HINT}")
+    return list(platforms)
+
+
+def _devices_of(platform) -> list:
+    try:
+        return list(platform.get_devices())
+    except cl.Error:  # DEVICE_NOT_FOUND on a platform without devices
+        return []
+
+
+def list_devices() -> list[tuple[str, "cl.Device"]]:
+    """Every OpenCL device as ``("P:D <platform name> / <device name>", device)``.
+
+    Raises
+    ------
+    BackendUnavailableError
+        No OpenCL platform is installed.
+    """
+    out = []
+    for p_i, p in enumerate(_platforms()):
+        for d_i, d in enumerate(_devices_of(p)):
+            out.append((f"{p_i}:{d_i} {p.name.strip()} / {d.name.strip()}", d))
+    return out
+
+
+def _select_devices(spec: Union[str, "cl.Device", None]) -> tuple[list, bool]:
+    """Candidate devices in order of preference and whether the user chose explicitly."""
+    if isinstance(spec, cl.Device):
+        return [spec], True
+    if spec is None:
+        spec = os.environ.get(DEVICE_ENV_VAR) or None
+    devices = list_devices()
+    if not devices:
+        raise BackendUnavailableError(
+            f"the opencl backend found OpenCL platforms but no device; run: {_INSTALL_HINT}"
+        )
+    if spec is None:
+        gpus = [d for _, d in devices if d.type & cl.device_type.GPU]
+        return gpus + [d for _, d in devices if not d.type & cl.device_type.GPU], False
+    spec = str(spec).strip()
+    if ":" in spec and all(part.strip().isdigit() for part in spec.split(":", 1)):
+        key = ":".join(part.strip() for part in spec.split(":", 1))
+        chosen = [d for label, d in devices if label.split(" ", 1)[0] == key]
+    else:
+        chosen = [d for label, d in devices if spec.lower() in label.split(" ", 1)[1].lower()]
+    if not chosen:
+        listing = "; ".join(label for label, _ in devices)
+        raise BackendUnavailableError(
+            f"no OpenCL device matches {spec!r} (from the device argument or ${DEVICE_ENV_VAR}); "
+            f"available: {listing}. Give 'P:D' indices or part of a name."
+        )
+    return chosen[:1], True
+
+
+def _has_fp64(device) -> bool:
+    return bool(device.double_fp_config) or "cl_khr_fp64" in device.extensions
+
+
+# ------------------------------------------------------------------------------- state
+@dataclass
+class _Program:
+    """The built program for one storage dtype and its kernels."""
+
+    storage: np.dtype
+    acc: np.dtype
+    kernels: dict
+
+
+@dataclass
+class _Buffers:
+    """Device buffers for one grid shape and dtype."""
+
+    shape: tuple[int, ...]
+    size: int
+    act: "cl.Buffer"  # activity in storage dtype (input, injection target)
+    res: "cl.Buffer"  # result in storage dtype
+    tmp: list  # three accumulator-dtype grids
+    partial: "cl.Buffer"
+    total: "cl.Buffer"
+    n_groups: int
+    meta: dict = field(default_factory=dict)  # (axes, cstrides) -> cl.Buffer
+    small: dict = field(default_factory=dict)  # name -> (cl.Buffer, nbytes)
+
+
+class OpenCLBackend(Backend):
+    """CAN kernels in OpenCL (pyopencl), for PoCL on CPUs and any OpenCL GPU.
+
+    Parameters
+    ----------
+    device : str, pyopencl.Device or None
+        ``"P:D"`` platform and device index, or part of ``"<platform> <device>"`` name;
+        None reads ``$CANSIM_OPENCL_DEVICE``, else prefers a GPU, then any device whose
+        compiler builds the kernels.
+    fp64 : bool or None
+        Double-precision intermediates: None uses them when the device supports
+        ``cl_khr_fp64``; False forces single precision (float32 grids only, as on a
+        device without fp64); True requires fp64.
+    work_group : int
+        Work-group size of the reductions (a power of two, capped by the device).
+
+    Raises
+    ------
+    BackendUnavailableError
+        No OpenCL platform or device, no device matching ``device``, or ``fp64=True`` on
+        a device without it. The message says what to install or choose.
+    """
+
+    name = "opencl"
+
+    def __init__(
+        self,
+        device: Union[str, "cl.Device", None] = None,
+        *,
+        fp64: Optional[bool] = None,
+        work_group: int = 64,
+    ) -> None:
+        if work_group < 1 or work_group & (work_group - 1):
+            raise BackendUnavailableError(f"work_group must be a power of two >= 1, got {work_group}")
+        self._candidates, self._explicit = _select_devices(device)
+        self._fp64_request = fp64
+        if fp64 and self._explicit and not _has_fp64(self._candidates[0]):
+            raise BackendUnavailableError(
+                f"OpenCL device {self._candidates[0].name.strip()!r} has no float64 support (cl_khr_fp64); "
+                "use fp64=None/False or another device"
+            )
+        self._wg_request = int(work_group)
+        self._device = None
+        self._ctx = None
+        self._queue = None
+        self._programs: dict[np.dtype, _Program] = {}
+        self._buffers: dict[tuple, _Buffers] = {}
+        self._taps_key: Optional[bytes] = None
+        self._taps_buf = None
+        self._taps_layout: list[tuple[int, int]] = []
+        #: seconds spent building each program, by storage dtype name
+        self.build_seconds: dict[str, float] = {}
+
+    # --------------------------------------------------------------------- set-up
+    @property
+    def device(self):
+        """The pyopencl Device in use (creates the context on first access)."""
+        self._ensure_context()
+        return self._device
+
+    def _ensure_context(self) -> None:
+        if self._ctx is None:
+            self._open(self._candidates[0])
+
+    def _open(self, device) -> None:
+        self._device = device
+        self._ctx = cl.Context([device])
+        self._queue = cl.CommandQueue(self._ctx, device)
+        self._programs.clear()
+        self._buffers.clear()
+        self._taps_key = None
+        self._wg = max(1, min(self._wg_request, _pow2_floor(device.max_work_group_size)))
+
+    def prepare(self, dtype: np.dtype | type = np.float32) -> None:
+        """Create the context and build the program for ``dtype`` now (otherwise done on first use).
+
+        Raises
+        ------
+        BackendUnavailableError
+            The device cannot compile the kernels, or ``dtype`` is float64 on a device
+            without fp64.
+        """
+        self._program(np.dtype(dtype))
+
+    def _program(self, storage: np.dtype) -> _Program:
+        if self._ctx is not None and storage in self._programs:
+            return self._programs[storage]
+        if storage not in (np.dtype(np.float32), np.dtype(np.float64)):
+            raise BackendUnavailableError(f"the opencl backend stores float32 or float64 grids, not {storage}")
+        errors = []
+        candidates = [self._device] if self._ctx is not None else self._candidates
+        for i, dev in enumerate(candidates):
+            if self._ctx is None or dev is not self._device:
+                self._open(dev)
+            try:
+                prog = self._build(storage)
+            except BackendUnavailableError as exc:
+                if self._explicit or storage == np.dtype(np.float64) and not _has_fp64(dev):
+                    raise
+                errors.append(str(exc))
+                if i + 1 < len(candidates):
+                    log.warning("%s; trying the next OpenCL device", exc)
+                    continue
+                raise BackendUnavailableError(
+                    "no OpenCL device could build the cansim kernels: " + " | ".join(errors)
+                ) from exc
+            self._programs[storage] = prog
+            self._candidates = [dev]
+            return prog
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def _build(self, storage: np.dtype) -> _Program:
+        dev = self._device
+        fp64 = _has_fp64(dev)
+        if self._fp64_request and not fp64:
+            raise BackendUnavailableError(
+                f"OpenCL device {dev.name.strip()!r} has no float64 support (cl_khr_fp64); "
+                "use fp64=None/False or another device"
+            )
+        use64 = fp64 and self._fp64_request is not False
+        if storage == np.dtype(np.float64) and not use64:
+            why = "has no float64 support (cl_khr_fp64)" if not fp64 else "was opened with fp64=False"
+            raise BackendUnavailableError(
+                f"OpenCL device {dev.name.strip()!r} {why}: use dtype=float32 for this population, "
+                "or the numpy/numba backend for float64"
+            )
+        acc = np.dtype(np.float64) if use64 else np.dtype(np.float32)
+        ctype = {np.dtype(np.float32): "float", np.dtype(np.float64): "double"}
+        options = [f"-DT={ctype[storage]}", f"-DACC={ctype[acc]}"]
+        if use64:
+            options.append("-DNEED_FP64")
+        t0 = time.perf_counter()
+        try:
+            with warnings.catch_warnings():  # compiler chatter (e.g. vectoriser notes) is not an error
+                warnings.simplefilter("ignore", cl.CompilerWarning)
+                program = cl.Program(self._ctx, _SOURCE).build(options=options)
+        except cl.Error as exc:
+            text = str(exc)
+            lines = [ln.strip() for ln in text.splitlines() if "error" in ln.lower()]
+            hint = ""
+            if "unknown target CPU" in text:
+                hint = (
+                    " (this PoCL's LLVM does not know this CPU; install another OpenCL runtime, "
+                    f"e.g. a newer PoCL or Intel's CPU runtime, or pick a device with ${DEVICE_ENV_VAR})"
+                )
+            raise BackendUnavailableError(
+                f"OpenCL device {dev.name.strip()!r} failed to build the cansim kernels{hint}: "
+                + (lines[-1] if lines else text.strip().splitlines()[-1])[:300]
+            ) from exc
+        self.build_seconds[storage.name] = time.perf_counter() - t0
+        log.info("built cansim OpenCL program (%s) on %s in %.2f s", storage.name, dev.name.strip(),
+                 self.build_seconds[storage.name])
+        kernels = {k.function_name: k for k in program.all_kernels()}
+        i32 = np.int32
+        sig_conv = [None, None, None, i32, i32, i32, i32, i32, i32]
+        kernels["conv_store"].set_scalar_arg_dtypes(sig_conv)
+        kernels["conv_acc"].set_scalar_arg_dtypes(sig_conv)
+        kernels["inhibit"].set_scalar_arg_dtypes([None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None])
+        kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
+        for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
+            kernels[name].set_scalar_arg_dtypes([None, None, None, None, i32, None, i32, i32])
+        kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
+        return _Program(storage, acc, kernels)
+
+    def _bufs(self, shape: tuple[int, ...], prog: _Program) -> _Buffers:
+        key = (shape, prog.storage)
+        b = self._buffers.get(key)
+        if b is None:
+            size = int(np.prod(shape))
+            if size >= 2**31:
+                raise BackendUnavailableError("the opencl backend indexes cells with 32-bit ints; grid too large")
+            mf = cl.mem_flags
+            s_bytes = size * prog.storage.itemsize
+            a_bytes = size * prog.acc.itemsize
+            n_groups = -(-size // self._wg)
+            b = _Buffers(
+                shape=shape,
+                size=size,
+                act=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
+                res=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
+                tmp=[cl.Buffer(self._ctx, mf.READ_WRITE, a_bytes) for _ in range(3)],
+                partial=cl.Buffer(self._ctx, mf.READ_WRITE, n_groups * prog.acc.itemsize),
+                total=cl.Buffer(self._ctx, mf.READ_WRITE, prog.acc.itemsize),
+                n_groups=n_groups,
+            )
+            self._buffers[key] = b
+        return b
+
+    def _small(self, b: _Buffers, name: str, host: np.ndarray) -> "cl.Buffer":
+        """Upload a small host array to a per-grid scratch buffer (grown when needed)."""
+        entry = b.small.get(name)
+        if entry is None or entry[1] < host.nbytes:
+            entry = (cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY, max(host.nbytes, 64)), max(host.nbytes, 64))
+            b.small[name] = entry
+        cl.enqueue_copy(self._queue, entry[0], host, is_blocking=False)
+        return entry[0]
+
+    def _meta(self, b: _Buffers, axes: tuple[int, ...], cstrides: tuple[int, ...]) -> "cl.Buffer":
+        key = (axes, cstrides)
+        buf = b.meta.get(key)
+        if buf is None:
+            shape = b.shape
+            strides = _c_strides(shape)
+            host = np.array([len(shape), len(axes), *shape, *strides, *cstrides, *axes], dtype=np.int32)
+            buf = cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
+            b.meta[key] = buf
+        return buf
+
+    def _taps(self, prog: _Program, exc: Sequence[np.ndarray], inh: Sequence[np.ndarray]):
+        """Upload all taps as one buffer (kept while they do not change); (buffer, [(offset, len)])."""
+        host = np.concatenate([np.asarray(t, dtype=np.float64).ravel() for t in (*exc, *inh)]).astype(prog.acc)
+        key = prog.acc.str.encode() + bytes(str([len(t) for t in (*exc, *inh)]), "ascii") + host.tobytes()
+        if key != self._taps_key:
+            self._taps_buf = cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
+            offs, o = [], 0
+            for t in (*exc, *inh):
+                offs.append((o, len(t)))
+                o += len(t)
+            self._taps_layout = offs
+            self._taps_key = key
+        return self._taps_buf, self._taps_layout
+
+    # ------------------------------------------------------------------ enqueueing
+    def _launch(self, name: str, prog: _Program, size: int, *args, local: Optional[int] = None) -> None:
+        knl = prog.kernels[name]
+        gsize = size if local is None else -(-size // local) * local
+        knl(self._queue, (gsize,), None if local is None else (local,), *args)
+
+    def _enqueue_dynamics(self, prog, b, src_store: bool, exc, inh, phi: float) -> "cl.Buffer":
+        """Excitation, inhibition, global inhibition and the total; returns the buffer of c."""
+        taps, layout = self._taps(prog, exc, inh)
+        nd = len(b.shape)
+        strides = _c_strides(b.shape)
+        t0, t1, t2 = b.tmp
+        # excitation: act (storage) -> ... -> e; ping-pong between t0 and t1
+        cur, cur_store = b.act, src_store
+        outs = [t0, t1]
+        for ax in range(nd):
+            off, w = layout[ax]
+            dst = outs[ax % 2]
+            self._launch("conv_store" if cur_store else "conv_acc", prog, b.size, cur, dst,
+                         taps, off, w, w // 2, b.shape[ax], strides[ax], b.size)
+            cur, cur_store = dst, False
+        e = cur
+        free = [t for t in (t0, t1, t2) if t is not e]
+        # inhibition: e -> ... -> last pass fused with subtraction, threshold, partial sums
+        src = e
+        for ax in range(nd):
+            off, w = layout[nd + ax]
+            dst = free[ax % 2]
+            if ax < nd - 1:
+                self._launch("conv_acc", prog, b.size, src, dst, taps, off, w, w // 2,
+                             b.shape[ax], strides[ax], b.size)
+            else:
+                self._launch("inhibit", prog, b.size, src, e, dst, taps, off, w, w // 2,
+                             b.shape[ax], strides[ax], b.size, phi, b.partial,
+                             cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
+            src = dst
+        self._launch("sum_partials", prog, self._wg, b.partial, b.n_groups, b.total,
+                     cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
+        return src
+
+    def _shift_passes(self, b: _Buffers, shift_axes, cond_shifts, uniform) -> list[tuple]:
+        """Host side of the shifts: a list of (axes, cstrides, table) passes, <= 3 axes each."""
+        passes = []
+        shape = b.shape
+        if cond_shifts is not None:
+            axes = tuple(int(a) for a in shift_axes)
+            cond_axes = [ax for ax in range(len(shape)) if ax not in axes]
+            cstr = [0] * len(shape)
+            acc = 1
+            for ax in reversed(cond_axes):
+                cstr[ax] = acc
+                acc *= shape[ax]
+            sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(axes))
+            for q0 in range(0, len(axes), _MAX_SHIFT_AXES):
+                chunk = axes[q0:q0 + _MAX_SHIFT_AXES]
+                sizes = np.array([shape[ax] for ax in chunk], dtype=np.float64)
+                passes.append((chunk, tuple(cstr), _split_table(sh[:, q0:q0 + len(chunk)], sizes)))
+        if uniform is not None:
+            u = np.asarray(uniform, dtype=np.float64)
+            moving = tuple(ax for ax in range(len(shape)) if u[ax] != 0.0)
+            for q0 in range(0, len(moving), _MAX_SHIFT_AXES):
+                chunk = moving[q0:q0 + _MAX_SHIFT_AXES]
+                sizes = np.array([shape[ax] for ax in chunk], dtype=np.float64)
+                passes.append((chunk, (0,) * len(shape), _split_table(u[list(chunk)][None, :], sizes)))
+        return passes
+
+    def _enqueue_shifts(self, prog, b, src, src_store: bool, passes, normalise: bool) -> None:
+        """Run the shift passes from ``src`` into ``b.res`` (storage dtype); k = 0 just copies/normalises."""
+        if not passes:
+            passes = [((), (0,) * len(b.shape), np.zeros(2))]
+        table = np.concatenate([p[2].ravel() for p in passes]).astype(prog.acc)
+        tbuf = self._small(b, "table", table)
+        free = [t for t in b.tmp if t is not src]
+        cur, cur_store, toff = src, src_store, 0
+        for i, (axes, cstr, tab) in enumerate(passes):
+            last = i == len(passes) - 1
+            dst = b.res if last else free[i % 2]
+            name = f"shift_{'store' if cur_store else 'acc'}_{'store' if last else 'acc'}"
+            self._launch(name, prog, b.size, cur, dst, self._meta(b, axes, cstr),
+                         tbuf, toff, b.total, int(normalise and i == 0), b.size)
+            toff += tab.size
+            cur, cur_store = dst, last
+
+    def _upload(self, b: _Buffers, a: np.ndarray) -> None:
+        cl.enqueue_copy(self._queue, b.act, np.ascontiguousarray(a), is_blocking=False)
+
+    def _download(self, b: _Buffers, a: np.ndarray, out: Optional[np.ndarray]) -> np.ndarray:
+        if out is None or not out.flags.c_contiguous:
+            host = np.empty(a.shape, dtype=a.dtype)
+            cl.enqueue_copy(self._queue, host, b.res)
+            if out is None:
+                return host
+            out[...] = host
+            return out
+        cl.enqueue_copy(self._queue, out, b.res)
+        return out
+
+    def _total(self, prog, b) -> float:
+        t = np.empty(1, dtype=prog.acc)
+        cl.enqueue_copy(self._queue, t, b.total)
+        return float(t[0])
+
+    def _setup(self, a: np.ndarray):
+        prog = self._program(np.dtype(a.dtype))
+        return prog, self._bufs(tuple(a.shape), prog)
+
+    # ----------------------------------------------------------------- the contract
+    def dynamics(self, a, exc, inh, phi, out=None):
+        prog, b = self._setup(a)
+        self._upload(b, a)
+        c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
+        self._enqueue_shifts(prog, b, c, False, [], normalise=True)
+        total = self._total(prog, b)
+        if not (np.isfinite(total) and total > 0):
+            return None
+        return self._download(b, a, out)
+
+    def shift(self, a, shifts, out=None):
+        prog, b = self._setup(a)
+        self._upload(b, a)
+        self._enqueue_shifts(prog, b, b.act, True, self._shift_passes(b, None, None, shifts), normalise=False)
+        return self._download(b, a, out)
+
+    def shift_conditional(self, a, shift_axes, shifts, out=None):
+        prog, b = self._setup(a)
+        self._upload(b, a)
+        passes = self._shift_passes(b, shift_axes, shifts, None)
+        self._enqueue_shifts(prog, b, b.act, True, passes, normalise=False)
+        return self._download(b, a, out)
+
+    def inject(self, a, flat_index, values, out=None):
+        """Scatter-add on the host: a few cells, and the result is needed on the host anyway."""
+        res = a.copy() if out is None else out
+        if out is not None:
+            res[...] = a
+        idx, vals = _injected_cells(a, flat_index, values)
+        res.ravel()[idx] = vals
+        return res
+
+    def decode(self, a, window):
+        """Population-vector decoding on the host (exactly :func:`population_vector_window`)."""
+        return population_vector_window(a, window)
+
+    def step(self, a, *, flat_index, values, exc, inh, phi, shift_axes, cond_shifts, uniform_shifts,
+             window, out=None):
+        """Fused iteration: one upload, every kernel enqueued, one read of the total and one download.
+
+        Order as SPEC §1.2 and :meth:`Backend.step`: injection (the touched cells are
+        computed on the host and written by ``scatter_set``), excitation, inhibition,
+        global inhibition, normalisation (folded into the first shift pass), conditional
+        shift, uniform shift; decoding on the downloaded grid.
+        """
+        prog, b = self._setup(a)
+        self._upload(b, a)
+        if flat_index is not None and len(flat_index):
+            idx, vals = _injected_cells(a, flat_index, values)
+            ibuf = self._small(b, "inject_idx", idx.astype(np.int32))
+            vbuf = self._small(b, "inject_val", vals)
+            self._launch("scatter_set", prog, len(idx), b.act, ibuf, vbuf, len(idx))
+        c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
+        uni = uniform_shifts if uniform_shifts is not None and np.any(np.asarray(uniform_shifts) != 0) else None
+        passes = self._shift_passes(b, shift_axes, cond_shifts, uni)
+        self._enqueue_shifts(prog, b, c, False, passes, normalise=True)
+        total = self._total(prog, b)
+        if not (np.isfinite(total) and total > 0):
+            return None, None
+        res = self._download(b, a, out)
+        return res, population_vector_window(res, window)
+
+
+# ----------------------------------------------------------------------------- helpers
+def _pow2_floor(n: int) -> int:
+    p = 1
+    while p * 2 <= n:
+        p *= 2
+    return p
+
+
+def _c_strides(shape: Sequence[int]) -> tuple[int, ...]:
+    strides, acc = [], 1
+    for n in reversed(shape):
+        strides.append(acc)
+        acc *= n
+    return tuple(reversed(strides))
+
+
+def _split_table(shifts: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """(integer part mod n, fraction) per condition and axis, shape (n_cond, k, 2), float64."""
+    lo = np.floor(shifts)
+    frac = shifts - lo
+    return np.stack([np.mod(lo, sizes), frac], axis=-1)
+
+
+def _injected_cells(a: np.ndarray, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct flat indices and their new values ``a + sum(values)`` (float64 sums, as numpy's add.at)."""
+    fi = np.asarray(flat_index, dtype=np.int64).ravel()
+    uniq, inv = np.unique(fi, return_inverse=True)
+    acc = a.ravel()[uniq].astype(np.float64)
+    np.add.at(acc, inv, np.asarray(values, dtype=np.float64).ravel())
+    return uniq, acc.astype(a.dtype)
