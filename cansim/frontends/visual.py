@@ -1,0 +1,282 @@
+"""OpenRatSLAM visual templates (``LocalViewMatch``): images -> view-template ids.
+
+Processing of one image, as OpenRatSLAM's ``convert_view_to_view_template``
+and ``compare``:
+
+1. crop to ``[image_crop_y_min, image_crop_y_max) x [image_crop_x_min, image_crop_x_max)``
+   (-1 = image edge), split into ``template_y_size x template_x_size`` blocks of
+   ``floor(range / size)`` pixels (the remainder is ignored) and average each block
+   to a value in [0, 1] (RGB: the mean of the three channels);
+2. optional global normalisation ``v <- clip(v * vt_normalisation / mean(v), 0, 1)``;
+3. optional patch normalisation over a ``(2 p + 1)^2`` neighbourhood (edge-clamped):
+   ``v <- clip(((v - mean) / std + 3) / 6, 0, 1)``, 0.5 where std < ``vt_min_patch_normalisation_std``;
+4. compare with the stored templates whose mean is within ``vt_match_threshold + 0.005``:
+   sum of absolute differences between the view's central columns
+   ``[shift, X - shift)`` and the template's columns ``[o, o + X - 2 shift)`` for
+   ``o = 0, step, ..., 2 shift``; ``error = min SAD / (X Y - 2 shift Y)``;
+   panoramic mode: circular shifts ``o = 0, step, ... < X`` over all columns,
+   ``error = min SAD / (X Y)`` and the relative rotation ``o / X * 2 pi`` (wrapped to (-pi, pi]);
+5. ``error <= vt_match_threshold`` -> that template, otherwise the view becomes a new template.
+
+Decision on the C++ bug at ``local_view_match.cpp`` ~l.141 (``for (unsigned int i; ...)``
+clears the view buffer with an uninitialised index): the view is always
+cleared here. ``emulate_uninitialised_clear=True`` reproduces the outcome when
+the garbage index skips the clearing (block sums added to the previous view).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.frontends.store import TemplateMatch, TemplateStore
+
+__all__ = ["VisualTemplateConfig", "VisualTemplates"]
+
+
+@dataclass(frozen=True)
+class VisualTemplateConfig:
+    """Parameters of :class:`VisualTemplates` (OpenRatSLAM names).
+
+    Parameters
+    ----------
+    template_x_size, template_y_size : int
+        Template size in blocks (columns, rows). OpenRatSLAM's compiled-in
+        default is 1 x 1, which no real config uses; 60 x 10 here.
+    image_crop_x_min, image_crop_x_max, image_crop_y_min, image_crop_y_max : int
+        Crop in pixels; ``-1`` for a maximum means the image edge.
+    vt_shift_match : int
+        Column shift range +- (blocks); OpenRatSLAM default 25.
+    vt_step_match : int
+        Step between tried shifts (blocks); default 5.
+    vt_match_threshold : float
+        Largest mean absolute difference counted as a match; default 0.03.
+    vt_normalisation : float
+        Target mean of global normalisation; 0 = off.
+    vt_patch_normalise : int
+        Patch half-size ``p`` of patch normalisation; 0 = off.
+    vt_min_patch_normalisation_std : float
+        Patches with a smaller standard deviation become 0.5.
+    vt_panoramic : bool
+        Panoramic (circular-shift) matching.
+    emulate_uninitialised_clear : bool
+        Reproduce the C++ uninitialised-index bug outcome (see the module docstring).
+    """
+
+    template_x_size: int = 60
+    template_y_size: int = 10
+    image_crop_x_min: int = 0
+    image_crop_x_max: int = -1
+    image_crop_y_min: int = 0
+    image_crop_y_max: int = -1
+    vt_shift_match: int = 25
+    vt_step_match: int = 5
+    vt_match_threshold: float = 0.03
+    vt_normalisation: float = 0.0
+    vt_patch_normalise: int = 0
+    vt_min_patch_normalisation_std: float = 0.0
+    vt_panoramic: bool = False
+    emulate_uninitialised_clear: bool = False
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.type in ("int", int) and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
+                raise ConfigError(f"{f.name} must be an integer, got {value!r}")
+            if f.type in ("float", float) and not (isinstance(value, (int, float, np.floating)) and math.isfinite(value)):
+                raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
+        if self.template_x_size < 1 or self.template_y_size < 1:
+            raise ConfigError("template_x_size and template_y_size must be >= 1")
+        if self.vt_step_match < 1:
+            raise ConfigError(f"vt_step_match must be >= 1, got {self.vt_step_match}")
+        if self.vt_shift_match < 0:
+            raise ConfigError(f"vt_shift_match must be >= 0, got {self.vt_shift_match}")
+        if not self.vt_panoramic and 2 * self.vt_shift_match >= self.template_x_size:
+            raise ConfigError(
+                f"vt_shift_match ({self.vt_shift_match}) must be < template_x_size/2 ({self.template_x_size}/2) "
+                "so that some columns are compared"
+            )
+        if self.vt_match_threshold < 0 or self.vt_normalisation < 0 or self.vt_patch_normalise < 0:
+            raise ConfigError("vt_match_threshold, vt_normalisation and vt_patch_normalise must be >= 0")
+        if self.image_crop_x_min < 0 or self.image_crop_y_min < 0:
+            raise ConfigError("image_crop_x_min and image_crop_y_min must be >= 0")
+
+
+def _cpp_min(a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
+    """``std::min(a, b)`` elementwise, NaN semantics included: ``b < a ? b : a``."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return np.where(b < a, b, a)
+
+
+def _cpp_max(a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
+    """``std::max(a, b)`` elementwise: ``a < b ? b : a`` (so ``max(0, NaN) = 0``)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return np.where(a < b, b, a)
+
+
+class VisualTemplates:
+    """OpenRatSLAM local view matching on camera images (see the module docstring).
+
+    Parameters
+    ----------
+    config : VisualTemplateConfig, optional
+        Parameters (defaults when omitted).
+    image_shape : tuple of int, optional
+        Expected image shape ``(H, W)`` or ``(H, W, 3)``; taken from the first
+        image when omitted. Images of another shape raise :class:`ShapeError`.
+    """
+
+    def __init__(self, config: VisualTemplateConfig | None = None, image_shape: tuple[int, ...] | None = None) -> None:
+        self.config = config if config is not None else VisualTemplateConfig()
+        c = self.config
+        self.store = TemplateStore((c.template_y_size, c.template_x_size))
+        self._means = np.zeros(16)
+        self.image_shape: tuple[int, ...] | None = None
+        self._last_view = np.zeros((c.template_y_size, c.template_x_size))
+        if image_shape is not None:
+            self._check_geometry(tuple(int(s) for s in image_shape))
+            self.image_shape = tuple(int(s) for s in image_shape)
+
+    def __len__(self) -> int:
+        return len(self.store)
+
+    @property
+    def means(self) -> np.ndarray:
+        """Mean of each stored template, shape (n,) (a copy)."""
+        return self._means[: len(self.store)].copy()
+
+    def _crop(self, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+        c = self.config
+        x1 = shape[1] if c.image_crop_x_max == -1 else c.image_crop_x_max
+        y1 = shape[0] if c.image_crop_y_max == -1 else c.image_crop_y_max
+        return c.image_crop_x_min, x1, c.image_crop_y_min, y1
+
+    def _check_geometry(self, shape: tuple[int, ...]) -> None:
+        if len(shape) not in (2, 3) or (len(shape) == 3 and shape[2] != 3):
+            raise ShapeError(f"image must have shape (H, W) (grey) or (H, W, 3) (RGB), got {shape}")
+        x0, x1, y0, y1 = self._crop(shape)
+        c = self.config
+        if not (0 <= x0 < x1 <= shape[1] and 0 <= y0 < y1 <= shape[0]):
+            raise ShapeError(f"crop x[{x0}, {x1}) y[{y0}, {y1}) does not fit the image of shape {shape}")
+        if (x1 - x0) < c.template_x_size or (y1 - y0) < c.template_y_size:
+            raise ShapeError(
+                f"the crop ({x1 - x0} x {y1 - y0} px) is smaller than the template "
+                f"({c.template_x_size} x {c.template_y_size} blocks); use a larger image or a smaller template"
+            )
+
+    def view_template(self, image: np.ndarray) -> np.ndarray:
+        """Convert an image to the current view template (steps 1-3), shape (Y, X), values in [0, 1].
+
+        Parameters
+        ----------
+        image : uint8 array (H, W) or (H, W, 3)
+            Grey or RGB image.
+        """
+        img = np.asarray(image)
+        if img.dtype != np.uint8:
+            raise InvalidInputError(f"image must be uint8 (0-255) like OpenRatSLAM's input, got dtype {img.dtype}")
+        shape = tuple(img.shape)
+        if self.image_shape is None:
+            self._check_geometry(shape)
+        elif shape != self.image_shape:
+            raise ShapeError(f"image shape {shape} differs from the expected {self.image_shape}; resize or crop it first")
+        c = self.config
+        x0, x1, y0, y1 = self._crop(shape)
+        bx, by = (x1 - x0) // c.template_x_size, (y1 - y0) // c.template_y_size
+        crop = img[y0 : y0 + by * c.template_y_size, x0 : x0 + bx * c.template_x_size].astype(np.float64)
+        if crop.ndim == 3:
+            crop = crop.sum(axis=2)
+            scale = 255.0 * 3.0
+        else:
+            scale = 255.0
+        sums = crop.reshape(c.template_y_size, by, c.template_x_size, bx).sum(axis=(1, 3))  # exact: integers
+        if c.emulate_uninitialised_clear:
+            sums = sums + self._last_view
+        view = sums / scale / (bx * by)
+        if c.vt_normalisation > 0:
+            avg = np.cumsum(view.ravel())[-1] / view.size  # sequential sum, as C++
+            with np.errstate(divide="ignore", invalid="ignore"):
+                view = _cpp_max(0.0, _cpp_min(view * c.vt_normalisation / avg, 1.0))
+        if c.vt_patch_normalise > 0:
+            p = c.vt_patch_normalise
+            padded = np.pad(view, p, mode="edge")
+            win = np.lib.stride_tricks.sliding_window_view(padded, (2 * p + 1, 2 * p + 1))
+            mean = win.mean(axis=(2, 3))
+            std = np.sqrt(((win - mean[..., None, None]) ** 2).mean(axis=(2, 3)))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = _cpp_max(0.0, _cpp_min(1.0, ((view - mean) / std + 3.0) / 6.0))
+            view = np.where(std < c.vt_min_patch_normalisation_std, 0.5, z)
+        return view
+
+    def match(self, image: np.ndarray) -> TemplateMatch:
+        """Match an image against the stored templates, storing it as a new template if none matches.
+
+        Parameters
+        ----------
+        image : uint8 array (H, W) or (H, W, 3)
+
+        Returns
+        -------
+        TemplateMatch
+        """
+        view = self.view_template(image)  # validates before any state changes
+        if self.image_shape is None:
+            self.image_shape = tuple(np.asarray(image).shape)
+        c = self.config
+        view_mean = float(np.cumsum(view.ravel())[-1] / view.size)
+        n = len(self.store)
+        err, best, rel = math.inf, 0, 0.0
+        if n:
+            from cansim.frontends._sad_numba import sad_compare
+
+            sad, best, off = sad_compare(
+                view, self.store._data[:n], self._means[:n], view_mean, c.vt_match_threshold + 0.005,
+                c.vt_shift_match, c.vt_step_match, bool(c.vt_panoramic),
+            )
+            if math.isfinite(sad):
+                if c.vt_panoramic:
+                    err = sad / float(view.size)
+                    rel = off / c.template_x_size * 2.0 * math.pi
+                    if rel > math.pi:
+                        rel -= 2.0 * math.pi
+                else:
+                    err = sad / float(view.size - 2 * c.vt_shift_match * c.template_y_size)
+        self._last_view = view
+        if err <= c.vt_match_threshold:
+            self.store.set_current(int(best))
+            return TemplateMatch(int(best), False, float(err), float(rel))
+        new_id = self.store.add(view)
+        if new_id >= self._means.shape[0]:
+            self._means = np.concatenate([self._means, np.zeros(self._means.shape[0])])
+        self._means[new_id] = view_mean
+        self.store.set_current(new_id)
+        return TemplateMatch(new_id, True, float(err), 0.0)
+
+    # ---------------------------------------------------------------- state
+    def to_arrays(self, prefix: str = "vt_") -> dict[str, Any]:
+        """State as named arrays for an ``.npz`` file (bit exact)."""
+        out = self.store.to_arrays(prefix)
+        out[f"{prefix}means"] = self.means
+        out[f"{prefix}last_view"] = self._last_view.copy()
+        out[f"{prefix}image_shape"] = np.array(self.image_shape if self.image_shape else (), dtype=np.int64)
+        return out
+
+    def load_arrays(self, arrays: dict[str, np.ndarray], prefix: str = "vt_") -> None:
+        """Restore the state written by :meth:`to_arrays`."""
+        for key in (f"{prefix}means", f"{prefix}last_view", f"{prefix}image_shape"):
+            if key not in arrays:
+                raise ConfigError(f"saved front-end state lacks field {key!r}")
+        store = TemplateStore(self.store.shape)
+        store.load_arrays(arrays, prefix)
+        means = np.asarray(arrays[f"{prefix}means"], dtype=np.float64)
+        if means.shape != (len(store),):
+            raise ConfigError(f"field {prefix}means: shape {means.shape}, expected ({len(store)},)")
+        self.store = store
+        self._means = np.concatenate([means, np.zeros(16)])
+        self._last_view = np.array(arrays[f"{prefix}last_view"], dtype=np.float64)
+        shape = tuple(int(s) for s in np.asarray(arrays[f"{prefix}image_shape"]).tolist())
+        self.image_shape = shape if shape else None
