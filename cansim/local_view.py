@@ -1,0 +1,382 @@
+"""Local-view (LV) cells and their connection to a pose-cell population (SPEC §1.5).
+
+LV cells form a growing population, one cell per distinct template/observation
+(the view id given by a front end). Two ways of feeding them back into the pose
+cells are provided:
+
+``mode="stored"`` (OpenRatSLAM's simplification, thesis Sec 2.1.2.1.2, Eq 5.8)
+    each view remembers the decoded pose-cell location at its creation; when it is
+    seen again, energy ``Omega = zeta / 30 * (30 - exp(1.2 * decay))`` (clamped at 0)
+    is injected into that one cell. ``decay`` rises by ``vt_active_decay`` when the
+    same view is seen twice in a row and falls by ``pc_vt_restore`` after every view
+    call, floored at ``vt_active_decay`` - a view seen on every step loses influence.
+    Views among the ``recent_exclusion`` (10) most recent do not inject, with the C++
+    unsigned-arithmetic quirk (while fewer than 10 views exist, every revisit injects)
+    reproduced when ``cpp_unsigned_recent=True`` (default).
+
+``mode="learnt"`` (Milford & Wyeth 2008, thesis Eq 2.17/2.18)
+    an explicit non-negative weight matrix ``beta`` (n_views x n_cells), stored sparse
+    (one sorted index/value row per view; :attr:`weights` gives a scipy CSR matrix),
+    learnt by ``beta_i <- max(beta_i, lambda * V_i * P)`` and injected as
+    ``dP = (delta / eta_act) * sum_i beta_i V_i`` with ``eta_act`` the number of
+    active views.
+
+The view activity vector ``V`` (1 for the current view, optionally decaying traces
+of earlier views) is public state (:attr:`activity`) so experiments can record it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from cansim.errors import InvalidInputError, ShapeError
+
+__all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
+
+
+def stored_injection_energy(decay: float, max_energy: float) -> float:
+    """Eq 5.8 / OpenRatSLAM: ``zeta / 30 * (30 - exp(1.2 * decay))``, clamped at 0.
+
+    Parameters
+    ----------
+    decay : float
+        The view's decay value (>= ``vt_active_decay``).
+    max_energy : float
+        zeta, the maximum injection (``pc_vt_inject_energy``; 0.15 OpenRatSLAM, 0.3 Ch.5).
+
+    Returns
+    -------
+    float
+        Energy added to one pose cell; 0 from ``decay >= ln(30)/1.2 = 2.834``.
+    """
+    return max(0.0, max_energy / 30.0 * (30.0 - math.exp(1.2 * decay)))
+
+
+@dataclass(frozen=True)
+class LocalViewParams:
+    """Parameters of the LV -> pose-cell connection.
+
+    Parameters
+    ----------
+    mode : {"stored", "learnt"}
+        Injection model (see module docstring).
+    pc_vt_inject_energy : float
+        zeta, maximum injected energy in stored mode (OpenRatSLAM default 0.15; Ch.5 uses 0.3).
+    vt_active_decay : float
+        Decay increment on a repeated view and floor of the decay (OpenRatSLAM 1.0).
+    pc_vt_restore : float
+        Decay recovery per view call (OpenRatSLAM 0.05).
+    recent_exclusion : int
+        Views among this many most recent ones do not inject (OpenRatSLAM 10; 0 disables).
+    cpp_unsigned_recent : bool
+        Reproduce C++'s ``vt < size - 10`` in unsigned arithmetic: with fewer than
+        ``recent_exclusion`` views every revisit injects.
+    rounding : {"truncate", "round"}
+        How the stored fractional location becomes a cell: C++ truncates (``(int)``),
+        ``"round"`` takes the nearest cell. Default ``"truncate"`` (OpenRatSLAM).
+    learning_rate : float
+        lambda of Eq 2.18 (learnt mode).
+    inject_gain : float
+        delta of Eq 2.17 (learnt mode); the energy injected per unit of learnt weight.
+    trace_decay : float
+        In [0, 1): each view call multiplies V by this before the current view is set
+        to 1 (0 = only the current view is active).
+    min_weight : float
+        Learnt mode: cells with ``P < min_weight * max(P)`` are not stored (0 = exact
+        Eq 2.18). Rows are stored as int32 indices and float32 weights (8 bytes per
+        entry: a 6-D 5^6 packet of ~3,300 cells costs ~27 kB per view).
+    """
+
+    mode: str = "stored"
+    pc_vt_inject_energy: float = 0.15
+    vt_active_decay: float = 1.0
+    pc_vt_restore: float = 0.05
+    recent_exclusion: int = 10
+    cpp_unsigned_recent: bool = True
+    rounding: str = "truncate"
+    learning_rate: float = 1.0
+    inject_gain: float = 0.15
+    trace_decay: float = 0.0
+    min_weight: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("stored", "learnt"):
+            raise InvalidInputError(f"mode must be 'stored' or 'learnt', got {self.mode!r}")
+        if self.rounding not in ("truncate", "round"):
+            raise InvalidInputError(f"rounding must be 'truncate' or 'round', got {self.rounding!r}")
+        for name in ("pc_vt_inject_energy", "vt_active_decay", "pc_vt_restore", "learning_rate", "inject_gain"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise InvalidInputError(f"{name} must be finite and >= 0, got {v!r}")
+        if not (0.0 <= self.min_weight < 1.0):
+            raise InvalidInputError(f"min_weight must lie in [0, 1), got {self.min_weight!r}")
+        if not (0.0 <= self.trace_decay < 1.0):
+            raise InvalidInputError(f"trace_decay must lie in [0, 1), got {self.trace_decay!r}")
+        if int(self.recent_exclusion) < 0:
+            raise InvalidInputError(f"recent_exclusion must be >= 0, got {self.recent_exclusion!r}")
+
+
+Injection = tuple[np.ndarray, np.ndarray]
+_EMPTY: Injection = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
+
+
+class LocalViewCells:
+    """A growing set of LV cells wired to a pose-cell grid of shape ``pose_shape``.
+
+    Parameters
+    ----------
+    pose_shape : tuple of int
+        Shape of the pose-cell population the views inject into.
+    params : LocalViewParams
+
+    Examples
+    --------
+    >>> from cansim import Population
+    >>> pc = Population.openratslam()
+    >>> lv = LocalViewCells(pc.shape)
+    >>> inj = lv.observe(0, pc.decode())       # new view: remembers the packet, injects nothing
+    >>> _ = pc.step(0.0, 0.0, 1.0, injection=inj)
+    """
+
+    def __init__(self, pose_shape: Sequence[int], params: LocalViewParams = LocalViewParams()) -> None:
+        self._shape = tuple(int(n) for n in pose_shape)
+        if not self._shape or any(n < 1 for n in self._shape):
+            raise ShapeError(f"pose_shape must be a non-empty tuple of positive sizes, got {pose_shape!r}")
+        self._params = params
+        self._n_cells = int(np.prod(self._shape))
+        if self._n_cells >= 2**31:
+            raise ShapeError(f"pose grids of 2**31 cells or more are not supported (got {self._n_cells})")
+        self._locations: list[np.ndarray] = []  # stored mode: fractional cell per view
+        self._decay: list[float] = []
+        self._rows: list[tuple[np.ndarray, np.ndarray]] = []  # learnt mode: (indices, values)
+        self._v = np.zeros(0, dtype=np.float64)
+        self._current: Optional[int] = None
+
+    # ---------------------------------------------------------------- state
+    @property
+    def params(self) -> LocalViewParams:
+        """The parameters."""
+        return self._params
+
+    @property
+    def n_views(self) -> int:
+        """Number of LV cells created so far."""
+        return len(self._decay)
+
+    @property
+    def current(self) -> Optional[int]:
+        """Id of the most recently observed view (None before the first)."""
+        return self._current
+
+    @property
+    def activity(self) -> np.ndarray:
+        """The view activity vector V, shape (n_views,) (a copy)."""
+        return self._v.copy()
+
+    @property
+    def decay(self) -> np.ndarray:
+        """Stored-mode decay of every view, shape (n_views,) (a copy)."""
+        return np.array(self._decay, dtype=np.float64)
+
+    @property
+    def locations(self) -> np.ndarray:
+        """Stored-mode pose-cell location (fractional cells) of every view, shape (n_views, ndim)."""
+        if not self._locations:
+            return np.zeros((0, len(self._shape)))
+        return np.stack(self._locations)
+
+    @property
+    def weights(self):
+        """Learnt LV->PC weights beta as a ``scipy.sparse.csr_matrix`` (n_views x n_cells)."""
+        from scipy.sparse import csr_matrix
+
+        indptr = np.zeros(self.n_views + 1, dtype=np.int64)
+        for i, (idx, _) in enumerate(self._rows):
+            indptr[i + 1] = indptr[i] + len(idx)
+        if self._rows:
+            indices = np.concatenate([r[0] for r in self._rows])
+            data = np.concatenate([r[1] for r in self._rows])
+        else:
+            indices = np.zeros(0, dtype=np.int64)
+            data = np.zeros(0, dtype=np.float64)
+        return csr_matrix((data, indices, indptr), shape=(self.n_views, self._n_cells))
+
+    # --------------------------------------------------------------- update
+    def observe(
+        self,
+        view_id: int,
+        decoded: Sequence[float],
+        *,
+        offset_cells: Optional[Sequence[float]] = None,
+    ) -> Injection:
+        """Activate ``view_id`` and return the energy it injects into the pose cells.
+
+        Parameters
+        ----------
+        view_id : int
+            An existing view (``< n_views``) or the next new one (``== n_views``).
+        decoded : sequence of float, shape (ndim,)
+            The current decoded pose-cell location (fractional cells); a new view
+            remembers it (stored mode).
+        offset_cells : sequence of float or None
+            Added to the stored location before injection, per axis (OpenRatSLAM's
+            panoramic ``vt_rad`` correction on the theta axis), wrapped.
+
+        Returns
+        -------
+        (flat_index, values) : (ndarray int64, ndarray float64)
+            Pass as ``injection=`` to :meth:`Population.step` (empty when nothing is injected).
+
+        Raises
+        ------
+        InvalidInputError
+            ``view_id`` skips ids or is negative, or ``decoded`` is not finite; nothing changed.
+        """
+        vid = self._check_view(view_id)
+        loc = np.asarray(decoded, dtype=np.float64).ravel()
+        if loc.shape != (len(self._shape),):
+            raise ShapeError(f"decoded must have {len(self._shape)} entries, got {loc.shape}")
+        if not np.all(np.isfinite(loc)):
+            raise InvalidInputError("decoded location must be finite")
+        off = None
+        if offset_cells is not None:
+            off = np.asarray(offset_cells, dtype=np.float64).ravel()
+            if off.shape != loc.shape or not np.all(np.isfinite(off)):
+                raise InvalidInputError(f"offset_cells must be {len(self._shape)} finite values")
+
+        p = self._params
+        injection = _EMPTY
+        if vid == self.n_views:
+            self._locations.append(loc % np.array(self._shape))
+            self._decay.append(p.vt_active_decay)
+            self._rows.append((np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)))
+            self._v = np.append(self._v, 0.0)
+        elif p.mode == "stored":
+            injection = self._stored_injection(vid, off)
+        # learnt mode injects after V is updated (below)
+
+        self._v *= p.trace_decay
+        self._v[vid] = 1.0
+        if p.mode == "learnt":
+            injection = self.injection()
+        if p.mode == "stored":
+            floor = p.vt_active_decay
+            self._decay = [max(d - p.pc_vt_restore, floor) for d in self._decay]
+        self._current = vid
+        return injection
+
+    def _check_view(self, view_id: int) -> int:
+        try:
+            vid = int(view_id)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"view_id must be an integer, got {view_id!r}") from None
+        if vid < 0 or vid > self.n_views:
+            raise InvalidInputError(
+                f"view_id {vid} is neither an existing view (< {self.n_views}) nor the next new one "
+                f"({self.n_views}); front ends must number views consecutively"
+            )
+        return vid
+
+    def _stored_injection(self, vid: int, off: Optional[np.ndarray]) -> Injection:
+        p = self._params
+        n = self.n_views
+        limit = n - p.recent_exclusion
+        if p.cpp_unsigned_recent and limit < 0:
+            limit = n  # C++ unsigned wrap-around: every existing view qualifies
+        if not vid < limit:
+            return _EMPTY
+        if vid == self._current:
+            self._decay[vid] += p.vt_active_decay
+        energy = stored_injection_energy(self._decay[vid], p.pc_vt_inject_energy)
+        if energy <= 0.0:
+            return _EMPTY
+        loc = self._locations[vid] if off is None else (self._locations[vid] + off) % np.array(self._shape)
+        cell = np.floor(loc) if p.rounding == "truncate" else np.rint(loc)
+        cell = cell.astype(np.int64) % np.array(self._shape)
+        flat = np.ravel_multi_index(tuple(cell), self._shape)
+        return np.array([flat], dtype=np.int64), np.array([energy])
+
+    def injection(self) -> Injection:
+        """Learnt mode, Eq 2.17: ``(delta / eta_act) * sum_i beta_i V_i`` as (flat_index, values)."""
+        active = np.flatnonzero(self._v > 0)
+        if len(active) == 0:
+            return _EMPTY
+        gain = self._params.inject_gain / len(active)
+        idx = [self._rows[i][0] for i in active]
+        val = [self._rows[i][1] * (gain * self._v[i]) for i in active]
+        return np.concatenate(idx).astype(np.int64), np.concatenate(val).astype(np.float64)
+
+    def learn(self, pose_activity: np.ndarray) -> None:
+        """Eq 2.18 for every active view: ``beta_i <- max(beta_i, lambda * V_i * P)``.
+
+        Parameters
+        ----------
+        pose_activity : ndarray, shape ``pose_shape``
+            The pose-cell activity P (sparse after global inhibition; only its non-zero
+            cells are stored).
+        """
+        P = np.asarray(pose_activity)
+        if P.shape != self._shape:
+            raise ShapeError(f"pose_activity must have shape {self._shape}, got {P.shape}")
+        flatP = P.ravel()
+        if not np.all(np.isfinite(flatP)) or np.any(flatP < 0):
+            raise InvalidInputError("pose_activity must be finite and >= 0")
+        cut = self._params.min_weight * float(flatP.max(initial=0.0))
+        nz = np.flatnonzero(flatP > cut)
+        vals = flatP[nz].astype(np.float64)
+        lam = self._params.learning_rate
+        for i in np.flatnonzero(self._v > 0):
+            self._rows[i] = _max_merge(self._rows[i], (nz, lam * self._v[i] * vals))
+
+    # ------------------------------------------------------------ persistence
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """All state as plain arrays (for ``np.savez``); :meth:`from_state` restores it exactly."""
+        w = self.weights
+        return {
+            "shape": np.array(self._shape, dtype=np.int64),
+            "locations": self.locations,
+            "decay": self.decay,
+            "v": self._v.copy(),
+            "current": np.array(-1 if self._current is None else self._current, dtype=np.int64),
+            "w_indptr": w.indptr.astype(np.int64),
+            "w_indices": w.indices.astype(np.int64),
+            "w_data": w.data.astype(np.float32),
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, np.ndarray], params: LocalViewParams = LocalViewParams()) -> "LocalViewCells":
+        """Rebuild from :meth:`state_dict` output."""
+        try:
+            lv = cls(tuple(int(n) for n in state["shape"]), params)
+            n = len(state["decay"])
+            lv._locations = [np.array(r, dtype=np.float64) for r in np.asarray(state["locations"]).reshape(n, -1)]
+            lv._decay = [float(d) for d in state["decay"]]
+            lv._v = np.array(state["v"], dtype=np.float64)
+            cur = int(state["current"])
+            lv._current = None if cur < 0 else cur
+            ip, ix, dv = state["w_indptr"], state["w_indices"], state["w_data"]
+            lv._rows = [
+                (np.array(ix[ip[i]:ip[i + 1]], dtype=np.int32), np.array(dv[ip[i]:ip[i + 1]], dtype=np.float32))
+                for i in range(n)
+            ]
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise InvalidInputError(f"corrupt local-view state: {exc}") from exc
+        if not (len(lv._locations) == len(lv._v) == len(lv._rows) == n):
+            raise InvalidInputError("corrupt local-view state: per-view arrays have different lengths")
+        return lv
+
+
+def _max_merge(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Element-wise max of two sparse rows given as sorted (indices, values); int32/float32 result."""
+    if len(a[0]) == 0:
+        return b[0].astype(np.int32), b[1].astype(np.float32)
+    idx = np.union1d(a[0], b[0]).astype(np.int32)
+    out = np.zeros(len(idx), dtype=np.float32)
+    out[np.searchsorted(idx, a[0])] = a[1]
+    pos = np.searchsorted(idx, b[0])
+    out[pos] = np.maximum(out[pos], b[1])
+    return idx, out

@@ -1,0 +1,304 @@
+"""Behaviour of the CAN engine: thesis worked examples, invariants, attractor, path integration."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cansim import AttractorParams, Axis, Population
+from cansim.backends.numpy_backend import dense_periodic_convolve, separable_periodic_convolve
+from cansim.decoding import circular_mean_index, population_vector_window
+from cansim.kernels import SeparableKernel
+from cansim.path_integration import euler_grid_rotations, split_weights
+
+
+# ----------------------------------------------------------------- worked examples
+def test_fig_5_12_population_vector():
+    # 5 head-direction cells at 72, 144, 216, 288, 360 deg; index 0 is 360 = 0 deg.
+    profile = np.zeros(5)
+    profile[0], profile[4], profile[3] = 1.0, 3.1, 0.8
+    assert circular_mean_index(profile) * 72.0 == pytest.approx(290.978, abs=1e-3)
+
+
+def test_fig_5_12_through_the_population(backend):
+    ring = Population.head_direction(5, backend=backend)
+    act = np.zeros(5)
+    act[[0, 4, 3]] = [1.0, 3.1, 0.8]
+    ring.activity = act
+    assert math.degrees(ring.decode_physical()[0]) == pytest.approx(290.978, abs=1e-3)
+
+
+def test_fig_5_11_split_158_deg_at_72_deg_per_cell():
+    lo, w_lo, w_hi = split_weights(158.0 / 72.0)
+    assert lo == 2
+    assert w_lo == pytest.approx(1 - (158.0 / 72.0 - 2))
+    assert (round(w_lo, 1), round(w_hi, 1)) == (0.8, 0.2)
+
+
+def test_fig_5_11_yaw_layer_shift(backend):
+    """A fully active first yaw layer rotated by 158 deg/s for 1 s lands 0.8/0.2 on layers 2 and 3."""
+    pop = Population.whisker6d(backend=backend, dtype=np.float64)
+    a = np.zeros(pop.shape)
+    a[..., 0] = 1.0 / a[..., 0].size
+    pop.activity = a
+    pop.integrate(omega=[0.0, 0.0, math.radians(158.0)], dt=1.0)
+    per_layer = pop.activity.sum(axis=(0, 1, 2, 3, 4))
+    frac = 158.0 / 72.0 - 2
+    np.testing.assert_allclose(per_layer, [0, 0, 1 - frac, frac, 0], atol=1e-12)
+
+
+# ------------------------------------------------------------------- invariants
+@pytest.mark.parametrize("shape", [(9,), (7, 11, 13), (5, 6, 7, 8)])
+def test_shift_conserves_activity_and_whole_periods_are_identity(backend, shape):
+    rng = np.random.default_rng(1)
+    axes = [Axis.linear(f"a{i}", n, 1.0) for i, n in enumerate(shape)]
+    pop = Population(axes, backend=backend, dtype=np.float64)
+    pop.activity = rng.random(shape)
+    total = pop.total
+    start = pop.activity
+    pop.shift(rng.uniform(-3, 3, len(shape)))
+    assert pop.total == pytest.approx(total, rel=1e-12)
+    pop.activity = start
+    pop.shift([2 * n for n in shape])
+    np.testing.assert_allclose(pop.activity, start, atol=1e-15)
+    pop.shift([-n for n in shape])
+    np.testing.assert_allclose(pop.activity, start, atol=1e-15)
+
+
+def test_conditional_shift_conserves_activity(backend):
+    rng = np.random.default_rng(2)
+    pop = Population.openratslam(dim_xy=11, dim_th=8, backend=backend, dtype=np.float64)
+    pop.activity = rng.random(pop.shape)
+    total = pop.total
+    pop.shift_conditional((0, 1), rng.uniform(-2.5, 2.5, (8, 2)))
+    assert pop.total == pytest.approx(total, rel=1e-12)
+
+
+@pytest.mark.parametrize("shape,widths", [((9, 8, 7), (3, 5, 7)), ((6, 5, 4, 5), (5, 3, 3, 5)), ((4, 5), (7, 9))])
+def test_separable_kernel_equals_dense_convolution(shape, widths):
+    rng = np.random.default_rng(3)
+    a = rng.random(shape)
+    k = SeparableKernel.gaussian(widths, [1.0 + 0.3 * i for i in range(len(shape))])
+    np.testing.assert_allclose(separable_periodic_convolve(a, k.taps), dense_periodic_convolve(a, k.dense()), rtol=1e-12)
+
+
+def test_shift_is_the_product_of_1d_splits():
+    """Bilinear split in 2-D equals the four areas of Fig 5.7-5.10 (stay, N, W, NW products)."""
+    pop = Population([Axis.linear("x", 6, 1.0), Axis.linear("y", 6, 1.0)], dtype=np.float64)
+    a = np.zeros((6, 6))
+    a[2, 2] = 1.0
+    pop.activity = a
+    pop.shift([-0.5 * 0.6, 1.0 * 0.6])  # v = 0.6 * [-0.5, 1] (quadrant 2)
+    got = pop.activity
+    fx, fy = 0.3, 0.6  # move 0.3 toward -x, 0.6 toward +y
+    expect = np.zeros((6, 6))
+    expect[2, 2] = (1 - fx) * (1 - fy)
+    expect[1, 2] = fx * (1 - fy)
+    expect[2, 3] = (1 - fx) * fy
+    expect[1, 3] = fx * fy
+    np.testing.assert_allclose(got, expect, atol=1e-15)
+
+
+def test_window_is_clipped_so_no_cell_counts_twice():
+    a = np.zeros((5, 5))
+    a[1, 3] = 1.0
+    a[2, 3] = 1.0
+    # +-3 window on a 5-cell axis covers the axis once: mean of indices 1 and 2 is 1.5
+    d = population_vector_window(a, 3)
+    assert d[0] == pytest.approx(1.5, abs=1e-12)
+    assert d[1] == pytest.approx(3.0, abs=1e-12)
+
+
+# ------------------------------------------------------------------ attractor
+@pytest.mark.parametrize("preset", ["openratslam", "whisker6d"])
+def test_single_packet_is_stable_for_2000_steps(backend, preset):
+    pop = getattr(Population, preset)(backend=backend)
+    centre = np.array(pop.shape) // 2
+    for _ in range(10):
+        pop.step()
+    d0 = pop.decode()
+    for _ in range(2000):
+        d = pop.step()
+    a = pop.activity
+    assert np.all(np.isfinite(a))
+    assert pop.total == pytest.approx(1.0, abs=1e-5)
+    np.testing.assert_allclose(d, d0, atol=0.05)
+    np.testing.assert_allclose(d, centre, atol=0.05)
+    # one packet: the non-zero cells form one connected blob around the centre
+    from scipy import ndimage
+
+    _, n_blobs = ndimage.label(a > 0)
+    assert n_blobs == 1
+
+
+def test_head_direction_ring_holds_a_packet(backend):
+    ring = Population.head_direction(360, backend=backend)
+    ring.reset_cell([90])
+    for _ in range(500):
+        d = ring.step()
+    assert d[0] == pytest.approx(90.0, abs=0.05)
+
+
+# ------------------------------------------------------------ path integration
+def _tracked(pop, n_steps, axis, **kw):
+    n = pop.shape[axis]
+    xs = [pop.decode()[axis]]
+    for _ in range(n_steps):
+        pop.integrate(**kw)
+        xs.append(pop.decode()[axis])
+    return np.unwrap(np.array(xs) * 2 * np.pi / n) * n / (2 * np.pi)
+
+
+@pytest.mark.parametrize("heading_deg", [0, 45, 90, 135])
+def test_planar_translation_moves_30_cells_in_100_steps(backend, heading_deg):
+    # 72 theta layers (5 deg each) so every tested heading is a layer of the grid
+    def fresh():
+        pop = Population.openratslam(dim_th=72, cell_size=0.1, backend=backend, dtype=np.float64)
+        pop.reset_cell([10, 10, heading_deg // 5])
+        return pop
+
+    xs = _tracked(fresh(), 100, 0, velocity=0.03, dt=1.0)  # 0.3 cells per step
+    ys = _tracked(fresh(), 100, 1, velocity=0.03, dt=1.0)
+    th = math.radians(heading_deg)
+    assert xs[-1] - xs[0] == pytest.approx(30 * math.cos(th), abs=0.5)
+    assert ys[-1] - ys[0] == pytest.approx(30 * math.sin(th), abs=0.5)
+
+
+def test_planar_rotation_moves_20_cells_in_100_steps(backend):
+    pop = Population.openratslam(backend=backend, dtype=np.float64)
+    step = 2 * math.pi / 36
+    ths = _tracked(pop, 100, 2, omega=0.2 * step, dt=1.0)
+    assert ths[-1] - ths[0] == pytest.approx(20.0, abs=0.5)
+
+
+def _linear_mean(a: np.ndarray, axis: int, ref: float) -> float:
+    """Mass-weighted mean index along ``axis``, distances unwrapped around ``ref``."""
+    n = a.shape[axis]
+    prof = a.sum(axis=tuple(i for i in range(a.ndim) if i != axis))
+    d = (np.arange(n) - ref + n / 2) % n - n / 2
+    return ref + float(np.dot(prof, d) / prof.sum())
+
+
+@pytest.mark.parametrize("orientation", [(0, 0, 0), (0, 0, 1), (1, 2, 0), (3, 1, 4)])
+def test_6d_translation_follows_the_voxel_orientation(backend, orientation):
+    """0.3 cells/step along a sensor-frame diagonal (x, y and z at once) moves the activity by R(roll, pitch, yaw) v.
+
+    A 21-cell translational grid (5 cells per angle as in the thesis) so the packet,
+    smeared by 100 pure shifts, does not wrap onto itself. Transport is measured by the
+    activity's first moment (exact for mass-conserving shifts); the decoded estimate,
+    biased by the +-3 window on a smeared packet, must agree within 1 cell.
+    """
+    cell = 0.02
+    pop = Population.whisker6d(n=21, n_angle=5, cell_size=cell, backend=backend, dtype=np.float64)
+    pop.reset_cell([10, 10, 10, *orientation])
+    v = np.array([1.0, -1.0, 1.0]) / math.sqrt(3.0) * 0.3 * cell  # 0.3 cells/step in total
+    means = np.array([10.0, 10.0, 10.0])
+    decoded_moved = np.zeros(3)
+    prev = pop.decode()[:3]
+    for _ in range(100):
+        pop.integrate(velocity=v, dt=1.0)
+        a = pop.activity
+        means = np.array([_linear_mean(a, ax, means[ax]) for ax in range(3)])
+        d = pop.decode()[:3]
+        decoded_moved += (d - prev + 10.5) % 21 - 10.5
+        prev = d
+    R = euler_grid_rotations(pop.axes[3:])[orientation]
+    expect = R @ (v / cell) * 100
+    np.testing.assert_allclose(means - 10.0, expect, atol=0.5)
+    np.testing.assert_allclose(decoded_moved, expect, atol=1.0)
+
+
+def test_dynamics_in_the_loop_move_the_packet_at_nearly_the_commanded_speed(backend):
+    """With attractor dynamics each step the packet lags a little (lattice pinning, heading spread).
+
+    Documented behaviour of RatSLAM's CAN: at 0.3 cells/step the 3-D preset moves at
+    90-100 % of the commanded speed.
+    """
+    pop = Population.openratslam(backend=backend, dtype=np.float64)
+    pop.reset_cell([10, 10, 0])
+    for _ in range(30):
+        pop.step()
+    xs = [pop.decode()[0]]
+    for _ in range(100):
+        xs.append(pop.step(velocity=0.3, dt=1.0)[0])
+    xs = np.unwrap(np.array(xs) * 2 * np.pi / 21) * 21 / (2 * np.pi)
+    assert 0.90 * 30 <= xs[-1] - xs[0] <= 30.0
+
+
+# ------------------------------------------------------------------ bad input
+def _bad_calls(pop):
+    return [
+        lambda: pop.step(velocity=float("nan"), dt=1.0),
+        lambda: pop.step(velocity=0.1, omega=float("inf"), dt=1.0),
+        lambda: pop.step(velocity=0.1, dt=-0.1),
+        lambda: pop.integrate(velocity=0.1, dt=float("nan")),
+        lambda: pop.shift([0.1, float("nan"), 0.0]),
+        lambda: pop.shift([0.1, 0.2]),
+        lambda: setattr(pop, "activity", np.ones((3, 3))),
+        lambda: setattr(pop, "activity", np.full(pop.shape, np.nan)),
+        lambda: pop.reset_cell([1, 2]),
+        lambda: pop.inject([1, 2, 3], -1.0),
+        lambda: pop.step(injection=(np.array([10**9]), np.array([1.0]))),
+        lambda: pop.shift_conditional((0, 1), np.zeros((5, 2))),
+    ]
+
+
+def test_bad_input_raises_typed_errors_and_leaves_state_unchanged(backend):
+    from cansim import InvalidInputError
+
+    pop = Population.openratslam(backend=backend)
+    for _ in range(5):
+        pop.step(velocity=0.2, dt=1.0)
+    before = pop.activity
+    for call in _bad_calls(pop):
+        with pytest.raises(InvalidInputError):
+            call()
+        np.testing.assert_array_equal(pop.activity, before)
+
+
+def test_zero_activity_is_reported_and_state_kept():
+    from cansim import ZeroActivityError
+
+    pop = Population.openratslam(params=AttractorParams(global_inhibition=1.0))
+    before = pop.activity
+    with pytest.raises(ZeroActivityError):
+        pop.step()
+    np.testing.assert_array_equal(pop.activity, before)
+
+
+def test_unknown_and_missing_backends(monkeypatch):
+    import importlib.util
+
+    import cansim.backends as reg
+    from cansim import BackendUnavailableError, UnknownBackendError
+
+    with pytest.raises(UnknownBackendError, match="choose one of"):
+        Population.openratslam(backend="cuda")
+    real = importlib.util.find_spec
+    monkeypatch.setattr(reg.importlib.util, "find_spec", lambda n, *a: None if n == "pyopencl" else real(n, *a))
+    assert "opencl" not in reg.available_backends()
+    with pytest.raises(BackendUnavailableError, match=r"cansim\[opencl\]"):
+        reg.get_backend("opencl")
+
+
+def test_empty_grid_and_bad_axes():
+    from cansim import InvalidInputError, ShapeError
+
+    with pytest.raises(ShapeError):
+        Population([])
+    with pytest.raises(InvalidInputError):
+        Axis.linear("x", 0, 1.0)
+    with pytest.raises(InvalidInputError):
+        Axis.linear("x", 5, -1.0)
+    with pytest.raises(InvalidInputError):
+        Population([Axis.linear("x", 4, 1.0), Axis.linear("x", 4, 1.0)])
+
+
+def test_import_does_no_work():
+    code = "import sys, cansim; print(int(any(m in sys.modules for m in ('numba', 'pyopencl', 'scipy'))))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "0"
