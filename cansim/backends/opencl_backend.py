@@ -10,20 +10,23 @@ The kernels are the gather forms of the numpy reference (:mod:`cansim.backends.n
 * ``inhibit`` - the last inhibition pass fused with ``b = e - e (*) I`` (Alg 4,
   OpenRatSLAM semantics), global inhibition ``max(b - phi, 0)`` (Alg 5) and one partial
   sum per work-group; ``sum_partials`` reduces those to the total for normalisation.
-* ``shift_*`` - the fractional shift of SPEC §1.4 over up to three axes in one gather:
-  the product of the 1-D splits ``(1 - f, f)`` over the ``2^k`` neighbour corners. The
-  split of a cell is looked up by its *condition index* (the flat index over the axes
-  that are not shifted), so one kernel serves the uniform shift (one condition) and the
-  heading-conditional translation (one shift vector per orientation slice). It also
-  applies the normalisation ``/ total`` on the fly and writes the storage dtype.
+* ``shift_*`` - the fractional shift of SPEC §1.4 along one axis, the reference's
+  expression ``(1 - f) a[m - lo] + f a[m - lo - 1]``; axes are applied one after another
+  (the product of the 1-D splits). The split of a cell is looked up by its *condition
+  index* (the flat index over the axes that are not shifted), so one kernel serves the
+  uniform shift (one condition) and the heading-conditional translation (one shift
+  vector per orientation slice). The first pass after the dynamics also normalises.
 * ``scatter_set`` - writes a few precomputed cells (local-view injection).
 
 Numerics: cells are stored in the grid's dtype; every intermediate (the excited and
 inhibited activity, sums, split weights) is held in ``double`` when the device supports
 ``cl_khr_fp64`` (PoCL and Intel CPU runtimes do), as the numpy reference does, and in
 ``float`` otherwise (float32 grids only; results then agree with numpy to ~1e-6
-relative). Floating-point contraction is disabled, so with fp64 the convolutions are
-the same operations in the same order as numpy's.
+relative). Floating-point contraction is disabled, the taps and shift axes are visited
+in the reference's order and results are rounded to the grid dtype where the reference
+stores them (after normalisation and after each shift stage), so with fp64 the results
+equal numpy's up to the order of the one global sum (float32 grids: bit-identical in
+practice, which also keeps argmax ties and hence decoding identical).
 
 Decoding (argmax + population vector, Eq 5.11-5.12) and standalone injection run on the
 host: the backend contract hands activity back as a host array after every call, so the
@@ -35,9 +38,12 @@ Device choice: ``OpenCLBackend(device=...)`` or the environment variable
 ``CANSIM_OPENCL_DEVICE``, either ``"P:D"`` (platform and device index, as pyopencl's
 ``PYOPENCL_CTX``) or a case-insensitive substring of ``"<platform name> <device name>"``.
 By default a GPU is preferred, then the other devices in platform order; a device whose
-OpenCL compiler fails on the kernels is passed over (PoCL 3.0 of
-``pocl-binary-distribution`` bundles LLVM 14, which rejects CPUs it does not know, e.g.
-AMD Zen 5: "unknown target CPU 'generic'").
+OpenCL compiler fails on the kernels is passed over. PoCL 3.0 of
+``pocl-binary-distribution`` bundles LLVM 14, which cannot compile for CPUs it does not
+know (e.g. AMD Zen 5: "unknown target CPU 'generic'"); such a device is recognised from
+its version string and skipped. On those machines Intel's CPU runtime works: ``pip
+install intel-opencl-rt`` and point the ICD loader at it with ``OCL_ICD_VENDORS=<dir>``
+where ``<dir>`` holds an ``.icd`` file containing the path of ``<prefix>/lib/libintelocl.so``.
 
 Nothing happens at import. The device is looked up when the backend is constructed; the
 context, queue and program are created on first use (or by :meth:`OpenCLBackend.prepare`)
@@ -70,9 +76,6 @@ log = logging.getLogger(__name__)
 DEVICE_ENV_VAR = "CANSIM_OPENCL_DEVICE"
 
 _INSTALL_HINT = 'pip install "cansim[opencl]" (pyopencl + pocl-binary-distribution, a CPU OpenCL platform)'
-
-#: most axes one shift pass handles (2^3 = 8 corners per cell); more are chunked
-_MAX_SHIFT_AXES = 3
 
 _SOURCE = r"""
 #ifdef NEED_FP64
@@ -148,53 +151,42 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
     if (lid == 0) total[0] = scratch[0];
 }
 
-/* Fractional shift over k <= MAXK axes, gathered from the 2^k neighbour corners.
-   meta = [ndim, k, shape[ndim], stride[ndim], cstride[ndim], axes[k]];
-   table[(cond * k + q) * 2 + {0, 1}] = (integer part mod n, fraction) of axis q
-   for the condition index cond = sum_ax coord[ax] * cstride[ax].
-   Optionally divides by norm[0] (normalisation) before storing. */
-#define MAXK 3
+/* Fractional shift along one axis (SPEC 1.4): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
+   (wrapped), the same expression as the reference's _fractional_roll. The split of a cell
+   is looked up by its condition index cond = sum_ax coord[ax] * cstride[ax] in
+   table[toff + 2 cond] = (integer part mod n, fraction); meta = [ndim, shape, stride, cstride].
+   axis < 0 copies. With use_norm every value read is first normalised by norm[0] and
+   rounded to the storage type, as the reference stores the normalised activity. */
+#define READ(IN, i) (use_norm ? (ACC)(T)((ACC)IN[i] / norm[0]) : (ACC)IN[i])
 #define SHIFT_KERNEL(NAME, IN_T, OUT_T)                                   \
 __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
-                   __global const int *meta, __global const ACC *table,   \
-                   const int toff, __global const ACC *norm,              \
-                   const int use_norm,          \
+                   __global const int *meta, const int axis,              \
+                   __global const ACC *table, const int toff,             \
+                   __global const ACC *norm, const int use_norm,          \
                    const int total)                                       \
 {                                                                         \
     const int gid = get_global_id(0);                                     \
     if (gid >= total) return;                                             \
-    const int nd = meta[0], k = meta[1];                                  \
-    __global const int *shape = meta + 2, *stride = meta + 2 + nd;        \
-    __global const int *cstride = meta + 2 + 2 * nd;                      \
-    __global const int *axes = meta + 2 + 3 * nd;                         \
+    if (axis < 0) { out[gid] = (OUT_T)READ(in, gid); return; }            \
+    const int nd = meta[0];                                               \
+    __global const int *shape = meta + 1, *stride = meta + 1 + nd;        \
+    __global const int *cstride = meta + 1 + 2 * nd;                      \
     int cond = 0;                                                         \
     for (int ax = 0; ax < nd; ++ax)                                       \
         if (cstride[ax] != 0)                                             \
             cond += ((gid / stride[ax]) % shape[ax]) * cstride[ax];       \
-    int base = gid, coord[MAXK], nq[MAXK], sq[MAXK], lo[MAXK];            \
-    ACC f[MAXK];                                                          \
-    for (int q = 0; q < k; ++q) {                                         \
-        nq[q] = shape[axes[q]];                                           \
-        sq[q] = stride[axes[q]];                                          \
-        coord[q] = (gid / sq[q]) % nq[q];                                 \
-        base -= coord[q] * sq[q];                                         \
-        lo[q] = (int)table[toff + (cond * k + q) * 2];                    \
-        f[q] = table[toff + (cond * k + q) * 2 + 1];                      \
+    const int n = shape[axis], st = stride[axis];                         \
+    const int coord = (gid / st) % n;                                     \
+    const int base = gid - coord * st;                                    \
+    const int lo = (int)table[toff + 2 * cond];                           \
+    const ACC f = table[toff + 2 * cond + 1];                             \
+    int src = coord - lo;                                                 \
+    if (src < 0) src += n;                                                \
+    ACC acc = READ(in, base + src * st);                                  \
+    if (f != 0) {                                                         \
+        src = (src == 0) ? n - 1 : src - 1;                               \
+        acc = ((ACC)1 - f) * acc + f * READ(in, base + src * st);         \
     }                                                                     \
-    ACC acc = 0;                                                          \
-    for (int corner = 0; corner < (1 << k); ++corner) {                   \
-        ACC wgt = 1;                                                      \
-        int off = base;                                                   \
-        for (int q = 0; q < k; ++q) {                                     \
-            const int bit = (corner >> q) & 1;                            \
-            wgt *= bit ? f[q] : (ACC)1 - f[q];                            \
-            int s = coord[q] - lo[q] - bit;                               \
-            if (s < 0) s += nq[q];                                        \
-            off += s * sq[q];                                             \
-        }                                                                 \
-        if (wgt != 0) acc += wgt * (ACC)in[off];                          \
-    }                                                                     \
-    if (use_norm) acc = acc / norm[0];                                    \
     out[gid] = (OUT_T)acc;                                                \
 }
 
@@ -260,8 +252,12 @@ def _select_devices(spec: Union[str, "cl.Device", None]) -> tuple[list, bool]:
             f"the opencl backend found OpenCL platforms but no device; run: {_INSTALL_HINT}"
         )
     if spec is None:
-        gpus = [d for _, d in devices if d.type & cl.device_type.GPU]
-        return gpus + [d for _, d in devices if not d.type & cl.device_type.GPU], False
+        usable = [(label, d) for label, d in devices if _unusable_reason(d) is None]
+        if not usable:
+            reasons = "; ".join(f"{label}: {_unusable_reason(d)}" for label, d in devices)
+            raise BackendUnavailableError(f"no usable OpenCL device ({reasons})")
+        gpus = [d for _, d in usable if d.type & cl.device_type.GPU]
+        return gpus + [d for _, d in usable if not d.type & cl.device_type.GPU], False
     spec = str(spec).strip()
     if ":" in spec and all(part.strip().isdigit() for part in spec.split(":", 1)):
         key = ":".join(part.strip() for part in spec.split(":", 1))
@@ -274,7 +270,29 @@ def _select_devices(spec: Union[str, "cl.Device", None]) -> tuple[list, bool]:
             f"no OpenCL device matches {spec!r} (from the device argument or ${DEVICE_ENV_VAR}); "
             f"available: {listing}. Give 'P:D' indices or part of a name."
         )
+    reason = _unusable_reason(chosen[0])
+    if reason is not None:
+        raise BackendUnavailableError(f"OpenCL device {chosen[0].name.strip()!r} is not usable: {reason}")
     return chosen[:1], True
+
+
+def _unusable_reason(device) -> Optional[str]:
+    """Why a device is known not to build OpenCL C here, or None.
+
+    PoCL reports the LLVM CPU name it compiles for at the end of its device version
+    (``HSTR: pthread-x86_64-...-<cpu>``); on x86 ``generic`` means its LLVM did not
+    recognise the CPU, and its clang then rejects every program ("unknown target CPU
+    'generic'"), e.g. PoCL 3.0 (LLVM 14) of pocl-binary-distribution on AMD Zen 5.
+    """
+    version = str(getattr(device, "version", ""))
+    if "PoCL HSTR" in version and "x86_64" in version and version.rstrip().endswith("-generic"):
+        return (
+            "this PoCL's LLVM does not recognise the CPU and cannot compile for it; install an "
+            "OpenCL runtime that knows it (a newer PoCL, or Intel's CPU runtime: pip install "
+            "intel-opencl-rt, then list <prefix>/lib/libintelocl.so in an .icd file in the "
+            "directory named by $OCL_ICD_VENDORS)"
+        )
+    return None
 
 
 def _has_fp64(device) -> bool:
@@ -467,7 +485,7 @@ class OpenCLBackend(Backend):
         kernels["inhibit"].set_scalar_arg_dtypes([None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None])
         kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
         for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
-            kernels[name].set_scalar_arg_dtypes([None, None, None, None, i32, None, i32, i32])
+            kernels[name].set_scalar_arg_dtypes([None, None, None, i32, None, i32, None, i32, i32])
         kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
         return _Program(storage, acc, kernels)
 
@@ -504,15 +522,13 @@ class OpenCLBackend(Backend):
         cl.enqueue_copy(self._queue, entry[0], host, is_blocking=False)
         return entry[0]
 
-    def _meta(self, b: _Buffers, axes: tuple[int, ...], cstrides: tuple[int, ...]) -> "cl.Buffer":
-        key = (axes, cstrides)
-        buf = b.meta.get(key)
+    def _meta(self, b: _Buffers, cstrides: tuple[int, ...]) -> "cl.Buffer":
+        """``[ndim, shape, strides, cstrides]`` for the shift kernel (cached per grid)."""
+        buf = b.meta.get(cstrides)
         if buf is None:
-            shape = b.shape
-            strides = _c_strides(shape)
-            host = np.array([len(shape), len(axes), *shape, *strides, *cstrides, *axes], dtype=np.int32)
+            host = np.array([len(b.shape), *b.shape, *_c_strides(b.shape), *cstrides], dtype=np.int32)
             buf = cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
-            b.meta[key] = buf
+            b.meta[cstrides] = buf
         return buf
 
     def _taps(self, prog: _Program, exc: Sequence[np.ndarray], inh: Sequence[np.ndarray]):
@@ -569,48 +585,55 @@ class OpenCLBackend(Backend):
                      cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
         return src
 
-    def _shift_passes(self, b: _Buffers, shift_axes, cond_shifts, uniform) -> list[tuple]:
-        """Host side of the shifts: a list of (axes, cstrides, table) passes, <= 3 axes each."""
-        passes = []
-        shape = b.shape
+    @staticmethod
+    def _shift_stages(shape, shift_axes, cond_shifts, uniform) -> list[list[tuple]]:
+        """Host side of the shifts: stages (conditional, then uniform) of 1-axis passes.
+
+        Each pass is ``(axis, cstrides, table)`` with ``table[cond] = (floor(s) mod n,
+        s - floor(s))``. As in the reference, each stage works in the accumulator type
+        and stores its result in the grid's dtype; axes that do not move are skipped.
+        """
+        stages = []
         if cond_shifts is not None:
             axes = tuple(int(a) for a in shift_axes)
-            cond_axes = [ax for ax in range(len(shape)) if ax not in axes]
-            cstr = [0] * len(shape)
-            acc = 1
-            for ax in reversed(cond_axes):
+            cstr, acc = [0] * len(shape), 1
+            for ax in reversed([ax for ax in range(len(shape)) if ax not in axes]):
                 cstr[ax] = acc
                 acc *= shape[ax]
             sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(axes))
-            for q0 in range(0, len(axes), _MAX_SHIFT_AXES):
-                chunk = axes[q0:q0 + _MAX_SHIFT_AXES]
-                sizes = np.array([shape[ax] for ax in chunk], dtype=np.float64)
-                passes.append((chunk, tuple(cstr), _split_table(sh[:, q0:q0 + len(chunk)], sizes)))
+            stages.append([(ax, tuple(cstr), _split_table(sh[:, q], shape[ax])) for q, ax in enumerate(axes)])
         if uniform is not None:
             u = np.asarray(uniform, dtype=np.float64)
-            moving = tuple(ax for ax in range(len(shape)) if u[ax] != 0.0)
-            for q0 in range(0, len(moving), _MAX_SHIFT_AXES):
-                chunk = moving[q0:q0 + _MAX_SHIFT_AXES]
-                sizes = np.array([shape[ax] for ax in chunk], dtype=np.float64)
-                passes.append((chunk, (0,) * len(shape), _split_table(u[list(chunk)][None, :], sizes)))
-        return passes
+            zero = (0,) * len(shape)
+            stage = [(ax, zero, _split_table(u[ax:ax + 1], shape[ax])) for ax in range(len(shape)) if u[ax] != 0.0]
+            if stage:
+                stages.append(stage)
+        return stages
 
-    def _enqueue_shifts(self, prog, b, src, src_store: bool, passes, normalise: bool) -> None:
-        """Run the shift passes from ``src`` into ``b.res`` (storage dtype); k = 0 just copies/normalises."""
-        if not passes:
-            passes = [((), (0,) * len(b.shape), np.zeros(2))]
-        table = np.concatenate([p[2].ravel() for p in passes]).astype(prog.acc)
+    def _enqueue_shifts(self, prog, b, src, src_store: bool, stages, normalise: bool) -> None:
+        """Run the shift stages from ``src`` into ``b.res`` (grid dtype).
+
+        With ``normalise`` the first pass divides by the total (and rounds to the grid
+        dtype, as the reference stores the normalised activity); without any stage a
+        single copy pass does only that. Each stage ends in the grid dtype: the last in
+        ``b.res``, an earlier one in ``b.act`` (free once the dynamics have read it).
+        """
+        if not stages:
+            stages = [[(-1, (0,) * len(b.shape), np.zeros((1, 2)))]]
+        table = np.concatenate([tab.ravel() for stage in stages for _, _, tab in stage]).astype(prog.acc)
         tbuf = self._small(b, "table", table)
-        free = [t for t in b.tmp if t is not src]
-        cur, cur_store, toff = src, src_store, 0
-        for i, (axes, cstr, tab) in enumerate(passes):
-            last = i == len(passes) - 1
-            dst = b.res if last else free[i % 2]
-            name = f"shift_{'store' if cur_store else 'acc'}_{'store' if last else 'acc'}"
-            self._launch(name, prog, b.size, cur, dst, self._meta(b, axes, cstr),
-                         tbuf, toff, b.total, int(normalise and i == 0), b.size)
-            toff += tab.size
-            cur, cur_store = dst, last
+        cur, cur_store, toff, first = src, src_store, 0, True
+        for s_i, stage in enumerate(stages):
+            for p_i, (axis, cstr, tab) in enumerate(stage):
+                if p_i == len(stage) - 1:
+                    dst, dst_store = (b.res if s_i == len(stages) - 1 else b.act), True
+                else:
+                    dst, dst_store = next(t for t in b.tmp if t is not cur), False
+                name = f"shift_{'store' if cur_store else 'acc'}_{'store' if dst_store else 'acc'}"
+                self._launch(name, prog, b.size, cur, dst, self._meta(b, cstr), axis, tbuf, toff,
+                             b.total, int(normalise and first), b.size)
+                toff += tab.size
+                cur, cur_store, first = dst, dst_store, False
 
     def _upload(self, b: _Buffers, a: np.ndarray) -> None:
         cl.enqueue_copy(self._queue, b.act, np.ascontiguousarray(a), is_blocking=False)
@@ -649,14 +672,14 @@ class OpenCLBackend(Backend):
     def shift(self, a, shifts, out=None):
         prog, b = self._setup(a)
         self._upload(b, a)
-        self._enqueue_shifts(prog, b, b.act, True, self._shift_passes(b, None, None, shifts), normalise=False)
+        self._enqueue_shifts(prog, b, b.act, True, self._shift_stages(b.shape, None, None, shifts), normalise=False)
         return self._download(b, a, out)
 
     def shift_conditional(self, a, shift_axes, shifts, out=None):
         prog, b = self._setup(a)
         self._upload(b, a)
-        passes = self._shift_passes(b, shift_axes, shifts, None)
-        self._enqueue_shifts(prog, b, b.act, True, passes, normalise=False)
+        stages = self._shift_stages(b.shape, shift_axes, shifts, None)
+        self._enqueue_shifts(prog, b, b.act, True, stages, normalise=False)
         return self._download(b, a, out)
 
     def inject(self, a, flat_index, values, out=None):
@@ -690,8 +713,8 @@ class OpenCLBackend(Backend):
             self._launch("scatter_set", prog, len(idx), b.act, ibuf, vbuf, len(idx))
         c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
         uni = uniform_shifts if uniform_shifts is not None and np.any(np.asarray(uniform_shifts) != 0) else None
-        passes = self._shift_passes(b, shift_axes, cond_shifts, uni)
-        self._enqueue_shifts(prog, b, c, False, passes, normalise=True)
+        stages = self._shift_stages(b.shape, shift_axes, cond_shifts, uni)
+        self._enqueue_shifts(prog, b, c, False, stages, normalise=True)
         total = self._total(prog, b)
         if not (np.isfinite(total) and total > 0):
             return None, None
@@ -715,11 +738,10 @@ def _c_strides(shape: Sequence[int]) -> tuple[int, ...]:
     return tuple(reversed(strides))
 
 
-def _split_table(shifts: np.ndarray, sizes: np.ndarray) -> np.ndarray:
-    """(integer part mod n, fraction) per condition and axis, shape (n_cond, k, 2), float64."""
+def _split_table(shifts: np.ndarray, n: int) -> np.ndarray:
+    """``(floor(s) mod n, s - floor(s))`` per condition, shape (n_cond, 2), float64 (Fig 5.11)."""
     lo = np.floor(shifts)
-    frac = shifts - lo
-    return np.stack([np.mod(lo, sizes), frac], axis=-1)
+    return np.stack([np.mod(lo, n), shifts - lo], axis=-1)
 
 
 def _injected_cells(a: np.ndarray, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
