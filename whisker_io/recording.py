@@ -716,11 +716,8 @@ def replay(
         wanted = sorted(by_module) if modules is None else list(modules)
         missing = [m for m in wanted if m not in by_module]
         if not wanted or missing:
-            raise RecordingFormatError(
-                f"{pose_path}: line {lineno}: whisk file(s) "
-                + (", ".join(f"{entry.whisk_file}_{m}.csv" for m in missing) if missing else f"{entry.whisk_file}_*.csv")
-                + f" missing in {d}"
-            )
+            names = [f"{entry.whisk_file}_{m}.csv" for m in missing] or [f"{entry.whisk_file}_*.csv"]
+            raise RecordingFormatError(f"{pose_path}: line {lineno}: whisk file(s) {', '.join(names)} missing in {d}")
         m = _FILE_RE.match(by_module[wanted[0]].name)
         cycle = int(m.group(1)) if m else 0
         records = {

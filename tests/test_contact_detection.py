@@ -1,0 +1,177 @@
+"""Tests of contact detection (Sec 5.1.1.1.1), the Ch.3 angle alternatives and contact features."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from whisker_io.contact_detection import (
+    DetectedContact,
+    DetectionParams,
+    detect_contact,
+    detect_contacts,
+    max_angle,
+    threshold_contact_angle,
+)
+from whisker_io.contact_features import FEATURE_NAMES, contact_features, whisk_features
+from whisker_io.control import OpenLoop, RetractAtMax, WhiskPattern
+from whisker_io.errors import InvalidInputError
+from whisker_io.recording import WhiskRecord
+from whisker_io.signals import SignalParams, WhiskContact, bending_stiffness, simulate_rod_contact, simulate_whisk_cycle
+
+FS = 2000.0
+
+
+def _hinge_record(onset=600, rise=400, hold=300, slope=5.0, T=2400, sign=1.0, noise=0.0, seed=0, tail=0.0):
+    """Flat, linear rise from ``onset`` (first deflected sample), flat top, linear fall, flat."""
+    k = np.arange(T, dtype=float)
+    up = np.clip(k - (onset - 1), 0, rise) * slope
+    down = np.clip(k - (onset - 1 + rise + hold), 0, rise) * slope
+    y = sign * (up - down) + tail * (k >= T - 200)
+    y = y + np.random.default_rng(seed).normal(0, noise, T) if noise else y
+    angle = -0.8 + 1.6 * k / T  # linear sweep, rad
+    return WhiskRecord("A1", angle, np.zeros(T), y)
+
+
+def test_hinge_signal_onset_peak_offset_exact():
+    rec = _hinge_record()
+    c = detect_contact(rec)
+    assert isinstance(c, DetectedContact)
+    assert c.onset_index == 600  # first deflected sample
+    # peak: first sample whose smoothed value is within 20 counts of the 2000-count top. The
+    # raw top starts at 999; the centred mean at k misses 0.05 n (n + 1) / 2 counts with
+    # n = 1049 - k, which is <= 20 from n = 27, i.e. k = 1022
+    assert c.peak_index == 1022
+    assert c.offset_index == 600 - 1 + 400 + 300 + 400  # first sample back at zero
+    assert c.sign == 1 and c.amplitude_counts == pytest.approx(2000.0)
+    assert c.contact_angle_rad == pytest.approx(rec.angle_rad[600])
+    assert c.onset_time_s == pytest.approx(600 / FS)
+
+
+def test_negative_deflection_is_detected_with_sign():
+    c = detect_contact(_hinge_record(sign=-1.0, noise=4.0))
+    assert c.sign == -1 and abs(c.onset_index - 600) <= 4 and c.amplitude_counts > 1900
+    assert detect_contact(_hinge_record(sign=-1.0), DetectionParams(signs=(1,))) is None
+
+
+def test_thresholds_reject_small_narrow_and_unconfirmed_peaks():
+    assert detect_contact(_hinge_record(slope=1.0, noise=4.0)) is None  # 400-count peak < 500 prominence
+    wide = _hinge_record(rise=100, hold=100, slope=20.0)  # half-prominence width ~ 200 samples
+    assert detect_contact(wide) is not None
+    assert detect_contact(wide, DetectionParams(min_width_samples=300)) is None
+    stuck = _hinge_record(hold=2000, T=3000)  # still deflected at the end: baseline = peak
+    assert detect_contact(stuck) is None
+    assert detect_contact(_hinge_record(noise=4.0, slope=0.0)) is None
+
+
+def test_ch3_alternatives_max_and_threshold_angle():
+    rec = _hinge_record(slope=10.0, rise=200)
+    assert max_angle(rec) == pytest.approx(rec.angle_rad.max())
+    # smoothed derivative of a 10 count/sample ramp rises linearly over the 100-sample
+    # window starting 50 samples before the kink: 2500 counts/s = 1.25 count/sample
+    # is crossed 12.5 samples into that window
+    got = threshold_contact_angle(rec, threshold_counts_per_s=2500.0)
+    k = 600 - 50 + 12
+    assert rec.angle_rad[k - 2] <= got <= rec.angle_rad[k + 2]
+    assert threshold_contact_angle(_hinge_record(slope=0.0, noise=4.0, seed=3)) is None
+
+
+def _simulated_batch(controller_cls, frequency, L, rng, n_contacts=8, n_free=4):
+    pat = WhiskPattern(frequency_hz=frequency)
+    contacts = [
+        WhiskContact(math.radians(rng.uniform(-40, 30)), a, L)
+        for a in np.linspace(0.025, 0.9 * L, n_contacts)
+    ] + [None] * n_free
+    return simulate_whisk_cycle(contacts, controller_cls(pat), seed=int(rng.integers(2**31)))
+
+
+def test_acceptance_detection_rate_onset_and_angle_across_distances_and_speeds():
+    """>= 98 % of contacts found, no false contact, onset within 5 ms, angle within 2 deg."""
+    rng = np.random.default_rng(2024)
+    found = total = false = free = 0
+    onset_err, angle_err = [], []
+    for controller_cls in (OpenLoop, RetractAtMax):
+        for frequency in (0.2, 0.5, 1.0, 2.0, 2.5):
+            for L in (0.06, 0.1, 0.16):
+                recs, truths = _simulated_batch(controller_cls, frequency, L, rng)
+                for truth, det in zip(truths, detect_contacts(recs)):
+                    if truth is None:
+                        free += 1
+                        false += det is not None
+                        continue
+                    if abs(truth.peak_y_counts) < 1000:  # too weak to be a contact for the thesis' 500-count rule
+                        continue
+                    total += 1
+                    if det is not None:
+                        found += 1
+                        onset_err.append(abs(det.onset_index - truth.onset_index) / FS)
+                        angle_err.append(abs(det.contact_angle_rad - truth.contact_angle_rad))
+    assert free == 120 and false == 0
+    assert total >= 200 and found / total >= 0.98
+    assert max(onset_err) <= 5e-3
+    assert math.degrees(max(angle_err)) <= 2.0
+
+
+def test_rod_mode_contacts_are_detected():
+    p = SignalParams.evans2013()
+    rng = np.random.default_rng(7)
+    errs = []
+    for a in np.linspace(0.08, 0.18, 6):
+        for speed in (0.036, 0.108, 0.216):
+            rec, truth = simulate_rod_contact(a, 0.185, speed, p, seed=int(rng.integers(2**31)))
+            det = detect_contact(rec)
+            assert det is not None
+            errs.append(abs(det.onset_index - truth.onset_index) / FS)
+    assert np.median(errs) <= 2e-3 and max(errs) <= 10e-3
+
+
+def test_batch_detection_equals_single():
+    rng = np.random.default_rng(1)
+    recs, _ = _simulated_batch(OpenLoop, 1.0, 0.1, rng)
+    rod, _ = simulate_rod_contact(0.1, 0.185, 0.1, SignalParams.evans2013(), seed=2)
+    mixed = recs + [rod]  # different lengths in one batch
+    assert detect_contacts(mixed) == [detect_contact(r) for r in mixed]
+
+
+def test_features_of_hinge_signal_hand_computed():
+    rec = _hinge_record(onset=600, rise=1000, hold=200, slope=2.0, T=3000)
+    c = detect_contact(rec)
+    f = whisk_features(rec, c, 0.1)
+    assert FEATURE_NAMES == ("CP", "CA", "DV", "DA", "AV", "AA", "WL")
+    assert f[0] == pytest.approx((c.peak_index - 600) / FS)
+    assert f[1] == pytest.approx(2000.0, abs=25.0)
+    assert f[2] == pytest.approx(2.0 * FS, rel=0.06)  # 2 counts/sample = 4000 counts/s
+    assert f[4] == pytest.approx(1.6 / 3000 * FS, rel=1e-9)  # linear sweep: 1.07 rad/s
+    assert f[5] == pytest.approx(0.0, abs=1e-6)
+    assert f[6] == 0.1
+
+
+def test_features_encode_radial_distance_as_dv_over_av():
+    """DV/AV ~ G k(a) (Birdwell's dM/dtheta, Eq 2.38) for unsaturated open-loop contacts."""
+    L = 0.1
+    a = np.array([0.06, 0.07, 0.08, 0.09])
+    contacts = [WhiskContact(math.radians(20.0), ai, L) for ai in a]
+    recs, _ = simulate_whisk_cycle(contacts, OpenLoop(WhiskPattern(1.0)), seed=3)
+    dets = detect_contacts(recs)
+    F = contact_features(recs, dets, [L] * 4)
+    ratio = F[:, 2] / F[:, 4]
+    gk = SignalParams().gain_counts_per_nm * bending_stiffness(a, L)
+    assert np.all(np.diff(ratio) < 0)
+    np.testing.assert_allclose(ratio, gk, rtol=0.15)
+
+
+def test_feature_bad_input():
+    rec = _hinge_record()
+    c = detect_contact(rec)
+    with pytest.raises(InvalidInputError):
+        contact_features([rec], [None], [0.1])
+    with pytest.raises(InvalidInputError):
+        contact_features([rec], [c], [0.1, 0.2])
+    with pytest.raises(InvalidInputError):
+        contact_features([rec], [c], [np.nan])
+    with pytest.raises(InvalidInputError):
+        detect_contact("not a record")
+    with pytest.raises(InvalidInputError):
+        DetectionParams(smoothing_span=0)

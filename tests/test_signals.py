@@ -1,0 +1,197 @@
+"""Tests of the tapered-cantilever signal model (Eq 2.33-2.38) and the whisking controllers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from whisker_io.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
+from whisker_io.errors import InvalidInputError
+from whisker_io.signals import (
+    SignalParams,
+    WhiskContact,
+    bending_stiffness,
+    deflection_counts,
+    radial_distance_from_stiffness,
+    simulate_rod_contact,
+    simulate_whisk_cycle,
+)
+
+QUIET = SignalParams(noise_std_counts=0.0, angle_noise_std_rad=0.0, quantize=False)
+
+
+def _stiffness_by_quadrature(a: float, L: float, p: SignalParams) -> float:
+    """dM/dtheta = a^2 / C(a), C(a) = int_0^a (a-x)^2 / (E I(x)) dx (Eq 2.33-2.34 integrated twice)."""
+
+    def integrand(x: float) -> float:
+        r = p.base_radius_m + (p.tip_radius_m - p.base_radius_m) * x / L
+        return (a - x) ** 2 / (p.youngs_modulus_pa * math.pi * r**4 / 4.0)
+
+    compliance, _ = quad(integrand, 0.0, a)
+    return a * a / compliance
+
+
+@pytest.mark.parametrize("tip", [0.3e-3, 0.0, 1.0e-3])
+@pytest.mark.parametrize("a_frac", [0.2, 0.5, 0.9])
+def test_stiffness_matches_beam_integral(tip, a_frac):
+    p = SignalParams(tip_radius_m=tip)
+    L = 0.1
+    a = a_frac * L
+    assert float(bending_stiffness(a, L, p)) == pytest.approx(_stiffness_by_quadrature(a, L, p), rel=1e-6)
+
+
+def test_stiffness_closed_forms_eq_2_38_and_uniform_rod():
+    E, rb, L, d = 3.0e9, 1.0e-3, 0.1, 0.04
+    I = math.pi * rb**4 / 4
+    cone = SignalParams(youngs_modulus_pa=E, base_radius_m=rb, tip_radius_m=0.0)
+    rod = SignalParams(youngs_modulus_pa=E, base_radius_m=rb, tip_radius_m=rb)
+    # Eq 2.38: d = 3EI L / (3EI + dM/dtheta L)  <=>  dM/dtheta = 3EI (L - d) / (d L)
+    assert float(bending_stiffness(d, L, cone)) == pytest.approx(3 * E * I * (L - d) / (d * L), rel=1e-12)
+    assert float(radial_distance_from_stiffness(3 * E * I * (L - d) / (d * L), L, cone)) == pytest.approx(d)
+    assert float(bending_stiffness(d, L, rod)) == pytest.approx(3 * E * I / d, rel=1e-12)  # "3EI/a"
+    a = np.linspace(0.01, 0.1, 10)
+    np.testing.assert_allclose(radial_distance_from_stiffness(bending_stiffness(a, L), L), a, rtol=1e-12)
+
+
+def test_deflection_grows_with_rotation_past_contact_and_saturates():
+    theta_c = math.radians(-10)
+    contact = WhiskContact(theta_c, 0.06, 0.1)
+    angles = np.linspace(math.radians(-50), math.radians(50), 1001)[None, :]
+    x, y = deflection_counts(angles, [contact], QUIET)
+    gk = QUIET.gain_counts_per_nm * float(bending_stiffness(0.06, 0.1, QUIET))
+    expected = np.minimum(gk * np.maximum(angles[0] - theta_c, 0.0), QUIET.adc_max_counts)
+    np.testing.assert_allclose(y[0], expected, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(x[0], 0.0, atol=1e-9)  # squarely facing normal: no x-deflection
+    assert y[0].max() == QUIET.adc_max_counts
+
+
+def test_contacts_nearer_the_base_are_stiffer():
+    angles = np.full((4, 1), math.radians(5.0))
+    contacts = [WhiskContact(0.0, a, 0.1) for a in (0.03, 0.05, 0.07, 0.09)]
+    _, y = deflection_counts(angles, contacts, QUIET)
+    assert np.all(np.diff(y[:, 0]) < 0)
+
+
+@pytest.mark.parametrize("tilt_deg", [-60.0, -20.0, 15.0, 45.0])
+def test_normal_splits_deflection_with_eq_6_14_slope(tilt_deg):
+    theta_c = math.radians(12.0)
+    tilt = math.radians(tilt_deg)
+    # normal in the base frame: rotate the facing normal Rz(theta_c) x about the shaft toward z
+    n = np.array([math.cos(theta_c) * math.cos(tilt), math.sin(theta_c) * math.cos(tilt), math.sin(tilt)])
+    contact = WhiskContact(theta_c, 0.05, 0.1, normal=n)
+    angles = np.array([[theta_c + math.radians(3.0)]])
+    x, y = deflection_counts(angles, [contact], QUIET)
+    magnitude = QUIET.gain_counts_per_nm * float(bending_stiffness(0.05, 0.1, QUIET)) * math.radians(3.0)
+    assert y[0, 0] == pytest.approx(magnitude * math.cos(tilt) ** 2)
+    assert x[0, 0] == pytest.approx(magnitude * math.cos(tilt) * math.sin(tilt))
+    assert y[0, 0] / x[0, 0] == pytest.approx(1.0 / math.tan(tilt))
+    assert contact.slope == pytest.approx(1.0 / math.tan(tilt))
+
+
+def test_normal_not_opposing_protraction_gives_no_deflection():
+    contact = WhiskContact(0.0, 0.05, 0.1, normal=[-1.0, 0.0, 0.2])
+    x, y = deflection_counts(np.array([[0.3]]), [contact], QUIET)
+    assert x[0, 0] == 0.0 and y[0, 0] == 0.0
+
+
+def test_free_whisking_is_noise_only_and_seeded():
+    p = SignalParams()
+    recs, truths = simulate_whisk_cycle([None] * 3, OpenLoop(WhiskPattern(1.0)), p, seed=42)
+    assert truths == [None, None, None]
+    y = np.concatenate([r.y_counts for r in recs])
+    assert abs(y.mean()) < 0.2 and y.std() == pytest.approx(p.noise_std_counts, rel=0.05)
+    assert np.all(np.abs(y) < 8 * p.noise_std_counts)
+    assert np.all(y == np.rint(y))  # integer ADC counts
+    again, _ = simulate_whisk_cycle([None] * 3, OpenLoop(WhiskPattern(1.0)), p, seed=42)
+    other, _ = simulate_whisk_cycle([None] * 3, OpenLoop(WhiskPattern(1.0)), p, seed=43)
+    assert np.array_equal(recs[1].y_counts, again[1].y_counts)
+    assert not np.array_equal(recs[1].y_counts, other[1].y_counts)
+
+
+def test_open_loop_pattern_is_the_full_range_cosine():
+    pat = WhiskPattern(frequency_hz=0.5)
+    th = OpenLoop(pat).command(2)
+    assert th.shape == (2, 4000)
+    assert th[0, 0] == pytest.approx(math.radians(-50))
+    assert th[0, 2000] == pytest.approx(math.radians(50))
+    assert th[0, 1000] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_truth_onset_is_first_sample_past_contact_angle():
+    recs, truths = simulate_whisk_cycle([WhiskContact(math.radians(20.0), 0.05, 0.1)], OpenLoop(), QUIET, seed=0)
+    t = truths[0]
+    th = WhiskPattern().angles()
+    assert th[t.onset_index] > math.radians(20.0) >= th[t.onset_index - 1]
+    assert recs[0].y_counts[t.onset_index - 1] == 0.0 and recs[0].y_counts[t.onset_index] > 0.0
+
+
+def test_retract_at_max_stops_protraction_at_saturation():
+    pat = WhiskPattern(1.0)
+    contacts = [WhiskContact(math.radians(-20.0), a, 0.1) for a in (0.03, 0.05)] + [None]
+    recs, truths = simulate_whisk_cycle(contacts, RetractAtMax(pat), SignalParams(), seed=1)
+    max_angles = [r.angle_rad.max() for r in recs]
+    # nearer the base saturates after a smaller rotation past contact -> retracts earlier
+    assert max_angles[0] < max_angles[1] < math.radians(50.0)
+    assert max_angles[2] == pytest.approx(math.radians(50.0), abs=math.radians(0.5))
+    for r in recs[:2]:
+        assert r.y_counts.max() <= 2047
+        assert r.angle_rad[-1] == pytest.approx(math.radians(-50.0), abs=math.radians(0.5))
+    # the rotation past contact at the top equals the rotation that saturates the sensor
+    gk = SignalParams().gain_counts_per_nm * float(bending_stiffness(0.03, 0.1))
+    assert max_angles[0] - math.radians(-20.0) == pytest.approx(2000.0 / gk, abs=math.radians(1.0))
+
+
+def test_rcp_reduces_amplitude_after_contact_keeps_start_angle():
+    pat = WhiskPattern(1.0)
+    ctrl = RCP(pat)
+    contact = [WhiskContact(math.radians(0.0), 0.05, 0.1), None]
+    simulate_whisk_cycle(contact, ctrl, seed=0)
+    amp = ctrl.amplitudes_rad.copy()
+    assert amp[0] < pat.amplitude_rad and amp[1] == pytest.approx(pat.amplitude_rad)
+    recs, _ = simulate_whisk_cycle([None, None], ctrl, seed=1)
+    assert recs[0].angle_rad.max() == pytest.approx(pat.retraction_rad + amp[0], abs=math.radians(0.3))
+    assert recs[0].angle_rad[0] == pytest.approx(pat.retraction_rad, abs=math.radians(0.3))
+    assert ctrl.amplitudes_rad[0] == pytest.approx(pat.amplitude_rad)  # free cycle restores the amplitude
+
+
+def test_contact_threshold_is_twenty_sigma_of_free_whisking():
+    recs, _ = simulate_whisk_cycle([None] * 4, seed=5)
+    thr = contact_threshold_from_noise(np.concatenate([r.y_counts for r in recs]))
+    assert thr == pytest.approx(20 * SignalParams().noise_std_counts, rel=0.05)
+
+
+def test_rod_mode_peak_and_period_depend_on_speed_and_distance():
+    p = SignalParams.evans2013()
+    kw = dict(params=p, seed=0)
+    slow, t_slow = simulate_rod_contact(0.1, 0.185, 0.036, **kw)
+    fast, t_fast = simulate_rod_contact(0.1, 0.185, 0.216, **kw)
+    assert np.ptp(slow.angle_rad) < math.radians(0.5)  # the whisker is still
+    assert t_fast.peak_y_counts > t_slow.peak_y_counts  # braking overshoot grows with speed
+    assert (t_fast.peak_index - t_fast.onset_index) < (t_slow.peak_index - t_slow.onset_index)
+    near, t_near = simulate_rod_contact(0.08, 0.185, 0.1, **kw)
+    far, t_far = simulate_rod_contact(0.17, 0.185, 0.1, **kw)
+    assert (t_near.peak_index - t_near.onset_index) < (t_far.peak_index - t_far.onset_index)
+    assert t_slow.onset_index == round(0.25 * 2000) + 1
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: WhiskContact(0.0, 0.12, 0.1),
+        lambda: WhiskContact(0.0, -0.01, 0.1),
+        lambda: WhiskContact(0.0, 0.05, 0.1, normal=[np.nan, 0, 0]),
+        lambda: WhiskPattern(frequency_hz=0.0),
+        lambda: WhiskPattern(frequency_hz=12.0),
+        lambda: SignalParams(youngs_modulus_pa=-1.0),
+        lambda: SignalParams(tip_radius_m=2e-3),
+        lambda: simulate_whisk_cycle([]),
+        lambda: simulate_whisk_cycle([None], OpenLoop(WhiskPattern(sample_rate_hz=1000.0))),
+        lambda: simulate_rod_contact(0.05, 0.1, -0.1),
+    ],
+)
+def test_bad_input_raises_typed_error(call):
+    with pytest.raises(InvalidInputError):
+        call()
