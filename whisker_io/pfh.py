@@ -60,6 +60,8 @@ __all__ = [
     "match_region",
 ]
 
+_BRUTE_FORCE_MAX = 256  # neighbour search by full distance matrix up to this many points
+
 FEATURE_NAMES: tuple[str, ...] = ("alpha", "theta", "phi", "d")
 """Order of the pair features in :func:`pair_features` output and in the bin index (Eq 2.44)."""
 
@@ -170,8 +172,13 @@ def estimate_normals(
     n = len(p)
     if p.ndim != 2 or p.shape[1] != 3 or n < k or k < 3:
         raise InvalidInputError(f"need at least k = {k} >= 3 points of shape (n, 3); got {p.shape}")
-    d2 = np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)
-    nbr = np.argsort(d2, axis=1, kind="stable")[:, :k]
+    if n <= _BRUTE_FORCE_MAX:
+        d2 = np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)
+        nbr = np.argsort(d2, axis=1, kind="stable")[:, :k]
+    else:  # large clouds (e.g. mesh vertices): a k-d tree instead of the n x n matrix
+        from scipy.spatial import cKDTree
+
+        nbr = cKDTree(p).query(p, k=k)[1]
     nb = p[nbr]  # (n, k, 3)
     c = nb - nb.mean(axis=1, keepdims=True)
     cov = np.einsum("nki,nkj->nij", c, c) / k
