@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
+from typing import NamedTuple, Optional, Sequence
 
 import numpy as np
 
@@ -87,12 +87,25 @@ def _finite(x: float, name: str) -> float:
 
 
 def _finite_vec(v: Sequence[float] | np.ndarray, n: int, name: str) -> np.ndarray:
+    if n == 1 and isinstance(v, (int, float)):
+        x = float(v)
+        if not math.isfinite(x):
+            raise InvalidInputError(f"{name} must be finite, got {x!r}; check the odometry source")
+        return np.array([x])
+    if isinstance(v, (list, tuple)) and len(v) == n:
+        try:
+            vals = [float(x) for x in v]
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"{name} must hold real numbers, got {v!r}") from None
+        if not all(math.isfinite(x) for x in vals):
+            raise InvalidInputError(f"{name} must be finite, got {vals}; check the odometry source")
+        return np.array(vals)
     arr = np.asarray(v, dtype=np.float64)
     if arr.ndim == 0 and n == 1:
         arr = arr.reshape(1)
     if arr.shape != (n,):
         raise ShapeError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise InvalidInputError(f"{name} must be finite, got {arr.tolist()}; check the odometry source")
     return arr
 
@@ -105,8 +118,7 @@ def check_dt(dt: float) -> float:
     return dtf
 
 
-@dataclass(frozen=True)
-class MotionShifts:
+class MotionShifts(NamedTuple):
     """Shifts for one path-integration step, in cells.
 
     Attributes
@@ -144,11 +156,18 @@ class UniformMotion(MotionModel):
     velocity this way.
     """
 
+    _tables: dict = field(default_factory=dict, compare=False, repr=False)
+
     def shifts(self, axes, velocity, omega, dt):
-        v = _finite_vec(0.0 if velocity is None else velocity, len(axes), "velocity")
         dt = check_dt(dt)
-        steps = np.array([a.step for a in axes])
-        return MotionShifts(None, None, v * dt / steps)
+        if velocity is None:
+            return MotionShifts(None, None, None)
+        v = _finite_vec(velocity, len(axes), "velocity")
+        key = tuple(a.step for a in axes)
+        inv = self._tables.get(key)
+        if inv is None:
+            inv = self._tables[key] = 1.0 / np.array(key)
+        return MotionShifts(None, None, v * (dt * inv))
 
 
 @dataclass(frozen=True)
@@ -234,22 +253,28 @@ class SixDofMotion(MotionModel):
         if len(axes) != 6 or any(a.angular for a in axes[:3]) or not all(a.angular for a in axes[3:]):
             raise ShapeError("SixDofMotion needs axes (x, y, z linear; roll, pitch, yaw angular)")
 
-    def _rotations(self, axes) -> np.ndarray:
+    def _rotations(self, axes) -> tuple[np.ndarray, np.ndarray]:
         key = tuple((a.size, a.step) for a in axes)
         tab = self._tables.get(key)
         if tab is None:
-            tab = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
-            tab.setflags(write=False)
-            self._tables[key] = tab
+            rot = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
+            rot = np.ascontiguousarray(rot.reshape(-1, 3))  # (n_r*n_p*n_y*3, 3): one gemv per step
+            rot.setflags(write=False)
+            inv_ang = 1.0 / np.array([a.step for a in axes[3:]])
+            tab = self._tables[key] = (rot, inv_ang)
         return tab
 
     def shifts(self, axes, velocity, omega, dt):
-        v = _finite_vec(np.zeros(3) if velocity is None else velocity, 3, "velocity")
-        w = _finite_vec(np.zeros(3) if omega is None else omega, 3, "omega")
         dt = check_dt(dt)
-        cond = None
-        if np.any(v != 0.0):
-            cond = self._rotations(axes) @ (v * dt)
-        rot = w * dt / np.array([a.step for a in axes[3:]])
-        uniform = np.concatenate([np.zeros(3), rot]) if np.any(rot != 0.0) else None
+        rot, inv_ang = self._rotations(axes)
+        cond = uniform = None
+        if velocity is not None:
+            v = _finite_vec(velocity, 3, "velocity")
+            if v.any():
+                cond = (rot @ (v * dt)).reshape(tuple(a.size for a in axes[3:]) + (3,))
+        if omega is not None:
+            w = _finite_vec(omega, 3, "omega")
+            if w.any():
+                uniform = np.zeros(6)
+                uniform[3:] = w * (dt * inv_ang)
         return MotionShifts((0, 1, 2) if cond is not None else None, cond, uniform)

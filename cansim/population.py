@@ -81,6 +81,7 @@ class Population:
         if not isinstance(decode_window, (int, np.integer)) or decode_window < 0:
             raise InvalidInputError(f"decode_window must be an integer >= 0, got {decode_window!r}")
         self._axes = axes
+        self._size = int(np.prod([a.size for a in axes]))
         self._params = params
         self._dtype = dt
         self._motion = motion if motion is not None else UniformMotion()
@@ -181,7 +182,7 @@ class Population:
     @property
     def size(self) -> int:
         """Total number of cells."""
-        return int(np.prod(self.shape))
+        return self._size
 
     @property
     def dtype(self) -> np.dtype:
@@ -286,13 +287,21 @@ class Population:
             self._commit(self._backend.inject(self._a, fi, vals, out=self._spare))
 
     def _check_injection(self, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
-        fi = np.asarray(flat_index, dtype=np.int64).ravel()
-        vals = np.asarray(values, dtype=np.float64).ravel()
+        fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else np.asarray(flat_index, dtype=np.int64)
+        vals = values if isinstance(values, np.ndarray) and values.dtype == np.float64 else np.asarray(values, dtype=np.float64)
+        fi, vals = fi.ravel(), vals.ravel()
         if fi.shape != vals.shape:
             raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
-        if len(fi) and (fi.min() < 0 or fi.max() >= self.size):
+        n = len(fi)
+        if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
+            if any(not (0 <= i < self.size) for i in fi.tolist()):
+                raise InvalidInputError(f"flat indices must lie in [0, {self.size})")
+            if any(not (math.isfinite(x) and x >= 0) for x in vals.tolist()):
+                raise InvalidInputError("injected values must be finite and >= 0")
+            return fi, vals
+        if fi.min() < 0 or fi.max() >= self.size:
             raise InvalidInputError(f"flat indices must lie in [0, {self.size})")
-        if not np.all(np.isfinite(vals)) or np.any(vals < 0):
+        if not np.isfinite(vals).all() or vals.min() < 0:
             raise InvalidInputError("injected values must be finite and >= 0")
         return fi, vals
 
