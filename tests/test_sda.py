@@ -1,0 +1,111 @@
+"""Tests of the slope distribution array and NMSE (Sec 5.1.1.1.3, Eq 5.3-5.4)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from whisker_io.contact_detection import detect_contact, detect_contacts
+from whisker_io.control import OpenLoop, WhiskPattern
+from whisker_io.errors import InvalidInputError
+from whisker_io.recording import WhiskRecord
+from whisker_io.sda import contact_gradient, nmse, slope_distribution
+from whisker_io.signals import WhiskContact, simulate_whisk_cycle
+from whisker_io.simulator import ArraySimulator
+
+
+def _tilted_contact(theta_c: float, tilt: float, a: float = 0.05) -> WhiskContact:
+    n = [math.cos(theta_c) * math.cos(tilt), math.sin(theta_c) * math.cos(tilt), math.sin(tilt)]
+    return WhiskContact(theta_c, a, 0.1, normal=n)
+
+
+def test_gradient_of_exact_line_is_recovered():
+    T = 2000
+    k = np.arange(T, dtype=float)
+    x = np.clip(k - 500, 0, 600) - np.clip(k - 1100, 0, 600) * 1.0  # up 600 samples, then down
+    rec = WhiskRecord("B2", np.linspace(-0.8, 0.8, T), x, -2.5 * x)
+    c = detect_contact(rec)
+    assert c is not None and c.sign == -1
+    assert contact_gradient(rec, c) == pytest.approx(-2.5, rel=1e-9)
+
+
+def test_sda_recovers_sign_and_order_of_tilts():
+    """Surfaces tilted about the shaft by +-20..50 deg: gradient = cot(tilt) (unsaturated contacts)."""
+    tilts = np.radians([-50.0, -35.0, -20.0, 20.0, 35.0, 50.0])
+    theta_c = math.radians(10.0)
+    recs, _ = simulate_whisk_cycle(
+        [_tilted_contact(theta_c, t, a=0.07) for t in tilts] + [None], OpenLoop(WhiskPattern(1.0)), seed=11
+    )
+    sda = slope_distribution(recs, detect_contacts(recs))
+    assert sda.mask.tolist() == [True] * 6 + [False]
+    got = sda.slopes[:6]
+    expected = 1.0 / np.tan(tilts)
+    assert np.array_equal(np.sign(got), np.sign(expected))
+    assert np.array_equal(np.argsort(got), np.argsort(expected))
+    np.testing.assert_allclose(got, expected, rtol=0.1)
+
+
+def test_sda_masks_squarely_facing_surface():
+    recs, _ = simulate_whisk_cycle([WhiskContact(0.0, 0.05, 0.1)], seed=0)  # normal in the whisk plane: x flat
+    sda = slope_distribution(recs, detect_contacts(recs))
+    assert not sda.mask[0] and sda.slopes[0] == 0.0
+
+
+def _plane(tilt_rad: float, y0: float) -> trimesh.Trimesh:
+    slab = trimesh.creation.box(extents=[1.0, 0.01, 1.0])
+    slab.apply_transform(trimesh.transformations.rotation_matrix(tilt_rad, [1, 0, 0]))
+    slab.apply_translation([0.0, y0, 0.0])
+    return slab
+
+
+def test_sda_on_tilted_plane_through_the_simulator_follows_geometry():
+    """Through sweep + signals + detection: per whisker, SDA sign and order over tilts follow
+    n_y / n_x of the plane normal on the sensor axes (closed-form from the contact frame)."""
+    tilts = np.radians([10.0, 20.0, 30.0])
+    got = np.full((len(tilts), 18), np.nan)
+    expected = np.full((len(tilts), 18), np.nan)
+    for j, tilt in enumerate(tilts):
+        sim = ArraySimulator(seed=j)
+        res = sim.whisk(_plane(tilt, 0.24), np.eye(4))
+        sda = slope_distribution(res.records, detect_contacts(res.records))
+        for i, sc in enumerate(res.sweep_contacts):
+            if sc is None or not sda.mask[i]:
+                continue
+            n = sc.normal
+            ny, nx = float(n @ sc.frame[:3, 0]), float(n @ sc.frame[:3, 2])
+            if abs(nx) > 0.1 * abs(ny):  # well-defined slope
+                got[j, i], expected[j, i] = sda.slopes[i], ny / nx
+    both = np.isfinite(got) & np.isfinite(expected)
+    assert both.sum() >= 20
+    assert np.array_equal(np.sign(got[both]), np.sign(expected[both]))
+    ordered = 0
+    for i in range(18):
+        ok = both[:, i]
+        if ok.sum() >= 2:
+            assert np.array_equal(np.argsort(got[ok, i]), np.argsort(expected[ok, i]))
+            ordered += 1
+    assert ordered >= 6
+
+
+def test_nmse_hand_computed_and_masked():
+    x = np.array([1.0, 2.0, 3.0, 4.0])
+    y = np.array([1.0, 2.0, 5.0, 0.0])
+    assert nmse(x, x) == 0.0
+    assert nmse(x, y) == pytest.approx((0 + 0 + 4 + 16) / (1 + 4 + 9 + 16))
+    mask = np.array([True, True, True, False])
+    assert nmse(x, y, mask, mask) == pytest.approx(4 / 14)
+    assert nmse(x, y, mask, np.array([False, True, False, True])) == pytest.approx(0.0)
+    assert nmse(x, y, np.zeros(4, bool)) == math.inf
+    assert nmse(np.zeros(2), np.zeros(2)) == 0.0 and nmse(np.zeros(2), np.ones(2)) == math.inf
+
+
+def test_bad_input():
+    with pytest.raises(InvalidInputError):
+        nmse(np.ones(3), np.ones(4))
+    with pytest.raises(InvalidInputError):
+        nmse(np.array([np.nan, 1.0]), np.ones(2))
+    with pytest.raises(InvalidInputError):
+        slope_distribution([], [None])
