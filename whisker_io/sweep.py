@@ -120,6 +120,7 @@ class MeshTarget:
         self.engine: str = engine
         self._bounds = np.asarray(mesh.bounds, dtype=float)
         self._normals = np.asarray(mesh.face_normals, dtype=float)
+        self._v0 = np.asarray(mesh.triangles[:, 0], dtype=float)
 
     @property
     def face_normals(self) -> NDArray[np.float64]:
@@ -153,22 +154,23 @@ class MeshTarget:
         distance = np.full(R, np.inf)
         face = np.full(R, -1, dtype=np.int64)
         location = np.full((R, 3), np.nan)
-        ends = origins + directions * max_distance[:, None]
-        lo = np.minimum(origins, ends)
-        hi = np.maximum(origins, ends)
         if self.engine == "embree":
-            # cull segments whose bounding box misses the mesh's, then first hit per ray
-            live = np.flatnonzero(
-                np.all(hi >= self._bounds[0] - 1e-9, axis=1)
-                & np.all(lo <= self._bounds[1] + 1e-9, axis=1)
-            )
-            if live.size == 0:
-                return distance, face, location
-            tri, ray, loc = self._embree.intersects_id(
-                origins[live], directions[live], multiple_hits=False, return_locations=True
-            )
-            ray = live[ray]
+            tri = np.asarray(self._embree.intersects_first(origins, directions))
+            ray = np.flatnonzero(tri >= 0)
+            tri = tri[ray].astype(np.int64)
+            # Embree (float32) picks the face; the hit point is recomputed in float64 on
+            # that face's plane, as trimesh does
+            nrm = self._normals[tri]
+            o, dirs = origins[ray], directions[ray]
+            denom = np.einsum("ij,ij->i", nrm, dirs)
+            good = np.abs(denom) > 1e-12
+            if not good.all():
+                ray, tri, nrm, denom, o, dirs = ray[good], tri[good], nrm[good], denom[good], o[good], dirs[good]
+            t = np.einsum("ij,ij->i", nrm, self._v0[tri] - o) / denom
+            loc = o + t[:, None] * dirs
         else:
+            ends = origins + directions * max_distance[:, None]
+            lo, hi = np.minimum(origins, ends), np.maximum(origins, ends)
             tri, ray, loc = self._segment_candidates_hits(origins, directions, lo, hi)
         if len(ray) == 0:
             return distance, face, location
@@ -177,11 +179,11 @@ class MeshTarget:
         ray, d, tri, loc = ray[ok], d[ok], tri[ok], loc[ok]
         if len(ray) == 0:
             return distance, face, location
-        # nearest hit per ray (embree already gives one; the triangle path may give several)
-        order = np.lexsort((d, ray))
-        ray, d, tri, loc = ray[order], d[order], tri[order], loc[order]
-        first = np.r_[True, ray[1:] != ray[:-1]]
-        ray, d, tri, loc = ray[first], d[first], tri[first], loc[first]
+        if self.engine != "embree":  # nearest of possibly several hits per segment
+            order = np.lexsort((d, ray))
+            ray, d, tri, loc = ray[order], d[order], tri[order], loc[order]
+            first = np.r_[True, ray[1:] != ray[:-1]]
+            ray, d, tri, loc = ray[first], d[first], tri[first], loc[first]
         distance[ray] = np.maximum(d, 0.0)
         face[ray] = tri
         location[ray] = loc
@@ -229,7 +231,7 @@ class SweepParams:
     refine : bool
         Refine the contact angle inside the first contacting step. Default True.
     refine_subdivisions : int
-        Sub-intervals per refinement pass (>= 2). Default 16.
+        Sub-intervals per refinement pass (>= 2). Default 32 (3 passes from 1 deg to 1e-6 rad).
     angle_tolerance_rad : float
         Refinement stops when the bracket is narrower than this. Default 1e-6 rad.
     tip_chords : bool
@@ -239,7 +241,7 @@ class SweepParams:
 
     step_rad: float = float(np.deg2rad(1.0))
     refine: bool = True
-    refine_subdivisions: int = 16
+    refine_subdivisions: int = 32
     angle_tolerance_rad: float = 1e-6
     tip_chords: bool = True
 
@@ -338,9 +340,7 @@ class _SweepRays:
             tips = base + L[..., None] * d
             chord = tips[:, 1:] - tips[:, :-1]
             clen = np.linalg.norm(chord, axis=-1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                cdir = chord / clen[..., None]
-            cdir = np.nan_to_num(cdir)
+            cdir = np.divide(chord, clen[..., None], out=np.zeros_like(chord), where=clen[..., None] > 0)
             origins.append(tips[:, :-1].reshape(-1, 3))
             dirs.append(cdir.reshape(-1, 3))
             maxd.append(clen.reshape(-1))
