@@ -85,9 +85,7 @@ _SOURCE = r"""
 
 /* Gather form of the periodic scatter convolution out[i + j - c] += in[i] * taps[j]
    along one axis (length n, element stride `stride`): out[m] = sum_j taps[j] in[m + c - j]. */
-#define CONV_GATHER(IN)                                                   \
-    const int coord = (gid / stride) % n;                                 \
-    const int base = gid - coord * stride;                                \
+#define CONV_GATHER(IN, coord, base, n, stride)                           \
     int src = (coord + c) % n;                                            \
     ACC s = 0;                                                            \
     for (int j = 0; j < w; ++j) {                                         \
@@ -95,16 +93,24 @@ _SOURCE = r"""
         src = (src == 0) ? n - 1 : src - 1;                               \
     }
 
+/* NDRange (g0, n, g2) over the cells before the axis (outer), on it (coord) and after it
+   (inner): dimension 0 is the larger of inner and outer, so that neighbouring work-items
+   are many and vectorise well; base = g0 * s0 + g2 * s2, the axis has stride st (= inner).
+   No integer divisions. */
+#define AXIS_INDEX                                                        \
+    const int g0 = get_global_id(0), coord = get_global_id(1);            \
+    const int g2 = get_global_id(2), n = get_global_size(1);              \
+    const int base = g0 * s0 + g2 * s2;
+
 #define CONV_KERNEL(NAME, IN_T)                                           \
 __kernel void NAME(__global const IN_T *in, __global ACC *out,            \
+                   const int s0, const int s2, const int st,              \
                    __global const ACC *taps, const int toff, const int w, \
-                   const int c, const int n, const int stride,            \
-                   const int total)                                       \
+                   const int c)                                           \
 {                                                                         \
-    const int gid = get_global_id(0);                                     \
-    if (gid >= total) return;                                             \
-    CONV_GATHER(in)                                                       \
-    out[gid] = s;                                                         \
+    AXIS_INDEX                                                            \
+    CONV_GATHER(in, coord, base, n, st)                                   \
+    out[base + coord * st] = s;                                           \
 }
 
 CONV_KERNEL(conv_store, T)
@@ -120,7 +126,9 @@ __kernel void inhibit(__global const ACC *in, __global const ACC *e, __global AC
     const int lid = get_local_id(0);
     ACC v = 0;
     if (gid < total) {
-        CONV_GATHER(in)
+        const int coord = (gid / stride) % n;
+        const int base = gid - coord * stride;
+        CONV_GATHER(in, coord, base, n, stride)
         const ACC b = e[gid] - s;
         v = (b >= phi) ? b - phi : (ACC)0;
         out[gid] = v;
@@ -152,32 +160,36 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
 }
 
 /* Fractional shift along one axis (SPEC 1.4): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
-   (wrapped), the same expression as the reference's _fractional_roll. The split of a cell
-   is looked up by its condition index cond = sum_ax coord[ax] * cstride[ax] in
-   table[toff + 2 cond] = (integer part mod n, fraction); meta = [ndim, shape, stride, cstride].
-   axis < 0 copies. With use_norm every value read is first normalised by norm[0] and
-   rounded to the storage type, as the reference stores the normalised activity. */
-#define READ(IN, i) (use_norm ? (ACC)(T)((ACC)IN[i] / norm[0]) : (ACC)IN[i])
+   (wrapped), the same expression as the reference's _fractional_roll. NDRange as the
+   convolution; n = 1 copies. The split of a cell is
+   table[toff + 2 cond + {0, 1}] = (integer part mod n, fraction) for its condition
+   index cond: 0 (cmode 0, uniform shift), i % ncond (cmode 1, the condition axes are the
+   trailing ones) or sum_ax coord[ax] * cstride[ax] (cmode 2, any layout; meta = [ndim,
+   shape, stride, cstride]). With use_norm every value read is first normalised by
+   norm[0] and rounded to the storage type, as the reference stores the normalised
+   activity. */
+#define READ(IN, k) (use_norm ? (ACC)(T)((ACC)IN[k] / norm[0]) : (ACC)IN[k])
 #define SHIFT_KERNEL(NAME, IN_T, OUT_T)                                   \
 __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
-                   __global const int *meta, const int axis,              \
+                   const int s0, const int s2, const int st,              \
+                   const int cmode, const int ncond,                      \
+                   __global const int *meta,                              \
                    __global const ACC *table, const int toff,             \
-                   __global const ACC *norm, const int use_norm,          \
-                   const int total)                                       \
+                   __global const ACC *norm, const int use_norm)          \
 {                                                                         \
-    const int gid = get_global_id(0);                                     \
-    if (gid >= total) return;                                             \
-    if (axis < 0) { out[gid] = (OUT_T)READ(in, gid); return; }            \
-    const int nd = meta[0];                                               \
-    __global const int *shape = meta + 1, *stride = meta + 1 + nd;        \
-    __global const int *cstride = meta + 1 + 2 * nd;                      \
+    AXIS_INDEX                                                            \
+    const int gid = base + coord * st;                                    \
+    const int i = (s0 == 1) ? g0 : g2; /* index among the inner cells */  \
     int cond = 0;                                                         \
-    for (int ax = 0; ax < nd; ++ax)                                       \
-        if (cstride[ax] != 0)                                             \
-            cond += ((gid / stride[ax]) % shape[ax]) * cstride[ax];       \
-    const int n = shape[axis], st = stride[axis];                         \
-    const int coord = (gid / st) % n;                                     \
-    const int base = gid - coord * st;                                    \
+    if (cmode == 1) {                                                     \
+        cond = i % ncond;                                                 \
+    } else if (cmode == 2) {                                              \
+        const int nd = meta[0];                                           \
+        for (int ax = 0; ax < nd; ++ax)                                   \
+            if (meta[1 + 2 * nd + ax] != 0)                               \
+                cond += ((gid / meta[1 + nd + ax]) % meta[1 + ax])        \
+                        * meta[1 + 2 * nd + ax];                          \
+    }                                                                     \
     const int lo = (int)table[toff + 2 * cond];                           \
     const ACC f = table[toff + 2 * cond + 1];                             \
     int src = coord - lo;                                                 \
@@ -479,13 +491,13 @@ class OpenCLBackend(Backend):
                  self.build_seconds[storage.name])
         kernels = {k.function_name: k for k in program.all_kernels()}
         i32 = np.int32
-        sig_conv = [None, None, None, i32, i32, i32, i32, i32, i32]
+        sig_conv = [None, None, i32, i32, i32, None, i32, i32, i32]
         kernels["conv_store"].set_scalar_arg_dtypes(sig_conv)
         kernels["conv_acc"].set_scalar_arg_dtypes(sig_conv)
         kernels["inhibit"].set_scalar_arg_dtypes([None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None])
         kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
         for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
-            kernels[name].set_scalar_arg_dtypes([None, None, None, i32, None, i32, None, i32, i32])
+            kernels[name].set_scalar_arg_dtypes([None, None, i32, i32, i32, i32, i32, None, None, i32, None, i32])
         kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
         return _Program(storage, acc, kernels)
 
@@ -547,9 +559,23 @@ class OpenCLBackend(Backend):
 
     # ------------------------------------------------------------------ enqueueing
     def _launch(self, name: str, prog: _Program, size: int, *args, local: Optional[int] = None) -> None:
+        """1-D launch over ``size`` items (padded to whole work-groups of ``local``)."""
         knl = prog.kernels[name]
         gsize = size if local is None else -(-size // local) * local
         knl(self._queue, (gsize,), None if local is None else (local,), *args)
+
+    def _launch_axis(self, name: str, prog: _Program, shape: tuple[int, ...], axis: int, *args) -> None:
+        """Launch a per-axis kernel over ``(g0, cells on axis, g2)``, ``g0`` the larger of the
+        cell counts after and before the axis; ``axis < 0`` is a flat axis of length 1."""
+        if axis < 0:
+            inner, n, outer = int(np.prod(shape)), 1, 1
+        else:
+            inner, n, outer = int(np.prod(shape[axis + 1:])), shape[axis], int(np.prod(shape[:axis]))
+        if inner >= outer:
+            gsize, s0, s2 = (inner, n, outer), 1, n * inner
+        else:
+            gsize, s0, s2 = (outer, n, inner), n * inner, 1
+        prog.kernels[name](self._queue, gsize, None, args[0], args[1], s0, s2, inner, *args[2:])
 
     def _enqueue_dynamics(self, prog, b, src_store: bool, exc, inh, phi: float) -> "cl.Buffer":
         """Excitation, inhibition, global inhibition and the total; returns the buffer of c."""
@@ -563,8 +589,8 @@ class OpenCLBackend(Backend):
         for ax in range(nd):
             off, w = layout[ax]
             dst = outs[ax % 2]
-            self._launch("conv_store" if cur_store else "conv_acc", prog, b.size, cur, dst,
-                         taps, off, w, w // 2, b.shape[ax], strides[ax], b.size)
+            self._launch_axis("conv_store" if cur_store else "conv_acc", prog, b.shape, ax, cur, dst,
+                              taps, off, w, w // 2)
             cur, cur_store = dst, False
         e = cur
         free = [t for t in (t0, t1, t2) if t is not e]
@@ -574,8 +600,7 @@ class OpenCLBackend(Backend):
             off, w = layout[nd + ax]
             dst = free[ax % 2]
             if ax < nd - 1:
-                self._launch("conv_acc", prog, b.size, src, dst, taps, off, w, w // 2,
-                             b.shape[ax], strides[ax], b.size)
+                self._launch_axis("conv_acc", prog, b.shape, ax, src, dst, taps, off, w, w // 2)
             else:
                 self._launch("inhibit", prog, b.size, src, e, dst, taps, off, w, w // 2,
                              b.shape[ax], strides[ax], b.size, phi, b.partial,
@@ -589,49 +614,62 @@ class OpenCLBackend(Backend):
     def _shift_stages(shape, shift_axes, cond_shifts, uniform) -> list[list[tuple]]:
         """Host side of the shifts: stages (conditional, then uniform) of 1-axis passes.
 
-        Each pass is ``(axis, cstrides, table)`` with ``table[cond] = (floor(s) mod n,
-        s - floor(s))``. As in the reference, each stage works in the accumulator type
-        and stores its result in the grid's dtype; axes that do not move are skipped.
+        Each pass is ``(axis, cmode, ncond, cstrides, table)`` (see the shift kernel) with
+        ``table[cond] = (floor(s) mod n, s - floor(s))``. As in the reference, each stage
+        works in the accumulator type and stores its result in the grid's dtype; axes
+        that do not move are skipped.
         """
+        nd = len(shape)
+        zero = (0,) * nd
         stages = []
         if cond_shifts is not None:
             axes = tuple(int(a) for a in shift_axes)
-            cstr, acc = [0] * len(shape), 1
-            for ax in reversed([ax for ax in range(len(shape)) if ax not in axes]):
-                cstr[ax] = acc
-                acc *= shape[ax]
+            cond_axes = [ax for ax in range(nd) if ax not in axes]
+            cstr, ncond = [0] * nd, 1
+            for ax in reversed(cond_axes):
+                cstr[ax] = ncond
+                ncond *= shape[ax]
+            cmode = 1 if cond_axes == list(range(axes[-1] + 1, nd)) else 2
             sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(axes))
-            stages.append([(ax, tuple(cstr), _split_table(sh[:, q], shape[ax])) for q, ax in enumerate(axes)])
+            stages.append(
+                [(ax, cmode, ncond, tuple(cstr), _split_table(sh[:, q], shape[ax])) for q, ax in enumerate(axes)]
+            )
         if uniform is not None:
             u = np.asarray(uniform, dtype=np.float64)
-            zero = (0,) * len(shape)
-            stage = [(ax, zero, _split_table(u[ax:ax + 1], shape[ax])) for ax in range(len(shape)) if u[ax] != 0.0]
+            stage = [(ax, 0, 1, zero, _split_table(u[ax:ax + 1], shape[ax])) for ax in range(nd) if u[ax] != 0.0]
             if stage:
                 stages.append(stage)
         return stages
 
-    def _enqueue_shifts(self, prog, b, src, src_store: bool, stages, normalise: bool) -> None:
-        """Run the shift stages from ``src`` into ``b.res`` (grid dtype).
+    def _plan_shifts(self, prog, b, shift_axes, cond_shifts, uniform) -> tuple[list, "cl.Buffer"]:
+        """The shift stages and their split table, uploaded before any kernel is enqueued
+        (a write queued behind running kernels would wait for them). Without any stage a
+        single copy pass remains (it normalises after the dynamics)."""
+        stages = self._shift_stages(b.shape, shift_axes, cond_shifts, uniform)
+        if not stages:
+            stages = [[(-1, 0, 1, (0,) * len(b.shape), np.zeros((1, 2)))]]
+        table = np.concatenate([p[-1].ravel() for stage in stages for p in stage]).astype(prog.acc)
+        return stages, self._small(b, "table", table)
+
+    def _enqueue_shifts(self, prog, b, src, src_store: bool, plan, normalise: bool) -> None:
+        """Run the planned shift stages from ``src`` into ``b.res`` (grid dtype).
 
         With ``normalise`` the first pass divides by the total (and rounds to the grid
-        dtype, as the reference stores the normalised activity); without any stage a
-        single copy pass does only that. Each stage ends in the grid dtype: the last in
-        ``b.res``, an earlier one in ``b.act`` (free once the dynamics have read it).
+        dtype, as the reference stores the normalised activity). Each stage ends in the
+        grid dtype: the last in ``b.res``, an earlier one in ``b.act`` (free once the
+        dynamics have read it).
         """
-        if not stages:
-            stages = [[(-1, (0,) * len(b.shape), np.zeros((1, 2)))]]
-        table = np.concatenate([tab.ravel() for stage in stages for _, _, tab in stage]).astype(prog.acc)
-        tbuf = self._small(b, "table", table)
+        stages, tbuf = plan
         cur, cur_store, toff, first = src, src_store, 0, True
         for s_i, stage in enumerate(stages):
-            for p_i, (axis, cstr, tab) in enumerate(stage):
+            for p_i, (axis, cmode, ncond, cstr, tab) in enumerate(stage):
                 if p_i == len(stage) - 1:
                     dst, dst_store = (b.res if s_i == len(stages) - 1 else b.act), True
                 else:
                     dst, dst_store = next(t for t in b.tmp if t is not cur), False
                 name = f"shift_{'store' if cur_store else 'acc'}_{'store' if dst_store else 'acc'}"
-                self._launch(name, prog, b.size, cur, dst, self._meta(b, cstr), axis, tbuf, toff,
-                             b.total, int(normalise and first), b.size)
+                self._launch_axis(name, prog, b.shape, axis, cur, dst, cmode, ncond, self._meta(b, cstr),
+                                  tbuf, toff, b.total, int(normalise and first))
                 toff += tab.size
                 cur, cur_store, first = dst, dst_store, False
 
@@ -662,8 +700,9 @@ class OpenCLBackend(Backend):
     def dynamics(self, a, exc, inh, phi, out=None):
         prog, b = self._setup(a)
         self._upload(b, a)
+        plan = self._plan_shifts(prog, b, None, None, None)
         c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
-        self._enqueue_shifts(prog, b, c, False, [], normalise=True)
+        self._enqueue_shifts(prog, b, c, False, plan, normalise=True)
         total = self._total(prog, b)
         if not (np.isfinite(total) and total > 0):
             return None
@@ -672,14 +711,14 @@ class OpenCLBackend(Backend):
     def shift(self, a, shifts, out=None):
         prog, b = self._setup(a)
         self._upload(b, a)
-        self._enqueue_shifts(prog, b, b.act, True, self._shift_stages(b.shape, None, None, shifts), normalise=False)
+        self._enqueue_shifts(prog, b, b.act, True, self._plan_shifts(prog, b, None, None, shifts), normalise=False)
         return self._download(b, a, out)
 
     def shift_conditional(self, a, shift_axes, shifts, out=None):
         prog, b = self._setup(a)
         self._upload(b, a)
-        stages = self._shift_stages(b.shape, shift_axes, shifts, None)
-        self._enqueue_shifts(prog, b, b.act, True, stages, normalise=False)
+        plan = self._plan_shifts(prog, b, shift_axes, shifts, None)
+        self._enqueue_shifts(prog, b, b.act, True, plan, normalise=False)
         return self._download(b, a, out)
 
     def inject(self, a, flat_index, values, out=None):
@@ -706,15 +745,15 @@ class OpenCLBackend(Backend):
         """
         prog, b = self._setup(a)
         self._upload(b, a)
+        uni = uniform_shifts if uniform_shifts is not None and np.any(np.asarray(uniform_shifts) != 0) else None
+        plan = self._plan_shifts(prog, b, shift_axes, cond_shifts, uni)
         if flat_index is not None and len(flat_index):
             idx, vals = _injected_cells(a, flat_index, values)
             ibuf = self._small(b, "inject_idx", idx.astype(np.int32))
             vbuf = self._small(b, "inject_val", vals)
             self._launch("scatter_set", prog, len(idx), b.act, ibuf, vbuf, len(idx))
         c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
-        uni = uniform_shifts if uniform_shifts is not None and np.any(np.asarray(uniform_shifts) != 0) else None
-        stages = self._shift_stages(b.shape, shift_axes, cond_shifts, uni)
-        self._enqueue_shifts(prog, b, c, False, stages, normalise=True)
+        self._enqueue_shifts(prog, b, c, False, plan, normalise=True)
         total = self._total(prog, b)
         if not (np.isfinite(total) and total > 0):
             return None, None
