@@ -31,6 +31,7 @@ __all__ = [
     "whisker_base_transforms",
     "whisker_frames",
     "shaft_directions",
+    "rotate_shaft",
     "contact_points",
     "whisker_coordinates",
 ]
@@ -175,11 +176,30 @@ def whisker_frames(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArray
     return T_BW[:, None] @ rot_z(t)
 
 
+def rotate_shaft(x_axis: ArrayLike, y_axis: ArrayLike, theta: ArrayLike) -> NDArray[np.float64]:
+    """Shaft direction ``Rz(theta)`` applied to a base frame: ``cos(theta) y - sin(theta) x``.
+
+    Parameters
+    ----------
+    x_axis, y_axis : array_like (..., 3)
+        Base-frame x and y axes (world), broadcast against ``theta[..., None]``.
+    theta : array_like
+        Whisk angle(s), radians.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        Unit shaft direction(s), the y-axis of ``T_BW Rz(theta)`` (Eq 5.1).
+    """
+    t = np.asarray(theta, dtype=float)[..., None]
+    return np.cos(t) * np.asarray(y_axis) - np.sin(t) * np.asarray(x_axis)
+
+
 def shaft_directions(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArray[np.float64]:
     """Unit shaft directions in the world (the frames' y-axes) at angles ``theta``.
 
     Equivalent to ``whisker_frames(...)[..., :3, 1]`` but without building the
-    4x4 stack: ``d = cos(theta) y_i - sin(theta) x_i``.
+    4x4 stack (:func:`rotate_shaft`).
 
     Returns
     -------
@@ -189,8 +209,8 @@ def shaft_directions(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArr
     R = as_transform(pose)[:3, :3] @ array.rotations  # (N, 3, 3)
     x, y = R[:, :, 0], R[:, :, 1]
     if t.ndim == 1:
-        return np.cos(t)[:, None] * y - np.sin(t)[:, None] * x
-    return np.cos(t)[..., None] * y[:, None] - np.sin(t)[..., None] * x[:, None]
+        return rotate_shaft(x, y, t)
+    return rotate_shaft(x[:, None], y[:, None], t)
 
 
 def contact_points(

@@ -31,7 +31,9 @@ Algorithm (documented decision)
 Limit: a feature that lies wholly inside one swept triangle (base, tip_k,
 tip_k+1) without crossing its edges is missed by the coarse pass; at a 1-deg
 step that means a feature narrower than about 1.7 % of its distance from the
-base on every side. Reduce ``step_rad`` for such scenes.
+base on every side. Reduce ``step_rad`` for such scenes. A whisker whose base
+lies inside the mesh (the array pushed into the object) reports the face where
+its shaft leaves the mesh; keep the array outside obstacles.
 
 Ray casting uses trimesh: Embree (``trimesh.ray.ray_pyembree`` through the
 ``embreex`` package, float32 BVH, hit points recomputed in float64) when
@@ -53,7 +55,7 @@ from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, rot_z, whisker_base_transforms
+from whisker_io.kinematics import Pose, as_transform, rot_z, rotate_shaft, whisker_base_transforms
 
 __all__ = [
     "RayEngine",
@@ -325,7 +327,7 @@ class _SweepRays:
 
     def directions(self, idx: NDArray, phi: NDArray) -> NDArray:
         """Unit shaft directions (W, K, 3) of whiskers ``idx`` at angles ``phi`` (W, K)."""
-        return np.cos(phi)[..., None] * self.Y[idx, None] - np.sin(phi)[..., None] * self.X[idx, None]
+        return rotate_shaft(self.X[idx, None], self.Y[idx, None], phi)
 
     def cast(self, idx: NDArray, phi: NDArray) -> dict[str, NDArray]:
         """Shaft rays at every ``phi`` column and chords between consecutive columns."""
