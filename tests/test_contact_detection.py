@@ -175,3 +175,21 @@ def test_feature_bad_input():
         detect_contact("not a record")
     with pytest.raises(InvalidInputError):
         DetectionParams(smoothing_span=0)
+
+
+def test_plot_whisk_marks_onset_and_offset(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from whisker_io.plot_signals import plot_whisk
+
+    rec = _hinge_record(noise=4.0)
+    c = detect_contact(rec)
+    fig = plot_whisk(rec, c)
+    vlines = [ln.get_xdata()[0] for ln in fig.axes[0].get_lines() if len(ln.get_xdata()) == 2]
+    assert c.onset_time_s in vlines and c.offset_time_s in vlines
+    fig.savefig(tmp_path / "whisk.png")
+    assert (tmp_path / "whisk.png").stat().st_size > 0
+    plt.close("all")

@@ -109,3 +109,26 @@ def test_bad_input():
         nmse(np.array([np.nan, 1.0]), np.ones(2))
     with pytest.raises(InvalidInputError):
         slope_distribution([], [None])
+
+
+def test_sda_plots_bars_per_module_and_nmse_title():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from whisker_io.plot_signals import plot_sda, plot_xy_gradient
+
+    tilts = np.radians([-35.0, 20.0, 50.0])
+    recs, _ = simulate_whisk_cycle([_tilted_contact(math.radians(10.0), t, a=0.07) for t in tilts] + [None], seed=2)
+    dets = detect_contacts(recs)
+    sda = slope_distribution(recs, dets)
+    fig = plot_sda(sda, reference=sda)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == [r.module for r in recs]
+    assert "NMSE = 0" in ax.get_title()
+    heights = sorted(p.get_height() for p in ax.patches if p.get_height() != 0.02)
+    np.testing.assert_allclose(heights, sorted(np.repeat(sda.slopes[:3], 2)))
+    fig2 = plot_xy_gradient(recs[0], dets[0])
+    assert f"gradient {sda.slopes[0]:.2f}" in [t.get_text() for t in fig2.axes[0].get_legend().get_texts()]
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
