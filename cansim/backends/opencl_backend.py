@@ -93,13 +93,13 @@ _SOURCE = r"""
         src = (src == 0) ? n - 1 : src - 1;                               \
     }
 
-/* NDRange (g0, n, g2) over the cells before the axis (outer), on it (coord) and after it
-   (inner): dimension 0 is the larger of inner and outer, so that neighbouring work-items
-   are many and vectorise well; base = g0 * s0 + g2 * s2, the axis has stride st (= inner).
-   No integer divisions. */
+/* Per-axis NDRange over the cells after the axis (inner, stride st), on it (coord, n)
+   and before it (outer): (inner, n, outer) with base = g0 + g2 * n * inner, so that
+   neighbouring work-items read neighbouring memory; for the last axis (st == 1)
+   (n, outer, 1) with base = g0 * n, work-items along the axis. No integer divisions. */
 #define AXIS_INDEX                                                        \
-    const int g0 = get_global_id(0), coord = get_global_id(1);            \
-    const int g2 = get_global_id(2), n = get_global_size(1);              \
+    const int g0 = get_global_id(st == 1), coord = get_global_id(st != 1); \
+    const int g2 = get_global_id(2), n = get_global_size(st != 1);        \
     const int base = g0 * s0 + g2 * s2;
 
 #define CONV_KERNEL(NAME, IN_T)                                           \
@@ -179,7 +179,7 @@ __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
 {                                                                         \
     AXIS_INDEX                                                            \
     const int gid = base + coord * st;                                    \
-    const int i = (s0 == 1) ? g0 : g2; /* index among the inner cells */  \
+    const int i = (st == 1) ? 0 : g0;  /* index among the inner cells */  \
     int cond = 0;                                                         \
     if (cmode == 1) {                                                     \
         cond = i % ncond;                                                 \
@@ -565,16 +565,15 @@ class OpenCLBackend(Backend):
         knl(self._queue, (gsize,), None if local is None else (local,), *args)
 
     def _launch_axis(self, name: str, prog: _Program, shape: tuple[int, ...], axis: int, *args) -> None:
-        """Launch a per-axis kernel over ``(g0, cells on axis, g2)``, ``g0`` the larger of the
-        cell counts after and before the axis; ``axis < 0`` is a flat axis of length 1."""
+        """Launch a per-axis kernel (see ``AXIS_INDEX``); ``axis < 0`` is one flat axis of length 1."""
         if axis < 0:
             inner, n, outer = int(np.prod(shape)), 1, 1
         else:
             inner, n, outer = int(np.prod(shape[axis + 1:])), shape[axis], int(np.prod(shape[:axis]))
-        if inner >= outer:
+        if inner == 1:  # the last axis: work-items along it, where memory is contiguous
+            gsize, s0, s2 = (n, outer, 1), n, 0
+        else:  # work-items along the contiguous cells after the axis (measured fastest)
             gsize, s0, s2 = (inner, n, outer), 1, n * inner
-        else:
-            gsize, s0, s2 = (outer, n, inner), n * inner, 1
         prog.kernels[name](self._queue, gsize, None, args[0], args[1], s0, s2, inner, *args[2:])
 
     def _enqueue_dynamics(self, prog, b, src_store: bool, exc, inh, phi: float) -> "cl.Buffer":
