@@ -484,13 +484,16 @@ class URArm(Arm):
         deadline = time.monotonic() + timeout
         seen = set()
         while time.monotonic() < deadline:
+            before = len(seen)
             if self._receive.isConnected():
                 seen.add(float(self._receive.getTimestamp()))
                 if len(seen) >= 2:  # two distinct controller times: the stream is live
                     self._last_timestamp = max(seen)
                     self._last_change = time.monotonic()
                     return
-            time.sleep(0.002)  # polling a C++ buffer: no event to wait on
+            if len(seen) == before:
+                # polling ur-rtde's C++ state buffer: it offers no event to wait on
+                time.sleep(0.0005)
         self._receive.disconnect()
         raise ConnectionFailedError(
             f"connected to {self.host} but no robot state was streamed within {timeout} s")

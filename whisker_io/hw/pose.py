@@ -107,13 +107,17 @@ class Pose:
     def from_ur(cls, tcp_pose) -> "Pose":
         """Pose from a UR TCP pose ``[x, y, z, rx, ry, rz]`` (m, rotation vector in rad)."""
         v = _vector(tcp_pose, 6, "UR TCP pose [x, y, z, rx, ry, rz]")
-        return cls(v[:3], Rotation.from_rotvec(v[3:]).as_quat())
+        try:
+            quat = Rotation.from_rotvec(np.array(v[3:])).as_quat()
+        except ValueError as exc:  # e.g. a rotation vector too long to evaluate
+            raise InvalidInputError(f"invalid rotation vector {v[3:].tolist()}: {exc}") from exc
+        return cls(v[:3], quat)
 
     # ------------------------------------------------------------ conversions
     @property
     def rotation(self) -> Rotation:
         """Orientation as a scipy ``Rotation``."""
-        return Rotation.from_quat(self.quaternion)
+        return Rotation.from_quat(np.array(self.quaternion))
 
     def as_matrix(self) -> np.ndarray:
         """4x4 homogeneous transform ``T_BE``, shape (4, 4)."""

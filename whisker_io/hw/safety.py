@@ -170,13 +170,20 @@ class SafetyEnvelope:
         Raises
         ------
         SafetyViolationError
-            Non-finite or malformed pose, position outside the box, tilt above
-            ``max_tool_tilt``.
+            Non-finite or malformed pose, a UR rotation vector longer than
+            2 pi, position outside the box, tilt above ``max_tool_tilt``.
         """
         try:
             pose = as_pose(target)
         except InvalidInputError as exc:
             raise SafetyViolationError(f"refused: {exc}") from exc
+        if not isinstance(target, Pose) and np.shape(target) == (6,):
+            # a UR rotation vector longer than 2 pi is numerically meaningless
+            # (cos/sin of a huge angle): the robot may read it differently from us
+            angle = math.hypot(*(float(v) for v in np.asarray(target, dtype=float)[3:]))
+            if not angle <= 2 * math.pi:
+                raise SafetyViolationError(
+                    f"refused: rotation vector of length {angle:.3g} rad; give |r| <= 2 pi")
         lo = np.asarray(self.workspace_min)
         hi = np.asarray(self.workspace_max)
         p = pose.position

@@ -1,0 +1,381 @@
+"""Safety envelope: every unsafe command refused, every safe one passed unchanged.
+
+The oracle below re-derives each limit by hand (Rodrigues' formula for the
+tool axis, Euclidean step lengths, plain comparisons) instead of calling the
+envelope, and the commands go through the *drivers* (SimArm and URArm with an
+injected fake controller), so the test also proves the check sits inside the
+driver and that nothing violating reaches the robot.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
+from whisker_io.hw.arm import SimArm, URArm
+from whisker_io.hw.pose import Pose
+from whisker_io.hw.safety import SafetyEnvelope
+
+ENV = SafetyEnvelope()
+LO = np.array(ENV.workspace_min)
+HI = np.array(ENV.workspace_max)
+BORDER = 1e-9  # commands this close to a limit may go either way (float rounding)
+SPECIALS = [math.nan, math.inf, -math.inf, 1e300, -1e300]
+
+
+# ----------------------------------------------------------------- oracle
+def tool_axis_from_rotvec(r):
+    """z-axis of the rotation with rotation vector r (Rodrigues), by hand."""
+    r = np.asarray(r, dtype=float)
+    theta = math.hypot(*r)
+    if theta > 2 * math.pi:
+        return np.array([0.0, 0.0, 1.0])  # refused anyway by the |r| margin
+    v = np.array([0.0, 0.0, 1.0])
+    if theta < 1e-300:
+        return v
+    k = r / theta
+    return v * math.cos(theta) + np.cross(k, v) * math.sin(theta) + k * (k @ v) * (1 - math.cos(theta))
+
+
+def verdict(conditions):
+    """conditions: list of (margin) where margin >= 0 is inside the limit.
+    Returns 'safe', 'unsafe' or 'border'."""
+    if any(m is None for m in conditions):
+        return "unsafe"  # non-finite input
+    worst = min(conditions)
+    if abs(worst) <= BORDER:
+        return "border"
+    return "safe" if worst > 0 else "unsafe"
+
+
+def pose_margins(vec):
+    v = np.asarray(vec, dtype=float)
+    if not np.all(np.isfinite(v)):
+        return [None]
+    p = v[:3]
+    margins = list(p - LO) + list(HI - p)
+    margins.append(2 * math.pi - math.hypot(*v[3:]))  # |r| <= 2 pi: meaningful rotation vector
+    tilt = math.acos(max(-1.0, min(1.0, -tool_axis_from_rotvec(v[3:])[2])))
+    margins.append(ENV.max_tool_tilt - tilt)
+    return margins
+
+
+def range_margin(x, limit):
+    if not math.isfinite(x):
+        return None
+    return min(x, limit - x)
+
+
+def oracle(cmd, start_vec):
+    kind = cmd[0]
+    if kind == "moveL":
+        _, vec, speed, acc = cmd
+        return verdict(pose_margins(vec) + [range_margin(speed, ENV.max_tcp_speed),
+                                            range_margin(acc, ENV.max_tcp_acceleration)])
+    if kind == "servoL":
+        _, vec, dt = cmd
+        m = pose_margins(vec)
+        if None in m or min(m) < -BORDER or not math.isfinite(dt):
+            return "unsafe"
+        step = math.hypot(*(a - b for a, b in zip(vec[:3], start_vec[:3])))
+        # relative rotation angle between the two rotation vectors, by quaternions
+        q0 = _quat(start_vec[3:])
+        q1 = _quat(vec[3:])
+        rot = 2 * math.acos(min(1.0, abs(float(q0 @ q1))))
+        m += [dt - ENV.min_servo_period, ENV.max_servo_period - dt,
+              ENV.max_servo_step - step, ENV.max_servo_rotation_step - rot]
+        if dt > 0:
+            m.append(ENV.max_tcp_speed - step / dt)
+        return verdict(m)
+    _, q, speed, acc = cmd
+    q = np.asarray(q, dtype=float)
+    if not np.all(np.isfinite(q)):
+        return "unsafe"
+    return verdict(list(2 * math.pi - np.abs(q)) + [range_margin(speed, ENV.max_joint_speed),
+                                                     range_margin(acc, ENV.max_joint_acceleration)])
+
+
+def _quat(r):
+    r = np.asarray(r, dtype=float)
+    theta = math.hypot(*r)
+    if theta < 1e-300:
+        return np.array([0.0, 0.0, 0.0, 1.0])
+    return np.concatenate([r / theta * math.sin(theta / 2), [math.cos(theta / 2)]])
+
+
+# ------------------------------------------------------------- strategies
+# Hypothesis' per-draw cost dominates at 10,000 examples, so each command is
+# drawn flat (a kind, 8 uniform numbers, one selector) and mapped to values.
+start_pose = st.tuples(st.floats(-0.45, 0.45), st.floats(-0.45, 0.45), st.floats(0.1, 0.65),
+                       st.floats(-math.pi, math.pi))
+
+
+def ur_vector(pos, rv):
+    return [float(v) for v in list(pos) + list(rv)]
+
+
+def build_command(kind, u, sel):
+    """Map uniform numbers u (8 in [-1, 1]) and a selector to one command.
+
+    Ranges straddle every limit (out-of-box positions, rotation vectors longer
+    than 2 pi, over-speed, negative/zero speeds and periods, huge servo steps);
+    selectors >= 48 replace one number by NaN, +-inf or +-1e300."""
+    if kind == "moveL":
+        nums = [0.85 * u[0] + 0.05, 0.8 * u[1], 0.55 * u[2] + 0.35, 4 * u[3], 4 * u[4], 4 * u[5],
+                0.125 * u[6] + 0.075, 0.6 * u[7] + 0.4]
+    elif kind == "servoL":
+        step = 1.0 if sel % 4 == 0 else 0.002      # huge servo steps a quarter of the time
+        turn = 1.0 if sel % 8 == 1 else 0.02
+        nums = [step * u[0], step * u[1], step * u[2], turn * u[3], turn * u[4], turn * u[5],
+                0.105 * u[6] + 0.095]
+    else:
+        nums = [7 * v for v in u[:6]] + [0.175 * u[6] + 0.125, 0.6 * u[7] + 0.4]
+    if sel >= 48:
+        nums[(sel - 48) % len(nums)] = SPECIALS[(sel - 48) % len(SPECIALS)]
+    if kind == "moveL":
+        return ("moveL", ur_vector(nums[:3], nums[3:6]), nums[6], nums[7])
+    if kind == "servoL":
+        return ("servoL", tuple(nums[:3]), tuple(nums[3:6]), nums[6])
+    return ("moveJ", nums[:6], nums[6], nums[7])
+
+
+command = st.builds(build_command, st.sampled_from(["moveL", "servoL", "moveJ"]),
+                    st.tuples(*[st.floats(-1.0, 1.0)] * 8), st.integers(0, 63))
+
+
+# ------------------------------------------------------- fake controller
+class FakeReceive:
+    """Receive interface double: a fixed pose, a timestamp that always advances."""
+
+    def __init__(self, vec):
+        self.vec = list(vec)
+        self.t = 0.0
+
+    def isConnected(self):
+        return True
+
+    def getTimestamp(self):
+        self.t += 0.002
+        return self.t
+
+    def getActualTCPPose(self):
+        return list(self.vec)
+
+    def getActualQ(self):
+        return [0.0] * 6
+
+    def getActualQd(self):
+        return [0.0] * 6
+
+    def disconnect(self):
+        pass
+
+
+class FakeControl:
+    """Control interface double recording everything that reaches 'the robot'."""
+
+    def __init__(self):
+        self.sent = []
+
+    def moveL(self, pose, speed, acc, asynchronous):
+        self.sent.append(("moveL", list(pose), speed, acc))
+        return True
+
+    def servoL(self, pose, speed, acc, dt, lookahead, gain):
+        self.sent.append(("servoL", list(pose), dt))
+        return True
+
+    def moveJ(self, q, speed, acc, asynchronous):
+        self.sent.append(("moveJ", list(q), speed, acc))
+        return True
+
+    def servoStop(self, a):
+        return True
+
+    def stopL(self, a, asynchronous):
+        return True
+
+    def disconnect(self):
+        pass
+
+
+def make_arm(kind, start_vec):
+    if kind == "sim":
+        return SimArm(start_vec)
+    ctl = FakeControl()
+    arm = URArm("127.0.0.1", receive_factory=lambda h: FakeReceive(start_vec),
+                control_factory=lambda h: ctl)
+    arm.fake_control = ctl
+    return arm
+
+
+def delivered(arm):
+    if isinstance(arm, SimArm):
+        out = []
+        for c in arm.received:
+            if c.kind == "moveL":
+                out.append(("moveL", c.target.as_ur(), c.speed, c.acceleration_or_dt))
+            elif c.kind == "servoL":
+                out.append(("servoL", c.target.as_ur(), c.acceleration_or_dt))
+            elif c.kind == "moveJ":
+                out.append(("moveJ", c.target.tolist(), c.speed, c.acceleration_or_dt))
+        return out
+    return list(arm.fake_control.sent)
+
+
+def run_command(arm, cmd, start_vec):
+    """Send cmd through the driver; return (accepted, the command as built)."""
+    kind = cmd[0]
+    if kind == "servoL":
+        _, dpos, drot, dt = cmd
+        pos = [a + b for a, b in zip(start_vec[:3], dpos)]
+        if np.all(np.isfinite(drot)) and math.hypot(*drot) <= math.pi:
+            from scipy.spatial.transform import Rotation
+            rv = (Rotation.from_rotvec(start_vec[3:]) * Rotation.from_rotvec(drot)).as_rotvec()
+        else:
+            rv = [a + b for a, b in zip(start_vec[3:], drot)]  # garbage: refused anyway
+        built = ("servoL", ur_vector(pos, rv), dt)
+        call = lambda: arm.servo_linear(built[1], dt)  # noqa: E731
+    elif kind == "moveL":
+        built = cmd
+        call = lambda: arm.move_linear(cmd[1], cmd[2], cmd[3])  # noqa: E731
+    else:
+        built = cmd
+        call = lambda: arm.move_joints(cmd[1], cmd[2], cmd[3])  # noqa: E731
+    try:
+        call()
+    except SafetyViolationError:
+        return False, built
+    return True, built
+
+
+def check_commands(kind, start, cmd):
+    x, y, z, yaw = start
+    start_vec = ur_vector((x, y, z), (math.pi * math.cos(yaw / 2), math.pi * math.sin(yaw / 2), 0.0))
+    arm = make_arm(kind, start_vec)
+    start_vec = arm.pose().as_ur()
+    accepted, built = run_command(arm, cmd, start_vec)
+    expect = oracle(built, start_vec)
+    sent = delivered(arm)
+    if expect != "border":
+        assert accepted == (expect == "safe"), (built, expect)
+    if accepted:
+        assert len(sent) == 1
+        # passes unchanged: the robot got exactly the converted command
+        got = sent[0]
+        assert got[0] == built[0]
+        if built[0] == "moveJ":
+            assert got[1] == [float(v) for v in built[1]] and got[2:] == (built[2], built[3])
+        else:
+            assert np.array_equal(got[1], Pose.from_ur(built[1]).as_ur())
+            assert np.allclose(got[1][:3], built[1][:3], rtol=0, atol=0)
+            assert got[2:] == tuple(built[2:])
+    else:
+        assert sent == []
+    for got in sent:  # nothing violating reaches the robot (with float slack)
+        assert oracle(got, start_vec) in ("safe", "border"), got
+
+
+@pytest.mark.parametrize("kind,examples", [("sim", 5000), ("ur", 5000)])
+def test_random_commands_refused_or_passed_unchanged(kind, examples):
+    """10,000 random commands in all (5,000 per driver)."""
+
+    @settings(max_examples=examples, deadline=None, derandomize=True, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(start=start_pose, cmd=command)
+    def run(start, cmd):
+        check_commands(kind, start, cmd)
+
+    run()
+
+
+# -------------------------------------------------------- hand-computed
+def down(x, y, z):
+    return Pose([x, y, z], [1.0, 0.0, 0.0, 0.0])  # 180 deg about x: tool z-axis = -z
+
+
+def test_box_boundary_inclusive_and_just_outside_refused():
+    assert ENV.check_pose(down(0.5, -0.5, 0.7)) == down(0.5, -0.5, 0.7)
+    for p in [(0.5001, 0, 0.4), (0, -0.5001, 0.4), (0, 0, 0.0499), (0, 0, 0.7001)]:
+        with pytest.raises(SafetyViolationError, match="outside the workspace box"):
+            ENV.check_pose(down(*p))
+
+
+def test_tilt_limit_hand_computed():
+    # rotate the down-pointing tool by 80 deg / 100 deg about the base x-axis
+    from scipy.spatial.transform import Rotation
+    base = Rotation.from_quat([1.0, 0.0, 0.0, 0.0])
+    ok = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", 80, degrees=True) * base)
+    bad = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", 100, degrees=True) * base)
+    ENV.check_pose(ok)
+    with pytest.raises(SafetyViolationError, match="tilt 100.0 deg"):
+        ENV.check_pose(bad)
+
+
+def test_servo_speed_hand_computed():
+    a = down(0.0, 0.0, 0.4)
+    # 0.5 mm in 8 ms = 0.0625 m/s <= 0.1: accepted; 1 mm in 8 ms = 0.125 m/s: refused
+    assert ENV.check_servo(a, down(0.0005, 0.0, 0.4), 0.008) == down(0.0005, 0.0, 0.4)
+    with pytest.raises(SafetyViolationError, match="0.125 m/s"):
+        ENV.check_servo(a, down(0.001, 0.0, 0.4), 0.008)
+    with pytest.raises(SafetyViolationError, match="servo step 3.00 mm"):
+        ENV.check_servo(a, down(0.003, 0.0, 0.4), 0.05)
+
+
+def test_move_linear_rejects_path_tilting_beyond_limit():
+    from scipy.spatial.transform import Rotation
+    base = Rotation.from_quat([1.0, 0.0, 0.0, 0.0])
+    env = SafetyEnvelope(max_tool_tilt=math.radians(30))
+    start = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", 25, degrees=True) * base)
+    # -25 deg is within 30, but the slerp from +25 passes through 0: fine;
+    end = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", -25, degrees=True) * base)
+    env.check_move_linear(start, end, 0.05, 0.1)
+    # a rotation of ~180 deg about the tool axis keeps the tilt: accepted
+    spun = Pose.from_rotation([0, 0, 0.4], start.rotation * Rotation.from_euler("z", 179, degrees=True))
+    env.check_move_linear(start, spun, 0.05, 0.1)
+
+
+def test_joint_speed_default_is_thesis_value_and_enforced():
+    assert ENV.max_joint_speed == 0.1  # Sec 2.2.1 of the thesis
+    arm = SimArm()
+    arm.move_joints([0.1] * 6, 0.1, 0.5)
+    with pytest.raises(SafetyViolationError, match="joint speed"):
+        arm.move_joints([0.2] * 6, 0.1001, 0.5)
+    assert [c.kind for c in arm.received] == ["moveJ"]
+    with pytest.raises(SafetyViolationError, match="exceed"):
+        ENV.check_joint_speeds([0.0, 0.2, 0, 0, 0, 0])
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"max_tcp_speed": math.inf}, {"max_tcp_speed": math.nan}, {"max_tcp_speed": 0.0},
+    {"max_joint_speed": 5.0}, {"staleness_timeout": 2.0}, {"max_deflection": -1.0},
+    {"workspace_min": (0.0, 0.0, 0.5), "workspace_max": (1.0, 1.0, 0.4)},
+    {"tool_reference_axis": (0.0, 0.0, 0.0)}, {"joint_speed_tolerance": 0.5},
+])
+def test_envelope_cannot_be_disabled_or_widened_past_ceilings(kwargs):
+    with pytest.raises(InvalidInputError):
+        SafetyEnvelope(**kwargs)
+
+
+def test_deflection_overload_stops_arm():
+    arm = SimArm()
+    arm.guard_deflection([[10, -2999]])
+    assert arm.received == []
+    with pytest.raises(SafetyViolationError, match="overload: 3001"):
+        arm.guard_deflection([[10, -3001]])
+    assert [c.kind for c in arm.received] == ["stop"]
+    with pytest.raises(SafetyViolationError, match="NaN"):
+        arm.guard_deflection([np.nan])
+
+
+def test_staleness_limit():
+    ENV.check_fresh(0.25)
+    with pytest.raises(StaleStateError, match="0.300 s old"):
+        ENV.check_fresh(0.3)
+    with pytest.raises(StaleStateError):
+        ENV.check_fresh(math.nan)
