@@ -246,7 +246,7 @@ def _refine_onset(d: np.ndarray, onset: int, rise_mid: int, span: int) -> int:
     k0 = onset + k.mean() - float(dk.mean()) / slope
     if not (onset - span // 2 <= k0 <= rise_mid):
         return onset
-    return int(math.ceil(k0))
+    return int(math.floor(k0)) + 1  # first sample with a positive derivative
 
 
 def detect_contact(
