@@ -494,7 +494,9 @@ class OpenCLBackend(Backend):
         sig_conv = [None, None, i32, i32, i32, None, i32, i32, i32]
         kernels["conv_store"].set_scalar_arg_dtypes(sig_conv)
         kernels["conv_acc"].set_scalar_arg_dtypes(sig_conv)
-        kernels["inhibit"].set_scalar_arg_dtypes([None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None])
+        kernels["inhibit"].set_scalar_arg_dtypes(
+            [None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None]
+        )
         kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
         for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
             kernels[name].set_scalar_arg_dtypes([None, None, i32, i32, i32, i32, i32, None, None, i32, None, i32])
@@ -726,7 +728,7 @@ class OpenCLBackend(Backend):
         if out is not None:
             res[...] = a
         idx, vals = _injected_cells(a, flat_index, values)
-        res.ravel()[idx] = vals
+        res.flat[idx] = vals
         return res
 
     def decode(self, a, window):
