@@ -40,7 +40,9 @@ Modes (``--mode``):
     open without sending anything (a link that stalls without closing).
 
 On start it prints ``READY <port>`` on stdout (and flushes) once listening, so
-a parent waits on that line instead of sleeping. It binds 127.0.0.1 only.
+a parent waits on that line instead of sleeping (``--port 0`` picks a free
+port). It binds 127.0.0.1 only. :func:`fake_rtde_server` runs it as a child
+process in a ``with`` block.
 
 Run: ``python -m whisker_io.hw.fake_rtde_server --port 30004``.
 """
@@ -48,15 +50,19 @@ Run: ``python -m whisker_io.hw.fake_rtde_server --port 30004``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import socket
 import struct
+import subprocess
 import sys
 import threading
 import time
+from typing import Iterator
 
-__all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main"]
+__all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main", "FakeServerError",
+           "fake_rtde_server"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -257,6 +263,40 @@ def _serve_client(conn: socket.socket, args: argparse.Namespace, state: _State,
             conn.close()
         except OSError:
             pass
+
+
+class FakeServerError(RuntimeError):
+    """The fake server could not start (e.g. the port is taken)."""
+
+
+@contextlib.contextmanager
+def fake_rtde_server(mode: str = "stream", port: int = RTDE_PORT,
+                     extra_args: tuple[str, ...] = ()) -> Iterator[tuple[subprocess.Popen, int]]:
+    """Run the fake server in a child process for the duration of a ``with``.
+
+    The child runs this file as a script (no package import, so it starts
+    fast) and the context waits for its ``READY <port>`` line, not a sleep.
+    Yields ``(process, port)``; the process is killed on exit. Kill it
+    earlier (``process.kill()``) to simulate a controller dying mid-stream.
+
+    Raises
+    ------
+    FakeServerError
+        The port is taken or the child died before listening.
+    """
+    proc = subprocess.Popen([sys.executable, __file__, "--mode", mode, "--port", str(port),
+                             *extra_args], stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline() if proc.stdout else ""
+        if not line.startswith("READY"):
+            raise FakeServerError(f"fake RTDE server did not start on 127.0.0.1:{port}: "
+                                  f"{line.strip() or 'exited'}")
+        yield proc, int(line.split()[1])
+    finally:
+        proc.kill()
+        proc.wait()
+        if proc.stdout:
+            proc.stdout.close()
 
 
 def main(argv: list[str] | None = None) -> int:

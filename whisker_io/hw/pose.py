@@ -137,13 +137,13 @@ class Pose:
     # ------------------------------------------------------------- arithmetic
     def __matmul__(self, other: "Pose") -> "Pose":
         """Compose ``self @ other`` (apply ``other`` in ``self``'s frame)."""
-        return Pose(self.position + self.rotation.apply(other.position),
+        return Pose(self.position + self.rotation.apply(np.array(other.position)),
                     (self.rotation * other.rotation).as_quat())
 
     def inverse(self) -> "Pose":
         """The inverse transform."""
         inv = self.rotation.inv()
-        return Pose(-inv.apply(self.position), inv.as_quat())
+        return Pose(-inv.apply(np.array(self.position)), inv.as_quat())
 
     def distance_to(self, other: "Pose") -> tuple[float, float]:
         """(translation in m, rotation angle in rad) from ``self`` to ``other``."""
