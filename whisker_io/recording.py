@@ -131,7 +131,7 @@ def _finite_vector(name: str, value: object) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class WhiskRecord:
     """One module's samples over one whisk cycle: the in-memory unit of a whisk file.
 
@@ -150,6 +150,8 @@ class WhiskRecord:
         Whisk cycle index within the session (>= 0).
     spare : array_like, shape (T,), optional
         The spare column (zeros when ``None``).
+
+    Records hold arrays, so ``==`` compares identity; compare the arrays.
 
     Raises
     ------
@@ -210,7 +212,7 @@ class WhiskRecord:
         return np.column_stack([self.angle_rad, self.x_counts, self.y_counts, spare])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PoseEntry:
     """One pose-log line: the end-effector pose when a whisk cycle was completed.
 
@@ -268,7 +270,7 @@ class PoseEntry:
         return T
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ReplayedCycle:
     """One whisk cycle read back from a session: its pose and its module records.
 

@@ -40,7 +40,7 @@ from whisker_io.recording import WhiskRecord
 __all__ = ["SlopeDistribution", "contact_gradient", "slope_distribution", "nmse"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SlopeDistribution:
     """The SDA of one array whisk cycle.
 

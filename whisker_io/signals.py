@@ -231,7 +231,7 @@ def radial_distance_from_stiffness(
         return np.where(np.isinf(Lc), c / k, c * Lc / (c + k * Lc))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class WhiskContact:
     """Geometry of one whisker's contact, the input of the signal model.
 

@@ -61,7 +61,7 @@ def whisk_contact_from_sweep(contact: SweepContact) -> WhiskContact:
     return WhiskContact(angle_rad=float(contact.angle_rad), radial_distance_m=a, whisker_length_m=L, normal=n_base)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ArrayWhisk:
     """The result of one simulated array whisk cycle.
 
