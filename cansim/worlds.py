@@ -18,7 +18,9 @@ which Fig 3.3 does not show; the decision here is a random sign per step
 reading. The linear error is applied on translating steps only.
 
 Kidnapping (Fig 3.5): at iteration ``at`` the agent is carried ``skip``
-places forward along its route without odometry for the jump.
+iterations forward along its route without odometry for the jump. The noise is
+drawn for the un-kidnapped run first, so a clean and a kidnapped run with the
+same seed differ only by the kidnapping.
 """
 
 from __future__ import annotations
@@ -148,8 +150,10 @@ class SyntheticRun:
         Odometry integrated rotate-then-translate from ``truth[0]``.
     n_places : int
         Places per loop.
-    kidnap_index : int
-        Iteration at which the agent was kidnapped (-1 if never).
+    kidnap_indices : tuple of int
+        Iterations at which the agent landed after being kidnapped.
+    loop_starts : tuple of int
+        Iteration at which each loop starts (place 0, facing the loop's direction).
     """
 
     truth: np.ndarray
@@ -161,7 +165,7 @@ class SyntheticRun:
     directions: np.ndarray
     dead_reckoning: np.ndarray
     n_places: int
-    kidnap_index: int = -1
+    kidnap_indices: tuple[int, ...] = ()
     loop_starts: tuple[int, ...] = field(default=())
 
     def __len__(self) -> int:
@@ -186,7 +190,7 @@ def make_run(
     dt: float = 1.0,
     turn_steps: int = 6,
     aliasing: float = 0.0,
-    kidnap: tuple[int, int] | None = None,
+    kidnap: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
 ) -> SyntheticRun:
     """Generate a multi-loop run with noisy odometry and per-place views.
 
@@ -207,8 +211,9 @@ def make_run(
         Iterations of an on-the-spot 180 deg turn between loops of opposite direction.
     aliasing : float
         Probability that a view is replaced by the view of a random other place (perceptual aliasing).
-    kidnap : (at, skip), optional
-        Carry the agent ``skip`` places forward at iteration ``at`` (Fig 3.5).
+    kidnap : (at, skip) or sequence of them, optional
+        Carry the agent forward by ``skip`` iterations of its route at iteration ``at``
+        (indices of the un-kidnapped run; Fig 3.5).
 
     Returns
     -------
@@ -271,44 +276,53 @@ def make_run(
     view_arr = np.array(views, dtype=np.int64)
     dir_arr = np.array(dirs)
 
-    kidnap_index = -1
-    if kidnap is not None:
-        at, skip = int(kidnap[0]), int(kidnap[1])
-        if not (1 <= at and skip >= 1 and at + skip < truth.shape[0]):
-            raise InvalidInputError(f"kidnap (at={at}, skip={skip}) must satisfy 1 <= at, skip >= 1, at + skip < {truth.shape[0]}")
-        keep = np.r_[0:at, at + skip : truth.shape[0]]
-        # the odometry of iteration `at` is the ordinary step the agent believes it made
-        dist = np.concatenate([dist[:at], [dist[at]], dist[at + skip + 1 :]])
-        dtheta = np.concatenate([dtheta[:at], [dtheta[at]], dtheta[at + skip + 1 :]])
-        truth, place_arr, view_arr, dir_arr = truth[keep], place_arr[keep], view_arr[keep], dir_arr[keep]
-        loop_starts = [s if s < at else s - skip for s in loop_starts if s < at or s >= at + skip]
-        kidnap_index = at
-
-    # ---- views with aliasing
+    # ---- views with aliasing, noisy odometry (drawn for the whole un-kidnapped run, so a
+    # kidnapped variant with the same seed sees the same noise at the same iterations)
+    m = truth.shape[0]
     if aliasing > 0:
-        swap = rng.random(view_arr.shape[0]) < aliasing
+        swap = rng.random(m) < aliasing
         view_arr = view_arr.copy()
         view_arr[swap] = rng.integers(0, 2 * n, int(swap.sum()))
-
-    # ---- noisy odometry
-    m = truth.shape[0]
     meas_dist, meas_dth = dist.copy(), dtheta.copy()
     if noise is not None:
         lin = rng.lognormal(noise.linear_mu, noise.linear_sigma, m)
         if noise.linear_sign == "random":
             lin *= rng.choice([-1.0, 1.0], m)
         ang = np.radians(rng.normal(noise.angular_mean_deg, noise.angular_std_deg, m))
-        moving = dist > 0
-        meas_dist = np.where(moving, dist + lin, 0.0)
+        meas_dist = np.where(dist > 0, dist + lin, 0.0)
         meas_dth = dtheta + ang
         meas_dth[0] = 0.0
+
+    # ---- kidnapping: drop the skipped iterations; the odometry of the landing
+    # iteration is the ordinary step the agent believes it made
+    kidnap_indices: list[int] = []
+    events = [] if kidnap is None else ([kidnap] if np.ndim(kidnap) == 1 else list(kidnap))
+    removed = 0
+    keep = np.ones(m, dtype=bool)
+    odo_src = np.arange(m)
+    last = 0
+    for at, skip in sorted((int(a), int(b)) for a, b in events):
+        if not (1 <= at and skip >= 1 and at > last and at + skip < m):
+            raise InvalidInputError(
+                f"kidnap (at={at}, skip={skip}) must satisfy 1 <= at, skip >= 1, at + skip < {m}, "
+                "events in increasing order without overlap"
+            )
+        keep[at : at + skip] = False
+        odo_src[at + skip] = at
+        kidnap_indices.append(at - removed)
+        removed += skip
+        last = at + skip
+    meas_dist, meas_dth = meas_dist[odo_src][keep], meas_dth[odo_src][keep]
+    truth, place_arr, view_arr, dir_arr = truth[keep], place_arr[keep], view_arr[keep], dir_arr[keep]
+    new_index = np.cumsum(keep) - 1
+    loop_starts = [int(new_index[s_]) for s_ in loop_starts if keep[s_]]
     vtrans, vrot = meas_dist / dt, meas_dth / dt
     truth_wrapped = truth.copy()
     truth_wrapped[:, 2] = (truth[:, 2] + math.pi) % (2 * math.pi) - math.pi
     dr = dead_reckon(truth[0], vtrans, vrot, dt)
     return SyntheticRun(
         truth=truth_wrapped, vtrans=vtrans, vrot=vrot, dt=float(dt), view_ids=view_arr, places=place_arr,
-        directions=dir_arr, dead_reckoning=dr, n_places=n, kidnap_index=kidnap_index, loop_starts=tuple(loop_starts),
+        directions=dir_arr, dead_reckoning=dr, n_places=n, kidnap_indices=tuple(kidnap_indices), loop_starts=tuple(loop_starts),
     )
 
 

@@ -31,6 +31,6 @@ class MapFormatError(MapsError, ValueError):
     def __init__(self, field: str, problem: str) -> None:
         self.field = field
         super().__init__(
-            f"map file field {field!r}: {problem}; the file is corrupt or was not written by "
-            "maps.experience_map.ExperienceMap.save - re-save the map or restore a backup"
+            f"saved file field {field!r}: {problem}; the file is corrupt or was not written by "
+            "this library's save() - re-save it or restore a backup"
         )

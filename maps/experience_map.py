@@ -70,6 +70,7 @@ import math
 import os
 from dataclasses import asdict, dataclass
 from enum import IntEnum
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
@@ -567,20 +568,24 @@ class ExperienceMap:
         return g
 
     # ----------------------------------------------------------- save / load
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The whole map as named arrays (the ``.npz`` fields of the module docstring, names prefixed)."""
+        arrays = {
+            "format": np.int64(FORMAT_VERSION),
+            "config": np.array(json.dumps(asdict(self.config))),
+            "exp_pc": self._exp_pc[: self._n_exp].copy(),
+            "exp_vt": self._exp_vt[: self._n_exp].copy(),
+            "exp_pose": self._exp_pose[: self._n_exp].copy(),
+            "link_ends": self._link_ends[: self._n_link].copy(),
+            "link_data": self._link_data[: self._n_link].copy(),
+            "state_f": np.array([self.accum_dx, self.accum_dy, self.accum_facing, self.accum_time_s, self.relative_rad, self.vt_delta_pc_th]),
+            "state_i": np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
+        }
+        return {prefix + k: np.asarray(v) for k, v in arrays.items()}
+
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the map to ``path`` (``.npz``, format in the module docstring); bit-exact round trip."""
-        np.savez(
-            path,
-            format=np.int64(FORMAT_VERSION),
-            config=np.array(json.dumps(asdict(self.config))),
-            exp_pc=self._exp_pc[: self._n_exp],
-            exp_vt=self._exp_vt[: self._n_exp],
-            exp_pose=self._exp_pose[: self._n_exp],
-            link_ends=self._link_ends[: self._n_link],
-            link_data=self._link_data[: self._n_link],
-            state_f=np.array([self.accum_dx, self.accum_dy, self.accum_facing, self.accum_time_s, self.relative_rad, self.vt_delta_pc_th]),
-            state_i=np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
-        )
+        np.savez(path, **self.to_arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "ExperienceMap":
@@ -589,53 +594,68 @@ class ExperienceMap:
         Raises
         ------
         MapFormatError
-            When a field is missing or has the wrong type, shape or value (named in the error).
+            When the file is unreadable or a field is missing or has the wrong type,
+            shape or value (named in the error).
         """
         try:
             archive = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
             raise MapFormatError("<file>", f"cannot be read as an .npz archive ({exc})") from exc
+        if not hasattr(archive, "files"):
+            raise MapFormatError("<file>", "holds a single array, not an .npz archive")
         with archive:
-            def field(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
-                if name not in archive.files:
-                    raise MapFormatError(name, "missing")
-                try:
-                    arr = archive[name]
-                except Exception as exc:  # zip/CRC/header errors of a damaged member
-                    raise MapFormatError(name, f"unreadable ({exc})") from exc
-                if arr.dtype.kind != kind:
-                    raise MapFormatError(name, f"dtype {arr.dtype} where kind {kind!r} is required")
-                if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
-                    raise MapFormatError(name, f"shape {arr.shape} where {shape} is required (None = any)")
-                if kind == "f" and not np.all(np.isfinite(arr)):
-                    raise MapFormatError(name, "holds NaN or infinite values")
-                return arr
+            return cls.from_arrays(archive)
 
-            version = int(field("format", "i", ()))
-            if version != FORMAT_VERSION:
-                raise MapFormatError("format", f"version {version}, this library reads version {FORMAT_VERSION}")
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ExperienceMap":
+        """Rebuild a map from :meth:`to_arrays` output (e.g. an open ``.npz`` archive).
+
+        Raises
+        ------
+        MapFormatError
+            A field is missing or has the wrong type, shape or value (named in the error).
+        """
+
+        def field(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
+            key = prefix + name
+            if key not in arrays:
+                raise MapFormatError(key, "missing")
             try:
-                cfg_dict = json.loads(str(field("config", "U", ())))
-                config = ExperienceMapConfig(**cfg_dict)
-            except (json.JSONDecodeError, TypeError, InvalidInputError) as exc:
-                raise MapFormatError("config", f"not a valid ExperienceMapConfig JSON ({exc})") from exc
-            exp_pc = field("exp_pc", "f", (None, 3))
-            n = exp_pc.shape[0]
-            exp_vt = field("exp_vt", "i", (n,))
-            exp_pose = field("exp_pose", "f", (n, 3))
-            link_ends = field("link_ends", "i", (None, 2))
-            m = link_ends.shape[0]
-            link_data = field("link_data", "f", (m, 4))
-            state_f = field("state_f", "f", (6,))
-            state_i = field("state_i", "i", (3,))
+                arr = np.asarray(arrays[key])
+            except Exception as exc:  # zip/CRC/header errors of a damaged member
+                raise MapFormatError(key, f"unreadable ({exc})") from exc
+            if arr.dtype.kind != kind:
+                raise MapFormatError(key, f"dtype {arr.dtype} where kind {kind!r} is required")
+            if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+                raise MapFormatError(key, f"shape {arr.shape} where {shape} is required (None = any)")
+            if kind == "f" and not np.all(np.isfinite(arr)):
+                raise MapFormatError(key, "holds NaN or infinite values")
+            return arr
+
+        version = int(field("format", "i", ()))
+        if version != FORMAT_VERSION:
+            raise MapFormatError(prefix + "format", f"version {version}, this library reads version {FORMAT_VERSION}")
+        try:
+            config = ExperienceMapConfig(**json.loads(str(field("config", "U", ()))))
+        except (json.JSONDecodeError, TypeError, InvalidInputError) as exc:
+            raise MapFormatError(prefix + "config", f"not a valid ExperienceMapConfig JSON ({exc})") from exc
+        exp_pc = field("exp_pc", "f", (None, 3))
+        n = exp_pc.shape[0]
+        exp_vt = field("exp_vt", "i", (n,))
+        exp_pose = field("exp_pose", "f", (n, 3))
+        link_ends = field("link_ends", "i", (None, 2))
+        m = link_ends.shape[0]
+        link_data = field("link_data", "f", (m, 4))
+        state_f = field("state_f", "f", (6,))
+        state_i = field("state_i", "i", (3,))
         if np.any(exp_vt < 0):
-            raise MapFormatError("exp_vt", "negative view id")
+            raise MapFormatError(prefix + "exp_vt", "negative view id")
         if m and (link_ends.min() < 0 or link_ends.max() >= n):
-            raise MapFormatError("link_ends", f"link end outside the {n} experiences")
+            raise MapFormatError(prefix + "link_ends", f"link end outside the {n} experiences")
         if n and not (0 <= state_i[0] < n and 0 <= state_i[1] < n):
-            raise MapFormatError("state_i", f"current/previous id {state_i[:2].tolist()} outside the {n} experiences")
+            raise MapFormatError(prefix + "state_i", f"current/previous id {state_i[:2].tolist()} outside the {n} experiences")
         if state_i[2] < 0:
-            raise MapFormatError("state_i", "negative relaxation cursor")
+            raise MapFormatError(prefix + "state_i", "negative relaxation cursor")
         em = cls(config)
         em._n_exp, em._n_link = n, m
         em._exp_pc = _grow(np.array(exp_pc, dtype=np.float64), n)
@@ -647,7 +667,7 @@ class ExperienceMap:
             em._vt_exps.setdefault(v, []).append(i)
         for k, (f, t) in enumerate(link_ends.tolist()):
             if t in em._out.get(f, ()) or f in em._out.get(t, ()):
-                raise MapFormatError("link_ends", f"duplicate link {f}->{t} at row {k}")
+                raise MapFormatError(prefix + "link_ends", f"duplicate link {f}->{t} at row {k}")
             em._out.setdefault(f, set()).add(t)
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)
         em._order = np.argsort(keys, kind="stable").astype(np.int64)

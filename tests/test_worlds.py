@@ -63,7 +63,7 @@ def test_seeded_and_deterministic():
 def test_kidnapped_run_skips_forward_without_odometry():
     clean = make_run(loops=(1, 1), noise=None)
     kid = make_run(loops=(1, 1), noise=None, kidnap=(100, 20))
-    assert len(kid) == len(clean) - 20 and kid.kidnap_index == 100
+    assert len(kid) == len(clean) - 20 and kid.kidnap_indices == (100,)
     np.testing.assert_array_equal(kid.truth[100], clean.truth[120])
     np.testing.assert_array_equal(kid.view_ids[100:], clean.view_ids[120:])
     assert kid.vtrans[100] == clean.vtrans[100]  # an ordinary step as far as odometry knows

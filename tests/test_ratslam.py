@@ -1,0 +1,174 @@
+"""Tests of cansim.ratslam: the RatSLAM model, its OpenRatSLAM parity preset, config files,
+save/resume, bad input, and the synthetic end-to-end acceptance (map vs dead reckoning, kidnapping)."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.worlds import LoopRoute, make_run, render_view, scatter_landmarks
+from maps.errors import MapFormatError
+from maps.experience_map import Action
+from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
+
+ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
+CFG = RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=0.05)
+
+
+def snapshot(slam):
+    em = slam.experience_map
+    return (slam.pose_cells.activity.tobytes(), slam.n_templates, slam.iteration, em.poses.tobytes(),
+            em.n_links, em.accum_dx, em.accum_facing, slam.best_pc)
+
+
+def test_keyword_parameters_and_presets():
+    slam = RatSLAM(pc_dim_xy=15, pc_dim_th=24, exp_loops=3)
+    assert slam.pose_cells.shape == (15, 15, 24)
+    assert slam.experience_map.config.exp_loops == 3
+    with pytest.raises(ConfigError, match="pc_dimxy"):
+        RatSLAM(pc_dimxy=3)
+    par = RatSLAMConfig.openratslam()
+    assert (par.frame, par.dtype, par.relax_budget, par.strict_translation) == ("openratslam", "float64", None, True)
+    ch3 = RatSLAMConfig.thesis_ch3()
+    assert (ch3.pc_dim_xy, ch3.pc_cell_x_size, ch3.exp_delta_pc_threshold, ch3.exp_initial_em_deg) == (30, 0.015, 1.0, 180.0)
+    assert RatSLAM(ch3).pose_cells.shape == (30, 30, 36)
+
+
+def test_config_file_unknown_key_warned_malformed_rejected(tmp_path):
+    text = "[general]\ntopic_root=irat_red\n[ratslam]\npc_dim_xy=31\nvt_panoramic=1\nvt_match_threshold=0.05\nexp_loops = 20\n"
+    path = tmp_path / "config_irat.txt.in"
+    path.write_text(text)
+    with pytest.warns(UserWarning, match="topic_root"):
+        cfg = RatSLAMConfig.from_file(path)
+    assert (cfg.pc_dim_xy, cfg.vt_panoramic, cfg.vt_match_threshold, cfg.exp_loops) == (31, True, 0.05, 20)
+    for bad in ("pc_dim_xy=2.5", "vt_match_threshold=abc", "vt_panoramic=maybe", "pc_w_e_dim=4"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with pytest.raises(ConfigError, match=bad.split("=")[0]):
+                RatSLAMConfig.from_text("[ratslam]\n" + bad + "\n")
+
+
+def test_nan_odometry_and_bad_observation_leave_state_unchanged():
+    slam = RatSLAM(CFG)
+    for k in range(5):
+        slam.step(0.05, 0.01, 1.0, k % 3)
+    before = snapshot(slam)
+    for args in [(math.nan, 0.0, 1.0), (0.05, math.inf, 1.0), (0.05, 0.0, -1.0)]:
+        with pytest.raises(InvalidInputError):
+            slam.step(*args, 0)
+    with pytest.raises(InvalidInputError):
+        slam.step(0.05, 0.0, 1.0, "not an id")
+    assert snapshot(slam) == before
+
+
+def test_wrong_image_size_leaves_state_unchanged():
+    slam = RatSLAM(CFG, frontend="visual", template_x_size=20, template_y_size=4, vt_shift_match=2, vt_step_match=1)
+    lm = scatter_landmarks(ROUTE, seed=0)
+    slam.step(0.05, 0.0, 1.0, render_view((0, -1.5, 0), lm, shape=(20, 80)))
+    before = snapshot(slam)
+    with pytest.raises(ShapeError):
+        slam.step(0.05, 0.0, 1.0, render_view((0, -1.5, 0), lm, shape=(20, 60)))
+    assert snapshot(slam) == before
+
+
+def test_tactile_frontend_reuses_templates():
+    slam = RatSLAM(RatSLAMConfig.thesis_ch3(vt_match_threshold=5.0))
+    img = np.zeros((3, 6), dtype=np.uint8)
+    img[1, 2] = 200
+    a = slam.step(0.0, 0.0, 1.0, img)
+    b = slam.step(0.0, 0.0, 1.0, img + np.uint8(4))  # S = 18 * 2 = 36 > 5 -> new
+    c = slam.step(0.0, 0.0, 1.0, img)
+    assert (a.template_id, b.template_id, c.template_id) == (0, 1, 0)
+    assert a.new_template and b.new_template and not c.new_template
+
+
+@pytest.mark.parametrize("frame,axis,sign", [("openratslam", 1, -1), ("standard", 0, -1)])
+def test_theta_index_zero_direction_per_frame(frame, axis, sign):
+    # the packet starts at theta index 18 (180 deg): the C++ frame moves it along -y
+    # ((sin, cos)(pi) = (0, -1)); the standard frame along -x ((cos, sin)(pi) = (-1, 0)).
+    slam = RatSLAM(RatSLAMConfig.openratslam(frame=frame))
+    start = np.array(slam.best_pc)
+    for _ in range(3):
+        slam.step(1.0, 0.0, 1.0)  # one cell per step, no view
+    moved = np.array(slam.best_pc) - start
+    assert moved[axis] == pytest.approx(3 * sign, abs=0.05)
+    assert abs(moved[1 - axis]) < 0.05 and abs(moved[2]) < 0.05
+
+
+def test_parity_translation_limited_to_one_cell():
+    slam = RatSLAM(RatSLAMConfig.openratslam(pc_cell_x_size=0.1))
+    slam.step(0.1, 0.0, 1.0, 0)
+    with pytest.raises(InvalidInputError, match="one cell per step"):
+        slam.step(0.25, 0.0, 1.0, 0)
+    RatSLAM(CFG).step(0.25, 0.0, 1.0, 0)  # the default engine handles any shift
+
+
+def test_experience_only_after_odometry_and_view():
+    slam = RatSLAM(CFG)
+    s = slam.step(0.05, 0.0, 1.0)  # odometry only
+    assert s.exp_id == -1 and s.action == Action.NO_ACTION
+    s = slam.step(0.05, 0.0, 1.0, 7)
+    assert s.exp_id == 0 and s.action == Action.CREATE_NODE and s.template_id == 0
+    s = slam.step(0.05, 0.0, 1.0, 9)
+    assert s.exp_id == 1 and slam.experience_map.n_links == 1
+
+
+def test_save_resume_equals_uninterrupted(tmp_path):
+    run = make_run(LoopRoute(step_m=0.05), loops=(1, 1), seed=2)
+    cfg = RatSLAMConfig(pc_cell_x_size=0.05, relax_budget=300)
+    full = RatSLAM(cfg)
+    full_log = full.run(run.vtrans, run.vrot, run.dt, run.view_ids)
+    half = len(run) // 2 + 7
+    first = RatSLAM(cfg)
+    log_a = first.run(run.vtrans[:half], run.vrot[:half], run.dt, run.view_ids[:half])
+    first.save(tmp_path / "model.npz")
+    resumed = RatSLAM.load(tmp_path / "model.npz")
+    log_b = resumed.run(run.vtrans[half:], run.vrot[half:], run.dt, run.view_ids[half:])
+    assert np.array_equal(np.concatenate([log_a.exp_ids, log_b.exp_ids]), full_log.exp_ids)
+    assert np.concatenate([log_a.best_pc, log_b.best_pc]).tobytes() == full_log.best_pc.tobytes()
+    assert snapshot(resumed) == snapshot(full)
+    a, b = resumed.experience_map.links, full.experience_map.links
+    assert a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes()
+
+
+def test_corrupt_model_file_names_field(tmp_path):
+    slam = RatSLAM(CFG)
+    slam.step(0.05, 0.0, 1.0, 0)
+    slam.save(tmp_path / "m.npz")
+    arrays = dict(np.load(tmp_path / "m.npz", allow_pickle=False))
+    arrays["pc_activity"] = arrays["pc_activity"][:, :, :5]
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(MapFormatError, match="pc_activity"):
+        RatSLAM.load(tmp_path / "bad.npz")
+    del arrays["em_exp_pose"]
+    arrays["pc_activity"] = slam.pose_cells.activity
+    np.savez(tmp_path / "bad2.npz", **arrays)
+    with pytest.raises(MapFormatError, match="em_exp_pose"):
+        RatSLAM.load(tmp_path / "bad2.npz")
+
+
+@pytest.mark.slow
+def test_synthetic_five_loops_map_beats_dead_reckoning_and_kidnapping_hurts():
+    clean = make_run(ROUTE, loops=(1,) * 5, seed=0)
+    n = clean.n_places
+    kid = make_run(ROUTE, loops=(1,) * 5, seed=0, kidnap=[(int((1.3 + 1.25 * j) * n), 10) for j in range(3)])
+    results = {}
+    for name, run in (("clean", clean), ("kidnapped", kid)):
+        slam = RatSLAM(CFG)
+        log = slam.run(run.vtrans, run.vrot, run.dt, run.view_ids)
+        est = slam.experience_map.poses[log.exp_ids]
+        results[name] = (
+            experience_metric(log.exp_ids, run.truth, base_end=n + 1),
+            energy_metric(est, run.truth).energy,
+            absolute_trajectory_error(est, run.truth).rmse,
+            absolute_trajectory_error(run.dead_reckoning, run.truth).rmse,
+        )
+    exm, em, ate_map, ate_dr = results["clean"]
+    kexm, kem, _, _ = results["kidnapped"]
+    assert ate_map <= 0.30 * ate_dr
+    assert kexm.arr < exm.arr
+    assert kem > em
+    assert exm.arcr > 0.9
