@@ -193,3 +193,13 @@ def test_plot_whisk_marks_onset_and_offset(tmp_path):
     fig.savefig(tmp_path / "whisk.png")
     assert (tmp_path / "whisk.png").stat().st_size > 0
     plt.close("all")
+
+
+def test_slipping_contact_offset_at_the_slip():
+    """Fig 4.5b: the whisker slips off mid-protraction; the offset is where the deflection vanishes."""
+    contact = WhiskContact(math.radians(-20.0), 0.05, 0.1, slip_rad=math.radians(15.0))
+    recs, truths = simulate_whisk_cycle([contact], OpenLoop(WhiskPattern(1.0)), seed=5)
+    det = detect_contact(recs[0])
+    slip_index = truths[0].peak_index + 1
+    assert abs(det.onset_index - truths[0].onset_index) <= 10
+    assert abs(det.offset_index - slip_index) <= 10

@@ -195,3 +195,16 @@ def test_rod_mode_peak_and_period_depend_on_speed_and_distance():
 def test_bad_input_raises_typed_error(call):
     with pytest.raises(InvalidInputError):
         call()
+
+
+def test_slip_drops_deflection_for_the_rest_of_the_cycle():
+    slip = math.radians(8.0)
+    contact = WhiskContact(math.radians(-10.0), 0.07, 0.1, slip_rad=slip)
+    recs, truths = simulate_whisk_cycle([contact], OpenLoop(WhiskPattern(1.0)), QUIET, seed=0)
+    y, th = recs[0].y_counts, recs[0].angle_rad
+    gk = QUIET.gain_counts_per_nm * float(bending_stiffness(0.07, 0.1, QUIET))
+    k_slip = int(np.argmax(th - math.radians(-10.0) >= slip))
+    assert y.max() == pytest.approx(gk * (th[k_slip - 1] - math.radians(-10.0)))
+    assert np.all(y[k_slip:] == 0.0) and truths[0].peak_index == k_slip - 1
+    with pytest.raises(InvalidInputError):
+        WhiskContact(0.0, 0.05, 0.1, slip_rad=0.0)

@@ -47,7 +47,8 @@ the ADC range. A free-whisking cycle gives noise only.
 
 Validity: small-deflection beam theory (Birdwell et al. 2007 quote < 14 deg);
 larger rotations past contact are extrapolated linearly until the sensor saturates.
-Slip and whisker inertia are not modelled.
+Whisker inertia is not modelled; slipping off an edge is an option of
+:class:`WhiskContact`.
 
 Example
 -------
@@ -247,12 +248,17 @@ class WhiskContact:
         Surface normal at the contact in the whisker base frame (SPEC §4.1),
         pointing out of the surface toward the whisker; normalised here. The
         default faces the protracting whisker squarely (pure y-deflection).
+    slip_rad : float, default inf
+        Rotation past contact after which the whisker slips off the object (an
+        edge or a steep face, Fig 4.5b): the deflection drops to zero and stays
+        there for the rest of the cycle. ``inf``: no slip.
     """
 
     angle_rad: float
     radial_distance_m: float
     whisker_length_m: float
     normal: np.ndarray | None = field(default=None)
+    slip_rad: float = math.inf
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.angle_rad):
@@ -266,7 +272,10 @@ class WhiskContact:
             if not (np.all(np.isfinite(n)) and norm > 0):
                 raise InvalidInputError(f"normal must be a finite non-zero 3-vector, got {self.normal!r}")
             n = n / norm
+        if not (self.slip_rad > 0):
+            raise InvalidInputError(f"slip_rad must be > 0 (inf for no slip), got {self.slip_rad!r}")
         n.setflags(write=False)
+        object.__setattr__(self, "slip_rad", float(self.slip_rad))
         object.__setattr__(self, "angle_rad", float(self.angle_rad))
         object.__setattr__(self, "radial_distance_m", float(self.radial_distance_m))
         object.__setattr__(self, "whisker_length_m", float(self.whisker_length_m))
@@ -351,13 +360,19 @@ def deflection_counts(
     gain_k = np.zeros(n)
     fx = np.zeros(n)
     fy = np.zeros(n)
+    slip = np.full(n, np.inf)
     for i, c in enumerate(contacts):
         if c is None:
             continue
         theta_c[i] = c.angle_rad
+        slip[i] = c.slip_rad
         gain_k[i] = p.gain_counts_per_nm * float(bending_stiffness(c.radial_distance_m, c.whisker_length_m, p))
         fx[i], fy[i] = c.sensor_split()
     past = np.maximum(th - theta_c[:, None], 0.0)  # inf contact angle -> 0
+    slipping = np.isfinite(slip)
+    if slipping.any():
+        gone = np.maximum.accumulate(past[slipping], axis=1) >= slip[slipping, None]
+        past[slipping] = np.where(gone, 0.0, past[slipping])
     D = gain_k[:, None] * past
     lim = p.adc_max_counts
     return np.clip(D * fx[:, None], -lim, lim), np.clip(D * fy[:, None], -lim, lim)
