@@ -4,11 +4,13 @@ Pipeline (:func:`detect_contact`), per module and whisk cycle:
 
 1. moving average of span 100 samples on all signals (centred window, like
    MATLAB ``smooth``; :func:`moving_average`);
-2. ``scipy.signal.find_peaks`` on the smoothed y-deflection with minimum width
-   100 samples and minimum prominence 500 counts; the single most prominent
-   peak is kept. Decision (sign): the deflection may be negative (a contact in
-   retraction or the array pushing the whisker), so peaks of ``+y`` and ``-y`` are
-   both searched and the more prominent kept; its sign is reported;
+2. peaks of the smoothed y-deflection as ``scipy.signal.find_peaks`` with
+   minimum width 100 samples and minimum prominence 500 counts would return
+   them (``find_peaks`` + ``peak_prominences`` + ``peak_widths``, evaluated only
+   for local maxima that can reach the prominence, for speed); the single most
+   prominent peak is kept. Decision (sign): the deflection may be negative (a
+   contact in retraction or the array pushing the whisker), so peaks of ``+y``
+   and ``-y`` are both searched and the more prominent kept; its sign is reported;
 3. onset: back-track from the peak to the nearest sample where the derivative
    of the smoothed signal changes sign; offset: the first sign change after the
    peak. Decisions: (a) the peak index is the first sample within
@@ -16,12 +18,14 @@ Pipeline (:func:`detect_contact`), per module and whisk cycle:
    where saturation began, not the middle ``find_peaks`` returns; (b) the
    back-track starts where the rise crosses half the prominence (the forward
    search for the offset where the fall does) - otherwise noise on a saturated
-   plateau or on the rounded top of a slow whisk stops it at once; (c) the centred window makes the
-   smoothed signal start rising ``ceil(span/2)`` samples before the raw signal
-   and stop falling ``floor(span/2)`` samples after it, so those leads are
-   added to / removed from the sign-change indices (``compensate_lead``,
-   default on), which puts the onset on the first deflected sample rather than
-   25 ms early;
+   plateau or on the rounded top of a slow whisk stops it at once; (c) the
+   sign change is located as the zero crossing of a line fitted to the
+   derivative's rise (``refine_onset``), which removes the lag the rise needs to
+   clear the noise; (d) the centred window makes the smoothed signal start
+   rising ``ceil(span/2)`` samples before the raw signal and stop falling
+   ``floor(span/2)`` samples after it, so those leads are added to / removed
+   from the sign-change indices (``compensate_lead``, default on), which puts
+   the onset on the first deflected sample rather than 25 ms early;
 4. confirm: ``|peak - mean(last 100 raw samples)|`` (the free-whisking baseline)
    must exceed ``confirm_threshold_counts``.
 
