@@ -354,6 +354,7 @@ def test_joint_speed_default_is_thesis_value_and_enforced():
 @pytest.mark.parametrize("kwargs", [
     {"max_tcp_speed": math.inf}, {"max_tcp_speed": math.nan}, {"max_tcp_speed": 0.0},
     {"max_joint_speed": 5.0}, {"staleness_timeout": 2.0}, {"max_deflection": -1.0},
+    {"overload_samples": 2.5}, {"overload_samples": 0},
     {"workspace_min": (0.0, 0.0, 0.5), "workspace_max": (1.0, 1.0, 0.4)},
     {"tool_reference_axis": (0.0, 0.0, 0.0)}, {"joint_speed_tolerance": 0.5},
 ])
@@ -364,10 +365,14 @@ def test_envelope_cannot_be_disabled_or_widened_past_ceilings(kwargs):
 
 def test_deflection_overload_stops_arm():
     arm = SimArm()
-    arm.guard_deflection([[10, -2999]])
+    trace = np.zeros((3, 2000))
+    trace[1, 500:699] = -2001.0  # 199 samples pinned: still allowed
+    trace[2, 100:1000:2] = 2047.0  # saturated often, never for long
+    arm.guard_deflection(trace)
     assert arm.received == []
-    with pytest.raises(SafetyViolationError, match="overload: 3001"):
-        arm.guard_deflection([[10, -3001]])
+    trace[0, 1000:1200] = 2000.0  # 200 consecutive samples at the limit
+    with pytest.raises(SafetyViolationError, match="overload: 200 consecutive"):
+        arm.guard_deflection(trace)
     assert [c.kind for c in arm.received] == ["stop"]
     with pytest.raises(SafetyViolationError, match="NaN"):
         arm.guard_deflection([np.nan])

@@ -189,8 +189,8 @@ def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLi
             state = arm.state()
             recorder.record(state, records)
             n += 1
-            arm.guard_deflection(np.concatenate([np.concatenate([r.x_counts, r.y_counts])
-                                                 for r in records]))
+            for r in records:
+                arm.guard_deflection(np.stack([r.x_counts, r.y_counts]))
     except BaseException:
         arm.safe_stop()
         raise

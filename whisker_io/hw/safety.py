@@ -43,6 +43,8 @@ HARD_CEILINGS = {
     "max_tool_tilt": math.pi,           # rad
     "staleness_timeout": 1.0,           # s: stale state must be caught within 1 s
     "max_servo_period": 0.5,            # s
+    "max_deflection": 32767.0,          # counts (int16 full scale)
+    "overload_samples": 2000,           # samples (one 1-Hz whisk cycle at 2 kHz)
 }
 
 #: Number of orientations checked along a linear move (slerp samples).
@@ -92,9 +94,15 @@ class SafetyEnvelope:
     min_servo_period, max_servo_period : float
         Allowed servo time step (s); default [0.002, 0.1].
     max_deflection : float
-        Deflection overload threshold in ADC counts (the RCP threshold of
-        Sec 2.3.1 / 4.1.1 at its safe maximum): any |x| or |y| deflection
-        above it stops the arm; default 3000.
+        Deflection overload level in ADC counts; default 2000, 98 % of the
+        2047-count sensor maximum (the retract-at-maximum RCP threshold of
+        Sec 4.1.1).
+    overload_samples : int
+        A deflection at or above ``max_deflection`` for this many consecutive
+        samples is an overload and stops the arm; default 200 (0.1 s at
+        2 kHz). Decision: RCP / retract-at-maximum frees a whisker within a
+        few samples of reaching the maximum, so a whisker that stays there is
+        pinned - the arm is pushing the array into the object.
     staleness_timeout : float
         Largest age (s) of the arm state before it is stale; default 0.25,
         ceiling 1.0 so a dropped link is always caught within 1 s.
@@ -121,7 +129,8 @@ class SafetyEnvelope:
     max_servo_rotation_step: float = math.radians(1.0)
     min_servo_period: float = 0.002
     max_servo_period: float = 0.1
-    max_deflection: float = 3000.0
+    max_deflection: float = 2000.0
+    overload_samples: int = 200
     staleness_timeout: float = 0.25
     joint_speed_tolerance: float = 1.25
 
@@ -151,6 +160,8 @@ class SafetyEnvelope:
             raise InvalidInputError("min_servo_period must be <= max_servo_period")
         if self.joint_speed_tolerance < 1.0:
             raise InvalidInputError("joint_speed_tolerance must be >= 1")
+        if not isinstance(self.overload_samples, int):
+            raise InvalidInputError("overload_samples must be an integer number of samples")
 
     # ------------------------------------------------------------------ poses
     def _tilt(self, rotation: Rotation) -> np.ndarray:
@@ -295,19 +306,27 @@ class SafetyEnvelope:
 
         Parameters
         ----------
-        deflection : array_like
-            Any array of x/y deflections in ADC counts. Non-finite values
-            count as overload (a broken sensor must not be trusted).
+        deflection : array_like, shape (..., T)
+            x/y deflection traces in ADC counts, time along the last axis
+            (e.g. shape (36, 2000): x and y of 18 modules over one cycle).
+            Overload: some trace stays at |d| >= ``max_deflection`` for
+            ``overload_samples`` consecutive samples. Non-finite values count
+            as overload (a broken sensor must not be trusted).
         """
         d = np.asarray(deflection, dtype=float)
         if d.size == 0:
             return
         if not np.all(np.isfinite(d)):
             raise SafetyViolationError("deflection contains NaN/inf: sensor fault; arm stopped")
-        peak = float(np.max(np.abs(d)))
-        if peak > self.max_deflection:
+        over = np.abs(d.reshape(-1, d.shape[-1])) >= self.max_deflection
+        edges = np.diff(np.pad(over, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+        runs = np.flatnonzero(edges.ravel() == -1) - np.flatnonzero(edges.ravel() == 1)
+        longest = int(runs.max()) if runs.size else 0
+        if longest >= self.overload_samples:
             raise SafetyViolationError(
-                f"deflection overload: {peak:.0f} counts > {self.max_deflection:.0f}; arm stopped")
+                f"deflection overload: {longest} consecutive samples at >= "
+                f"{self.max_deflection:.0f} counts (limit {self.overload_samples}); the array is "
+                "pressed into an object; arm stopped")
 
     def check_fresh(self, age: float) -> None:
         """Raise :class:`StaleStateError` if the arm state is older than

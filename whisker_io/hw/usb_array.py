@@ -37,9 +37,10 @@ Commands (host -> device, bulk-out endpoint, little-endian)::
     0  2  magic b"WC"      2  1  opcode      3  1  payload length L
     4  L  payload          4+L 2 CRC-16/CCITT (``binascii.crc_hqx``, init 0xFFFF)
 
-opcodes: 0x01 SET_PATTERN (uint8 mode, float32 frequency Hz, float32
-amplitude rad, float32 start angle rad), 0x02 SET_RCP_THRESHOLD (float32
-counts), 0x03 START, 0x04 STOP.
+opcodes: 0x01 SET_PATTERN (uint8 mode index in :data:`PATTERN_MODES`, float32
+frequency Hz, float32 retraction angle rad, float32 protraction angle rad:
+the fields of :class:`whisker_io.control.WhiskPattern`), 0x02
+SET_RCP_THRESHOLD (float32 counts), 0x03 START, 0x04 STOP.
 
 Faults raise typed errors and are counted in :class:`USBCounters`: a USB
 timeout -> :class:`~whisker_io.errors.DeviceTimeoutError`; a frame shorter
@@ -66,11 +67,12 @@ import numpy as np
 
 from whisker_io.errors import (ConnectionFailedError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, USBFrameError)
+from whisker_io.control import WhiskPattern
 from whisker_io.hw import require
 from whisker_io.recording import SAMPLE_RATE_HZ, WhiskRecord
 
 __all__ = [
-    "Array", "USBArray", "SimArray", "FrameLayout", "Frame", "USBCounters", "WhiskPattern",
+    "Array", "USBArray", "SimArray", "FrameLayout", "Frame", "USBCounters", "PATTERN_MODES",
     "ShortFrameError", "CRCMismatchError", "SequenceGapError",
     "encode_frames", "parse_frame", "encode_command", "parse_command",
     "OP_SET_PATTERN", "OP_SET_RCP_THRESHOLD", "OP_START", "OP_STOP",
@@ -87,7 +89,9 @@ OP_SET_PATTERN = 0x01
 OP_SET_RCP_THRESHOLD = 0x02
 OP_START = 0x03
 OP_STOP = 0x04
-_PATTERN_MODES = ("open_loop", "rcp", "retract_on_max")
+#: Whisking modes of SET_PATTERN (SPEC §4.5): open-loop cosine, RCP amplitude
+#: reduction (Ch.3), retract at the sensor maximum (Ch.4/6).
+PATTERN_MODES = ("open_loop", "rcp", "retract_on_max")
 _LIBUSB_ERROR_NO_DEVICE = -4
 
 
@@ -204,39 +208,6 @@ class USBCounters:
     removals: int = 0
     discarded_whisks: int = 0
     skipped_frames: int = 0
-
-
-@dataclass(frozen=True)
-class WhiskPattern:
-    """Whisking command (Sec 2.3.1, 3.2.2, 4.1.1 / SPEC §4.5).
-
-    Parameters
-    ----------
-    mode : {"open_loop", "rcp", "retract_on_max"}
-        Open-loop cosine, Rapid Cessation of Protraction, or the Ch.4/6
-        variant retracting as soon as the deflection reaches the maximum.
-    frequency_hz : float
-        Whisk frequency, default 1 Hz.
-    amplitude_rad : float
-        Peak-to-peak range, default 100 deg (full range).
-    start_angle_rad : float
-        Angle at the start of protraction, default -50 deg (full retraction).
-    """
-
-    mode: str = "open_loop"
-    frequency_hz: float = 1.0
-    amplitude_rad: float = math.radians(100.0)
-    start_angle_rad: float = math.radians(-50.0)
-
-    def __post_init__(self) -> None:
-        if self.mode not in _PATTERN_MODES:
-            raise InvalidInputError(f"mode must be one of {_PATTERN_MODES}; got {self.mode!r}")
-        if not (math.isfinite(self.frequency_hz) and 0 < self.frequency_hz <= 10):
-            raise InvalidInputError("frequency_hz must be in (0, 10] Hz")
-        if not (math.isfinite(self.amplitude_rad) and 0 < self.amplitude_rad <= math.radians(100)):
-            raise InvalidInputError("amplitude_rad must be in (0, 100 deg]")
-        if not (math.isfinite(self.start_angle_rad) and abs(self.start_angle_rad) <= math.radians(50)):
-            raise InvalidInputError("start_angle_rad must be within +-50 deg")
 
 
 # ------------------------------------------------------------------- codec
@@ -364,8 +335,9 @@ class Array(abc.ABC):
         (angle rad, x/y counts), all with the cycle index from the device."""
 
     @abc.abstractmethod
-    def set_pattern(self, pattern: WhiskPattern) -> None:
-        """Command the whisking pattern (open loop, RCP, retract on max)."""
+    def set_pattern(self, pattern: WhiskPattern, mode: str = "open_loop") -> None:
+        """Command the whisking pattern (:class:`whisker_io.control.WhiskPattern`:
+        frequency and whisk range) and mode, one of :data:`PATTERN_MODES`."""
 
     @abc.abstractmethod
     def set_rcp_threshold(self, counts: float) -> None:
@@ -394,11 +366,13 @@ def _check_threshold(counts: float) -> float:
     return v
 
 
-def _pattern_payload(pattern: WhiskPattern) -> bytes:
+def _pattern_payload(pattern: WhiskPattern, mode: str) -> bytes:
     if not isinstance(pattern, WhiskPattern):
-        raise InvalidInputError("pattern must be a WhiskPattern")
-    return struct.pack("<Bfff", _PATTERN_MODES.index(pattern.mode), pattern.frequency_hz,
-                       pattern.amplitude_rad, pattern.start_angle_rad)
+        raise InvalidInputError("pattern must be a whisker_io.control.WhiskPattern")
+    if mode not in PATTERN_MODES:
+        raise InvalidInputError(f"mode must be one of {PATTERN_MODES}; got {mode!r}")
+    return struct.pack("<Bfff", PATTERN_MODES.index(mode), pattern.frequency_hz,
+                       pattern.retraction_rad, pattern.protraction_rad)
 
 
 class _FrameAssembler:
@@ -562,8 +536,8 @@ class USBArray(Array):
         msg = encode_command(opcode, payload)
         self._transfer(lambda: self._dev.write(self.layout.endpoint_out, msg, self.timeout_ms))
 
-    def set_pattern(self, pattern: WhiskPattern) -> None:
-        self._command(OP_SET_PATTERN, _pattern_payload(pattern))
+    def set_pattern(self, pattern: WhiskPattern, mode: str = "open_loop") -> None:
+        self._command(OP_SET_PATTERN, _pattern_payload(pattern, mode))
 
     def set_rcp_threshold(self, counts: float) -> None:
         self._command(OP_SET_RCP_THRESHOLD, struct.pack("<f", _check_threshold(counts)))
@@ -601,8 +575,8 @@ class SimArray(Array):
 
     Attributes
     ----------
-    pattern : WhiskPattern
-        Last commanded pattern.
+    pattern : tuple of (WhiskPattern, str) or None
+        Last commanded pattern and mode.
     rcp_threshold : float or None
         Last commanded RCP threshold (counts).
     """
@@ -616,8 +590,27 @@ class SimArray(Array):
         self._assembler = _FrameAssembler(self.layout, self.counters)
         self._whisk = 0
         self._sequence = 0
-        self.pattern = WhiskPattern()
+        self.pattern: Optional[tuple[WhiskPattern, str]] = None
         self.rcp_threshold: Optional[float] = None
+
+    @classmethod
+    def from_simulator(cls, simulator: Any, target: Any, pose_provider: Callable[[], Any],
+                       layout: Optional[FrameLayout] = None) -> "SimArray":
+        """A SimArray whose whisks come from ``simulator.whisk(target, pose)``.
+
+        Parameters
+        ----------
+        simulator : whisker_io.simulator.ArraySimulator
+            Seeded simulator (its controller does the whisking).
+        target : trimesh.Trimesh or whisker_io.sweep.MeshTarget
+            The object, in the arm base frame.
+        pose_provider : callable
+            Returns the current :class:`~whisker_io.hw.pose.Pose` (e.g. ``arm.pose``).
+        """
+        def source(pose: Any) -> Any:
+            return list(simulator.whisk(target, pose.as_matrix()).records)
+
+        return cls(source, pose_provider, layout)
 
     def _samples(self, out: Any) -> np.ndarray:
         if isinstance(out, (list, tuple)) and out and isinstance(out[0], WhiskRecord):
@@ -642,9 +635,10 @@ class SimArray(Array):
             raise USBFrameError("simulated whisk did not complete")
         return records
 
-    def set_pattern(self, pattern: WhiskPattern) -> None:
-        _pattern_payload(pattern)
-        self.pattern = pattern
+    def set_pattern(self, pattern: WhiskPattern, mode: str = "open_loop") -> None:
+        """Record the pattern (the simulator's own controller does the whisking)."""
+        _pattern_payload(pattern, mode)
+        self.pattern = (pattern, mode)
 
     def set_rcp_threshold(self, counts: float) -> None:
         self.rcp_threshold = _check_threshold(counts)
