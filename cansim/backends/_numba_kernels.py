@@ -241,83 +241,43 @@ def round_to(buf, size, proto):
 
 
 # ---------------------------------------------------------------------- line passes
-@njit(**_OPTS)
-def _outer_inner(m, k):
-    o = 1
-    for j in range(k):
-        o *= m[j]
-    i = 1
-    for j in range(k + 1, m.shape[0]):
-        i *= m[j]
-    return o, i
+_CHUNK = 256  # cells of one accumulation block (stays in L1)
 
 
 @njit(**_OPTS)
-def conv_lines(src, dst, mi, mo, inner, tab, w, t_lo, t_hi):
-    """One tap table for all lines: ``dst[o, p, :] = sum_j w[j] src[o, tab[p, j], :]`` for t = o*mo + p in [t_lo, t_hi)."""
+def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
+    """A pass along the leading axis that rotates the layout: ``src`` is (m_in, rest), ``dst`` is (rest, mo).
+
+    ``dst[r, p] = sum_j w[j] src[tab[p, j], r]`` for r in [r_lo, r_hi): the sums run over
+    contiguous rows (vectorised), and after one pass per axis the layout is back in C order.
+    (Slices instead of offset indexing let numba drop its negative-index checks.)
+    """
     nw = w.shape[0]
-    if inner == 1:
-        for t in range(t_lo, t_hi):
-            o = t // mo
-            p = t - o * mo
-            acc = 0.0
-            sb = o * mi
+    tmp = np.empty(_CHUNK, np.float64)
+    for r0 in range(r_lo, r_hi, _CHUNK):
+        rc = min(_CHUNK, r_hi - r0)
+        for p in range(mo):
+            for i in range(rc):
+                tmp[i] = 0.0
             for j in range(nw):
                 q = tab[p, j]
                 if q >= 0:
-                    acc += w[j] * src[sb + q]
-            dst[t] = acc
-        return
-    for t in range(t_lo, t_hi):
-        o = t // mo
-        p = t - o * mo
-        d0 = t * inner
-        for i in range(inner):
-            dst[d0 + i] = 0.0
-        for j in range(nw):
-            q = tab[p, j]
-            if q >= 0:
-                wj = w[j]
-                s0 = (o * mi + q) * inner
-                for i in range(inner):
-                    dst[d0 + i] += wj * src[s0 + i]
+                    wj = w[j]
+                    row = src[q * rest + r0: q * rest + r0 + rc]
+                    for i in range(rc):
+                        tmp[i] += wj * row[i]
+            col = dst[r0 * mo + p:]
+            for i in range(rc):
+                col[i * mo] = tmp[i]
 
 
 @njit(parallel=True, **_OPTS)
-def conv_lines_par(src, dst, mi, mo, inner, tab, w, nlines, nchunks):
-    """:func:`conv_lines` over ``nlines`` lines split into ``nchunks`` threads' chunks."""
+def rot_lines_par(src, dst, mo, rest, tab, w, nchunks):
+    """:func:`rot_lines` split over ``nchunks`` threads."""
     for c in prange(nchunks):
-        lo = nlines * c // nchunks
-        hi = nlines * (c + 1) // nchunks
-        conv_lines(src, dst, mi, mo, inner, tab, w, lo, hi)
-
-
-@njit(**_OPTS)
-def group_lines(src, dst, mi, mo, inner, tab, w, grp_o, grp_i, t_lo, t_hi):
-    """One tap table per line group: line t = o*inner + i uses table ``grp_o[o] + grp_i[i]``."""
-    nw = w.shape[1]
-    for t in range(t_lo, t_hi):
-        o = t // inner
-        i = t - o * inner
-        g = grp_o[o] + grp_i[i]
-        sb = o * mi
-        db = o * mo
-        for p in range(mo):
-            acc = 0.0
-            for j in range(nw):
-                q = tab[g, p, j]
-                if q >= 0:
-                    acc += w[g, j] * src[(sb + q) * inner + i]
-            dst[(db + p) * inner + i] = acc
-
-
-@njit(parallel=True, **_OPTS)
-def group_lines_par(src, dst, mi, mo, inner, tab, w, grp_o, grp_i, nlines, nchunks):
-    """:func:`group_lines` split into ``nchunks`` threads' chunks."""
-    for c in prange(nchunks):
-        lo = nlines * c // nchunks
-        hi = nlines * (c + 1) // nchunks
-        group_lines(src, dst, mi, mo, inner, tab, w, grp_o, grp_i, lo, hi)
+        lo = rest * c // nchunks
+        hi = rest * (c + 1) // nchunks
+        rot_lines(src, dst, mo, rest, tab, w, lo, hi)
 
 
 @njit(**_OPTS)
@@ -362,142 +322,204 @@ def shift_row(s, n, s_in, m_in, s_out, m_out, tab_row, w_row):
 
 @njit(**_OPTS)
 def run_conv_pass(src, dst, s, m, k, taps, nt, left, right, n, par_work, nthreads):
-    """Pass along axis k with one tap table; the box grows by ``left``/``right`` on k (updated in place)."""
+    """Rotating pass along axis k (the leading axis of ``src``'s layout) with one tap table.
+
+    The box grows by ``left``/``right`` cells on axis k (``s``, ``m`` updated in place).
+    """
     s_in = s[k]
     m_in = m[k]
     s_out, m_out = grow_arc(s_in, m_in, left, right, n[k])
     tab = conv_table(taps, nt, s_in, m_in, s_out, m_out, n[k])
-    outer, inner = _outer_inner(m, k)
-    nlines = outer * m_out
-    if nthreads > 1 and nlines * inner * nt >= par_work and nlines >= nthreads:
-        conv_lines_par(src, dst, m_in, m_out, inner, tab, taps[:nt], nlines, nthreads)
+    rest = box_size(m) // m_in
+    if nthreads > 1 and rest * m_out * nt >= par_work and rest >= nthreads * _CHUNK:
+        rot_lines_par(src, dst, m_out, rest, tab, taps[:nt], nthreads)
     else:
-        conv_lines(src, dst, m_in, m_out, inner, tab, taps[:nt], 0, nlines)
+        rot_lines(src, dst, m_out, rest, tab, taps[:nt], 0, rest)
     s[k] = s_out
     m[k] = m_out
 
 
 # -------------------------------------------------------------------------- shifts
 @njit(**_OPTS)
-def _line_groups(s, m, k, n, cmask, cstride):
-    """Condition index contributions of the outer (axes < k) and inner (axes > k) coordinates."""
-    d = n.shape[0]
-    outer, inner = _outer_inner(m, k)
-    grp_o = np.zeros(outer, np.int64)
-    grp_i = np.zeros(inner, np.int64)
-    idx = np.zeros(d, np.int64)
-    for o in range(outer):
-        g = 0
-        for j in range(k):
-            if cmask[j] == 0:
-                g += ((s[j] + idx[j]) % n[j]) * cstride[j]
-        grp_o[o] = g
-        j = k - 1
-        while j >= 0:
-            idx[j] += 1
-            if idx[j] < m[j]:
-                break
-            idx[j] = 0
-            j -= 1
-    idx[:] = 0
-    for i in range(inner):
-        g = 0
-        for j in range(k + 1, d):
-            if cmask[j] == 0:
-                g += ((s[j] + idx[j]) % n[j]) * cstride[j]
-        grp_i[i] = g
-        j = d - 1
-        while j > k:
-            idx[j] += 1
-            if idx[j] < m[j]:
-                break
-            idx[j] = 0
-            j -= 1
-    return grp_o, grp_i
+def rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, r_lo, r_hi):
+    """Rotating pass where each line r has its own 2-tap shift (a condition ``g(r)``).
+
+    The conditions are grouped into classes of equal integer shift ``lo``; ``qtab[c, p, j]``
+    is the source row of output row p for class c, tap j (-1 outside the box), and
+    ``gw[g]`` the taps ``(1 - f, f)`` of condition g, of class ``gcls[g]``. Every row is
+    summed over every class with zero weights for the other classes, which keeps the
+    loops vectorised and adds only exact zeros. ``g(r) = sum_t contrib[t, idx_t]`` over
+    the rotated axes ``rax`` of extents ``rext`` (the layout order of r, last fastest).
+    """
+    ncls = qtab.shape[0]
+    nr = rax.shape[0]
+    tmp = np.empty(_CHUNK, np.float64)
+    wch = np.empty((ncls, 2, _CHUNK), np.float64)
+    gch = np.empty(_CHUNK, np.int64)
+    idx = np.empty(max(nr, 1), np.int64)
+    for r0 in range(r_lo, r_hi, _CHUNK):
+        rc = min(_CHUNK, r_hi - r0)
+        # condition of every line of the chunk (odometer over the rotated axes)
+        rr = r0
+        for t in range(nr - 1, -1, -1):
+            idx[t] = rr % rext[t]
+            rr //= rext[t]
+        for i in range(rc):
+            g = 0
+            for t in range(nr):
+                g += contrib[t, idx[t]]
+            gch[i] = g
+            t = nr - 1
+            while t >= 0:
+                idx[t] += 1
+                if idx[t] < rext[t]:
+                    break
+                idx[t] = 0
+                t -= 1
+        wch[:, :, :rc] = 0.0
+        for i in range(rc):
+            g = gch[i]
+            c = gcls[g]
+            wch[c, 0, i] = gw[g, 0]
+            wch[c, 1, i] = gw[g, 1]
+        for p in range(mo):
+            for i in range(rc):
+                tmp[i] = 0.0
+            for c in range(ncls):
+                for j in range(2):
+                    q = qtab[c, p, j]
+                    if q >= 0:
+                        row = src[q * rest + r0: q * rest + r0 + rc]
+                        wv = wch[c, j]
+                        for i in range(rc):
+                            tmp[i] += wv[i] * row[i]
+            col = dst[r0 * mo + p:]
+            for i in range(rc):
+                col[i * mo] = tmp[i]
+
+
+@njit(parallel=True, **_OPTS)
+def rot_class_lines_par(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, nchunks):
+    """:func:`rot_class_lines` split over ``nchunks`` threads."""
+    for c in prange(nchunks):
+        lo = rest * c // nchunks
+        hi = rest * (c + 1) // nchunks
+        rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, lo, hi)
 
 
 @njit(**_OPTS)
-def run_cond_shift(bufs, cur, s, m, n, cmask, cond_tab, par_work, nthreads):
-    """Heading-conditional shift (SPEC §1.4): every condition slice rolls along the shift axes
-    by its own row of ``cond_tab`` (G, n_shift_axes), axis after axis. Returns the buffer index."""
+def _rot_tables(tab, w, src, dst, mo, rest, par_work, nthreads):
+    if nthreads > 1 and rest * mo * w.shape[0] >= par_work and rest >= nthreads * _CHUNK:
+        rot_lines_par(src, dst, mo, rest, tab, w, nthreads)
+    else:
+        rot_lines(src, dst, mo, rest, tab, w, 0, rest)
+
+
+@njit(**_OPTS)
+def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
+    """Rotating conditional-shift pass along axis k with column ``col`` of ``cond_tab``."""
     d = n.shape[0]
     ng = cond_tab.shape[0]
-    # strides of the condition index over the non-shift axes, C order
+    los = np.empty(ng, np.int64)
+    gw = np.empty((ng, 2), np.float64)
+    lo_min = n[k]
+    hi_max = -n[k]
+    for g in range(ng):
+        lo, f = split_shift(cond_tab[g, col], n[k])
+        los[g] = lo
+        gw[g, 0] = 1.0 - f
+        gw[g, 1] = f
+        lo_min = min(lo_min, lo)
+        hi_max = max(hi_max, lo + 1 if f != 0.0 else lo)
+    # classes of equal integer shift
+    ncls_max = hi_max - lo_min + 1
+    cls_of = np.full(ncls_max, -1, np.int64)
+    ncls = 0
+    for g in range(ng):
+        if cls_of[los[g] - lo_min] < 0:
+            cls_of[los[g] - lo_min] = ncls
+            ncls += 1
+    gcls = np.empty(ng, np.int64)
+    clo = np.empty(ncls, np.int64)
+    for g in range(ng):
+        c = cls_of[los[g] - lo_min]
+        gcls[g] = c
+        clo[c] = los[g]
+    s_in = s[k]
+    m_in = m[k]
+    s_out, m_out = grow_arc(s_in, m_in, -lo_min, hi_max, n[k])
+    qtab = np.empty((ncls, m_out, 2), np.int64)
+    for c in range(ncls):
+        for p in range(m_out):
+            for j in range(2):
+                q = (s_out + p - clo[c] - j - s_in) % n[k]
+                qtab[c, p, j] = q if q < m_in else -1
+    # condition index of the lines: strides of the non-shift axes (C order), rotated layout
     cstride = np.zeros(d, np.int64)
     acc = 1
     for j in range(d - 1, -1, -1):
         if cmask[j] == 0:
             cstride[j] = acc
             acc *= n[j]
-    kk = 0
-    for k in range(d):
-        if cmask[k] == 0:
-            continue
-        col = kk
-        kk += 1
-        lo_min = n[k]
-        hi_max = -n[k]
-        moving = False
-        for g in range(ng):
-            lo, f = split_shift(cond_tab[g, col], n[k])
-            hi = lo + 1 if f != 0.0 else lo
-            lo_min = min(lo_min, lo)
-            hi_max = max(hi_max, hi)
-            if lo != 0 or f != 0.0:
-                moving = True
-        if not moving:
-            continue
-        s_in = s[k]
-        m_in = m[k]
-        s_out, m_out = grow_arc(s_in, m_in, -lo_min, hi_max, n[k])
-        if m_in >= n[k]:
-            s_out, m_out = 0, n[k]
-        tab = np.empty((ng, m_out, 2), np.int64)
-        w = np.empty((ng, 2), np.float64)
-        for g in range(ng):
-            shift_row(cond_tab[g, col], n[k], s_in, m_in, s_out, m_out, tab[g], w[g])
-        grp_o, grp_i = _line_groups(s, m, k, n, cmask, cstride)
-        outer, inner = _outer_inner(m, k)
-        src = bufs[cur]
-        dst = bufs[1 - cur]
-        nlines = outer * inner
-        if nthreads > 1 and nlines * m_out * 2 >= par_work and nlines >= nthreads:
-            group_lines_par(src, dst, m_in, m_out, inner, tab, w, grp_o, grp_i, nlines, nthreads)
-        else:
-            group_lines(src, dst, m_in, m_out, inner, tab, w, grp_o, grp_i, 0, nlines)
-        s[k] = s_out
-        m[k] = m_out
-        cur = 1 - cur
-    return cur
+    nr = d - 1
+    rax = np.empty(nr, np.int64)
+    rext = np.empty(nr, np.int64)
+    mmax = 1
+    for j in range(d):
+        mmax = max(mmax, m[j])
+    contrib = np.zeros((max(nr, 1), mmax), np.int64)
+    for t in range(nr):
+        ax = (k + 1 + t) % d
+        rax[t] = ax
+        rext[t] = m[ax]
+        if cmask[ax] == 0:
+            for i in range(m[ax]):
+                contrib[t, i] = ((s[ax] + i) % n[ax]) * cstride[ax]
+    rest = box_size(m) // m_in
+    if nthreads > 1 and rest * m_out * 2 * ncls >= par_work and rest >= nthreads * _CHUNK:
+        rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, rax, rext, contrib, nthreads)
+    else:
+        rot_class_lines(src, dst, m_out, rest, qtab, gw, gcls, rax, rext, contrib, 0, rest)
+    s[k] = s_out
+    m[k] = m_out
 
 
 @njit(**_OPTS)
-def run_uniform_shift(bufs, cur, s, m, n, shifts, par_work, nthreads):
-    """Shift of the whole box by ``shifts`` cells per axis (product of 1-D splits). Returns the buffer index."""
+def run_shift_cycle(bufs, cur, s, m, n, kinds, cmask, cond_tab, uni, round_after, proto, par_work, nthreads):
+    """One rotating pass per axis: ``kinds[k]`` 0 = none (layout only), 1 = uniform shift by
+    ``uni[k]``, 2 = conditional shift (SPEC §1.4). Rounds to the storage dtype after axis
+    ``round_after`` (-1: never) and at the end. Returns the buffer index of the result."""
     d = n.shape[0]
-    w = np.empty(2, np.float64)
+    col = 0
+    w1 = np.ones(1, np.float64)
+    w2 = np.empty(2, np.float64)
     for k in range(d):
-        if shifts[k] == 0.0:
-            continue
-        lo, f = split_shift(shifts[k], n[k])
-        hi = lo + 1 if f != 0.0 else lo
-        if m[k] >= n[k]:
-            s_out, m_out = 0, n[k]
-        else:
-            s_out, m_out = grow_arc(s[k], m[k], -lo, hi, n[k])
-        tab = np.empty((m_out, 2), np.int64)
-        shift_row(shifts[k], n[k], s[k], m[k], s_out, m_out, tab, w)
-        outer, inner = _outer_inner(m, k)
-        nlines = outer * m_out
         src = bufs[cur]
         dst = bufs[1 - cur]
-        if nthreads > 1 and nlines * inner * 2 >= par_work and nlines >= nthreads:
-            conv_lines_par(src, dst, m[k], m_out, inner, tab, w, nlines, nthreads)
+        if kinds[k] == 2:
+            _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads)
         else:
-            conv_lines(src, dst, m[k], m_out, inner, tab, w, 0, nlines)
-        s[k] = s_out
-        m[k] = m_out
+            m_in = m[k]
+            rest = box_size(m) // m_in
+            if kinds[k] == 1:
+                lo, f = split_shift(uni[k], n[k])
+                s_out, m_out = grow_arc(s[k], m_in, -lo, lo + 1 if f != 0.0 else lo, n[k])
+                tab = np.empty((m_out, 2), np.int64)
+                shift_row(uni[k], n[k], s[k], m_in, s_out, m_out, tab, w2)
+                _rot_tables(tab, w2, src, dst, m_out, rest, par_work, nthreads)
+                s[k] = s_out
+                m[k] = m_out
+            else:
+                tab = np.empty((m_in, 1), np.int64)
+                for p in range(m_in):
+                    tab[p, 0] = p
+                _rot_tables(tab, w1, src, dst, m_in, rest, par_work, nthreads)
+        if cmask[k] != 0:
+            col += 1
         cur = 1 - cur
+        if k == round_after:
+            round_to(bufs[cur], box_size(m), proto)
+    round_to(bufs[cur], box_size(m), proto)
     return cur
 
 
@@ -583,22 +605,27 @@ def decode_grid(grid, n, window, res):
 def box_argmax(buf, s, m, n):
     """Global index (per axis) of the largest cell of a box; ties go to the first in C order of the grid."""
     d = n.shape[0]
+    size = box_size(m)
+    best = buf[0]
+    for t in range(size):
+        if buf[t] > best:
+            best = buf[t]
     zero = np.zeros(d, np.int64)
     off = _offset_tables(zero, n, s, m, n)
-    size = box_size(m)
-    best = -np.inf
+    last = d - 1
+    ml = m[last]
     best_flat = -1
     idx = np.zeros(d, np.int64)
-    for t in range(size):
-        v = buf[t]
-        if v >= best:
-            flat = 0
-            for k in range(d):
-                flat += off[k, idx[k]]
-            if v > best or flat < best_flat:
-                best = v
-                best_flat = flat
-        k = d - 1
+    for r in range(size // ml):
+        base = r * ml
+        for p in range(ml):
+            if buf[base + p] == best:
+                flat = off[last, p]
+                for k in range(last):
+                    flat += off[k, idx[k]]
+                if best_flat < 0 or flat < best_flat:
+                    best_flat = flat
+        k = last - 1
         while k >= 0:
             idx[k] += 1
             if idx[k] < m[k]:
@@ -721,16 +748,35 @@ def pipeline(
                 m[:] = tm
     # 6. path integration: heading-conditional translation, then the uniform shift
     sb = (bufs[0], bufs[1])  # the result is in bufs[0] or bufs[1] here
-    if do_cond:
-        nc = run_cond_shift(sb, cur, s, m, n, cmask, cond_tab, par_work, nthreads)
-        if nc != cur:
-            round_to(sb[nc], box_size(m), proto)
-        cur = nc
-    if do_uni:
-        nc = run_uniform_shift(sb, cur, s, m, n, uni, par_work, nthreads)
-        if nc != cur:
-            round_to(sb[nc], box_size(m), proto)
-        cur = nc
+    kinds = np.zeros(d, np.int64)
+    col = 0
+    last_cond = -1
+    for k in range(d):
+        if do_cond and cmask[k] != 0:
+            for g in range(cond_tab.shape[0]):
+                if cond_tab[g, col] != 0.0:
+                    kinds[k] = 2
+                    last_cond = k
+                    break
+            col += 1
+    first_uni = d
+    for k in range(d - 1, -1, -1):
+        if do_uni and uni[k] != 0.0:
+            first_uni = k
+    if first_uni < d and (last_cond > first_uni or (last_cond >= 0 and kinds[first_uni] != 0)):
+        # the uniform shift touches an earlier or a shifted axis: one cycle each, as the reference
+        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, -1, proto, par_work, nthreads)
+        last_cond = -1
+        kinds[:] = 0
+    for k in range(d):
+        if do_uni and uni[k] != 0.0 and kinds[k] == 0:
+            kinds[k] = 1
+    moving = False
+    for k in range(d):
+        if kinds[k] != 0:
+            moving = True
+    if moving:
+        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, last_cond, proto, par_work, nthreads)
     scatter(sb[cur], s, m, out, n)
     # 7. decoding
     if do_decode:
