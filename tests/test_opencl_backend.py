@@ -15,7 +15,7 @@ cl = pytest.importorskip("pyopencl")
 
 from cansim.backends import opencl_backend as ob  # noqa: E402
 from cansim.backends.numpy_backend import NumpyBackend  # noqa: E402
-from cansim.errors import BackendUnavailableError  # noqa: E402
+from cansim.errors import BackendUnavailableError, InvalidInputError  # noqa: E402
 from cansim.kernels import gaussian_kernel_1d  # noqa: E402
 from cansim.population import Population  # noqa: E402
 
@@ -131,7 +131,7 @@ def test_fp64_required_on_a_device_without_it(fake_platforms):
 
 def test_work_group_must_be_a_power_of_two(fake_platforms):
     fake_platforms(FakePlatform("P", [FakeDevice("cpu0")]))
-    with pytest.raises(BackendUnavailableError, match="power of two"):
+    with pytest.raises(InvalidInputError, match="power of two"):
         ob.OpenCLBackend(work_group=48)
 
 
