@@ -365,8 +365,8 @@ class OpenCLBackend(Backend):
     -----
     Every call uploads the activity, runs its kernels and downloads the result (the
     contract works on host arrays); :meth:`step` does the whole iteration with one
-    upload, one small table upload, about ``3 * ndim + 4`` kernel launches and one
-    download. Launch and transfer overhead (tens of microseconds each on CPU runtimes)
+    upload, one small table upload, ``2 * ndim + 1`` kernel launches for the dynamics,
+    one per shifted axis and one download. Launch and transfer overhead (tens of microseconds each on CPU runtimes)
     therefore dominates small grids (a 360-cell ring, 21 x 21 x 36); the dense kernels
     pay off on large grids (10^6 cells), where they run on every core (and on GPUs).
     """
@@ -544,7 +544,7 @@ class OpenCLBackend(Backend):
         if entry is None or entry[1] < host.nbytes:
             entry = (cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY, max(host.nbytes, 64)), max(host.nbytes, 64))
             b.small[name] = entry
-        cl.enqueue_copy(self._queue, entry[0], host, is_blocking=False)
+        cl.enqueue_copy(self._queue, entry[0], host)  # blocking: host is a temporary
         return entry[0]
 
     def _meta(self, b: _Buffers, cstrides: tuple[int, ...]) -> "cl.Buffer":
@@ -686,7 +686,9 @@ class OpenCLBackend(Backend):
                 cur, cur_store, first = dst, dst_store, False
 
     def _upload(self, b: _Buffers, a: np.ndarray) -> None:
-        cl.enqueue_copy(self._queue, b.act, np.ascontiguousarray(a), is_blocking=False)
+        # blocking, like every upload here: they are queued before the kernels, so they
+        # only wait for their own copy (pyopencl would block on the event anyway)
+        cl.enqueue_copy(self._queue, b.act, np.ascontiguousarray(a))
 
     def _download(self, b: _Buffers, a: np.ndarray, out: Optional[np.ndarray]) -> np.ndarray:
         if out is None or not out.flags.c_contiguous:
