@@ -22,7 +22,8 @@ from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInpu
 from whisker_io.hw import MissingDependencyError
 from whisker_io.hw import arm as arm_module
 from whisker_io.hw.arm import CommandFailedError, SimArm, URArm, probe_rtde
-from whisker_io.hw.fake_rtde_server import FakeServerError, fake_rtde_server
+from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeReceiveInterface,
+                                            FakeServerError, fake_rtde_server)
 from whisker_io.hw.pose import Pose, as_pose
 
 HOST = "127.0.0.1"
@@ -101,66 +102,9 @@ def test_simarm_refuses_outside_start_and_after_close():
 
 
 # ------------------------------------------------- URArm with injected fakes
-class FrozenReceive:
-    """Receive double whose timestamp advances until frozen (a stalled link)."""
-
-    def __init__(self):
-        self.t = 0.0
-        self.frozen = False
-        self.connected = True
-
-    def isConnected(self):
-        return self.connected
-
-    def getTimestamp(self):
-        if not self.frozen:
-            self.t += 0.002
-        return self.t
-
-    def getActualTCPPose(self):
-        return [0.4, 0.0, 0.4, 0.0, math.pi, 0.0]
-
-    def getActualQ(self):
-        return [0.0] * 6
-
-    def getActualQd(self):
-        return [0.0] * 6
-
-    def disconnect(self):
-        self.connected = False
-
-
-class RecordingControl:
-    def __init__(self, ok=True):
-        self.calls = []
-        self.ok = ok
-
-    def moveL(self, *a):
-        self.calls.append(("moveL", a))
-        return self.ok
-
-    def servoL(self, *a):
-        self.calls.append(("servoL", a))
-        return self.ok
-
-    def moveJ(self, *a):
-        self.calls.append(("moveJ", a))
-        return self.ok
-
-    def servoStop(self, *a):
-        self.calls.append(("servoStop", a))
-        return True
-
-    def stopL(self, *a):
-        self.calls.append(("stopL", a))
-
-    def disconnect(self):
-        self.calls.append(("disconnect", ()))
-
-
 def injected_arm(receive=None, control=None):
-    receive = receive or FrozenReceive()
-    control = control or RecordingControl()
+    receive = receive or FakeReceiveInterface()
+    control = control or FakeControlInterface()
     arm = URArm(HOST, receive_factory=lambda h: receive, control_factory=lambda h: control)
     return arm, receive, control
 
@@ -176,7 +120,7 @@ def test_urarm_sends_converted_pose_and_refuses_unsafe():
 
 
 def test_urarm_controller_refusal_is_typed():
-    arm, _, _ = injected_arm(control=RecordingControl(ok=False))
+    arm, _, _ = injected_arm(control=FakeControlInterface(ok=False))
     with pytest.raises(CommandFailedError, match="protective stop"):
         arm.move_linear([0.4, 0.02, 0.4, 0.0, math.pi, 0.0], 0.05, 0.3)
 
@@ -198,7 +142,7 @@ def test_urarm_stale_injected_within_1s_and_stops():
 
 
 def test_urarm_read_only_refuses_commands():
-    rx = FrozenReceive()
+    rx = FakeReceiveInterface()
     arm = URArm(HOST, receive_factory=lambda h: rx, control=False)
     assert np.allclose(arm.pose().position, [0.4, 0.0, 0.4])
     with pytest.raises(CommandFailedError, match="read-only"):
@@ -273,7 +217,7 @@ def test_urarm_streams_poses_from_real_ur_rtde_client(rtde_server):
 
 
 def test_killed_server_raises_typed_error_within_1s_and_stops(rtde_server):
-    ctl = RecordingControl()
+    ctl = FakeControlInterface()
     arm = URArm(HOST, control_factory=lambda h: ctl)
     try:
         arm.state()

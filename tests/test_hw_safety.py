@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
 from whisker_io.hw.arm import SimArm, URArm
+from whisker_io.hw.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
 from whisker_io.hw.pose import Pose
 from whisker_io.hw.safety import SafetyEnvelope
 
@@ -148,67 +149,12 @@ command = st.builds(build_command, st.sampled_from(["moveL", "servoL", "moveJ"])
                     st.tuples(*[st.floats(-1.0, 1.0)] * 8), st.integers(0, 63))
 
 
-# ------------------------------------------------------- fake controller
-class FakeReceive:
-    """Receive interface double: a fixed pose, a timestamp that always advances."""
-
-    def __init__(self, vec):
-        self.vec = list(vec)
-        self.t = 0.0
-
-    def isConnected(self):
-        return True
-
-    def getTimestamp(self):
-        self.t += 0.002
-        return self.t
-
-    def getActualTCPPose(self):
-        return list(self.vec)
-
-    def getActualQ(self):
-        return [0.0] * 6
-
-    def getActualQd(self):
-        return [0.0] * 6
-
-    def disconnect(self):
-        pass
-
-
-class FakeControl:
-    """Control interface double recording everything that reaches 'the robot'."""
-
-    def __init__(self):
-        self.sent = []
-
-    def moveL(self, pose, speed, acc, asynchronous):
-        self.sent.append(("moveL", list(pose), speed, acc))
-        return True
-
-    def servoL(self, pose, speed, acc, dt, lookahead, gain):
-        self.sent.append(("servoL", list(pose), dt))
-        return True
-
-    def moveJ(self, q, speed, acc, asynchronous):
-        self.sent.append(("moveJ", list(q), speed, acc))
-        return True
-
-    def servoStop(self, a):
-        return True
-
-    def stopL(self, a, asynchronous):
-        return True
-
-    def disconnect(self):
-        pass
-
-
+# ------------------------------------------------------- drivers
 def make_arm(kind, start_vec):
     if kind == "sim":
         return SimArm(start_vec)
-    ctl = FakeControl()
-    arm = URArm("127.0.0.1", receive_factory=lambda h: FakeReceive(start_vec),
+    ctl = FakeControlInterface()
+    arm = URArm("127.0.0.1", receive_factory=lambda h: FakeReceiveInterface(start_vec),
                 control_factory=lambda h: ctl)
     arm.fake_control = ctl
     return arm
@@ -225,7 +171,13 @@ def delivered(arm):
             elif c.kind == "moveJ":
                 out.append(("moveJ", c.target.tolist(), c.speed, c.acceleration_or_dt))
         return out
-    return list(arm.fake_control.sent)
+    out = []
+    for name, args in arm.fake_control.motions():
+        if name == "servoL":  # (pose, speed, acceleration, dt, lookahead, gain)
+            out.append(("servoL", list(args[0]), args[3]))
+        else:  # (target, speed, acceleration, asynchronous)
+            out.append((name, list(args[0]), args[1], args[2]))
+    return out
 
 
 def run_command(arm, cmd, start_vec):

@@ -45,6 +45,10 @@ port). It binds 127.0.0.1 only. :func:`fake_rtde_server` runs it as a child
 process in a ``with`` block.
 
 Run: ``python -m whisker_io.hw.fake_rtde_server --port 30004``.
+
+For tests that need no socket at all, :class:`FakeReceiveInterface` and
+:class:`FakeControlInterface` stand in for ur-rtde's interfaces in-process
+(``URArm(receive_factory=..., control_factory=...)``).
 """
 
 from __future__ import annotations
@@ -62,7 +66,7 @@ import time
 from typing import Iterator
 
 __all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main", "FakeServerError",
-           "fake_rtde_server"]
+           "fake_rtde_server", "FakeReceiveInterface", "FakeControlInterface"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -297,6 +301,92 @@ def fake_rtde_server(mode: str = "stream", port: int = RTDE_PORT,
         proc.wait()
         if proc.stdout:
             proc.stdout.close()
+
+
+class FakeReceiveInterface:
+    """In-process stand-in for ``rtde_receive.RTDEReceiveInterface`` (no socket).
+
+    Its ``timestamp`` advances by ``dt`` on every read unless :attr:`frozen`
+    (a stalled link); :attr:`connected` can be cleared (a dropped link).
+    Pass ``receive_factory=lambda host: FakeReceiveInterface(...)`` to ``URArm``.
+
+    Parameters
+    ----------
+    tcp_pose : sequence of 6 float
+        UR TCP pose returned by ``getActualTCPPose`` (m, rotation vector rad);
+        default 0.4 m forward, 0.4 m up, tool pointing down.
+    dt : float
+        Controller time step per read, s.
+    """
+
+    def __init__(self, tcp_pose=(0.4, 0.0, 0.4, 0.0, math.pi, 0.0), dt: float = 0.002) -> None:
+        self.tcp_pose = list(tcp_pose)
+        self.dt = dt
+        self.t = 0.0
+        self.frozen = False
+        self.connected = True
+
+    def isConnected(self) -> bool:
+        return self.connected
+
+    def getTimestamp(self) -> float:
+        if not self.frozen:
+            self.t += self.dt
+        return self.t
+
+    def getActualTCPPose(self) -> list[float]:
+        return list(self.tcp_pose)
+
+    def getActualQ(self) -> list[float]:
+        return [0.0] * 6
+
+    def getActualQd(self) -> list[float]:
+        return [0.0] * 6
+
+    def disconnect(self) -> None:
+        self.connected = False
+
+
+class FakeControlInterface:
+    """In-process stand-in for ``rtde_control.RTDEControlInterface`` that records
+    every call reaching "the robot" in :attr:`calls` as ``(name, args)``.
+
+    Parameters
+    ----------
+    ok : bool
+        Return value of the motion commands (False: the controller refuses).
+    """
+
+    def __init__(self, ok: bool = True) -> None:
+        self.ok = ok
+        self.calls: list[tuple[str, tuple]] = []
+
+    def _record(self, name: str, args: tuple) -> bool:
+        self.calls.append((name, args))
+        return self.ok
+
+    def moveL(self, *args) -> bool:
+        return self._record("moveL", args)
+
+    def servoL(self, *args) -> bool:
+        return self._record("servoL", args)
+
+    def moveJ(self, *args) -> bool:
+        return self._record("moveJ", args)
+
+    def servoStop(self, *args) -> bool:
+        self.calls.append(("servoStop", args))
+        return True
+
+    def stopL(self, *args) -> None:
+        self.calls.append(("stopL", args))
+
+    def disconnect(self) -> None:
+        self.calls.append(("disconnect", ()))
+
+    def motions(self) -> list[tuple[str, tuple]]:
+        """The motion commands received (moveL, servoL, moveJ), in order."""
+        return [c for c in self.calls if c[0] in ("moveL", "servoL", "moveJ")]
 
 
 def main(argv: list[str] | None = None) -> int:

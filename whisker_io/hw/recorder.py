@@ -32,7 +32,7 @@ from whisker_io.hw.arm import Arm, ArmState
 from whisker_io.hw.pose import PoseLike
 from whisker_io.hw.usb_array import Array
 from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle, WhiskRecord,
-                                  read_pose_log, replay)
+                                  read_pose_log, replay, whisk_file_stem)
 
 __all__ = ["Pipeline", "Recorder", "explore", "replay_session"]
 
@@ -102,15 +102,23 @@ class Recorder:
         ------
         InvalidInputError
             Recorder closed, no records, or a time earlier than the previous
-            cycle's; nothing is written then.
+            cycle's; nothing is written then. If writing fails part-way (disk
+            full, interrupt), the cycle's files written so far are removed, so
+            the session holds only complete cycles.
         """
         if self.closed:
             raise InvalidInputError(f"recorder for {self.directory} is closed")
         cycle = self._next_cycle
         relabelled = [r if r.cycle == cycle else _with_cycle(r, cycle) for r in records]
-        entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
-                                         position_m=state.pose.position,
-                                         quaternion_xyzw=state.pose.quaternion)
+        try:
+            entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
+                                             position_m=state.pose.position,
+                                             quaternion_xyzw=state.pose.quaternion)
+        except BaseException:
+            # the cycle has no pose-log line: remove its module files written so far
+            for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):
+                path.unlink(missing_ok=True)
+            raise
         self._next_cycle += 1
         self.n_cycles += 1
         item = ReplayedCycle(pose=entry, records=MappingProxyType(

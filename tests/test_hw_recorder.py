@@ -1,0 +1,182 @@
+"""Recorder: live cycles on disk as they arrive, replay through the same pipeline.
+
+* a SimArm + SimArray session (simulated box, Ch.4/6 retract-at-maximum
+  whisking) replays bit-identically into whisker_io.contact_detection;
+* the fake RTDE server killed mid-session -> typed error within 1 s, recorder
+  closed, every whisk before the fault readable.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from whisker_io.contact_detection import detect_contacts
+from whisker_io.control import RetractAtMax
+from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
+                               StaleStateError)
+from whisker_io.hw.arm import ArmState, SimArm, URArm
+from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeServerError,
+                                            fake_rtde_server)
+from whisker_io.hw.pose import Pose
+from whisker_io.hw.recorder import Recorder, explore, replay_session
+from whisker_io.hw.safety import SafetyEnvelope
+from whisker_io.hw.usb_array import SimArray
+from whisker_io.recording import WhiskRecord, read_pose_log, replay
+
+UPRIGHT = SafetyEnvelope(tool_reference_axis=(0.0, 0.0, 1.0))  # array axis (+y) horizontal
+
+
+def contact_pipeline(cycle):
+    """The live/replay consumer: contacts of the 18 modules, in module order."""
+    return detect_contacts([cycle.records[m] for m in sorted(cycle.records)])
+
+
+def upright(x, y, z):
+    return Pose([x, y, z], [0.0, 0.0, 0.0, 1.0])
+
+
+def test_sim_session_replays_bit_identically_into_contact_pipeline(tmp_path):
+    from whisker_io.objects import make_object
+    from whisker_io.simulator import ArraySimulator
+
+    arm = SimArm(upright(0.0, -0.33, 0.15), envelope=UPRIGHT)
+    array = SimArray.from_simulator(ArraySimulator(seed=3, controller=RetractAtMax()),
+                                    make_object("box"), arm.pose)
+    targets = [upright(x, -0.32, z) for x, z in [(-0.04, 0.1), (0.0, 0.2), (0.04, 0.3)]]
+    live_cycles = []
+    with Recorder(tmp_path, pipeline=lambda c: (live_cycles.append(c), contact_pipeline(c))[1]) as rec:
+        assert explore(arm, array, rec, targets, progress=False) == 3
+    live = rec.results
+    assert sum(c is not None for cycle in live for c in cycle) >= 5  # the box was touched
+    replayed = replay_session(tmp_path, contact_pipeline)
+    assert replayed == live  # DetectedContact dataclasses compared field by field, exactly
+    for a, b in zip(live_cycles, replay(tmp_path)):
+        assert a.pose.time_s == b.pose.time_s and a.pose.whisk_file == b.pose.whisk_file
+        assert np.array_equal(a.pose.position_m, b.pose.position_m)
+        assert np.array_equal(a.pose.quaternion_xyzw, b.pose.quaternion_xyzw)
+        for m in a.records:
+            for col in ("angle_rad", "x_counts", "y_counts"):
+                assert np.array_equal(getattr(a.records[m], col), getattr(b.records[m], col))
+    # the pose log holds the arm's poses at each whisk
+    for entry, target in zip(read_pose_log(tmp_path / "pose_log.csv"), targets):
+        assert np.array_equal(entry.position_m, target.position)
+
+
+def _small_whisk(k, n=200):
+    s = np.zeros((n, 18, 3))
+    s[:, :, 0] = np.linspace(-0.8, 0.8, n)[:, None]
+    s[:, :, 2] = k
+    return s
+
+
+@pytest.fixture
+def rtde_server():
+    try:
+        with fake_rtde_server("stream") as (proc, _):
+            yield proc
+    except FakeServerError as exc:
+        pytest.skip(f"cannot run the fake RTDE server on port 30004: {exc}")
+
+
+def test_killed_rtde_server_mid_session(tmp_path, rtde_server):
+    ctl = FakeControlInterface()  # the control path is an injected fake
+    arm = URArm("127.0.0.1", control_factory=lambda h: ctl)
+    calls = []
+    killed_at = []
+
+    def source(pose):
+        k = len(calls)
+        calls.append(pose)
+        if k == 3:  # the controller dies while whisk 3 is being taken
+            rtde_server.kill()
+            killed_at.append(time.monotonic())
+        return _small_whisk(k)
+
+    array = SimArray(source, lambda: None)
+    targets = [Pose([0.4, 0.0, 0.4], [1.0, 0.0, 0.0, 0.0])] * 10_000
+    with pytest.raises((ConnectionFailedError, StaleStateError)):
+        with Recorder(tmp_path) as rec:
+            explore(arm, array, rec, targets, progress=False)
+    assert time.monotonic() - killed_at[0] < 1.0
+    assert rec.closed and rec.n_cycles >= 3
+    assert any(name == "stopL" for name, _ in ctl.calls)
+    cycles = list(replay(tmp_path))
+    assert len(cycles) == rec.n_cycles
+    for k, cyc in enumerate(cycles):
+        assert np.all(cyc.records["A1"].y_counts == k)  # each cycle whole and in order
+        # poses come from the fake robot's 5 cm circle about (0.4, 0, 0.4)
+        p = cyc.pose.position_m
+        assert math.hypot(p[0] - 0.4, p[1]) == pytest.approx(0.05)
+    arm.close()
+
+
+def _records(cycle, value=0.0):
+    return [WhiskRecord(m, np.zeros(10), np.zeros(10), np.full(10, value), cycle=cycle)
+            for m in ("A1", "B1")]
+
+
+def _state(t):
+    return ArmState(t, Pose([0.4, 0.0, 0.4], [1, 0, 0, 0]), np.zeros(6), np.zeros(6))
+
+
+def test_recorder_resumes_numbering_and_relabels_device_cycles(tmp_path):
+    with Recorder(tmp_path) as rec:
+        rec.record(_state(0.0), _records(cycle=7))
+        rec.record(_state(1.0), _records(cycle=7, value=1.0))  # device restarted its count
+    with Recorder(tmp_path) as rec:
+        item = rec.record(_state(2.0), _records(cycle=0, value=2.0))
+    assert item.pose.whisk_file == "whisk_000002"
+    cycles = list(replay(tmp_path))
+    assert [c.pose.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001", "whisk_000002"]
+    assert [float(c.records["B1"].y_counts[0]) for c in cycles] == [0.0, 1.0, 2.0]
+
+
+def test_recorder_refuses_time_reversal_and_closed_use(tmp_path):
+    rec = Recorder(tmp_path)
+    rec.record(_state(5.0), _records(0))
+    with pytest.raises(InvalidInputError, match="time order"):
+        rec.record(_state(4.0), _records(0))
+    rec.close()
+    with pytest.raises(InvalidInputError, match="closed"):
+        rec.record(_state(6.0), _records(0))
+    assert len(list(replay(tmp_path))) == 1
+    assert sorted(p.name for p in tmp_path.glob("whisk_*")) == ["whisk_000000_A1.csv",
+                                                                 "whisk_000000_B1.csv"]
+
+
+def test_failed_cycle_write_leaves_no_orphan_files(tmp_path, monkeypatch):
+    import whisker_io.recording as recording
+
+    real = recording.write_whisk_csv
+    calls = []
+
+    def flaky(path, record):
+        calls.append(record.module)
+        if len(calls) == 4:  # second module of the second cycle: "disk full"
+            raise OSError(28, "No space left on device")
+        return real(path, record)
+
+    monkeypatch.setattr(recording, "write_whisk_csv", flaky)
+    with Recorder(tmp_path) as rec:
+        rec.record(_state(0.0), _records(0))
+        with pytest.raises(OSError):
+            rec.record(_state(1.0), _records(1))
+    assert sorted(p.name for p in tmp_path.glob("whisk_*")) == ["whisk_000000_A1.csv",
+                                                                 "whisk_000000_B1.csv"]
+    assert len(list(replay(tmp_path))) == 1
+
+
+def test_explore_stops_arm_on_deflection_overload_after_recording(tmp_path):
+    arm = SimArm()
+    pinned = np.zeros((2000, 18, 3))
+    pinned[:, 4, 2] = 2047.0  # module B2 pinned at the sensor maximum all cycle
+    array = SimArray(lambda pose: pinned, arm.pose)
+    with pytest.raises(HardwareError, match="overload"):
+        with Recorder(tmp_path) as rec:
+            explore(arm, array, rec, [Pose([0.4, 0.0, 0.4], [1, 0, 0, 0])] * 3, progress=False)
+    assert rec.n_cycles == 1  # the overloading whisk itself is kept
+    assert arm.received[-1].kind == "stop"
