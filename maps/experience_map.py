@@ -295,6 +295,8 @@ class ExperienceMap:
         self.relative_rad = 0.0
         self.vt_delta_pc_th = 0.0
         self._cursor = 0
+        #: single-link relaxation updates done by the last :meth:`iterate` call
+        self.last_relax_updates = 0
 
     # ------------------------------------------------------------------ views
     @property
@@ -523,6 +525,7 @@ class ExperienceMap:
             capped at ``relax_budget`` (see the module docstring).
         """
         m = self._n_link
+        self.last_relax_updates = 0
         if m == 0:
             return 0
         full = self.config.exp_loops * m
@@ -540,6 +543,7 @@ class ExperienceMap:
             self._order, self._link_ends, self._link_data, self._exp_pose, float(self.config.exp_correction), int(n_updates), int(start)
         )
         self._cursor = int(end)
+        self.last_relax_updates = int(n_updates)
         return int(n_updates)
 
     # --------------------------------------------------------------- export

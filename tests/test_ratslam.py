@@ -172,3 +172,19 @@ def test_synthetic_five_loops_map_beats_dead_reckoning_and_kidnapping_hurts():
     assert kexm.arr < exm.arr
     assert kem > em
     assert exm.arcr > 0.9
+
+
+def test_long_run_relaxation_work_is_bounded():
+    # the acceptance's 20,000-iteration time/memory measurement lives in
+    # bench/test_bench_ratslam_parts.py; here the invariant behind it: per-step
+    # relaxation work never exceeds relax_budget however large the map grows.
+    run = make_run(LoopRoute(step_m=0.05), loops=(1,) * 12, seed=1)
+    slam = RatSLAM(CFG, relax_budget=600)
+    work, ids = [], []
+    for k in range(len(run)):
+        ids.append(slam.step(run.vtrans[k], run.vrot[k], run.dt, int(run.view_ids[k])).exp_id)
+        work.append(slam.experience_map.last_relax_updates)
+    assert slam.experience_map.n_links * CFG.exp_loops > 600  # the budget was binding
+    assert max(work) == 600
+    est = slam.experience_map.poses[np.array(ids)]
+    assert absolute_trajectory_error(est, run.truth).rmse < 0.5 * absolute_trajectory_error(run.dead_reckoning, run.truth).rmse
