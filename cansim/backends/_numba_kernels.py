@@ -571,13 +571,15 @@ def decode_window(grid, n, centre, window, res):
         b = 0
         for k in range(last):
             b += widx[k, idx[k]] * stride[k]
+        rowsum = 0.0
         for t in range(wlen[last]):
             c = widx[last, t]
             v = np.float64(grid[b + c])
-            if v != 0.0:
-                prof[last, c] += v
-                for k in range(last):
-                    prof[k, widx[k, idx[k]]] += v
+            prof[last, c] += v
+            rowsum += v
+        if rowsum != 0.0:
+            for k in range(last):
+                prof[k, widx[k, idx[k]]] += rowsum
         k = last - 1
         while k >= 0:
             idx[k] += 1
@@ -592,7 +594,10 @@ def decode_window(grid, n, centre, window, res):
 @njit(**_OPTS)
 def decode_grid(grid, n, window, res):
     """Decode a whole flat grid: first argmax in C order, then :func:`decode_window`."""
-    best = np.argmax(grid)
+    best = 0
+    for i in range(grid.shape[0]):
+        if grid[i] > grid[best]:
+            best = i
     d = n.shape[0]
     centre = np.empty(d, np.int64)
     for k in range(d - 1, -1, -1):

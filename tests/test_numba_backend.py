@@ -1,0 +1,236 @@
+"""What is particular to the numba backend: the locality (packet box) path, the dense
+path, serial vs threaded passes, per-thread workspaces and the circular-arc search.
+
+The shared conformance suite (tests/test_backend_conformance.py) proves the numba
+kernels equal the numpy reference; here the *same* steps run through the locality path,
+the forced dense path and the numpy reference on activity layouts chosen to stress the
+box logic (one packet, two far-apart packets, packets straddling the wrap, a full grid).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("numba")
+
+from cansim.backends.numba_backend import NumbaBackend  # noqa: E402
+from cansim.backends.numpy_backend import NumpyBackend  # noqa: E402
+from cansim.kernels import gaussian_kernel_1d  # noqa: E402
+
+REF = NumpyBackend()
+LOCAL = NumbaBackend()
+DENSE = NumbaBackend(locality=False)
+
+
+def _kernels(ndim, exc_width=7, inh_width=5):
+    exc = [gaussian_kernel_1d(exc_width, 1.0) for _ in range(ndim)]
+    inh = [gaussian_kernel_1d(inh_width, 2.0) for _ in range(ndim)]
+    return exc, inh
+
+
+def _packets(shape, centres, dtype=np.float32, half=1, seed=0):
+    """Blocks of +-half cells (wrapping) of random activity around each centre; sum 1."""
+    rng = np.random.default_rng(seed)
+    a = np.zeros(shape)
+    for c in centres:
+        idx = np.ix_(*[(np.arange(-half, half + 1) + ci) % n for ci, n in zip(c, shape)])
+        a[idx] += rng.uniform(0.5, 1.0, size=(2 * half + 1,) * len(shape))
+    return (a / a.sum()).astype(dtype)
+
+
+def _n_translated(ndim):
+    """Translated (conditioned) axes: (x, y) of 3-D, (x, y, z) of 6-D."""
+    return ndim - 1 if ndim <= 3 else ndim // 2
+
+
+def _step_kwargs(shape, rng, *, cond=True, uniform=True, inject=True, phi=2e-5):
+    ndim = len(shape)
+    exc, inh = _kernels(ndim)
+    kw = dict(flat_index=None, values=None, exc=exc, inh=inh, phi=phi, shift_axes=None,
+              cond_shifts=None, uniform_shifts=None, window=3)
+    if inject:
+        kw["flat_index"] = rng.integers(0, int(np.prod(shape)), 2).astype(np.int64)
+        kw["values"] = rng.uniform(0.0, 0.2, 2)
+    if cond and ndim >= 2:
+        k = _n_translated(ndim)
+        kw["shift_axes"] = tuple(range(k))
+        kw["cond_shifts"] = rng.uniform(-2.5, 2.5, shape[k:] + (k,))
+    if uniform:
+        u = rng.uniform(-2.5, 2.5, ndim)
+        if cond and ndim >= 2:
+            u[: _n_translated(ndim)] = 0.0  # rotations act on the condition axes
+        kw["uniform_shifts"] = u
+    return kw
+
+
+def _assert_same_step(a, kw, backends=(LOCAL, DENSE)):
+    ref_a, ref_d = REF.step(a.copy(), **kw)
+    for b in backends:
+        if ref_a is None:  # e.g. a single-cell axis: inhibition cancels excitation
+            assert b.step(a, **kw) == (None, None)
+            continue
+        before = a.copy()
+        out = np.full_like(a, 7.0)  # stale content must not leak into the result
+        got_a, got_d = b.step(a, out=out, **kw)
+        np.testing.assert_array_equal(a, before)
+        assert got_a is out and got_a.dtype == a.dtype
+        tol = 1e-5 if a.dtype == np.float32 else 1e-12
+        np.testing.assert_allclose(got_a, ref_a, rtol=tol, atol=tol * float(ref_a.max()))
+        np.testing.assert_allclose(got_d, ref_d, rtol=1e-6, atol=1e-6)
+
+
+LAYOUTS = {
+    "one packet": [(3, 4, 5)],
+    "two far-apart packets": [(1, 1, 1), (14, 8, 7)],
+    "straddles every wrap": [(0, 0, 0)],
+    "two packets straddling": [(19, 0, 8), (0, 10, 0)],
+}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_locality_and_dense_paths_equal_reference_3d(layout, dtype):
+    shape = (20, 13, 9)  # non-cubic; kernels of 7 taps span most of the last axis
+    a = _packets(shape, LAYOUTS[layout], dtype)
+    kw = _step_kwargs(shape, np.random.default_rng(1))
+    _assert_same_step(a, kw)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_full_random_grid_equals_reference(dtype):
+    shape = (7, 11, 13)
+    a = np.random.default_rng(2).random(shape).astype(dtype)
+    _assert_same_step(a, _step_kwargs(shape, np.random.default_rng(3)))
+
+
+@pytest.mark.parametrize("shape", [(5, 6, 7, 8), (3, 4, 5, 6, 7, 5), (10, 9, 8, 7, 6, 5)])
+def test_higher_dimensional_packets(shape):
+    centres = [tuple(n // 2 for n in shape), tuple(0 for _ in shape)]
+    a = _packets(shape, centres, np.float32, half=1)
+    _assert_same_step(a, _step_kwargs(shape, np.random.default_rng(len(shape))))
+
+
+def test_ring_packet_across_zero_moves_more_than_one_cell():
+    shape = (360,)
+    a = _packets(shape, [(359,)], np.float32, half=2)
+    kw = _step_kwargs(shape, np.random.default_rng(4), cond=False)
+    kw["uniform_shifts"] = np.array([-3.7])
+    _assert_same_step(a, kw)
+
+
+def test_kernel_wider_than_axis_wraps_like_reference():
+    shape = (3, 16, 2)  # 7- and 9-tap kernels on axes of 3 and 2 cells wrap several times
+    exc = [gaussian_kernel_1d(w, 1.5) for w in (7, 5, 9)]
+    inh = [gaussian_kernel_1d(w, 2.0) for w in (5, 3, 7)]
+    a = _packets(shape, [(1, 15, 0)], np.float64, half=0)
+    for b in (LOCAL, DENSE):
+        np.testing.assert_allclose(b.dynamics(a, exc, inh, 0.0), REF.dynamics(a, exc, inh, 0.0), rtol=1e-12, atol=1e-15)
+
+
+def test_uniform_shift_on_a_conditioned_axis_keeps_reference_order():
+    """A uniform shift on a translated axis runs after the whole conditional shift."""
+    shape = (9, 10, 6)
+    a = _packets(shape, [(4, 9, 2)], np.float32)
+    rng = np.random.default_rng(5)
+    kw = _step_kwargs(shape, rng, inject=False)
+    kw["uniform_shifts"] = np.array([1.3, -0.6, 2.2])
+    _assert_same_step(a, kw)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    shape=st.lists(st.integers(1, 14), min_size=1, max_size=4).map(tuple),
+    seed=st.integers(0, 2**31 - 1),
+    n_packets=st.integers(1, 3),
+    scale=st.sampled_from([0.3, 1.0, 4.5]),
+)
+def test_random_packets_locality_equals_dense_equals_reference(shape, seed, n_packets, scale):
+    rng = np.random.default_rng(seed)
+    centres = [tuple(int(rng.integers(n)) for n in shape) for _ in range(n_packets)]
+    a = _packets(shape, centres, np.float32, half=int(rng.integers(0, 2)), seed=seed)
+    kw = _step_kwargs(shape, rng, phi=float(rng.choice([0.0, 2e-5])))
+    if kw["cond_shifts"] is not None:
+        kw["cond_shifts"] = kw["cond_shifts"] * scale
+    if kw["uniform_shifts"] is not None:
+        kw["uniform_shifts"] = kw["uniform_shifts"] * scale
+    _assert_same_step(a, kw)
+
+
+def test_serial_and_threaded_passes_are_bitwise_identical():
+    shape = (12, 11, 10, 9)
+    a = np.random.default_rng(6).random(shape).astype(np.float32)
+    kw = _step_kwargs(shape, np.random.default_rng(7))
+    serial = NumbaBackend(parallel_work=10**15, threads=1)
+    threaded = NumbaBackend(parallel_work=0, threads=2)
+    sa, sd = serial.step(a, **kw)
+    ta, td = threaded.step(a, **kw)
+    np.testing.assert_array_equal(sa, ta)
+    np.testing.assert_array_equal(sd, td)
+
+
+def test_one_backend_shared_by_threads_gives_each_its_own_result():
+    """Workspaces are per thread: concurrent steps on one backend instance do not mix."""
+    backend = NumbaBackend()
+    shape = (21, 21, 36)
+    jobs = []
+    for i in range(4):
+        a = _packets(shape, [(3 * i, 5 * i, 7 * i)], np.float32, seed=i)
+        jobs.append((a, _step_kwargs(shape, np.random.default_rng(10 + i))))
+    expected = [backend.step(a, **kw) for a, kw in jobs]
+    results: list = [None] * len(jobs)
+
+    def run(i):
+        a, kw = jobs[i]
+        for _ in range(30):
+            results[i] = backend.step(a, **kw)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(len(jobs))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for (ea, ed), (ga, gd) in zip(expected, results):
+        np.testing.assert_array_equal(ga, ea)
+        np.testing.assert_array_equal(gd, ed)
+
+
+def test_collapse_returns_none_and_leaves_out_untouched():
+    shape = (8, 9, 10)
+    a = np.full(shape, 1e-9, dtype=np.float32)  # every cell ends below phi
+    out = np.full(shape, 3.0, dtype=np.float32)
+    kw = _step_kwargs(shape, np.random.default_rng(8), inject=False)
+    for b in (LOCAL, DENSE):
+        assert b.step(a, out=out, **kw) == (None, None)
+        assert b.dynamics(a, *_kernels(3), 2e-5, out=out) is None
+        assert np.all(out == 3.0)
+    assert LOCAL.dynamics(np.zeros(shape, np.float32), *_kernels(3), 2e-5) is None
+
+
+def test_shift_of_silent_grid_is_silent():
+    z = np.zeros((6, 7), np.float64)
+    np.testing.assert_array_equal(LOCAL.shift(z, np.array([1.5, -2.25])), z)
+
+
+@pytest.mark.parametrize(
+    "occupied, n, arc",
+    [
+        ([], 7, (0, 0)),
+        ([3], 7, (3, 1)),
+        ([0, 4, 5], 7, (4, 4)),  # largest gap 1..3 -> cells 4, 5, 6, 0
+        ([1, 2], 7, (1, 2)),
+        ([0, 6], 7, (6, 2)),  # straddles the wrap
+        (list(range(7)), 7, (0, 7)),
+        ([0, 2, 4, 6], 8, (2, 7)),  # equal gaps: the first largest one (cell 1) is left out
+    ],
+)
+def test_arc_from_occupancy_is_the_complement_of_the_largest_gap(occupied, n, arc):
+    from cansim.backends._numba_kernels import arc_from_occupancy
+
+    occ = np.zeros(n, np.uint8)
+    occ[occupied] = 1
+    assert tuple(arc_from_occupancy(occ, n)) == arc
