@@ -49,6 +49,7 @@ from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
+from maps.errors import InvalidInputError as MapsInvalidInputError
 from maps.errors import MapFormatError
 from maps.experience_map import Action, ExperienceMap, ExperienceMapConfig
 
@@ -57,6 +58,7 @@ __all__ = ["RatSLAM", "RatSLAMConfig", "RatSLAMLog", "RatSLAMState"]
 log = logging.getLogger(__name__)
 
 _VISUAL_KEYS = tuple(f.name for f in fields(VisualTemplateConfig) if f.name != "emulate_uninitialised_clear")
+_VT_DEFAULTS = VisualTemplateConfig()
 
 
 @dataclass(frozen=True)
@@ -100,19 +102,19 @@ class RatSLAMConfig:
     exp_correction: float = 0.5
     exp_loops: int = 10
     exp_initial_em_deg: float = 90.0
-    template_x_size: int = 60
-    template_y_size: int = 10
-    image_crop_x_min: int = 0
-    image_crop_x_max: int = -1
-    image_crop_y_min: int = 0
-    image_crop_y_max: int = -1
-    vt_shift_match: int = 25
-    vt_step_match: int = 5
-    vt_match_threshold: float = 0.03
-    vt_normalisation: float = 0.0
-    vt_patch_normalise: int = 0
-    vt_min_patch_normalisation_std: float = 0.0
-    vt_panoramic: bool = False
+    template_x_size: int = _VT_DEFAULTS.template_x_size
+    template_y_size: int = _VT_DEFAULTS.template_y_size
+    image_crop_x_min: int = _VT_DEFAULTS.image_crop_x_min
+    image_crop_x_max: int = _VT_DEFAULTS.image_crop_x_max
+    image_crop_y_min: int = _VT_DEFAULTS.image_crop_y_min
+    image_crop_y_max: int = _VT_DEFAULTS.image_crop_y_max
+    vt_shift_match: int = _VT_DEFAULTS.vt_shift_match
+    vt_step_match: int = _VT_DEFAULTS.vt_step_match
+    vt_match_threshold: float = _VT_DEFAULTS.vt_match_threshold
+    vt_normalisation: float = _VT_DEFAULTS.vt_normalisation
+    vt_patch_normalise: int = _VT_DEFAULTS.vt_patch_normalise
+    vt_min_patch_normalisation_std: float = _VT_DEFAULTS.vt_min_patch_normalisation_std
+    vt_panoramic: bool = _VT_DEFAULTS.vt_panoramic
     frontend: str = "ids"
     relax_budget: int | None = 20_000
     frame: str = "standard"
@@ -142,16 +144,16 @@ class RatSLAMConfig:
         for name in ("pc_global_inhib", "pc_vt_inject_energy", "pc_vt_restore", "vt_active_decay", "exp_delta_pc_threshold", "pc_cells_to_avg"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.exp_loops < 0 or not (0 < self.exp_correction <= 1):
-            raise ConfigError("exp_loops must be >= 0 and exp_correction in (0, 1]")
         if self.frontend not in ("ids", "visual", "tactile"):
             raise ConfigError(f"frontend must be 'ids', 'visual' or 'tactile', got {self.frontend!r}")
         if self.frame not in ("standard", "openratslam"):
             raise ConfigError(f"frame must be 'standard' or 'openratslam', got {self.frame!r}")
         if self.dtype not in ("float64", "float32"):
             raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
-        if self.relax_budget is not None and (isinstance(self.relax_budget, bool) or not isinstance(self.relax_budget, (int, np.integer)) or self.relax_budget < 1):
-            raise ConfigError(f"relax_budget must be a positive integer or None, got {self.relax_budget!r}")
+        try:
+            self.experience_map_config()
+        except MapsInvalidInputError as exc:
+            raise ConfigError(str(exc)) from None
         if self.frontend == "visual":
             self.visual_config()
         if self.frontend == "tactile":
