@@ -54,12 +54,12 @@ from whisker_io.hw.safety import SafetyEnvelope  # noqa: E402
 from whisker_io.hw.arm import Arm, ArmState, SimArm, URArm, probe_rtde  # noqa: E402
 from whisker_io.hw.usb_array import (  # noqa: E402
     Array, FrameLayout, SimArray, USBArray, USBCounters)
-from whisker_io.hw.recorder import Recorder, explore, replay_session  # noqa: E402
+from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_session  # noqa: E402
 
 __all__ = [
     "MissingDependencyError", "require",
     "Pose", "PoseLike", "as_pose", "SafetyEnvelope",
     "Arm", "ArmState", "SimArm", "URArm", "probe_rtde",
     "Array", "FrameLayout", "SimArray", "USBArray", "USBCounters",
-    "Recorder", "explore", "replay_session",
+    "Recorder", "explore", "raster_poses", "replay_session",
 ]

@@ -29,12 +29,12 @@ import numpy as np
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.hw.arm import Arm, ArmState
-from whisker_io.hw.pose import PoseLike
+from whisker_io.hw.pose import Pose, PoseLike, as_pose
 from whisker_io.hw.usb_array import Array
 from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle, WhiskRecord,
                                   read_pose_log, replay, whisk_file_stem)
 
-__all__ = ["Pipeline", "Recorder", "explore", "replay_session"]
+__all__ = ["Pipeline", "Recorder", "explore", "replay_session", "raster_poses"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -157,6 +157,41 @@ def replay_session(directory: str | os.PathLike[str], pipeline: Pipeline) -> lis
         The pipeline's outputs, one per cycle.
     """
     return [pipeline(cycle) for cycle in replay(directory)]
+
+
+def raster_poses(centre: PoseLike, width_m: float, height_m: float, n_x: int,
+                 n_z: int) -> list[Pose]:
+    """Poses on a boustrophedon raster across the array's view, same orientation.
+
+    The raster lies in the plane of the end-effector's x- and z-axes through
+    ``centre`` (the plane perpendicular to the array axis +y, SPEC §4.1), so
+    the array sweeps a face of the object in front of it.
+
+    Parameters
+    ----------
+    centre : PoseLike
+        Middle of the raster.
+    width_m, height_m : float
+        Extent along the end-effector x- and z-axes, metres (>= 0).
+    n_x, n_z : int
+        Number of poses along each axis (>= 1).
+
+    Returns
+    -------
+    list of Pose
+        ``n_x * n_z`` poses, rows along x alternating direction, bottom row first.
+    """
+    c = as_pose(centre)
+    if not (n_x >= 1 and n_z >= 1 and width_m >= 0 and height_m >= 0):
+        raise InvalidInputError("raster needs n_x, n_z >= 1 and non-negative extents")
+    axes = c.rotation.as_matrix()
+    xs = np.linspace(-width_m / 2, width_m / 2, n_x) if n_x > 1 else np.zeros(1)
+    zs = np.linspace(-height_m / 2, height_m / 2, n_z) if n_z > 1 else np.zeros(1)
+    poses = []
+    for row, z in enumerate(zs):
+        for x in (xs if row % 2 == 0 else xs[::-1]):
+            poses.append(Pose(c.position + x * axes[:, 0] + z * axes[:, 2], c.quaternion))
+    return poses
 
 
 def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLike], *,

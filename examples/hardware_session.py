@@ -1,0 +1,88 @@
+"""Record an exploration on the real platform: a UR arm (ur-rtde) + the USB whisker array.
+
+Same loop as ``record_sim_session.py`` (:func:`whisker_io.hw.recorder.explore`),
+with :class:`~whisker_io.hw.arm.URArm` and :class:`~whisker_io.hw.usb_array.USBArray`
+instead of the simulated twins. The arm explores a raster around its current
+pose (in the plane perpendicular to the array axis), every command checked by
+the safety envelope inside the driver; each whisk is on disk (CSV + pose log)
+before the next move. Needs the ``hw`` extra: ``pip install cansim[hw]``.
+
+Usage::
+
+    python examples/hardware_session.py --robot-ip 192.168.1.10 [--out hw_session]
+
+Exit status: 0 done; 2 no robot reachable; 3 no whisker array found; 4 the
+session stopped on a fault or a safety refusal (completed whisks are kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from whisker_io.control import WhiskPattern
+from whisker_io.errors import ConnectionFailedError, HardwareError
+from whisker_io.hw import MissingDependencyError
+from whisker_io.hw.arm import URArm
+from whisker_io.hw.recorder import Recorder, explore, raster_poses
+from whisker_io.hw.safety import SafetyEnvelope
+from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout, USBArray
+
+
+def fail(status: int, message: str) -> int:
+    print(f"hardware_session: {message}", file=sys.stderr)
+    return status
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot-ip", required=True, help="UR controller address")
+    ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=FrameLayout.vendor_id)
+    ap.add_argument("--product-id", type=lambda s: int(s, 0), default=FrameLayout.product_id)
+    ap.add_argument("--out", type=Path, default=Path("hw_session"), help="session directory")
+    ap.add_argument("--width", type=float, default=0.06, help="raster width, m")
+    ap.add_argument("--height", type=float, default=0.06, help="raster height, m")
+    ap.add_argument("--nx", type=int, default=4)
+    ap.add_argument("--nz", type=int, default=3)
+    ap.add_argument("--mode", choices=PATTERN_MODES, default="retract_on_max")
+    ap.add_argument("--rcp-threshold", type=float, default=2000.0, help="counts")
+    ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
+                    help="nominal tool z-axis in the base frame (safety envelope)")
+    args = ap.parse_args()
+
+    envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
+    try:
+        arm = URArm(args.robot_ip, envelope)
+    except MissingDependencyError as exc:
+        return fail(2, str(exc))
+    except ConnectionFailedError as exc:
+        return fail(2, f"no robot reachable at {args.robot_ip}: {exc}")
+    with arm:
+        try:
+            array = USBArray(FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id))
+        except (MissingDependencyError, ConnectionFailedError) as exc:
+            return fail(3, str(exc))
+        with array:
+            recorder = None
+            try:
+                array.set_pattern(WhiskPattern(), args.mode)
+                array.set_rcp_threshold(args.rcp_threshold)
+                array.start()
+                targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
+                with Recorder(args.out) as recorder:
+                    explore(arm, array, recorder, targets, description="exploring")
+            except HardwareError as exc:
+                done = recorder.n_cycles if recorder is not None else 0
+                return fail(4, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
+            finally:
+                try:
+                    array.stop()
+                except HardwareError:
+                    pass
+    print(f"{recorder.n_cycles} whisks recorded in {args.out}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
