@@ -26,8 +26,10 @@ only valid up to one cell, so larger steps raise :class:`InvalidInputError`
 (reduce the speed or raise ``pc_cell_x_size``). Known deliberate differences:
 a decoded coordinate of exactly ``pc_dim`` (C++ ``find_best`` wraps to
 ``[0, N]``) is reported as 0 and injects into cell 0 where C++ skips the
-injection; the C++ bugs listed in :mod:`cansim.frontends.visual` and
-:mod:`maps.experience_map` are documented there.
+injection; OpenRatSLAM's ROS nodes drop the first odometry message (it has
+no previous time stamp) while every step's ``dt`` is used here; the C++ bugs
+listed in :mod:`cansim.frontends.visual` and :mod:`maps.experience_map` are
+documented there.
 """
 
 from __future__ import annotations

@@ -214,3 +214,25 @@ def test_signed_delta_rad_matches_cpp_semantics():
     assert signed_delta_rad(0.0, math.pi / 2) == pytest.approx(math.pi / 2)
     assert signed_delta_rad(3.0, -3.0) == pytest.approx(2 * math.pi - 6.0)
     assert signed_delta_rad(-3.0, 3.0) == pytest.approx(-(2 * math.pi - 6.0))
+
+
+def test_plots_return_figures_with_the_map_and_log():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from maps.plot_maps import plot_experience_ids, plot_experience_map
+
+    em = square_map()
+    em.update((0, 0, 0), 0, 3)
+    truth = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    log = [0, 1, 2, 3, 0]
+    fig = plot_experience_map(em, truth, truth + 0.05, log)
+    ax = fig.axes[0]
+    offsets = ax.collections[-1].get_offsets()
+    assert len(offsets) == 4  # one marker per experience
+    # aligned onto the truth by the same rigid transform as the trajectory error
+    assert np.abs(np.asarray(offsets)[:4] - truth[:4]).max() < 0.15
+    fig2 = plot_experience_ids(log, relocalisation_indices=[4], base_end=4, correct_indices=[4])
+    assert fig2.axes[0].get_xlabel() == "iteration"
+    with pytest.raises(InvalidInputError):
+        plot_experience_map(em, truth, None, [0, 1, 2, 3, 9])

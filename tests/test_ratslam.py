@@ -188,3 +188,22 @@ def test_long_run_relaxation_work_is_bounded():
     assert max(work) == 600
     est = slam.experience_map.poses[np.array(ids)]
     assert absolute_trajectory_error(est, run.truth).rmse < 0.5 * absolute_trajectory_error(run.dead_reckoning, run.truth).rmse
+
+
+def test_visual_model_save_resume_equals_uninterrupted(tmp_path):
+    run = make_run(LoopRoute(step_m=0.1), loops=(1, 1), seed=5)
+    lm = scatter_landmarks(LoopRoute(step_m=0.1), seed=1)
+    images = [render_view(p, lm, shape=(12, 48)) for p in run.truth]
+    cfg = RatSLAMConfig(pc_cell_x_size=0.1, frontend="visual", template_x_size=24, template_y_size=4,
+                        vt_shift_match=2, vt_step_match=1, vt_match_threshold=0.02)
+    full = RatSLAM(cfg)
+    full_log = full.run(run.vtrans, run.vrot, run.dt, images)
+    assert full.n_templates < len(run)  # the second loop re-uses templates
+    half = 30
+    first = RatSLAM(cfg)
+    first.run(run.vtrans[:half], run.vrot[:half], run.dt, images[:half])
+    first.save(tmp_path / "visual.npz")
+    resumed = RatSLAM.load(tmp_path / "visual.npz")
+    log_b = resumed.run(run.vtrans[half:], run.vrot[half:], run.dt, images[half:])
+    assert np.array_equal(log_b.template_ids, full_log.template_ids[half:])
+    assert snapshot(resumed) == snapshot(full)
