@@ -15,7 +15,6 @@ import time
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
                                SafetyViolationError, StaleStateError)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
 from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
                                SafetyViolationError)
@@ -329,7 +330,6 @@ class SimArm(Arm):
         start = self._pose
         n = max(1, int(np.ceil(duration / self.control_period))) if self.rate_limited else 1
         if self.rate_limited and n > 1:
-            from scipy.spatial.transform import Rotation, Slerp
             rots = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, target.rotation]))
             for k in range(1, n):
                 s = k / n

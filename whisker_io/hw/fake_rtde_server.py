@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import logging
 import math
 import socket
 import struct
@@ -68,7 +67,6 @@ from typing import Iterator
 __all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main", "FakeServerError",
            "fake_rtde_server", "FakeReceiveInterface", "FakeControlInterface"]
 
-_LOG = logging.getLogger(__name__)
 
 #: TCP port of the RTDE interface on a UR controller (fixed by ur_rtde).
 RTDE_PORT = 30004

@@ -19,8 +19,8 @@ hardware examples: move, whisk, record, guard.
 
 from __future__ import annotations
 
-import logging
 import os
+import re
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Callable, Iterable, Optional, Sequence
@@ -36,7 +36,6 @@ from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle,
 
 __all__ = ["Pipeline", "Recorder", "explore", "replay_session", "raster_poses"]
 
-_LOG = logging.getLogger(__name__)
 
 Pipeline = Callable[[ReplayedCycle], Any]
 """Consumer of whisk cycles, live or replayed."""
@@ -75,8 +74,9 @@ class Recorder:
         self.directory.mkdir(parents=True, exist_ok=True)
         log_path = self.directory / POSE_LOG_NAME
         existing = read_pose_log(log_path) if log_path.exists() and log_path.stat().st_size else []
-        self._next_cycle = (max(int(e.whisk_file.rsplit("_", 1)[-1]) for e in existing) + 1
-                            if existing else 0)
+        numbers = [int(m.group(1)) for e in existing
+                   if (m := re.fullmatch(r"whisk_(\d+)", e.whisk_file))]
+        self._next_cycle = max(numbers) + 1 if numbers else 0
         self._writer = RecordingWriter(self.directory)
         self._pipeline = pipeline
         self.n_cycles = 0
