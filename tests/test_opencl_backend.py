@@ -253,3 +253,40 @@ def test_population_runs_on_opencl(device_label, monkeypatch):
             pos = pop.step(velocity=0.3, omega=0.02, dt=1.0)
     np.testing.assert_allclose(pos, pops[0].decode(), atol=1e-4)
     _close(pops[1].activity, pops[0].activity, np.float32)
+
+
+def test_circular_cover_finds_the_shortest_wrapped_interval():
+    occupied = np.zeros(10, dtype=bool)
+    occupied[[8, 9, 0, 2]] = True  # cells 8..2 across the wrap: start 8, length 5
+    assert ob._circular_cover(occupied) == (8, 5)
+    occupied[:] = False
+    occupied[4] = True
+    assert ob._circular_cover(occupied) == (4, 1)
+    assert ob._circular_cover(np.ones(6, dtype=bool))[1] == 6
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_locality_window_equals_whole_grid(device_label, dtype):
+    """A packet near the wrap of a 61 x 61 x 36 grid with an injection beside it: the step
+    on the window the packet can reach equals the whole-grid step and the reference."""
+    shape = (61, 61, 36)
+    a = np.zeros(shape)
+    a[np.ix_([59, 60, 0], [30, 31], [35, 0, 1])] = np.arange(1, 19).reshape(3, 2, 3)
+    a = (a / a.sum()).astype(dtype)
+    rng = np.random.default_rng(7)
+    exc = [gaussian_kernel_1d(7, 1.0)] * 3
+    inh = [gaussian_kernel_1d(5, 2.0)] * 3
+    kw = dict(
+        flat_index=np.array([np.ravel_multi_index((1, 32, 2), shape)] * 2), values=np.array([0.05, 0.01]),
+        exc=exc, inh=inh, phi=2e-5, shift_axes=(0, 1), cond_shifts=rng.uniform(-2.5, 2.5, (36, 2)),
+        uniform_shifts=np.array([0.0, 0.0, -1.3]), window=3,
+    )
+    assert ob._locality_window(a, kw["flat_index"], exc, inh, (0, 1), kw["cond_shifts"], kw["uniform_shifts"])
+    label = device_label.split(" ", 1)[0]
+    local, pos_local = ob.OpenCLBackend(device=label).step(a, **kw)
+    whole, pos_whole = ob.OpenCLBackend(device=label, locality=False).step(a, **kw)
+    want, want_pos = NumpyBackend().step(a, **kw)
+    _close(local, whole, dtype)  # equal up to the order of the one global sum
+    _close(local, want, dtype)
+    np.testing.assert_allclose(pos_local, want_pos, atol=1e-9)
+    np.testing.assert_allclose(pos_local, pos_whole, atol=1e-9)

@@ -84,13 +84,23 @@ _SOURCE = r"""
 #pragma OPENCL FP_CONTRACT OFF
 
 /* Gather form of the periodic scatter convolution out[i + j - c] += in[i] * taps[j]
-   along one axis (length n, element stride `stride`): out[m] = sum_j taps[j] in[m + c - j]. */
+   along one axis (length n, element stride `stride`): out[m] = sum_j taps[j] in[m + c - j].
+   On a cut-out axis (wrap == 0, see the locality window) sources off the axis count 0;
+   the reference adds taps[j] * 0 there, which leaves the sum unchanged. */
 #define CONV_GATHER(IN, coord, base, n, stride)                           \
-    int src = (coord + c) % n;                                            \
     ACC s = 0;                                                            \
-    for (int j = 0; j < w; ++j) {                                         \
-        s += taps[toff + j] * (ACC)IN[base + src * stride];               \
-        src = (src == 0) ? n - 1 : src - 1;                               \
+    if (wrap) {                                                           \
+        int src = (coord + c) % n;                                        \
+        for (int j = 0; j < w; ++j) {                                     \
+            s += taps[toff + j] * (ACC)IN[base + src * stride];           \
+            src = (src == 0) ? n - 1 : src - 1;                           \
+        }                                                                 \
+    } else {                                                              \
+        for (int j = 0; j < w; ++j) {                                     \
+            const int src = coord + c - j;                                \
+            if (src >= 0 && src < n)                                      \
+                s += taps[toff + j] * (ACC)IN[base + src * stride];       \
+        }                                                                 \
     }
 
 /* Per-axis NDRange over the cells after the axis (inner, stride st), on it (coord, n)
@@ -106,7 +116,7 @@ _SOURCE = r"""
 __kernel void NAME(__global const IN_T *in, __global ACC *out,            \
                    const int s0, const int s2, const int st,              \
                    __global const ACC *taps, const int toff, const int w, \
-                   const int c)                                           \
+                   const int c, const int wrap)                           \
 {                                                                         \
     AXIS_INDEX                                                            \
     CONV_GATHER(in, coord, base, n, st)                                   \
@@ -119,7 +129,8 @@ CONV_KERNEL(conv_acc, ACC)
 /* Last inhibition pass + b = e - e(*)I + global inhibition + per-group partial sums. */
 __kernel void inhibit(__global const ACC *in, __global const ACC *e, __global ACC *out,
                       __global const ACC *taps, const int toff, const int w,
-                      const int c, const int n, const int stride, const int total, const ACC phi,
+                      const int c, const int wrap, const int n, const int stride, const int total,
+                      const ACC phi,
                       __global ACC *partial, __local ACC *scratch)
 {
     const int gid = get_global_id(0);
@@ -160,8 +171,9 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
 }
 
 /* Fractional shift along one axis (SPEC 1.4): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
-   (wrapped), the same expression as the reference's _fractional_roll. NDRange as the
-   convolution; n = 1 copies. The split of a cell is
+   (wrapped; on a cut-out axis, wrap == 0, sources off the axis count 0 and lo is not
+   reduced mod n), the same expression as the reference's _fractional_roll. NDRange as
+   the convolution; n = 1 copies. The split of a cell is
    table[toff + 2 cond + {0, 1}] = (integer part mod n, fraction) for its condition
    index cond: 0 (cmode 0, uniform shift), i % ncond (cmode 1, the condition axes are the
    trailing ones) or sum_ax coord[ax] * cstride[ax] (cmode 2, any layout; meta = [ndim,
@@ -172,7 +184,7 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
 #define SHIFT_KERNEL(NAME, IN_T, OUT_T)                                   \
 __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
                    const int s0, const int s2, const int st,              \
-                   const int cmode, const int ncond,                      \
+                   const int wrap, const int cmode, const int ncond,      \
                    __global const int *meta,                              \
                    __global const ACC *table, const int toff,             \
                    __global const ACC *norm, const int use_norm)          \
@@ -193,11 +205,12 @@ __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
     const int lo = (int)table[toff + 2 * cond];                           \
     const ACC f = table[toff + 2 * cond + 1];                             \
     int src = coord - lo;                                                 \
-    if (src < 0) src += n;                                                \
-    ACC acc = READ(in, base + src * st);                                  \
+    if (wrap && src < 0) src += n;                                        \
+    ACC acc = (src >= 0 && src < n) ? READ(in, base + src * st) : (ACC)0; \
     if (f != 0) {                                                         \
-        src = (src == 0) ? n - 1 : src - 1;                               \
-        acc = ((ACC)1 - f) * acc + f * READ(in, base + src * st);         \
+        src = (wrap && src == 0) ? n - 1 : src - 1;                       \
+        const ACC x1 = (src >= 0 && src < n) ? READ(in, base + src * st) : (ACC)0;\
+        acc = ((ACC)1 - f) * acc + f * x1;                                \
     }                                                                     \
     out[gid] = (OUT_T)acc;                                                \
 }
@@ -323,18 +336,33 @@ class _Program:
 
 @dataclass
 class _Buffers:
-    """Device buffers for one grid shape and dtype."""
+    """Device buffers for one grid (and any smaller window of it) in one dtype."""
 
-    shape: tuple[int, ...]
-    size: int
+    capacity: int  # cells
     act: "cl.Buffer"  # activity in storage dtype (input, injection target)
     res: "cl.Buffer"  # result in storage dtype
     tmp: list  # three accumulator-dtype grids
-    partial: "cl.Buffer"
+    partial: "cl.Buffer"  # one accumulator per work-group
     total: "cl.Buffer"
-    n_groups: int
-    meta: dict = field(default_factory=dict)  # (axes, cstrides) -> cl.Buffer
+    meta: dict = field(default_factory=dict)  # (shape, cstrides) -> cl.Buffer
     small: dict = field(default_factory=dict)  # name -> (cl.Buffer, nbytes)
+
+    def grid(self, shape: tuple[int, ...], wraps: Optional[tuple[bool, ...]] = None) -> "_Grid":
+        """These buffers seen as a grid of ``shape`` (at most ``capacity`` cells)."""
+        return _Grid(self, tuple(int(n) for n in shape), int(np.prod(shape)), wraps or (True,) * len(shape))
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """A grid laid out in :class:`_Buffers`; ``wraps[ax]`` False for an axis cut to a window."""
+
+    bufs: _Buffers
+    shape: tuple[int, ...]
+    size: int
+    wraps: tuple[bool, ...]
+
+    def __getattr__(self, name):  # act, res, tmp, partial, total, meta, small
+        return getattr(self.bufs, name)
 
 
 class OpenCLBackend(Backend):
@@ -352,6 +380,10 @@ class OpenCLBackend(Backend):
         device without fp64); True requires fp64.
     work_group : int
         Work-group size of the reductions (a power of two, capped by the device).
+    locality : bool
+        In :meth:`step` and :meth:`dynamics`, compute only the window of cells the packet
+        can reach in this step when that is at most half the grid (results are the
+        same: the cells outside are zero); False always computes the whole grid.
 
     Raises
     ------
@@ -379,6 +411,7 @@ class OpenCLBackend(Backend):
         *,
         fp64: Optional[bool] = None,
         work_group: int = 64,
+        locality: bool = True,
     ) -> None:
         if not isinstance(work_group, (int, np.integer)) or work_group < 1 or work_group & (work_group - 1):
             raise InvalidInputError(f"work_group must be a power of two >= 1 (e.g. 64), got {work_group!r}")
@@ -390,6 +423,7 @@ class OpenCLBackend(Backend):
                 "use fp64=None/False or another device"
             )
         self._wg_request = int(work_group)
+        self._locality = bool(locality)
         self._device = None
         self._ctx = None
         self._queue = None
@@ -502,15 +536,17 @@ class OpenCLBackend(Backend):
                  self.build_seconds[storage.name])
         kernels = {k.function_name: k for k in program.all_kernels()}
         i32 = np.int32
-        sig_conv = [None, None, i32, i32, i32, None, i32, i32, i32]
+        sig_conv = [None, None, i32, i32, i32, None, i32, i32, i32, i32]
         kernels["conv_store"].set_scalar_arg_dtypes(sig_conv)
         kernels["conv_acc"].set_scalar_arg_dtypes(sig_conv)
         kernels["inhibit"].set_scalar_arg_dtypes(
-            [None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None]
+            [None, None, None, None, i32, i32, i32, i32, i32, i32, i32, acc, None, None]
         )
         kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
         for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
-            kernels[name].set_scalar_arg_dtypes([None, None, i32, i32, i32, i32, i32, None, None, i32, None, i32])
+            kernels[name].set_scalar_arg_dtypes(
+                [None, None, i32, i32, i32, i32, i32, i32, None, None, i32, None, i32]
+            )
         kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
         return _Program(storage, acc, kernels)
 
@@ -524,36 +560,36 @@ class OpenCLBackend(Backend):
             mf = cl.mem_flags
             s_bytes = size * prog.storage.itemsize
             a_bytes = size * prog.acc.itemsize
-            n_groups = -(-size // self._wg)
             b = _Buffers(
-                shape=shape,
-                size=size,
+                capacity=size,
                 act=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
                 res=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
                 tmp=[cl.Buffer(self._ctx, mf.READ_WRITE, a_bytes) for _ in range(3)],
-                partial=cl.Buffer(self._ctx, mf.READ_WRITE, n_groups * prog.acc.itemsize),
+                partial=cl.Buffer(self._ctx, mf.READ_WRITE, -(-size // self._wg) * prog.acc.itemsize),
                 total=cl.Buffer(self._ctx, mf.READ_WRITE, prog.acc.itemsize),
-                n_groups=n_groups,
             )
             self._buffers[key] = b
         return b
 
-    def _small(self, b: _Buffers, name: str, host: np.ndarray) -> "cl.Buffer":
-        """Upload a small host array to a per-grid scratch buffer (grown when needed)."""
-        entry = b.small.get(name)
+    def _small(self, g: "_Grid", name: str, host: np.ndarray) -> "cl.Buffer":
+        """Upload a small host array to a scratch buffer of the grid (grown when needed)."""
+        entry = g.small.get(name)
         if entry is None or entry[1] < host.nbytes:
             entry = (cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY, max(host.nbytes, 64)), max(host.nbytes, 64))
-            b.small[name] = entry
+            g.small[name] = entry
         cl.enqueue_copy(self._queue, entry[0], host)  # blocking: host is a temporary
         return entry[0]
 
-    def _meta(self, b: _Buffers, cstrides: tuple[int, ...]) -> "cl.Buffer":
-        """``[ndim, shape, strides, cstrides]`` for the shift kernel (cached per grid)."""
-        buf = b.meta.get(cstrides)
+    def _meta(self, g: "_Grid", cstrides: tuple[int, ...]) -> "cl.Buffer":
+        """``[ndim, shape, strides, cstrides]`` for the shift kernel (cached; bounded)."""
+        key = (g.shape, cstrides)
+        buf = g.meta.get(key)
         if buf is None:
-            host = np.array([len(b.shape), *b.shape, *_c_strides(b.shape), *cstrides], dtype=np.int32)
+            if len(g.meta) > 256:  # windows change shape as the packet moves
+                g.meta.clear()
+            host = np.array([len(g.shape), *g.shape, *_c_strides(g.shape), *cstrides], dtype=np.int32)
             buf = cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
-            b.meta[cstrides] = buf
+            g.meta[key] = buf
         return buf
 
     def _taps(self, prog: _Program, exc: Sequence[np.ndarray], inh: Sequence[np.ndarray]):
@@ -589,20 +625,19 @@ class OpenCLBackend(Backend):
             gsize, s0, s2 = (inner, n, outer), 1, n * inner
         prog.kernels[name](self._queue, gsize, None, args[0], args[1], s0, s2, inner, *args[2:])
 
-    def _enqueue_dynamics(self, prog, b, src_store: bool, exc, inh, phi: float) -> "cl.Buffer":
-        """Excitation, inhibition, global inhibition and the total; returns the buffer of c."""
+    def _enqueue_dynamics(self, prog, g: "_Grid", exc, inh, phi: float) -> "cl.Buffer":
+        """Excitation, inhibition, global inhibition and the total from ``g.act``; returns c's buffer."""
         taps, layout = self._taps(prog, exc, inh)
-        nd = len(b.shape)
-        strides = _c_strides(b.shape)
-        t0, t1, t2 = b.tmp
+        nd = len(g.shape)
+        strides = _c_strides(g.shape)
+        t0, t1, t2 = g.tmp
         # excitation: act (storage) -> ... -> e; ping-pong between t0 and t1
-        cur, cur_store = b.act, src_store
-        outs = [t0, t1]
+        cur, cur_store = g.act, True
         for ax in range(nd):
             off, w = layout[ax]
-            dst = outs[ax % 2]
-            self._launch_axis("conv_store" if cur_store else "conv_acc", prog, b.shape, ax, cur, dst,
-                              taps, off, w, w // 2)
+            dst = (t0, t1)[ax % 2]
+            self._launch_axis("conv_store" if cur_store else "conv_acc", prog, g.shape, ax, cur, dst,
+                              taps, off, w, w // 2, int(g.wraps[ax]))
             cur, cur_store = dst, False
         e = cur
         free = [t for t in (t0, t1, t2) if t is not e]
@@ -612,128 +647,139 @@ class OpenCLBackend(Backend):
             off, w = layout[nd + ax]
             dst = free[ax % 2]
             if ax < nd - 1:
-                self._launch_axis("conv_acc", prog, b.shape, ax, src, dst, taps, off, w, w // 2)
+                self._launch_axis("conv_acc", prog, g.shape, ax, src, dst, taps, off, w, w // 2, int(g.wraps[ax]))
             else:
-                self._launch("inhibit", prog, b.size, src, e, dst, taps, off, w, w // 2,
-                             b.shape[ax], strides[ax], b.size, phi, b.partial,
+                self._launch("inhibit", prog, g.size, src, e, dst, taps, off, w, w // 2, int(g.wraps[ax]),
+                             g.shape[ax], strides[ax], g.size, phi, g.partial,
                              cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
             src = dst
-        self._launch("sum_partials", prog, self._wg, b.partial, b.n_groups, b.total,
+        self._launch("sum_partials", prog, self._wg, g.partial, -(-g.size // self._wg), g.total,
                      cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
         return src
 
-    @staticmethod
-    def _shift_stages(shape, shift_axes, cond_shifts, uniform) -> list[list[tuple]]:
-        """Host side of the shifts: stages (conditional, then uniform) of 1-axis passes.
-
-        Each pass is ``(axis, cmode, ncond, cstrides, table)`` (see the shift kernel) with
-        ``table[cond] = (floor(s) mod n, s - floor(s))``. As in the reference, each stage
-        works in the accumulator type and stores its result in the grid's dtype; axes
-        that do not move are skipped.
-        """
-        nd = len(shape)
-        zero = (0,) * nd
-        stages = []
-        if cond_shifts is not None:
-            axes = tuple(int(a) for a in shift_axes)
-            cond_axes = [ax for ax in range(nd) if ax not in axes]
-            cstr, ncond = [0] * nd, 1
-            for ax in reversed(cond_axes):
-                cstr[ax] = ncond
-                ncond *= shape[ax]
-            cmode = 1 if cond_axes == list(range(axes[-1] + 1, nd)) else 2
-            sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(axes))
-            stages.append(
-                [(ax, cmode, ncond, tuple(cstr), _split_table(sh[:, q], shape[ax])) for q, ax in enumerate(axes)]
-            )
-        if uniform is not None:
-            u = np.asarray(uniform, dtype=np.float64)
-            stage = [(ax, 0, 1, zero, _split_table(u[ax:ax + 1], shape[ax])) for ax in range(nd) if u[ax] != 0.0]
-            if stage:
-                stages.append(stage)
-        return stages
-
-    def _plan_shifts(self, prog, b, shift_axes, cond_shifts, uniform) -> tuple[list, "cl.Buffer"]:
-        """The shift stages and their split table, uploaded before any kernel is enqueued
-        (a write queued behind running kernels would wait for them). Without any stage a
-        single copy pass remains (it normalises after the dynamics)."""
-        stages = self._shift_stages(b.shape, shift_axes, cond_shifts, uniform)
+    def _plan_shifts(self, prog, g: "_Grid", shift_axes, cond_shifts, uniform) -> tuple[list, "cl.Buffer"]:
+        """The shift stages of :func:`_shift_stages` and their split table, uploaded before
+        any kernel is enqueued (a write queued behind running kernels would wait for them).
+        Without any stage a single copy pass remains (it normalises after the dynamics)."""
+        stages = _shift_stages(g.shape, g.wraps, shift_axes, cond_shifts, uniform)
         if not stages:
-            stages = [[(-1, 0, 1, (0,) * len(b.shape), np.zeros((1, 2)))]]
+            stages = [[(-1, True, 0, 1, (0,) * len(g.shape), np.zeros((1, 2)))]]
         table = np.concatenate([p[-1].ravel() for stage in stages for p in stage]).astype(prog.acc)
-        return stages, self._small(b, "table", table)
+        return stages, self._small(g, "table", table)
 
-    def _enqueue_shifts(self, prog, b, src, src_store: bool, plan, normalise: bool) -> None:
-        """Run the planned shift stages from ``src`` into ``b.res`` (grid dtype).
+    def _enqueue_shifts(self, prog, g: "_Grid", src, src_store: bool, plan, normalise: bool) -> None:
+        """Run the planned shift stages from ``src`` into ``g.res`` (grid dtype).
 
         With ``normalise`` the first pass divides by the total (and rounds to the grid
         dtype, as the reference stores the normalised activity). Each stage ends in the
-        grid dtype: the last in ``b.res``, an earlier one in ``b.act`` (free once the
+        grid dtype: the last in ``g.res``, an earlier one in ``g.act`` (free once the
         dynamics have read it).
         """
         stages, tbuf = plan
         cur, cur_store, toff, first = src, src_store, 0, True
         for s_i, stage in enumerate(stages):
-            for p_i, (axis, cmode, ncond, cstr, tab) in enumerate(stage):
+            for p_i, (axis, wrap, cmode, ncond, cstr, tab) in enumerate(stage):
                 if p_i == len(stage) - 1:
-                    dst, dst_store = (b.res if s_i == len(stages) - 1 else b.act), True
+                    dst, dst_store = (g.res if s_i == len(stages) - 1 else g.act), True
                 else:
-                    dst, dst_store = next(t for t in b.tmp if t is not cur), False
+                    dst, dst_store = next(t for t in g.tmp if t is not cur), False
                 name = f"shift_{'store' if cur_store else 'acc'}_{'store' if dst_store else 'acc'}"
-                self._launch_axis(name, prog, b.shape, axis, cur, dst, cmode, ncond, self._meta(b, cstr),
-                                  tbuf, toff, b.total, int(normalise and first))
+                self._launch_axis(name, prog, g.shape, axis, cur, dst, int(wrap), cmode, ncond, self._meta(g, cstr),
+                                  tbuf, toff, g.total, int(normalise and first))
                 toff += tab.size
                 cur, cur_store, first = dst, dst_store, False
 
-    def _upload(self, b: _Buffers, a: np.ndarray) -> None:
+    def _upload(self, g: "_Grid", a: np.ndarray) -> None:
         # blocking, like every upload here: they are queued before the kernels, so they
         # only wait for their own copy (pyopencl would block on the event anyway)
-        cl.enqueue_copy(self._queue, b.act, np.ascontiguousarray(a))
+        cl.enqueue_copy(self._queue, g.act, np.ascontiguousarray(a))
 
-    def _download(self, b: _Buffers, a: np.ndarray, out: Optional[np.ndarray]) -> np.ndarray:
+    def _download(self, g: "_Grid", dtype: np.dtype, out: Optional[np.ndarray]) -> np.ndarray:
         if out is None or not out.flags.c_contiguous:
-            host = np.empty(a.shape, dtype=a.dtype)
-            cl.enqueue_copy(self._queue, host, b.res)
+            host = np.empty(g.shape, dtype=dtype)
+            cl.enqueue_copy(self._queue, host, g.res)
             if out is None:
                 return host
             out[...] = host
             return out
-        cl.enqueue_copy(self._queue, out, b.res)
+        cl.enqueue_copy(self._queue, out, g.res)
         return out
 
-    def _total(self, prog, b) -> float:
+    def _total(self, prog, g: "_Grid") -> float:
         t = np.empty(1, dtype=prog.acc)
-        cl.enqueue_copy(self._queue, t, b.total)
+        cl.enqueue_copy(self._queue, t, g.total)
         return float(t[0])
 
     def _setup(self, a: np.ndarray):
         prog = self._program(np.dtype(a.dtype))
-        return prog, self._bufs(tuple(a.shape), prog)
+        return prog, self._bufs(tuple(a.shape), prog).grid(tuple(a.shape))
+
+    def _iterate(self, a, out, injection, exc, inh, phi, shift_axes, cond_shifts, uniform) -> Optional[np.ndarray]:
+        """Injection, dynamics and shifts (SPEC §1.2 steps 1-6) on the device; the result or
+        None when the dynamics collapse (``out`` is then left alone).
+
+        When the activity and everything the step can spread it to fill at most half the
+        grid, only that window is uploaded, computed (with the axes it cuts treated as
+        zero beyond their ends, exact because the activity is zero there) and written
+        back into an otherwise zero grid; otherwise the whole grid is.
+        """
+        prog, full = self._setup(a)
+        fi = None if injection is None else np.asarray(injection[0], dtype=np.int64).ravel()
+        win = None
+        if self._locality:
+            win = _locality_window(a, fi, exc, inh, shift_axes, cond_shifts, uniform)
+        if win is None:
+            g, sub, sub_cond, sub_fi = full, a, cond_shifts, fi
+        else:
+            idx, wraps = win
+            sel = np.ix_(*idx)
+            sub = a[sel]
+            g = full.grid(sub.shape, wraps)
+            sub_cond = None
+            if cond_shifts is not None:
+                cond_axes = [ax for ax in range(a.ndim) if ax not in tuple(shift_axes)]
+                sub_cond = np.asarray(cond_shifts)[np.ix_(*[idx[ax] for ax in cond_axes])] if cond_axes else cond_shifts
+            if fi is not None:
+                coords = np.unravel_index(fi, a.shape)
+                sub_fi = np.ravel_multi_index(
+                    [(c - ix[0]) % n for c, ix, n in zip(coords, idx, a.shape)], sub.shape
+                )
+        self._upload(g, sub)
+        plan = self._plan_shifts(prog, g, shift_axes, sub_cond, uniform)
+        if fi is not None and len(fi):
+            cells, vals = _injected_cells(sub, sub_fi, injection[1])
+            ibuf = self._small(g, "inject_idx", cells.astype(np.int32))
+            vbuf = self._small(g, "inject_val", vals)
+            self._launch("scatter_set", prog, len(cells), g.act, ibuf, vbuf, len(cells))
+        c = self._enqueue_dynamics(prog, g, exc, inh, float(phi))
+        self._enqueue_shifts(prog, g, c, False, plan, normalise=True)
+        total = self._total(prog, g)
+        if not (np.isfinite(total) and total > 0):
+            return None
+        if win is None:
+            return self._download(g, a.dtype, out)
+        res = np.zeros(a.shape, dtype=a.dtype) if out is None else out
+        if out is not None:
+            res[...] = 0
+        res[sel] = self._download(g, a.dtype, None)
+        return res
 
     # ----------------------------------------------------------------- the contract
     def dynamics(self, a, exc, inh, phi, out=None):
-        prog, b = self._setup(a)
-        self._upload(b, a)
-        plan = self._plan_shifts(prog, b, None, None, None)
-        c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
-        self._enqueue_shifts(prog, b, c, False, plan, normalise=True)
-        total = self._total(prog, b)
-        if not (np.isfinite(total) and total > 0):
-            return None
-        return self._download(b, a, out)
+        return self._iterate(a, out, None, exc, inh, phi, None, None, None)
 
     def shift(self, a, shifts, out=None):
-        prog, b = self._setup(a)
-        self._upload(b, a)
-        self._enqueue_shifts(prog, b, b.act, True, self._plan_shifts(prog, b, None, None, shifts), normalise=False)
-        return self._download(b, a, out)
+        prog, g = self._setup(a)
+        self._upload(g, a)
+        self._enqueue_shifts(prog, g, g.act, True, self._plan_shifts(prog, g, None, None, shifts), normalise=False)
+        return self._download(g, a.dtype, out)
 
     def shift_conditional(self, a, shift_axes, shifts, out=None):
-        prog, b = self._setup(a)
-        self._upload(b, a)
-        plan = self._plan_shifts(prog, b, shift_axes, shifts, None)
-        self._enqueue_shifts(prog, b, b.act, True, plan, normalise=False)
-        return self._download(b, a, out)
+        prog, g = self._setup(a)
+        self._upload(g, a)
+        plan = self._plan_shifts(prog, g, shift_axes, shifts, None)
+        self._enqueue_shifts(prog, g, g.act, True, plan, normalise=False)
+        return self._download(g, a.dtype, out)
 
     def inject(self, a, flat_index, values, out=None):
         """Scatter-add on the host: a few cells, and the result is needed on the host anyway."""
@@ -755,23 +801,14 @@ class OpenCLBackend(Backend):
         Order as SPEC §1.2 and :meth:`Backend.step`: injection (the touched cells are
         computed on the host and written by ``scatter_set``), excitation, inhibition,
         global inhibition, normalisation (folded into the first shift pass), conditional
-        shift, uniform shift; decoding on the downloaded grid.
+        shift, uniform shift; decoding on the downloaded grid. Only the window the packet
+        can reach is computed when it is at most half the grid (see ``locality``).
         """
-        prog, b = self._setup(a)
-        self._upload(b, a)
+        injection = (flat_index, values) if flat_index is not None and len(flat_index) else None
         uni = uniform_shifts if uniform_shifts is not None and np.any(np.asarray(uniform_shifts) != 0) else None
-        plan = self._plan_shifts(prog, b, shift_axes, cond_shifts, uni)
-        if flat_index is not None and len(flat_index):
-            idx, vals = _injected_cells(a, flat_index, values)
-            ibuf = self._small(b, "inject_idx", idx.astype(np.int32))
-            vbuf = self._small(b, "inject_val", vals)
-            self._launch("scatter_set", prog, len(idx), b.act, ibuf, vbuf, len(idx))
-        c = self._enqueue_dynamics(prog, b, True, exc, inh, float(phi))
-        self._enqueue_shifts(prog, b, c, False, plan, normalise=True)
-        total = self._total(prog, b)
-        if not (np.isfinite(total) and total > 0):
+        res = self._iterate(a, out, injection, exc, inh, phi, shift_axes, cond_shifts, uni)
+        if res is None:
             return None, None
-        res = self._download(b, a, out)
         return res, population_vector_window(res, window)
 
 
@@ -791,10 +828,94 @@ def _c_strides(shape: Sequence[int]) -> tuple[int, ...]:
     return tuple(reversed(strides))
 
 
-def _split_table(shifts: np.ndarray, n: int) -> np.ndarray:
-    """``(floor(s) mod n, s - floor(s))`` per condition, shape (n_cond, 2), float64 (Fig 5.11)."""
-    lo = np.floor(shifts)
-    return np.stack([np.mod(lo, n), shifts - lo], axis=-1)
+def _shift_stages(shape, wraps, shift_axes, cond_shifts, uniform) -> list[list[tuple]]:
+    """Host side of the shifts: stages (conditional, then uniform) of 1-axis passes.
+
+    Each pass is ``(axis, wrap, cmode, ncond, cstrides, table)`` (see the shift kernel)
+    with ``table[cond] = (floor(s), s - floor(s))``, the integer part reduced mod n on
+    periodic axes. As in the reference, each stage works in the accumulator type and
+    stores its result in the grid's dtype; axes that do not move are skipped.
+    """
+    nd = len(shape)
+
+    def split(ax, s):
+        lo = np.floor(s)
+        return np.stack([np.mod(lo, shape[ax]) if wraps[ax] else lo, s - lo], axis=-1)
+
+    stages = []
+    if cond_shifts is not None:
+        axes = tuple(int(a) for a in shift_axes)
+        cond_axes = [ax for ax in range(nd) if ax not in axes]
+        cstr, ncond = [0] * nd, 1
+        for ax in reversed(cond_axes):
+            cstr[ax] = ncond
+            ncond *= shape[ax]
+        cmode = 1 if cond_axes == list(range(axes[-1] + 1, nd)) else 2
+        sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(axes))
+        stages.append([(ax, wraps[ax], cmode, ncond, tuple(cstr), split(ax, sh[:, q])) for q, ax in enumerate(axes)])
+    if uniform is not None:
+        u = np.asarray(uniform, dtype=np.float64)
+        stage = [(ax, wraps[ax], 0, 1, (0,) * nd, split(ax, u[ax:ax + 1])) for ax in range(nd) if u[ax] != 0.0]
+        if stage:
+            stages.append(stage)
+    return stages
+
+
+def _circular_cover(occupied: np.ndarray) -> tuple[int, int]:
+    """Start and length of the shortest circular interval holding every True cell."""
+    n = len(occupied)
+    pos = np.flatnonzero(occupied)
+    gaps = np.diff(np.append(pos, pos[0] + n)) - 1  # empty cells after each occupied one
+    i = int(np.argmax(gaps))
+    return int(pos[(i + 1) % len(pos)]), n - int(gaps[i])
+
+
+def _locality_window(a, flat_index, exc, inh, shift_axes, cond_shifts, uniform):
+    """The cells one step can touch, as per-axis index arrays and wrap flags, or None.
+
+    Along each axis: the shortest circular interval holding the active (and injected)
+    cells, widened by how far excitation and the shifts can carry activity (inhibition
+    and global inhibition only lower it). An axis stays whole and periodic when the
+    widened interval plus the farthest gather would wrap onto itself; the window is
+    refused (None) when it covers more than half the grid or nothing is active.
+    """
+    nz = np.flatnonzero(a)
+    if flat_index is not None and len(flat_index):
+        nz = np.concatenate([nz, flat_index])
+    if nz.size == 0 or 2 * nz.size > a.size:
+        return None
+    nd = a.ndim
+    grow_lo = np.array([len(t) // 2 for t in exc])
+    grow_hi = grow_lo.copy()
+    gather = np.maximum(grow_lo, [len(t) // 2 for t in inh])
+    moves = []
+    if cond_shifts is not None:
+        sh = np.asarray(cond_shifts, dtype=np.float64).reshape(-1, len(shift_axes))
+        moves += [(ax, sh[:, q]) for q, ax in enumerate(shift_axes)]
+    if uniform is not None:
+        moves += [(ax, np.asarray(uniform, dtype=np.float64)[ax:ax + 1]) for ax in range(nd)]
+    for ax, s in moves:
+        lo = np.floor(s)
+        grow_lo[ax] += max(0, int(-lo.min()))
+        grow_hi[ax] += max(0, int(lo.max()) + 1)
+        gather[ax] = max(gather[ax], int(np.abs(lo).max()) + 1)
+    coords = np.unravel_index(nz, a.shape)
+    idx, wraps, cells = [], [], 1
+    for ax, n in enumerate(a.shape):
+        occupied = np.zeros(n, dtype=bool)
+        occupied[coords[ax]] = True
+        start, length = _circular_cover(occupied)
+        width = length + grow_lo[ax] + grow_hi[ax]
+        if width + gather[ax] >= n:
+            idx.append(np.arange(n))
+            wraps.append(True)
+        else:
+            idx.append((start - grow_lo[ax] + np.arange(width)) % n)
+            wraps.append(False)
+        cells *= len(idx[-1])
+    if all(wraps) or 2 * cells > a.size:
+        return None
+    return idx, tuple(wraps)
 
 
 def _injected_cells(a: np.ndarray, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
