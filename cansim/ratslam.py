@@ -61,6 +61,8 @@ log = logging.getLogger(__name__)
 
 _VISUAL_KEYS = tuple(f.name for f in fields(VisualTemplateConfig) if f.name != "emulate_uninitialised_clear")
 _VT_DEFAULTS = VisualTemplateConfig()
+_NO_INDEX = np.zeros(0, dtype=np.int64)
+_NO_VALUES = np.zeros(0, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -367,6 +369,7 @@ class RatSLAM:
         self._vt_delta_pc_th = 0.0
         self._odo_update = False
         self._vt_update = False
+        self._pending_index, self._pending_values = _NO_INDEX, _NO_VALUES
 
     # -------------------------------------------------------------- views
     @property
@@ -416,8 +419,77 @@ class RatSLAM:
         return self.frontend.match(observation)
 
     # --------------------------------------------------------------- step
+    def on_view(self, observation: Any) -> TemplateMatch:
+        """A view update alone (OpenRatSLAM ``LocalViewMatch::on_image`` + ``PosecellNetwork::on_view_template``).
+
+        The observation becomes a template; a revisited template's energy is queued
+        for the pose cells and added before the dynamics of the next :meth:`on_odo`
+        (exactly as the C++ adds it to the cells at once: nothing else touches the
+        cells in between). :meth:`step` is ``on_view`` followed by ``on_odo``.
+
+        Parameters
+        ----------
+        observation : int or ndarray
+            See :meth:`step`.
+
+        Returns
+        -------
+        TemplateMatch
+            With the internal template id.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            A malformed observation; the model is unchanged.
+        """
+        match = self._match(observation)  # validates before any state changes
+        if self.frontend is None and match.is_new:
+            self._ids[int(observation)] = match.template_id
+        vid = match.template_id
+        th_off = match.relative_rad / (2.0 * math.pi) * self.config.pc_dim_th
+        index, values = self.local_view.observe(vid, self._best, offset_cells=(0.0, 0.0, th_off) if th_off else None)
+        if len(index):
+            self._vt_delta_pc_th = th_off
+            self._pending_index = np.concatenate([self._pending_index, index])
+            self._pending_values = np.concatenate([self._pending_values, values])
+        self._prev_vt, self._current_vt = self._current_vt, vid
+        self._vt_update = True
+        return match
+
+    def on_odo(self, vtrans: float, vrot: float, dt: float) -> RatSLAMState:
+        """An odometry update alone (OpenRatSLAM ``on_odo`` of the pose cells and the map + ``get_action``).
+
+        Parameters and errors as :meth:`step` (without the observation); the
+        returned state has ``template_id = -1``.
+        """
+        v, w, t = self._check_odometry(vtrans, vrot, dt)
+        injection = (self._pending_index, self._pending_values) if len(self._pending_index) else None
+        self._best = self.pose_cells.step(v, w, t, injection=injection)
+        self._pending_index, self._pending_values = _NO_INDEX, _NO_VALUES
+        self._odo_update = True
+        self.iteration += 1
+        em = self.experience_map
+        em.on_odo(v, w, t)
+        result = None
+        if self._odo_update and self._vt_update and self.local_view.n_views > 0:
+            self._odo_update = self._vt_update = False
+            rel_rad = self._vt_delta_pc_th * 2.0 * math.pi / self.config.pc_dim_th
+            result = em.update(
+                self.best_pc, self._current_vt, self._prev_vt, relative_rad=rel_rad, vt_delta_pc_th=self._vt_delta_pc_th
+            )
+        return RatSLAMState(
+            iteration=self.iteration,
+            best_pc=self.best_pc,
+            exp_id=em.current_id if em.n_experiences else -1,
+            relocalised=bool(result.relocalised) if result else False,
+            action=result.action if result else Action.NO_ACTION,
+            map_pose=em.current_pose(),
+            template_id=-1,
+            new_template=False,
+        )
+
     def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> RatSLAMState:
-        """Run one RatSLAM iteration.
+        """Run one RatSLAM iteration: :meth:`on_view` (if an observation is given), then :meth:`on_odo`.
 
         Parameters
         ----------
@@ -442,43 +514,11 @@ class RatSLAM:
             Bad odometry (NaN, negative dt, > 1 cell/step in strict mode) or a bad
             observation; the model is unchanged.
         """
-        v, w, t = self._check_odometry(vtrans, vrot, dt)
-        match: TemplateMatch | None = None
-        if observation is not None:
-            match = self._match(observation)  # the only mutation before this point is a new template
-            if self.frontend is None and match.is_new:
-                self._ids[int(observation)] = match.template_id
-        injection = None
-        if match is not None:
-            vid = match.template_id
-            th_off = match.relative_rad / (2.0 * math.pi) * self.config.pc_dim_th
-            injection = self.local_view.observe(vid, self._best, offset_cells=(0.0, 0.0, th_off) if th_off else None)
-            if len(injection[0]):
-                self._vt_delta_pc_th = th_off
-            self._prev_vt, self._current_vt = self._current_vt, vid
-            self._vt_update = True
-        self._best = self.pose_cells.step(v, w, t, injection=injection)
-        self._odo_update = True
-        self.iteration += 1
-        em = self.experience_map
-        em.on_odo(v, w, t)
-        result = None
-        if self._odo_update and self._vt_update and self.local_view.n_views > 0:
-            self._odo_update = self._vt_update = False
-            rel_rad = self._vt_delta_pc_th * 2.0 * math.pi / self.config.pc_dim_th
-            result = em.update(
-                self.best_pc, self._current_vt, self._prev_vt, relative_rad=rel_rad, vt_delta_pc_th=self._vt_delta_pc_th
-            )
-        return RatSLAMState(
-            iteration=self.iteration,
-            best_pc=self.best_pc,
-            exp_id=em.current_id if em.n_experiences else -1,
-            relocalised=bool(result.relocalised) if result else False,
-            action=result.action if result else Action.NO_ACTION,
-            map_pose=em.current_pose(),
-            template_id=match.template_id if match else -1,
-            new_template=bool(match.is_new) if match else False,
-        )
+        self._check_odometry(vtrans, vrot, dt)  # before the view changes anything
+        if observation is None:
+            return self.on_odo(vtrans, vrot, dt)
+        match = self.on_view(observation)
+        return replace(self.on_odo(vtrans, vrot, dt), template_id=match.template_id, new_template=bool(match.is_new))
 
     def run(
         self,
@@ -542,6 +582,8 @@ class RatSLAM:
             "model_i": np.array([self.iteration, self._current_vt, self._prev_vt, int(self._odo_update), int(self._vt_update)], dtype=np.int64),
             "model_f": np.array([self._vt_delta_pc_th]),
             "ids_map": np.array(sorted(self._ids.items()), dtype=np.int64).reshape(-1, 2),
+            "pending_index": self._pending_index,
+            "pending_values": self._pending_values,
         }
         arrays.update({"lv_" + k: v for k, v in self.local_view.state_dict().items()})
         arrays.update(self.experience_map.to_arrays(prefix="em_"))
@@ -616,4 +658,8 @@ class RatSLAM:
         model._odo_update, model._vt_update = bool(mi[3]), bool(mi[4])
         model._vt_delta_pc_th = float(mf[0])
         model._ids = {int(a): int(b) for a, b in ids.tolist()}
+        p_idx, p_val = need("pending_index"), need("pending_values")
+        if p_idx.ndim != 1 or p_idx.shape != p_val.shape or p_idx.dtype.kind != "i" or (len(p_idx) and (p_idx.min() < 0 or p_idx.max() >= model.pose_cells.size)):
+            raise MapFormatError("pending_index", "expected matching 1-D index/value arrays of pose-cell indices")
+        model._pending_index, model._pending_values = p_idx.astype(np.int64), p_val.astype(np.float64)
         return model

@@ -207,3 +207,19 @@ def test_visual_model_save_resume_equals_uninterrupted(tmp_path):
     log_b = resumed.run(run.vtrans[half:], run.vrot[half:], run.dt, images[half:])
     assert np.array_equal(log_b.template_ids, full_log.template_ids[half:])
     assert snapshot(resumed) == snapshot(full)
+
+
+def test_step_equals_on_view_then_on_odo_and_views_can_arrive_alone():
+    run = make_run(LoopRoute(step_m=0.05), loops=(1, 1), seed=9)
+    a, b = RatSLAM(CFG), RatSLAM(CFG)
+    for k in range(len(run)):
+        sa = a.step(run.vtrans[k], run.vrot[k], run.dt, int(run.view_ids[k]))
+        b.on_view(int(run.view_ids[k]))
+        sb = b.on_odo(run.vtrans[k], run.vrot[k], run.dt)
+        assert (sa.exp_id, sa.best_pc, sa.action) == (sb.exp_id, sb.best_pc, sb.action)
+    assert snapshot(a) == snapshot(b)
+    # a view with no odometry yet creates no experience (C++: get_action needs both)
+    c = RatSLAM(CFG)
+    c.on_view(0)
+    assert c.experience_map.n_experiences == 0
+    assert c.on_odo(0.05, 0.0, 1.0).exp_id == 0
