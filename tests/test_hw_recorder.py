@@ -127,12 +127,19 @@ def test_recorder_resumes_numbering_and_relabels_device_cycles(tmp_path):
     with Recorder(tmp_path) as rec:
         rec.record(_state(0.0), _records(cycle=7))
         rec.record(_state(1.0), _records(cycle=7, value=1.0))  # device restarted its count
+    # debris of a killed recorder: a temporary file, a module file without pose line
+    (tmp_path / ".whisk_000002_A1.csv.k3j2.tmp").write_text("angle_rad,x_deflec")
+    (tmp_path / "whisk_000002_C3.csv").write_text("angle_rad,x_deflection_counts,"
+                                                   "y_deflection_counts,spare\n0,0,9,0\n")
     with Recorder(tmp_path) as rec:
+        assert not (tmp_path / "whisk_000002_C3.csv").exists()
+        assert not list(tmp_path.glob(".*.tmp"))
         item = rec.record(_state(2.0), _records(cycle=0, value=2.0))
     assert item.pose.whisk_file == "whisk_000002"
     cycles = list(replay(tmp_path))
     assert [c.pose.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001", "whisk_000002"]
     assert [float(c.records["B1"].y_counts[0]) for c in cycles] == [0.0, 1.0, 2.0]
+    assert all(sorted(c.records) == ["A1", "B1"] for c in cycles)
 
 
 def test_recorder_refuses_time_reversal_and_closed_use(tmp_path):
@@ -180,3 +187,50 @@ def test_explore_stops_arm_on_deflection_overload_after_recording(tmp_path):
             explore(arm, array, rec, [Pose([0.4, 0.0, 0.4], [1, 0, 0, 0])] * 3, progress=False)
     assert rec.n_cycles == 1  # the overloading whisk itself is kept
     assert arm.received[-1].kind == "stop"
+
+
+CHILD = """
+import sys
+import numpy as np
+from whisker_io.hw.arm import ArmState
+from whisker_io.hw.pose import Pose
+from whisker_io.hw.recorder import Recorder
+from whisker_io.recording import WhiskRecord
+from whisker_io.geometry import WhiskerArray
+names = WhiskerArray.thesis().names
+pose = Pose([0.4, 0.0, 0.4], [1, 0, 0, 0])
+with Recorder(sys.argv[1]) as rec:
+    k = 0
+    while True:
+        recs = [WhiskRecord(m, np.zeros(2000), np.zeros(2000), np.full(2000, float(k)), cycle=k)
+                for m in names]
+        rec.record(ArmState(float(k), pose, np.zeros(6), np.zeros(6)), recs)
+        print(k, flush=True)
+        k += 1
+"""
+
+
+def test_recorder_process_killed_keeps_every_completed_whisk(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(tmp_path)], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        reported = [int(proc.stdout.readline()) for _ in range(4)]  # cycles 0..3 are on disk
+    finally:
+        proc.kill()  # SIGKILL: no cleanup, possibly in the middle of writing cycle 4 or 5
+        proc.wait()
+        proc.stdout.close()
+    assert reported == [0, 1, 2, 3]
+    cycles = list(replay(tmp_path))
+    assert len(cycles) >= 4
+    for k, cyc in enumerate(cycles):
+        assert len(cyc.records) == 18
+        assert all(np.all(r.y_counts == k) and r.n_samples == 2000 for r in cyc.records.values())
+    # resuming cleans the debris of the interrupted cycle and continues the numbering
+    with Recorder(tmp_path) as rec:
+        assert not list(tmp_path.glob(".*.tmp"))
+        assert len(list(tmp_path.glob("whisk_*.csv"))) == 18 * len(cycles)
+        item = rec.record(_state(float(len(cycles))), _records(0))
+    assert item.pose.whisk_file == f"whisk_{len(cycles):06d}"

@@ -19,6 +19,7 @@ hardware examples: move, whisk, record, guard.
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 from pathlib import Path
@@ -36,6 +37,8 @@ from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle,
 
 __all__ = ["Pipeline", "Recorder", "explore", "replay_session", "raster_poses"]
 
+_LOG = logging.getLogger(__name__)
+
 
 Pipeline = Callable[[ReplayedCycle], Any]
 """Consumer of whisk cycles, live or replayed."""
@@ -48,7 +51,9 @@ class Recorder:
     ----------
     directory : path-like
         Session directory (created if missing). An existing session is
-        resumed: cycle numbering continues after its last pose-log line.
+        resumed: cycle numbering continues after its last pose-log line, and
+        the debris of a killed recorder (temporary files, module files of a
+        cycle without a pose-log line) is removed.
     pipeline : callable, optional
         Called with each cycle (a ``ReplayedCycle``) once it is on disk; its
         return values are collected in :attr:`results`.
@@ -77,11 +82,23 @@ class Recorder:
         numbers = [int(m.group(1)) for e in existing
                    if (m := re.fullmatch(r"whisk_(\d+)", e.whisk_file))]
         self._next_cycle = max(numbers) + 1 if numbers else 0
+        self._remove_debris()
         self._writer = RecordingWriter(self.directory)
         self._pipeline = pipeline
         self.n_cycles = 0
         self.results: list[Any] = []
         self.closed = False
+
+    def _remove_debris(self) -> None:
+        """Delete what a killed process can leave: temporary files of the atomic
+        writer and module files of a cycle whose pose-log line was never written."""
+        for path in self.directory.glob(".whisk_*.tmp"):
+            path.unlink(missing_ok=True)
+        for path in self.directory.glob("whisk_*_*.csv"):
+            m = re.match(r"whisk_(\d+)_", path.name)
+            if m and int(m.group(1)) >= self._next_cycle:
+                _LOG.warning("removing %s: its cycle was interrupted before its pose-log line", path)
+                path.unlink(missing_ok=True)
 
     def record(self, state: ArmState, records: Sequence[WhiskRecord]) -> ReplayedCycle:
         """Write one whisk cycle with the arm state it was taken at.
