@@ -140,6 +140,25 @@ def test_urarm_stale_injected_within_1s_and_stops():
     assert ("stopL", (arm.stop_deceleration, False)) in ctl.calls
 
 
+def test_urarm_observed_joint_overspeed_stops_arm():
+    arm, rx, ctl = injected_arm()
+    rx.qd = [0.0, 0.125, 0.0, 0.0, 0.0, 0.0]  # 0.1 rad/s x 1.25 tolerance: still allowed
+    arm.state()
+    rx.qd = [0.0, 0.0, -0.13, 0.0, 0.0, 0.0]
+    with pytest.raises(SafetyViolationError, match="joint speeds"):
+        arm.state()
+    assert any(name == "stopL" for name, _ in ctl.calls)
+    assert ctl.motions() == []
+
+
+def test_urarm_link_down_is_connection_error():
+    arm, rx, ctl = injected_arm()
+    rx.connected = False
+    with pytest.raises(ConnectionFailedError, match="link .* is down"):
+        arm.move_linear([0.4, 0.0, 0.4, 0.0, math.pi, 0.0])
+    assert ctl.motions() == []
+
+
 def test_urarm_read_only_refuses_commands():
     rx = FakeReceiveInterface()
     arm = URArm(HOST, receive_factory=lambda h: rx, control=False)

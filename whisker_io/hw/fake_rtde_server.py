@@ -323,6 +323,7 @@ class FakeReceiveInterface:
         self.t = 0.0
         self.frozen = False
         self.connected = True
+        self.qd = [0.0] * 6  # joint speeds reported, rad/s
 
     def isConnected(self) -> bool:
         return self.connected
@@ -339,7 +340,7 @@ class FakeReceiveInterface:
         return [0.0] * 6
 
     def getActualQd(self) -> list[float]:
-        return [0.0] * 6
+        return list(self.qd)
 
     def disconnect(self) -> None:
         self.connected = False
