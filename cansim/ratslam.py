@@ -120,7 +120,7 @@ class RatSLAMConfig:
     vt_min_patch_normalisation_std: float = _VT_DEFAULTS.vt_min_patch_normalisation_std
     vt_panoramic: bool = _VT_DEFAULTS.vt_panoramic
     frontend: str = "ids"
-    relax_budget: int | None = 20_000
+    relax_budget: int | None = 2_000
     frame: str = "standard"
     dtype: str = "float64"
     backend: str = "numba"
