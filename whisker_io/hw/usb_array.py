@@ -397,19 +397,11 @@ class _FrameAssembler:
         c = self.counters
         try:
             frame = parse_frame(self.layout, data)
-        except ShortFrameError:
-            c.short_frames += 1
-            self.expected_sequence = None
-            self.discard()
-            raise
-        except CRCMismatchError:
-            c.crc_errors += 1
-            self.expected_sequence = None
-            self.discard()
-            raise
-        except USBFrameError:
-            c.bad_headers += 1
-            self.expected_sequence = None
+        except USBFrameError as exc:
+            counter = ("short_frames" if isinstance(exc, ShortFrameError)
+                       else "crc_errors" if isinstance(exc, CRCMismatchError) else "bad_headers")
+            setattr(c, counter, getattr(c, counter) + 1)
+            self.expected_sequence = None  # the frame's sequence number cannot be trusted
             self.discard()
             raise
         c.frames += 1
