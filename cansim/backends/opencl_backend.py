@@ -92,8 +92,9 @@ _SOURCE = r"""
 
 /* Gather form of the periodic scatter convolution out[i + j - c] += in[i] * taps[j]
    along one axis (length n, element stride `stride`): out[m] = sum_j taps[j] in[m + c - j].
-   On a cut-out axis (wrap == 0, see the locality window) sources off the axis count 0;
-   the reference adds taps[j] * 0 there, which leaves the sum unchanged. */
+   On a cut-out axis (the *_cut kernels, wrap == 0, see the locality window) sources off
+   the axis count 0; the reference adds taps[j] * 0 there, which leaves the sum unchanged.
+   wrap is a compile-time constant in every kernel (a run-time flag stops vectorisation). */
 #define CONV_GATHER(IN, coord, base, n, stride)                           \
     ACC s = 0;                                                            \
     if (wrap) {                                                           \
@@ -119,46 +120,56 @@ _SOURCE = r"""
     const int g2 = get_global_id(2), n = get_global_size(st != 1);        \
     const int base = g0 * s0 + g2 * s2;
 
-#define CONV_KERNEL(NAME, IN_T)                                           \
+#define CONV_KERNEL(NAME, IN_T, WRAP)                                     \
 __kernel void NAME(__global const IN_T *in, __global ACC *out,            \
                    const int s0, const int s2, const int st,              \
                    __global const ACC *taps, const int toff, const int w, \
-                   const int c, const int wrap)                           \
+                   const int c)                                           \
 {                                                                         \
+    const int wrap = WRAP;                                                \
     AXIS_INDEX                                                            \
     CONV_GATHER(in, coord, base, n, st)                                   \
     out[base + coord * st] = s;                                           \
 }
 
-CONV_KERNEL(conv_store, T)
-CONV_KERNEL(conv_acc, ACC)
+CONV_KERNEL(conv_store, T, 1)
+CONV_KERNEL(conv_acc, ACC, 1)
+CONV_KERNEL(conv_store_cut, T, 0)
+CONV_KERNEL(conv_acc_cut, ACC, 0)
 
 /* Last inhibition pass + b = e - e(*)I + global inhibition + per-group partial sums. */
-__kernel void inhibit(__global const ACC *in, __global const ACC *e, __global ACC *out,
-                      __global const ACC *taps, const int toff, const int w,
-                      const int c, const int wrap, const int n, const int stride, const int total,
-                      const ACC phi,
-                      __global ACC *partial, __local ACC *scratch)
-{
-    const int gid = get_global_id(0);
-    const int lid = get_local_id(0);
-    ACC v = 0;
-    if (gid < total) {
-        const int coord = (gid / stride) % n;
-        const int base = gid - coord * stride;
-        CONV_GATHER(in, coord, base, n, stride)
-        const ACC b = e[gid] - s;
-        v = (b >= phi) ? b - phi : (ACC)0;
-        out[gid] = v;
-    }
-    scratch[lid] = v;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int o = get_local_size(0) / 2; o > 0; o >>= 1) {
-        if (lid < o) scratch[lid] += scratch[lid + o];
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    if (lid == 0) partial[get_group_id(0)] = scratch[0];
+#define INHIBIT_KERNEL(NAME, WRAP)                                        \
+__kernel void NAME(__global const ACC *in, __global const ACC *e,         \
+                   __global ACC *out,                                     \
+                   __global const ACC *taps, const int toff, const int w, \
+                   const int c, const int n, const int stride,            \
+                   const int total,                                       \
+                   const ACC phi,                                         \
+                   __global ACC *partial, __local ACC *scratch)           \
+{                                                                         \
+    const int wrap = WRAP;                                                \
+    const int gid = get_global_id(0);                                     \
+    const int lid = get_local_id(0);                                      \
+    ACC v = 0;                                                            \
+    if (gid < total) {                                                    \
+        const int coord = (gid / stride) % n;                             \
+        const int base = gid - coord * stride;                            \
+        CONV_GATHER(in, coord, base, n, stride)                           \
+        const ACC b = e[gid] - s;                                         \
+        v = (b >= phi) ? b - phi : (ACC)0;                                \
+        out[gid] = v;                                                     \
+    }                                                                     \
+    scratch[lid] = v;                                                     \
+    barrier(CLK_LOCAL_MEM_FENCE);                                         \
+    for (int o = get_local_size(0) / 2; o > 0; o >>= 1) {                 \
+        if (lid < o) scratch[lid] += scratch[lid + o];                    \
+        barrier(CLK_LOCAL_MEM_FENCE);                                     \
+    }                                                                     \
+    if (lid == 0) partial[get_group_id(0)] = scratch[0];                  \
 }
+
+INHIBIT_KERNEL(inhibit, 1)
+INHIBIT_KERNEL(inhibit_cut, 0)
 
 /* One work-group adds the partial sums in a fixed order: total[0]. */
 __kernel void sum_partials(__global const ACC *partial, const int m, __global ACC *total,
@@ -178,8 +189,8 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
 }
 
 /* Fractional shift along one axis (SPEC 1.4): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
-   (wrapped; on a cut-out axis, wrap == 0, sources off the axis count 0 and lo is not
-   reduced mod n), the same expression as the reference's _fractional_roll. NDRange as
+   (wrapped; on a cut-out axis, the *_cut kernels, sources off the axis count 0 and lo
+   is not reduced mod n), the same expression as the reference's _fractional_roll. NDRange as
    the convolution; n = 1 copies. The split of a cell is
    table[toff + 2 cond + {0, 1}] = (integer part mod n, fraction) for its condition
    index cond: 0 (cmode 0, uniform shift), i % ncond (cmode 1, the condition axes are the
@@ -188,14 +199,15 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
    norm[0] and rounded to the storage type, as the reference stores the normalised
    activity. */
 #define READ(IN, k) (use_norm ? (ACC)(T)((ACC)IN[k] / norm[0]) : (ACC)IN[k])
-#define SHIFT_KERNEL(NAME, IN_T, OUT_T)                                   \
+#define SHIFT_KERNEL(NAME, IN_T, OUT_T, WRAP)                             \
 __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
                    const int s0, const int s2, const int st,              \
-                   const int wrap, const int cmode, const int ncond,      \
+                   const int cmode, const int ncond,                      \
                    __global const int *meta,                              \
                    __global const ACC *table, const int toff,             \
                    __global const ACC *norm, const int use_norm)          \
 {                                                                         \
+    const int wrap = WRAP;                                                \
     AXIS_INDEX                                                            \
     const int gid = base + coord * st;                                    \
     const int i = (st == 1) ? 0 : g0;  /* index among the inner cells */  \
@@ -216,16 +228,21 @@ __kernel void NAME(__global const IN_T *in, __global OUT_T *out,          \
     ACC acc = (src >= 0 && src < n) ? READ(in, base + src * st) : (ACC)0; \
     if (f != 0) {                                                         \
         src = (wrap && src == 0) ? n - 1 : src - 1;                       \
-        const ACC x1 = (src >= 0 && src < n) ? READ(in, base + src * st) : (ACC)0;\
+        const ACC x1 = (src >= 0 && src < n)                              \
+                       ? READ(in, base + src * st) : (ACC)0;              \
         acc = ((ACC)1 - f) * acc + f * x1;                                \
     }                                                                     \
     out[gid] = (OUT_T)acc;                                                \
 }
 
-SHIFT_KERNEL(shift_store_store, T, T)
-SHIFT_KERNEL(shift_store_acc, T, ACC)
-SHIFT_KERNEL(shift_acc_store, ACC, T)
-SHIFT_KERNEL(shift_acc_acc, ACC, ACC)
+SHIFT_KERNEL(shift_store_store, T, T, 1)
+SHIFT_KERNEL(shift_store_acc, T, ACC, 1)
+SHIFT_KERNEL(shift_acc_store, ACC, T, 1)
+SHIFT_KERNEL(shift_acc_acc, ACC, ACC, 1)
+SHIFT_KERNEL(shift_store_store_cut, T, T, 0)
+SHIFT_KERNEL(shift_store_acc_cut, T, ACC, 0)
+SHIFT_KERNEL(shift_acc_store_cut, ACC, T, 0)
+SHIFT_KERNEL(shift_acc_acc_cut, ACC, ACC, 0)
 
 /* a[idx[i]] = val[i] for distinct indices (injection, values computed on the host). */
 __kernel void scatter_set(__global T *a, __global const int *idx, __global const T *val,
@@ -545,17 +562,17 @@ class OpenCLBackend(Backend):
                  self.build_seconds[storage.name])
         kernels = {k.function_name: k for k in program.all_kernels()}
         i32 = np.int32
-        sig_conv = [None, None, i32, i32, i32, None, i32, i32, i32, i32]
-        kernels["conv_store"].set_scalar_arg_dtypes(sig_conv)
-        kernels["conv_acc"].set_scalar_arg_dtypes(sig_conv)
-        kernels["inhibit"].set_scalar_arg_dtypes(
-            [None, None, None, None, i32, i32, i32, i32, i32, i32, i32, acc, None, None]
-        )
-        kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
-        for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
-            kernels[name].set_scalar_arg_dtypes(
-                [None, None, i32, i32, i32, i32, i32, i32, None, None, i32, None, i32]
+        for cut in ("", "_cut"):
+            for name in ("conv_store", "conv_acc"):
+                kernels[name + cut].set_scalar_arg_dtypes([None, None, i32, i32, i32, None, i32, i32, i32])
+            kernels["inhibit" + cut].set_scalar_arg_dtypes(
+                [None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None]
             )
+            for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
+                kernels[name + cut].set_scalar_arg_dtypes(
+                    [None, None, i32, i32, i32, i32, i32, None, None, i32, None, i32]
+                )
+        kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
         kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
         return _Program(storage, acc, kernels)
 
@@ -645,8 +662,8 @@ class OpenCLBackend(Backend):
         for ax in range(nd):
             off, w = layout[ax]
             dst = (t0, t1)[ax % 2]
-            self._launch_axis("conv_store" if cur_store else "conv_acc", prog, g.shape, ax, cur, dst,
-                              taps, off, w, w // 2, int(g.wraps[ax]))
+            name = ("conv_store" if cur_store else "conv_acc") + _cut(g.wraps[ax])
+            self._launch_axis(name, prog, g.shape, ax, cur, dst, taps, off, w, w // 2)
             cur, cur_store = dst, False
         e = cur
         free = [t for t in (t0, t1, t2) if t is not e]
@@ -656,9 +673,9 @@ class OpenCLBackend(Backend):
             off, w = layout[nd + ax]
             dst = free[ax % 2]
             if ax < nd - 1:
-                self._launch_axis("conv_acc", prog, g.shape, ax, src, dst, taps, off, w, w // 2, int(g.wraps[ax]))
+                self._launch_axis("conv_acc" + _cut(g.wraps[ax]), prog, g.shape, ax, src, dst, taps, off, w, w // 2)
             else:
-                self._launch("inhibit", prog, g.size, src, e, dst, taps, off, w, w // 2, int(g.wraps[ax]),
+                self._launch("inhibit" + _cut(g.wraps[ax]), prog, g.size, src, e, dst, taps, off, w, w // 2,
                              g.shape[ax], strides[ax], g.size, phi, g.partial,
                              cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
             src = dst
@@ -692,8 +709,8 @@ class OpenCLBackend(Backend):
                     dst, dst_store = (g.res if s_i == len(stages) - 1 else g.act), True
                 else:
                     dst, dst_store = next(t for t in g.tmp if t is not cur), False
-                name = f"shift_{'store' if cur_store else 'acc'}_{'store' if dst_store else 'acc'}"
-                self._launch_axis(name, prog, g.shape, axis, cur, dst, int(wrap), cmode, ncond, self._meta(g, cstr),
+                name = f"shift_{'store' if cur_store else 'acc'}_{'store' if dst_store else 'acc'}{_cut(wrap)}"
+                self._launch_axis(name, prog, g.shape, axis, cur, dst, cmode, ncond, self._meta(g, cstr),
                                   tbuf, toff, g.total, int(normalise and first))
                 toff += tab.size
                 cur, cur_store, first = dst, dst_store, False
@@ -827,6 +844,11 @@ def _pow2_floor(n: int) -> int:
     while p * 2 <= n:
         p *= 2
     return p
+
+
+def _cut(wrap: bool) -> str:
+    """Kernel name suffix of an axis cut to a window (not periodic)."""
+    return "" if wrap else "_cut"
 
 
 def _c_strides(shape: Sequence[int]) -> tuple[int, ...]:
