@@ -89,31 +89,61 @@ def grow_arc(start, m, left, right, n):
 
 # ----------------------------------------------------------------------- occupancy
 @njit(**_OPTS)
-def mark_occupancy(bits, m, occ):
-    """Mark in ``occ[k, i]`` every local index ``i`` of axis ``k`` holding a non-zero cell.
-
-    ``bits`` is the box buffer viewed as unsigned integers (any non-zero bit pattern,
-    -0.0 included, counts as occupied; that only widens the box). Returns whether any
-    cell is occupied.
-    """
+def _mark_row(bits, m, occ, r, idx):
+    """Mark the occupied cells of row r (outer index ``idx``); returns how many new marks."""
     d = m.shape[0]
     last = d - 1
     ml = m[last]
-    nrows = box_size(m) // ml
-    idx = np.zeros(d, np.int64)
-    anyset = False
-    for r in range(nrows):
-        base = r * ml
-        acc = bits[base] & 0
+    base = r * ml
+    row = bits[base: base + ml]
+    acc = row[0] & 0
+    for i in range(ml):
+        acc |= row[i]
+    new = 0
+    if acc != 0:
         for i in range(ml):
-            acc |= bits[base + i]
-        if acc != 0:
-            anyset = True
-            for i in range(ml):
-                if bits[base + i] != 0:
-                    occ[last, i] = 1
-            for k in range(last):
+            if row[i] != 0 and occ[last, i] == 0:
+                occ[last, i] = 1
+                new += 1
+        for k in range(last):
+            if occ[k, idx[k]] == 0:
                 occ[k, idx[k]] = 1
+                new += 1
+    return new
+
+
+@njit(**_OPTS)
+def mark_occupancy(bits, m, occ):
+    """Mark in ``occ[k, i]`` (zeroed by the caller) every local index ``i`` of axis ``k`` holding a non-zero cell.
+
+    ``bits`` is the box buffer viewed as unsigned integers (any non-zero bit pattern,
+    -0.0 included, counts as occupied; that only widens the box). A few evenly spread
+    rows are looked at first: when they already mark every index (spread-out activity)
+    the full scan is skipped. Returns the number of marks (0: nothing is occupied).
+    """
+    d = m.shape[0]
+    last = d - 1
+    nrows = box_size(m) // m[last]
+    total = 0
+    for k in range(d):
+        total += m[k]
+    idx = np.zeros(d, np.int64)
+    marks = 0
+    nsample = min(nrows, 4 * total)
+    for t in range(nsample):
+        r = (t * nrows) // nsample
+        rr = r
+        for k in range(last - 1, -1, -1):
+            idx[k] = rr % m[k]
+            rr //= m[k]
+        marks += _mark_row(bits, m, occ, r, idx)
+    if marks == total:
+        return marks
+    idx[:] = 0
+    for r in range(nrows):
+        marks += _mark_row(bits, m, occ, r, idx)
+        if marks == total:
+            break
         k = last - 1
         while k >= 0:
             idx[k] += 1
@@ -121,7 +151,7 @@ def mark_occupancy(bits, m, occ):
                 break
             idx[k] = 0
             k -= 1
-    return anyset
+    return marks
 
 
 @njit(**_OPTS)
@@ -166,6 +196,14 @@ def _offset_tables(s_from, m_from, s_to, m_to, n):
 def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
     """Fill box buffer ``dst`` (box ``s_dst, m_dst``) from ``src`` (box ``s_src, m_src``); zero outside src."""
     d = n.shape[0]
+    same = True
+    for k in range(d):
+        if s_src[k] != s_dst[k] or m_src[k] != m_dst[k]:
+            same = False
+    if same:
+        for i in range(box_size(m_dst)):
+            dst[i] = src[i]
+        return
     off = _offset_tables(s_src, m_src, s_dst, m_dst, n)
     last = d - 1
     ml = m_dst[last]
@@ -364,18 +402,30 @@ def rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, r_lo
         for t in range(nr - 1, -1, -1):
             idx[t] = rr % rext[t]
             rr //= rext[t]
-        for i in range(rc):
-            g = 0
-            for t in range(nr):
-                g += contrib[t, idx[t]]
-            gch[i] = g
-            t = nr - 1
-            while t >= 0:
-                idx[t] += 1
-                if idx[t] < rext[t]:
-                    break
-                idx[t] = 0
-                t -= 1
+        i = 0
+        while i < rc:
+            g0 = 0  # contribution of all but the fastest axis
+            for t in range(nr - 1):
+                g0 += contrib[t, idx[t]]
+            last = nr - 1
+            if last < 0:
+                gch[i] = 0
+                i += 1
+                continue
+            j = idx[last]
+            while j < rext[last] and i < rc:
+                gch[i] = g0 + contrib[last, j]
+                i += 1
+                j += 1
+            idx[last] = 0 if j >= rext[last] else j
+            if j >= rext[last]:
+                t = last - 1
+                while t >= 0:
+                    idx[t] += 1
+                    if idx[t] < rext[t]:
+                        break
+                    idx[t] = 0
+                    t -= 1
         wch[:, :, :rc] = 0.0
         for i in range(rc):
             g = gch[i]
@@ -530,9 +580,10 @@ def circular_mean_index(profile, nk):
     ssum = 0.0
     csum = 0.0
     for i in range(nk):
-        ang = _TWO_PI * i / nk
-        ssum += profile[i] * math.sin(ang)
-        csum += profile[i] * math.cos(ang)
+        if profile[i] != 0.0:  # empty cells add exact zeros; skip their sin/cos
+            ang = _TWO_PI * i / nk
+            ssum += profile[i] * math.sin(ang)
+            csum += profile[i] * math.cos(ang)
     mean = math.atan2(ssum, csum)
     idx = (mean % _TWO_PI) * nk / _TWO_PI
     return idx if idx < nk else 0.0
@@ -612,9 +663,21 @@ def box_argmax(buf, s, m, n):
     d = n.shape[0]
     size = box_size(m)
     best = buf[0]
+    first = 0
     for t in range(size):
         if buf[t] > best:
             best = buf[t]
+            first = t
+    full = True
+    for k in range(d):
+        if m[k] != n[k]:
+            full = False
+    centre = np.empty(d, np.int64)
+    if full:  # box index == grid index: the first maximum is the answer
+        for k in range(d - 1, -1, -1):
+            centre[k] = first % n[k]
+            first //= n[k]
+        return centre
     zero = np.zeros(d, np.int64)
     off = _offset_tables(zero, n, s, m, n)
     last = d - 1
@@ -637,7 +700,6 @@ def box_argmax(buf, s, m, n):
                 break
             idx[k] = 0
             k -= 1
-    centre = np.empty(d, np.int64)
     for k in range(d - 1, -1, -1):
         centre[k] = best_flat % n[k]
         best_flat //= n[k]
@@ -674,7 +736,7 @@ def pipeline(
     # 1. the box holding every non-zero input cell and every injection
     if not dense:
         occ = np.zeros((d, nmax), np.uint8)
-        anyset = mark_occupancy(a_bits, n, occ)
+        anyset = mark_occupancy(a_bits, n, occ) > 0
         for t in range(inj_idx.shape[0]):
             r = inj_idx[t]
             for k in range(d - 1, -1, -1):
@@ -693,13 +755,14 @@ def pipeline(
     cur = 0
     crop(a, np.zeros(d, np.int64), n, bufs[cur], s, m, n)
     if inj_idx.shape[0] > 0:
-        off = _offset_tables(s, m, np.zeros(d, np.int64), n, n)
         src_box = bufs[cur]
         for t in range(inj_idx.shape[0]):
             r = inj_idx[t]
             b = 0
+            stride = 1
             for k in range(d - 1, -1, -1):
-                b += off[k, r % n[k]]
+                b += ((r % n[k] - s[k]) % n[k]) * stride  # inside the box by construction
+                stride *= m[k]
                 r //= n[k]
             src_box[b] += inj_val[t]
         round_to(src_box, box_size(m), proto)

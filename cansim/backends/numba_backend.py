@@ -29,10 +29,13 @@ _NO_INDEX = np.empty(0, dtype=np.int64)
 _NO_VALUES = np.empty(0, dtype=np.float64)
 _NO_COND = np.zeros((1, 1), dtype=np.float64)
 _NO_DECODE = np.empty(0, dtype=np.float64)
+_BITS = {4: np.uint32, 8: np.uint64}
 
-#: passes with at least this many multiply-adds run on several threads (a parallel
-#: launch costs ~10-50 us, about 100k multiply-adds on one core)
-DEFAULT_PARALLEL_WORK = 200_000
+#: passes with at least this many multiply-adds run on several threads: a parallel
+#: launch costs ~10-50 us (about 100k multiply-adds on one core), and on a machine
+#: with more busy processes than cores threads wait for each other, so only passes
+#: over grids of ~10^5 cells and more go parallel
+DEFAULT_PARALLEL_WORK = 1_000_000
 
 
 class NumbaBackend(Backend):
@@ -47,7 +50,7 @@ class NumbaBackend(Backend):
         A line pass with at least this many multiply-adds is split over threads; smaller
         passes run serially because a thread launch costs more than they do.
     threads : int or None
-        Threads for parallel passes; None uses ``numba.get_num_threads()`` at the call.
+        Threads for parallel passes; None uses ``numba.get_num_threads()`` at the first step.
     """
 
     name = "numba"
@@ -64,11 +67,11 @@ class NumbaBackend(Backend):
 
     # ------------------------------------------------------------------ helpers
     def _nthreads(self) -> int:
-        if self._threads is not None:
-            return max(int(self._threads), 1)
-        import numba
+        if self._threads is None:
+            import numba
 
-        return int(numba.get_num_threads())
+            self._threads = int(numba.get_num_threads())
+        return max(int(self._threads), 1)
 
     def _shape(self, shape: tuple[int, ...]) -> np.ndarray:
         arr = self._shapes.get(shape)
@@ -103,11 +106,12 @@ class NumbaBackend(Backend):
 
     def _run(self, a, out, *, inj=None, dyn=None, cond=None, uniform=None, window=None):
         """One pipeline call; returns (out or None, decoded or None)."""
-        a = np.ascontiguousarray(a)
+        if not a.flags.c_contiguous:
+            a = np.ascontiguousarray(a)
         if out is None:
             out = np.empty_like(a)
         flat = a.reshape(-1)
-        bits = flat.view(np.uint32 if a.dtype.itemsize == 4 else np.uint64)
+        bits = flat.view(_BITS[a.dtype.itemsize])
         n = self._shape(a.shape)
         fi, vals = inj if inj is not None else (_NO_INDEX, _NO_VALUES)
         if dyn is not None:
@@ -118,18 +122,21 @@ class NumbaBackend(Backend):
             exc_w = inh_w = _NO_INDEX
             phi = 0.0
         if cond is not None:
-            cmask = self._cmask(cond[0], a.ndim)
-            ctab = np.ascontiguousarray(cond[1], dtype=np.float64).reshape(-1, len(cond[0]))
+            axes = tuple(cond[0])
+            cmask = self._cmask(axes, a.ndim)
+            ctab = np.ascontiguousarray(cond[1], dtype=np.float64).reshape(-1, len(axes))
         else:
             cmask, ctab = n, _NO_COND
-        uni = np.ascontiguousarray(uniform, dtype=np.float64) if uniform is not None else _NO_VALUES
+        uni = _NO_VALUES
+        if uniform is not None:
+            uni = np.ascontiguousarray(uniform, dtype=np.float64).reshape(-1)
         decoded = np.empty(a.ndim, dtype=np.float64) if window is not None else _NO_DECODE
         status = _k.pipeline(
             flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
             fi, vals,
             dyn is not None, exc, exc_w, inh, inh_w, phi,
             cond is not None, cmask, ctab,
-            uniform is not None, uni,
+            uni.shape[0] > 0, uni,
             window is not None, int(window or 0), decoded,
             self._dense, self._par_work, self._nthreads(),
         )
@@ -145,7 +152,7 @@ class NumbaBackend(Backend):
         return self._run(a, out, uniform=shifts)[0]
 
     def shift_conditional(self, a, shift_axes, shifts, out=None):
-        return self._run(a, out, cond=(tuple(shift_axes), shifts))[0]
+        return self._run(a, out, cond=(shift_axes, shifts))[0]
 
     def inject(self, a, flat_index, values, out=None):
         a = np.ascontiguousarray(a)
@@ -171,11 +178,9 @@ class NumbaBackend(Backend):
         if flat_index is not None and len(flat_index):
             inj = (np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
                    np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
-        cond = (tuple(shift_axes), cond_shifts) if cond_shifts is not None else None
-        uni = uniform_shifts
-        if uni is not None and not np.any(uni != 0):
-            uni = None
-        return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uni, window=window)
+        cond = (shift_axes, cond_shifts) if cond_shifts is not None else None
+        # zero shifts (uniform or per condition) are skipped inside the kernel
+        return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
 
 
 def _pack(taps: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
