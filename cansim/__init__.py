@@ -18,14 +18,38 @@ from cansim.errors import (
     ZeroActivityError,
 )
 from cansim.params import AttractorParams
+from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.population import Population
 
 __version__ = "0.1.0"
+
+# Heavier model-level names are loaded on first access (networkx, scipy, numba kernels).
+_LAZY = {
+    "RatSLAM": "cansim.ratslam",
+    "RatSLAMConfig": "cansim.ratslam",
+    "RatSLAMState": "cansim.ratslam",
+}
+
+
+def __getattr__(name: str):
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'cansim' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(mod), name)
+    globals()[name] = value
+    return value
 
 __all__ = [
     "Axis",
     "AttractorParams",
     "Population",
+    "LocalViewCells",
+    "LocalViewParams",
+    "RatSLAM",
+    "RatSLAMConfig",
+    "RatSLAMState",
     "available_backends",
     "get_backend",
     "registered_backends",

@@ -151,7 +151,8 @@ class LocalViewCells:
         if self._n_cells >= 2**31:
             raise ShapeError(f"pose grids of 2**31 cells or more are not supported (got {self._n_cells})")
         self._locations: list[np.ndarray] = []  # stored mode: fractional cell per view
-        self._decay: list[float] = []
+        self._decay_buf = np.zeros(16, dtype=np.float64)  # growable; the first n_views entries are live
+        self._n = 0
         self._rows: list[tuple[np.ndarray, np.ndarray]] = []  # learnt mode: (indices, values)
         self._v = np.zeros(0, dtype=np.float64)
         self._current: Optional[int] = None
@@ -165,7 +166,11 @@ class LocalViewCells:
     @property
     def n_views(self) -> int:
         """Number of LV cells created so far."""
-        return len(self._decay)
+        return self._n
+
+    @property
+    def _decay(self) -> np.ndarray:
+        return self._decay_buf[: self._n]
 
     @property
     def current(self) -> Optional[int]:
@@ -180,7 +185,7 @@ class LocalViewCells:
     @property
     def decay(self) -> np.ndarray:
         """Stored-mode decay of every view, shape (n_views,) (a copy)."""
-        return np.array(self._decay, dtype=np.float64)
+        return self._decay.copy()
 
     @property
     def locations(self) -> np.ndarray:
@@ -252,7 +257,10 @@ class LocalViewCells:
         injection = _EMPTY
         if vid == self.n_views:
             self._locations.append(loc % np.array(self._shape))
-            self._decay.append(p.vt_active_decay)
+            if self._n == len(self._decay_buf):
+                self._decay_buf = np.concatenate([self._decay_buf, np.zeros(len(self._decay_buf))])
+            self._decay_buf[self._n] = p.vt_active_decay
+            self._n += 1
             self._rows.append((np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)))
             self._v = np.append(self._v, 0.0)
         elif p.mode == "stored":
@@ -264,8 +272,8 @@ class LocalViewCells:
         if p.mode == "learnt":
             injection = self.injection()
         if p.mode == "stored":
-            floor = p.vt_active_decay
-            self._decay = [max(d - p.pc_vt_restore, floor) for d in self._decay]
+            d = self._decay
+            np.maximum(d - p.pc_vt_restore, p.vt_active_decay, out=d)
         self._current = vid
         return injection
 
@@ -354,7 +362,9 @@ class LocalViewCells:
             lv = cls(tuple(int(n) for n in state["shape"]), params)
             n = len(state["decay"])
             lv._locations = [np.array(r, dtype=np.float64) for r in np.asarray(state["locations"]).reshape(n, -1)]
-            lv._decay = [float(d) for d in state["decay"]]
+            dec = np.array(state["decay"], dtype=np.float64).ravel()
+            lv._decay_buf = np.concatenate([dec, np.zeros(max(16, len(dec)))])
+            lv._n = len(dec)
             lv._v = np.array(state["v"], dtype=np.float64)
             cur = int(state["current"])
             lv._current = None if cur < 0 else cur
