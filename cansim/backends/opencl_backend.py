@@ -49,8 +49,9 @@ OpenCL compiler fails on the kernels is passed over. PoCL 3.0 of
 ``pocl-binary-distribution`` bundles LLVM 14, which cannot compile for CPUs it does not
 know (e.g. AMD Zen 5: "unknown target CPU 'generic'"); such a device is recognised from
 its version string and skipped. On those machines Intel's CPU runtime works: ``pip
-install intel-opencl-rt`` and point the ICD loader at it with ``OCL_ICD_VENDORS=<dir>``
-where ``<dir>`` holds an ``.icd`` file containing the path of ``<prefix>/lib/libintelocl.so``.
+install intel-opencl-rt intel-cmplr-lib-rt`` and point the ICD loader at it with
+``OCL_ICD_VENDORS=<dir>`` where ``<dir>`` holds an ``.icd`` file containing the path of
+``<prefix>/lib/libintelocl.so``.
 
 Nothing happens at import. The device is looked up when the backend is constructed; the
 context, queue and program are created on first use (or by :meth:`OpenCLBackend.prepare`)
@@ -338,8 +339,8 @@ def _unusable_reason(device) -> Optional[str]:
         return (
             "this PoCL's LLVM does not recognise the CPU and cannot compile for it; install an "
             "OpenCL runtime that knows it (a newer PoCL, or Intel's CPU runtime: pip install "
-            "intel-opencl-rt, then list <prefix>/lib/libintelocl.so in an .icd file in the "
-            "directory named by $OCL_ICD_VENDORS)"
+            "intel-opencl-rt intel-cmplr-lib-rt, then write the path of <prefix>/lib/libintelocl.so "
+            "into an .icd file in a directory and set $OCL_ICD_VENDORS to that directory)"
         )
     return None
 
