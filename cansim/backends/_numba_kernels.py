@@ -379,59 +379,37 @@ def run_conv_pass(src, dst, s, m, k, taps, nt, left, right, n, par_work, nthread
 
 # -------------------------------------------------------------------------- shifts
 @njit(**_OPTS)
-def rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, r_lo, r_hi):
-    """Rotating pass where each line r has its own 2-tap shift (a condition ``g(r)``).
+def rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, gtab, inner, r_lo, r_hi):
+    """Rotating pass where each line r has its own 2-tap shift (condition ``g(r)``).
 
     The conditions are grouped into classes of equal integer shift ``lo``; ``qtab[c, p, j]``
     is the source row of output row p for class c, tap j (-1 outside the box), and
     ``gw[g]`` the taps ``(1 - f, f)`` of condition g, of class ``gcls[g]``. Every row is
     summed over every class with zero weights for the other classes, which keeps the
-    loops vectorised and adds only exact zeros. ``g(r) = sum_t contrib[t, idx_t]`` over
-    the rotated axes ``rax`` of extents ``rext`` (the layout order of r, last fastest).
+    loops vectorised and adds only exact zeros. The condition of line r is
+    ``gtab[(r // inner) % len(gtab)]`` (the condition axes are one run of the layout).
     """
     ncls = qtab.shape[0]
-    nr = rax.shape[0]
+    glen = gtab.shape[0]
     tmp = np.empty(_CHUNK, np.float64)
     wch = np.empty((ncls, 2, _CHUNK), np.float64)
-    gch = np.empty(_CHUNK, np.int64)
-    idx = np.empty(max(nr, 1), np.int64)
+    wflat = wch.reshape(-1)
     for r0 in range(r_lo, r_hi, _CHUNK):
         rc = min(_CHUNK, r_hi - r0)
-        # condition of every line of the chunk (odometer over the rotated axes)
-        rr = r0
-        for t in range(nr - 1, -1, -1):
-            idx[t] = rr % rext[t]
-            rr //= rext[t]
-        i = 0
-        while i < rc:
-            g0 = 0  # contribution of all but the fastest axis
-            for t in range(nr - 1):
-                g0 += contrib[t, idx[t]]
-            last = nr - 1
-            if last < 0:
-                gch[i] = 0
-                i += 1
-                continue
-            j = idx[last]
-            while j < rext[last] and i < rc:
-                gch[i] = g0 + contrib[last, j]
-                i += 1
-                j += 1
-            idx[last] = 0 if j >= rext[last] else j
-            if j >= rext[last]:
-                t = last - 1
-                while t >= 0:
-                    idx[t] += 1
-                    if idx[t] < rext[t]:
-                        break
-                    idx[t] = 0
-                    t -= 1
-        wch[:, :, :rc] = 0.0
+        wflat[:] = 0.0
+        li = (r0 // inner) % glen
+        rem = r0 % inner
         for i in range(rc):
-            g = gch[i]
+            g = gtab[li]
             c = gcls[g]
             wch[c, 0, i] = gw[g, 0]
             wch[c, 1, i] = gw[g, 1]
+            rem += 1
+            if rem == inner:
+                rem = 0
+                li += 1
+                if li == glen:
+                    li = 0
         for p in range(mo):
             for i in range(rc):
                 tmp[i] = 0.0
@@ -449,12 +427,12 @@ def rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, r_lo
 
 
 @njit(parallel=True, **_OPTS)
-def rot_class_lines_par(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, nchunks):
+def rot_class_lines_par(src, dst, mo, rest, qtab, gw, gcls, gtab, inner, nchunks):
     """:func:`rot_class_lines` split over ``nchunks`` threads."""
     for c in prange(nchunks):
         lo = rest * c // nchunks
         hi = rest * (c + 1) // nchunks
-        rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, rax, rext, contrib, lo, hi)
+        rot_class_lines(src, dst, mo, rest, qtab, gw, gcls, gtab, inner, lo, hi)
 
 
 @njit(**_OPTS)
@@ -504,32 +482,50 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
             for j in range(2):
                 q = (s_out + p - clo[c] - j - s_in) % n[k]
                 qtab[c, p, j] = q if q < m_in else -1
-    # condition index of the lines: strides of the non-shift axes (C order), rotated layout
+    # condition index of the lines: the rotated layout of the other axes is
+    # (k+1, ..., d-1, 0, ..., k-1); the run of it from the first to the last condition
+    # axis gets a table of condition indices, the axes after the run repeat each entry
     cstride = np.zeros(d, np.int64)
     acc = 1
     for j in range(d - 1, -1, -1):
         if cmask[j] == 0:
             cstride[j] = acc
             acc *= n[j]
-    nr = d - 1
-    rax = np.empty(nr, np.int64)
-    rext = np.empty(nr, np.int64)
-    mmax = 1
-    for j in range(d):
-        mmax = max(mmax, m[j])
-    contrib = np.zeros((max(nr, 1), mmax), np.int64)
-    for t in range(nr):
-        ax = (k + 1 + t) % d
-        rax[t] = ax
-        rext[t] = m[ax]
-        if cmask[ax] == 0:
-            for i in range(m[ax]):
-                contrib[t, i] = ((s[ax] + i) % n[ax]) * cstride[ax]
+    t0 = d
+    t1 = -1
+    for t in range(d - 1):
+        if cmask[(k + 1 + t) % d] == 0:
+            t0 = min(t0, t)
+            t1 = max(t1, t)
+    inner = 1
+    for t in range(t1 + 1, d - 1):
+        inner *= m[(k + 1 + t) % d]
+    glen = 1
+    for t in range(t0, t1 + 1):
+        glen *= m[(k + 1 + t) % d]
+    gtab = np.zeros(glen, np.int64)
+    if t1 >= t0:
+        nrun = t1 - t0 + 1
+        idx = np.zeros(nrun, np.int64)
+        for li in range(glen):
+            g = 0
+            for u in range(nrun):
+                ax = (k + 1 + t0 + u) % d
+                if cmask[ax] == 0:
+                    g += ((s[ax] + idx[u]) % n[ax]) * cstride[ax]
+            gtab[li] = g
+            u = nrun - 1
+            while u >= 0:
+                idx[u] += 1
+                if idx[u] < m[(k + 1 + t0 + u) % d]:
+                    break
+                idx[u] = 0
+                u -= 1
     rest = box_size(m) // m_in
     if nthreads > 1 and rest * m_out * 2 * ncls >= par_work and rest >= nthreads * _CHUNK:
-        rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, rax, rext, contrib, nthreads)
+        rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, gtab, inner, nthreads)
     else:
-        rot_class_lines(src, dst, m_out, rest, qtab, gw, gcls, rax, rext, contrib, 0, rest)
+        rot_class_lines(src, dst, m_out, rest, qtab, gw, gcls, gtab, inner, 0, rest)
     s[k] = s_out
     m[k] = m_out
 
