@@ -12,12 +12,21 @@ from cansim.backends import available_backends, get_backend  # noqa: E402
 from cansim.errors import BackendUnavailableError  # noqa: E402
 
 
-@pytest.fixture(params=available_backends())
+#: comma-separated backends that must run (CI sets it): their absence fails instead of skipping
+REQUIRED = {b for b in os.environ.get("CANSIM_REQUIRE_BACKENDS", "").split(",") if b}
+
+
+@pytest.fixture(params=sorted(set(available_backends()) | REQUIRED))
 def backend(request):
-    """A backend instance per importable backend; skipped when it has no device."""
+    """A backend instance per importable backend; skipped when it has no device.
+
+    Backends named in ``$CANSIM_REQUIRE_BACKENDS`` fail the test instead of skipping.
+    """
     try:
         return get_backend(request.param)
     except BackendUnavailableError as exc:  # e.g. pyopencl without a platform
+        if request.param in REQUIRED:
+            pytest.fail(f"required backend {request.param!r} is unavailable: {exc}")
         pytest.skip(str(exc))
 
 
