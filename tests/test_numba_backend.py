@@ -234,3 +234,15 @@ def test_arc_from_occupancy_is_the_complement_of_the_largest_gap(occupied, n, ar
     occ = np.zeros(n, np.uint8)
     occ[occupied] = 1
     assert tuple(arc_from_occupancy(occ, n)) == arc
+
+
+def test_non_contiguous_out_receives_the_result():
+    shape = (9, 8, 7)
+    a = _packets(shape, [(2, 3, 4)], np.float32)
+    kw = _step_kwargs(shape, np.random.default_rng(9))
+    ref_a, _ = LOCAL.step(a, **kw)
+    big = np.zeros((9, 8, 14), np.float32)
+    out = big[:, :, ::2]
+    got_a, _ = LOCAL.step(a, out=out, **kw)
+    assert got_a is out
+    np.testing.assert_array_equal(out, ref_a)

@@ -14,14 +14,20 @@ weighted sum of input cells of the same line, ``dst[p] = sum_j w_j src[tab[p, j]
 with ``tab[p, j] = -1`` for a source outside the input box (zero activity there).
 Excitation/inhibition (Alg 3/4) are passes with the Gaussian taps; a fractional
 shift (Fig 5.11) is a pass with taps ``(1 - f, f)`` at offsets ``floor(s)`` and
-``floor(s) + 1``; a heading-conditional shift uses one tap table per condition.
+``floor(s) + 1``; a heading-conditional shift gives every line the taps of its condition.
+A pass reads its axis as the *leading* axis of the buffer, so each tap is a sum over
+long contiguous rows (vectorised for any axis, even a last axis of 5 cells), and
+writes that axis as the trailing one: after one pass per axis the buffer is back in
+C order ("rotating" passes; axes without work get a copy-only pass).
 Sums run in float64 in the numpy reference's order (tap after tap), and values are
 rounded to the storage dtype wherever the reference stores them, so decisions at the
 global-inhibition threshold match it.
 
 Every function is compiled lazily on first call (``cache=True`` keeps the machine code
-between runs). ``*_par`` variants spread a pass over threads; the caller uses them
-only when the pass is big enough to repay the thread launch.
+between runs). Integer arguments that may be constants are passed as ``np.int64(...)``:
+numba would compile a separate variant for every literal value. ``*_par`` variants
+spread a pass over threads; the caller uses them only when the pass is big enough to
+repay the thread launch.
 """
 
 from __future__ import annotations
@@ -372,7 +378,7 @@ def run_conv_pass(src, dst, s, m, k, taps, nt, left, right, n, par_work, nthread
     if nthreads > 1 and rest * m_out * nt >= par_work and rest >= nthreads * _CHUNK:
         rot_lines_par(src, dst, m_out, rest, tab, taps[:nt], nthreads)
     else:
-        rot_lines(src, dst, m_out, rest, tab, taps[:nt], 0, rest)
+        rot_lines(src, dst, m_out, rest, tab, taps[:nt], np.int64(0), rest)
     s[k] = s_out
     m[k] = m_out
 
@@ -440,7 +446,7 @@ def _rot_tables(tab, w, src, dst, mo, rest, par_work, nthreads):
     if nthreads > 1 and rest * mo * w.shape[0] >= par_work and rest >= nthreads * _CHUNK:
         rot_lines_par(src, dst, mo, rest, tab, w, nthreads)
     else:
-        rot_lines(src, dst, mo, rest, tab, w, 0, rest)
+        rot_lines(src, dst, mo, rest, tab, w, np.int64(0), rest)
 
 
 @njit(**_OPTS)
@@ -523,9 +529,9 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
                 u -= 1
     rest = box_size(m) // m_in
     if nthreads > 1 and rest * m_out * 2 * ncls >= par_work and rest >= nthreads * _CHUNK:
-        rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, gtab, inner, nthreads)
+        rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, gtab, np.int64(inner), nthreads)
     else:
-        rot_class_lines(src, dst, m_out, rest, qtab, gw, gcls, gtab, inner, 0, rest)
+        rot_class_lines(src, dst, m_out, rest, qtab, gw, gcls, gtab, np.int64(inner), np.int64(0), rest)
     s[k] = s_out
     m[k] = m_out
 
@@ -534,7 +540,7 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
 def run_shift_cycle(bufs, cur, s, m, n, kinds, cmask, cond_tab, uni, round_after, proto, par_work, nthreads):
     """One rotating pass per axis: ``kinds[k]`` 0 = none (layout only), 1 = uniform shift by
     ``uni[k]``, 2 = conditional shift (SPEC §1.4). Rounds to the storage dtype after axis
-    ``round_after`` (-1: never) and at the end. Returns the buffer index of the result."""
+    ``round_after`` (``>= d``: only at the end) and at the end. Returns the buffer index of the result."""
     d = n.shape[0]
     col = 0
     w1 = np.ones(1, np.float64)
@@ -543,7 +549,7 @@ def run_shift_cycle(bufs, cur, s, m, n, kinds, cmask, cond_tab, uni, round_after
         src = bufs[cur]
         dst = bufs[1 - cur]
         if kinds[k] == 2:
-            _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads)
+            _cond_pass(src, dst, s, m, k, n, np.int64(col), cmask, cond_tab, par_work, nthreads)
         else:
             m_in = m[k]
             rest = box_size(m) // m_in
@@ -773,10 +779,11 @@ def pipeline(
         # 3. local inhibition (Alg 4): e (*) I is only needed inside e's box
         i0 = 2
         i1 = 1 - ecur
+        no_growth = np.int64(0)
         src = bufs[ecur]
         for k in range(d):
             dst = bufs[i0]
-            run_conv_pass(src, dst, s, m, k, inh[k], inh_w[k], 0, 0, n, par_work, nthreads)
+            run_conv_pass(src, dst, s, m, k, inh[k], inh_w[k], no_growth, no_growth, n, par_work, nthreads)
             src = dst
             i0, i1 = i1, i0
         e = bufs[ecur]
@@ -829,7 +836,7 @@ def pipeline(
             first_uni = k
     if first_uni < d and (last_cond > first_uni or (last_cond >= 0 and kinds[first_uni] != 0)):
         # the uniform shift touches an earlier or a shifted axis: one cycle each, as the reference
-        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, -1, proto, par_work, nthreads)
+        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, np.int64(d), proto, par_work, nthreads)
         last_cond = -1
         kinds[:] = 0
     for k in range(d):
@@ -840,7 +847,7 @@ def pipeline(
         if kinds[k] != 0:
             moving = True
     if moving:
-        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, last_cond, proto, par_work, nthreads)
+        cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, np.int64(last_cond), proto, par_work, nthreads)
     scatter(sb[cur], s, m, out, n)
     # 7. decoding
     if do_decode:

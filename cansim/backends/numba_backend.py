@@ -108,6 +108,11 @@ class NumbaBackend(Backend):
         """One pipeline call; returns (out or None, decoded or None)."""
         if not a.flags.c_contiguous:
             a = np.ascontiguousarray(a)
+        if out is not None and not out.flags.c_contiguous:
+            res, dec = self._run(a, None, inj=inj, dyn=dyn, cond=cond, uniform=uniform, window=window)
+            if res is not None:
+                out[...] = res
+            return (out if res is not None else None), dec
         if out is None:
             out = np.empty_like(a)
         flat = a.reshape(-1)
