@@ -25,26 +25,12 @@ from types import MappingProxyType
 
 import numpy as np
 
+# one definition of the columns: the contact-feature extractor's (Sec 4.1.2.4)
+from whisker_io.contact_features import FEATURE_NAMES, FEATURE_UNITS
 from whisker_io.errors import InvalidInputError
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError
 
 __all__ = ["FEATURE_NAMES", "FEATURE_UNITS", "RadialDataset", "feature_indices"]
-
-#: Column order of every feature matrix in this subpackage (Sec 4.1.2.4).
-FEATURE_NAMES: tuple[str, ...] = ("CP", "CA", "DV", "DA", "AV", "AA", "WL")
-
-#: Unit of each feature column.
-FEATURE_UNITS: Mapping[str, str] = MappingProxyType(
-    {
-        "CP": "s",
-        "CA": "counts",
-        "DV": "counts/s",
-        "DA": "counts/s^2",
-        "AV": "rad/s",
-        "AA": "rad/s^2",
-        "WL": "m",
-    }
-)
 
 
 def feature_indices(features: Sequence[str]) -> tuple[int, ...]:
