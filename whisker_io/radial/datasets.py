@@ -17,8 +17,9 @@ the robot. The ground-truth radial distance is the simulator's.
 * :func:`make_validation_set` (Sec 4.1.2.2-4.1.2.3): an 18-whisker array with
   the unseen lengths 50, 64, 80, 95, 101, 127, 128, 150, 154 mm among its
   whiskers explores the Box from held-still waypoints. The ground truth is the
-  rigid-whisker sweep (:func:`whisker_io.sweep.sweep_array`); the signals come
-  from the sweep's contacts. Waypoints are chosen "such that contact occurrences
+  rigid-whisker sweep (:func:`whisker_io.sweep.sweep_array`); each whisk is
+  simulated by :class:`whisker_io.simulator.ArraySimulator` (sweep + signals)
+  under the Ch.4 RCP at a frequency drawn from 0.2-2.5 Hz. Waypoints are chosen "such that contact occurrences
   ranged from tip to anywhere along the length of the whiskers": each waypoint
   aims one whisker (round robin over the array) at a box edge at a random
   radial distance and whisk angle, and is kept if the sweep confirms that
@@ -431,6 +432,7 @@ def make_validation_set(params: ValidationSetParams = ValidationSetParams(), pro
         If fewer than ``n_waypoints`` poses are found in ``max_candidates`` tries.
     """
     from whisker_io.objects import make_object
+    from whisker_io.simulator import ArraySimulator
     from whisker_io.sweep import MeshTarget, sweep_array
 
     rng = np.random.default_rng(params.seed)
@@ -472,35 +474,35 @@ def make_validation_set(params: ValidationSetParams = ValidationSetParams(), pro
     log.info("validation: %d waypoints from %d candidate poses", len(poses), tries)
 
     parts: list[RadialDataset] = []
-    base_R = [whisker_base_transforms(array, T)[:, :3, :3] for T in poses]
+    lo_angle = array.retraction_rad + np.deg2rad(0.5)
     jobs = [(w, r) for w in range(len(poses)) for r in range(params.whisks_per_waypoint)]
     for w, _ in _progress(jobs, progress, "validation whisks"):
-        hits = sweeps[w]
-        idx = [i for i, c in enumerate(hits) if c is not None and c.angle_rad > array.retraction_rad + np.deg2rad(0.5)]
-        if not idx:
-            continue
         f = float(rng.uniform(*params.frequency_range_hz))
-        contacts = [
-            WhiskContact(hits[i].angle_rad, min(hits[i].radial_distance_m, lengths[i]), lengths[i], base_R[w][i].T @ hits[i].normal)
-            for i in idx
-        ]
-        pattern = WhiskPattern(frequency_hz=f, sample_rate_hz=params.signal.sample_rate_hz)
-        records, _ = simulate_whisk_cycle(
-            contacts, RetractAtMax(pattern), params.signal, seed=rng, modules=[array.names[i] for i in idx]
+        pattern = WhiskPattern(
+            frequency_hz=f,
+            retraction_rad=array.retraction_rad,
+            protraction_rad=array.protraction_rad,
+            sample_rate_hz=params.signal.sample_rate_hz,
         )
-        F, kept, onset = features_from_records(records, lengths[idx], params.detection)
-        mods = np.asarray(idx)[kept]
+        sim = ArraySimulator(array, RetractAtMax(pattern), params.signal, seed=rng)
+        whisk = sim.whisk(target, poses[w])
+        hits = whisk.sweep_contacts
+        F, kept, onset = features_from_records(whisk.records, lengths, params.detection)
+        ok = np.array([hits[i] is not None and hits[i].angle_rad > lo_angle for i in kept], dtype=bool)
+        if np.any([hits[i] is None for i in kept]):
+            log.warning("validation waypoint %d: contact detected on a whisker the sweep says is free", w)
+        mods = kept[ok]
         parts.append(
             RadialDataset(
-                F,
-                np.array([hits[i].radial_distance_m for i in mods]),
+                F[ok],
+                np.array([min(hits[i].radial_distance_m, lengths[i]) for i in mods]),
                 meta={
-                    "pose": np.repeat(poses[w][None], kept.size, axis=0),
+                    "pose": np.repeat(poses[w][None], mods.size, axis=0),
                     "module": mods,
-                    "angle_rad": onset,
+                    "angle_rad": onset[ok],
                     "true_angle_rad": np.array([hits[i].angle_rad for i in mods]),
-                    "waypoint": np.full(kept.size, w),
-                    "frequency_hz": np.full(kept.size, f),
+                    "waypoint": np.full(mods.size, w),
+                    "frequency_hz": np.full(mods.size, f),
                 },
             )
         )
