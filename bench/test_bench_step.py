@@ -7,7 +7,8 @@ decoding. The motion alternates its sign every step so the packet stays where th
 injection is, as a robot revisiting a place; the work per step is that of a moving packet.
 
 Run: ``python -m pytest bench/test_bench_step.py --benchmark-only``
-(one backend: add ``-k numba``; names read ``test_step[<backend>-<shape>]``).
+(one backend: add ``-k numba``; names read ``test_step[<backend>-<shape>]``;
+``test_step_threaded`` runs numba with threaded passes on the 10^6 grid).
 """
 
 from __future__ import annotations
@@ -35,9 +36,8 @@ def _negate(x):
     return -x if np.isscalar(x) else -np.asarray(x, dtype=np.float64)
 
 
-@pytest.mark.parametrize("grid", list(GRIDS))
-@pytest.mark.parametrize("backend", available_backends())
-def test_step(benchmark, backend, grid):
+def _run(benchmark, grid, backend, label):
+    """Settle a packet on ``grid`` (with numba when available), switch to ``backend``, bench one step."""
     make, (velocity, omega) = GRIDS[grid]
     warm = "numba" if "numba" in available_backends() else backend
     pop = make(warm)
@@ -60,7 +60,22 @@ def test_step(benchmark, backend, grid):
         count[0] += 1
         return pop.step(**moves[count[0] & 1])
 
-    benchmark.extra_info.update(backend=backend, grid=grid, cells=pop.size)
+    benchmark.extra_info.update(backend=label, grid=grid, cells=pop.size)
     decoded = benchmark(one_step)
     assert np.all(np.isfinite(decoded))
     assert abs(pop.total - 1.0) < 1e-4
+
+
+@pytest.mark.parametrize("grid", list(GRIDS))
+@pytest.mark.parametrize("backend", available_backends())
+def test_step(benchmark, backend, grid):
+    _run(benchmark, grid, backend, backend)
+
+
+@pytest.mark.parametrize("grid", ["10^6"])
+def test_step_threaded(benchmark, grid):
+    """numba with every pass of >= 1e6 multiply-adds on all threads (the default keeps these serial)."""
+    pytest.importorskip("numba")
+    from cansim.backends.numba_backend import NumbaBackend
+
+    _run(benchmark, grid, NumbaBackend(parallel_work=1_000_000), "numba-threaded")

@@ -31,11 +31,14 @@ _NO_COND = np.zeros((1, 1), dtype=np.float64)
 _NO_DECODE = np.empty(0, dtype=np.float64)
 _BITS = {4: np.uint32, 8: np.uint64}
 
-#: passes with at least this many multiply-adds run on several threads: a parallel
-#: launch costs ~10-50 us (about 100k multiply-adds on one core), and on a machine
-#: with more busy processes than cores threads wait for each other, so only passes
-#: over grids of ~10^5 cells and more go parallel
-DEFAULT_PARALLEL_WORK = 1_000_000
+#: passes with at least this many multiply-adds run on several threads. A parallel
+#: launch costs ~10-50 us (about 100k multiply-adds on one core), and when the machine
+#: has more busy processes than cores the threads wait for each other: on the 2-core
+#: development machine with other jobs running, a 10^6-cell 6-D step took 16 ms serial
+#: and 19-35 ms on 2 threads (11 ms of main-thread time, so ~11 ms on a quiet machine).
+#: The default keeps grids up to ~10^6 cells serial; pass ``parallel_work=1_000_000``
+#: on a dedicated multi-core machine.
+DEFAULT_PARALLEL_WORK = 8_000_000
 
 
 class NumbaBackend(Backend):
