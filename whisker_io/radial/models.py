@@ -38,7 +38,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin, clone
 from sklearn.compose import TransformedTargetRegressor
 from sklearn.linear_model import LinearRegression
-from sklearn.model_selection import GridSearchCV, KFold
+from sklearn.experimental import enable_halving_search_cv  # noqa: F401  (enables the import below)
+from sklearn.model_selection import HalvingGridSearchCV, KFold
 from sklearn.neural_network import MLPRegressor
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import PolynomialFeatures, StandardScaler
@@ -210,6 +211,8 @@ class SearchSettings:
     svr_C, svr_epsilon, svr_gamma : tuples
         SVR grids for the non-linear kernels; epsilon in units of the target's
         standard deviation, gamma in 1/(standardised feature units)^2 or ``"scale"``.
+        C stops at 100: one RBF fit at C = 1000, epsilon = 0.01 takes ~15 s on
+        1350 contacts (~0.4 s at C = 100), which would make the study take hours.
     svr_linear_C : tuple of float
         C grid of the linear kernel (kept small: libsvm's linear solver needs
         ~15x longer per fit at C = 100 than at C = 1).
@@ -233,7 +236,7 @@ class SearchSettings:
     seed: int = 0
     max_search_samples: int | None = 1500
     svr_kernels: tuple[str, ...] = ("rbf", "linear")
-    svr_C: tuple[float, ...] = (1.0, 10.0, 100.0, 1000.0)
+    svr_C: tuple[float, ...] = (1.0, 10.0, 100.0)
     svr_epsilon: tuple[float, ...] = (0.01, 0.05, 0.1)
     svr_gamma: tuple[float | str, ...] = ("scale", 0.5)
     svr_linear_C: tuple[float, ...] = (0.1, 1.0)
@@ -354,20 +357,28 @@ def _grid(family: str, s: SearchSettings) -> list[dict[str, list[Any]]]:
 
 def make_search(
     family: str, features: Sequence[str], settings: SearchSettings = SearchSettings()
-) -> GridSearchCV:
-    """K-fold grid search (mean squared error) over one family's hyper-parameters.
+) -> HalvingGridSearchCV:
+    """K-fold cross-validated grid search (mean squared error) over one family's grid.
 
-    Folds are shuffled with ``settings.seed``; the search object's
-    ``best_estimator_`` is a Pipeline as returned by :func:`make_estimator`.
+    Successive halving (scikit-learn's ``HalvingGridSearchCV``, factor 3): every
+    candidate is scored by K-fold CV on a small random share of the training
+    contacts, the best third go on to three times as many, and so on until the
+    last round uses all of them (``min_resources="exhaust"``). It picks the same
+    kind of optimum as an exhaustive grid at a fraction of the cost (the SVR grid
+    has 24 candidates). Folds are shuffled with ``settings.seed``.
     """
-    return GridSearchCV(
+    return HalvingGridSearchCV(
         make_estimator(family, features, settings),
         _grid(family, settings),
+        factor=3,
+        resource="n_samples",
+        min_resources="exhaust",
         scoring="neg_mean_squared_error",
         cv=KFold(settings.cv_folds, shuffle=True, random_state=settings.seed),
         n_jobs=settings.n_jobs,
         refit=False,
         error_score="raise",
+        random_state=settings.seed,
     )
 
 
