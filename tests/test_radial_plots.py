@@ -1,0 +1,35 @@
+"""Figures of the radial study draw what they are given and return the Figure."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from whisker_io.radial.evaluation import PCAResult  # noqa: E402
+from whisker_io.radial.plots import plot_boxplots, plot_histograms, plot_pca_loadings  # noqa: E402
+
+
+def test_pca_loadings_bars_have_the_coefficients() -> None:
+    comps = np.eye(3, 7)
+    fig = plot_pca_loadings(PCAResult(("CP", "CA", "DV", "DA", "AV", "AA", "WL"), comps, np.array([0.5, 0.3, 0.2])))
+    axes = fig.axes
+    assert len(axes) == 3
+    heights = [p.get_height() for p in axes[1].patches]
+    np.testing.assert_allclose(heights, comps[1])
+    assert "30%" in axes[1].get_title()
+    plt.close(fig)
+
+
+def test_histograms_and_boxplots_into_given_axes() -> None:
+    fig, axs = plt.subplots(1, 2)
+    out = plot_histograms({"a": np.zeros(10), "b": np.ones(10)}, "err", axes=axs, value_range=(-1, 2))
+    assert out is fig
+    assert "median 1" in axs[1].get_title()
+    fig2, ax = plt.subplots()
+    assert plot_boxplots({"x": np.arange(10.0), "y": np.arange(5.0)}, "e", ax=ax, ymax=30) is fig2
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["x", "y"]
+    assert ax.get_ylim() == (0.0, 30.0)
+    plt.close("all")
