@@ -246,3 +246,24 @@ def test_non_contiguous_out_receives_the_result():
     got_a, _ = LOCAL.step(a, out=out, **kw)
     assert got_a is out
     np.testing.assert_array_equal(out, ref_a)
+
+
+@pytest.mark.parametrize("shape", [(61, 61, 36), (5, 5, 5, 5, 5, 5), (360,), (9, 1, 7)])
+@pytest.mark.parametrize("kind", ["packet", "two packets", "dense"])
+def test_occupancy_marks_exactly_the_non_zero_projections(shape, kind):
+    """The box search sees every non-zero cell and nothing else (a wider box would still
+    be correct, only slower; this keeps the locality path local)."""
+    from cansim.backends._numba_kernels import mark_occupancy
+
+    rng = np.random.default_rng(len(shape))
+    if kind == "dense":
+        a = rng.random(shape).astype(np.float32)
+    else:
+        centres = [tuple(n // 3 for n in shape)] + ([tuple(n - 1 for n in shape)] if kind == "two packets" else [])
+        a = _packets(shape, centres, np.float32, half=1)
+    occ = np.zeros((len(shape), max(shape)), np.uint8)
+    marks = mark_occupancy(a.reshape(-1).view(np.uint32), np.array(shape, np.int64), occ)
+    expected = [np.flatnonzero(a.any(axis=tuple(j for j in range(a.ndim) if j != k))) for k in range(a.ndim)]
+    for k, n in enumerate(shape):
+        np.testing.assert_array_equal(np.flatnonzero(occ[k, :n]), expected[k])
+    assert marks == sum(len(e) for e in expected)

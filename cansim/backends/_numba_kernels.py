@@ -55,6 +55,38 @@ def box_size(m):
     return s
 
 
+@njit(inline="always", **_OPTS)
+def _advance(idx, ext, top):
+    """Odometer step: increment the multi-index ``idx[:top + 1]`` (last fastest) within ``ext``."""
+    k = top
+    while k >= 0:
+        idx[k] += 1
+        if idx[k] < ext[k]:
+            return
+        idx[k] = 0
+        k -= 1
+
+
+@njit(**_OPTS)
+def unravel(flat, n):
+    """Per-axis index of the flat C-order index ``flat`` in a grid of shape ``n``."""
+    d = n.shape[0]
+    idx = np.empty(d, np.int64)
+    for k in range(d - 1, -1, -1):
+        idx[k] = flat % n[k]
+        flat //= n[k]
+    return idx
+
+
+@njit(**_OPTS)
+def is_full(m, n):
+    """Whether a box with extents ``m`` covers the whole grid of shape ``n``."""
+    for k in range(n.shape[0]):
+        if m[k] != n[k]:
+            return False
+    return True
+
+
 @njit(**_OPTS)
 def arc_from_occupancy(occ, n):
     """Smallest circular arc ``(start, length)`` covering the marked cells of ``occ[:n]``.
@@ -94,6 +126,26 @@ def grow_arc(start, m, left, right, n):
 
 
 # ----------------------------------------------------------------------- occupancy
+@njit(inline="always", **_OPTS)
+def _mark_row(bits, base, ml, idx, occ):
+    """Mark the non-zero cells of the row at ``base`` (outer index ``idx``); returns the new marks."""
+    last = occ.shape[0] - 1
+    new = 0
+    nonzero = False
+    for i in range(ml):
+        if bits[base + i] != 0:
+            nonzero = True
+            if occ[last, i] == 0:
+                occ[last, i] = 1
+                new += 1
+    if nonzero:
+        for k in range(last):
+            if occ[k, idx[k]] == 0:
+                occ[k, idx[k]] = 1
+                new += 1
+    return new
+
+
 @njit(**_OPTS)
 def mark_occupancy(bits, m, occ):
     """Mark in ``occ[k, i]`` (zeroed by the caller) every local index ``i`` of axis ``k`` holding a non-zero cell.
@@ -102,8 +154,9 @@ def mark_occupancy(bits, m, occ):
     -0.0 included, counts as occupied; that only widens the box). Rows spread evenly
     over the box are looked at first, then all rows in order; the scan stops as soon as
     every index is marked (spread-out activity). Returns the number of marks (0: nothing
-    is occupied). The row test is written out in both loops: a helper call or a shared
-    loop with a branch per row stops LLVM from vectorising it (4-5x slower).
+    is occupied). The row test stays in the loops (a called helper, or one loop with a
+    branch per row, keeps LLVM from vectorising it: 4-5x slower); the marking of a
+    non-empty row is inlined.
     """
     d = m.shape[0]
     last = d - 1
@@ -121,16 +174,7 @@ def mark_occupancy(bits, m, occ):
         for k in range(last - 1, -1, -1):
             idx[k] = rr % m[k]
             rr //= m[k]
-        base = r * ml
-        for i in range(ml):
-            if bits[base + i] != 0:
-                if occ[last, i] == 0:
-                    occ[last, i] = 1
-                    marks += 1
-                for k in range(last):
-                    if occ[k, idx[k]] == 0:
-                        occ[k, idx[k]] = 1
-                        marks += 1
+        marks += _mark_row(bits, r * ml, ml, idx, occ)
     if marks == total:
         return marks
     idx[:] = 0
@@ -140,23 +184,10 @@ def mark_occupancy(bits, m, occ):
         for i in range(ml):
             acc |= bits[base + i]
         if acc != 0:
-            for i in range(ml):
-                if bits[base + i] != 0 and occ[last, i] == 0:
-                    occ[last, i] = 1
-                    marks += 1
-            for k in range(last):
-                if occ[k, idx[k]] == 0:
-                    occ[k, idx[k]] = 1
-                    marks += 1
+            marks += _mark_row(bits, base, ml, idx, occ)
             if marks == total:
                 break
-        k = last - 1
-        while k >= 0:
-            idx[k] += 1
-            if idx[k] < m[k]:
-                break
-            idx[k] = 0
-            k -= 1
+        _advance(idx, m, last - 1)
     return marks
 
 
@@ -164,9 +195,7 @@ def mark_occupancy(bits, m, occ):
 def tight_box(occ_local, s, m, n, ts, tm):
     """Global arcs ``(ts, tm)`` covering the occupied local indices of a box ``(s, m)``."""
     d = n.shape[0]
-    nmax = 0
-    for k in range(d):
-        nmax = max(nmax, n[k])
+    nmax = n.max()
     occ = np.zeros(nmax, np.uint8)
     for k in range(d):
         for i in range(n[k]):
@@ -184,9 +213,7 @@ def tight_box(occ_local, s, m, n, ts, tm):
 def _offset_tables(s_from, m_from, s_to, m_to, n):
     """``off[k, p]``: flat offset contribution in the 'from' box of local index p of the 'to' box, -1 outside."""
     d = n.shape[0]
-    mmax = 1
-    for k in range(d):
-        mmax = max(mmax, m_to[k])
+    mmax = max(1, m_to.max())
     off = np.full((d, mmax), -1, np.int64)
     stride = 1
     for k in range(d - 1, -1, -1):
@@ -232,24 +259,14 @@ def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
         else:
             for p in range(ml):
                 dst[base + p] = 0.0
-        k = last - 1
-        while k >= 0:
-            idx[k] += 1
-            if idx[k] < m_dst[k]:
-                break
-            idx[k] = 0
-            k -= 1
+        _advance(idx, m_dst, last - 1)
 
 
 @njit(**_OPTS)
 def scatter(src, s, m, out, n):
     """Write box buffer ``src`` (box ``s, m``) into the full grid ``out`` (flat); zero elsewhere."""
     d = n.shape[0]
-    full = True
-    for k in range(d):
-        if m[k] != n[k]:
-            full = False
-    if full:
+    if is_full(m, n):
         for i in range(out.shape[0]):
             out[i] = src[i]
         return
@@ -267,13 +284,7 @@ def scatter(src, s, m, out, n):
         base = r * ml
         for p in range(ml):
             out[b + off[last, p]] = src[base + p]
-        k = last - 1
-        while k >= 0:
-            idx[k] += 1
-            if idx[k] < m[k]:
-                break
-            idx[k] = 0
-            k -= 1
+        _advance(idx, m, last - 1)
 
 
 @njit(**_OPTS)
@@ -513,6 +524,9 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
     if t1 >= t0:
         nrun = t1 - t0 + 1
         idx = np.zeros(nrun, np.int64)
+        run_ext = np.empty(nrun, np.int64)
+        for u in range(nrun):
+            run_ext[u] = m[(k + 1 + t0 + u) % d]
         for li in range(glen):
             g = 0
             for u in range(nrun):
@@ -520,13 +534,7 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
                 if cmask[ax] == 0:
                     g += ((s[ax] + idx[u]) % n[ax]) * cstride[ax]
             gtab[li] = g
-            u = nrun - 1
-            while u >= 0:
-                idx[u] += 1
-                if idx[u] < m[(k + 1 + t0 + u) % d]:
-                    break
-                idx[u] = 0
-                u -= 1
+            _advance(idx, run_ext, nrun - 1)
     rest = box_size(m) // m_in
     if nthreads > 1 and rest * m_out * 2 * ncls >= par_work and rest >= nthreads * _CHUNK:
         rot_class_lines_par(src, dst, m_out, rest, qtab, gw, gcls, gtab, np.int64(inner), nthreads)
@@ -595,9 +603,7 @@ def circular_mean_index(profile, nk):
 def decode_window(grid, n, centre, window, res):
     """Population vector (SPEC §1.6) of the flat grid around the cell ``centre`` into ``res``."""
     d = n.shape[0]
-    nmax = 0
-    for k in range(d):
-        nmax = max(nmax, n[k])
+    nmax = n.max()
     wlen = np.empty(d, np.int64)
     widx = np.empty((d, min(nmax, 2 * window + 1)), np.int64)
     for k in range(d):
@@ -633,13 +639,7 @@ def decode_window(grid, n, centre, window, res):
         if rowsum != 0.0:
             for k in range(last):
                 prof[k, widx[k, idx[k]]] += rowsum
-        k = last - 1
-        while k >= 0:
-            idx[k] += 1
-            if idx[k] < wlen[k]:
-                break
-            idx[k] = 0
-            k -= 1
+        _advance(idx, wlen, last - 1)
     for k in range(d):
         res[k] = circular_mean_index(prof[k], n[k])
 
@@ -651,17 +651,12 @@ def decode_grid(grid, n, window, res):
     for i in range(grid.shape[0]):
         if grid[i] > grid[best]:
             best = i
-    d = n.shape[0]
-    centre = np.empty(d, np.int64)
-    for k in range(d - 1, -1, -1):
-        centre[k] = best % n[k]
-        best //= n[k]
-    decode_window(grid, n, centre, window, res)
+    decode_window(grid, n, unravel(best, n), window, res)
 
 
 @njit(**_OPTS)
 def box_argmax(buf, s, m, n):
-    """Global index (per axis) of the largest cell of a box; ties go to the first in C order of the grid."""
+    """Flat grid index of the largest cell of a box; ties go to the first in C order of the grid."""
     d = n.shape[0]
     size = box_size(m)
     best = buf[0]
@@ -670,16 +665,8 @@ def box_argmax(buf, s, m, n):
         if buf[t] > best:
             best = buf[t]
             first = t
-    full = True
-    for k in range(d):
-        if m[k] != n[k]:
-            full = False
-    centre = np.empty(d, np.int64)
-    if full:  # box index == grid index: the first maximum is the answer
-        for k in range(d - 1, -1, -1):
-            centre[k] = first % n[k]
-            first //= n[k]
-        return centre
+    if is_full(m, n):  # box index == grid index: the first maximum is the answer
+        return first
     zero = np.zeros(d, np.int64)
     off = _offset_tables(zero, n, s, m, n)
     last = d - 1
@@ -695,17 +682,8 @@ def box_argmax(buf, s, m, n):
                     flat += off[k, idx[k]]
                 if best_flat < 0 or flat < best_flat:
                     best_flat = flat
-        k = last - 1
-        while k >= 0:
-            idx[k] += 1
-            if idx[k] < m[k]:
-                break
-            idx[k] = 0
-            k -= 1
-    for k in range(d - 1, -1, -1):
-        centre[k] = best_flat % n[k]
-        best_flat //= n[k]
-    return centre
+        _advance(idx, m, last - 1)
+    return best_flat
 
 
 # ------------------------------------------------------------------------ pipeline
@@ -732,9 +710,7 @@ def pipeline(
     bufs = (ws[:size], ws[size:2 * size], ws[2 * size:3 * size])
     s = np.zeros(d, np.int64)
     m = n.copy()
-    nmax = 0
-    for k in range(d):
-        nmax = max(nmax, n[k])
+    nmax = n.max()
     # 1. the box holding every non-zero input cell and every injection
     if not dense:
         occ = np.zeros((d, nmax), np.uint8)
@@ -851,8 +827,7 @@ def pipeline(
     scatter(sb[cur], s, m, out, n)
     # 7. decoding
     if do_decode:
-        centre = box_argmax(sb[cur], s, m, n)
-        decode_window(out, n, centre, window, decoded)
+        decode_window(out, n, unravel(box_argmax(sb[cur], s, m, n), n), window, decoded)
     return STATUS_OK
 
 
