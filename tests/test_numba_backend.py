@@ -267,3 +267,14 @@ def test_occupancy_marks_exactly_the_non_zero_projections(shape, kind):
     for k, n in enumerate(shape):
         np.testing.assert_array_equal(np.flatnonzero(occ[k, :n]), expected[k])
     assert marks == sum(len(e) for e in expected)
+
+
+def test_inject_into_non_contiguous_out():
+    a = np.zeros((4, 5), np.float32)
+    out = np.ones((4, 10), np.float32)[:, ::2]
+    got = LOCAL.inject(a, np.array([3, 3, 7]), np.array([0.25, 0.5, 1.0]), out=out)
+    assert got is out
+    expected = np.zeros((4, 5), np.float32)
+    expected.flat[3] = 0.75
+    expected.flat[7] = 1.0
+    np.testing.assert_array_equal(out, expected)

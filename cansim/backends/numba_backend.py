@@ -164,14 +164,16 @@ class NumbaBackend(Backend):
 
     def inject(self, a, flat_index, values, out=None):
         a = np.ascontiguousarray(a)
-        if out is None:
-            out = np.empty_like(a)
+        res = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
         _k.inject_grid(
-            a.reshape(-1), out.reshape(-1),
+            a.reshape(-1), res.reshape(-1),
             np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
             np.ascontiguousarray(values, dtype=np.float64).reshape(-1),
         )
-        return out
+        if out is not None and res is not out:
+            out[...] = res
+            return out
+        return res
 
     def decode(self, a, window):
         a = np.ascontiguousarray(a)
