@@ -91,29 +91,30 @@ def is_full(m, n):
 def arc_from_occupancy(occ, n):
     """Smallest circular arc ``(start, length)`` covering the marked cells of ``occ[:n]``.
 
-    It is the complement of the largest run of unmarked cells (circularly).
-    Returns ``(0, 0)`` when nothing is marked and ``(0, n)`` when everything is.
+    It is the complement of the largest run of unmarked cells (circularly; among equal
+    runs the first one between marked cells, then the one across the wrap). Returns
+    ``(0, 0)`` when nothing is marked and ``(0, n)`` when everything is.
     """
-    cnt = 0
-    for i in range(n):
-        if occ[i] != 0:
-            cnt += 1
-    if cnt == 0:
-        return 0, 0
-    if cnt == n:
-        return 0, n
+    first = -1
+    prev = -1
     best_len = 0
     best_end = 0
-    run = 0
-    for t in range(2 * n):
-        i = t - n if t >= n else t
-        if occ[i] == 0:
-            run += 1
-            if run > best_len:
-                best_len = run
-                best_end = i + 1 if i + 1 < n else 0
-        else:
-            run = 0
+    for i in range(n):
+        if occ[i] != 0:
+            if first < 0:
+                first = i
+            elif i - prev - 1 > best_len:
+                best_len = i - prev - 1
+                best_end = i
+            prev = i
+    if first < 0:
+        return 0, 0
+    wrap = first + (n - 1 - prev)
+    if wrap > best_len:
+        best_len = wrap
+        best_end = first
+    if best_len == 0:
+        return 0, n
     return best_end, n - best_len
 
 
