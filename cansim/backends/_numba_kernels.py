@@ -313,15 +313,22 @@ def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
     for r0 in range(r_lo, r_hi, _CHUNK):
         rc = min(_CHUNK, r_hi - r0)
         for p in range(mo):
-            for i in range(rc):
-                tmp[i] = 0.0
+            first = True  # the first tap assigns (0 + x == x): one pass less over tmp
             for j in range(nw):
                 q = tab[p, j]
                 if q >= 0:
                     wj = w[j]
                     row = src[q * rest + r0: q * rest + r0 + rc]
-                    for i in range(rc):
-                        tmp[i] += wj * row[i]
+                    if first:
+                        for i in range(rc):
+                            tmp[i] = wj * row[i]
+                        first = False
+                    else:
+                        for i in range(rc):
+                            tmp[i] += wj * row[i]
+            if first:
+                for i in range(rc):
+                    tmp[i] = 0.0
             col = dst[r0 * mo + p:]
             for i in range(rc):
                 col[i * mo] = tmp[i]
