@@ -26,6 +26,9 @@ from whisker_io.radial.evaluation import evaluate_models, evans_comparison, leng
 from whisker_io.radial.models import SearchSettings, train_models
 from whisker_io.radial.pipeline import dataset_contact_points
 
+# the quick MLP search stops L-BFGS early on purpose
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
 SETTINGS = SearchSettings().quick()
 
 

@@ -37,6 +37,9 @@ from whisker_io.radial.models import (
     train_models,
 )
 
+# the quick MLP search stops L-BFGS early on purpose
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
 QUICK = SearchSettings().quick()
 
 

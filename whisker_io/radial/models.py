@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
 
@@ -257,8 +257,6 @@ class SearchSettings:
 
     def quick(self) -> "SearchSettings":
         """A reduced copy for tests and smoke runs (3-fold CV, small grids)."""
-        from dataclasses import replace
-
         return replace(
             self,
             cv_folds=3,
