@@ -25,8 +25,8 @@ that is exact for rotations about a single axis.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import NamedTuple, Optional, Sequence
+from dataclasses import dataclass
+from typing import Callable, NamedTuple, Optional, Sequence
 
 import numpy as np
 
@@ -137,14 +137,26 @@ class MotionShifts(NamedTuple):
 
 
 class MotionModel:
-    """Turns odometry into :class:`MotionShifts` for a particular axis layout."""
+    """Turns odometry into :class:`MotionShifts` for a particular axis layout.
+
+    Subclasses implement :meth:`bind`, which precomputes the tables of one grid and
+    returns the per-step function; :meth:`shifts` is the one-off convenience form.
+    """
 
     def check_axes(self, axes: Sequence[Axis]) -> None:
         """Raise :class:`ShapeError` if the model cannot drive a grid with these axes."""
 
-    def shifts(self, axes: Sequence[Axis], velocity, omega, dt: float) -> MotionShifts:  # pragma: no cover
-        """Shifts in cells for linear ``velocity``, angular ``omega`` over ``dt`` seconds."""
+    def bind(self, axes: Sequence[Axis]) -> Callable[..., MotionShifts]:  # pragma: no cover
+        """Return ``f(velocity, omega, dt) -> MotionShifts`` for a grid with ``axes``."""
         raise NotImplementedError
+
+    def shifts(self, axes: Sequence[Axis], velocity, omega, dt: float) -> MotionShifts:
+        """Shifts in cells for linear ``velocity``, angular ``omega`` over ``dt`` seconds."""
+        self.check_axes(axes)
+        return self.bind(axes)(velocity, omega, dt)
+
+
+_NO_MOTION = MotionShifts(None, None, None)
 
 
 @dataclass(frozen=True)
@@ -156,18 +168,22 @@ class UniformMotion(MotionModel):
     velocity this way.
     """
 
-    _tables: dict = field(default_factory=dict, compare=False, repr=False)
+    def bind(self, axes):
+        n = len(axes)
+        inv = 1.0 / np.array([a.step for a in axes])
+        inv0 = float(inv[0])
 
-    def shifts(self, axes, velocity, omega, dt):
-        dt = check_dt(dt)
-        if velocity is None:
-            return MotionShifts(None, None, None)
-        v = _finite_vec(velocity, len(axes), "velocity")
-        key = tuple(a.step for a in axes)
-        inv = self._tables.get(key)
-        if inv is None:
-            inv = self._tables[key] = 1.0 / np.array(key)
-        return MotionShifts(None, None, v * (dt * inv))
+        def shifts(velocity, omega, dt):
+            dt = check_dt(dt)
+            if velocity is None:
+                return _NO_MOTION
+            if n == 1 and isinstance(velocity, float):
+                if not math.isfinite(velocity):
+                    raise InvalidInputError(f"velocity must be finite, got {velocity!r}; check the odometry source")
+                return MotionShifts(None, None, np.array([velocity * dt * inv0]))
+            return MotionShifts(None, None, _finite_vec(velocity, n, "velocity") * (dt * inv))
+
+        return shifts
 
 
 @dataclass(frozen=True)
@@ -187,7 +203,6 @@ class PlanarMotion(MotionModel):
     """
 
     frame: str = "standard"
-    _tables: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.frame not in ("standard", "openratslam"):
@@ -197,28 +212,25 @@ class PlanarMotion(MotionModel):
         if len(axes) != 3 or axes[0].angular or axes[1].angular or not axes[2].angular:
             raise ShapeError("PlanarMotion needs axes (x linear, y linear, theta angular)")
 
-    def _directions(self, axes) -> np.ndarray:
-        key = (axes[2].size, axes[0].step, axes[1].step)
-        tab = self._tables.get(key)
-        if tab is None:
-            th = np.arange(axes[2].size) * axes[2].step
-            if self.frame == "standard":
-                d = np.stack([np.cos(th), np.sin(th)], axis=1)
-            else:
-                d = np.stack([np.sin(th), np.cos(th)], axis=1)
-            tab = d / np.array([axes[0].step, axes[1].step])
-            tab.setflags(write=False)
-            self._tables[key] = tab
-        return tab
+    def bind(self, axes):
+        th = np.arange(axes[2].size) * axes[2].step
+        if self.frame == "standard":
+            d = np.stack([np.cos(th), np.sin(th)], axis=1)
+        else:
+            d = np.stack([np.sin(th), np.cos(th)], axis=1)
+        directions = d / np.array([axes[0].step, axes[1].step])
+        inv_th = 1.0 / axes[2].step
 
-    def shifts(self, axes, velocity, omega, dt):
-        v = _finite(0.0 if velocity is None else velocity, "vtrans")
-        w = _finite(0.0 if omega is None else omega, "vrot")
-        dt = check_dt(dt)
-        cond = (v * dt) * self._directions(axes) if v != 0.0 else None
-        rot = w * dt / axes[2].step
-        uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
-        return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
+        def shifts(velocity, omega, dt):
+            v = _finite(0.0 if velocity is None else velocity, "vtrans")
+            w = _finite(0.0 if omega is None else omega, "vrot")
+            dt = check_dt(dt)
+            cond = (v * dt) * directions if v != 0.0 else None
+            rot = w * dt * inv_th
+            uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
+            return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
+
+        return shifts
 
 
 def euler_grid_rotations(angle_axes: Sequence[Axis], convention: str = EULER_CONVENTION) -> np.ndarray:
@@ -247,34 +259,28 @@ class SixDofMotion(MotionModel):
     ``velocity`` is in m/s in the end-effector frame, ``omega`` in rad/s.
     """
 
-    _tables: dict = field(default_factory=dict, compare=False, repr=False)
-
     def check_axes(self, axes):
         if len(axes) != 6 or any(a.angular for a in axes[:3]) or not all(a.angular for a in axes[3:]):
             raise ShapeError("SixDofMotion needs axes (x, y, z linear; roll, pitch, yaw angular)")
 
-    def _rotations(self, axes) -> tuple[np.ndarray, np.ndarray]:
-        key = tuple((a.size, a.step) for a in axes)
-        tab = self._tables.get(key)
-        if tab is None:
-            rot = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
-            rot = np.ascontiguousarray(rot.reshape(-1, 3))  # (n_r*n_p*n_y*3, 3): one gemv per step
-            rot.setflags(write=False)
-            inv_ang = 1.0 / np.array([a.step for a in axes[3:]])
-            tab = self._tables[key] = (rot, inv_ang)
-        return tab
+    def bind(self, axes):
+        rot = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
+        rot = np.ascontiguousarray(rot.reshape(-1, 3))  # (n_r*n_p*n_y*3, 3): one gemv per step
+        cond_shape = tuple(a.size for a in axes[3:]) + (3,)
+        inv_ang = 1.0 / np.array([a.step for a in axes[3:]])
 
-    def shifts(self, axes, velocity, omega, dt):
-        dt = check_dt(dt)
-        rot, inv_ang = self._rotations(axes)
-        cond = uniform = None
-        if velocity is not None:
-            v = _finite_vec(velocity, 3, "velocity")
-            if v.any():
-                cond = (rot @ (v * dt)).reshape(tuple(a.size for a in axes[3:]) + (3,))
-        if omega is not None:
-            w = _finite_vec(omega, 3, "omega")
-            if w.any():
-                uniform = np.zeros(6)
-                uniform[3:] = w * (dt * inv_ang)
-        return MotionShifts((0, 1, 2) if cond is not None else None, cond, uniform)
+        def shifts(velocity, omega, dt):
+            dt = check_dt(dt)
+            cond = uniform = None
+            if velocity is not None:
+                v = _finite_vec(velocity, 3, "velocity")
+                if v.any():
+                    cond = (rot @ (v * dt)).reshape(cond_shape)
+            if omega is not None:
+                w = _finite_vec(omega, 3, "omega")
+                if w.any():
+                    uniform = np.zeros(6)
+                    uniform[3:] = w * (dt * inv_ang)
+            return MotionShifts((0, 1, 2) if cond is not None else None, cond, uniform)
+
+        return shifts

@@ -14,7 +14,6 @@ from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
 from cansim.path_integration import (
     MotionModel,
-    MotionShifts,
     PlanarMotion,
     SixDofMotion,
     UniformMotion,
@@ -86,6 +85,7 @@ class Population:
         self._dtype = dt
         self._motion = motion if motion is not None else UniformMotion()
         self._motion.check_axes(axes)
+        self._motion_shifts = self._motion.bind(axes)
         exc, inh = params.kernels(len(axes))
         self._exc = exc.taps
         self._inh = inh.taps
@@ -349,9 +349,6 @@ class Population:
         if not np.all(np.isfinite(sh)):
             raise InvalidInputError("shifts must be finite")
         return ax, sh
-
-    def _motion_shifts(self, velocity, omega, dt) -> MotionShifts:
-        return self._motion.shifts(self._axes, velocity, omega, dt)
 
     def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
         """Path integration only (SPEC §1.4) with the population's motion model.

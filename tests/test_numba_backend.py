@@ -278,3 +278,30 @@ def test_inject_into_non_contiguous_out():
     expected.flat[3] = 0.75
     expected.flat[7] = 1.0
     np.testing.assert_array_equal(out, expected)
+
+
+def test_ring_fast_path_matches_reference_and_keeps_out_on_collapse():
+    """1-D rings take a dedicated kernel; it must equal numpy and honour the collapse contract."""
+    from cansim.backends import get_backend
+    from cansim.kernels import gaussian_kernel_1d
+
+    nb, ref = get_backend("numba"), get_backend("numpy")
+    rng = np.random.default_rng(5)
+    exc, inh = [gaussian_kernel_1d(7, 1.0)], [gaussian_kernel_1d(5, 2.0)]
+    for dtype in (np.float32, np.float64):
+        for n in (5, 36, 360):
+            a = rng.random(n).astype(dtype)
+            a /= a.sum()
+            kw = dict(flat_index=np.array([1, 1], dtype=np.int64), values=np.array([0.1, 0.2]), exc=exc, inh=inh,
+                      phi=2e-5, shift_axes=None, cond_shifts=None, uniform_shifts=np.array([rng.uniform(-4, 4)]),
+                      window=3)
+            got, gd = nb.step(a, **kw)
+            want, wd = ref.step(a, **kw)
+            np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-7)
+            np.testing.assert_allclose(gd, wd, atol=1e-6)
+    out = np.full(36, 7.0, dtype=np.float32)
+    res, dec = nb.step(np.full(36, 1 / 36, dtype=np.float32), flat_index=np.array([3], dtype=np.int64),
+                       values=np.array([0.5]), exc=exc, inh=inh, phi=1.0, shift_axes=None, cond_shifts=None,
+                       uniform_shifts=None, window=3, out=out)
+    assert res is None and dec is None
+    assert np.all(out == 7.0)

@@ -184,6 +184,8 @@ class NumbaBackend(Backend):
     def step(self, a, *, flat_index, values, exc, inh, phi, shift_axes, cond_shifts,
              uniform_shifts, window, out=None):
         """Fused step (SPEC §1.2): one compiled call for injection to decoding."""
+        if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
+            return self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
         inj = None
         if flat_index is not None and len(flat_index):
             inj = (np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
@@ -191,6 +193,28 @@ class NumbaBackend(Backend):
         cond = (shift_axes, cond_shifts) if cond_shifts is not None else None
         # zero shifts (uniform or per condition) are skipped inside the kernel
         return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
+
+
+    def _ring_step(self, a, flat_index, values, exc, inh, phi, uniform_shifts, window, out):
+        """1-D rings: a small dedicated kernel (the N-D pipeline's dispatch cost dominates)."""
+        from cansim.backends._numba_ring import ring_step
+
+        dst = out if out is not None and out.flags.c_contiguous and out is not a else np.empty_like(a)
+        if flat_index is None or not len(flat_index):
+            fi, vals = _NO_INDEX, _NO_VALUES
+        else:
+            fi = np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1)
+            vals = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
+        shift = 0.0 if uniform_shifts is None else float(uniform_shifts[0])
+        decoded = np.empty(1, dtype=np.float64)
+        ok = ring_step(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded,
+                       self._workspace(a.shape[0]))
+        if not ok:
+            return None, None
+        if out is not None and dst is not out:
+            out[...] = dst
+            dst = out
+        return dst, decoded
 
 
 def _pack(taps: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
