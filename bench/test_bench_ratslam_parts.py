@@ -138,3 +138,22 @@ def test_ratslam_20000_iterations_time_growth_and_memory(benchmark):
     )
     assert at_20k <= 2.0 * at_1k
     assert peak_mb < 200
+
+
+def test_ratslam_iteration_tactile_1000_templates(benchmark):
+    """The whole iteration the issue targets: Eq 3.1 matching of a 3x6 tactile image against
+    1,000 stored templates + pose cells (numba, 21x21x36) + an experience map of ~1,000 experiences."""
+    cfg = RatSLAMConfig(frontend="tactile", vt_match_threshold=20.0)
+    slam = RatSLAM(cfg)
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 256, size=(1000, 3, 6), dtype=np.uint8)  # far apart: each becomes a template
+    for k in range(1000):
+        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, images[k])
+    assert slam.experience_map.n_experiences >= 900
+    state = {"k": 0}
+
+    def step():
+        state["k"] = (state["k"] + 1) % 1000
+        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, images[state["k"]])
+
+    benchmark(step)
