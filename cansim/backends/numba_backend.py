@@ -67,6 +67,7 @@ class NumbaBackend(Backend):
         self._taps: tuple = (None, None, None)
         self._shapes: dict = {}
         self._masks: dict = {}
+        self._ring_kernel = None
 
     # ------------------------------------------------------------------ helpers
     def _nthreads(self) -> int:
@@ -197,24 +198,34 @@ class NumbaBackend(Backend):
 
     def _ring_step(self, a, flat_index, values, exc, inh, phi, uniform_shifts, window, out):
         """1-D rings: a small dedicated kernel (the N-D pipeline's dispatch cost dominates)."""
-        from cansim.backends._numba_ring import ring_step
+        kernel = self._ring_kernel
+        if kernel is None:
+            from cansim.backends._numba_ring import ring_step as kernel
 
+            self._ring_kernel = kernel
         dst = out if out is not None and out.flags.c_contiguous and out is not a else np.empty_like(a)
         if flat_index is None or not len(flat_index):
             fi, vals = _NO_INDEX, _NO_VALUES
         else:
-            fi = np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1)
-            vals = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
+            fi, vals = _as_contiguous(flat_index, np.int64), _as_contiguous(values, np.float64)
         shift = 0.0 if uniform_shifts is None else float(uniform_shifts[0])
         decoded = np.empty(1, dtype=np.float64)
-        ok = ring_step(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded,
-                       self._workspace(a.shape[0]))
-        if not ok:
+        ws = getattr(self._local, "ws", None)
+        if ws is None or ws.shape[0] < 3 * a.shape[0]:
+            ws = self._workspace(a.shape[0])
+        if not kernel(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded, ws):
             return None, None
         if out is not None and dst is not out:
             out[...] = dst
             dst = out
         return dst, decoded
+
+
+def _as_contiguous(x, dtype) -> np.ndarray:
+    """``x`` as a 1-D C-contiguous array of ``dtype``, without a copy when it already is one."""
+    if isinstance(x, np.ndarray) and x.dtype == dtype and x.ndim == 1 and x.flags.c_contiguous:
+        return x
+    return np.ascontiguousarray(x, dtype=dtype).reshape(-1)
 
 
 def _pack(taps: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
