@@ -696,6 +696,22 @@ def box_argmax(buf, s, m, n):
 
 # ------------------------------------------------------------------------ pipeline
 @njit(**_OPTS)
+def global_inhibit(e, inhibition, out, n, phi):
+    """Alg 4's subtraction and Alg 5 over the first ``n`` cells; returns the total.
+
+    ``out[t] = max(e[t] - inhibition[t] - phi, 0)`` with cells below phi set to 0
+    (``out`` may be ``e``).
+    """
+    total = 0.0
+    for t in range(n):
+        b = e[t] - inhibition[t]
+        c = b - phi if b >= phi else 0.0
+        out[t] = c
+        total += c
+    return total
+
+
+@njit(**_OPTS)
 def pipeline(
     a, a_bits, out, ws, n,
     inj_idx, inj_val,
@@ -772,12 +788,7 @@ def pipeline(
             i0, i1 = i1, i0
         e = bufs[ecur]
         # 4. global inhibition (Alg 5) and 5. normalisation
-        total = 0.0
-        for t in range(size_e):
-            b = e[t] - src[t]
-            c = b - phi if b >= phi else 0.0
-            e[t] = c
-            total += c
+        total = global_inhibit(e, src, e, size_e, phi)
         if not (np.isfinite(total) and total > 0.0):
             return STATUS_COLLAPSE
         for t in range(size_e):

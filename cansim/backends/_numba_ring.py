@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit
 
+from cansim.backends._numba_kernels import global_inhibit
+
 __all__ = ["ring_step"]
 
 
@@ -56,12 +58,7 @@ def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
             x[i] = rb[0]
     _conv(x, exc, e)
     _conv(e, inh, t)
-    total = 0.0
-    for i in range(n):
-        b = e[i] - t[i]
-        v = b - phi if b >= phi else 0.0
-        x[i] = v
-        total += v
+    total = global_inhibit(e, t, x, n, phi)
     if not (total > 0.0 and total < np.inf):
         return False
     for i in range(n):  # normalise and round to the storage dtype as the reference stores
