@@ -303,9 +303,10 @@ class LocalViewCells:
         if energy <= 0.0:
             return _EMPTY
         loc = self._locations[vid] if off is None else (self._locations[vid] + off) % np.array(self._shape)
-        cell = np.floor(loc) if p.rounding == "truncate" else np.rint(loc)
-        cell = cell.astype(np.int64) % np.array(self._shape)
-        flat = np.ravel_multi_index(tuple(cell), self._shape)
+        to_cell = math.floor if p.rounding == "truncate" else round  # round: nearest, ties to even as np.rint
+        flat = 0
+        for c, n in zip(loc.tolist(), self._shape):  # C-order flat index of the wrapped cell
+            flat = flat * n + int(to_cell(c)) % n
         return np.array([flat], dtype=np.int64), np.array([energy])
 
     def injection(self) -> Injection:

@@ -382,15 +382,10 @@ class ExperienceMap:
         if th_corr >= nth:
             th_corr = th_corr - nth
         pc = self._exp_pc[ids]
-
-        def min_delta(a: float, b: np.ndarray, m: float) -> np.ndarray:
-            absval = np.abs(a - b)
-            return np.minimum(absval, m - absval)
-
-        dx = min_delta(best[0], pc[:, 0], nxy)
-        dy = min_delta(best[1], pc[:, 1], nxy)
-        dth = min_delta(th_corr, pc[:, 2], nth)
-        return np.sqrt(dx**2 + dy**2 + dth**2)
+        d = np.abs(np.array((best[0], best[1], th_corr)) - pc)  # (k, 3): |dx|, |dy|, |dth|
+        d = np.minimum(d, np.array((nxy, nxy, nth)) - d)  # wrapped, Eq 2.22
+        d *= d
+        return np.sqrt(d[:, 0] + d[:, 1] + d[:, 2])
 
     def update(
         self,

@@ -170,3 +170,21 @@ def test_tactile_no_shift_and_bad_input():
     with pytest.raises(InvalidInputError):
         tt.match(np.full((3, 6), 300))
     assert len(tt) == 2
+
+
+def test_tactile_compiled_scan_equals_eq_3_1_reference():
+    """The numba scan picks the same template and S as argmin of the numpy Eq 3.1."""
+    rng = np.random.default_rng(7)
+    stored = rng.integers(0, 256, size=(300, 3, 6), dtype=np.uint8)
+    tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=0.0))
+    for img in stored:
+        tt.match(img)
+    assert len(tt) == 300
+    probe_tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=1e9))
+    probe_tt.store = tt.store
+    for _ in range(20):
+        probe = rng.integers(0, 256, size=(3, 6), dtype=np.uint8)
+        ref = tactile_similarity(stored, probe)
+        m = probe_tt.match(probe)
+        assert m.template_id == int(np.argmin(ref))
+        assert m.error == pytest.approx(float(ref.min()), rel=1e-12)

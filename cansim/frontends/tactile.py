@@ -100,9 +100,11 @@ class TactileTemplates:
         n = len(self.store)
         err, best = math.inf, 0
         if n:
-            s = tactile_similarity(self.store._data[:n], img)
-            best = int(np.argmin(s))
-            err = float(s[best])
+            from cansim.frontends._tactile_numba import SQRT_LEVELS, best_tactile_match
+
+            flat = self.store._data.reshape(self.store._data.shape[0], -1)
+            best, err = best_tactile_match(flat, n, img.astype(np.float64).ravel(), SQRT_LEVELS)
+            best, err = int(best), float(err)
         if err <= self.config.vt_match_threshold:
             self.store.set_current(best)
             return TemplateMatch(best, False, err)
