@@ -1,0 +1,33 @@
+"""`python -m whisker_io.radial train|evaluate`: one command trains all models, one evaluates them."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from whisker_io.radial.__main__ import main
+
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
+
+def test_train_then_evaluate_writes_one_row_per_model(tmp_path):
+    models = tmp_path / "models"
+    assert main(["train", "--models", str(models), "--quick"]) == 0
+    names = sorted(p.stem for p in models.glob("*.skops"))
+    assert {"svr9", "svr10", "poly5", "nn1", "tip", "random"} <= set(names) and len(names) == 14
+    assert main(["evaluate", "--models", str(models), "--out", str(tmp_path), "--quick"]) == 0
+    with open(tmp_path / "radial_results.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted(r["model"] for r in rows) == names
+    tip = next(r for r in rows if r["model"] == "tip")
+    svr = next(r for r in rows if r["model"] == "svr9")
+    assert float(svr["median_abs_error"]) < float(tip["median_abs_error"])
+
+
+def test_evaluate_without_models_or_with_a_corrupt_file_fails_cleanly(tmp_path, capsys):
+    assert main(["evaluate", "--models", str(tmp_path)]) == 2
+    assert "run 'python -m whisker_io.radial train' first" in capsys.readouterr().err
+    (tmp_path / "svr9.skops").write_bytes(b"not a model")
+    assert main(["evaluate", "--models", str(tmp_path), "--quick"]) == 2
+    assert "error:" in capsys.readouterr().err
