@@ -305,3 +305,117 @@ def test_ring_fast_path_matches_reference_and_keeps_out_on_collapse():
                        uniform_shifts=None, window=3, out=out)
     assert res is None and dec is None
     assert np.all(out == 7.0)
+
+
+# ----------------------------------------------------------- small full-grid path
+GENERIC = NumbaBackend(small_grids=False)  # the same backend without the generated small-grid kernel
+
+
+def _small_kwargs(shape, rng, *, shift_axes, scale, window=3, exc_width=5):
+    """A step with repeated injections, conditional shifts of ``scale`` cells and uniform shifts on the rest."""
+    ndim = len(shape)
+    cond_shape = tuple(n for ax, n in enumerate(shape) if ax not in shift_axes)
+    uni = rng.uniform(-scale, scale, ndim)
+    uni[list(shift_axes)] = 0.0
+    flat = rng.integers(0, int(np.prod(shape)), 3)
+    return dict(flat_index=np.array([flat[0], flat[1], flat[0]], dtype=np.int64), values=rng.uniform(0.0, 0.2, 3),
+                exc=[gaussian_kernel_1d(exc_width, 1.0) for _ in shape],
+                inh=[gaussian_kernel_1d(5, np.sqrt(2.0)) for _ in shape], phi=2e-5,
+                shift_axes=tuple(shift_axes), cond_shifts=rng.uniform(-scale, scale, cond_shape + (len(shift_axes),)),
+                uniform_shifts=uni, window=window)
+
+
+def _assert_small_path_exact(a, kw):
+    """The generated kernel equals the generic numba pipeline bitwise and the numpy reference to rounding."""
+    from cansim.backends._numba_small import applies
+
+    assert applies(a.shape, kw["exc"], kw["inh"])
+    ref_a, ref_d = REF.step(a.copy(), **kw)
+    gen_a, gen_d = GENERIC.step(a, **kw)
+    before = a.copy()
+    out = np.full_like(a, 7.0)
+    got_a, got_d = LOCAL.step(a, out=out, **kw)
+    np.testing.assert_array_equal(a, before)
+    assert got_a is out and got_a.dtype == a.dtype
+    np.testing.assert_array_equal(got_a, gen_a)
+    tol = 1e-6 if a.dtype == np.float32 else 1e-13
+    np.testing.assert_allclose(got_a, ref_a, rtol=tol, atol=tol * float(ref_a.max()))
+    np.testing.assert_allclose(got_d, ref_d, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got_d, gen_d, rtol=0, atol=1e-12)
+    assert abs(float(got_a.sum(dtype=np.float64)) - 1.0) < 1e-5  # shifts conserve the normalised activity
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("scale", [0.01, 0.9, 7.3])
+def test_small_6d_grid_path_equals_reference(dtype, scale):
+    """5^6 (whisker6d): excitation covers every axis, so the step runs the generated kernel."""
+    shape = (5,) * 6
+    rng = np.random.default_rng(int(scale * 100))
+    a = _packets(shape, [(2, 2, 2, 2, 2, 2)], dtype, half=1, seed=3)
+    _assert_small_path_exact(a, _small_kwargs(shape, rng, shift_axes=(0, 1, 2), scale=scale))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shift_axes", [(0, 1), (0, 2), (1,)])
+def test_small_3d_grid_with_wrapping_kernel_and_any_condition_axes(dtype, shift_axes):
+    """4^3 with 7-tap excitation (wraps the axis), any conditioned axes, a spread-out random grid."""
+    shape = (4, 4, 4)
+    rng = np.random.default_rng(len(shift_axes) * 10 + shift_axes[-1])
+    a = rng.random(shape).astype(dtype)
+    a /= a.sum()
+    _assert_small_path_exact(a, _small_kwargs(shape, rng, shift_axes=shift_axes, scale=3.4, exc_width=7))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_small_grid_uniform_shift_on_a_conditioned_axis_runs_after_the_conditional_shift(dtype):
+    shape = (4, 4, 4)
+    rng = np.random.default_rng(11)
+    a = _packets(shape, [(1, 2, 3)], dtype, half=1)
+    kw = _small_kwargs(shape, rng, shift_axes=(1, 2), scale=2.2, exc_width=7)
+    kw["uniform_shifts"] = np.array([0.7, -1.6, 2.45])  # touches the conditioned axes 1 and 2
+    _assert_small_path_exact(a, kw)
+    kw["cond_shifts"] = np.zeros_like(kw["cond_shifts"])  # no conditional motion: uniform shift only
+    _assert_small_path_exact(a, kw)
+    kw["uniform_shifts"] = None
+    kw["cond_shifts"] = None  # dynamics and decoding only
+    _assert_small_path_exact(a, kw)
+
+
+def test_small_grid_window_narrower_than_an_axis_centres_on_the_first_maximum():
+    shape = (5,) * 6
+    rng = np.random.default_rng(12)
+    a = _packets(shape, [(4, 0, 1, 3, 2, 0)], np.float32, half=1, seed=5)
+    _assert_small_path_exact(a, _small_kwargs(shape, rng, shift_axes=(0, 1, 2), scale=1.5, window=1))
+
+
+def test_small_grid_collapse_returns_none_and_leaves_out_untouched():
+    shape = (5,) * 6
+    kw = _small_kwargs(shape, np.random.default_rng(13), shift_axes=(0, 1, 2), scale=1.0)
+    kw.update(flat_index=None, values=None)
+    a = np.full(shape, 1.0 / 5**6, dtype=np.float32)  # uniform grid: inhibition leaves every cell below phi
+    out = np.full(shape, 3.0, dtype=np.float32)
+    assert REF.step(a, **kw) == (None, None)
+    assert LOCAL.step(a, out=out, **kw) == (None, None)
+    assert np.all(out == 3.0)
+
+
+def test_small_grid_non_contiguous_out_receives_the_result():
+    shape = (4, 4, 4)
+    a = _packets(shape, [(0, 3, 1)], np.float64)
+    kw = _small_kwargs(shape, np.random.default_rng(14), shift_axes=(0, 1), scale=1.2, exc_width=7)
+    want, _ = GENERIC.step(a, **kw)
+    out = np.zeros((4, 4, 8))[:, :, ::2]
+    got, _ = LOCAL.step(a, out=out, **kw)
+    assert got is out
+    np.testing.assert_array_equal(out, want)
+
+
+def test_small_grid_path_applies_only_to_fully_covered_hypercubes():
+    from cansim.backends._numba_small import applies
+
+    k5, k7 = gaussian_kernel_1d(5, 1.0), gaussian_kernel_1d(7, 1.0)
+    assert applies((5,) * 6, [k5] * 6, [k5] * 6)
+    assert not applies((10,) * 6, [k5] * 6, [k5] * 6)  # the packet box is smaller than the grid
+    assert not applies((21, 21, 36), [k7] * 3, [k5] * 3)
+    assert not applies((5, 5, 4), [k5] * 3, [k5] * 3)  # mixed lengths: generic pipeline
+    assert not applies((5,), [k5], [k5])

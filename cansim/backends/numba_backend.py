@@ -29,6 +29,7 @@ _NO_INDEX = np.empty(0, dtype=np.int64)
 _NO_VALUES = np.empty(0, dtype=np.float64)
 _NO_COND = np.zeros((1, 1), dtype=np.float64)
 _NO_DECODE = np.empty(0, dtype=np.float64)
+_NO_LINES = np.zeros((1, 1), dtype=np.int64)
 _BITS = {4: np.uint32, 8: np.uint64}
 
 #: passes with at least this many multiply-adds run on several threads. A parallel
@@ -54,13 +55,19 @@ class NumbaBackend(Backend):
         passes run serially because a thread launch costs more than they do.
     threads : int or None
         Threads for parallel passes; None uses ``numba.get_num_threads()`` at the first step.
+    small_grids : bool
+        Run :meth:`step` on grids whose excitation kernels cover every axis (at most
+        ``_numba_small.MAX_AXIS`` cells each, e.g. 5^6) with a kernel generated for the
+        shape (default). ``False`` keeps them on the generic pipeline (same results).
     """
 
     name = "numba"
 
     def __init__(self, *, locality: bool = True, parallel_work: int = DEFAULT_PARALLEL_WORK,
-                 threads: Optional[int] = None) -> None:
+                 threads: Optional[int] = None, small_grids: bool = True) -> None:
         self._dense = not bool(locality)
+        self._small = bool(small_grids)
+        self._small_cache: dict = {}
         self._par_work = max(int(parallel_work), 0)
         self._threads = threads
         self._local = threading.local()  # per-thread workspace
@@ -187,6 +194,11 @@ class NumbaBackend(Backend):
         """Fused step (SPEC §1.2): one compiled call for injection to decoding."""
         if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
             return self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
+        if self._small and a.flags.c_contiguous:
+            small = self._small_plan(a.shape, exc, inh)
+            if small is not None:
+                return self._small_step(a, small, flat_index, values, phi, shift_axes, cond_shifts,
+                                        uniform_shifts, window, out)
         inj = None
         if flat_index is not None and len(flat_index):
             inj = (np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
@@ -195,6 +207,83 @@ class NumbaBackend(Backend):
         # zero shifts (uniform or per condition) are skipped inside the kernel
         return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
 
+
+    def _small_plan(self, shape, exc, inh):
+        """(compiled step, packed exc, packed inh) for a small fully covered grid, else None."""
+        key = (shape, id(exc), id(inh))
+        plan = self._small_cache.get(key)
+        if plan is None or plan[3] is not exc or plan[4] is not inh:
+            from cansim.backends import _numba_small as _s
+
+            fn = excp = inhp = None
+            if _s.applies(shape, exc, inh):
+                ew = tuple(len(t) for t in exc)
+                iw = tuple(len(t) for t in inh)
+                fn, excp, inhp = _s.small_step(shape, ew, iw), _pack(exc)[0], _pack(inh)[0]
+            if len(self._small_cache) > 16:
+                self._small_cache.clear()
+            plan = (fn, excp, inhp, exc, inh)
+            self._small_cache[key] = plan
+        return plan if plan[0] is not None else None
+
+    def _small_lines(self, shape, shift_axes):
+        key = ("lines", shape, tuple(shift_axes))
+        lines = self._small_cache.get(key)
+        if lines is None:
+            from cansim.backends._numba_small import condition_lines
+
+            lines = condition_lines(shape, tuple(shift_axes))
+            self._small_cache[key] = lines
+        return lines
+
+    def _small_step(self, a, plan, flat_index, values, phi, shift_axes, cond_shifts, uniform_shifts, window, out):
+        """Small full grids: one generated kernel (see :mod:`cansim.backends._numba_small`)."""
+        fn, excp, inhp = plan[0], plan[1], plan[2]
+        d = a.ndim
+        kinds = np.zeros(d, dtype=np.int64)
+        colmap = np.zeros(d, dtype=np.int64)
+        last_cond = -1
+        ctab, glines = _NO_COND, _NO_LINES
+        if cond_shifts is not None:
+            ctab = np.ascontiguousarray(cond_shifts, dtype=np.float64).reshape(-1, len(shift_axes))
+            moving = (ctab != 0.0).any(axis=0)
+            for col, ax in enumerate(shift_axes):
+                colmap[ax] = col
+                if moving[col]:
+                    kinds[ax] = 2
+                    last_cond = max(last_cond, ax)
+            if last_cond >= 0:
+                glines = self._small_lines(a.shape, shift_axes)
+        uni = np.zeros(d, dtype=np.float64)
+        if uniform_shifts is not None:
+            uni[:] = uniform_shifts
+        uni_axes = np.flatnonzero(uni)
+        kinds2 = kinds
+        ncycles = 0
+        if len(uni_axes) and last_cond >= 0 and (last_cond > uni_axes[0] or kinds[uni_axes[0]] != 0):
+            ncycles = 2  # the uniform shift touches an earlier or a shifted axis: as the reference, one cycle each
+            kinds2 = np.zeros(d, dtype=np.int64)
+            kinds2[uni_axes] = 1
+        else:
+            kinds[uni_axes] = 1
+            if kinds.any():
+                ncycles = 1
+        round_after = last_cond if len(uni_axes) else -1
+        if flat_index is None or not len(flat_index):
+            fi, vals = _NO_INDEX, _NO_VALUES
+        else:
+            fi, vals = _as_contiguous(flat_index, np.int64), _as_contiguous(values, np.float64)
+        dst = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
+        decoded = np.empty(d, dtype=np.float64)
+        ok = fn(a.reshape(-1), dst.reshape(-1), self._workspace(a.size), fi, vals, excp, inhp, float(phi),
+                ncycles, kinds, kinds2, ctab, colmap, glines, uni, int(round_after), int(window), decoded,
+                a.dtype.itemsize == 4)
+        if not ok:
+            return None, None
+        if out is not None and dst is not out:
+            out[...] = dst
+            dst = out
+        return dst, decoded
 
     def _ring_step(self, a, flat_index, values, exc, inh, phi, uniform_shifts, window, out):
         """1-D rings: a small dedicated kernel (the N-D pipeline's dispatch cost dominates)."""
