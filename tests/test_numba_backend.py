@@ -419,3 +419,13 @@ def test_small_grid_path_applies_only_to_fully_covered_hypercubes():
     assert not applies((21, 21, 36), [k7] * 3, [k5] * 3)
     assert not applies((5, 5, 4), [k5] * 3, [k5] * 3)  # mixed lengths: generic pipeline
     assert not applies((5,), [k5], [k5])
+
+
+def test_small_grid_with_different_kernel_widths_per_axis():
+    shape = (4, 4, 4)
+    rng = np.random.default_rng(15)
+    a = _packets(shape, [(3, 0, 2)], np.float64, half=1)
+    kw = _small_kwargs(shape, rng, shift_axes=(0, 1), scale=0.8)
+    kw["exc"] = [gaussian_kernel_1d(w, 1.0) for w in (5, 7, 9)]
+    kw["inh"] = [gaussian_kernel_1d(w, 1.5) for w in (3, 5, 7)]
+    _assert_small_path_exact(a, kw)

@@ -147,46 +147,58 @@ def _copy_src(n: int) -> str:
     return "\n".join(lines)
 
 
-def _step_src(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
-    d = len(shape)
-    size = int(np.prod(shape))
-    rest = [size // n for n in shape]
+def _width_call(n: int, widths: tuple[int, ...], indent: str, args: str, taps: str) -> list:
+    """A call of the unrolled convolution of the width of axis k (a branch when widths differ)."""
+    distinct = sorted(set(widths))
+    if len(distinct) == 1:
+        return [f"{indent}conv_{n}_{distinct[0]}({args}, {taps})"]
+    lines = []
+    for i, w in enumerate(distinct):
+        cond = "else:" if i == len(distinct) - 1 else f"{'if' if i == 0 else 'elif'} widths[k] == {w}:"
+        lines += [f"{indent}{cond}", f"{indent}    conv_{n}_{w}({args}, {taps})"]
+    return lines
+
+
+def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
+    """The step of an ``n^d`` grid: loops over the axes calling the unrolled passes."""
+    size = n**d
+    rest = size // n
+    c = n // 2  # centre of the n-tap table of a uniform roll
     L = [
         "def cycle(src, dst, kinds, cond_tab, colmap, glines, uni, round_after, to32):",
         "    ng = cond_tab.shape[0]",
-        "    glo = np.empty(ng, np.int64)",
-        "    gw = np.empty((ng, 2), np.float64)",
-    ]
-    for k, n in enumerate(shape):
-        c = n // 2  # centre of the n-tap table of a uniform roll
-        L += [
-            f"    if kinds[{k}] == 2:",
-            f"        wl = np.zeros(({n}, {rest[k]}), np.float64)",
-            "        for g in range(ng):",
-            f"            lo, f = split_shift(cond_tab[g, colmap[{k}]], {n})",
-            f"            glo[g] = lo % {n}",
-            "            gw[g, 0] = 1.0 - f",
-            "            gw[g, 1] = f",
-            f"        gl = glines[{k}]",
-            f"        for r in range({rest[k]}):",
-            "            g = gl[r]",
-            "            wl[glo[g], r] = gw[g, 0]",
-            f"            wl[(glo[g] + 1) % {n}, r] = gw[g, 1]",
-            f"        lines_{n}(src, dst, {rest[k]}, wl)",
-            f"    elif kinds[{k}] == 1:",
-            f"        lo, f = split_shift(uni[{k}], {n})",
-            f"        taps = np.zeros({n}, np.float64)",
-            f"        taps[(lo + {c}) % {n}] = 1.0 - f",
-            f"        taps[(lo + 1 + {c}) % {n}] = f",
-            f"        conv_{n}_{n}(src, dst, {rest[k]}, taps)",
-            "    else:",
-            f"        copy_{n}(src, dst, {rest[k]})",
-            f"    if round_after == {k} and to32:",
-            "        round32(dst)",
-            "    src, dst = dst, src",
-        ]
-    L += ["    if to32:", "        round32(src)", ""]
-    L += [
+        f"    gw = np.empty((ng, {n}), np.float64)",
+        f"    wl = np.empty(({n}, {rest}), np.float64)",
+        "    wf = wl.reshape(-1)",
+        f"    taps = np.zeros({n}, np.float64)",
+        f"    for k in range({d}):",
+        "        if kinds[k] == 2:",
+        "            for g in range(ng):",
+        f"                lo, f = split_shift(cond_tab[g, colmap[k]], {n})",
+        f"                lo = lo % {n}",
+        f"                for q in range({n}):",
+        "                    gw[g, q] = 0.0",
+        "                gw[g, lo] = 1.0 - f",
+        f"                gw[g, (lo + 1) % {n}] = f",
+        "            gl = glines[k]",
+        f"            for r in range({rest}):",
+        "                g = gl[r]",
+    ] + [f"                wf[{q * rest} + r] = gw[g, {q}]" for q in range(n)] + [
+        f"            lines_{n}(src, dst, {rest}, wl)",
+        "        elif kinds[k] == 1:",
+        f"            lo, f = split_shift(uni[k], {n})",
+        "            taps[:] = 0.0",
+        f"            taps[(lo + {c}) % {n}] = 1.0 - f",
+        f"            taps[(lo + 1 + {c}) % {n}] = f",
+        f"            conv_{n}_{n}(src, dst, {rest}, taps)",
+        "        else:",
+        f"            copy_{n}(src, dst, {rest})",
+        "        if round_after == k and to32:",
+        "            round32(dst)",
+        "        src, dst = dst, src",
+        "    if to32:",
+        "        round32(src)",
+        "",
         "def step(a, out, ws, fi, vals, exc, inh, phi, ncycles, kinds1, kinds2, cond_tab, colmap, glines, uni,",
         "         round_after, window, decoded, to32):",
         f"    x = ws[:{size}]",
@@ -199,18 +211,31 @@ def _step_src(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
         "            x[fi[t]] += vals[t]",
         "        if to32:",
         "            round32(x)",
+        "    src = x",
+        "    dst = y",
+        f"    widths = ew",
+        f"    for k in range({d}):",
     ]
-    bufs = ["x", "y"]
-    for k, n in enumerate(shape):
-        L.append(f"    conv_{n}_{ew[k]}({bufs[0]}, {bufs[1]}, {rest[k]}, exc[{k}])")
-        bufs.reverse()
-    e = bufs[0]
-    free = [b for b in ("x", "y", "z") if b != e]
-    for k, n in enumerate(shape):
-        L.append(f"    conv_{n}_{iw[k]}({free[0] if k else e}, {free[1] if k else free[0]}, {rest[k]}, inh[{k}])")
-        if k:
-            free.reverse()
-    t = free[0]
+    L += _width_call(n, ew, "        ", f"src, dst, {rest}", "exc[k]")
+    L += ["        src, dst = dst, src"]
+    # the excitation ends in x after an even number of passes
+    e, f1, f2 = ("x", "y", "z") if d % 2 == 0 else ("y", "x", "z")
+    t = f1 if (d - 1) % 2 == 0 else f2
+    L += [
+        f"    src = {e}",
+        f"    dst = {f1}",
+        f"    widths = iw",
+        f"    for k in range({d}):",
+    ]
+    L += _width_call(n, iw, "        ", f"src, dst, {rest}", "inh[k]")
+    L += [
+        "        if k % 2 == 0:",
+        f"            src = {f1}",
+        f"            dst = {f2}",
+        "        else:",
+        f"            src = {f2}",
+        f"            dst = {f1}",
+    ]
     # a cycle of d rotating passes ends in its first buffer when d is even
     mid = e if d % 2 == 0 else "z"
     other = "z" if mid == e else e
@@ -224,25 +249,26 @@ def _step_src(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
         "    if to32:",
         f"        round32({e})",
         f"    cur = {e}",
+        "    no_round = np.int64(-1)",
         "    if ncycles == 2:",
-        f"        cycle({e}, z, kinds1, cond_tab, colmap, glines, uni, -1, to32)",
-        f"        cycle({mid}, {other}, kinds2, cond_tab, colmap, glines, uni, -1, to32)",
+        f"        cycle({e}, z, kinds1, cond_tab, colmap, glines, uni, no_round, to32)",
+        f"        cycle({mid}, {other}, kinds2, cond_tab, colmap, glines, uni, no_round, to32)",
         f"        cur = {two}",
         "    elif ncycles == 1:",
         f"        cycle({e}, z, kinds1, cond_tab, colmap, glines, uni, round_after, to32)",
         f"        cur = {mid}",
-        f"    if 2 * window + 1 >= {max(shape)}:  # the window covers the grid: marginal sums",
-        f"        prof = np.zeros(({d}, {max(shape)}), np.float64)",
+        f"    if 2 * window + 1 >= {n}:  # the window covers the grid: marginal sums",
+        f"        prof = np.zeros(({d}, {n}), np.float64)",
         f"        marginals(cur, out, prof, np.empty({2 * size}, np.float64))",
         f"        for k in range({d}):",
-        "            decoded[k] = circular_mean_index(prof[k], shape_arr[k])",
+        f"            decoded[k] = circular_mean_index(prof[k], {n})",
         "        return True",
         "    best = 0",
         f"    for i in range({size}):",
         "        out[i] = cur[i]",
         "        if out[i] > out[best]:",
         "            best = i",
-        f"    decode_window(out, shape_arr, unravel(best, shape_arr), window, decoded)",
+        "    decode_window(out, shape_arr, unravel(best, shape_arr), window, decoded)",
         "    return True",
     ]
     return "\n".join(L)
@@ -250,7 +276,8 @@ def _step_src(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
 
 def _build(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> Callable:
     ns: dict = dict(np=np, split_shift=_k.split_shift, round32=round32, global_inhibit=_k.global_inhibit,
-                    decode_window=_k.decode_window, circular_mean_index=_k.circular_mean_index, unravel=_k.unravel, shape_arr=np.array(shape, np.int64))
+                    decode_window=_k.decode_window, circular_mean_index=_k.circular_mean_index, unravel=_k.unravel,
+                    shape_arr=np.array(shape, np.int64), ew=np.array(ew, np.int64), iw=np.array(iw, np.int64))
     parts = []
     for n, w in sorted(set(zip(shape, ew)) | set(zip(shape, iw)) | {(n, n) for n in shape}):
         parts.append(_conv_src(n, w))
@@ -261,7 +288,7 @@ def _build(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> 
         exec(src, ns)  # noqa: S102 - generated from integers only
         name = src.split("(", 1)[0][4:]
         ns[name] = njit(**_OPTS)(ns[name])
-    exec(_step_src(shape, ew, iw), ns)  # noqa: S102
+    exec(_step_src(shape[0], len(shape), ew, iw), ns)  # noqa: S102
     ns["cycle"] = njit(**_OPTS)(ns["cycle"])
     ns["step"] = njit(**_OPTS)(ns["step"])
     return ns["step"]
