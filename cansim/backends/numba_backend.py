@@ -6,7 +6,10 @@ non-zero cell (the complement of the largest empty gap) and runs the whole step
 (injection, excitation, inhibition, global inhibition, normalisation, conditional and
 uniform shifts, decoding) in one compiled call on that box, grown by the kernel
 half-widths and shift extents as it goes. With many packets or a spread-out activity
-the box covers the grid and the same code is the dense path. Results equal the numpy
+the box covers the grid and the same code is the dense path. Small hypercube grids that
+the excitation kernel covers whole (e.g. 5^6) have no box to gain and run a step generated
+for their shape (:mod:`cansim.backends._numba_small`); 1-D rings have their own kernel
+(:mod:`cansim.backends._numba_ring`). Results equal the numpy
 reference backend (float64 sums in its order, storage-dtype rounding where it stores).
 
 Kernels compile on first use (``cache=True`` keeps them across runs); importing this
@@ -207,7 +210,6 @@ class NumbaBackend(Backend):
         # zero shifts (uniform or per condition) are skipped inside the kernel
         return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
 
-
     def _small_plan(self, shape, exc, inh):
         """(compiled step, packed exc, packed inh) for a small fully covered grid, else None."""
         key = (shape, id(exc), id(inh))
@@ -227,6 +229,7 @@ class NumbaBackend(Backend):
         return plan if plan[0] is not None else None
 
     def _small_lines(self, shape, shift_axes):
+        """Condition index of every line of every rotating pass (cached per shape and shifted axes)."""
         key = ("lines", shape, tuple(shift_axes))
         lines = self._small_cache.get(key)
         if lines is None:
@@ -237,7 +240,13 @@ class NumbaBackend(Backend):
         return lines
 
     def _small_step(self, a, plan, flat_index, values, phi, shift_axes, cond_shifts, uniform_shifts, window, out):
-        """Small full grids: one generated kernel (see :mod:`cansim.backends._numba_small`)."""
+        """Small full grids: one generated kernel (see :mod:`cansim.backends._numba_small`).
+
+        Plans the shift cycles as the generic pipeline does: one rotating cycle with the
+        conditional shift on its axes and the uniform shift on later axes (rounded after the
+        last conditional axis), or, when the uniform shift touches an earlier or a shifted
+        axis, a conditional cycle and then a uniform one, as the reference orders them.
+        """
         fn, excp, inhp = plan[0], plan[1], plan[2]
         d = a.ndim
         kinds = np.zeros(d, dtype=np.int64)
