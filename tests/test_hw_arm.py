@@ -270,3 +270,29 @@ def test_hardware_errors_share_a_base():
     for cls in (ConnectionFailedError, StaleStateError, SafetyViolationError,
                 CommandFailedError, MissingDependencyError):
         assert issubclass(cls, HardwareError)
+
+
+def test_fake_server_waits_for_the_rtde_port_to_be_released():
+    """ur-rtde only uses port 30004: a launch while another listener still holds it retries."""
+    import threading
+
+    from whisker_io.hw.fake_rtde_server import RTDE_PORT, fake_rtde_server
+
+    holder = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        holder.bind((HOST, RTDE_PORT))
+    except OSError:
+        holder.close()
+        pytest.skip("port 30004 is in use on this machine")
+    holder.listen()
+    release = threading.Timer(0.4, holder.close)
+    release.start()
+    try:
+        t0 = time.monotonic()
+        with fake_rtde_server("stream") as (proc, port):
+            assert port == RTDE_PORT and proc.poll() is None
+            assert time.monotonic() - t0 >= 0.3  # it really had to wait for the release
+    finally:
+        release.cancel()
+        holder.close()

@@ -273,8 +273,13 @@ class FakeServerError(RuntimeError):
 
 @contextlib.contextmanager
 def fake_rtde_server(mode: str = "stream", port: int = RTDE_PORT,
-                     extra_args: tuple[str, ...] = ()) -> Iterator[tuple[subprocess.Popen, int]]:
+                     extra_args: tuple[str, ...] = (),
+                     bind_retry_s: float = 3.0) -> Iterator[tuple[subprocess.Popen, int]]:
     """Run the fake server in a child process for the duration of a ``with``.
+
+    ur-rtde only talks to port 30004, so a server of an earlier test that is still
+    shutting down can hold it for a moment: a failed bind is retried for
+    ``bind_retry_s`` seconds before giving up.
 
     The child runs this file as a script (no package import, so it starts
     fast) and the context waits for its ``READY <port>`` line, not a sleep.
@@ -286,10 +291,19 @@ def fake_rtde_server(mode: str = "stream", port: int = RTDE_PORT,
     FakeServerError
         The port is taken or the child died before listening.
     """
-    proc = subprocess.Popen([sys.executable, __file__, "--mode", mode, "--port", str(port),
-                             *extra_args], stdout=subprocess.PIPE, text=True)
-    try:
+    deadline = time.monotonic() + bind_retry_s
+    while True:
+        proc = subprocess.Popen([sys.executable, __file__, "--mode", mode, "--port", str(port),
+                                 *extra_args], stdout=subprocess.PIPE, text=True)
         line = proc.stdout.readline() if proc.stdout else ""
+        if line.startswith("READY") or not line.startswith("BIND-FAILED") or time.monotonic() > deadline:
+            break
+        # the fixed RTDE port is still held by a process that is going away: try again shortly
+        proc.wait()
+        if proc.stdout:
+            proc.stdout.close()
+        time.sleep(0.1)
+    try:
         if not line.startswith("READY"):
             raise FakeServerError(f"fake RTDE server did not start on 127.0.0.1:{port}: "
                                   f"{line.strip() or 'exited'}")
