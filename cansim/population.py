@@ -294,9 +294,10 @@ class Population:
             raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
         n = len(fi)
         if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
-            if any(not (0 <= i < self.size) for i in fi.tolist()):
-                raise InvalidInputError(f"flat indices must lie in [0, {self.size})")
-            if any(not (math.isfinite(x) and x >= 0) for x in vals.tolist()):
+            fl, vl = fi.tolist(), vals.tolist()
+            if n and (min(fl) < 0 or max(fl) >= self._size):
+                raise InvalidInputError(f"flat indices must lie in [0, {self._size})")
+            if not all(0.0 <= x < math.inf for x in vl):  # also False for NaN
                 raise InvalidInputError("injected values must be finite and >= 0")
             return fi, vals
         if fi.min() < 0 or fi.max() >= self.size:

@@ -29,11 +29,10 @@ def _conv(src, taps, dst):
     for j in range(taps.shape[0]):
         w = taps[j]
         off = (j - c) % n
-        for i in range(n):
-            k = i + off
-            if k >= n:
-                k -= n
-            dst[k] += w * src[i]
+        for i in range(n - off):  # split at the wrap point: two branch-free (vectorisable) runs
+            dst[i + off] += w * src[i]
+        for i in range(n - off, n):
+            dst[i + off - n] += w * src[i]
 
 
 @njit(cache=True, fastmath=False)
@@ -68,14 +67,15 @@ def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
         lo = math.floor(shift)
         f = shift - lo
         lo_m = lo % n
+        # t[i] = (1 - f) x[i - lo] + f x[i - lo - 1] (indices mod n), as the reference's two rolls
         for i in range(n):
-            j0 = i - lo_m
-            if j0 < 0:
-                j0 += n
-            j1 = j0 - 1
-            if j1 < 0:
-                j1 += n
-            t[i] = x[j0] if f == 0.0 else (1.0 - f) * x[j0] + f * x[j1]
+            t[i] = x[(i - lo_m) % n]
+        if f != 0.0:
+            g = 1.0 - f
+            last = t[n - 1]
+            for i in range(n - 1, 0, -1):
+                t[i] = g * t[i] + f * t[i - 1]
+            t[0] = g * t[0] + f * last
         for i in range(n):
             x[i] = t[i]
     best = 0
