@@ -223,3 +223,31 @@ def test_step_equals_on_view_then_on_odo_and_views_can_arrive_alone():
     c.on_view(0)
     assert c.experience_map.n_experiences == 0
     assert c.on_odo(0.05, 0.0, 1.0).exp_id == 0
+
+
+@pytest.mark.slow
+def test_20000_iterations_stay_under_200_mb():
+    """Issue acceptance: a 20,000-iteration run stays under 200 MB (numpy allocations are traced).
+
+    The per-iteration time growth (<= 2x from iteration 1,000 to 20,000) is measured in
+    bench/test_bench_ratslam_parts.py (ratio 0.89); the bound on relaxation work per
+    step that keeps it flat is asserted by test_long_run_relaxation_work_is_bounded.
+    """
+    import tracemalloc
+
+    from cansim.worlds import LoopRoute, make_run
+
+    n = 20_000
+    route = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
+    run = make_run(route, loops=(1,) * (n // 254 + 2), seed=0)
+    tracemalloc.start()
+    try:
+        slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_vt_inject_energy=0.05))
+        slam.step(0.0, 0.0, 1.0, 0)
+        for k in range(1, n + 1):
+            slam.step(run.vtrans[k], run.vrot[k], run.dt, int(run.view_ids[k]))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert slam.iteration >= n
+    assert peak < 200e6
