@@ -178,8 +178,7 @@ class NumbaBackend(Backend):
         res = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
         _k.inject_grid(
             a.reshape(-1), res.reshape(-1),
-            np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
-            np.ascontiguousarray(values, dtype=np.float64).reshape(-1),
+            *_injection_arrays(flat_index, values),
         )
         if out is not None and res is not out:
             out[...] = res
@@ -202,10 +201,7 @@ class NumbaBackend(Backend):
             if small is not None:
                 return self._small_step(a, small, flat_index, values, phi, shift_axes, cond_shifts,
                                         uniform_shifts, window, out)
-        inj = None
-        if flat_index is not None and len(flat_index):
-            inj = (np.ascontiguousarray(flat_index, dtype=np.int64).reshape(-1),
-                   np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
+        inj = _injection_arrays(flat_index, values)
         cond = (shift_axes, cond_shifts) if cond_shifts is not None else None
         # zero shifts (uniform or per condition) are skipped inside the kernel
         return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
@@ -278,10 +274,7 @@ class NumbaBackend(Backend):
             if kinds.any():
                 ncycles = 1
         round_after = last_cond if len(uni_axes) else -1
-        if flat_index is None or not len(flat_index):
-            fi, vals = _NO_INDEX, _NO_VALUES
-        else:
-            fi, vals = _as_contiguous(flat_index, np.int64), _as_contiguous(values, np.float64)
+        fi, vals = _injection_arrays(flat_index, values)
         dst = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
         decoded = np.empty(d, dtype=np.float64)
         ok = fn(a.reshape(-1), dst.reshape(-1), self._workspace(a.size), fi, vals, excp, inhp, float(phi),
@@ -302,21 +295,23 @@ class NumbaBackend(Backend):
 
             self._ring_kernel = kernel
         dst = out if out is not None and out.flags.c_contiguous and out is not a else np.empty_like(a)
-        if flat_index is None or not len(flat_index):
-            fi, vals = _NO_INDEX, _NO_VALUES
-        else:
-            fi, vals = _as_contiguous(flat_index, np.int64), _as_contiguous(values, np.float64)
+        fi, vals = _injection_arrays(flat_index, values)
         shift = 0.0 if uniform_shifts is None else float(uniform_shifts[0])
         decoded = np.empty(1, dtype=np.float64)
-        ws = getattr(self._local, "ws", None)
-        if ws is None or ws.shape[0] < 3 * a.shape[0]:
-            ws = self._workspace(a.shape[0])
-        if not kernel(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded, ws):
+        if not kernel(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded,
+                      self._workspace(a.shape[0])):
             return None, None
         if out is not None and dst is not out:
             out[...] = dst
             dst = out
         return dst, decoded
+
+
+def _injection_arrays(flat_index, values) -> tuple[np.ndarray, np.ndarray]:
+    """The injection as (int64 indices, float64 values), 1-D contiguous; empty arrays for none."""
+    if flat_index is None or not len(flat_index):
+        return _NO_INDEX, _NO_VALUES
+    return _as_contiguous(flat_index, np.int64), _as_contiguous(values, np.float64)
 
 
 def _as_contiguous(x, dtype) -> np.ndarray:
