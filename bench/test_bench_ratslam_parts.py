@@ -97,6 +97,8 @@ def _ratslam_with_map(cfg, n_views=1000):
         ("default_numba_21x21x36", RatSLAMConfig()),
         ("openratslam_parity_21x21x36", RatSLAMConfig.openratslam()),
         ("openratslam_parity_61x61x36", RatSLAMConfig.openratslam(pc_dim_xy=61)),
+        ("parity_population_engine_21x21x36", RatSLAMConfig.openratslam(pose_cells="population")),
+        ("parity_population_engine_61x61x36", RatSLAMConfig.openratslam(pose_cells="population", pc_dim_xy=61)),
     ],
 )
 def test_ratslam_iteration_1000_experiences(benchmark, label, cfg):

@@ -78,6 +78,13 @@ class LocalViewParams:
     rounding : {"truncate", "round"}
         How the stored fractional location becomes a cell: C++ truncates (``(int)``),
         ``"round"`` takes the nearest cell. Default ``"truncate"`` (OpenRatSLAM).
+    cpp_cells : bool
+        OpenRatSLAM's exact cell arithmetic for 3-D (x, y, theta) grids: the view
+        keeps the decoded location as it is (C++ ``find_best`` returns values in
+        ``[0, n]``, so ``n`` itself can occur); the theta offset is added and
+        wrapped once (``< 0: + n``, ``>= n: - n``) even when it is 0; x and y are
+        not wrapped; a truncated cell outside the grid injects nothing (C++
+        ``inject``'s bounds check). Default False: locations wrap into ``[0, n)``.
     learning_rate : float
         lambda of Eq 2.18 (learnt mode).
     inject_gain : float
@@ -98,6 +105,7 @@ class LocalViewParams:
     recent_exclusion: int = 10
     cpp_unsigned_recent: bool = True
     rounding: str = "truncate"
+    cpp_cells: bool = False
     learning_rate: float = 1.0
     inject_gain: float = 0.15
     trace_decay: float = 0.0
@@ -118,6 +126,8 @@ class LocalViewParams:
             raise InvalidInputError(f"trace_decay must lie in [0, 1), got {self.trace_decay!r}")
         if int(self.recent_exclusion) < 0:
             raise InvalidInputError(f"recent_exclusion must be >= 0, got {self.recent_exclusion!r}")
+        if self.cpp_cells and (self.mode != "stored" or self.rounding != "truncate"):
+            raise InvalidInputError("cpp_cells reproduces OpenRatSLAM's stored-mode truncation; use mode='stored', rounding='truncate'")
 
 
 Injection = tuple[np.ndarray, np.ndarray]
@@ -147,6 +157,8 @@ class LocalViewCells:
         if not self._shape or any(n < 1 for n in self._shape):
             raise ShapeError(f"pose_shape must be a non-empty tuple of positive sizes, got {pose_shape!r}")
         self._params = params
+        if params.cpp_cells and len(self._shape) != 3:
+            raise ShapeError(f"cpp_cells needs a 3-D (x, y, theta) pose grid, got shape {self._shape}")
         self._n_cells = int(np.prod(self._shape))
         if self._n_cells >= 2**31:
             raise ShapeError(f"pose grids of 2**31 cells or more are not supported (got {self._n_cells})")
@@ -156,6 +168,8 @@ class LocalViewCells:
         self._rows: list[tuple[np.ndarray, np.ndarray]] = []  # learnt mode: (indices, values)
         self._v = np.zeros(0, dtype=np.float64)
         self._current: Optional[int] = None
+        self.last_energy = 0.0
+        """Stored mode: energy of the last :meth:`observe` (0 when nothing was due; C++ ``energy``)."""
 
     # ---------------------------------------------------------------- state
     @property
@@ -255,8 +269,9 @@ class LocalViewCells:
 
         p = self._params
         injection = _EMPTY
+        self.last_energy = 0.0
         if vid == self.n_views:
-            self._locations.append(loc % np.array(self._shape))
+            self._locations.append(loc.copy() if p.cpp_cells else loc % np.array(self._shape))
             if self._n == len(self._decay_buf):
                 self._decay_buf = np.concatenate([self._decay_buf, np.zeros(len(self._decay_buf))])
             self._decay_buf[self._n] = p.vt_active_decay
@@ -302,12 +317,29 @@ class LocalViewCells:
         energy = stored_injection_energy(self._decay[vid], p.pc_vt_inject_energy)
         if energy <= 0.0:
             return _EMPTY
+        self.last_energy = energy
+        if p.cpp_cells:
+            return self._cpp_injection(vid, off, energy)
         loc = self._locations[vid] if off is None else (self._locations[vid] + off) % np.array(self._shape)
         to_cell = math.floor if p.rounding == "truncate" else round  # round: nearest, ties to even as np.rint
         flat = 0
         for c, n in zip(loc.tolist(), self._shape):  # C-order flat index of the wrapped cell
             flat = flat * n + int(to_cell(c)) % n
         return np.array([flat], dtype=np.int64), np.array([energy])
+
+    def _cpp_injection(self, vid: int, off: Optional[np.ndarray], energy: float) -> Injection:
+        """OpenRatSLAM ``on_view_template``'s cell: theta corrected and wrapped once, ``(int)``, bounds-checked."""
+        nx, ny, nth = self._shape
+        x, y, th = self._locations[vid].tolist()
+        th = th + (float(off[2]) if off is not None else 0.0)
+        if th < 0:
+            th = nth + th
+        if th >= nth:
+            th = th - nth
+        cx, cy, ct = int(x), int(y), int(th)  # int() truncates toward zero like C++ (int)
+        if not (0 <= cx < nx and 0 <= cy < ny and 0 <= ct < nth):
+            return _EMPTY
+        return np.array([(cx * ny + cy) * nth + ct], dtype=np.int64), np.array([energy])
 
     def injection(self) -> Injection:
         """Learnt mode, Eq 2.17: ``(delta / eta_act) * sum_i beta_i V_i`` as (flat_index, values)."""

@@ -11,7 +11,8 @@ One call per iteration, :meth:`RatSLAM.step`, in OpenRatSLAM's order:
    decay rules; :class:`cansim.local_view.LocalViewCells` in ``"stored"`` mode);
 3. the pose cells run excitation, inhibition, global inhibition,
    normalisation, path integration and ``find_best`` (+-3 window)
-   (``PosecellNetwork::on_odo``, :class:`cansim.population.Population`);
+   (``PosecellNetwork::on_odo``; :class:`cansim.population.Population`, or
+   :class:`cansim.posecell_network.PosecellNetwork` in the parity preset);
 4. the experience map dead-reckons the odometry and, once both an odometry and
    a view update have arrived, creates / links / re-localises experiences and
    relaxes (``get_action`` + ``ExperienceMap``, :mod:`maps.experience_map`).
@@ -19,17 +20,26 @@ One call per iteration, :meth:`RatSLAM.step`, in OpenRatSLAM's order:
 Parameters carry OpenRatSLAM's names (:class:`RatSLAMConfig`, or an
 OpenRatSLAM ``config_*.txt.in`` file via :meth:`RatSLAMConfig.from_file`).
 
-Parity preset (:meth:`RatSLAMConfig.openratslam`): the C++ frame (theta index 0
-moves the packet along +y), float64 cells, OpenRatSLAM's unbounded relaxation,
-and translation limited to one cell per step - the C++ four-weight shift is
-only valid up to one cell, so larger steps raise :class:`InvalidInputError`
-(reduce the speed or raise ``pc_cell_x_size``). Known deliberate differences:
-a decoded coordinate of exactly ``pc_dim`` (C++ ``find_best`` wraps to
-``[0, N]``) is reported as 0 and injects into cell 0 where C++ skips the
-injection; OpenRatSLAM's ROS nodes drop the first odometry message (it has
-no previous time stamp) while every step's ``dt`` is used here; the C++ bugs
-listed in :mod:`cansim.frontends.visual` and :mod:`maps.experience_map` are
-documented there.
+Parity preset (:meth:`RatSLAMConfig.openratslam`): the C++ pose-cell engine
+(:class:`cansim.posecell_network.PosecellNetwork`, the C++ arithmetic in the
+C++ order, float64), the C++ frame (theta index 0 moves the packet along +y),
+C++ view-cell arithmetic (raw stored coordinates, theta wrapped once,
+truncation, out-of-grid cells skipped), OpenRatSLAM's unbounded relaxation and
+never-reset link timer, and translation limited to one cell per step - the C++
+four-weight shift is only valid up to one cell, so larger steps raise
+:class:`InvalidInputError` (reduce the speed or raise ``pc_cell_x_size``).
+Fed the same odometry and view ids (with panoramic ``relative_rad``) as
+OpenRatSLAM's C++ core driven the way its ROS nodes drive it, every step's
+decoded (x, y, theta), experience id, action and the final map (experience
+poses, links) are bit-identical (``tests/data/openratslam_cpp_trace.csv``).
+Remaining differences, all outside the core: OpenRatSLAM's ROS nodes drop the
+first odometry message (it has no previous time stamp) while every step's
+``dt`` is used here - skip your first sample to match; the C++ bugs of the
+visual front end are listed (and emulable) in :mod:`cansim.frontends.visual`.
+With ``pose_cells="population"`` the same model runs on cansim's generic
+engine (any backend, float32) and agrees to ~1e-15 cells per step until a
+truncated coordinate falls the other way; that engine also reports a decoded
+coordinate of exactly ``pc_dim`` as 0.
 """
 
 from __future__ import annotations
@@ -51,6 +61,7 @@ from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
+from cansim.posecell_network import PosecellNetwork
 from maps.errors import InvalidInputError as MapsInvalidInputError
 from maps.errors import MapFormatError
 from maps.experience_map import Action, ExperienceMap, ExperienceMapConfig
@@ -87,7 +98,14 @@ class RatSLAMConfig:
     O(links) relaxation; see :mod:`maps.experience_map`); ``frame`` -
     ``"standard"`` or ``"openratslam"`` pose-cell frame; ``dtype`` -
     ``"float64"``/``"float32"``; ``backend`` - CAN backend name;
-    ``strict_translation`` - raise when a step moves the packet more than one cell.
+    ``strict_translation`` - raise when a step moves the packet more than one cell;
+    ``pose_cells`` - the pose-cell engine: ``"population"`` (cansim's
+    :class:`~cansim.population.Population`, any backend and dtype) or
+    ``"openratslam"`` (:class:`~cansim.posecell_network.PosecellNetwork`, the C++
+    core's arithmetic bit for bit, float64, numba); ``link_time_since_start`` -
+    OpenRatSLAM never resets its link timer, so every link's ``delta_time_s``
+    is the time since the first odometry; True reproduces that, False (default)
+    stores the time since the link's source experience.
     """
 
     pc_dim_xy: int = 21
@@ -125,6 +143,8 @@ class RatSLAMConfig:
     dtype: str = "float64"
     backend: str = "numba"
     strict_translation: bool = False
+    pose_cells: str = "population"
+    link_time_since_start: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -154,6 +174,10 @@ class RatSLAMConfig:
             raise ConfigError(f"frame must be 'standard' or 'openratslam', got {self.frame!r}")
         if self.dtype not in ("float64", "float32"):
             raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        if self.pose_cells not in ("population", "openratslam"):
+            raise ConfigError(f"pose_cells must be 'population' or 'openratslam', got {self.pose_cells!r}")
+        if self.pose_cells == "openratslam" and (self.frame != "openratslam" or self.dtype != "float64"):
+            raise ConfigError("pose_cells='openratslam' is the C++ engine: it needs frame='openratslam' and dtype='float64'")
         try:
             self.experience_map_config()
         except MapsInvalidInputError as exc:
@@ -166,8 +190,11 @@ class RatSLAMConfig:
     # ------------------------------------------------------------- presets
     @classmethod
     def openratslam(cls, **overrides: Any) -> "RatSLAMConfig":
-        """OpenRatSLAM parity: C++ frame, float64, unbounded relaxation, <= 1 cell per step."""
-        params: dict[str, Any] = {"frame": "openratslam", "dtype": "float64", "relax_budget": None, "strict_translation": True}
+        """OpenRatSLAM parity: the C++ pose-cell engine and frame, unbounded relaxation, <= 1 cell per step, C++ link times."""
+        params: dict[str, Any] = {
+            "frame": "openratslam", "dtype": "float64", "relax_budget": None, "strict_translation": True,
+            "pose_cells": "openratslam", "link_time_since_start": True,
+        }
         params.update(overrides)
         return cls(**params)
 
@@ -227,7 +254,7 @@ class RatSLAMConfig:
         return ExperienceMapConfig(
             exp_correction=self.exp_correction, exp_loops=self.exp_loops, exp_initial_em_deg=self.exp_initial_em_deg,
             exp_delta_pc_threshold=self.exp_delta_pc_threshold, pc_dim_xy=self.pc_dim_xy, pc_dim_th=self.pc_dim_th,
-            relax_budget=self.relax_budget,
+            relax_budget=self.relax_budget, link_time_since_start=self.link_time_since_start,
         )
 
     def local_view_params(self) -> LocalViewParams:
@@ -235,6 +262,7 @@ class RatSLAMConfig:
         return LocalViewParams(
             mode="stored", pc_vt_inject_energy=self.pc_vt_inject_energy, vt_active_decay=self.vt_active_decay,
             pc_vt_restore=self.pc_vt_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
+            cpp_cells=self.pose_cells == "openratslam",
         )
 
 
@@ -348,10 +376,17 @@ class RatSLAM:
             exc_width=cfg.pc_w_e_dim, exc_sigma=cfg.pc_w_e_var, inh_width=cfg.pc_w_i_dim, inh_sigma=cfg.pc_w_i_var,
             global_inhibition=cfg.pc_global_inhib,
         )
-        self.pose_cells = Population.openratslam(
-            cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, frame=cfg.frame, params=attractor,
-            dtype=np.dtype(cfg.dtype), backend=cfg.backend, decode_window=cfg.pc_cells_to_avg,
-        )
+        self.pose_cells: Population | PosecellNetwork
+        if cfg.pose_cells == "openratslam":
+            self.pose_cells = PosecellNetwork(
+                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, w_e_dim=cfg.pc_w_e_dim, w_i_dim=cfg.pc_w_i_dim,
+                w_e_var=cfg.pc_w_e_var, w_i_var=cfg.pc_w_i_var, global_inhib=cfg.pc_global_inhib, cells_to_avg=cfg.pc_cells_to_avg,
+            )
+        else:
+            self.pose_cells = Population.openratslam(
+                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, frame=cfg.frame, params=attractor,
+                dtype=np.dtype(cfg.dtype), backend=cfg.backend, decode_window=cfg.pc_cells_to_avg,
+            )
         self.local_view = LocalViewCells(self.pose_cells.shape, cfg.local_view_params())
         self.frontend: VisualTemplates | TactileTemplates | None
         if cfg.frontend == "visual":
@@ -404,19 +439,36 @@ class RatSLAM:
     def _match(self, observation: Any) -> TemplateMatch:
         """Observation -> template (validates before changing any state)."""
         if self.frontend is None:
-            if isinstance(observation, (bool, np.bool_)) or not isinstance(observation, (int, np.integer)):
-                raise InvalidInputError(
-                    f"frontend='ids' takes an integer view id as the observation, got {type(observation).__name__}; "
-                    "use frontend='visual' or 'tactile' for images"
-                )
-            ext = int(observation)
-            if ext < 0:
-                raise InvalidInputError(f"view ids must be >= 0, got {ext}")
+            ext, rad = self._view_id(observation)
             internal = self._ids.get(ext)
             if internal is None:
-                return TemplateMatch(len(self._ids), True, math.inf)
-            return TemplateMatch(internal, False, 0.0)
+                return TemplateMatch(len(self._ids), True, math.inf, rad)
+            return TemplateMatch(internal, False, 0.0, rad)
         return self.frontend.match(observation)
+
+    @staticmethod
+    def _view_id(observation: Any) -> tuple[int, float]:
+        """``frontend="ids"`` observation -> (view id, relative rad); validates."""
+        rad = 0.0
+        if isinstance(observation, tuple):
+            if len(observation) != 2:
+                raise InvalidInputError(f"a (view_id, relative_rad) observation needs 2 entries, got {len(observation)}")
+            observation, rad_in = observation
+            try:
+                rad = float(rad_in)
+            except (TypeError, ValueError):
+                raise InvalidInputError(f"relative_rad must be a real number, got {rad_in!r}") from None
+            if not math.isfinite(rad):
+                raise InvalidInputError(f"relative_rad must be finite, got {rad!r}")
+        if isinstance(observation, (bool, np.bool_)) or not isinstance(observation, (int, np.integer)):
+            raise InvalidInputError(
+                f"frontend='ids' takes an integer view id (or a (view_id, relative_rad) pair) as the observation, "
+                f"got {type(observation).__name__}; use frontend='visual' or 'tactile' for images"
+            )
+        ext = int(observation)
+        if ext < 0:
+            raise InvalidInputError(f"view ids must be >= 0, got {ext}")
+        return ext, rad
 
     # --------------------------------------------------------------- step
     def on_view(self, observation: Any) -> TemplateMatch:
@@ -444,12 +496,13 @@ class RatSLAM:
         """
         match = self._match(observation)  # validates before any state changes
         if self.frontend is None and match.is_new:
-            self._ids[int(observation)] = match.template_id
+            self._ids[self._view_id(observation)[0]] = match.template_id
         vid = match.template_id
         th_off = match.relative_rad / (2.0 * math.pi) * self.config.pc_dim_th
         index, values = self.local_view.observe(vid, self._best, offset_cells=(0.0, 0.0, th_off) if th_off else None)
-        if len(index):
+        if self.local_view.last_energy > 0:  # C++ sets vt_delta_pc_th whenever energy > 0, injected or not
             self._vt_delta_pc_th = th_off
+        if len(index):
             self._pending_index = np.concatenate([self._pending_index, index])
             self._pending_values = np.concatenate([self._pending_values, values])
         self._prev_vt, self._current_vt = self._current_vt, vid
@@ -501,7 +554,9 @@ class RatSLAM:
             Duration of the odometry sample, s.
         observation : int, ndarray or None
             ``frontend="ids"``: a view id (any non-negative integer; first-seen order
-            numbers the templates); ``"visual"``: a uint8 image; ``"tactile"``: a 3 x 6
+            numbers the templates) or a ``(view_id, relative_rad)`` pair - the
+            rotation (rad) of a panoramic match, OpenRatSLAM's ``ViewTemplate``
+            message; ``"visual"``: a uint8 image; ``"tactile"``: a 3 x 6
             tactile image; None: no view this step (odometry only).
 
         Returns
@@ -654,6 +709,8 @@ class RatSLAM:
             except ConfigError as exc:
                 raise MapFormatError("vt_*", str(exc)) from exc
         model._best = np.array(best, dtype=np.float64)
+        if isinstance(model.pose_cells, PosecellNetwork):
+            model.pose_cells.best = model._best
         model.iteration, model._current_vt, model._prev_vt = int(mi[0]), int(mi[1]), int(mi[2])
         model._odo_update, model._vt_update = bool(mi[3]), bool(mi[4])
         model._vt_delta_pc_th = float(mf[0])

@@ -176,6 +176,11 @@ class ExperienceMapConfig:
         module docstring); default 2,000 (~50 us; OpenRatSLAM's exact relaxation
         for maps of up to 2,000 / exp_loops = 200 links). ``None`` = OpenRatSLAM's
         unbounded relaxation.
+    link_time_since_start : bool
+        OpenRatSLAM never resets its link timer (``accum_delta_time_s``), so each
+        link's ``delta_time_s`` - Dijkstra's cost - is the time since the first
+        odometry. True reproduces that; False (default) stores the time since the
+        link's source experience, as the thesis' model means.
     """
 
     exp_correction: float = 0.5
@@ -185,6 +190,7 @@ class ExperienceMapConfig:
     pc_dim_xy: int = 21
     pc_dim_th: int = 36
     relax_budget: int | None = 2_000
+    link_time_since_start: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.exp_correction) and 0.0 < self.exp_correction <= 1.0):
@@ -203,11 +209,13 @@ class ExperienceMapConfig:
             isinstance(self.relax_budget, bool) or not isinstance(self.relax_budget, (int, np.integer)) or self.relax_budget < 1
         ):
             raise InvalidInputError(f"relax_budget must be a positive integer or None, got {self.relax_budget!r}")
+        if not isinstance(self.link_time_since_start, (bool, np.bool_)):
+            raise InvalidInputError(f"link_time_since_start must be a boolean, got {self.link_time_since_start!r}")
 
     @classmethod
     def openratslam(cls, **overrides: Any) -> "ExperienceMapConfig":
-        """OpenRatSLAM's defaults with its unbounded (O(links) per step) relaxation."""
-        params: dict[str, Any] = {"relax_budget": None}
+        """OpenRatSLAM's defaults with its unbounded (O(links) per step) relaxation and link timer."""
+        params: dict[str, Any] = {"relax_budget": None, "link_time_since_start": True}
         params.update(overrides)
         return cls(**params)
 
@@ -508,7 +516,8 @@ class ExperienceMap:
         self.accum_dx = 0.0
         self.accum_dy = 0.0
         self.accum_facing = clip_rad_180(float(self._exp_pose[new_id, 2]) + rel_rad)
-        self.accum_time_s = 0.0
+        if not self.config.link_time_since_start:
+            self.accum_time_s = 0.0
         self.relative_rad = rel_rad
 
     # ------------------------------------------------------------ relaxation

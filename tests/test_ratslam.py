@@ -85,11 +85,14 @@ def test_tactile_frontend_reuses_templates():
     assert a.new_template and b.new_template and not c.new_template
 
 
-@pytest.mark.parametrize("frame,axis,sign", [("openratslam", 1, -1), ("standard", 0, -1)])
-def test_theta_index_zero_direction_per_frame(frame, axis, sign):
+@pytest.mark.parametrize(
+    "frame,engine,axis,sign",
+    [("openratslam", "openratslam", 1, -1), ("openratslam", "population", 1, -1), ("standard", "population", 0, -1)],
+)
+def test_theta_index_zero_direction_per_frame(frame, engine, axis, sign):
     # the packet starts at theta index 18 (180 deg): the C++ frame moves it along -y
     # ((sin, cos)(pi) = (0, -1)); the standard frame along -x ((cos, sin)(pi) = (-1, 0)).
-    slam = RatSLAM(RatSLAMConfig.openratslam(frame=frame))
+    slam = RatSLAM(RatSLAMConfig.openratslam(frame=frame, pose_cells=engine))
     start = np.array(slam.best_pc)
     for _ in range(3):
         slam.step(1.0, 0.0, 1.0)  # one cell per step, no view
