@@ -5,6 +5,7 @@ Run: ``python -m pytest bench/test_bench_ratslam_parts.py --benchmark-only``.
 
 import time
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -159,3 +160,31 @@ def test_ratslam_iteration_tactile_1000_templates(benchmark):
         slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, images[state["k"]])
 
     benchmark(step)
+
+
+def _cpp_trace_inputs():
+    """Inputs of tests/data/openratslam_cpp_trace.csv (300 steps, OpenRatSLAM defaults, 0.25 m cells)."""
+    path = Path(__file__).resolve().parent.parent / "tests" / "data" / "openratslam_cpp_trace.csv"
+    rows = []
+    with open(path, encoding="ascii") as fh:
+        for line in fh:
+            f = line.split(",")
+            if f[0] == "S":
+                hx = float.fromhex
+                rows.append((hx(f[4]), hx(f[5]), hx(f[6]), (int(f[2]), hx(f[3])) if f[1] == "1" else None))
+    return rows
+
+
+@pytest.mark.parametrize("engine", ["openratslam", "population"])
+def test_replay_cpp_trace_300_steps(benchmark, engine):
+    """The 300-step C++ reference trace (revisits, panoramic offsets, ~190 experiences), whole run."""
+    rows = _cpp_trace_inputs()
+
+    def replay():
+        slam = RatSLAM(RatSLAMConfig.openratslam(pc_cell_x_size=0.25, pose_cells=engine))
+        for vtrans, vrot, dt, obs in rows:
+            slam.step(vtrans, vrot, dt, obs)
+        return slam
+
+    slam = benchmark.pedantic(replay, rounds=5, iterations=1, warmup_rounds=1)
+    benchmark.extra_info["experiences"] = slam.experience_map.n_experiences
