@@ -34,8 +34,11 @@ decoded (x, y, theta), experience id, action and the final map (experience
 poses, links) are bit-identical (``tests/data/openratslam_cpp_trace.csv``).
 Remaining differences, all outside the core: OpenRatSLAM's ROS nodes drop the
 first odometry message (it has no previous time stamp) while every step's
-``dt`` is used here - skip your first sample to match; the C++ bugs of the
-visual front end are listed (and emulable) in :mod:`cansim.frontends.visual`.
+``dt`` is used here - skip your first sample to match; the C++ constructor never
+initialises ``vt_delta_pc_th``, which ``get_action`` reads when a view among the 10
+most recent is revisited before any view has injected - cansim starts it at 0,
+what a fresh heap holds; the C++ bugs of the visual front end are listed (and
+emulable) in :mod:`cansim.frontends.visual`.
 With ``pose_cells="population"`` the same model runs on cansim's generic
 engine (any backend, float32) and agrees to ~1e-15 cells per step until a
 truncated coordinate falls the other way; that engine also reports a decoded
