@@ -119,9 +119,13 @@ def test_experience_only_after_odometry_and_view():
     assert s.exp_id == 1 and slam.experience_map.n_links == 1
 
 
-def test_save_resume_equals_uninterrupted(tmp_path):
+@pytest.mark.parametrize(
+    "cfg",
+    [RatSLAMConfig(pc_cell_x_size=0.05, relax_budget=300), RatSLAMConfig.openratslam(pc_cell_x_size=0.1)],
+    ids=["default", "openratslam_parity"],
+)
+def test_save_resume_equals_uninterrupted(tmp_path, cfg):
     run = make_run(LoopRoute(step_m=0.05), loops=(1, 1), seed=2)
-    cfg = RatSLAMConfig(pc_cell_x_size=0.05, relax_budget=300)
     full = RatSLAM(cfg)
     full_log = full.run(run.vtrans, run.vrot, run.dt, run.view_ids)
     half = len(run) // 2 + 7
