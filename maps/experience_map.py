@@ -24,6 +24,22 @@ l)``, and the facings likewise, with ``c = exp_correction`` (0.5), Gauss-Seidel
 in OpenRatSLAM's order (experiences by id, then each experience's outgoing
 links in creation order), ``exp_loops`` passes.
 
+C++ quirks (decisions)
+----------------------
+* ``on_create_link``'s duplicate check walks the *current* experience's links
+  for as many entries as the *source* has. Every link OpenRatSLAM creates starts
+  at the current experience: ``get_action``'s source is the pose cells'
+  current experience, which the map has just been set to. So the check always
+  means "a link exists in either direction", and that is what is tested here.
+  The two can only differ for a link from a non-current experience, which
+  neither OpenRatSLAM nor :meth:`ExperienceMap.update` creates, so there is no
+  switch for it.
+* Setting the experience that is already current changes nothing, so after the
+  first experience the dead-reckoning accumulators are not reset (as in C++).
+* OpenRatSLAM never resets its link timer; ``link_time_since_start=True``
+  reproduces that (the parity presets do), the default stores the time since
+  the link's source.
+
 Bounded relaxation (decision)
 -----------------------------
 OpenRatSLAM relaxes every link ``exp_loops`` times per action, so one step
