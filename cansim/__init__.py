@@ -28,6 +28,7 @@ _LAZY = {
     "RatSLAM": "cansim.ratslam",
     "RatSLAMConfig": "cansim.ratslam",
     "RatSLAMState": "cansim.ratslam",
+    "PosecellNetwork": "cansim.posecell_network",
 }
 
 
@@ -50,6 +51,7 @@ __all__ = [
     "RatSLAM",
     "RatSLAMConfig",
     "RatSLAMState",
+    "PosecellNetwork",
     "available_backends",
     "get_backend",
     "registered_backends",

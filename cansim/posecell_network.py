@@ -98,8 +98,9 @@ class PosecellNetwork:
     Examples
     --------
     >>> pc = PosecellNetwork()
-    >>> pc.step(0.0, 0.0, 1.0)   # a lone cell decodes just below its index, as in C++
-    array([ 9.99999999999999,  9.99999999999999, 18.              ])
+    >>> best = pc.step(0.0, 0.0, 1.0)   # a lone cell decodes just below its index, as in C++
+    >>> float(best[0]), int(best[0])
+    (9.999999999999998, 9)
     """
 
     def __init__(
