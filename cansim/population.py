@@ -282,29 +282,9 @@ class Population:
 
     def inject_flat(self, flat_index: np.ndarray, values: np.ndarray) -> None:
         """Scatter-add ``values`` (>= 0) at flat C-order indices (e.g. from learnt LV weights)."""
-        fi, vals = self._check_injection(flat_index, values)
+        fi, vals = checked_injection(flat_index, values, self._size)
         if len(fi):
             self._commit(self._backend.inject(self._a, fi, vals, out=self._spare))
-
-    def _check_injection(self, flat_index, values) -> tuple[np.ndarray, np.ndarray]:
-        fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else np.asarray(flat_index, dtype=np.int64)
-        vals = values if isinstance(values, np.ndarray) and values.dtype == np.float64 else np.asarray(values, dtype=np.float64)
-        fi, vals = fi.ravel(), vals.ravel()
-        if fi.shape != vals.shape:
-            raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
-        n = len(fi)
-        if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
-            fl, vl = fi.tolist(), vals.tolist()
-            if n and (min(fl) < 0 or max(fl) >= self._size):
-                raise InvalidInputError(f"flat indices must lie in [0, {self._size})")
-            if not all(0.0 <= x < math.inf for x in vl):  # also False for NaN
-                raise InvalidInputError("injected values must be finite and >= 0")
-            return fi, vals
-        if fi.min() < 0 or fi.max() >= self.size:
-            raise InvalidInputError(f"flat indices must lie in [0, {self.size})")
-        if not np.isfinite(vals).all() or vals.min() < 0:
-            raise InvalidInputError("injected values must be finite and >= 0")
-        return fi, vals
 
     def dynamics(self) -> None:
         """Local excitation, local inhibition, global inhibition, normalisation (SPEC §1.2 2-5).
@@ -415,7 +395,7 @@ class Population:
         ms = self._motion_shifts(velocity, omega, dt)
         fi = vals = None
         if injection is not None:
-            fi, vals = self._check_injection(*injection)
+            fi, vals = checked_injection(*injection, self._size)
         new, decoded = self._backend.step(
             self._a,
             flat_index=fi,
@@ -441,3 +421,35 @@ class Population:
     def __repr__(self) -> str:
         ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
+
+
+def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Validate an injection pair: 1-D int64 flat indices in ``[0, size)`` and float64 energies >= 0.
+
+    Returns the pair as contiguous int64 / float64 arrays (no copy when they already are).
+
+    Raises
+    ------
+    ShapeError
+        The two arrays differ in length.
+    InvalidInputError
+        An index lies outside the grid or an energy is negative, NaN or infinite.
+    """
+    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else np.asarray(flat_index, dtype=np.int64)
+    vals = values if isinstance(values, np.ndarray) and values.dtype == np.float64 else np.asarray(values, dtype=np.float64)
+    fi, vals = fi.ravel(), vals.ravel()
+    if fi.shape != vals.shape:
+        raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
+    n = len(fi)
+    if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
+        fl, vl = fi.tolist(), vals.tolist()
+        if n and (min(fl) < 0 or max(fl) >= size):
+            raise InvalidInputError(f"flat indices must lie in [0, {size})")
+        if not all(0.0 <= x < math.inf for x in vl):  # also False for NaN
+            raise InvalidInputError("injected values must be finite and >= 0")
+        return fi, vals
+    if fi.min() < 0 or fi.max() >= size:
+        raise InvalidInputError(f"flat indices must lie in [0, {size})")
+    if not np.isfinite(vals).all() or vals.min() < 0:
+        raise InvalidInputError("injected values must be finite and >= 0")
+    return fi, vals

@@ -45,6 +45,7 @@ from typing import Optional
 import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
+from cansim.population import checked_injection
 
 __all__ = ["PosecellNetwork"]
 
@@ -223,17 +224,11 @@ class PosecellNetwork:
         return self._best.copy()
 
     # ------------------------------------------------------------------ steps
-    def _check_injection(self, injection: Optional[tuple[np.ndarray, np.ndarray]]) -> list[tuple[int, int, int, float]]:
+    def _injection_cells(self, injection: Optional[tuple[np.ndarray, np.ndarray]]) -> list[tuple[int, int, int, float]]:
+        """Validated injection as (x, y, theta, energy) per entry, in order."""
         if injection is None:
             return []
-        fi = np.asarray(injection[0], dtype=np.int64).ravel()
-        vals = np.asarray(injection[1], dtype=np.float64).ravel()
-        if fi.shape != vals.shape:
-            raise ShapeError(f"injection index and values must have the same length, got {fi.shape} and {vals.shape}")
-        if len(fi) and (fi.min() < 0 or fi.max() >= self.size):
-            raise InvalidInputError(f"injection indices must lie in [0, {self.size})")
-        if not np.all(np.isfinite(vals)) or np.any(vals < 0):
-            raise InvalidInputError("injected energies must be finite and >= 0")
+        fi, vals = checked_injection(*injection, self.size)
         cells = np.unravel_index(fi, self.shape)
         return [(int(x), int(y), int(t), float(v)) for x, y, t, v in zip(*cells, vals)]
 
@@ -278,7 +273,7 @@ class PosecellNetwork:
             raise InvalidInputError(f"odometry must be real numbers, got {vtrans!r}, {vrot!r}, {dt!r}") from None
         if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(t)):
             raise InvalidInputError(f"odometry must be finite, got vtrans={v!r}, vrot={w!r}, dt={t!r}")
-        cells = self._check_injection(injection)
+        cells = self._injection_cells(injection)
         kern = self._kernels
         p = self._p.copy()
         for x, y, th, e in cells:

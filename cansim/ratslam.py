@@ -440,12 +440,13 @@ class RatSLAM:
         return v, w, t
 
     def _match(self, observation: Any) -> TemplateMatch:
-        """Observation -> template (validates before changing any state)."""
+        """Observation -> template (validates first; only a new external view id is recorded)."""
         if self.frontend is None:
             ext, rad = self._view_id(observation)
             internal = self._ids.get(ext)
             if internal is None:
-                return TemplateMatch(len(self._ids), True, math.inf, rad)
+                internal = self._ids[ext] = len(self._ids)
+                return TemplateMatch(internal, True, math.inf, rad)
             return TemplateMatch(internal, False, 0.0, rad)
         return self.frontend.match(observation)
 
@@ -498,8 +499,6 @@ class RatSLAM:
             A malformed observation; the model is unchanged.
         """
         match = self._match(observation)  # validates before any state changes
-        if self.frontend is None and match.is_new:
-            self._ids[self._view_id(observation)[0]] = match.template_id
         vid = match.template_id
         th_off = match.relative_rad / (2.0 * math.pi) * self.config.pc_dim_th
         index, values = self.local_view.observe(vid, self._best, offset_cells=(0.0, 0.0, th_off) if th_off else None)
