@@ -12,6 +12,7 @@ from cansim.errors import (
     BackendUnavailableError,
     CansimError,
     ConfigError,
+    CorruptFileError,
     InvalidInputError,
     ShapeError,
     UnknownBackendError,
@@ -62,4 +63,5 @@ __all__ = [
     "UnknownBackendError",
     "BackendUnavailableError",
     "ConfigError",
+    "CorruptFileError",
 ]

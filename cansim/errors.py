@@ -1,33 +1,27 @@
 """Typed errors raised by cansim.
 
-Every error a user can provoke with bad input derives from :class:`CansimError`,
-so robot code can catch one base class. Each message says what to do about it.
-The model or population that raised it is left unchanged.
+The tree is one for the whole distribution: :class:`CansimError` and the generic
+classes (:class:`InvalidInputError`, :class:`ShapeError`, :class:`ConfigError`,
+:class:`CorruptFileError`) are defined in :mod:`whisker_io.errors`, the lowest
+package of the data flow, and re-exported here; this module adds the errors of the
+CAN engine itself. Each message says what to do about it; the model or population
+that raised it is left unchanged.
 """
 
 from __future__ import annotations
+
+from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, ShapeError
 
 __all__ = [
     "CansimError",
     "InvalidInputError",
     "ShapeError",
+    "ConfigError",
+    "CorruptFileError",
     "ZeroActivityError",
     "BackendUnavailableError",
     "UnknownBackendError",
-    "ConfigError",
 ]
-
-
-class CansimError(Exception):
-    """Base class of every error raised on purpose by cansim."""
-
-
-class InvalidInputError(CansimError, ValueError):
-    """A value is out of its domain (NaN/inf velocity, negative dt, bad index...)."""
-
-
-class ShapeError(InvalidInputError):
-    """An array has the wrong shape or number of dimensions."""
 
 
 class ZeroActivityError(CansimError, ArithmeticError):
@@ -47,7 +41,3 @@ class UnknownBackendError(CansimError, KeyError):
 
 class BackendUnavailableError(CansimError, ImportError):
     """A registered backend whose optional dependency is not installed or has no device."""
-
-
-class ConfigError(InvalidInputError):
-    """A parameter or configuration entry is unknown or malformed; the message names the key."""

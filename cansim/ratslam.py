@@ -65,8 +65,8 @@ from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
 from cansim.posecell_network import PosecellNetwork
-from maps.errors import InvalidInputError as MapsInvalidInputError
-from maps.errors import MapFormatError
+from whisker_io.errors import InvalidInputError as MapsInvalidInputError
+from whisker_io.errors import CorruptFileError
 from maps.experience_map import Action, ExperienceMap, ExperienceMapConfig
 
 __all__ = ["RatSLAM", "RatSLAMConfig", "RatSLAMLog", "RatSLAMState"]
@@ -654,20 +654,20 @@ class RatSLAM:
 
         Raises
         ------
-        MapFormatError
+        CorruptFileError
             The file is unreadable or a field is missing or malformed (named in the error).
         """
         try:
             archive = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise MapFormatError("<file>", f"cannot be read as an .npz archive ({exc})") from exc
+            raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
         if not hasattr(archive, "files"):
-            raise MapFormatError("<file>", "holds a single array, not an .npz archive")
+            raise CorruptFileError("holds a single array, not an .npz archive", path=path)
         with archive:
             try:
                 arrays = {k: archive[k] for k in archive.files}
             except Exception as exc:
-                raise MapFormatError("<file>", f"damaged archive member ({exc})") from exc
+                raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
         return cls.from_arrays(arrays)
 
     @classmethod
@@ -676,40 +676,40 @@ class RatSLAM:
 
         def need(key: str) -> np.ndarray:
             if key not in arrays:
-                raise MapFormatError(key, "missing")
+                raise CorruptFileError("missing", field=key)
             return np.asarray(arrays[key])
 
         try:
             cfg = RatSLAMConfig(**json.loads(str(need("ratslam_config"))))
         except (json.JSONDecodeError, TypeError, ConfigError) as exc:
-            raise MapFormatError("ratslam_config", f"not a valid RatSLAMConfig JSON ({exc})") from exc
+            raise CorruptFileError(f"not a valid RatSLAMConfig JSON ({exc})", field="ratslam_config") from exc
         model = cls(cfg)
         act = need("pc_activity")
         if act.shape != model.pose_cells.shape or act.dtype != model.pose_cells.dtype:
-            raise MapFormatError("pc_activity", f"shape/dtype {act.shape}/{act.dtype}, expected {model.pose_cells.shape}/{model.pose_cells.dtype}")
+            raise CorruptFileError(f"shape/dtype {act.shape}/{act.dtype}, expected {model.pose_cells.shape}/{model.pose_cells.dtype}", field="pc_activity")
         try:
             model.pose_cells.activity = act
         except InvalidInputError as exc:
-            raise MapFormatError("pc_activity", str(exc)) from exc
+            raise CorruptFileError(str(exc), field="pc_activity") from exc
         best = need("pc_best")
         mi, mf, ids = need("model_i"), need("model_f"), need("ids_map")
         if best.shape != (3,) or not np.all(np.isfinite(best)):
-            raise MapFormatError("pc_best", "expected 3 finite numbers")
+            raise CorruptFileError("expected 3 finite numbers", field="pc_best")
         if mi.shape != (5,) or mi.dtype.kind != "i" or mf.shape != (1,) or not np.isfinite(mf[0]):
-            raise MapFormatError("model_i", "expected 5 integers (and model_f 1 finite number)")
+            raise CorruptFileError("expected 5 integers (and model_f 1 finite number)", field="model_i")
         if ids.ndim != 2 or ids.shape[1] != 2 or ids.dtype.kind != "i":
-            raise MapFormatError("ids_map", f"expected an (n, 2) integer array, got {ids.shape}")
+            raise CorruptFileError(f"expected an (n, 2) integer array, got {ids.shape}", field="ids_map")
         lv_state = {k[3:]: v for k, v in arrays.items() if k.startswith("lv_")}
         try:
             model.local_view = LocalViewCells.from_state(lv_state, cfg.local_view_params())
         except InvalidInputError as exc:
-            raise MapFormatError("lv_*", str(exc)) from exc
+            raise CorruptFileError(str(exc), field="lv_*") from exc
         model.experience_map = ExperienceMap.from_arrays(arrays, prefix="em_")
         if model.frontend is not None:
             try:
                 model.frontend.load_arrays(dict(arrays), prefix="vt_")
             except ConfigError as exc:
-                raise MapFormatError("vt_*", str(exc)) from exc
+                raise CorruptFileError(str(exc), field="vt_*") from exc
         model._best = np.array(best, dtype=np.float64)
         if isinstance(model.pose_cells, PosecellNetwork):
             model.pose_cells.best = model._best
@@ -719,6 +719,6 @@ class RatSLAM:
         model._ids = {int(a): int(b) for a, b in ids.tolist()}
         p_idx, p_val = need("pending_index"), need("pending_values")
         if p_idx.ndim != 1 or p_idx.shape != p_val.shape or p_idx.dtype.kind != "i" or (len(p_idx) and (p_idx.min() < 0 or p_idx.max() >= model.pose_cells.size)):
-            raise MapFormatError("pending_index", "expected matching 1-D index/value arrays of pose-cell indices")
+            raise CorruptFileError("expected matching 1-D index/value arrays of pose-cell indices", field="pending_index")
         model._pending_index, model._pending_values = p_idx.astype(np.int64), p_val.astype(np.float64)
         return model

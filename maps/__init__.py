@@ -14,9 +14,6 @@ _EXPORTS: dict[str, str] = {
     "experience_metric": "metrics",
     "energy_metric": "metrics",
     "absolute_trajectory_error": "metrics",
-    "MapsError": "errors",
-    "MapFormatError": "errors",
-    "InvalidInputError": "errors",
 }
 
 __all__ = sorted(_EXPORTS)

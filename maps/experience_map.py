@@ -91,7 +91,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
-from maps.errors import InvalidInputError, MapFormatError
+from whisker_io.errors import CorruptFileError, InvalidInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -619,16 +619,16 @@ class ExperienceMap:
 
         Raises
         ------
-        MapFormatError
+        CorruptFileError
             When the file is unreadable or a field is missing or has the wrong type,
             shape or value (named in the error).
         """
         try:
             archive = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise MapFormatError("<file>", f"cannot be read as an .npz archive ({exc})") from exc
+            raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
         if not hasattr(archive, "files"):
-            raise MapFormatError("<file>", "holds a single array, not an .npz archive")
+            raise CorruptFileError("holds a single array, not an .npz archive", path=path)
         with archive:
             return cls.from_arrays(archive)
 
@@ -638,33 +638,33 @@ class ExperienceMap:
 
         Raises
         ------
-        MapFormatError
+        CorruptFileError
             A field is missing or has the wrong type, shape or value (named in the error).
         """
 
         def field(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
             key = prefix + name
             if key not in arrays:
-                raise MapFormatError(key, "missing")
+                raise CorruptFileError("missing", field=key)
             try:
                 arr = np.asarray(arrays[key])
             except Exception as exc:  # zip/CRC/header errors of a damaged member
-                raise MapFormatError(key, f"unreadable ({exc})") from exc
+                raise CorruptFileError(f"unreadable ({exc})", field=key) from exc
             if arr.dtype.kind != kind:
-                raise MapFormatError(key, f"dtype {arr.dtype} where kind {kind!r} is required")
+                raise CorruptFileError(f"dtype {arr.dtype} where kind {kind!r} is required", field=key)
             if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
-                raise MapFormatError(key, f"shape {arr.shape} where {shape} is required (None = any)")
+                raise CorruptFileError(f"shape {arr.shape} where {shape} is required (None = any)", field=key)
             if kind == "f" and not np.all(np.isfinite(arr)):
-                raise MapFormatError(key, "holds NaN or infinite values")
+                raise CorruptFileError("holds NaN or infinite values", field=key)
             return arr
 
         version = int(field("format", "i", ()))
         if version != FORMAT_VERSION:
-            raise MapFormatError(prefix + "format", f"version {version}, this library reads version {FORMAT_VERSION}")
+            raise CorruptFileError(f"version {version}, this library reads version {FORMAT_VERSION}", field=prefix + "format")
         try:
             config = ExperienceMapConfig(**json.loads(str(field("config", "U", ()))))
         except (json.JSONDecodeError, TypeError, InvalidInputError) as exc:
-            raise MapFormatError(prefix + "config", f"not a valid ExperienceMapConfig JSON ({exc})") from exc
+            raise CorruptFileError(f"not a valid ExperienceMapConfig JSON ({exc})", field=prefix + "config") from exc
         exp_pc = field("exp_pc", "f", (None, 3))
         n = exp_pc.shape[0]
         exp_vt = field("exp_vt", "i", (n,))
@@ -675,13 +675,13 @@ class ExperienceMap:
         state_f = field("state_f", "f", (6,))
         state_i = field("state_i", "i", (3,))
         if np.any(exp_vt < 0):
-            raise MapFormatError(prefix + "exp_vt", "negative view id")
+            raise CorruptFileError("negative view id", field=prefix + "exp_vt")
         if m and (link_ends.min() < 0 or link_ends.max() >= n):
-            raise MapFormatError(prefix + "link_ends", f"link end outside the {n} experiences")
+            raise CorruptFileError(f"link end outside the {n} experiences", field=prefix + "link_ends")
         if n and not (0 <= state_i[0] < n and 0 <= state_i[1] < n):
-            raise MapFormatError(prefix + "state_i", f"current/previous id {state_i[:2].tolist()} outside the {n} experiences")
+            raise CorruptFileError(f"current/previous id {state_i[:2].tolist()} outside the {n} experiences", field=prefix + "state_i")
         if state_i[2] < 0:
-            raise MapFormatError(prefix + "state_i", "negative relaxation cursor")
+            raise CorruptFileError("negative relaxation cursor", field=prefix + "state_i")
         em = cls(config)
         em._n_exp, em._n_link = n, m
         em._exp_pc = _grow(np.array(exp_pc, dtype=np.float64), n)
@@ -693,7 +693,7 @@ class ExperienceMap:
             em._vt_exps.setdefault(v, []).append(i)
         for k, (f, t) in enumerate(link_ends.tolist()):
             if t in em._out.get(f, ()) or f in em._out.get(t, ()):
-                raise MapFormatError(prefix + "link_ends", f"duplicate link {f}->{t} at row {k}")
+                raise CorruptFileError(f"duplicate link {f}->{t} at row {k}", field=prefix + "link_ends")
             em._out.setdefault(f, set()).add(t)
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)
         em._order = np.argsort(keys, kind="stable").astype(np.int64)

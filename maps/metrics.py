@@ -19,7 +19,7 @@ from typing import Literal
 
 import numpy as np
 
-from maps.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError
 
 __all__ = [
     "AlignmentResult",

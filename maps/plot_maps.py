@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from maps.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError
 from maps.experience_map import ExperienceMap
 from maps.metrics import absolute_trajectory_error
 

@@ -6,7 +6,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from maps.errors import InvalidInputError, MapFormatError
+from whisker_io.errors import CorruptFileError, InvalidInputError
 from maps.experience_map import Action, ExperienceMap, ExperienceMapConfig, signed_delta_rad
 
 
@@ -176,15 +176,15 @@ def test_corrupt_map_files_raise_typed_error_naming_field(tmp_path):
         bad = dict(arrays)
         bad[field] = value
         np.savez(tmp_path / "bad.npz", **bad)
-        with pytest.raises(MapFormatError, match=field) as info:
+        with pytest.raises(CorruptFileError, match=field) as info:
             ExperienceMap.load(tmp_path / "bad.npz")
         assert info.value.field == field
     missing = {k: v for k, v in arrays.items() if k != "exp_vt"}
     np.savez(tmp_path / "missing.npz", **missing)
-    with pytest.raises(MapFormatError, match="exp_vt"):
+    with pytest.raises(CorruptFileError, match="exp_vt"):
         ExperienceMap.load(tmp_path / "missing.npz")
     (tmp_path / "junk.npz").write_bytes(b"not a zip file at all")
-    with pytest.raises(MapFormatError):
+    with pytest.raises(CorruptFileError):
         ExperienceMap.load(tmp_path / "junk.npz")
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from whisker_io.errors import InvalidArrayError, InvalidInputError, WhiskerIOError
+from whisker_io.errors import ConfigError, InvalidInputError, CansimError
 from whisker_io.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
 from whisker_io.kinematics import (
     as_transform,
@@ -56,10 +56,10 @@ def test_protraction_points_rostral(arr):
 
 def test_duplicate_modules_raise_typed_error(arr):
     mods = arr.modules + (arr.modules[4],)
-    with pytest.raises(InvalidArrayError, match="duplicate module name 'B2'"):
+    with pytest.raises(ConfigError, match="duplicate module name 'B2'"):
         WhiskerArray(mods)
     # catchable as the package base and as ValueError
-    with pytest.raises(WhiskerIOError):
+    with pytest.raises(CansimError):
         WhiskerArray(mods)
     with pytest.raises(ValueError):
         WhiskerArray(mods)
@@ -78,14 +78,14 @@ def test_duplicate_modules_raise_typed_error(arr):
 def test_bad_module_definitions(kwargs, msg):
     args = dict(name="X", column="A", row=1, base_position_m=[0.05, 0.2, 0.0], length_m=0.1)
     args.update(kwargs)
-    with pytest.raises(InvalidArrayError, match=msg):
+    with pytest.raises(ConfigError, match=msg):
         WhiskerModule(**args)
 
 
 def test_empty_array_and_bad_range(arr):
-    with pytest.raises(InvalidArrayError):
+    with pytest.raises(ConfigError):
         WhiskerArray(())
-    with pytest.raises(InvalidArrayError, match="whisk range"):
+    with pytest.raises(ConfigError, match="whisk range"):
         WhiskerArray(arr.modules, retraction_rad=0.5, protraction_rad=0.2)
 
 
@@ -95,7 +95,7 @@ def test_with_lengths_replaces_only_named(arr):
     changed = np.flatnonzero(new.lengths_m != arr.lengths_m)
     assert changed.tolist() == [arr.index("C3")]
     assert arr.lengths_m[arr.index("C3")] == 0.160  # original untouched
-    with pytest.raises(InvalidArrayError, match="unknown module"):
+    with pytest.raises(ConfigError, match="unknown module"):
         arr.with_lengths({"Z9": 0.1})
 
 

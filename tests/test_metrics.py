@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from maps.errors import InvalidInputError, MapsError
+from whisker_io.errors import CansimError, InvalidInputError
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric, relative_pose
 
 
@@ -79,7 +79,7 @@ def test_alg1_bad_input():
         experience_metric([0, 1], line_truth([0, 1]), base_end=2)
     with pytest.raises(InvalidInputError, match="ground_truth"):
         experience_metric([0, 1, 2], line_truth([0, 1]), base_end=1)
-    with pytest.raises(MapsError):
+    with pytest.raises(CansimError):
         experience_metric([0.5, 1.0], line_truth([0, 1]), base_end=1)
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from whisker_io.errors import InvalidInputError, WhiskerIOError
+from whisker_io.errors import InvalidInputError, CansimError
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError
 from whisker_io.radial.evaluation import (
     RESULT_COLUMNS,
@@ -206,7 +206,7 @@ def test_empty_training_set_is_a_typed_error() -> None:
     ):
         with pytest.raises(EmptyDatasetError) as info:
             call()
-        assert isinstance(info.value, WhiskerIOError) and isinstance(info.value, ValueError)
+        assert isinstance(info.value, CansimError) and isinstance(info.value, ValueError)
     tiny = known_table(5, 0)  # fewer contacts than CV folds
     with pytest.raises(EmptyDatasetError, match="10-fold CV"):
         fit_model("svr9", *TABLE_4_1["svr9"], tiny, SearchSettings())

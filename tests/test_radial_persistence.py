@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import skops.io as sio
 
-from whisker_io.radial.errors import FeatureMismatchError, ModelFileError, ModelVersionError
+from whisker_io.radial.errors import FeatureMismatchError, CorruptFileError, ModelVersionError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
 from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model
 from whisker_io.radial.persistence import FORMAT, FORMAT_VERSION, load_model, save_model
@@ -67,7 +67,7 @@ def test_other_library_or_format_version_is_refused(tmp_path, trained) -> None:
         load_model(_forge(tmp_path, model, format_version=FORMAT_VERSION + 1))
     with pytest.raises(FeatureMismatchError):
         load_model(_forge(tmp_path, model, input_features=["CP", "CA", "DV", "DA", "AV", "WL"]))
-    with pytest.raises(ModelFileError):
+    with pytest.raises(CorruptFileError):
         load_model(_forge(tmp_path, model, features=["CP", "CA"]))
 
 
@@ -85,7 +85,7 @@ def test_untrusted_types_are_refused_before_anything_runs(tmp_path, trained) -> 
     _, model = trained
     path = tmp_path / "evil.skops"
     sio.dump({"meta": {"format": FORMAT}, "estimator": model.estimator, "x": Payload()}, path)
-    with pytest.raises(ModelFileError, match="trusted"):
+    with pytest.raises(CorruptFileError, match="trusted"):
         load_model(path)
     assert Payload.executed is False
 
@@ -93,11 +93,11 @@ def test_untrusted_types_are_refused_before_anything_runs(tmp_path, trained) -> 
 def test_corrupt_or_missing_files(tmp_path) -> None:
     bad = tmp_path / "bad.skops"
     bad.write_bytes(b"not a zip file at all")
-    with pytest.raises(ModelFileError):
+    with pytest.raises(CorruptFileError):
         load_model(bad)
-    with pytest.raises(ModelFileError):
+    with pytest.raises(CorruptFileError):
         load_model(tmp_path / "missing.skops")
     other = tmp_path / "other.skops"
     sio.dump({"meta": {"format": "something else"}, "estimator": 1}, other)
-    with pytest.raises(ModelFileError, match="format"):
+    with pytest.raises(CorruptFileError, match="format"):
         load_model(other)

@@ -10,7 +10,7 @@ import pytest
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.worlds import LoopRoute, make_run, render_view, scatter_landmarks
-from maps.errors import MapFormatError
+from whisker_io.errors import CorruptFileError
 from maps.experience_map import Action
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 
@@ -148,12 +148,12 @@ def test_corrupt_model_file_names_field(tmp_path):
     arrays = dict(np.load(tmp_path / "m.npz", allow_pickle=False))
     arrays["pc_activity"] = arrays["pc_activity"][:, :, :5]
     np.savez(tmp_path / "bad.npz", **arrays)
-    with pytest.raises(MapFormatError, match="pc_activity"):
+    with pytest.raises(CorruptFileError, match="pc_activity"):
         RatSLAM.load(tmp_path / "bad.npz")
     del arrays["em_exp_pose"]
     arrays["pc_activity"] = slam.pose_cells.activity
     np.savez(tmp_path / "bad2.npz", **arrays)
-    with pytest.raises(MapFormatError, match="em_exp_pose"):
+    with pytest.raises(CorruptFileError, match="em_exp_pose"):
         RatSLAM.load(tmp_path / "bad2.npz")
 
 

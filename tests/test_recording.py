@@ -9,7 +9,7 @@ import os
 import numpy as np
 import pytest
 
-from whisker_io.errors import InvalidInputError, RecordingFormatError, WhiskerIOError
+from whisker_io.errors import InvalidInputError, CorruptFileError, CansimError
 from whisker_io.recording import (
     POSE_LOG_NAME,
     PoseLogWriter,
@@ -83,17 +83,17 @@ def test_write_is_atomic_no_temp_file_left(tmp_path):
 def test_malformed_whisk_csv_names_file_and_line(tmp_path, content, line, what):
     p = tmp_path / "whisk_000000_B1.csv"
     p.write_text(content)
-    with pytest.raises(RecordingFormatError) as err:
+    with pytest.raises(CorruptFileError) as err:
         read_whisk_csv(p)
     msg = str(err.value)
     assert str(p) in msg and f"line {line}" in msg and what in msg
-    assert isinstance(err.value, WhiskerIOError)
+    assert isinstance(err.value, CansimError)
 
 
 def test_unparseable_file_name_requires_module_and_cycle(tmp_path):
     p = tmp_path / "data.csv"
     p.write_text("0,1,2,0\n")
-    with pytest.raises(RecordingFormatError, match="file name"):
+    with pytest.raises(CorruptFileError, match="file name"):
         read_whisk_csv(p)
     assert read_whisk_csv(p, module="F3", cycle=7).module == "F3"
 
@@ -138,7 +138,7 @@ def test_pose_log_out_of_time_order_is_a_typed_error_with_line(tmp_path):
         "3.0,0,0,0,0,0,0,1,whisk_000001\n"
         "2.0,0,0,0,0,0,0,1,whisk_000002\n"
     )
-    with pytest.raises(RecordingFormatError, match=r"line 4: .*out of time order"):
+    with pytest.raises(CorruptFileError, match=r"line 4: .*out of time order"):
         read_pose_log(path)
 
 
@@ -154,7 +154,7 @@ def test_pose_log_out_of_time_order_is_a_typed_error_with_line(tmp_path):
 def test_malformed_pose_log_line(tmp_path, row, what):
     path = tmp_path / POSE_LOG_NAME
     path.write_text("time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file\n" + row + "\n")
-    with pytest.raises(RecordingFormatError) as err:
+    with pytest.raises(CorruptFileError) as err:
         read_pose_log(path)
     assert f"{path}: line 2" in str(err.value) and what in str(err.value)
 
@@ -205,5 +205,5 @@ def test_replay_reports_missing_whisk_files(tmp_path):
     os.remove(tmp_path / whisk_file_name(1, "A1"))
     it = replay(tmp_path)
     assert next(it).pose.whisk_file == "whisk_000000"
-    with pytest.raises(RecordingFormatError, match=r"line 3: .*missing"):
+    with pytest.raises(CorruptFileError, match=r"line 3: .*missing"):
         next(it)

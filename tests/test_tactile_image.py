@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from whisker_io.errors import InvalidArrayError, InvalidInputError
+from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.geometry import WhiskerArray, WhiskerModule
 from whisker_io.objects import make_maze
 from whisker_io.sweep import sweep_array
@@ -89,5 +89,5 @@ def test_bad_inputs(arr):
         TactileImageParams(height_range_m=(1.0, 0.0))
     m = arr.modules
     clash = WhiskerArray((m[0], WhiskerModule("X", m[0].column, m[0].row, [0.05, 0.1, 0.0], 0.1)))
-    with pytest.raises(InvalidArrayError, match="share"):
+    with pytest.raises(ConfigError, match="share"):
         pixel_layout(clash)

@@ -65,10 +65,10 @@ _EXPORTS: dict[str, str] = {
     "chi_squared": "pfh",
     "match_region": "pfh",
     # errors
-    "WhiskerIOError": "errors",
-    "InvalidArrayError": "errors",
+    "CansimError": "errors",
+    "ConfigError": "errors",
     "InvalidInputError": "errors",
-    "RecordingFormatError": "errors",
+    "CorruptFileError": "errors",
     "HardwareError": "errors",
     "ConnectionFailedError": "errors",
     "StaleStateError": "errors",

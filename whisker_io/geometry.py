@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from whisker_io.errors import InvalidArrayError
+from whisker_io.errors import ConfigError
 
 __all__ = [
     "COLUMNS",
@@ -101,7 +101,7 @@ def radial_base_rotation(base_position_m: ArrayLike) -> NDArray[np.float64]:
     radial = np.array([p[0], 0.0, p[2]])
     norm = np.linalg.norm(radial)
     if not np.isfinite(norm) or norm < 1e-9:
-        raise InvalidArrayError(
+        raise ConfigError(
             f"base position {p.tolist()} lies on the array axis (+y); the radial "
             "direction is undefined. Give an explicit base_rotation for this module."
         )
@@ -142,13 +142,13 @@ class WhiskerModule:
     def __post_init__(self) -> None:
         pos = np.array(self.base_position_m, dtype=float)
         if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise InvalidArrayError(
+            raise ConfigError(
                 f"module {self.name!r}: base_position_m must be 3 finite numbers (metres), "
                 f"got {self.base_position_m!r}"
             )
         length = float(self.length_m)
         if not np.isfinite(length) or length <= 0.0:
-            raise InvalidArrayError(
+            raise ConfigError(
                 f"module {self.name!r}: length_m must be a positive finite number of metres, "
                 f"got {self.length_m!r}"
             )
@@ -160,7 +160,7 @@ class WhiskerModule:
         else:
             mat = np.array(rot, dtype=float)
             if mat.shape != (3, 3) or not np.all(np.isfinite(mat)):
-                raise InvalidArrayError(
+                raise ConfigError(
                     f"module {self.name!r}: base_rotation must be a 3x3 matrix or a "
                     f"scipy Rotation, got shape {mat.shape}"
                 )
@@ -168,7 +168,7 @@ class WhiskerModule:
                 not np.allclose(mat.T @ mat, np.eye(3), atol=1e-6)
                 or np.linalg.det(mat) < 0.0
             ):
-                raise InvalidArrayError(
+                raise ConfigError(
                     f"module {self.name!r}: base_rotation is not a proper rotation "
                     "(orthonormal, det +1); orthonormalise it or pass a scipy Rotation"
                 )
@@ -206,7 +206,7 @@ class WhiskerArray:
 
     Raises
     ------
-    InvalidArrayError
+    ConfigError
         Empty array, duplicate module names, or a whisk range that is not
         ``-pi < retraction < protraction < pi``.
 
@@ -226,23 +226,23 @@ class WhiskerArray:
     def __post_init__(self) -> None:
         modules = tuple(self.modules)
         if not modules:
-            raise InvalidArrayError("a WhiskerArray needs at least one module")
+            raise ConfigError("a WhiskerArray needs at least one module")
         for m in modules:
             if not isinstance(m, WhiskerModule):
-                raise InvalidArrayError(
+                raise ConfigError(
                     f"modules must be WhiskerModule instances, got {type(m).__name__}"
                 )
         seen: dict[str, int] = {}
         for i, m in enumerate(modules):
             if m.name in seen:
-                raise InvalidArrayError(
+                raise ConfigError(
                     f"duplicate module name {m.name!r} (entries {seen[m.name]} and {i}); "
                     "every module needs a unique name"
                 )
             seen[m.name] = i
         lo, hi = float(self.retraction_rad), float(self.protraction_rad)
         if not (np.isfinite(lo) and np.isfinite(hi) and -np.pi < lo < hi < np.pi):
-            raise InvalidArrayError(
+            raise ConfigError(
                 f"whisk range must satisfy -pi < retraction_rad < protraction_rad < pi, "
                 f"got ({lo}, {hi})"
             )
@@ -266,7 +266,7 @@ class WhiskerArray:
         """
         unknown = set(lengths_m) - set(self._index)
         if unknown:
-            raise InvalidArrayError(
+            raise ConfigError(
                 f"unknown module name(s) {sorted(unknown)}; known: {list(self.names)}"
             )
         mods = tuple(
@@ -291,7 +291,7 @@ class WhiskerArray:
         try:
             return self._index[name]
         except KeyError:
-            raise InvalidArrayError(
+            raise ConfigError(
                 f"unknown module name {name!r}; known: {list(self.names)}"
             ) from None
 
@@ -331,7 +331,7 @@ class WhiskerArray:
         """
         step = float(step_rad)
         if not np.isfinite(step) or step <= 0.0:
-            raise InvalidArrayError(f"step_rad must be positive, got {step_rad!r}")
+            raise ConfigError(f"step_rad must be positive, got {step_rad!r}")
         span = self.protraction_rad - self.retraction_rad
         n = int(np.ceil(span / step - 1e-9))
         angles = self.retraction_rad + step * np.arange(n + 1)

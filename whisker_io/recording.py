@@ -79,7 +79,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from whisker_io.errors import InvalidInputError, RecordingFormatError
+from whisker_io.errors import InvalidInputError, CorruptFileError
 
 __all__ = [
     "SAMPLE_RATE_HZ",
@@ -364,12 +364,12 @@ def _parse_float(token: str, path: Path, lineno: int, column: str) -> float:
     try:
         value = float(token)
     except ValueError:
-        raise RecordingFormatError(
+        raise CorruptFileError(
             f"{path}: line {lineno}: column '{column}' is not a number ({token.strip()!r}); "
             "the file is corrupt or not a whisk CSV"
         ) from None
     if not math.isfinite(value):
-        raise RecordingFormatError(
+        raise CorruptFileError(
             f"{path}: line {lineno}: column '{column}' holds {token.strip()!r} (NaN/inf sample); "
             "repair or drop this whisk file"
         )
@@ -396,7 +396,7 @@ def read_whisk_csv(
 
     Raises
     ------
-    RecordingFormatError
+    CorruptFileError
         Missing file, unknown header, a line without exactly 4 columns, a
         non-numeric or NaN/inf value, or no samples; the message names the file
         and the 1-based line.
@@ -405,7 +405,7 @@ def read_whisk_csv(
     if module is None or cycle is None:
         m = _FILE_RE.match(p.name)
         if m is None:
-            raise RecordingFormatError(
+            raise CorruptFileError(
                 f"{p}: cannot tell module and cycle from the file name; name it "
                 "whisk_{cycle:06d}_{module}.csv or pass module= and cycle="
             )
@@ -414,9 +414,9 @@ def read_whisk_csv(
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise RecordingFormatError(f"{p}: whisk file not found") from None
+        raise CorruptFileError(f"{p}: whisk file not found") from None
     except UnicodeDecodeError as exc:
-        raise RecordingFormatError(f"{p}: not UTF-8 text ({exc.reason})") from None
+        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
@@ -429,12 +429,12 @@ def read_whisk_csv(
         elif head == _WHISK_HEADER_DEG:
             first_data, scale = 1, math.pi / 180.0
         elif head and head[0] and not _looks_numeric(head[0]):
-            raise RecordingFormatError(
+            raise CorruptFileError(
                 f"{p}: line 1: unexpected header {lines[0]!r}; expected {','.join(WHISK_HEADER)!r}"
             )
     rows = lines[first_data:]
     if not rows:
-        raise RecordingFormatError(f"{p}: line {first_data + 1}: no samples in whisk file")
+        raise CorruptFileError(f"{p}: line {first_data + 1}: no samples in whisk file")
     try:  # fast path; the slow path below locates the first bad line
         data = np.array([r.split(",") for r in rows], dtype=np.float64)
         ok = data.ndim == 2 and data.shape[1] == 4 and bool(np.all(np.isfinite(data)))
@@ -446,7 +446,7 @@ def read_whisk_csv(
             lineno = i + first_data + 1
             tokens = row.split(",")
             if len(tokens) != 4:
-                raise RecordingFormatError(
+                raise CorruptFileError(
                     f"{p}: line {lineno}: expected 4 columns ({','.join(WHISK_HEADER)}), "
                     f"found {len(tokens)}"
                 )
@@ -488,7 +488,7 @@ class PoseLogWriter:
 
     Raises
     ------
-    RecordingFormatError
+    CorruptFileError
         If an existing log is malformed.
     """
 
@@ -565,7 +565,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
 
     Raises
     ------
-    RecordingFormatError
+    CorruptFileError
         Missing file, wrong header, a line without 9 columns, a non-numeric or
         non-finite value, a non-unit quaternion, or a time stamp earlier than
         the line before (out of time order); the message names the file and the
@@ -576,24 +576,24 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise RecordingFormatError(f"{p}: pose log not found") from None
+        raise CorruptFileError(f"{p}: pose log not found") from None
     except UnicodeDecodeError as exc:
-        raise RecordingFormatError(f"{p}: not UTF-8 text ({exc.reason})") from None
+        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
     lines = text.split("\n")
     tail = lines.pop()  # "" when the file ends with a newline
     if tail:
         log.warning("%s: ignoring torn final line %d (no newline): %r", p, len(lines) + 1, tail)
     if not lines:
-        raise RecordingFormatError(f"{p}: line 1: empty pose log; expected header {','.join(POSE_LOG_HEADER)!r}")
+        raise CorruptFileError(f"{p}: line 1: empty pose log; expected header {','.join(POSE_LOG_HEADER)!r}")
     if tuple(t.strip() for t in lines[0].split(",")) != POSE_LOG_HEADER:
-        raise RecordingFormatError(
+        raise CorruptFileError(
             f"{p}: line 1: unexpected header {lines[0]!r}; expected {','.join(POSE_LOG_HEADER)!r}"
         )
     entries: list[PoseEntry] = []
     for i, line in enumerate(lines[1:], start=2):
         tokens = line.split(",")
         if len(tokens) != len(POSE_LOG_HEADER):
-            raise RecordingFormatError(
+            raise CorruptFileError(
                 f"{p}: line {i}: expected {len(POSE_LOG_HEADER)} columns ({','.join(POSE_LOG_HEADER)}), "
                 f"found {len(tokens)}"
             )
@@ -601,9 +601,9 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
         try:
             entry = PoseEntry(vals[0], vals[1:4], vals[4:8], tokens[8].strip())
         except InvalidInputError as exc:
-            raise RecordingFormatError(f"{p}: line {i}: {exc}") from None
+            raise CorruptFileError(f"{p}: line {i}: {exc}") from None
         if entries and entry.time_s < entries[-1].time_s:
-            raise RecordingFormatError(
+            raise CorruptFileError(
                 f"{p}: line {i}: time {entry.time_s!r} s is earlier than line {i - 1}'s "
                 f"{entries[-1].time_s!r} s; the pose log is out of time order"
             )
@@ -701,7 +701,7 @@ def replay(
 
     Raises
     ------
-    RecordingFormatError
+    CorruptFileError
         A malformed pose log or whisk file (naming file and line), or a pose
         line whose cycle has no whisk files / lacks a requested module.
     """
@@ -719,7 +719,7 @@ def replay(
         missing = [m for m in wanted if m not in by_module]
         if not wanted or missing:
             names = [f"{entry.whisk_file}_{m}.csv" for m in missing] or [f"{entry.whisk_file}_*.csv"]
-            raise RecordingFormatError(f"{pose_path}: line {lineno}: whisk file(s) {', '.join(names)} missing in {d}")
+            raise CorruptFileError(f"{pose_path}: line {lineno}: whisk file(s) {', '.join(names)} missing in {d}")
         m = _FILE_RE.match(by_module[wanted[0]].name)
         cycle = int(m.group(1)) if m else 0
         records = {

@@ -24,7 +24,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from whisker_io.errors import InvalidArrayError, InvalidInputError
+from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.geometry import WhiskerArray
 from whisker_io.kinematics import Pose, contact_points
 from whisker_io.sweep import SweepContact
@@ -76,7 +76,7 @@ def pixel_layout(array: WhiskerArray) -> tuple[NDArray[np.int64], NDArray[np.int
     rows = np.array([row_labels.index(m.row) for m in array.modules])
     cols = np.array([col_labels.index(m.column) for m in array.modules])
     if len(set(zip(rows.tolist(), cols.tolist()))) != len(array):
-        raise InvalidArrayError(
+        raise ConfigError(
             "two modules share a (column, row) label, so they would share a tactile pixel; "
             "give every module a unique column/row pair"
         )

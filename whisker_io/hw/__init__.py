@@ -20,14 +20,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from whisker_io.errors import HardwareError
-
-
-class MissingDependencyError(HardwareError, ImportError):
-    """An optional hardware dependency (ur-rtde, pyusb) is not installed.
-
-    Install the ``hw`` extra: ``pip install cansim[hw]``.
-    """
+from whisker_io.errors import MissingDependencyError
 
 
 def require(module: str, what: str) -> ModuleType:

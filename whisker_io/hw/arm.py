@@ -33,7 +33,7 @@ from typing import Any, Callable, Optional
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
+from whisker_io.errors import (CommandFailedError, ConnectionFailedError, HardwareError, InvalidInputError,
                                SafetyViolationError)
 from whisker_io.hw import require
 from whisker_io.hw.pose import Pose, PoseLike
@@ -51,10 +51,6 @@ RTDE_PORT = 30004
 RECEIVE_VARIABLES = ("timestamp", "actual_TCP_pose", "actual_q", "actual_qd")
 
 
-class CommandFailedError(HardwareError):
-    """The controller refused or failed to execute a command that passed the
-    safety envelope (ur-rtde returned False, or the robot is not in remote
-    control). Check the teach pendant for a protective stop."""
 
 
 @dataclass(frozen=True)

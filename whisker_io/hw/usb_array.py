@@ -65,8 +65,8 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
-from whisker_io.errors import (ConnectionFailedError, DeviceRemovedError, DeviceTimeoutError,
-                               HardwareError, InvalidInputError, USBFrameError)
+from whisker_io.errors import (ConnectionFailedError, CRCMismatchError, DeviceRemovedError, DeviceTimeoutError,
+                               HardwareError, InvalidInputError, SequenceGapError, ShortFrameError, USBFrameError)
 from whisker_io.control import WhiskPattern
 from whisker_io.hw import require
 from whisker_io.recording import SAMPLE_RATE_HZ, WhiskRecord
@@ -95,20 +95,6 @@ PATTERN_MODES = ("open_loop", "rcp", "retract_on_max")
 _LIBUSB_ERROR_NO_DEVICE = -4
 
 
-class ShortFrameError(USBFrameError):
-    """A USB frame was shorter than its header or its declared sample count."""
-
-
-class CRCMismatchError(USBFrameError):
-    """A USB frame's CRC-32 does not match its bytes (corrupted transfer)."""
-
-
-class SequenceGapError(USBFrameError):
-    """Frames were lost: the sequence number jumped (``lost`` frames)."""
-
-    def __init__(self, message: str, lost: int) -> None:
-        super().__init__(message)
-        self.lost = lost
 
 
 def _thesis_modules() -> tuple[str, ...]:

@@ -23,7 +23,7 @@ from functools import partial
 from pathlib import Path
 
 from whisker_io.radial.datasets import TrainingSetParams, ValidationSetParams, make_training_set, make_validation_set
-from whisker_io.errors import WhiskerIOError
+from whisker_io.errors import CansimError
 from whisker_io.radial.evaluation import evaluate_models, write_results_csv
 from whisker_io.radial.models import SearchSettings, train_models
 from whisker_io.radial.persistence import load_model, save_model
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         return _train(args) if args.command == "train" else _evaluate(args)
-    except WhiskerIOError as exc:
+    except CansimError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,17 +1,17 @@
-"""Typed errors of :mod:`whisker_io.radial`.
+"""Typed errors of :mod:`whisker_io.radial`, on the one error tree of :mod:`whisker_io.errors`.
 
-All derive from :class:`whisker_io.errors.WhiskerIOError`; those about bad values
-also from :class:`ValueError` (through :class:`whisker_io.errors.InvalidInputError`).
+A saved model file that cannot be read raises :class:`whisker_io.errors.CorruptFileError`
+(:class:`ModelVersionError` when it was written by another format or library version).
 """
 
 from __future__ import annotations
 
-from whisker_io.errors import InvalidInputError, WhiskerIOError
+from whisker_io.errors import CansimError, CorruptFileError, InvalidInputError
 
 __all__ = [
+    "CorruptFileError",
     "EmptyDatasetError",
     "FeatureMismatchError",
-    "ModelFileError",
     "ModelVersionError",
     "NotFittedModelError",
 ]
@@ -27,15 +27,10 @@ class FeatureMismatchError(InvalidInputError):
     The message lists both; retrain the model or pass the matching features."""
 
 
-class ModelFileError(WhiskerIOError, ValueError):
-    """A saved model file is unreadable, not a radial-distance model file, or holds
-    types outside the trusted list (nothing from it was executed)."""
-
-
-class ModelVersionError(ModelFileError):
+class ModelVersionError(CorruptFileError):
     """A saved model was written by a different format or library version than the
     one installed; retrain it with the installed versions (the message names them)."""
 
 
-class NotFittedModelError(WhiskerIOError, RuntimeError):
+class NotFittedModelError(CansimError, RuntimeError):
     """A model was used before ``fit``; call ``fit`` (or load a fitted model) first."""

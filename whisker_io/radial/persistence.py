@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import skops.io as sio
 
-from whisker_io.radial.errors import FeatureMismatchError, ModelFileError, ModelVersionError
+from whisker_io.radial.errors import FeatureMismatchError, CorruptFileError, ModelVersionError
 from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS
 from whisker_io.radial.models import TrainedModel, model_features
 
@@ -123,7 +123,7 @@ def load_model(
 
     Raises
     ------
-    ModelFileError
+    CorruptFileError
         Missing/corrupt file, not a radial model, or untrusted types inside.
     ModelVersionError
         Other format version, scikit-learn major.minor or numpy major version.
@@ -135,22 +135,22 @@ def load_model(
     try:
         untrusted = sio.get_untrusted_types(file=path)
     except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
-        raise ModelFileError(f"{path}: not a readable skops model file ({exc})") from exc
+        raise CorruptFileError(f"{path}: not a readable skops model file ({exc})") from exc
     extra = sorted(set(untrusted) - set(TRUSTED_TYPES))
     if extra:
-        raise ModelFileError(
+        raise CorruptFileError(
             f"{path}: refusing to load types outside the trusted list: {extra}; "
             "only whisker_io.radial models and numpy/scipy/scikit-learn types are accepted"
         )
     try:
         obj: Any = sio.load(path, trusted=list(untrusted))
     except Exception as exc:  # skops raises a variety of errors on malformed content
-        raise ModelFileError(f"{path}: could not load model ({type(exc).__name__}: {exc})") from exc
+        raise CorruptFileError(f"{path}: could not load model ({type(exc).__name__}: {exc})") from exc
     if not isinstance(obj, dict) or not isinstance(obj.get("meta"), dict) or "estimator" not in obj:
-        raise ModelFileError(f"{path}: not a {FORMAT} file (no meta/estimator entries)")
+        raise CorruptFileError(f"{path}: not a {FORMAT} file (no meta/estimator entries)")
     meta = obj["meta"]
     if meta.get("format") != FORMAT:
-        raise ModelFileError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
+        raise CorruptFileError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
     if meta.get("format_version") != FORMAT_VERSION:
         raise ModelVersionError(
             f"{path}: file format version {meta.get('format_version')!r}, this library reads "
@@ -173,7 +173,7 @@ def load_model(
     feats = tuple(meta.get("features", ()))
     est = obj["estimator"]
     if model_features(est) != feats:
-        raise ModelFileError(f"{path}: stored feature list {feats} disagrees with the estimator")
+        raise CorruptFileError(f"{path}: stored feature list {feats} disagrees with the estimator")
     if expected_features is not None and tuple(expected_features) != feats:
         raise FeatureMismatchError(
             f"{path}: model {meta.get('label')!r} was trained on features {list(feats)}, "

@@ -54,7 +54,7 @@ def resolve_radial_model(source: RadialSource) -> RadialPredictor:
     ------
     InvalidInputError
         For an unknown name or an object without ``predict``.
-    ModelFileError, ModelVersionError, FeatureMismatchError
+    CorruptFileError, ModelVersionError, FeatureMismatchError
         From :func:`~whisker_io.radial.persistence.load_model` for a bad file.
     """
     if isinstance(source, str) and source in ("tip", "random"):
