@@ -14,7 +14,8 @@ from cansim.frontends.tactile import TactileTemplates
 from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.worlds import LoopRoute, make_run
-from maps.experience_map import ExperienceMap, ExperienceMapConfig
+from maps.experience_map import ExperienceMap, MapConfig
+from maps.se2 import SE2Geometry
 
 ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
 
@@ -25,7 +26,7 @@ def _filled_visual(n, cfg):
     for _ in range(n):  # similar means: the mean pre-filter skips nothing (worst case)
         vt.match(rng.integers(110, 146, size=(10 * cfg["template_y_size"], 4 * cfg["template_x_size"]), dtype=np.uint8))
     matcher = VisualTemplates(VisualTemplateConfig(**cfg, vt_match_threshold=0.5))
-    matcher.load_arrays(vt.to_arrays())
+    matcher.from_arrays(vt.to_arrays())
     probe = rng.integers(110, 146, size=(10 * cfg["template_y_size"], 4 * cfg["template_x_size"]), dtype=np.uint8)
     return matcher, probe
 
@@ -63,7 +64,7 @@ def test_tactile_template_match_1000_templates(benchmark):
 
 
 def _loop_map(n_exp, budget):
-    em = ExperienceMap(ExperienceMapConfig(pc_dim_xy=1000, relax_budget=budget, exp_initial_em_deg=0.0))
+    em = ExperienceMap(MapConfig(relax_budget=budget, pc_shape=(1000, 1000, 36)), SE2Geometry(initial_heading_deg=0.0))
     ang = 2 * np.pi / n_exp
     for k in range(n_exp):
         em.on_odo(0.05, ang, 1.0)

@@ -27,8 +27,12 @@ __version__ = "0.1.0"
 # Heavier model-level names are loaded on first access (networkx, scipy, numba kernels).
 _LAZY = {
     "RatSLAM": "cansim.ratslam",
-    "RatSLAMConfig": "cansim.ratslam",
-    "RatSLAMState": "cansim.ratslam",
+    "RatSLAMConfig": "cansim.ratslam_config",
+    "SlamLoop": "cansim.slam_loop",
+    "SlamState": "cansim.slam_loop",
+    "SlamLog": "cansim.slam_loop",
+    "PlanarOdometry": "maps.odometry",
+    "SpatialOdometry": "maps.odometry",
     "PosecellNetwork": "cansim.posecell_network",
 }
 
@@ -51,7 +55,11 @@ __all__ = [
     "LocalViewParams",
     "RatSLAM",
     "RatSLAMConfig",
-    "RatSLAMState",
+    "SlamLoop",
+    "SlamState",
+    "SlamLog",
+    "PlanarOdometry",
+    "SpatialOdometry",
     "PosecellNetwork",
     "available_backends",
     "get_backend",

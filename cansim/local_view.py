@@ -33,7 +33,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from cansim.errors import InvalidInputError, ShapeError
+from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -176,6 +176,11 @@ class LocalViewCells:
     def params(self) -> LocalViewParams:
         """The parameters."""
         return self._params
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Shape of the pose-cell grid the views inject into."""
+        return self._shape
 
     @property
     def n_views(self) -> int:
@@ -374,10 +379,10 @@ class LocalViewCells:
             self._rows[i] = _max_merge(self._rows[i], (nz, lam * self._v[i] * vals))
 
     # ------------------------------------------------------------ persistence
-    def state_dict(self) -> dict[str, np.ndarray]:
-        """All state as plain arrays (for ``np.savez``); :meth:`from_state` restores it exactly."""
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """All state as named arrays (for ``np.savez``); :meth:`from_arrays` restores it exactly."""
         w = self.weights
-        return {
+        arrays = {
             "shape": np.array(self._shape, dtype=np.int64),
             "locations": self.locations,
             "decay": self.decay,
@@ -387,10 +392,20 @@ class LocalViewCells:
             "w_indices": w.indices.astype(np.int64),
             "w_data": w.data.astype(np.float32),
         }
+        return {prefix + k: v for k, v in arrays.items()}
 
     @classmethod
-    def from_state(cls, state: dict[str, np.ndarray], params: LocalViewParams = LocalViewParams()) -> "LocalViewCells":
-        """Rebuild from :meth:`state_dict` output."""
+    def from_arrays(
+        cls, arrays: dict[str, np.ndarray], params: LocalViewParams = LocalViewParams(), prefix: str = ""
+    ) -> "LocalViewCells":
+        """Rebuild from :meth:`to_arrays` output.
+
+        Raises
+        ------
+        CorruptFileError
+            A field is missing or inconsistent.
+        """
+        state = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
         try:
             lv = cls(tuple(int(n) for n in state["shape"]), params)
             n = len(state["decay"])
@@ -407,9 +422,9 @@ class LocalViewCells:
                 for i in range(n)
             ]
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise InvalidInputError(f"corrupt local-view state: {exc}") from exc
+            raise CorruptFileError(f"corrupt local-view state ({exc})", field=prefix + "*") from exc
         if not (len(lv._locations) == len(lv._v) == len(lv._rows) == n):
-            raise InvalidInputError("corrupt local-view state: per-view arrays have different lengths")
+            raise CorruptFileError("per-view arrays have different lengths", field=prefix + "*")
         return lv
 
 

@@ -164,8 +164,9 @@ class UniformMotion(MotionModel):
     """Every axis shifts by ``velocity_k * dt / step_k`` cells.
 
     ``velocity`` is one value per axis in the axis' physical units per second (m/s
-    or rad/s); ``omega`` is ignored. A head-direction ring is driven by its angular
-    velocity this way.
+    or rad/s). There is no rotation input: ``omega`` must be None (an argument that
+    does not apply is an error, never ignored). A head-direction ring is driven by its
+    angular velocity as ``velocity``.
     """
 
     def bind(self, axes):
@@ -175,6 +176,11 @@ class UniformMotion(MotionModel):
 
         def shifts(velocity, omega, dt):
             dt = check_dt(dt)
+            if omega is not None:
+                raise InvalidInputError(
+                    "this population's axes move uniformly and take no omega; pass the angular "
+                    "velocity of a ring as velocity (rad/s)"
+                )
             if velocity is None:
                 return _NO_MOTION
             if n == 1 and isinstance(velocity, float):

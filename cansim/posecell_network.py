@@ -46,6 +46,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.population import checked_injection
+from maps.odometry import MAX_STEP_M, MAX_TURN_RAD
 
 __all__ = ["PosecellNetwork"]
 
@@ -273,6 +274,11 @@ class PosecellNetwork:
             raise InvalidInputError(f"odometry must be real numbers, got {vtrans!r}, {vrot!r}, {dt!r}") from None
         if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(t)):
             raise InvalidInputError(f"odometry must be finite, got vtrans={v!r}, vrot={w!r}, dt={t!r}")
+        if abs(w * t) > MAX_TURN_RAD or abs(v * t) > MAX_STEP_M:
+            raise InvalidInputError(
+                f"odometry step of {v * t:g} m / {w * t:g} rad exceeds {MAX_STEP_M:g} m / {MAX_TURN_RAD:g} rad; "
+                "the sample is corrupt or must be split"
+            )
         cells = self._injection_cells(injection)
         kern = self._kernels
         p = self._p.copy()

@@ -42,7 +42,7 @@ def evaluate(run: SyntheticRun, seed_label: str) -> tuple[dict, RatSLAM, np.ndar
         "ate_dead_reckoning": absolute_trajectory_error(run.dead_reckoning, run.truth).rmse,
         "experiences": slam.experience_map.n_experiences,
         "links": slam.experience_map.n_links,
-        "templates": slam.n_templates,
+        "templates": slam.n_views,
         "iterations": len(run),
     }
     print(

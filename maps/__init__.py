@@ -10,7 +10,11 @@ from typing import Any
 
 _EXPORTS: dict[str, str] = {
     "ExperienceMap": "experience_map",
-    "ExperienceMapConfig": "experience_map",
+    "MapConfig": "experience_map",
+    "SE2Geometry": "se2",
+    "SE3Geometry": "se3",
+    "PlanarOdometry": "odometry",
+    "SpatialOdometry": "odometry",
     "experience_metric": "metrics",
     "energy_metric": "metrics",
     "absolute_trajectory_error": "metrics",

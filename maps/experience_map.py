@@ -1,82 +1,74 @@
-"""RatSLAM experience map (3-DoF) with OpenRatSLAM semantics (Eq 2.23-2.25 of the thesis).
+"""The experience map: one graph core for the 3-DoF experience map and the 6-DoF object map.
 
 An *experience* (Eq 2.23) is the triple (pose-cell coordinates ``P``, local-view
-id ``V``, map pose ``p = (x, y, theta)``). Between experiences the map
-dead-reckons the odometry (``facing += omega dt`` first, then
-``x, y += v dt (cos, sin)(facing)``, as OpenRatSLAM's ``on_odo``). Whenever the
-pose cells and the local view both updated, :meth:`ExperienceMap.update`
-decides, exactly as OpenRatSLAM's ``PosecellNetwork::get_action``:
+id ``V``, map pose ``p``). The core below is geometry-free: growable node and link
+arrays, the view -> experiences index, OpenRatSLAM's decision rule
+(``PosecellNetwork::get_action``), the duplicate-link rule, the relaxation
+scheduler with its budget and cursor, persistence, and a networkx graph kept in step
+with the map. A *geometry* plug-in supplies the poses and their arithmetic:
+
+* :class:`maps.se2.SE2Geometry` - ``(x, y, theta)``; OpenRatSLAM's arithmetic bit for bit
+  (the default, for RatSLAM);
+* :class:`maps.se3.SE3Geometry` - position + unit quaternion (scalar-last) for
+  WhiskerRatSLAM's object map (Alg 6).
+
+Decision rule (:meth:`ExperienceMap.update`), once the pose cells and the local view
+have both updated:
 
 * the current view has no experience yet -> create one (``CREATE_NODE``);
-* the packet moved more than ``exp_delta_pc_threshold`` cells (wrapped
-  Euclidean distance in (x, y, theta) cells) from the current experience, or
-  the view changed -> search that view's *other* experiences for the smallest
-  distance; below the threshold -> link to it and make it current
-  (``CREATE_EDGE``, a re-localisation / loop closure), else create one;
+* the packet moved more than ``match_distance_cells`` (wrapped Euclidean distance in
+  pose cells, Eq 2.22) from the current experience, or the view changed -> search that
+  view's *other* experiences for the smallest distance; below the threshold -> link
+  to it and make it current (``CREATE_EDGE``, a re-localisation / loop closure), else
+  create one;
 * otherwise nothing happens.
 
-A link stores the odometry accumulated since its source experience: distance
-``d``, heading relative to the source's facing, relative facing and elapsed
-time. After every action the map is relaxed (Eq 2.25): for each link the
-target position predicted by the link, ``l = p_from + d (cos, sin)(th_from +
-heading)``, pulls both ends, ``p_from += c (p_to - l)``, ``p_to -= c (p_to -
-l)``, and the facings likewise, with ``c = exp_correction`` (0.5), Gauss-Seidel
-in OpenRatSLAM's order (experiences by id, then each experience's outgoing
-links in creation order), ``exp_loops`` passes.
+On ``offset_axes`` (OpenRatSLAM: theta) the packet is first corrected by the view
+offset of the last injection and wrapped once, as the C++ does.
+
+A link stores the odometry accumulated since its source experience (geometry
+columns) and the elapsed time. After every action the map relaxes (Eq 2.25) in
+OpenRatSLAM's order (experiences by id, then each experience's outgoing links in
+creation order).
 
 C++ quirks (decisions)
 ----------------------
-* ``on_create_link``'s duplicate check walks the *current* experience's links
-  for as many entries as the *source* has. Every link OpenRatSLAM creates starts
-  at the current experience: ``get_action``'s source is the pose cells'
-  current experience, which the map has just been set to. So the check always
-  means "a link exists in either direction", and that is what is tested here.
-  The two can only differ for a link from a non-current experience, which
-  neither OpenRatSLAM nor :meth:`ExperienceMap.update` creates, so there is no
-  switch for it.
-* Setting the experience that is already current changes nothing, so after the
-  first experience the dead-reckoning accumulators are not reset (as in C++).
-* OpenRatSLAM never resets its link timer; ``link_time_since_start=True``
-  reproduces that (the parity presets do), the default stores the time since
-  the link's source.
+* ``on_create_link``'s duplicate check walks the *current* experience's links for as
+  many entries as the *source* has. Every link starts at the current experience, so
+  the check always means "a link exists in either direction", which is what is
+  implemented.
+* Setting the experience that is already current changes nothing, so after the first
+  experience the dead-reckoning accumulators are not reset (as in C++).
+* OpenRatSLAM never resets its link timer; ``link_time_since_start=True`` reproduces
+  that, the default stores the time since the link's source.
 
 Bounded relaxation (decision)
 -----------------------------
-OpenRatSLAM relaxes every link ``exp_loops`` times per action, so one step
-costs O(links) and a long run slows down without bound. Here each
-:meth:`ExperienceMap.iterate` performs at most ``relax_budget`` single-link
-updates. While ``exp_loops * n_links <= relax_budget`` this *is* OpenRatSLAM's
-relaxation, bit for bit (same order, same arithmetic). Beyond that the map
-continues a round-robin sweep in the same order from where the previous step
-stopped (the cursor is part of the saved state), so every link is still
-visited, the per-step cost is constant and the map converges over a few
-steps instead of within one. ``relax_budget=None`` restores the unbounded
-OpenRatSLAM behaviour (:meth:`ExperienceMapConfig.openratslam`).
+OpenRatSLAM relaxes every link ``relax_passes`` times per action, O(links) per step.
+Here each :meth:`ExperienceMap.iterate` performs at most ``relax_budget`` single-link
+updates. While ``relax_passes * n_links <= relax_budget`` this *is* OpenRatSLAM's
+relaxation, bit for bit. Beyond that the map continues a round-robin sweep from where
+the previous step stopped (the cursor is saved state), so every link is still visited
+and the per-step cost is constant. ``relax_budget=None`` restores the unbounded
+behaviour.
 
-Data layout
------------
-Experiences and links live in growable numpy arrays (the relaxation runs in a
-numba kernel over them); :meth:`ExperienceMap.to_networkx` returns a
-:class:`networkx.DiGraph` view with typed attributes (:class:`ExperienceAttrs`,
-:class:`LinkAttrs`) for path search and plotting.
+Path search (Eq 6.3)
+--------------------
+:attr:`ExperienceMap.graph` is a :class:`networkx.DiGraph` updated incrementally (no
+rebuild per query): nodes are experience ids (``view_id``, ``pc_cells``), every link
+appears in both directions with ``weight = w_t + w_r + 1 / n_l`` (translation m,
+rotation rad, ``n_l`` the number of links of the edge's target), ready for
+``networkx.dijkstra_path(map.graph, a, b)``.
 
 Saved file format (``.npz``, no pickle)
 ----------------------------------------
-``ExperienceMap.save(path)`` writes a numpy ``.npz`` archive (read back with
-``allow_pickle=False``) holding:
-
-* ``format`` - int64 scalar, :data:`FORMAT_VERSION`;
-* ``config`` - 0-d unicode string, JSON of :class:`ExperienceMapConfig`;
-* ``exp_pc`` float64 (n, 3) pose-cell (x, y, th) coordinates, ``exp_vt`` int64 (n,)
-  view ids, ``exp_pose`` float64 (n, 3) map pose (x m, y m, theta rad);
-* ``link_ends`` int64 (m, 2) (from, to) ids, ``link_data`` float64 (m, 4)
-  (d m, heading rad, facing rad, dt s);
-* ``state_f`` float64 (6,) = accum dx, accum dy, accum facing, accum time,
-  relative_rad, vt_delta_pc_th; ``state_i`` int64 (3,) = current id, previous id,
-  relaxation cursor.
-
-Floats are stored as raw IEEE-754 doubles, so a save/load round trip is bit
-identical and a resumed run equals an uninterrupted one.
+``format`` int64 (:data:`FORMAT_VERSION`); ``config`` JSON of :class:`MapConfig` plus the
+geometry's name and parameters; ``exp_pc`` float64 (n, ndim); ``exp_vt`` int64 (n,);
+``exp_pose`` float64 (n, pose width); ``link_ends`` int64 (m, 2); ``link_data`` float64
+(m, link width + 1: the geometry columns, then dt s); ``state_f`` float64 = the
+accumulator, the accumulated time (s) and the view offset (cells); ``state_i`` int64 (3,)
+= current id, previous id, relaxation cursor. Floats are raw IEEE-754 doubles: a round
+trip is bit identical and a resumed run equals an uninterrupted one.
 """
 
 from __future__ import annotations
@@ -84,58 +76,32 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import asdict, dataclass
-from enum import IntEnum
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, TypedDict
+from dataclasses import asdict, dataclass, field
+from enum import IntEnum
+from typing import Any, Sequence, Union
 
 import numpy as np
 
-from whisker_io.errors import CorruptFileError, InvalidInputError
-
-if TYPE_CHECKING:  # pragma: no cover
-    import networkx as nx
+from maps.odometry import Odometry
+from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
+from maps.se3 import SE3Geometry
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
 
 __all__ = [
     "FORMAT_VERSION",
     "Action",
-    "ExperienceAttrs",
     "ExperienceMap",
-    "ExperienceMapConfig",
     "ExperienceUpdate",
-    "LinkAttrs",
+    "Geometry",
+    "MapConfig",
     "clip_rad_180",
     "signed_delta_rad",
 ]
 
-FORMAT_VERSION = 1
-_TWO_PI = 2.0 * math.pi
-
-
-def clip_rad_180(angle: float) -> float:
-    """Wrap an angle to (-pi, pi] radians exactly as OpenRatSLAM's ``clip_rad_180``."""
-    while angle > math.pi:
-        angle -= _TWO_PI
-    while angle <= -math.pi:
-        angle += _TWO_PI
-    return angle
-
-
-def _clip_rad_360(angle: float) -> float:
-    while angle < 0:
-        angle += _TWO_PI
-    while angle >= _TWO_PI:
-        angle -= _TWO_PI
-    return angle
-
-
-def signed_delta_rad(angle1: float, angle2: float) -> float:
-    """Signed smallest rotation from ``angle1`` to ``angle2`` (rad), as OpenRatSLAM's ``get_signed_delta_rad``."""
-    direction = clip_rad_180(angle2 - angle1)
-    delta = abs(_clip_rad_360(angle1) - _clip_rad_360(angle2))
-    if delta < _TWO_PI - delta:
-        return delta if direction > 0 else -delta
-    return _TWO_PI - delta if direction > 0 else -(_TWO_PI - delta)
+FORMAT_VERSION = 2
+Geometry = Union[SE2Geometry, SE3Geometry]
+_GEOMETRIES = {"se2": SE2Geometry, "se3": SE3Geometry}
 
 
 class Action(IntEnum):
@@ -147,93 +113,67 @@ class Action(IntEnum):
     SET_NODE = 3
 
 
-class ExperienceAttrs(TypedDict):
-    """Node attributes of :meth:`ExperienceMap.to_networkx` (units in the names)."""
-
-    x_pc: float
-    y_pc: float
-    th_pc: float
-    vt_id: int
-    x_m: float
-    y_m: float
-    th_rad: float
-
-
-class LinkAttrs(TypedDict):
-    """Edge attributes of :meth:`ExperienceMap.to_networkx`."""
-
-    link_id: int
-    d_m: float
-    heading_rad: float
-    facing_rad: float
-    dt_s: float
+def _positive_int(value: Any, name: str, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ConfigError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 
 @dataclass(frozen=True)
-class ExperienceMapConfig:
-    """Parameters of the experience map (OpenRatSLAM names and defaults).
+class MapConfig:
+    """Parameters of the experience-map core.
 
     Parameters
     ----------
-    exp_correction : float
-        Relaxation rate ``alpha`` of Eq 2.25 (OpenRatSLAM default 0.5), in (0, 1].
-    exp_loops : int
-        Relaxation passes per action (default 10).
-    exp_initial_em_deg : float
-        Facing (deg) of the dead reckoning before the first experience
-        (OpenRatSLAM default 90; Table 3.1 of the thesis uses 180).
-    exp_delta_pc_threshold : float
-        Wrapped pose-cell distance (cells) below which an experience of the
-        current view is re-used (OpenRatSLAM default 2; Table 3.1: 1).
-    pc_dim_xy, pc_dim_th : int
-        Pose-cell grid size, used to wrap pose-cell distances.
+    correction : float
+        Relaxation rate alpha of Eq 2.25, in (0, 1] (OpenRatSLAM ``exp_correction``, 0.5).
+    relax_passes : int
+        Relaxation passes over all links per action (``exp_loops``, 10).
+    match_distance_cells : float
+        Wrapped pose-cell distance (cells) below which an experience of the current view
+        is re-used (``exp_delta_pc_threshold``; OpenRatSLAM 2, thesis Table 3.1: 1).
+    pc_shape : tuple of int
+        Pose-cell grid shape, to wrap distances (Eq 2.22).
+    offset_axes : tuple of int
+        Axes on which the packet is corrected by the view offset and wrapped once
+        (OpenRatSLAM: the theta axis, ``(2,)``).
     relax_budget : int or None
-        Maximum single-link updates per :meth:`ExperienceMap.iterate` (see the
-        module docstring); default 2,000 (~50 us; OpenRatSLAM's exact relaxation
-        for maps of up to 2,000 / exp_loops = 200 links). ``None`` = OpenRatSLAM's
-        unbounded relaxation.
+        Maximum single-link updates per :meth:`ExperienceMap.iterate` (2,000 ~ 50 us);
+        None = OpenRatSLAM's unbounded relaxation.
     link_time_since_start : bool
-        OpenRatSLAM never resets its link timer (``accum_delta_time_s``), so each
-        link's ``delta_time_s`` - Dijkstra's cost - is the time since the first
-        odometry. True reproduces that; False (default) stores the time since the
-        link's source experience, as the thesis' model means.
+        True: every link's time is the time since the first odometry (OpenRatSLAM's
+        never-reset timer); False (default): the time since the link's source.
     """
 
-    exp_correction: float = 0.5
-    exp_loops: int = 10
-    exp_initial_em_deg: float = 90.0
-    exp_delta_pc_threshold: float = 2.0
-    pc_dim_xy: int = 21
-    pc_dim_th: int = 36
+    correction: float = 0.5
+    relax_passes: int = 10
+    match_distance_cells: float = 2.0
+    pc_shape: tuple[int, ...] = (21, 21, 36)
+    offset_axes: tuple[int, ...] = (2,)
     relax_budget: int | None = 2_000
     link_time_since_start: bool = False
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.exp_correction) and 0.0 < self.exp_correction <= 1.0):
-            raise InvalidInputError(f"exp_correction must be in (0, 1], got {self.exp_correction!r}")
-        for name in ("exp_loops", "pc_dim_xy", "pc_dim_th"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (0 if name == "exp_loops" else 1):
-                raise InvalidInputError(f"{name} must be a non-negative integer (>= 1 for dimensions), got {value!r}")
-        if not math.isfinite(self.exp_initial_em_deg):
-            raise InvalidInputError(f"exp_initial_em_deg must be finite, got {self.exp_initial_em_deg!r}")
-        if not (math.isfinite(self.exp_delta_pc_threshold) and self.exp_delta_pc_threshold >= 0):
-            raise InvalidInputError(
-                f"exp_delta_pc_threshold must be a finite number >= 0 (cells), got {self.exp_delta_pc_threshold!r}"
-            )
-        if self.relax_budget is not None and (
-            isinstance(self.relax_budget, bool) or not isinstance(self.relax_budget, (int, np.integer)) or self.relax_budget < 1
-        ):
-            raise InvalidInputError(f"relax_budget must be a positive integer or None, got {self.relax_budget!r}")
+        c = self.correction
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not (math.isfinite(c) and 0.0 < c <= 1.0):
+            raise ConfigError(f"correction must be in (0, 1], got {c!r}")
+        _positive_int(self.relax_passes, "relax_passes", 0)
+        t = self.match_distance_cells
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not (math.isfinite(t) and t >= 0):
+            raise ConfigError(f"match_distance_cells must be a finite number >= 0 (cells), got {t!r}")
+        shape = tuple(self.pc_shape)
+        if not shape:
+            raise ConfigError("pc_shape must have at least one axis")
+        for n in shape:
+            _positive_int(n, "pc_shape entries", 1)
+        object.__setattr__(self, "pc_shape", tuple(int(n) for n in shape))
+        axes = tuple(self.offset_axes)
+        if any(isinstance(a, bool) or not isinstance(a, (int, np.integer)) or not 0 <= a < len(shape) for a in axes):
+            raise ConfigError(f"offset_axes must be axes of pc_shape {shape}, got {axes!r}")
+        object.__setattr__(self, "offset_axes", tuple(int(a) for a in axes))
+        if self.relax_budget is not None:
+            _positive_int(self.relax_budget, "relax_budget", 1)
         if not isinstance(self.link_time_since_start, (bool, np.bool_)):
-            raise InvalidInputError(f"link_time_since_start must be a boolean, got {self.link_time_since_start!r}")
-
-    @classmethod
-    def openratslam(cls, **overrides: Any) -> "ExperienceMapConfig":
-        """OpenRatSLAM's defaults with its unbounded (O(links) per step) relaxation and link timer."""
-        params: dict[str, Any] = {"relax_budget": None, "link_time_since_start": True}
-        params.update(overrides)
-        return cls(**params)
+            raise ConfigError(f"link_time_since_start must be a boolean, got {self.link_time_since_start!r}")
 
 
 @dataclass(frozen=True)
@@ -243,16 +183,15 @@ class ExperienceUpdate:
     Attributes
     ----------
     action : Action
-        What happened (``NO_ACTION``, ``CREATE_NODE`` or ``CREATE_EDGE``).
+        ``NO_ACTION``, ``CREATE_NODE`` or ``CREATE_EDGE``.
     exp_id : int
-        Current experience after the update (-1 while the map is empty).
+        Current experience after the update.
     src_id : int
-        Current experience before the update.
+        Current experience before the update (-1 while the map was empty).
     relocalised : bool
-        True when the current experience switched to an existing, different
-        experience (a loop closure / re-localisation).
+        The current experience switched to an existing, different one (a loop closure).
     new_link : bool
-        True when a link was added (False for a repeated link OpenRatSLAM skips).
+        A link was added (False for a repeated link, which OpenRatSLAM skips).
     """
 
     action: Action
@@ -262,15 +201,8 @@ class ExperienceUpdate:
     new_link: bool
 
 
-def _relax_kernel() -> Any:
-    """Return the numba Gauss-Seidel relaxation kernel (numba is imported on first use)."""
-    from maps._relax_numba import relax_links
-
-    return relax_links
-
-
 def _grow(arr: np.ndarray, needed: int) -> np.ndarray:
-    """Return ``arr`` with capacity for ``needed`` rows (doubling growth)."""
+    """``arr`` with capacity for ``needed`` rows (doubling growth)."""
     if needed <= arr.shape[0]:
         return arr
     new = np.zeros((max(needed, 2 * arr.shape[0], 16),) + arr.shape[1:], dtype=arr.dtype)
@@ -278,51 +210,56 @@ def _grow(arr: np.ndarray, needed: int) -> np.ndarray:
     return new
 
 
+@dataclass
+class _Arrays:
+    pc: np.ndarray
+    vt: np.ndarray
+    pose: np.ndarray
+    ends: np.ndarray
+    links: np.ndarray
+    order: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    order_key: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
 class ExperienceMap:
-    """Experience map of RatSLAM with OpenRatSLAM's semantics (Eq 2.23-2.25).
+    """Experience map on a geometry plug-in (see the module docstring).
 
     Parameters
     ----------
-    config : ExperienceMapConfig, optional
-        Parameters; OpenRatSLAM's defaults with bounded relaxation when omitted.
+    config : MapConfig, optional
+        Core parameters (defaults: OpenRatSLAM's, bounded relaxation).
+    geometry : SE2Geometry or SE3Geometry, optional
+        Pose arithmetic; default :class:`~maps.se2.SE2Geometry` (3-DoF RatSLAM).
 
     Notes
     -----
-    One RatSLAM iteration calls :meth:`on_odo` with the odometry and, when both
-    the pose cells and the view updated, :meth:`update` with the decoded packet
-    (which also relaxes the map). Experience ids are consecutive integers from 0.
-
-    OpenRatSLAM's ``on_create_link`` checks for an existing link by indexing the
-    *current* experience's links instead of ``exp_id_from``'s; links are only
-    ever created from the current experience, so the faithful and the intended
-    check coincide and this class implements the intended one.
+    One iteration calls :meth:`on_odo` with the odometry and, when the pose cells and
+    the view both updated, :meth:`update` with the decoded packet (which relaxes the
+    map). Experience ids are consecutive integers from 0.
     """
 
-    def __init__(self, config: ExperienceMapConfig | None = None) -> None:
-        self.config = config if config is not None else ExperienceMapConfig()
+    def __init__(self, config: MapConfig | None = None, geometry: Geometry | None = None) -> None:
+        self.config = config if config is not None else MapConfig()
+        self.geometry: Geometry = geometry if geometry is not None else SE2Geometry(heading_cells=self.config.pc_shape[-1])
+        g, nd = self.geometry, len(self.config.pc_shape)
         self._n_exp = 0
         self._n_link = 0
-        self._exp_pc = np.zeros((16, 3))
-        self._exp_vt = np.zeros(16, dtype=np.int64)
-        self._exp_pose = np.zeros((16, 3))
-        self._link_ends = np.zeros((16, 2), dtype=np.int64)
-        self._link_data = np.zeros((16, 4))
-        # links sorted by (from id, link id): OpenRatSLAM's relaxation order
-        self._order = np.zeros(0, dtype=np.int64)
-        self._order_key = np.zeros(0, dtype=np.int64)
+        self._a = _Arrays(
+            pc=np.zeros((16, nd)), vt=np.zeros(16, dtype=np.int64), pose=np.zeros((16, g.pose_width)),
+            ends=np.zeros((16, 2), dtype=np.int64), links=np.zeros((16, g.link_width + 1)),
+        )
         self._vt_exps: dict[int, list[int]] = {}
         self._out: dict[int, set[int]] = {}
+        self._n_links_of: dict[int, int] = {}
         self.current_id = 0
         self.prev_id = 0
-        self.accum_dx = 0.0
-        self.accum_dy = 0.0
-        self.accum_facing = math.radians(self.config.exp_initial_em_deg)
+        self._acc = g.initial_accumulator()
         self.accum_time_s = 0.0
-        self.relative_rad = 0.0
-        self.vt_delta_pc_th = 0.0
+        self._offset = np.zeros(nd)
         self._cursor = 0
         #: single-link relaxation updates done by the last :meth:`iterate` call
         self.last_relax_updates = 0
+        self._graph: Any = None
 
     # ------------------------------------------------------------------ views
     @property
@@ -337,130 +274,153 @@ class ExperienceMap:
 
     @property
     def poses(self) -> np.ndarray:
-        """Map poses, shape (n, 3): x (m), y (m), theta (rad, in (-pi, pi]); a copy."""
-        return self._exp_pose[: self._n_exp].copy()
+        """Map poses, shape (n, pose width): SE(2) ``(x m, y m, theta rad)``, SE(3)
+        ``(x, y, z m, qx, qy, qz, qw)``; a copy."""
+        return self._a.pose[: self._n_exp].copy()
 
     @property
     def pc_coords(self) -> np.ndarray:
-        """Pose-cell coordinates (x, y, th) in cells, shape (n, 3); a copy."""
-        return self._exp_pc[: self._n_exp].copy()
+        """Pose-cell coordinates of every experience, cells, shape (n, ndim); a copy."""
+        return self._a.pc[: self._n_exp].copy()
 
     @property
     def view_ids(self) -> np.ndarray:
-        """Local-view (template) id of each experience, shape (n,); a copy."""
-        return self._exp_vt[: self._n_exp].copy()
+        """Local-view id of each experience, shape (n,); a copy."""
+        return self._a.vt[: self._n_exp].copy()
 
     @property
     def links(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(ends, data)``: int64 (m, 2) from/to ids and float64 (m, 4) d (m), heading, facing (rad), dt (s)."""
-        return self._link_ends[: self._n_link].copy(), self._link_data[: self._n_link].copy()
+        """``(ends, data)``: int64 (m, 2) from/to ids and float64 (m, link width + 1) -
+        the geometry's link columns (SE(2): d m, heading rad, facing rad) then dt s."""
+        return self._a.ends[: self._n_link].copy(), self._a.links[: self._n_link].copy()
 
-    def current_pose(self) -> tuple[float, float, float]:
-        """Map pose (x m, y m, theta rad) of the current experience ((nan,)*3 while empty)."""
+    @property
+    def accumulator(self) -> tuple[float, ...]:
+        """Odometry accumulated since the current experience (SE(2): dx m, dy m, facing rad;
+        SE(3): d (3) m in the experience's frame and the relative quaternion xyzw)."""
+        return tuple(self._acc)
+
+    @property
+    def view_offset_cells(self) -> np.ndarray:
+        """The view offset (cells, per axis) of the last injection (OpenRatSLAM ``vt_delta_pc_th``)."""
+        return self._offset.copy()
+
+    def current_pose(self) -> tuple[float, ...]:
+        """Map pose of the current experience (all NaN while the map is empty)."""
         if self._n_exp == 0:
-            return (math.nan, math.nan, math.nan)
-        p = self._exp_pose[self.current_id]
-        return (float(p[0]), float(p[1]), float(p[2]))
+            return (math.nan,) * self.geometry.pose_width
+        return tuple(float(v) for v in self._a.pose[self.current_id])
 
-    def dead_reckoned_pose(self) -> tuple[float, float, float]:
-        """Current experience's map pose plus the odometry accumulated since it (x m, y m, theta rad)."""
-        x0, y0 = (0.0, 0.0) if self._n_exp == 0 else (float(self._exp_pose[self.current_id, 0]), float(self._exp_pose[self.current_id, 1]))
-        return (x0 + self.accum_dx, y0 + self.accum_dy, clip_rad_180(self.accum_facing))
+    def dead_reckoned_pose(self) -> tuple[float, ...]:
+        """The current experience's map pose plus the odometry accumulated since it."""
+        base = self._a.pose[self.current_id] if self._n_exp else None
+        return tuple(float(v) for v in self.geometry.dead_reckoned(base, self._acc))
 
-    def experiences_of_view(self, vt_id: int) -> list[int]:
-        """Ids of the experiences created with view ``vt_id``, in creation order."""
-        return list(self._vt_exps.get(int(vt_id), []))
+    def experiences_of_view(self, view_id: int) -> list[int]:
+        """Ids of the experiences created with view ``view_id``, in creation order."""
+        return list(self._vt_exps.get(int(view_id), []))
 
     # ------------------------------------------------------------- odometry
-    def on_odo(self, vtrans: float, vrot: float, dt: float) -> None:
-        """Dead-reckon one odometry reading: rotate first, then translate (OpenRatSLAM ``on_odo``).
+    def on_odo(self, *odometry: Any) -> None:
+        """Dead-reckon one odometry sample.
 
         Parameters
         ----------
-        vtrans : float
-            Forward speed, m/s.
-        vrot : float
-            Yaw rate, rad/s.
-        dt : float
-            Duration of the reading, s (>= 0).
+        *odometry
+            A :class:`~maps.odometry.PlanarOdometry` / :class:`~maps.odometry.SpatialOdometry`
+            (as the geometry needs), or its fields: SE(2) ``(v m/s, omega rad/s, dt s)``,
+            SE(3) ``(v (3,) m/s, omega (3,) rad/s, dt s)`` in the body frame.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            Malformed odometry; the map is unchanged.
         """
-        vtrans, vrot, dt = float(vtrans), float(vrot), float(dt)
-        for name, value in (("vtrans", vtrans), ("vrot", vrot), ("dt", dt)):
-            if not math.isfinite(value):
-                raise InvalidInputError(f"{name} must be finite, got {value!r}; drop or repair the odometry sample")
-        if dt < 0:
-            raise InvalidInputError(f"dt must be >= 0 s, got {dt!r}")
-        dist = vtrans * dt
-        self.accum_facing = clip_rad_180(self.accum_facing + vrot * dt)
-        self.accum_dx = self.accum_dx + dist * math.cos(self.accum_facing)
-        self.accum_dy = self.accum_dy + dist * math.sin(self.accum_facing)
-        self.accum_time_s += dt
+        odo = self.geometry.odometry(*odometry)
+        self.geometry.accumulate(self._acc, odo)
+        self.accum_time_s += odo.dt
+
+    def on_odometry(self, odo: Odometry) -> None:
+        """:meth:`on_odo` for an already validated odometry object (the model loop's path)."""
+        self.geometry.accumulate(self._acc, odo)  # type: ignore[arg-type]
+        self.accum_time_s += odo.dt
 
     # ------------------------------------------------------- action (get_action)
-    def _delta_pc(self, best: tuple[float, float, float], ids: np.ndarray) -> np.ndarray:
+    def _delta_pc(self, best: Sequence[float], ids: np.ndarray) -> np.ndarray:
         """Wrapped pose-cell distances (cells) between the packet and experiences ``ids``."""
-        nxy, nth = float(self.config.pc_dim_xy), float(self.config.pc_dim_th)
-        th_corr = best[2] - self.vt_delta_pc_th
-        if th_corr < 0:
-            th_corr = nth + th_corr
-        if th_corr >= nth:
-            th_corr = th_corr - nth
-        pc = self._exp_pc[ids]
-        d = np.abs(np.array((best[0], best[1], th_corr)) - pc)  # (k, 3): |dx|, |dy|, |dth|
-        d = np.minimum(d, np.array((nxy, nxy, nth)) - d)  # wrapped, Eq 2.22
+        shape = self.config.pc_shape
+        corr = list(best)
+        for ax in self.config.offset_axes:
+            n = float(shape[ax])
+            c = corr[ax] - float(self._offset[ax])
+            if c < 0:
+                c = n + c
+            if c >= n:
+                c = c - n
+            corr[ax] = c
+        d = np.abs(np.array(corr) - self._a.pc[ids])
+        d = np.minimum(d, np.array(shape, dtype=np.float64) - d)  # wrapped, Eq 2.22
         d *= d
-        return np.sqrt(d[:, 0] + d[:, 1] + d[:, 2])
+        total = d[:, 0]
+        for k in range(1, d.shape[1]):
+            total = total + d[:, k]
+        return np.sqrt(total)
 
-    def update(
-        self,
-        best_pc: tuple[float, float, float],
-        vt_id: int,
-        prev_vt_id: int,
-        *,
-        relative_rad: float = 0.0,
-        vt_delta_pc_th: float | None = None,
-    ) -> ExperienceUpdate:
+    def _check_update(self, best_pc: Sequence[float], view_id: int, offset_cells: Any) -> tuple[list[float], int, np.ndarray | None]:
+        nd = len(self.config.pc_shape)
+        try:
+            best = [float(v) for v in best_pc]
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"best_pc must be {nd} real pose-cell coordinates, got {best_pc!r}") from None
+        if len(best) != nd or not all(math.isfinite(v) for v in best):
+            raise InvalidInputError(f"best_pc must be {nd} finite pose-cell coordinates, got {best_pc!r}")
+        if isinstance(view_id, (bool, np.bool_)) or not isinstance(view_id, (int, np.integer)) or not 0 <= view_id < 2**62:
+            raise InvalidInputError(f"view_id must be an integer in [0, 2**62), got {view_id!r}")
+        off = None
+        if offset_cells is not None:
+            off = np.array(offset_cells, dtype=np.float64).reshape(-1)
+            if off.shape != (nd,) or not np.isfinite(off).all():
+                raise InvalidInputError(f"offset_cells must be {nd} finite values (cells), got {offset_cells!r}")
+        return best, int(view_id), off
+
+    def update(self, best_pc: Sequence[float], view_id: int, prev_view_id: int, *, offset_cells: Any = None) -> ExperienceUpdate:
         """Choose the experience for the decoded packet and view, then relax (OpenRatSLAM ``get_action``).
 
         Parameters
         ----------
-        best_pc : (float, float, float)
-            Decoded packet (x, y, th) in pose cells (OpenRatSLAM ``find_best``).
-        vt_id : int
-            Current view (template) id, >= 0.
-        prev_vt_id : int
+        best_pc : sequence of float, shape (ndim,)
+            Decoded packet, fractional pose cells.
+        view_id : int
+            Current view id, >= 0.
+        prev_view_id : int
             View id of the previous view update.
-        relative_rad : float
-            Relative view rotation (rad) of a panoramic match (0 otherwise); stored
-            in a new link's facing and in the dead-reckoned facing after a switch.
-        vt_delta_pc_th : float, optional
-            Theta offset (cells) of the last injection (OpenRatSLAM ``vt_delta_pc_th``);
-            unchanged when omitted.
+        offset_cells : array_like (ndim,), optional
+            View offset (cells) of the last injection (OpenRatSLAM ``vt_delta_pc_th`` on
+            theta); kept from the previous call when omitted. On ``offset_axes`` it
+            corrects the packet; the geometry turns it into a link / facing rotation.
 
         Returns
         -------
         ExperienceUpdate
+
+        Raises
+        ------
+        InvalidInputError
+            Non-finite or wrong-length coordinates, a bad view id or offset; the map is unchanged.
         """
-        bx, by, bth = (float(v) for v in best_pc)
-        if not all(math.isfinite(v) for v in (bx, by, bth)):
-            raise InvalidInputError(f"best_pc must be finite pose-cell coordinates, got {best_pc!r}")
-        vt_id, prev_vt_id = int(vt_id), int(prev_vt_id)
-        if vt_id < 0:
-            raise InvalidInputError(f"vt_id must be >= 0, got {vt_id}")
-        if not math.isfinite(relative_rad):
-            raise InvalidInputError(f"relative_rad must be finite, got {relative_rad!r}")
-        if vt_delta_pc_th is not None:
-            self.vt_delta_pc_th = float(vt_delta_pc_th)
-        best = (bx, by, bth)
+        best, vt_id, off = self._check_update(best_pc, view_id, offset_cells)
+        if off is not None:
+            self._offset = off
+        rotation = self.geometry.offset_rotation(self._offset)
         src = self.current_id if self._n_exp else -1
-        thr = self.config.exp_delta_pc_threshold
+        thr = self.config.match_distance_cells
         exps = self._vt_exps.get(vt_id)
         if self._n_exp == 0 or not exps:
             self._create(best, vt_id)
             result = ExperienceUpdate(Action.CREATE_NODE, self.current_id, src, False, self._n_exp > 1)
         else:
             delta = float(self._delta_pc(best, np.array([self.current_id]))[0])
-            if not (delta > thr or vt_id != prev_vt_id):
+            if not (delta > thr or vt_id != int(prev_view_id)):
                 return ExperienceUpdate(Action.NO_ACTION, self.current_id, src, False, False)
             ids = np.array([e for e in exps if e != self.current_id], dtype=np.int64)
             matched = -1
@@ -473,68 +433,57 @@ class ExperienceMap:
                 self._create(best, vt_id)
                 result = ExperienceUpdate(Action.CREATE_NODE, self.current_id, src, False, True)
             else:
-                added = self._add_link(self.current_id, matched, relative_rad)
-                self._set_current(matched, relative_rad)
+                added = self._add_link(self.current_id, matched, rotation)
+                self._set_current(matched, rotation)
                 result = ExperienceUpdate(Action.CREATE_EDGE, matched, src, True, added)
         self.iterate()
         return result
 
-    def _create(self, best: tuple[float, float, float], vt_id: int) -> None:
+    def _create(self, best: list[float], vt_id: int) -> None:
         """OpenRatSLAM ``create_experience`` + ``on_create_experience`` + ``on_set_experience(new, 0)``."""
-        n = self._n_exp
-        self._exp_pc = _grow(self._exp_pc, n + 1)
-        self._exp_vt = _grow(self._exp_vt, n + 1)
-        self._exp_pose = _grow(self._exp_pose, n + 1)
-        base = self._exp_pose[self.current_id] if n else np.zeros(3)
-        self._exp_pose[n] = (base[0] + self.accum_dx, base[1] + self.accum_dy, clip_rad_180(self.accum_facing))
-        self._exp_pc[n] = best
-        self._exp_vt[n] = vt_id
+        n, a = self._n_exp, self._a
+        a.pc, a.vt, a.pose = _grow(a.pc, n + 1), _grow(a.vt, n + 1), _grow(a.pose, n + 1)
+        a.pose[n] = self.geometry.new_pose(a.pose[self.current_id] if n else None, self._acc)
+        a.pc[n] = best
+        a.vt[n] = vt_id
         self._n_exp = n + 1
         self._vt_exps.setdefault(vt_id, []).append(n)
+        if self._graph is not None:
+            self._graph.add_node(n, view_id=vt_id, pc_cells=tuple(best))
         if n:
             self._add_link(self.current_id, n, 0.0)
         self._set_current(n, 0.0)
 
-    def _add_link(self, id_from: int, id_to: int, rel_rad: float) -> bool:
+    def _add_link(self, id_from: int, id_to: int, rotation: float) -> bool:
         """OpenRatSLAM ``on_create_link``: add a link unless one exists in either direction."""
         if id_to in self._out.get(id_from, ()) or id_from in self._out.get(id_to, ()):
             return False
-        m = self._n_link
-        self._link_ends = _grow(self._link_ends, m + 1)
-        self._link_data = _grow(self._link_data, m + 1)
-        th_from = float(self._exp_pose[id_from, 2])
-        self._link_ends[m] = (id_from, id_to)
-        self._link_data[m] = (
-            math.sqrt(self.accum_dx * self.accum_dx + self.accum_dy * self.accum_dy),
-            signed_delta_rad(th_from, math.atan2(self.accum_dy, self.accum_dx)),
-            signed_delta_rad(th_from, clip_rad_180(self.accum_facing + rel_rad)),
-            self.accum_time_s,
-        )
+        m, a = self._n_link, self._a
+        a.ends, a.links = _grow(a.ends, m + 1), _grow(a.links, m + 1)
+        a.ends[m] = (id_from, id_to)
+        a.links[m, :-1] = self.geometry.link(a.pose[id_from], self._acc, rotation)
+        a.links[m, -1] = self.accum_time_s
         self._n_link = m + 1
         self._out.setdefault(id_from, set()).add(id_to)
+        for e in (id_from, id_to):
+            self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
         key = id_from * (1 << 32) + m
-        pos = int(np.searchsorted(self._order_key, key))
-        self._order_key = np.insert(self._order_key, pos, key)
-        self._order = np.insert(self._order, pos, m)
+        pos = int(np.searchsorted(a.order_key, key))
+        a.order_key = np.insert(a.order_key, pos, key)
+        a.order = np.insert(a.order, pos, m)
+        if self._graph is not None:
+            self._graph_link(m)
         return True
 
-    def _set_current(self, new_id: int, rel_rad: float) -> None:
-        """OpenRatSLAM ``on_set_experience``.
-
-        Faithful quirk: setting the experience that is already current changes
-        nothing, so after the very first experience (id 0 == initial current id)
-        the dead-reckoning accumulators are *not* reset.
-        """
+    def _set_current(self, new_id: int, rotation: float) -> None:
+        """OpenRatSLAM ``on_set_experience`` (setting the current experience again changes nothing)."""
         if new_id == self.current_id:
             return
         self.prev_id = self.current_id
         self.current_id = new_id
-        self.accum_dx = 0.0
-        self.accum_dy = 0.0
-        self.accum_facing = clip_rad_180(float(self._exp_pose[new_id, 2]) + rel_rad)
+        self.geometry.reset_accumulator(self._acc, self._a.pose[new_id], rotation)
         if not self.config.link_time_since_start:
             self.accum_time_s = 0.0
-        self.relative_rad = rel_rad
 
     # ------------------------------------------------------------ relaxation
     def iterate(self, n_updates: int | None = None) -> int:
@@ -543,14 +492,14 @@ class ExperienceMap:
         Parameters
         ----------
         n_updates : int, optional
-            Single-link updates to perform. Default: ``exp_loops * n_links``
-            capped at ``relax_budget`` (see the module docstring).
+            Single-link updates to perform. Default: ``relax_passes * n_links`` capped at
+            ``relax_budget`` (see the module docstring).
         """
         m = self._n_link
         self.last_relax_updates = 0
         if m == 0:
             return 0
-        full = self.config.exp_loops * m
+        full = self.config.relax_passes * m
         if n_updates is None:
             budget = self.config.relax_budget
             if budget is None or full <= budget:
@@ -558,53 +507,80 @@ class ExperienceMap:
             else:
                 n_updates, start = budget, self._cursor % m
         else:
+            if isinstance(n_updates, bool) or not isinstance(n_updates, (int, np.integer)) or n_updates < 0:
+                raise InvalidInputError(f"n_updates must be an integer >= 0, got {n_updates!r}")
             start = self._cursor % m
         if n_updates <= 0:
             return 0
-        end = _relax_kernel()(
-            self._order, self._link_ends, self._link_data, self._exp_pose, float(self.config.exp_correction), int(n_updates), int(start)
-        )
-        self._cursor = int(end)
+        a = self._a
+        self._cursor = self.geometry.relax(a.order, a.ends, a.links, a.pose, float(self.config.correction), int(n_updates), int(start))
         self.last_relax_updates = int(n_updates)
         return int(n_updates)
 
-    # --------------------------------------------------------------- export
-    def to_networkx(self) -> "nx.DiGraph":
-        """The map as a :class:`networkx.DiGraph` (a snapshot).
+    # ---------------------------------------------------------------- graph
+    def _graph_link(self, k: int) -> None:
+        f, t = (int(v) for v in self._a.ends[k])
+        w_t, w_r = self.geometry.link_cost(self._a.links[k])
+        g = self._graph
+        g.add_edge(f, t, link_id=k, w_t=w_t, w_r=w_r)
+        g.add_edge(t, f, link_id=k, w_t=w_t, w_r=w_r)
+        for node in (f, t):  # Eq 6.3: 1 / n_l of the edge's target changed for both ends
+            inv = 1.0 / self._n_links_of[node]
+            for u in g.predecessors(node):
+                e = g.edges[u, node]
+                e["weight"] = e["w_t"] + e["w_r"] + inv
 
-        Nodes are experience ids with :class:`ExperienceAttrs`; edges are links
-        (from -> to) with :class:`LinkAttrs`. Graph attribute ``current_id``.
+    @property
+    def graph(self) -> Any:
+        """The live :class:`networkx.DiGraph` of the map (see "Path search" in the module docstring).
+
+        Built on first access, then updated with every new experience and link. Treat it
+        as read-only; map poses are in :attr:`poses` (they move with relaxation).
+        """
+        if self._graph is None:
+            import networkx as nx
+
+            self._graph = nx.DiGraph()
+            for i in range(self._n_exp):
+                self._graph.add_node(i, view_id=int(self._a.vt[i]), pc_cells=tuple(float(v) for v in self._a.pc[i]))
+            for k in range(self._n_link):
+                self._graph_link(k)
+        return self._graph
+
+    def to_networkx(self) -> Any:
+        """A snapshot :class:`networkx.DiGraph` with the current map poses.
+
+        Nodes: ``view_id``, ``pc_cells`` and the geometry's pose fields (SE(2): ``x_m``,
+        ``y_m``, ``th_rad``); edges (from -> to, one per link): ``link_id``, the geometry's
+        link fields (SE(2): ``d_m``, ``heading_rad``, ``facing_rad``) and ``dt_s``. Graph
+        attribute ``current_id``.
         """
         import networkx as nx
 
         g = nx.DiGraph(current_id=int(self.current_id) if self._n_exp else -1)
+        geo, a = self.geometry, self._a
         for i in range(self._n_exp):
-            pc, pose = self._exp_pc[i], self._exp_pose[i]
-            attrs: ExperienceAttrs = {
-                "x_pc": float(pc[0]), "y_pc": float(pc[1]), "th_pc": float(pc[2]), "vt_id": int(self._exp_vt[i]),
-                "x_m": float(pose[0]), "y_m": float(pose[1]), "th_rad": float(pose[2]),
-            }
-            g.add_node(i, **attrs)
+            attrs = dict(zip(geo.pose_fields, (float(v) for v in a.pose[i])))
+            g.add_node(i, view_id=int(a.vt[i]), pc_cells=tuple(float(v) for v in a.pc[i]), **attrs)
         for k in range(self._n_link):
-            ld = self._link_data[k]
-            link: LinkAttrs = {
-                "link_id": k, "d_m": float(ld[0]), "heading_rad": float(ld[1]), "facing_rad": float(ld[2]), "dt_s": float(ld[3]),
-            }
-            g.add_edge(int(self._link_ends[k, 0]), int(self._link_ends[k, 1]), **link)
+            attrs = dict(zip(geo.link_fields + ("dt_s",), (float(v) for v in a.links[k])))
+            g.add_edge(int(a.ends[k, 0]), int(a.ends[k, 1]), link_id=k, **attrs)
         return g
 
     # ----------------------------------------------------------- save / load
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The whole map as named arrays (the ``.npz`` fields of the module docstring, names prefixed)."""
+        a, n, m = self._a, self._n_exp, self._n_link
+        config = {"map": asdict(self.config), "geometry": self.geometry.name, "geometry_params": self.geometry.params()}
         arrays = {
             "format": np.int64(FORMAT_VERSION),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "exp_pc": self._exp_pc[: self._n_exp].copy(),
-            "exp_vt": self._exp_vt[: self._n_exp].copy(),
-            "exp_pose": self._exp_pose[: self._n_exp].copy(),
-            "link_ends": self._link_ends[: self._n_link].copy(),
-            "link_data": self._link_data[: self._n_link].copy(),
-            "state_f": np.array([self.accum_dx, self.accum_dy, self.accum_facing, self.accum_time_s, self.relative_rad, self.vt_delta_pc_th]),
+            "config": np.array(json.dumps(config)),
+            "exp_pc": a.pc[:n].copy(),
+            "exp_vt": a.vt[:n].copy(),
+            "exp_pose": a.pose[:n].copy(),
+            "link_ends": a.ends[:m].copy(),
+            "link_data": a.links[:m].copy(),
+            "state_f": np.array([*self._acc, self.accum_time_s, *self._offset.tolist()]),
             "state_i": np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
         }
         return {prefix + k: np.asarray(v) for k, v in arrays.items()}
@@ -620,12 +596,11 @@ class ExperienceMap:
         Raises
         ------
         CorruptFileError
-            When the file is unreadable or a field is missing or has the wrong type,
-            shape or value (named in the error).
+            The file is unreadable, or a field is missing or has the wrong type, shape or value.
         """
         try:
             archive = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, EOFError) as exc:
             raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
         if not hasattr(archive, "files"):
             raise CorruptFileError("holds a single array, not an .npz archive", path=path)
@@ -642,7 +617,7 @@ class ExperienceMap:
             A field is missing or has the wrong type, shape or value (named in the error).
         """
 
-        def field(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
+        def fld(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
             key = prefix + name
             if key not in arrays:
                 raise CorruptFileError("missing", field=key)
@@ -658,22 +633,32 @@ class ExperienceMap:
                 raise CorruptFileError("holds NaN or infinite values", field=key)
             return arr
 
-        version = int(field("format", "i", ()))
+        version = int(fld("format", "i", ()))
         if version != FORMAT_VERSION:
             raise CorruptFileError(f"version {version}, this library reads version {FORMAT_VERSION}", field=prefix + "format")
         try:
-            config = ExperienceMapConfig(**json.loads(str(field("config", "U", ()))))
-        except (json.JSONDecodeError, TypeError, InvalidInputError) as exc:
-            raise CorruptFileError(f"not a valid ExperienceMapConfig JSON ({exc})", field=prefix + "config") from exc
-        exp_pc = field("exp_pc", "f", (None, 3))
+            spec = json.loads(str(fld("config", "U", ())))
+            mc = dict(spec["map"])
+            for k in ("pc_shape", "offset_axes"):
+                mc[k] = tuple(mc[k])
+            config = MapConfig(**mc)
+            geometry = _GEOMETRIES[spec["geometry"]](**spec["geometry_params"])
+        except (json.JSONDecodeError, TypeError, KeyError, ValueError, ConfigError) as exc:
+            raise CorruptFileError(f"not a valid map configuration JSON ({exc})", field=prefix + "config") from exc
+        em = cls(config, geometry)
+        nd, g = len(config.pc_shape), geometry
+        exp_pc = fld("exp_pc", "f", (None, nd))
         n = exp_pc.shape[0]
-        exp_vt = field("exp_vt", "i", (n,))
-        exp_pose = field("exp_pose", "f", (n, 3))
-        link_ends = field("link_ends", "i", (None, 2))
+        exp_vt = fld("exp_vt", "i", (n,))
+        exp_pose = fld("exp_pose", "f", (n, g.pose_width))
+        link_ends = fld("link_ends", "i", (None, 2))
         m = link_ends.shape[0]
-        link_data = field("link_data", "f", (m, 4))
-        state_f = field("state_f", "f", (6,))
-        state_i = field("state_i", "i", (3,))
+        link_data = fld("link_data", "f", (m, g.link_width + 1))
+        state_f = fld("state_f", "f", (g.accum_width + 1 + nd,))
+        state_i = fld("state_i", "i", (3,))
+        problem = g.check_poses(exp_pose)
+        if problem:
+            raise CorruptFileError(problem, field=prefix + "exp_pose")
         if np.any(exp_vt < 0):
             raise CorruptFileError("negative view id", field=prefix + "exp_vt")
         if m and (link_ends.min() < 0 or link_ends.max() >= n):
@@ -682,24 +667,25 @@ class ExperienceMap:
             raise CorruptFileError(f"current/previous id {state_i[:2].tolist()} outside the {n} experiences", field=prefix + "state_i")
         if state_i[2] < 0:
             raise CorruptFileError("negative relaxation cursor", field=prefix + "state_i")
-        em = cls(config)
+        a = em._a
         em._n_exp, em._n_link = n, m
-        em._exp_pc = _grow(np.array(exp_pc, dtype=np.float64), n)
-        em._exp_vt = _grow(np.array(exp_vt, dtype=np.int64), n)
-        em._exp_pose = _grow(np.array(exp_pose, dtype=np.float64), n)
-        em._link_ends = _grow(np.array(link_ends, dtype=np.int64), m)
-        em._link_data = _grow(np.array(link_data, dtype=np.float64), m)
+        a.pc, a.vt = _grow(np.array(exp_pc, dtype=np.float64), n), _grow(np.array(exp_vt, dtype=np.int64), n)
+        a.pose = _grow(np.array(exp_pose, dtype=np.float64), n)
+        a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(link_data, dtype=np.float64), m)
         for i, v in enumerate(exp_vt.tolist()):
             em._vt_exps.setdefault(v, []).append(i)
         for k, (f, t) in enumerate(link_ends.tolist()):
             if t in em._out.get(f, ()) or f in em._out.get(t, ()):
                 raise CorruptFileError(f"duplicate link {f}->{t} at row {k}", field=prefix + "link_ends")
             em._out.setdefault(f, set()).add(t)
+            for e in (f, t):
+                em._n_links_of[e] = em._n_links_of.get(e, 0) + 1
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)
-        em._order = np.argsort(keys, kind="stable").astype(np.int64)
-        em._order_key = keys[em._order]
-        (em.accum_dx, em.accum_dy, em.accum_facing, em.accum_time_s, em.relative_rad, em.vt_delta_pc_th) = (
-            float(v) for v in state_f
-        )
+        a.order = np.argsort(keys, kind="stable").astype(np.int64)
+        a.order_key = keys[a.order]
+        w = g.accum_width
+        em._acc = [float(v) for v in state_f[:w]]
+        em.accum_time_s = float(state_f[w])
+        em._offset = np.array(state_f[w + 1:], dtype=np.float64)
         em.current_id, em.prev_id, em._cursor = (int(v) for v in state_i)
         return em

@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
-from maps.experience_map import Action, ExperienceMap, ExperienceMapConfig, signed_delta_rad
+from maps.experience_map import Action, ExperienceMap, MapConfig
+from maps.se2 import SE2Geometry, signed_delta_rad
 
 
 def square_map(exp_loops=1):
     """Four experiences around a 1 x 1 square; the last step closes the loop 0.2 m short."""
-    em = ExperienceMap(ExperienceMapConfig(exp_initial_em_deg=0.0, exp_loops=exp_loops, relax_budget=None))
+    em = ExperienceMap(MapConfig(relax_passes=exp_loops, relax_budget=None), SE2Geometry(initial_heading_deg=0.0))
     em.update((0, 0, 0), 0, 0)  # exp 0 at the origin, facing 0
     em.on_odo(1.0, 0.0, 1.0)
     em.update((5, 0, 0), 1, 0)  # exp 1 at (1, 0)
@@ -73,7 +74,7 @@ def test_relaxation_reduces_closure_error():
 
 
 def test_get_action_rules():
-    em = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=2.0, pc_dim_xy=21, pc_dim_th=36))
+    em = ExperienceMap(MapConfig(match_distance_cells=2.0, pc_shape=(21, 21, 36)))
     assert em.update((10, 10, 18), 0, 0).action == Action.CREATE_NODE
     # same view, packet within threshold -> nothing
     assert em.update((11, 10, 18), 0, 0).action == Action.NO_ACTION
@@ -94,7 +95,7 @@ def test_get_action_rules():
 
 def test_first_experience_does_not_reset_accumulators():
     # OpenRatSLAM quirk: on_set_experience(0) with current id already 0 is a no-op
-    em = ExperienceMap(ExperienceMapConfig(exp_initial_em_deg=0.0))
+    em = ExperienceMap(MapConfig(), SE2Geometry(initial_heading_deg=0.0))
     em.on_odo(1.0, 0.0, 1.0)
     em.update((0, 0, 0), 0, 0)
     assert em.poses[0].tolist() == [1.0, 0.0, 0.0]
@@ -105,7 +106,7 @@ def test_first_experience_does_not_reset_accumulators():
 
 
 def test_initial_facing_from_config():
-    em = ExperienceMap(ExperienceMapConfig())  # exp_initial_em_deg = 90
+    em = ExperienceMap(MapConfig())  # initial heading 90 deg (OpenRatSLAM exp_initial_em_deg)
     em.on_odo(1.0, 0.0, 1.0)
     em.update((0, 0, 0), 0, 0)
     np.testing.assert_allclose(em.poses[0], [0.0, 1.0, math.pi / 2], atol=1e-15)
@@ -121,20 +122,20 @@ def random_drive(em, rng, steps, n_views=15):
 
 
 def test_bounded_relaxation_equals_openratslam_while_within_budget():
-    a = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=6.0, relax_budget=None))
-    b = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=6.0, relax_budget=10**6))
+    a = ExperienceMap(MapConfig(match_distance_cells=6.0, relax_budget=None))
+    b = ExperienceMap(MapConfig(match_distance_cells=6.0, relax_budget=10**6))
     random_drive(a, np.random.default_rng(1), 150)
     random_drive(b, np.random.default_rng(1), 150)
     assert a.n_links > 20
     assert a.poses.tobytes() == b.poses.tobytes()
-    c = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=6.0, relax_budget=50))
+    c = ExperienceMap(MapConfig(match_distance_cells=6.0, relax_budget=50))
     random_drive(c, np.random.default_rng(1), 150)
     assert c.iterate() == 50
 
 
 def test_relaxation_order_is_by_source_then_creation():
     # links created 1->2 first, then 0->1: OpenRatSLAM relaxes 0->1 before 1->2
-    em = ExperienceMap(ExperienceMapConfig(exp_initial_em_deg=0.0, exp_loops=0, relax_budget=None))
+    em = ExperienceMap(MapConfig(relax_passes=0, relax_budget=None), SE2Geometry(initial_heading_deg=0.0))
     em.update((0, 0, 0), 0, 0)
     em.on_odo(1.0, 0.0, 1.0)
     em.update((5, 0, 0), 1, 0)
@@ -150,9 +151,9 @@ def test_relaxation_order_is_by_source_then_creation():
 
 def test_save_load_continue_is_bit_identical(tmp_path):
     rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
-    a = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=5.0, relax_budget=40))
+    a = ExperienceMap(MapConfig(match_distance_cells=5.0, relax_budget=40))
     random_drive(a, rng_a, 200)
-    b = ExperienceMap(ExperienceMapConfig(exp_delta_pc_threshold=5.0, relax_budget=40))
+    b = ExperienceMap(MapConfig(match_distance_cells=5.0, relax_budget=40))
     random_drive(b, rng_b, 100)
     path = tmp_path / "map.npz"
     b.save(path)
@@ -163,7 +164,7 @@ def test_save_load_continue_is_bit_identical(tmp_path):
     assert c.poses.tobytes() == a.poses.tobytes()
     assert c.pc_coords.tobytes() == a.pc_coords.tobytes()
     assert all(x.tobytes() == y.tobytes() for x, y in zip(c.links, a.links))
-    assert (c.current_id, c.accum_dx) == (a.current_id, a.accum_dx)
+    assert (c.current_id, c.accumulator) == (a.current_id, a.accumulator)
 
 
 def test_corrupt_map_files_raise_typed_error_naming_field(tmp_path):
@@ -190,11 +191,11 @@ def test_corrupt_map_files_raise_typed_error_naming_field(tmp_path):
 
 def test_bad_odometry_leaves_state_unchanged():
     em = square_map()
-    before = (em.accum_dx, em.accum_dy, em.accum_facing, em.accum_time_s)
+    before = (em.accumulator, em.accum_time_s)
     for args in [(math.nan, 0, 1), (1, math.inf, 1), (1, 0, -1)]:
         with pytest.raises(InvalidInputError):
             em.on_odo(*args)
-    assert (em.accum_dx, em.accum_dy, em.accum_facing, em.accum_time_s) == before
+    assert (em.accumulator, em.accum_time_s) == before
     with pytest.raises(InvalidInputError):
         em.update((math.nan, 0, 0), 0, 0)
 
@@ -204,8 +205,8 @@ def test_networkx_view_typed_attributes_and_path_search():
     em.update((0, 0, 0), 0, 3)
     g = em.to_networkx()
     assert isinstance(g, nx.DiGraph) and g.number_of_nodes() == 4 and g.number_of_edges() == 4
-    assert set(g.nodes[2]) == {"x_pc", "y_pc", "th_pc", "vt_id", "x_m", "y_m", "th_rad"}
-    assert g.nodes[2]["vt_id"] == 2 and g.graph["current_id"] == 0
+    assert set(g.nodes[2]) == {"pc_cells", "view_id", "x_m", "y_m", "th_rad"}
+    assert g.nodes[2]["view_id"] == 2 and g.graph["current_id"] == 0
     assert g.edges[2, 3]["d_m"] == pytest.approx(1.2)
     assert nx.shortest_path(g.to_undirected(), 1, 3, weight="d_m") in ([1, 0, 3], [1, 2, 3])
 

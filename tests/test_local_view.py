@@ -83,13 +83,13 @@ def test_panoramic_offset_wraps_theta():
 def test_bad_view_ids_leave_state_unchanged():
     lv = LocalViewCells(SHAPE)
     lv.observe(0, [1, 2, 3])
-    before = lv.state_dict()
+    before = lv.to_arrays()
     for bad in (-1, 2, "x"):
         with pytest.raises(InvalidInputError):
             lv.observe(bad, [1, 2, 3])
     with pytest.raises(InvalidInputError):
         lv.observe(0, [1, np.nan, 3])
-    after = lv.state_dict()
+    after = lv.to_arrays()
     for k in before:
         np.testing.assert_array_equal(before[k], after[k])
 
@@ -106,7 +106,7 @@ def test_learnt_view_re_anchors_a_blank_network(preset, centre):
     assert lv.weights.nnz == int((pc.activity > 0).sum())
     blank = getattr(Population, preset)()
     blank.activity = np.zeros(blank.shape)
-    lv2 = LocalViewCells.from_state(lv.state_dict(), LocalViewParams(mode="learnt"))
+    lv2 = LocalViewCells.from_arrays(lv.to_arrays(), LocalViewParams(mode="learnt"))
     blank.inject_flat(*lv2.observe(0, np.zeros(len(centre))))
     blank.step()
     d = blank.decode()

@@ -17,7 +17,8 @@ from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.population import Population
 from cansim.posecell_network import PosecellNetwork
 from cansim.ratslam import RatSLAM, RatSLAMConfig
-from maps.experience_map import ExperienceMap, ExperienceMapConfig
+from maps.experience_map import ExperienceMap, MapConfig
+from maps.se2 import SE2Geometry
 
 TRACE = Path(__file__).parent / "data" / "openratslam_cpp_trace.csv"
 
@@ -176,7 +177,7 @@ def test_engine_choice_in_the_config():
 
 def test_view_id_with_relative_rad_observation():
     slam = RatSLAM(RatSLAMConfig.openratslam())
-    assert slam.step(0.0, 0.0, 1.0, (5, 0.3)).template_id == 0
+    assert slam.step(0.0, 0.0, 1.0, (5, 0.3)).view_id == 0
     with pytest.raises(InvalidInputError, match="2 entries"):
         slam.step(0.0, 0.0, 1.0, (5, 0.3, 1))
     with pytest.raises(InvalidInputError, match="finite"):
@@ -220,7 +221,7 @@ def test_cpp_cells_need_a_3d_stored_truncating_grid():
 # ------------------------------------------------------------- link timer
 @pytest.mark.parametrize("since_start,expected", [(False, [2.0, 3.0]), (True, [2.0, 5.0])])
 def test_link_time_since_start_reproduces_the_cpp_timer(since_start, expected):
-    em = ExperienceMap(ExperienceMapConfig(link_time_since_start=since_start, exp_delta_pc_threshold=1.0))
+    em = ExperienceMap(MapConfig(link_time_since_start=since_start, match_distance_cells=1.0))
     em.update((1.0, 1.0, 1.0), 0, 0)
     for pc, vt, seconds in (((5.0, 1.0, 1.0), 1, 2.0), ((9.0, 1.0, 1.0), 2, 3.0)):
         em.on_odo(0.1, 0.0, seconds)

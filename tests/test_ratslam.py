@@ -20,14 +20,14 @@ CFG = RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=0.05)
 
 def snapshot(slam):
     em = slam.experience_map
-    return (slam.pose_cells.activity.tobytes(), slam.n_templates, slam.iteration, em.poses.tobytes(),
-            em.n_links, em.accum_dx, em.accum_facing, slam.best_pc)
+    return (slam.pose_cells.activity.tobytes(), slam.n_views, slam.iteration, em.poses.tobytes(),
+            em.n_links, em.accumulator, slam.best_pc)
 
 
 def test_keyword_parameters_and_presets():
     slam = RatSLAM(pc_dim_xy=15, pc_dim_th=24, exp_loops=3)
     assert slam.pose_cells.shape == (15, 15, 24)
-    assert slam.experience_map.config.exp_loops == 3
+    assert slam.experience_map.config.relax_passes == 3
     with pytest.raises(ConfigError, match="pc_dimxy"):
         RatSLAM(pc_dimxy=3)
     par = RatSLAMConfig.openratslam()
@@ -81,8 +81,8 @@ def test_tactile_frontend_reuses_templates():
     a = slam.step(0.0, 0.0, 1.0, img)
     b = slam.step(0.0, 0.0, 1.0, img + np.uint8(4))  # S = 18 * 2 = 36 > 5 -> new
     c = slam.step(0.0, 0.0, 1.0, img)
-    assert (a.template_id, b.template_id, c.template_id) == (0, 1, 0)
-    assert a.new_template and b.new_template and not c.new_template
+    assert (a.view_id, b.view_id, c.view_id) == (0, 1, 0)
+    assert a.new_view and b.new_view and not c.new_view
 
 
 @pytest.mark.parametrize(
@@ -114,7 +114,7 @@ def test_experience_only_after_odometry_and_view():
     s = slam.step(0.05, 0.0, 1.0)  # odometry only
     assert s.exp_id == -1 and s.action == Action.NO_ACTION
     s = slam.step(0.05, 0.0, 1.0, 7)
-    assert s.exp_id == 0 and s.action == Action.CREATE_NODE and s.template_id == 0
+    assert s.exp_id == 0 and s.action == Action.CREATE_NODE and s.view_id == 0
     s = slam.step(0.05, 0.0, 1.0, 9)
     assert s.exp_id == 1 and slam.experience_map.n_links == 1
 
@@ -205,14 +205,14 @@ def test_visual_model_save_resume_equals_uninterrupted(tmp_path):
                         vt_shift_match=2, vt_step_match=1, vt_match_threshold=0.02)
     full = RatSLAM(cfg)
     full_log = full.run(run.vtrans, run.vrot, run.dt, images)
-    assert full.n_templates < len(run)  # the second loop re-uses templates
+    assert full.n_views < len(run)  # the second loop re-uses templates
     half = 30
     first = RatSLAM(cfg)
     first.run(run.vtrans[:half], run.vrot[:half], run.dt, images[:half])
     first.save(tmp_path / "visual.npz")
     resumed = RatSLAM.load(tmp_path / "visual.npz")
     log_b = resumed.run(run.vtrans[half:], run.vrot[half:], run.dt, images[half:])
-    assert np.array_equal(log_b.template_ids, full_log.template_ids[half:])
+    assert np.array_equal(log_b.view_ids, full_log.view_ids[half:])
     assert snapshot(resumed) == snapshot(full)
 
 

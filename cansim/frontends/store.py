@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cansim.errors import ConfigError
+from cansim.errors import ConfigError, CorruptFileError
 
-__all__ = ["TemplateMatch", "TemplateStore"]
+__all__ = ["TemplateMatch", "TemplateStore", "ViewMatch"]
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,29 @@ class TemplateMatch:
     is_new: bool
     error: float
     relative_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class ViewMatch:
+    """What a front end hands the model loop for one observation.
+
+    Attributes
+    ----------
+    view_id : int
+        Local-view cell of the observation (consecutive from 0; a new one is ``n_views``).
+    is_new : bool
+        The observation became a new view.
+    error : float
+        Matching error of the best stored view (``inf`` when none was compared).
+    offset_cells : ndarray (ndim,) or None
+        Per pose-cell axis, the offset (cells) between the observation and the stored
+        view (a panoramic rotation on RatSLAM's theta axis); None when there is none.
+    """
+
+    view_id: int
+    is_new: bool
+    error: float
+    offset_cells: np.ndarray | None = None
 
 
 class TemplateStore:
@@ -81,17 +104,17 @@ class TemplateStore:
             f"{prefix}ids": np.array([self.current_id, self.prev_id], dtype=np.int64),
         }
 
-    def load_arrays(self, arrays: dict[str, np.ndarray], prefix: str) -> None:
-        """Restore from :meth:`to_arrays` output; raises ConfigError naming a bad field."""
+    def from_arrays(self, arrays: dict[str, np.ndarray], prefix: str) -> None:
+        """Restore from :meth:`to_arrays` output; raises CorruptFileError naming a bad field."""
         for key in (f"{prefix}templates", f"{prefix}ids"):
             if key not in arrays:
-                raise ConfigError(f"saved front-end state lacks field {key!r}")
+                raise CorruptFileError("missing", field=key)
         data = np.asarray(arrays[f"{prefix}templates"])
         ids = np.asarray(arrays[f"{prefix}ids"])
         if data.shape[1:] != self.shape or data.dtype.kind != "f":
-            raise ConfigError(f"field {prefix}templates: shape {data.shape} / dtype {data.dtype}, expected (n,)+{self.shape} floats")
+            raise CorruptFileError(f"shape {data.shape} / dtype {data.dtype}, expected (n,)+{self.shape} floats", field=f"{prefix}templates")
         if ids.shape != (2,) or ids.dtype.kind != "i":
-            raise ConfigError(f"field {prefix}ids: expected 2 integers, got shape {ids.shape}")
+            raise CorruptFileError(f"expected 2 integers, got shape {ids.shape}", field=f"{prefix}ids")
         self._data = np.zeros((max(16, data.shape[0]),) + self.shape)
         self._data[: data.shape[0]] = data
         self._n = int(data.shape[0])

@@ -116,8 +116,8 @@ class TactileTemplates:
         """State as named arrays for an ``.npz`` file."""
         return self.store.to_arrays(prefix)
 
-    def load_arrays(self, arrays: dict[str, np.ndarray], prefix: str = "vt_") -> None:
+    def from_arrays(self, arrays: dict[str, np.ndarray], prefix: str = "vt_") -> None:
         """Restore the state written by :meth:`to_arrays`."""
         store = TemplateStore(TACTILE_SHAPE)
-        store.load_arrays(arrays, prefix)
+        store.from_arrays(arrays, prefix)
         self.store = store

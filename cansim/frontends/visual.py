@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
@@ -265,16 +265,16 @@ class VisualTemplates:
         out[f"{prefix}image_shape"] = np.array(self.image_shape if self.image_shape else (), dtype=np.int64)
         return out
 
-    def load_arrays(self, arrays: dict[str, np.ndarray], prefix: str = "vt_") -> None:
+    def from_arrays(self, arrays: dict[str, np.ndarray], prefix: str = "vt_") -> None:
         """Restore the state written by :meth:`to_arrays`."""
         for key in (f"{prefix}means", f"{prefix}last_view", f"{prefix}image_shape"):
             if key not in arrays:
-                raise ConfigError(f"saved front-end state lacks field {key!r}")
+                raise CorruptFileError("missing", field=key)
         store = TemplateStore(self.store.shape)
-        store.load_arrays(arrays, prefix)
+        store.from_arrays(arrays, prefix)
         means = np.asarray(arrays[f"{prefix}means"], dtype=np.float64)
         if means.shape != (len(store),):
-            raise ConfigError(f"field {prefix}means: shape {means.shape}, expected ({len(store)},)")
+            raise CorruptFileError(f"shape {means.shape}, expected ({len(store)},)", field=f"{prefix}means")
         self.store = store
         self._means = np.concatenate([means, np.zeros(16)])
         self._last_view = np.array(arrays[f"{prefix}last_view"], dtype=np.float64)

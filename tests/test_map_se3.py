@@ -1,0 +1,188 @@
+"""SE(3) map geometry: Alg 6 / Eq 5.13-5.15 accumulation, the relaxation kernel against scipy, persistence."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from maps.experience_map import ExperienceMap, MapConfig
+from maps.odometry import SpatialOdometry
+from maps.se3 import SE3Geometry
+from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
+
+
+def test_alg6_quarter_turn_by_hand():
+    g = SE3Geometry()
+    acc = g.initial_accumulator()
+    g.accumulate(acc, SpatialOdometry([0, 0, 0], [0, 0, math.pi / 2], 1.0))
+    np.testing.assert_allclose(acc[3:], [0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)], atol=1e-15)
+
+
+def test_closed_rotation_loop_accumulates_to_identity():
+    g = SE3Geometry()
+    acc = g.initial_accumulator()
+    for axis in range(3):  # a full turn about x, then y, then z, in 7 unequal pieces each
+        for frac in (0.1, 0.2, 0.05, 0.15, 0.3, 0.12, 0.08):
+            w = np.zeros(3)
+            w[axis] = 2 * math.pi * frac
+            g.accumulate(acc, SpatialOdometry([0, 0, 0], w, 1.0))
+    assert Rotation.from_quat(acc[3:]).magnitude() < 1e-9
+
+
+def test_eq_5_13_displacement_is_rotated_into_the_experience_frame():
+    g = SE3Geometry()
+    acc = g.initial_accumulator()
+    g.accumulate(acc, SpatialOdometry([1, 0, 0], [0, 0, math.pi / 2], 1.0))  # 1 m along x, then a quarter turn
+    g.accumulate(acc, SpatialOdometry([2, 0, 0], [0, 0, 0], 1.0))  # 2 m along the new body x = old +y
+    np.testing.assert_allclose(acc[:3], [1, 2, 0], atol=1e-12)
+    # a new experience from a base at (10, 0, 0) turned by pi about z: p = p_e + R(q_e) d
+    base = np.array([10, 0, 0, 0, 0, 1, 0], dtype=float)
+    pose = g.new_pose(base, acc)
+    np.testing.assert_allclose(pose[:3], [9, -2, 0], atol=1e-12)
+    np.testing.assert_allclose(Rotation.from_quat(pose[3:]).as_rotvec(), [0, 0, -math.pi / 2], atol=1e-12)
+
+
+def _reference_relax(poses, ends, links, c, order):
+    """The same Gauss-Seidel update written with scipy's Rotation (the kernel's oracle)."""
+    poses = poses.copy()
+    for k in order:
+        f, t = ends[k]
+        qf, qt = Rotation.from_quat(poses[f, 3:]), Rotation.from_quat(poses[t, 3:])
+        dq = Rotation.from_quat(links[k, 3:7])
+        res = poses[t, :3] - (poses[f, :3] + qf.apply(links[k, :3]))
+        poses[f, :3] += res * c
+        poses[t, :3] -= res * c
+        r = ((qf * dq).inv() * qt).as_rotvec()
+        poses[t, 3:] = (qt * Rotation.from_rotvec(-c * r)).as_quat()
+        poses[f, 3:] = (qf * dq * Rotation.from_rotvec(c * r) * dq.inv()).as_quat()
+    return poses
+
+
+def _same_rotation(a, b):
+    return (Rotation.from_quat(a).inv() * Rotation.from_quat(b)).magnitude()
+
+
+def test_relax_kernel_equals_the_scipy_reference():
+    rng = np.random.default_rng(3)
+    n, m = 6, 9
+    poses = np.hstack([rng.normal(size=(n, 3)), Rotation.random(n, random_state=1).as_quat()])
+    ends = np.array([(i, (i + 1) % n) for i in range(n)] + [(0, 3), (1, 4), (2, 5)], dtype=np.int64)
+    links = np.hstack([rng.normal(size=(m, 3)), Rotation.random(m, random_state=2).as_quat(), np.ones((m, 1))])
+    order = np.arange(m, dtype=np.int64)
+    expected = _reference_relax(poses, ends, links, 0.5, list(order) * 3)
+    got = poses.copy()
+    end = SE3Geometry().relax(order, ends, links, got, 0.5, 3 * m, 0)
+    assert end == 0
+    np.testing.assert_allclose(got[:, :3], expected[:, :3], atol=1e-10)
+    assert max(_same_rotation(got[i, 3:], expected[i, 3:]) for i in range(n)) < 1e-10
+
+
+def test_one_link_at_half_correction_closes_its_residual():
+    poses = np.array([[0, 0, 0, 0, 0, 0, 1], [1, 1, 0, *Rotation.from_rotvec([0, 0, 0.4]).as_quat()]], dtype=float)
+    links = np.array([[1, 0, 0, 0, 0, 0, 1, 1.0]])
+    ends = np.array([[0, 1]], dtype=np.int64)
+    SE3Geometry().relax(np.array([0]), ends, links, poses, 0.5, 1, 0)
+    qf, qt = Rotation.from_quat(poses[0, 3:]), Rotation.from_quat(poses[1, 3:])
+    # positions are corrected with the source orientation before the update (identity), as Eq 2.25 in 2-D
+    np.testing.assert_allclose(poses[1, :3], poses[0, :3] + [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(poses[0, :3], [0, 0.5, 0], atol=1e-12)
+    assert (qf.inv() * qt).magnitude() < 1e-12
+    assert qt.magnitude() == pytest.approx(0.2, abs=1e-12)  # both ends met half way
+
+
+def _loop_map(relax_passes):
+    """A unit square whose odometry over-reads the second side by 0.3 m and the first turn by 0.2 rad, closed at view 0."""
+    em = ExperienceMap(MapConfig(pc_shape=(5,) * 6, offset_axes=(), relax_passes=relax_passes, relax_budget=None,
+                                 match_distance_cells=1.0), SE3Geometry())
+    cells = [(0, 0, 0, 0, 0, 0), (2, 0, 0, 0, 0, 1), (2, 2, 0, 0, 0, 2), (0, 2, 0, 0, 0, 3)]
+    em.update(cells[0], 0, 0)
+    for k in range(1, 5):
+        em.on_odo([1.3 if k == 2 else 1.0, 0, 0], [0, 0, math.pi / 2 + (0.2 if k == 1 else 0.0)], 1.0)
+        em.update(cells[k % 4], k % 4, k - 1)
+    assert em.n_experiences == 4 and em.current_id == 0 and em.n_links == 4
+    return em
+
+
+def _errors(em):
+    """Summed position (m) and rotation (rad) error of the map against the true unit square, frame-free."""
+    truth = [np.array(p, dtype=float) for p in ((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0))]
+    p = em.poses
+    q0 = Rotation.from_quat(p[0, 3:])
+    perr = sum(np.linalg.norm(q0.inv().apply(p[i, :3] - p[0, :3]) - truth[i]) for i in range(4))
+    rerr = sum((Rotation.from_rotvec([0, 0, i * math.pi / 2]).inv() * q0.inv() * Rotation.from_quat(p[i, 3:])).magnitude()
+               for i in range(4))
+    return perr, rerr
+
+
+def test_relaxation_moves_an_inconsistent_loop_toward_the_least_squares_layout():
+    raw_p, raw_r = _errors(_loop_map(0))
+    relaxed_p, relaxed_r = _errors(_loop_map(20))
+    assert raw_p > 0.15 and raw_r > 0.15  # the injected inconsistency is visible
+    assert relaxed_p < 0.6 * raw_p and relaxed_r < 0.6 * raw_r
+
+
+def test_graph_weights_follow_eq_6_3():
+    em = _loop_map(0)
+    g = em.graph
+    assert g.number_of_nodes() == 4 and g.number_of_edges() == 8  # 4 links, both directions
+    e = g.edges[0, 1]
+    # link 0->1: 1 m and a turn of pi/2 + 0.2; node 1 has 2 links
+    assert e["weight"] == pytest.approx(1.0 + math.pi / 2 + 0.2 + 1 / 2)
+    em.on_odo([1.0, 0, 0], [0, 0, 0], 1.0)
+    em.update((4, 4, 4, 4, 4, 4), 7, 0)  # a new experience linked from 0: node 0 now has 3 links
+    assert g.edges[1, 0]["weight"] == pytest.approx(1.0 + math.pi / 2 + 0.2 + 1 / 3)
+
+
+def test_save_load_round_trip_is_exact(tmp_path):
+    em = _loop_map(5)
+    em.save(tmp_path / "m.npz")
+    back = ExperienceMap.load(tmp_path / "m.npz")
+    assert back.poses.tobytes() == em.poses.tobytes()
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(back.links, em.links))
+    assert back.accumulator == em.accumulator and isinstance(back.geometry, SE3Geometry)
+    arrays = dict(np.load(tmp_path / "m.npz"))
+    arrays["exp_pose"] = arrays["exp_pose"] * 2
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(CorruptFileError, match="exp_pose"):
+        ExperienceMap.load(tmp_path / "bad.npz")
+
+
+finite = st.floats(-1e3, 1e3)
+bad = st.sampled_from([math.nan, math.inf, -math.inf])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(finite, min_size=3, max_size=3), st.lists(finite, min_size=3, max_size=3), st.floats(0, 10),
+       st.integers(0, 8), bad)
+def test_spatial_odometry_rejects_bad_input_and_map_state_is_unchanged(v, w, dt, where, value):
+    em = _loop_map(1)
+    before = (em.accumulator, em.accum_time_s)
+    fields = [list(v), list(w), dt]
+    if where < 3:
+        fields[0][where] = value
+    elif where < 6:
+        fields[1][where - 3] = value
+    elif where == 6:
+        fields[2] = value
+    elif where == 7:
+        fields[2] = -1.0 - dt
+    else:
+        fields[0] = fields[0][:2]
+    with pytest.raises((InvalidInputError, ShapeError)):
+        em.on_odo(*fields)
+    assert (em.accumulator, em.accum_time_s) == before
+
+
+def test_huge_odometry_is_rejected_not_hanging():
+    from maps.odometry import PlanarOdometry
+
+    with pytest.raises(InvalidInputError, match="split"):
+        PlanarOdometry(0.0, 1.0, 1e17)
+    em = ExperienceMap()
+    with pytest.raises(InvalidInputError):
+        em.on_odo(0.0, 1.0, 1e17)
+    with pytest.raises(InvalidInputError):
+        SpatialOdometry([1e300, 0, 0], [0, 0, 0], 1.0)
