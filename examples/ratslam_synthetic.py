@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from cansim.ratslam import RatSLAM, RatSLAMConfig
-from cansim.worlds import LoopRoute, SyntheticRun, make_run
+from cansim.testing.worlds import LoopRoute, SyntheticRun, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
 

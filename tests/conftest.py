@@ -11,6 +11,8 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 from cansim.backends import available_backends, get_backend  # noqa: E402
 from cansim.errors import BackendUnavailableError  # noqa: E402
 
+pytest_plugins = ["cansim.testing.plugin"]  # candidate / reference fixtures of the conformance suite
+
 
 #: comma-separated backends that must run (CI sets it): their absence fails instead of skipping
 REQUIRED = {b for b in os.environ.get("CANSIM_REQUIRE_BACKENDS", "").split(",") if b}
@@ -28,9 +30,3 @@ def backend(request):
         if request.param in REQUIRED:
             pytest.fail(f"required backend {request.param!r} is unavailable: {exc}")
         pytest.skip(str(exc))
-
-
-@pytest.fixture
-def reference():
-    """The numpy reference backend."""
-    return get_backend("numpy")

@@ -302,3 +302,30 @@ def test_import_does_no_work():
     code = "import sys, cansim; print(int(any(m in sys.modules for m in ('numba', 'pyopencl', 'scipy'))))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "0"
+
+
+@pytest.mark.parametrize(
+    "orientation,cells",
+    [
+        # yaw one cell (72 deg): R = Rz(72) sends body x to (cos 72, sin 72, 0)
+        ((0, 0, 1), {(10, 10, 10): (1 - 0.30901699437) * (1 - 0.95105651630), (11, 10, 10): 0.30901699437 * (1 - 0.95105651630),
+                     (10, 11, 10): (1 - 0.30901699437) * 0.95105651630, (11, 11, 10): 0.30901699437 * 0.95105651630}),
+        # pitch one cell: R = Ry(72) sends body x to (cos 72, 0, -sin 72)
+        ((0, 1, 0), {(10, 10, 10): (1 - 0.30901699437) * (1 - 0.95105651630), (11, 10, 10): 0.30901699437 * (1 - 0.95105651630),
+                     (10, 10, 9): (1 - 0.30901699437) * 0.95105651630, (11, 10, 9): 0.30901699437 * 0.95105651630}),
+        # roll only: body x stays x
+        ((0, 0, 0), {(11, 10, 10): 1.0}),
+    ],
+)
+def test_six_dof_conditional_translation_of_one_voxel_by_hand(backend, orientation, cells):
+    """Independent expectation: hand-computed cos/sin of 72 deg and the trilinear split (Fig 5.7-5.11)."""
+    cell = 0.02
+    pop = Population.whisker6d(n=21, n_angle=5, cell_size=cell, backend=backend, dtype=np.float64)
+    pop.reset_cell([10, 10, 10, *orientation])
+    pop.integrate(velocity=[cell, 0.0, 0.0], dt=1.0)  # one cell along body x
+    a = pop.activity
+    got = {idx[:3]: float(a[idx]) for idx in zip(*np.nonzero(a > 1e-12))}
+    assert set(got) == set(cells)
+    for k, w in cells.items():
+        assert got[k] == pytest.approx(w, abs=1e-9)
+    assert all(idx[3:] == orientation for idx in zip(*np.nonzero(a > 1e-12)))

@@ -9,7 +9,7 @@ import pytest
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.ratslam import RatSLAM, RatSLAMConfig
-from cansim.worlds import LoopRoute, make_run, render_view, scatter_landmarks
+from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
 from whisker_io.errors import CorruptFileError
 from maps.experience_map import Action
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
@@ -242,7 +242,7 @@ def test_20000_iterations_stay_under_200_mb():
     """
     import tracemalloc
 
-    from cansim.worlds import LoopRoute, make_run
+    from cansim.testing.worlds import LoopRoute, make_run
 
     n = 20_000
     route = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)

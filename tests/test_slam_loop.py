@@ -14,7 +14,7 @@ from cansim.frontends.ids import IdsFrontEnd
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.slam_loop import SlamLoop
-from cansim.worlds import LoopRoute, make_run
+from cansim.testing.worlds import LoopRoute, make_run
 from maps.experience_map import ExperienceMap, MapConfig
 from maps.metrics import absolute_trajectory_error
 from maps.odometry import PlanarOdometry, SpatialOdometry

@@ -1,4 +1,4 @@
-"""Tests of cansim.worlds: synthetic routes, Ch.3 odometry noise, kidnapping, rendered views."""
+"""Tests of cansim.testing.worlds: synthetic routes, Ch.3 odometry noise, kidnapping, rendered views."""
 
 import math
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cansim.errors import InvalidInputError
-from cansim.worlds import LoopRoute, OdometryNoise, ch3_loops, make_run, render_view, scatter_landmarks
+from cansim.testing.worlds import LoopRoute, OdometryNoise, ch3_loops, make_run, render_view, scatter_landmarks
 
 
 def test_route_geometry():
