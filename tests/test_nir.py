@@ -1,0 +1,161 @@
+"""NIR export / import of spiking attractor populations (cansim.spiking.to_nir / from_nir)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+nir = pytest.importorskip("nir")
+
+from cansim.axes import Axis  # noqa: E402
+from cansim.errors import ConfigError  # noqa: E402
+from cansim.params import AttractorParams  # noqa: E402
+from cansim.spiking import (  # noqa: E402
+    HD_RING_ATTRACTOR,
+    NeuronParams,
+    SpikingParams,
+    SpikingPopulation,
+    from_nir,
+    to_nir,
+)
+
+HSET = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+
+
+def _drive(pop: SpikingPopulation, n: int, seed: int = 0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        vel = rng.normal(0.0, 1.5, pop.ndim) if k % 2 else None
+        cur = rng.normal(0.2, 0.3, pop.shape) if k % 9 == 0 else None
+        out.append(pop.step(vel, cur))
+    return out
+
+
+def _ring_weights_by_hand(n, ke_w, ke_s, ki_w, ki_s, w_rec, w_glob):
+    """W[i, j] from the two Gaussians, written out as sums over the wrapped ring."""
+    def g(w, s):
+        d = np.arange(w) - w // 2
+        k = np.exp(-d * d / (2 * s * s))
+        return d, k / k.sum()
+
+    de, ke = g(ke_w, ke_s)
+    di, ki = g(ki_w, ki_s)
+    mat = np.full((n, n), -w_glob)
+    for j in range(n):
+        for a, wa in zip(de, ke):
+            mat[(j + a) % n, j] += w_rec * wa
+            for b, wb in zip(di, ki):
+                mat[(j + a + b) % n, j] -= w_rec * wa * wb
+    return mat
+
+
+def test_round_trip_through_a_file_gives_the_same_spikes(tmp_path):
+    p = SpikingParams(attractor=HD_RING_ATTRACTOR, lead_table=((2.0, 0.006), (50.0, 0.009), (200.0, 0.0095)))
+    pop = SpikingPopulation((Axis.angle("heading", 360),), p, seed=21)
+    path = tmp_path / "ring.nir"
+    nir.write(path, to_nir(pop))
+    back = from_nir(nir.read(path))
+    assert back.params == pop.params and back.seed == 21 and back.dt_s == pop.dt_s and back.axes == pop.axes
+    a, b = _drive(pop, 1500), _drive(back, 1500)
+    assert sum(len(s) for s in a) > 1000
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_graph_weights_and_neuron_parameters_equal_cansims():
+    n = 48
+    ap = AttractorParams(exc_width=9, exc_sigma=2.0, inh_width=7, inh_sigma=3.0)
+    nrn = NeuronParams(tau_mem_s=0.015, tau_syn_s=0.004, v_rest=-0.2, v_reset=-0.1, v_threshold=1.3, resistance=2.0, bias_current=0.5)
+    pop = SpikingPopulation((Axis.angle("h", n),), SpikingParams(attractor=ap, neurons=nrn, recurrent_weight=40.0, global_weight=0.7))
+    g = to_nir(pop)
+    assert set(g.nodes) == {"input", "input_scale", "cells", "recurrent", "output"}
+    assert ("cells", "recurrent") in g.edges and ("recurrent", "cells") in g.edges and ("cells", "output") in g.edges
+    assert isinstance(g.nodes["cells"], nir.CubaLIF) and isinstance(g.nodes["recurrent"], nir.Affine)
+    np.testing.assert_allclose(g.nodes["recurrent"].weight, _ring_weights_by_hand(n, 9, 2.0, 7, 3.0, 40.0, 0.7), atol=1e-13)
+    np.testing.assert_array_equal(g.nodes["recurrent"].bias, np.zeros(n))
+    c = g.nodes["cells"]
+    for name, val in [("tau_syn", 0.004), ("tau_mem", 0.015), ("r", 2.0), ("v_threshold", 1.3), ("v_reset", -0.1),
+                      ("v_leak", -0.2 + 2.0 * 0.5), ("w_in", 0.004)]:
+        np.testing.assert_allclose(getattr(c, name), np.full(n, val), rtol=1e-15)
+    np.testing.assert_allclose(g.nodes["input_scale"].scale, np.full(n, 1 / 0.004))
+    assert g.metadata["cansim"]["refractory_s"] == 0.002
+
+
+def test_a_3d_grid_round_trips_in_memory():
+    axes = (Axis.linear("x", 5, 0.1), Axis.linear("y", 4, 0.1), Axis.angle("theta", 6))
+    pop = SpikingPopulation(axes, SpikingParams(attractor=AttractorParams(exc_width=(3, 3, 5), exc_sigma=(1.0, 1.0, 1.5))), seed=3)
+    back = from_nir(to_nir(pop), backend="numpy")
+    assert back.params == pop.params and back.axes == axes and back.backend == "numpy"
+    assert all(np.array_equal(x, y) for x, y in zip(_drive(pop, 300, 1), _drive(back, 300, 1)))
+
+
+@settings(max_examples=12, **HSET)
+@given(
+    tau_mem=st.floats(0.005, 0.05), tau_syn=st.floats(0.001, 0.02), v_rest=st.floats(-1.0, 0.5),
+    resistance=st.floats(0.3, 3.0), bias=st.floats(0.0, 1.5), noise=st.floats(0.0, 0.5),
+    w_rec=st.floats(0.0, 150.0), w_glob=st.floats(0.0, 2.0), n=st.integers(1, 40), seed=st.integers(0, 2**31 - 1),
+)
+def test_any_lif_population_round_trips(tmp_path, tau_mem, tau_syn, v_rest, resistance, bias, noise, w_rec, w_glob, n, seed):
+    nrn = NeuronParams(tau_mem_s=tau_mem, tau_syn_s=tau_syn, v_rest=v_rest, v_reset=v_rest, v_threshold=v_rest + 1.0,
+                       resistance=resistance, bias_current=bias, noise_sigma=noise)
+    pop = SpikingPopulation((Axis.angle("h", n),), SpikingParams(neurons=nrn, recurrent_weight=w_rec, global_weight=w_glob), seed=seed)
+    path = tmp_path / f"p{seed}.nir"
+    nir.write(path, to_nir(pop))
+    back = from_nir(nir.read(path))
+    assert back.params.neurons == nrn and back.params == pop.params
+    assert all(np.array_equal(x, y) for x, y in zip(_drive(pop, 100, seed), _drive(back, 100, seed)))
+
+
+def test_export_refuses_poisson_cells_and_huge_grids():
+    pois = SpikingPopulation((Axis.angle("h", 10),), SpikingParams(neurons=NeuronParams(model="poisson")))
+    with pytest.raises(ConfigError, match="Poisson"):
+        to_nir(pois)
+    big = SpikingPopulation((Axis.linear("x", 21, 1.0), Axis.linear("y", 21, 1.0), Axis.angle("t", 36)), SpikingParams())
+    with pytest.raises(ConfigError, match="max_dense_cells"):
+        to_nir(big)
+    with pytest.raises(ConfigError):
+        to_nir("population")
+
+
+def test_import_refuses_foreign_or_edited_graphs():
+    pop = SpikingPopulation((Axis.angle("h", 12),), SpikingParams())
+    g = to_nir(pop)
+    edited = to_nir(pop)
+    edited.nodes["recurrent"].weight[0, 1] += 0.5
+    with pytest.raises(ConfigError, match="edited"):
+        from_nir(edited)
+    bare = nir.NIRGraph(nodes=dict(g.nodes), edges=list(g.edges), metadata={})
+    with pytest.raises(ConfigError, match="metadata"):
+        from_nir(bare)
+    uneven = to_nir(pop)
+    uneven.nodes["cells"].tau_mem[3] = 0.05
+    with pytest.raises(ConfigError, match="tau_mem"):
+        from_nir(uneven)
+    truncated = to_nir(pop)
+    del truncated.metadata["cansim"]["refractory_s"]
+    with pytest.raises(ConfigError, match="refractory_s"):
+        from_nir(truncated)
+    with pytest.raises(ConfigError):
+        from_nir({"nodes": {}})
+
+
+@settings(max_examples=20, **HSET)
+@given(
+    field=st.sampled_from(["tau_mem", "tau_syn", "r", "v_threshold", "v_leak"]),
+    bad=st.sampled_from([math.nan, math.inf, -0.01, 0.0]),
+)
+def test_import_rejects_bad_neuron_values_with_config_error(field, bad):
+    pop = SpikingPopulation((Axis.angle("h", 6),), SpikingParams())
+    g = to_nir(pop)
+    arr = getattr(g.nodes["cells"], field)
+    arr[:] = bad
+    if field == "v_leak" and math.isfinite(bad):
+        back = from_nir(g)  # a finite leak potential is only a different bias
+        assert back.params.neurons.bias_current == pytest.approx(bad)
+        return
+    with pytest.raises(ConfigError):
+        from_nir(g)
