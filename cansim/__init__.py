@@ -34,6 +34,13 @@ _LAZY = {
     "PlanarOdometry": "maps.odometry",
     "SpatialOdometry": "maps.odometry",
     "PosecellNetwork": "cansim.posecell_network",
+    "SpikingPopulation": "cansim.spiking",
+    "SpikingParams": "cansim.spiking",
+    "NeuronParams": "cansim.spiking",
+    "SpikeCountDecoder": "cansim.spiking",
+    "spiking_from_rate": "cansim.spiking",
+    "to_nir": "cansim.spiking",
+    "from_nir": "cansim.spiking",
 }
 
 
@@ -61,6 +68,13 @@ __all__ = [
     "PlanarOdometry",
     "SpatialOdometry",
     "PosecellNetwork",
+    "SpikingPopulation",
+    "SpikingParams",
+    "NeuronParams",
+    "SpikeCountDecoder",
+    "spiking_from_rate",
+    "to_nir",
+    "from_nir",
     "available_backends",
     "get_backend",
     "registered_backends",

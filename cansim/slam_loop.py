@@ -36,6 +36,7 @@ from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells, LocalViewParams
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
+from maps.persistence import read_npz
 
 __all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState"]
 
@@ -349,18 +350,7 @@ class SlamLoop:
         CorruptFileError
             The file is unreadable, or a field is missing or malformed (named in the error).
         """
-        try:
-            archive = np.load(path, allow_pickle=False)
-        except (OSError, ValueError, EOFError) as exc:
-            raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
-        if not hasattr(archive, "files"):
-            raise CorruptFileError("holds a single array, not an .npz archive", path=path)
-        with archive:
-            try:
-                arrays = {k: archive[k] for k in archive.files}
-            except Exception as exc:
-                raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
-        return cls.from_arrays(arrays)
+        return cls.from_arrays(read_npz(path))
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> "SlamLoop":

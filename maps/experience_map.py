@@ -84,6 +84,7 @@ from typing import Any, Sequence, Union
 import numpy as np
 
 from maps.odometry import Odometry
+from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
@@ -598,14 +599,7 @@ class ExperienceMap:
         CorruptFileError
             The file is unreadable, or a field is missing or has the wrong type, shape or value.
         """
-        try:
-            archive = np.load(path, allow_pickle=False)
-        except (OSError, ValueError, EOFError) as exc:
-            raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
-        if not hasattr(archive, "files"):
-            raise CorruptFileError("holds a single array, not an .npz archive", path=path)
-        with archive:
-            return cls.from_arrays(archive)
+        return cls.from_arrays(read_npz(path))
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ExperienceMap":
