@@ -110,7 +110,7 @@ class _TolerateInFlux(logging.Filter):
         return True
 
 
-_FOREIGN = ("sklearn.", "numpy.", "scipy.", "networkx.", "matplotlib.")
+_FOREIGN = ("sklearn.", "numpy.", "scipy.", "networkx.", "matplotlib.", "trimesh.")
 
 
 def _skip_foreign_member(app, what, name, obj, skip, options):
