@@ -11,8 +11,17 @@ Usage::
 
     python examples/hardware_session.py --robot-ip 192.168.1.10 [--out hw_session]
 
-Exit status: 0 done; 2 no robot reachable; 3 no whisker array found; 4 the
-session stopped on a fault or a safety refusal (completed whisks are kept).
+Exit status (one line on stderr says why, never a traceback):
+
+=====  =====================================================================
+0      done
+1      any other failure reported by the library (a typed ``CansimError``)
+2      usage error: bad command line or invalid safety-envelope arguments
+3      no robot reachable at ``--robot-ip``
+4      no whisker array found on USB
+5      the session stopped on a fault or a safety refusal (completed whisks are kept)
+6      the ``hw`` extra (ur-rtde, pyusb) is not installed
+=====  =====================================================================
 """
 
 from __future__ import annotations
@@ -22,7 +31,7 @@ import sys
 from pathlib import Path
 
 from whisker_io.control import WhiskPattern
-from whisker_io.errors import ConnectionFailedError, HardwareError
+from whisker_io.errors import CansimError, ConnectionFailedError, HardwareError
 from whisker_io.hw import MissingDependencyError
 from whisker_io.hw.arm import URArm
 from whisker_io.hw.recorder import Recorder, explore, raster_poses
@@ -30,12 +39,22 @@ from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout, USBArray
 
 
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = range(7)
+
+
 def fail(status: int, message: str) -> int:
     print(f"hardware_session: {message}", file=sys.stderr)
     return status
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    try:
+        return _session(argv)
+    except CansimError as exc:  # anything the library reports that is not handled below
+        return fail(EXIT_FAILURE, f"{type(exc).__name__}: {exc}")
+
+
+def _session(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot-ip", required=True, help="UR controller address")
     ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=FrameLayout.vendor_id)
@@ -49,20 +68,25 @@ def main() -> int:
     ap.add_argument("--rcp-threshold", type=float, default=2000.0, help="counts")
     ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
                     help="nominal tool z-axis in the base frame (safety envelope)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)  # exits with status 2 on a usage error
 
-    envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
+    try:
+        envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
+    except CansimError as exc:
+        return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
     try:
         arm = URArm(args.robot_ip, envelope)
     except MissingDependencyError as exc:
-        return fail(2, str(exc))
+        return fail(EXIT_NO_EXTRA, str(exc))
     except ConnectionFailedError as exc:
-        return fail(2, f"no robot reachable at {args.robot_ip}: {exc}")
+        return fail(EXIT_NO_ROBOT, f"no robot reachable at {args.robot_ip}: {exc}")
     with arm:
         try:
             array = USBArray(FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id))
-        except (MissingDependencyError, ConnectionFailedError) as exc:
-            return fail(3, str(exc))
+        except MissingDependencyError as exc:
+            return fail(EXIT_NO_EXTRA, str(exc))
+        except ConnectionFailedError as exc:
+            return fail(EXIT_NO_ARRAY, f"no whisker array found: {exc}")
         with array:
             recorder = None
             try:
@@ -74,14 +98,14 @@ def main() -> int:
                     explore(arm, array, recorder, targets, description="exploring")
             except HardwareError as exc:
                 done = recorder.n_cycles if recorder is not None else 0
-                return fail(4, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
+                return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
             finally:
                 try:
                     array.stop()
                 except HardwareError:
                     pass
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

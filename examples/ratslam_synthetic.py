@@ -70,12 +70,20 @@ def main() -> None:
 
     matplotlib.use("Agg")
     fig = plot_experience_map(slam.experience_map, clean.truth, clean.dead_reckoning, exp_log)
+    fig.axes[0].set_title("Experience map after relaxation - clean run (no kidnapping)")
     fig.savefig("ratslam_map.png", dpi=120)
+    step = f"iteration (one odometry sample of {float(np.mean(clean.dt)):g} s)"
     fig = plot_experience_ids(exp_log, exm.relocalisation_indices, n + 1, correct_indices=exm.correct_indices)
+    fig.axes[0].set_title("Experience id over time - clean run (no kidnapping)")
+    fig.axes[0].set_xlabel(step)
     fig.savefig("ratslam_experience_ids.png", dpi=120)
     fig = plot_experience_ids(kid_log, kid_exm.relocalisation_indices, n + 1, correct_indices=kid_exm.correct_indices)
-    for k in kidnapped.kidnap_indices:
-        fig.axes[0].axvline(k, color="tab:purple", lw=0.8)
+    ax = fig.axes[0]
+    for j, k in enumerate(kidnapped.kidnap_indices):
+        ax.axvline(k, color="tab:purple", lw=0.8, label="kidnap (carried 10 places ahead)" if j == 0 else None)
+    ax.legend(loc="upper left", fontsize="small")  # again, so that the kidnap lines are in it
+    ax.set_title(f"Experience id over time - kidnapped run ({len(kidnapped.kidnap_indices)} kidnaps)")
+    ax.set_xlabel(step)
     fig.savefig("ratslam_experience_ids_kidnapped.png", dpi=120)
 
     out = {key: float(metrics[key]) for key in ("ARR", "ARCR", "EM", "ate_map", "ate_dead_reckoning")}

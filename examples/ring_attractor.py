@@ -20,11 +20,13 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from cansim import Population, available_backends
+from cansim import Population, registered_backends
+from cansim.backends import backend_status
 from cansim.local_view import LocalViewCells, LocalViewParams
 
 log = logging.getLogger("ring_attractor")
@@ -78,30 +80,50 @@ def run(steps: int = 1200, seed: int = 0, backend: str = "numpy", dt: float = 0.
 
 
 def plot(res: dict[str, np.ndarray], path: Path) -> None:
-    """Activity raster with true, dead-reckoned and decoded heading; error panel below."""
+    """Activity raster alone (top), true / dead-reckoned / decoded heading, error panel with re-anchorings."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     t = np.arange(len(res["true"])) * res["dt"]
-    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax0.imshow(res["raster"].T, aspect="auto", origin="lower", extent=(t[0], t[-1], 0, 360), cmap="Greys", vmax=np.percentile(res["raster"], 99.9))
+    fig, (ax_a, ax0, ax1) = plt.subplots(
+        3, 1, figsize=(10, 8.5), sharex=True, gridspec_kw={"height_ratios": [2, 2, 1]}
+    )
+    # the activity itself, nothing drawn over it: one column per step, one row per cell (1 deg)
+    raster = res["raster"].T
+    im = ax_a.imshow(
+        raster, aspect="auto", origin="lower", interpolation="nearest",
+        extent=(t[0], t[-1] + res["dt"], 0, raster.shape[0]), cmap="magma_r",
+        vmin=0.0, vmax=float(np.percentile(raster, 99.9)),
+    )
+    ax_a.set_ylabel("ring cell = heading (deg)")
+    ax_a.set_title("Activity of the 360-cell head-direction ring (darker = more active)")
+    cbar = fig.colorbar(im, ax=ax_a, pad=0.01, fraction=0.03)
+    cbar.set_label("cell activity\n(fraction of total)")
     ax0.plot(t, res["true"], ".", ms=1.5, color="tab:green", label="true heading")
     ax0.plot(t, res["dead_reckoning"], ".", ms=1.5, color="tab:red", label="gyro dead reckoning")
-    ax0.plot(t, res["decoded"], ".", ms=1.5, color="tab:blue", label="decoded (ring)")
+    ax0.plot(t, res["decoded"], ".", ms=1.5, color="tab:blue", label="decoded from the ring (Eq 5.11-5.12)")
+    ax0.set_ylim(0, 360)
     ax0.set_ylabel("heading (deg)")
     ax0.legend(loc="upper right", markerscale=6, fontsize=8)
-    ax0.set_title("Head-direction ring: path integration, drift and re-anchoring by learnt views")
-    ax1.plot(t, np.abs(wrap_deg(res["dead_reckoning"] - res["true"])), color="tab:red", lw=1, label="dead reckoning")
-    ax1.plot(t, np.abs(wrap_deg(res["decoded"] - res["true"])), color="tab:blue", lw=1, label="ring")
+    ax0.set_title("Path integration: clean gyro for the first lap, then biased and noisy")
+    ax1.plot(t, np.abs(wrap_deg(res["dead_reckoning"] - res["true"])), color="tab:red", lw=1)
+    ax1.plot(t, np.abs(wrap_deg(res["decoded"] - res["true"])), color="tab:blue", lw=1)
     for a in res["anchors"][::4]:
         ax1.axvline(a * res["dt"], color="0.85", lw=0.5, zorder=0)
-    ax1.set_ylabel("|error| (deg)")
+    ax1.set_ylabel("|heading error| (deg)")
     ax1.set_xlabel("time (s)")
-    ax1.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    ax1.set_title("Heading error; learnt views re-anchor the ring at landmarks", fontsize=10)
+    handles = [
+        Line2D([], [], color="tab:red", lw=1, label="dead reckoning"),
+        Line2D([], [], color="tab:blue", lw=1, label="ring"),
+        Line2D([], [], color="0.75", lw=1, label="learnt-view injection (every 4th shown)"),
+    ]
+    ax1.legend(handles=handles, loc="upper left", fontsize=8)
+    fig.colorbar(im, ax=[ax0, ax1], pad=0.01, fraction=0.03).remove()  # keep the x axes aligned
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -109,10 +131,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=1200)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--backend", default="numpy", choices=available_backends())
+    ap.add_argument("--backend", default="numpy", choices=registered_backends())
     ap.add_argument("--out", type=Path, default=Path("."))
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    usable, reason = backend_status()[args.backend]
+    if not usable:  # one line, no traceback
+        print(f"ring_attractor: backend {args.backend!r} cannot run here: {reason}", file=sys.stderr)
+        return 1
     res = run(args.steps, args.seed, args.backend)
     args.out.mkdir(parents=True, exist_ok=True)
     png = args.out / "ring_attractor.png"

@@ -33,3 +33,22 @@ def test_histograms_and_boxplots_into_given_axes() -> None:
     assert [t.get_text() for t in ax.get_xticklabels()] == ["x", "y"]
     assert ax.get_ylim() == (0.0, 30.0)
     plt.close("all")
+
+
+def test_histogram_outliers_are_counted_not_clipped_into_the_edge_bins() -> None:
+    v = np.concatenate([np.linspace(0.0, 1.0, 20), [-5.0, -7.0, 9.0]])  # 2 below, 1 above (0, 1)
+    fig = plot_histograms({"m": v}, "error (fraction of WL)", value_range=(0.0, 1.0), bins=10)
+    ax = fig.axes[0]
+    heights = [p.get_height() for p in ax.patches]
+    assert sum(heights) == 20  # only the 20 values inside the axis are drawn
+    assert heights[0] == 2 and heights[-1] == 2  # 0.0, 0.05 and 0.95, 1.0: no outliers added at the edges
+    texts = " ".join(t.get_text() for t in ax.texts)
+    assert "2 below, 1 above" in texts and "of 23" in texts
+    assert ax.get_xlim() == (0.0, 1.0)
+    plt.close(fig)
+
+
+def test_histogram_without_outliers_has_no_note() -> None:
+    fig = plot_histograms({"m": np.linspace(0.0, 1.0, 11)}, "e", value_range=(0.0, 1.0))
+    assert not fig.axes[0].texts
+    plt.close(fig)

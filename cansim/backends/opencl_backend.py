@@ -49,9 +49,10 @@ OpenCL compiler fails on the kernels is passed over. PoCL 3.0 of
 ``pocl-binary-distribution`` bundles LLVM 14, which cannot compile for CPUs it does not
 know (e.g. AMD Zen 5: "unknown target CPU 'generic'"); such a device is recognised from
 its version string and skipped. On those machines Intel's CPU runtime works: ``pip
-install intel-opencl-rt intel-cmplr-lib-rt`` and point the ICD loader at it with
-``OCL_ICD_VENDORS=<dir>`` where ``<dir>`` holds an ``.icd`` file containing the path of
-``<prefix>/lib/libintelocl.so``.
+install "cansim[opencl-intel]"``; cansim registers it with the ICD loader by itself
+before pyopencl is imported (:func:`cansim.backends.opencl_runtime.register_icds`),
+and the default device order puts it after the other devices, so it is used where
+PoCL cannot build.
 
 Nothing happens at import. The device is looked up when the backend is constructed; the
 context, queue and program are created on first use (or by :meth:`OpenCLBackend.prepare`)
@@ -70,11 +71,17 @@ from dataclasses import dataclass, field
 from typing import Optional, Sequence, Union
 
 import numpy as np
-import pyopencl as cl
 
-from cansim.backends.base import Backend
-from cansim.decoding import population_vector_window
-from cansim.errors import BackendUnavailableError, InvalidInputError
+from cansim.backends.opencl_runtime import INTEL_PLATFORM_NAME, register_icds
+
+#: what the ICD registration did (it must run before pyopencl lists platforms)
+ICD_REGISTRATION = register_icds()
+
+import pyopencl as cl  # noqa: E402
+
+from cansim.backends.base import Backend  # noqa: E402
+from cansim.decoding import population_vector_window  # noqa: E402
+from cansim.errors import BackendUnavailableError, InvalidInputError  # noqa: E402
 
 __all__ = ["OpenCLBackend", "DEVICE_ENV_VAR", "list_devices"]
 
@@ -83,7 +90,10 @@ log = logging.getLogger(__name__)
 #: environment variable naming the OpenCL device ("P:D" or a name substring)
 DEVICE_ENV_VAR = "CANSIM_OPENCL_DEVICE"
 
-_INSTALL_HINT = 'pip install "cansim[opencl]" (pyopencl + pocl-binary-distribution, a CPU OpenCL platform)'
+_INSTALL_HINT = (
+    'pip install "cansim[opencl]" (pyopencl + PoCL, a CPU OpenCL platform), or "cansim[opencl-intel]" '
+    "(Intel's CPU runtime) where PoCL cannot compile for the CPU"
+)
 
 _SOURCE = r"""
 #ifdef NEED_FP64
@@ -307,7 +317,10 @@ def _select_devices(spec: Union[str, "cl.Device", None]) -> tuple[list, bool]:
             reasons = "; ".join(f"{label}: {_unusable_reason(d)}" for label, d in devices)
             raise BackendUnavailableError(f"no usable OpenCL device ({reasons})")
         gpus = [d for _, d in usable if d.type & cl.device_type.GPU]
-        return gpus + [d for _, d in usable if not d.type & cl.device_type.GPU], False
+        others = [(label, d) for label, d in usable if not d.type & cl.device_type.GPU]
+        # the runtime cansim registered itself is the fallback: after PoCL and system drivers
+        first = [d for label, d in others if not _registered_by_cansim(label)]
+        return gpus + first + [d for label, d in others if _registered_by_cansim(label)], False
     spec = str(spec).strip()
     if ":" in spec and all(part.strip().isdigit() for part in spec.split(":", 1)):
         key = ":".join(part.strip() for part in spec.split(":", 1))
@@ -326,6 +339,12 @@ def _select_devices(spec: Union[str, "cl.Device", None]) -> tuple[list, bool]:
     return chosen[:1], True
 
 
+def _registered_by_cansim(label: str) -> bool:
+    """A device label of :func:`list_devices` belongs to the Intel CPU runtime cansim registered (the fallback)."""
+    platform = label.split(" ", 1)[1] if " " in label else label
+    return ICD_REGISTRATION.vendors_dir is not None and platform.startswith(INTEL_PLATFORM_NAME + " /")
+
+
 def _unusable_reason(device) -> Optional[str]:
     """Why a device is known not to build OpenCL C here, or None.
 
@@ -338,9 +357,8 @@ def _unusable_reason(device) -> Optional[str]:
     if "PoCL HSTR" in version and "x86_64" in version and version.rstrip().endswith("-generic"):
         return (
             "this PoCL's LLVM does not recognise the CPU and cannot compile for it; install an "
-            "OpenCL runtime that knows it (a newer PoCL, or Intel's CPU runtime: pip install "
-            "intel-opencl-rt intel-cmplr-lib-rt, then write the path of <prefix>/lib/libintelocl.so "
-            "into an .icd file in a directory and set $OCL_ICD_VENDORS to that directory)"
+            'OpenCL runtime that knows it: pip install "cansim[opencl-intel]" (Intel\'s CPU runtime, '
+            "which cansim registers by itself) or a newer PoCL"
         )
     return None
 
@@ -551,8 +569,9 @@ class OpenCLBackend(Backend):
             hint = ""
             if "unknown target CPU" in text:
                 hint = (
-                    " (this PoCL's LLVM does not know this CPU; install another OpenCL runtime, "
-                    f"e.g. a newer PoCL or Intel's CPU runtime, or pick a device with ${DEVICE_ENV_VAR})"
+                    " (this PoCL's LLVM does not know this CPU; install another OpenCL runtime: "
+                    'pip install "cansim[opencl-intel]", or a newer PoCL, or pick a device with '
+                    f"${DEVICE_ENV_VAR})"
                 )
             raise BackendUnavailableError(
                 f"OpenCL device {dev.name.strip()!r} failed to build the cansim kernels{hint}: "

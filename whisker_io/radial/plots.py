@@ -67,16 +67,26 @@ def plot_histograms(
 ) -> Any:
     """One histogram per model with its median and standard deviation (Fig 4.8/4.9 style).
 
+    Values outside ``value_range`` are not drawn (nothing is clipped into the edge
+    bins); each panel says how many fell below and above its axis, and a triangle at
+    that edge marks the side. The median and standard deviation in the title are of
+    all values.
+
     Parameters
     ----------
     samples : mapping label -> array (n,)
         For example Eq 4.1 errors or point-to-mesh distances per model.
     xlabel : str
+        Label of the value axis, with its unit.
     axes : sequence of Axes, optional
     bins : int
     value_range : (lo, hi), optional
         Common histogram range; default the pooled 1st-99th percentile.
     ncols : int
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     labels = list(samples)
     fig, axs = _axes_grid(len(labels), axes, ncols=min(ncols, max(1, len(labels))), size=(3.0, 2.4))
@@ -84,12 +94,24 @@ def plot_histograms(
         pooled = np.concatenate([np.asarray(samples[k], dtype=float) for k in labels])
         lo, hi = np.percentile(pooled, [1, 99]) if pooled.size else (-1.0, 1.0)
         value_range = (float(lo), float(hi) if hi > lo else float(lo) + 1.0)
+    lo, hi = value_range
     for ax, lab in zip(axs, labels):
         v = np.asarray(samples[lab], dtype=float)
-        ax.hist(np.clip(v, *value_range), bins=bins, range=value_range, color="tab:gray")
+        below, above = int(np.sum(v < lo)), int(np.sum(v > hi))
+        ax.hist(v[(v >= lo) & (v <= hi)], bins=bins, range=value_range, color="tab:gray")
+        ax.set_xlim(lo, hi)
         ax.axvline(0.0, color="k", lw=0.6)
         if v.size:
             ax.set_title(f"{lab}\nmedian {np.median(v):.3g}, std {np.std(v):.3g}", fontsize=8)
+        if below or above:
+            ax.text(
+                0.98, 0.97, f"outside the axis: {below} below, {above} above\n(of {v.size}; not drawn)",
+                transform=ax.transAxes, ha="right", va="top", fontsize=6, color="tab:red",
+            )
+            for side, n in ((0.0, below), (1.0, above)):
+                if n:
+                    ax.plot([side], [0.0], marker="<" if side == 0.0 else ">", color="tab:red", ms=6,
+                            transform=ax.transAxes, clip_on=False)
         ax.set_xlabel(xlabel, fontsize=8)
     fig.tight_layout()
     return fig
