@@ -10,10 +10,12 @@ import numpy as np
 
 from cansim.axes import Axis
 from cansim.backends import Backend, get_backend
+from cansim.backends.base import RunInputs
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
 from cansim.path_integration import (
     MotionModel,
+    MotionShifts,
     PlanarMotion,
     SixDofMotion,
     UniformMotion,
@@ -417,6 +419,257 @@ class Population:
         self._commit(new)
         self._last_decoded = decoded
         return decoded.copy()
+
+    def run(
+        self,
+        velocity=None,
+        omega=None,
+        dt: float | np.ndarray = 1.0,
+        injections: Optional[Sequence[Optional[tuple[np.ndarray, np.ndarray]]]] = None,
+        *,
+        n_steps: Optional[int] = None,
+        record_activity: bool = False,
+    ) -> Union[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """T iterations of :meth:`step` in one backend call (thesis Alg 3-5, Fig 5.11, Eq 5.11-5.12).
+
+        The result equals T calls ``step(velocity[t], omega[t], dt[t], injection=injections[t])``
+        bit for bit on every backend; the numba backend runs the whole loop in one compiled
+        call, the opencl backend enqueues every step on the device and reads back once, and
+        any other backend loops over its ``step`` (:meth:`cansim.backends.Backend.run`).
+
+        Parameters
+        ----------
+        velocity : None or array_like, shape (T,) or (T, k)
+            Per-step ``velocity`` of :meth:`step` (row t is step t's; converted to float64).
+            UniformMotion: (T,) on a ring, (T, ndim) otherwise (units/s per axis);
+            PlanarMotion: (T,) forward speed, m/s; SixDofMotion: (T, 3), m/s. None: no motion.
+        omega : None or array_like, shape (T,) or (T, k)
+            Per-step ``omega``: PlanarMotion (T,) rad/s, SixDofMotion (T, 3) rad/s.
+        dt : float or array_like, shape (T,)
+            Seconds per step (>= 0), one for all steps or one per step.
+        injections : None or sequence of length T
+            Entry t is None (no injection) or a ``(flat_index, values)`` pair injected before
+            step t's dynamics, as ``step(injection=...)``; e.g. ``LocalViewCells.injection``.
+        n_steps : int or None
+            T; needed only when no other argument has a step axis (pure dynamics).
+        record_activity : bool
+            Also return the activity after every step.
+
+        Returns
+        -------
+        decoded : ndarray, shape (T, ndim)
+            The decoded fractional cell index per axis after every step.
+        activity : ndarray, shape (T,) + shape, only when ``record_activity``
+            The activity after every step, in the population's dtype.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            A bad per-step input (non-finite, negative dt, wrong shape, lengths that differ,
+            a bad injection), named with its step; checked for every step before the first
+            one runs, so nothing changes.
+        ZeroActivityError
+            The dynamics collapsed at some step; the state is left as it was before the run
+            (no step of it is kept).
+        """
+        T = self._run_length(velocity, omega, dt, injections, n_steps)
+        dts = self._run_dt(dt, T)
+        shift_axes, cond, has_cond, uni, has_uni = self._run_shifts(velocity, omega, dts, T)
+        offsets, index, values = self._run_injections(injections, T)
+        inputs = RunInputs(T, offsets, index, values, shift_axes, cond, has_cond, uni, has_uni)
+        res = self._backend.run(self._a, inputs, exc=self._exc, inh=self._inh, phi=self._phi,
+                                window=self._window, record_activity=bool(record_activity))
+        if res.collapsed_at is not None:
+            raise ZeroActivityError(
+                f"all activity fell below the global inhibition threshold at step {res.collapsed_at} of the run; "
+                "state left as before the run (re-seed with reset_cell/reset_gaussian, inject energy, "
+                "or lower the global inhibition)"
+            )
+        new = res.activity
+        if new is self._a:
+            new = new.copy()
+        self._a = np.ascontiguousarray(new, dtype=self._dtype)
+        self._last_decoded = res.decoded[-1].copy()
+        if record_activity:
+            return res.decoded, res.history
+        return res.decoded
+
+    # ---------------------------------------------------------- run: inputs
+    @staticmethod
+    def _run_array(x, name: str) -> np.ndarray:
+        try:
+            arr = np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"{name} must be an array of real numbers with one row per step") from None
+        if arr.ndim not in (1, 2):
+            raise ShapeError(f"{name} must have shape (T,) or (T, k), one row per step; got {arr.shape}")
+        return arr
+
+    def _run_length(self, velocity, omega, dt, injections, n_steps) -> int:
+        lengths = {}
+        for name, x in (("velocity", velocity), ("omega", omega)):
+            if x is not None:
+                lengths[name] = len(self._run_array(x, name))
+        if np.ndim(dt) != 0:
+            lengths["dt"] = len(np.atleast_1d(np.asarray(dt, dtype=object)))
+        if injections is not None:
+            try:
+                lengths["injections"] = len(injections)
+            except TypeError:
+                raise InvalidInputError("injections must be a sequence with one entry (or None) per step") from None
+        if n_steps is not None:
+            if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
+                raise InvalidInputError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+            lengths["n_steps"] = int(n_steps)
+        if not lengths:
+            raise InvalidInputError("run needs per-step inputs or n_steps to know how many steps to run")
+        if len(set(lengths.values())) != 1:
+            raise ShapeError(f"per-step inputs must all have T rows, got {lengths}")
+        T = next(iter(lengths.values()))
+        if T < 1:
+            raise InvalidInputError(f"run needs at least one step, got T = {T} ({lengths})")
+        return T
+
+    @staticmethod
+    def _run_dt(dt, T: int) -> np.ndarray:
+        try:
+            arr = np.asarray(dt, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"dt must be a number or one number per step (seconds), got {dt!r}") from None
+        if arr.ndim > 1:
+            raise ShapeError(f"dt must be a scalar or have shape (T,), got {arr.shape}")
+        arr = np.broadcast_to(arr, (T,))
+        bad = np.flatnonzero(~(np.isfinite(arr) & (arr >= 0)))
+        if len(bad):
+            raise InvalidInputError(f"dt must be finite and >= 0 seconds; step {bad[0]} has {arr[bad[0]]!r}")
+        return arr
+
+    def _run_shifts(self, velocity, omega, dts: np.ndarray, T: int):
+        """Per-step shifts in cells: (shift_axes, cond (T, ...) or None, has_cond, uniform (T, ndim) or None, has_uniform).
+
+        The built-in UniformMotion and PlanarMotion are evaluated for all steps at once with
+        the same floating-point operations as their per-step function (whose tables it
+        reads by calling it with unit inputs); any other model is called once per step.
+        """
+        v = None if velocity is None else self._run_array(velocity, "velocity")
+        w = None if omega is None else self._run_array(omega, "omega")
+        model = type(self._motion)
+        if model is UniformMotion and w is None and (v is None or v.ndim == 2 or self.ndim == 1):
+            return self._run_uniform(v, dts, T)
+        if model is PlanarMotion and (v is None or v.ndim == 1) and (w is None or w.ndim == 1):
+            return self._run_planar(v, w, dts, T)
+        return self._run_per_step(v, w, dts, T)
+
+    def _run_finite(self, x: np.ndarray, name: str) -> None:
+        bad = ~np.isfinite(x)
+        if bad.any():
+            t = int(np.argwhere(bad)[0][0])
+            raise InvalidInputError(f"{name} must be finite; step {t} has {x[t].tolist()!r} (check the odometry source)")
+
+    def _run_checked_shifts(self, shifts: Optional[np.ndarray], mask: np.ndarray, what: str) -> None:
+        # a shift the kernels cannot represent (their integer parts are 32-bit on opencl)
+        if shifts is None:
+            return
+        s = np.abs(shifts.reshape(len(shifts), -1)).max(axis=1)
+        bad = np.flatnonzero(mask & ~(s < 2.0**30))
+        if len(bad):
+            raise InvalidInputError(
+                f"the {what} shift of step {bad[0]} is {s[bad[0]]!r} cells, too large to represent; "
+                "check velocity * dt against the cell size"
+            )
+
+    def _run_uniform(self, v, dts, T):
+        uni = has = None
+        if v is not None:
+            self._run_finite(v, "velocity")
+            if v.ndim == 1:  # ring: step() gets a float and computes velocity * dt * (1 / step)
+                inv0 = self._motion_shifts(1.0, None, 1.0).uniform[0]
+                uni = ((v * dts) * inv0)[:, None]
+            else:  # step() gets a vector and computes velocity * (dt * (1 / step))
+                if v.shape[1] != self.ndim:
+                    raise ShapeError(f"velocity must have shape (T, {self.ndim}), one value per axis; got {v.shape}")
+                inv = self._motion_shifts(np.ones(self.ndim), None, 1.0).uniform
+                uni = v * (dts[:, None] * inv)
+            has = np.ones(T, dtype=bool)
+            self._run_checked_shifts(uni, has, "uniform")
+        return None, None, np.zeros(T, dtype=bool), uni, (has if has is not None else np.zeros(T, dtype=bool))
+
+    def _run_planar(self, v, w, dts, T):
+        cond = uni = None
+        has_cond = np.zeros(T, dtype=bool)
+        has_uni = np.zeros(T, dtype=bool)
+        if v is not None:
+            self._run_finite(v, "velocity (vtrans)")
+            directions = self._motion_shifts(1.0, None, 1.0).cond_shifts  # (1 * 1) * directions
+            cond = (v * dts)[:, None, None] * directions
+            has_cond = v != 0.0
+            self._run_checked_shifts(cond, has_cond, "translation")
+        if w is not None:
+            self._run_finite(w, "omega (vrot)")
+            inv_th = self._motion_shifts(None, 1.0, 1.0).uniform[2]
+            rot = (w * dts) * inv_th
+            uni = np.zeros((T, 3))
+            uni[:, 2] = rot
+            has_uni = rot != 0.0
+            self._run_checked_shifts(uni, has_uni, "rotation")
+        return ((0, 1) if has_cond.any() else None), (cond if has_cond.any() else None), has_cond, \
+            (uni if has_uni.any() else None), has_uni
+
+    def _run_per_step(self, v, w, dts, T):
+        steps: list[MotionShifts] = []
+        for t in range(T):
+            try:
+                steps.append(self._motion_shifts(None if v is None else v[t], None if w is None else w[t], float(dts[t])))
+            except (InvalidInputError, ShapeError) as exc:
+                raise type(exc)(f"step {t}: {exc}") from None
+        has_cond = np.array([ms.cond_shifts is not None for ms in steps])
+        has_uni = np.array([ms.uniform is not None for ms in steps])
+        axes = {ms.shift_axes for ms in steps if ms.cond_shifts is not None}
+        if len(axes) > 1:
+            raise InvalidInputError(f"the motion model translated different axes at different steps ({sorted(axes)}); "
+                                    "run() needs one layout: call step() per step instead")
+        shift_axes = axes.pop() if axes else None
+        cond = uni = None
+        if has_cond.any():
+            proto = next(ms.cond_shifts for ms in steps if ms.cond_shifts is not None)
+            cond = np.zeros((T,) + proto.shape)
+            for t, ms in enumerate(steps):
+                if ms.cond_shifts is not None:
+                    cond[t] = ms.cond_shifts
+            self._run_checked_shifts(cond, has_cond, "conditional")
+        if has_uni.any():
+            uni = np.zeros((T, self.ndim))
+            for t, ms in enumerate(steps):
+                if ms.uniform is not None:
+                    uni[t] = ms.uniform
+            self._run_checked_shifts(uni, has_uni, "uniform")
+        return shift_axes, cond, has_cond, uni, has_uni
+
+    def _run_injections(self, injections, T: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        offsets = np.zeros(T + 1, dtype=np.int64)
+        if injections is None:
+            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
+        idx, vals = [], []
+        for t, inj in enumerate(injections):
+            n = 0
+            if inj is not None:
+                try:
+                    fi, vv = inj
+                except (TypeError, ValueError):
+                    raise InvalidInputError(f"injections[{t}] must be None or a (flat_index, values) pair") from None
+                try:
+                    fi, vv = checked_injection(fi, vv, self._size)
+                except (InvalidInputError, ShapeError) as exc:
+                    raise type(exc)(f"injections[{t}]: {exc}") from None
+                except (TypeError, ValueError):
+                    raise InvalidInputError(f"injections[{t}] must hold integer indices and real values") from None
+                idx.append(fi)
+                vals.append(vv)
+                n = len(fi)
+            offsets[t + 1] = offsets[t] + n
+        if not idx:
+            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
+        return offsets, np.ascontiguousarray(np.concatenate(idx)), np.ascontiguousarray(np.concatenate(vals))
 
     def __repr__(self) -> str:
         ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)

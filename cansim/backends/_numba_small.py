@@ -37,7 +37,7 @@ from numba import njit
 
 from cansim.backends import _numba_kernels as _k
 
-__all__ = ["MAX_AXIS", "MAX_TAPS", "applies", "small_step", "condition_lines"]
+__all__ = ["MAX_AXIS", "MAX_TAPS", "applies", "small_step", "small_run", "plan_cycles", "condition_lines"]
 
 #: longest axis (cells) of a grid taking this path; passes are unrolled over it
 MAX_AXIS = 8
@@ -83,6 +83,51 @@ def condition_lines(shape: tuple[int, ...], shift_axes: tuple[int, ...]) -> np.n
                 g += row * cstride[ax]
         res[k, : g.shape[0]] = g
     return res
+
+
+@njit(cache=True, nogil=True)
+def plan_cycles(cond_tab, do_cond, shift_axes, uni, kinds, kinds2):
+    """Plan the shift cycles of one step as the generic pipeline orders them; returns (ncycles, round_after).
+
+    ``cond_tab`` is the step's (n_conditions, len(shift_axes)) table (read when
+    ``do_cond``), ``uni`` its uniform shift per axis (zeros: none). Fills ``kinds`` (and
+    ``kinds2`` for a second cycle) per axis: 0 none, 1 uniform, 2 conditional. One
+    rotating cycle carries the conditional shift on its axes and the uniform shift on
+    later axes (rounded to the storage dtype after the last conditional axis); when the
+    uniform shift touches an earlier or a shifted axis, a conditional cycle runs first
+    and a uniform one after it, as the reference orders them.
+    """
+    d = kinds.shape[0]
+    kinds[:] = 0
+    kinds2[:] = 0
+    last_cond = -1
+    if do_cond:
+        for col in range(shift_axes.shape[0]):
+            ax = shift_axes[col]
+            for g in range(cond_tab.shape[0]):
+                if cond_tab[g, col] != 0.0:
+                    kinds[ax] = 2
+                    last_cond = max(last_cond, ax)
+                    break
+    first_uni = -1
+    for k in range(d - 1, -1, -1):
+        if uni[k] != 0.0:
+            first_uni = k
+    ncycles = 0
+    if first_uni >= 0 and last_cond >= 0 and (last_cond > first_uni or kinds[first_uni] != 0):
+        ncycles = 2
+        for k in range(d):
+            if uni[k] != 0.0:
+                kinds2[k] = 1
+    else:
+        for k in range(d):
+            if uni[k] != 0.0:
+                kinds[k] = 1
+        for k in range(d):
+            if kinds[k] != 0:
+                ncycles = 1
+    round_after = last_cond if first_uni >= 0 else -1
+    return ncycles, round_after
 
 
 @njit(cache=True, nogil=True)
@@ -281,9 +326,34 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
     return "\n".join(L)
 
 
-def _build(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> Callable:
-    """Generate and wrap (lazily compiled) the passes and the step of one grid shape."""
+#: T steps in one call: the step of this shape after :func:`plan_cycles`, ping-ponging two buffers
+#: (see :mod:`cansim.backends._numba_run`); returns -1, or the first step that collapsed
+_RUN_SRC = """
+def run(a, buf0, buf1, hist, record, ws, inj_off, inj_idx, inj_val, exc, inh, phi, has_cond, cond_tabs,
+        colmap, glines, shift_axes, unis, window, decoded, to32):
+    d = unis.shape[1]
+    kinds = np.zeros(d, np.int64)
+    kinds2 = np.zeros(d, np.int64)
+    src = a
+    for t in range(decoded.shape[0]):
+        dst = buf0 if t % 2 == 0 else buf1
+        ncycles, round_after = plan_cycles(cond_tabs[t], has_cond[t], shift_axes, unis[t], kinds, kinds2)
+        lo = inj_off[t]
+        hi = inj_off[t + 1]
+        if not step(src, dst, ws, inj_idx[lo:hi], inj_val[lo:hi], exc, inh, phi, ncycles, kinds, kinds2,
+                    cond_tabs[t], colmap, glines, unis[t], round_after, window, decoded[t], to32):
+            return t
+        if record:
+            hist[t, :] = dst
+        src = dst
+    return -1
+"""
+
+
+def _build(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> dict:
+    """Generate and wrap (lazily compiled) the passes, the step and the run of one grid shape."""
     ns: dict = dict(np=np, split_shift=_k.split_shift, round32=round32, global_inhibit=_k.global_inhibit,
+                    plan_cycles=plan_cycles,
                     decode_window=_k.decode_window, circular_mean_index=_k.circular_mean_index, unravel=_k.unravel,
                     shape_arr=np.array(shape, np.int64), ew=np.array(ew, np.int64), iw=np.array(iw, np.int64))
     parts = []
@@ -299,7 +369,21 @@ def _build(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> 
     exec(_step_src(shape[0], len(shape), ew, iw), ns)  # noqa: S102
     ns["cycle"] = njit(**_OPTS)(ns["cycle"])
     ns["step"] = njit(**_OPTS)(ns["step"])
-    return ns["step"]
+    exec(_RUN_SRC, ns)  # noqa: S102 - constant source
+    ns["run"] = njit(**_OPTS)(ns["run"])
+    return ns
+
+
+def _compiled(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> dict:
+    key = (shape, ew, iw)
+    ns = _STEPS.get(key)
+    if ns is None:
+        with _LOCK:
+            ns = _STEPS.get(key)
+            if ns is None:
+                ns = _build(shape, ew, iw)
+                _STEPS[key] = ns
+    return ns
 
 
 def small_step(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> Callable:
@@ -312,12 +396,18 @@ def small_step(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...])
     (``kinds`` per axis: 0 none, 1 uniform, 2 conditional) and :func:`condition_lines`. Returns
     False, with ``out`` untouched, when the dynamics collapse.
     """
-    key = (shape, ew, iw)
-    fn = _STEPS.get(key)
-    if fn is None:
-        with _LOCK:
-            fn = _STEPS.get(key)
-            if fn is None:
-                fn = _build(shape, ew, iw)
-                _STEPS[key] = fn
-    return fn
+    return _compiled(shape, ew, iw)["step"]
+
+
+def small_run(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> Callable:
+    """T steps of :func:`small_step` in one compiled call (generated once per process with it).
+
+    Call as ``run(a, buf0, buf1, hist, record, ws, inj_off, inj_idx, inj_val, exc, inh, phi,
+    has_cond, cond_tabs, colmap, glines, shift_axes, unis, window, decoded, to32)``: per-step
+    inputs have a leading step axis (injections in CSR form, ``cond_tabs`` (T, n_conditions,
+    k) used where ``has_cond``, ``unis`` (T, ndim) with zeros for no shift), the plan of each
+    step comes from :func:`plan_cycles`, and the activity ping-pongs between ``buf0`` and
+    ``buf1`` (``hist[t]`` gets step t's result when ``record``). Returns -1, or the first step
+    whose dynamics collapsed.
+    """
+    return _compiled(shape, ew, iw)["run"]

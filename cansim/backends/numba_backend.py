@@ -24,7 +24,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from cansim.backends import _numba_kernels as _k
-from cansim.backends.base import Backend
+from cansim.backends.base import Backend, RunInputs, RunResult
 
 __all__ = ["NumbaBackend"]
 
@@ -206,6 +206,79 @@ class NumbaBackend(Backend):
         # zero shifts (uniform or per condition) are skipped inside the kernel
         return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
 
+    def run(self, a, inputs: RunInputs, *, exc, inh, phi, window, record_activity=False) -> RunResult:
+        """T fused steps in one compiled call (:mod:`cansim.backends._numba_run`).
+
+        Chooses the kernel :meth:`step` would choose for every step (ring, small full
+        grid or generic pipeline) and calls it in a compiled loop with the same
+        arguments, so the result equals T calls of :meth:`step` bit for bit. A 1-D run
+        in which some steps carry a conditional shift (not made by cansim's motion
+        models) mixes two kernels and takes the step-by-step loop of :class:`Backend`.
+        """
+        a = np.ascontiguousarray(a)
+        T = inputs.n_steps
+        d = a.ndim
+        if d == 1 and inputs.has_cond.any():
+            return super().run(a, inputs, exc=exc, inh=inh, phi=phi, window=window, record_activity=record_activity)
+        from cansim.backends import _numba_run as _r
+
+        flat = a.reshape(-1)
+        bufs = (np.empty_like(flat), np.empty_like(flat))
+        hist = np.empty((T if record_activity else 1, flat.shape[0]), dtype=a.dtype)
+        decoded = np.empty((T, d), dtype=np.float64)
+        ws = self._workspace(flat.shape[0])
+        off, idx, val = inputs.inj_offsets, inputs.inj_index, inputs.inj_values
+        uni = inputs.uniform_shifts
+        has_uni = inputs.has_uniform
+        if uni is None:
+            uni = np.zeros((T, d), dtype=np.float64)
+        else:
+            uni = np.where(has_uni[:, None], uni, 0.0)  # a step without a uniform shift: zeros, as step() plans it
+        small = self._small_plan(a.shape, exc, inh) if self._small and d > 1 else None
+        if d == 1:
+            status = _r.ring_run(flat, bufs[0], bufs[1], hist, bool(record_activity), off, idx, val, exc[0], inh[0],
+                                 float(phi), np.ascontiguousarray(uni[:, 0]), int(window), decoded, ws)
+        else:
+            k = len(inputs.shift_axes) if inputs.shift_axes is not None else 1
+            if inputs.cond_shifts is not None:
+                ctabs = np.ascontiguousarray(inputs.cond_shifts, dtype=np.float64).reshape(T, -1, k)
+            else:
+                ctabs = np.zeros((T, 1, 1), dtype=np.float64)
+            has_cond = np.ascontiguousarray(inputs.has_cond, dtype=np.bool_)
+            if small is not None:
+                from cansim.backends._numba_small import small_run
+
+                colmap = np.zeros(d, dtype=np.int64)
+                axes_arr, glines = _NO_INDEX, _NO_LINES
+                if inputs.shift_axes is not None:
+                    axes_arr = np.asarray(inputs.shift_axes, dtype=np.int64)
+                    colmap[axes_arr] = np.arange(len(axes_arr))
+                    glines = self._small_lines(a.shape, inputs.shift_axes)
+                ew = tuple(len(t) for t in exc)
+                iw = tuple(len(t) for t in inh)
+                status = small_run(a.shape, ew, iw)(
+                    flat, bufs[0], bufs[1], hist, bool(record_activity), ws, off, idx, val, small[1], small[2],
+                    float(phi), has_cond, ctabs, colmap, glines, axes_arr, uni, int(window), decoded,
+                    a.dtype.itemsize == 4)
+            else:
+                excp, exc_w, inhp, inh_w = self._packed_taps(exc, inh)
+                cmask = self._cmask(inputs.shift_axes, d) if inputs.shift_axes is not None else self._shape(a.shape)
+                ubits = _BITS[a.dtype.itemsize]
+                status = _r.pipeline_run(
+                    flat, flat.view(ubits), bufs[0], bufs[0].view(ubits), bufs[1], bufs[1].view(ubits),
+                    hist, bool(record_activity), ws, self._shape(a.shape),
+                    off, idx, val,
+                    excp, exc_w, inhp, inh_w, float(phi),
+                    has_cond, cmask, ctabs,
+                    np.ascontiguousarray(has_uni, dtype=np.bool_), uni,
+                    int(window), decoded,
+                    self._dense, self._par_work, self._nthreads(),
+                )
+        if status >= 0:
+            return RunResult(None, None, None, int(status))
+        last = bufs[(T - 1) % 2].reshape(a.shape)
+        return RunResult(last, decoded, hist.reshape((T,) + a.shape) if record_activity else None, None)
+
     def _small_plan(self, shape, exc, inh):
         """(compiled step, packed exc, packed inh) for a small fully covered grid, else None."""
         key = (shape, id(exc), id(inh))
@@ -243,37 +316,23 @@ class NumbaBackend(Backend):
         last conditional axis), or, when the uniform shift touches an earlier or a shifted
         axis, a conditional cycle and then a uniform one, as the reference orders them.
         """
+        from cansim.backends._numba_small import plan_cycles
+
         fn, excp, inhp = plan[0], plan[1], plan[2]
         d = a.ndim
         kinds = np.zeros(d, dtype=np.int64)
+        kinds2 = np.zeros(d, dtype=np.int64)
         colmap = np.zeros(d, dtype=np.int64)
-        last_cond = -1
-        ctab, glines = _NO_COND, _NO_LINES
+        ctab, glines, axes_arr = _NO_COND, _NO_LINES, _NO_INDEX
         if cond_shifts is not None:
             ctab = np.ascontiguousarray(cond_shifts, dtype=np.float64).reshape(-1, len(shift_axes))
-            moving = (ctab != 0.0).any(axis=0)
-            for col, ax in enumerate(shift_axes):
-                colmap[ax] = col
-                if moving[col]:
-                    kinds[ax] = 2
-                    last_cond = max(last_cond, ax)
-            if last_cond >= 0:
-                glines = self._small_lines(a.shape, shift_axes)
+            axes_arr = np.asarray(shift_axes, dtype=np.int64)
+            colmap[axes_arr] = np.arange(len(shift_axes))
+            glines = self._small_lines(a.shape, shift_axes)
         uni = np.zeros(d, dtype=np.float64)
         if uniform_shifts is not None:
             uni[:] = uniform_shifts
-        uni_axes = np.flatnonzero(uni)
-        kinds2 = kinds
-        ncycles = 0
-        if len(uni_axes) and last_cond >= 0 and (last_cond > uni_axes[0] or kinds[uni_axes[0]] != 0):
-            ncycles = 2  # the uniform shift touches an earlier or a shifted axis: as the reference, one cycle each
-            kinds2 = np.zeros(d, dtype=np.int64)
-            kinds2[uni_axes] = 1
-        else:
-            kinds[uni_axes] = 1
-            if kinds.any():
-                ncycles = 1
-        round_after = last_cond if len(uni_axes) else -1
+        ncycles, round_after = plan_cycles(ctab, cond_shifts is not None, axes_arr, uni, kinds, kinds2)
         fi, vals = _injection_arrays(flat_index, values)
         dst = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
         decoded = np.empty(d, dtype=np.float64)
