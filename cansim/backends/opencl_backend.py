@@ -8,8 +8,11 @@ The kernels are the gather forms of the numpy reference (:mod:`cansim.backends.n
   needed, taps longer than the axis wrap and add up exactly as ``np.roll`` sums do, and
   the taps are visited in the reference's order.
 * ``inhibit`` - the last inhibition pass fused with ``b = e - e (*) I`` (Alg 4,
-  OpenRatSLAM semantics), global inhibition ``max(b - phi, 0)`` (Alg 5) and one partial
-  sum per work-group; ``sum_partials`` reduces those to the total for normalisation.
+  OpenRatSLAM semantics) and global inhibition ``max(b - phi, 0)`` (Alg 5);
+  ``row_sums`` adds each row of the whole grid (along its last axis) in index order and
+  ``sum_partials`` reduces the row sums in a fixed order to the total for normalisation.
+  The total is therefore the same bits whether a step computes the whole grid or a
+  window of it (see *Locality*), and so is every result.
 * ``shift_*`` - the fractional shift of SPEC §1.4 along one axis, the reference's
   expression ``(1 - f) a[m - lo] + f a[m - lo - 1]``; axes are applied one after another
   (the product of the 1-D splits). The split of a cell is looked up by its *condition
@@ -33,7 +36,16 @@ circular interval per axis holding the active and injected cells, widen it by th
 excitation half-width and the shifts of this step, and, when that window is at most half
 the grid, compute only the window: its cut axes are not periodic and read zero beyond
 their ends, which is exact because the activity there is zero (the reference adds
-``tap * 0``). The result is written back into an otherwise zero grid.
+``tap * 0``). The result is written back into an otherwise zero grid. The total is summed
+per row of the whole grid (cells outside the window count as the zeros they are), so a
+windowed step equals the whole-grid step bit for bit.
+
+Runs (:meth:`OpenCLBackend.run`): T steps are enqueued at once on the whole grid, with
+every step's shift table and injection uploaded beforehand and injections added on the
+device (``inject_add``, the same float64 sums as the host's); the activity after every
+step is copied into a device history that is read back once per run (once per 64 MiB of
+activity for long runs) and decoded on the host as :meth:`OpenCLBackend.step` decodes,
+so a run equals T steps bit for bit.
 
 Decoding (argmax + population vector, Eq 5.11-5.12) and standalone injection run on the
 host: the backend contract hands activity back as a host array after every call, so the
@@ -79,7 +91,7 @@ ICD_REGISTRATION = register_icds()
 
 import pyopencl as cl  # noqa: E402
 
-from cansim.backends.base import Backend  # noqa: E402
+from cansim.backends.base import Backend, RunInputs, RunResult  # noqa: E402
 from cansim.decoding import population_vector_window  # noqa: E402
 from cansim.errors import BackendUnavailableError, InvalidInputError  # noqa: E402
 
@@ -89,6 +101,10 @@ log = logging.getLogger(__name__)
 
 #: environment variable naming the OpenCL device ("P:D" or a name substring)
 DEVICE_ENV_VAR = "CANSIM_OPENCL_DEVICE"
+
+#: device memory for the activity history of :meth:`OpenCLBackend.run` (bytes); a longer
+#: run reads its history back once per this many bytes of activity
+RUN_HISTORY_BYTES = 64 * 2**20
 
 _INSTALL_HINT = (
     'pip install "cansim[opencl]" (pyopencl + PoCL, a CPU OpenCL platform), or "cansim[opencl-intel]" '
@@ -148,39 +164,73 @@ CONV_KERNEL(conv_acc, ACC, 1)
 CONV_KERNEL(conv_store_cut, T, 0)
 CONV_KERNEL(conv_acc_cut, ACC, 0)
 
-/* Last inhibition pass + b = e - e(*)I + global inhibition + per-group partial sums. */
+/* Last inhibition pass + b = e - e(*)I + global inhibition (Alg 4-5). */
 #define INHIBIT_KERNEL(NAME, WRAP)                                        \
 __kernel void NAME(__global const ACC *in, __global const ACC *e,         \
                    __global ACC *out,                                     \
                    __global const ACC *taps, const int toff, const int w, \
                    const int c, const int n, const int stride,            \
                    const int total,                                       \
-                   const ACC phi,                                         \
-                   __global ACC *partial, __local ACC *scratch)           \
+                   const ACC phi)                                         \
 {                                                                         \
     const int wrap = WRAP;                                                \
     const int gid = get_global_id(0);                                     \
-    const int lid = get_local_id(0);                                      \
-    ACC v = 0;                                                            \
     if (gid < total) {                                                    \
         const int coord = (gid / stride) % n;                             \
         const int base = gid - coord * stride;                            \
         CONV_GATHER(in, coord, base, n, stride)                           \
         const ACC b = e[gid] - s;                                         \
-        v = (b >= phi) ? b - phi : (ACC)0;                                \
-        out[gid] = v;                                                     \
+        out[gid] = (b >= phi) ? b - phi : (ACC)0;                         \
     }                                                                     \
-    scratch[lid] = v;                                                     \
-    barrier(CLK_LOCAL_MEM_FENCE);                                         \
-    for (int o = get_local_size(0) / 2; o > 0; o >>= 1) {                 \
-        if (lid < o) scratch[lid] += scratch[lid + o];                    \
-        barrier(CLK_LOCAL_MEM_FENCE);                                     \
-    }                                                                     \
-    if (lid == 0) partial[get_group_id(0)] = scratch[0];                  \
 }
 
 INHIBIT_KERNEL(inhibit, 1)
 INHIBIT_KERNEL(inhibit_cut, 0)
+
+/* One partial sum per row (along the last axis) of the WHOLE grid, over the cells of a
+   window of it: win = [n_0..n_{d-1} (grid), s_0.. (window start), m_0.. (window extent)].
+   Work-item r is the grid's row r (C order of axes 0..d-2); a row outside the window
+   sums to 0, a row inside adds its window cells in the grid's index order (the cells
+   outside the window are zero, and x + 0 == x), so the partials, and the total that
+   sum_partials makes of them, are the same bits for any window holding the activity. */
+__kernel void row_sums(__global const ACC *cvals, __global ACC *partial, __global const int *win,
+                       const int nd, const int nrows)
+{
+    const int r = get_global_id(0);
+    if (r >= nrows) return;
+    int rem = r, off = 0, wstride = win[3 * nd - 1], inside = 1;
+    for (int ax = nd - 2; ax >= 0; --ax) {
+        const int n = win[ax];
+        const int coord = rem % n;
+        rem /= n;
+        int li = coord - win[nd + ax];  /* index in the window */
+        if (li < 0) li += n;
+        if (li >= win[2 * nd + ax]) inside = 0;
+        off += li * wstride;
+        wstride *= win[2 * nd + ax];
+    }
+    ACC s = 0;
+    if (inside) {
+        const int n = win[nd - 1], start = win[2 * nd - 1], m = win[3 * nd - 1];
+        const int first_wrapped = n - start;  /* local index of the grid's cell 0, if the window wraps */
+        for (int p = first_wrapped; p < m; ++p) s += cvals[off + p];
+        for (int p = 0; p < m && p < first_wrapped; ++p) s += cvals[off + p];
+    }
+    partial[r] = s;
+}
+
+/* Device-side injection of a run: a[u] += the values of u in order, in ACC, rounded once
+   (the host's np.add.at on float64 of OpenCLBackend.inject, for distinct indices u). */
+__kernel void inject_add(__global T *a, __global const int *uidx, __global const int *voff,
+                         __global const ACC *vals, const int base, const int m)
+{
+    const int i = get_global_id(0);
+    if (i >= m) return;
+    const int u = uidx[base + i];
+    ACC acc = (ACC)a[u];
+    for (int k = voff[base + i]; k < voff[base + i + 1]; ++k) acc += vals[k];
+    a[u] = (T)acc;
+}
 
 /* One work-group adds the partial sums in a fixed order: total[0]. */
 __kernel void sum_partials(__global const ACC *partial, const int m, __global ACC *total,
@@ -382,17 +432,22 @@ class _Buffers:
     """Device buffers for one grid (and any smaller window of it) in one dtype."""
 
     capacity: int  # cells
+    shape: tuple[int, ...]  # the whole grid
     act: "cl.Buffer"  # activity in storage dtype (input, injection target)
     res: "cl.Buffer"  # result in storage dtype
     tmp: list  # three accumulator-dtype grids
-    partial: "cl.Buffer"  # one accumulator per work-group
+    partial: "cl.Buffer"  # one accumulator per row of the whole grid (along its last axis)
     total: "cl.Buffer"
     meta: dict = field(default_factory=dict)  # (shape, cstrides) -> cl.Buffer
     small: dict = field(default_factory=dict)  # name -> (cl.Buffer, nbytes)
 
-    def grid(self, shape: tuple[int, ...], wraps: Optional[tuple[bool, ...]] = None) -> "_Grid":
-        """These buffers seen as a grid of ``shape`` (at most ``capacity`` cells)."""
-        return _Grid(self, tuple(int(n) for n in shape), int(np.prod(shape)), wraps or (True,) * len(shape))
+    def grid(self, shape: tuple[int, ...], wraps: Optional[tuple[bool, ...]] = None,
+             origin: Optional[tuple[int, ...]] = None) -> "_Grid":
+        """These buffers seen as a grid of ``shape`` (at most ``capacity`` cells): the whole
+        grid, or the window of it starting at cell ``origin`` (wrapping) with extents ``shape``."""
+        shape = tuple(int(n) for n in shape)
+        return _Grid(self, shape, int(np.prod(shape)), wraps or (True,) * len(shape),
+                     tuple(int(o) for o in origin) if origin is not None else (0,) * len(shape))
 
 
 @dataclass(frozen=True)
@@ -403,6 +458,7 @@ class _Grid:
     shape: tuple[int, ...]
     size: int
     wraps: tuple[bool, ...]
+    origin: tuple[int, ...]  # first cell of a window in the whole grid (zeros for the whole grid)
 
     def __getattr__(self, name):  # act, res, tmp, partial, total, meta, small
         return getattr(self.bufs, name)
@@ -585,14 +641,14 @@ class OpenCLBackend(Backend):
         for cut in ("", "_cut"):
             for name in ("conv_store", "conv_acc"):
                 kernels[name + cut].set_scalar_arg_dtypes([None, None, i32, i32, i32, None, i32, i32, i32])
-            kernels["inhibit" + cut].set_scalar_arg_dtypes(
-                [None, None, None, None, i32, i32, i32, i32, i32, i32, acc, None, None]
-            )
+            kernels["inhibit" + cut].set_scalar_arg_dtypes([None, None, None, None, i32, i32, i32, i32, i32, i32, acc])
             for name in ("shift_store_store", "shift_store_acc", "shift_acc_store", "shift_acc_acc"):
                 kernels[name + cut].set_scalar_arg_dtypes(
                     [None, None, i32, i32, i32, i32, i32, None, None, i32, None, i32]
                 )
         kernels["sum_partials"].set_scalar_arg_dtypes([None, i32, None, None])
+        kernels["row_sums"].set_scalar_arg_dtypes([None, None, None, i32, i32])
+        kernels["inject_add"].set_scalar_arg_dtypes([None, None, None, None, i32, i32])
         kernels["scatter_set"].set_scalar_arg_dtypes([None, None, None, i32])
         return _Program(storage, acc, kernels)
 
@@ -608,10 +664,11 @@ class OpenCLBackend(Backend):
             a_bytes = size * prog.acc.itemsize
             b = _Buffers(
                 capacity=size,
+                shape=shape,
                 act=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
                 res=cl.Buffer(self._ctx, mf.READ_WRITE, s_bytes),
                 tmp=[cl.Buffer(self._ctx, mf.READ_WRITE, a_bytes) for _ in range(3)],
-                partial=cl.Buffer(self._ctx, mf.READ_WRITE, -(-size // self._wg) * prog.acc.itemsize),
+                partial=cl.Buffer(self._ctx, mf.READ_WRITE, max(size // shape[-1], 1) * prog.acc.itemsize),
                 total=cl.Buffer(self._ctx, mf.READ_WRITE, prog.acc.itemsize),
             )
             self._buffers[key] = b
@@ -687,7 +744,7 @@ class OpenCLBackend(Backend):
             cur, cur_store = dst, False
         e = cur
         free = [t for t in (t0, t1, t2) if t is not e]
-        # inhibition: e -> ... -> last pass fused with subtraction, threshold, partial sums
+        # inhibition: e -> ... -> last pass fused with subtraction and threshold
         src = e
         for ax in range(nd):
             off, w = layout[nd + ax]
@@ -696,12 +753,27 @@ class OpenCLBackend(Backend):
                 self._launch_axis("conv_acc" + _cut(g.wraps[ax]), prog, g.shape, ax, src, dst, taps, off, w, w // 2)
             else:
                 self._launch("inhibit" + _cut(g.wraps[ax]), prog, g.size, src, e, dst, taps, off, w, w // 2,
-                             g.shape[ax], strides[ax], g.size, phi, g.partial,
-                             cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
+                             g.shape[ax], strides[ax], g.size, phi)
             src = dst
-        self._launch("sum_partials", prog, self._wg, g.partial, -(-g.size // self._wg), g.total,
+        # the total: row sums of the whole grid, then one fixed-order reduction (window-independent)
+        full = g.bufs.shape
+        nrows = max(g.bufs.capacity // full[-1], 1)
+        self._launch("row_sums", prog, nrows, src, g.partial, self._window_desc(g), nd, nrows)
+        self._launch("sum_partials", prog, self._wg, g.partial, nrows, g.total,
                      cl.LocalMemory(self._wg * prog.acc.itemsize), local=self._wg)
         return src
+
+    def _window_desc(self, g: "_Grid") -> "cl.Buffer":
+        """``[whole-grid shape, window origin, window extents]`` for ``row_sums`` (cached; bounded)."""
+        key = ("window", g.shape, g.origin)
+        buf = g.meta.get(key)
+        if buf is None:
+            if len(g.meta) > 256:  # windows change as the packet moves
+                g.meta.clear()
+            host = np.array([*g.bufs.shape, *g.origin, *g.shape], dtype=np.int32)
+            buf = cl.Buffer(self._ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
+            g.meta[key] = buf
+        return buf
 
     def _plan_shifts(self, prog, g: "_Grid", shift_axes, cond_shifts, uniform) -> tuple[list, "cl.Buffer"]:
         """The shift stages of :func:`_shift_stages` and their split table, uploaded before
@@ -713,16 +785,16 @@ class OpenCLBackend(Backend):
         table = np.concatenate([p[-1].ravel() for stage in stages for p in stage]).astype(prog.acc)
         return stages, self._small(g, "table", table)
 
-    def _enqueue_shifts(self, prog, g: "_Grid", src, src_store: bool, plan, normalise: bool) -> None:
+    def _enqueue_shifts(self, prog, g: "_Grid", src, src_store: bool, plan, normalise: bool, toff: int = 0) -> None:
         """Run the planned shift stages from ``src`` into ``g.res`` (grid dtype).
 
         With ``normalise`` the first pass divides by the total (and rounds to the grid
         dtype, as the reference stores the normalised activity). Each stage ends in the
         grid dtype: the last in ``g.res``, an earlier one in ``g.act`` (free once the
-        dynamics have read it).
+        dynamics have read it). ``toff`` is where the plan's split table starts in ``tbuf``.
         """
         stages, tbuf = plan
-        cur, cur_store, toff, first = src, src_store, 0, True
+        cur, cur_store, first = src, src_store, True
         for s_i, stage in enumerate(stages):
             for p_i, (axis, wrap, cmode, ncond, cstr, tab) in enumerate(stage):
                 if p_i == len(stage) - 1:
@@ -780,7 +852,7 @@ class OpenCLBackend(Backend):
             idx, wraps = win
             sel = np.ix_(*idx)
             sub = a[sel]
-            g = full.grid(sub.shape, wraps)
+            g = full.grid(sub.shape, wraps, origin=tuple(int(ix[0]) for ix in idx))
             sub_cond = None
             if cond_shifts is not None:
                 cond_axes = [ax for ax in range(a.ndim) if ax not in tuple(shift_axes)]
@@ -856,6 +928,98 @@ class OpenCLBackend(Backend):
         if res is None:
             return None, None
         return res, population_vector_window(res, window)
+
+
+    def run(self, a, inputs: RunInputs, *, exc, inh, phi, window, record_activity=False) -> RunResult:
+        """T steps enqueued at once on the device: one upload, one read-back per run.
+
+        Every step's shift table and injection are prepared on the host and uploaded
+        before the first kernel; each step then runs :meth:`step`'s kernels on the whole
+        grid (a windowed step gives the same bits, see the module notes), adds its
+        injection on the device (``inject_add``: the float64 sums of the host's), and
+        copies its result and its total into device histories. The histories are read
+        back once (long runs: once per :data:`RUN_HISTORY_BYTES` of activity), collapses
+        are found from the totals, and every grid is decoded on the host as
+        :meth:`step` decodes. The result equals T calls of :meth:`step` bit for bit.
+        Without float64 intermediates (``fp64=False`` or a device without fp64) a run
+        with injections takes :class:`Backend`'s step-by-step loop, since the host adds
+        injections in float64.
+        """
+        a = np.ascontiguousarray(a)
+        prog, g = self._setup(a)
+        T = inputs.n_steps
+        if prog.acc != np.dtype(np.float64) and len(inputs.inj_index):
+            return super().run(a, inputs, exc=exc, inh=inh, phi=phi, window=window, record_activity=record_activity)
+        nd = a.ndim
+        # host side of every step: shift plans and tables, injections grouped by cell
+        plans, tables, toffs, toff = [], [], [], 0
+        inj_steps: list[tuple[int, int]] = []
+        uidx, voff, ivals = [], [0], []
+        for t in range(T):
+            kw = inputs.step_kwargs(t)
+            uni = kw["uniform_shifts"]
+            if uni is not None and not np.any(np.asarray(uni) != 0):
+                uni = None
+            stages = _shift_stages(g.shape, g.wraps, kw["shift_axes"], kw["cond_shifts"], uni)
+            if not stages:
+                stages = [[(-1, True, 0, 1, (0,) * nd, np.zeros((1, 2)))]]
+            table = np.concatenate([p[-1].ravel() for stage in stages for p in stage])
+            plans.append(stages)
+            tables.append(table)
+            toffs.append(toff)
+            toff += table.size
+            fi, vals = kw["flat_index"], kw["values"]
+            if fi is None:
+                inj_steps.append((len(uidx), 0))
+                continue
+            uniq, inv = np.unique(np.asarray(fi, dtype=np.int64), return_inverse=True)
+            order = np.argsort(inv, kind="stable")  # each cell's values in their given order, as np.add.at
+            counts = np.bincount(inv, minlength=len(uniq))
+            inj_steps.append((len(uidx), len(uniq)))
+            uidx.extend(uniq.tolist())
+            voff.extend((np.cumsum(counts) + len(ivals)).tolist())  # voff[p]..voff[p + 1]: the values of cell p
+            ivals.extend(np.asarray(vals, dtype=np.float64)[order].tolist())
+        mf = cl.mem_flags
+
+        def upload(host):
+            host = np.ascontiguousarray(host)
+            return cl.Buffer(self._ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=host if host.size else np.zeros(1, host.dtype))
+
+        tbuf = upload(np.concatenate(tables).astype(prog.acc))
+        ubuf = upload(np.array(uidx, dtype=np.int32))
+        obuf = upload(np.array(voff, dtype=np.int32))
+        vbuf = upload(np.array(ivals, dtype=np.float64).astype(prog.acc))
+        totals = cl.Buffer(self._ctx, mf.READ_WRITE, T * prog.acc.itemsize)
+        nbytes = a.nbytes
+        chunk = max(1, min(T, RUN_HISTORY_BYTES // max(nbytes, 1)))
+        hist_dev = cl.Buffer(self._ctx, mf.READ_WRITE, chunk * nbytes)
+        history = np.empty((T,) + a.shape, dtype=a.dtype) if record_activity else None
+        block = np.empty((chunk,) + a.shape, dtype=a.dtype)
+        decoded = np.empty((T, nd), dtype=np.float64)
+        self._upload(g, a)
+        for c0 in range(0, T, chunk):
+            c1 = min(T, c0 + chunk)
+            for t in range(c0, c1):
+                base, m = inj_steps[t]
+                if m:
+                    self._launch("inject_add", prog, m, g.act, ubuf, obuf, vbuf, base, m)
+                c = self._enqueue_dynamics(prog, g, exc, inh, float(phi))
+                self._enqueue_shifts(prog, g, c, False, (plans[t], tbuf), normalise=True, toff=toffs[t])
+                cl.enqueue_copy(self._queue, totals, g.total, byte_count=prog.acc.itemsize,
+                                dst_offset=t * prog.acc.itemsize)
+                cl.enqueue_copy(self._queue, g.act, g.res, byte_count=nbytes)
+                cl.enqueue_copy(self._queue, hist_dev, g.res, byte_count=nbytes, dst_offset=(t - c0) * nbytes)
+            cl.enqueue_copy(self._queue, block[: c1 - c0], hist_dev)  # reads as many bytes as the host slice holds
+            for t in range(c0, c1):
+                decoded[t] = population_vector_window(block[t - c0], window)
+            if history is not None:
+                history[c0:c1] = block[: c1 - c0]
+        tot = np.empty(T, dtype=prog.acc)
+        cl.enqueue_copy(self._queue, tot, totals)
+        bad = np.flatnonzero(~(np.isfinite(tot) & (tot > 0)))
+        if len(bad):
+            return RunResult(None, None, None, int(bad[0]))
+        return RunResult(block[(T - 1 - c0)].copy(), decoded, history, None)
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -4,7 +4,8 @@ As Nengo does for its simulators: one set of tests compares a candidate backend'
 kernels (dynamics, shifts, conditional shifts, injection, decoding, the fused step) with
 the numpy reference on random grids, shapes, dtypes and seeds (hypothesis), and a whole
 :class:`~cansim.population.Population` run step by step. The reference is never
-compared with itself.
+compared with itself. A candidate's multi-step ``Backend.run`` must equal its own
+``step`` called once per step, bit for bit.
 
 Use it from a test module of your own::
 
@@ -30,7 +31,7 @@ from cansim.kernels import gaussian_kernel_1d
 __all__ = [name for name in (
     "test_dynamics_matches_reference", "test_uniform_shift_matches_reference", "test_conditional_shift_matches_reference",
     "test_inject_matches_reference", "test_decode_matches_reference", "test_fused_step_matches_reference",
-    "test_backend_population_runs_identically",
+    "test_backend_population_runs_identically", "test_run_equals_repeated_steps",
 )]
 
 SETTINGS = dict(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -174,3 +175,32 @@ def test_backend_population_runs_identically(candidate, reference, shape):
         dg = got.step(vel, dt=1.0)
         _close(got.activity, ref.activity, np.float32)
         np.testing.assert_allclose(dg, dr, atol=1e-3)
+
+
+@pytest.mark.parametrize("shape", [(47,), (9, 7, 12), (3, 4, 5, 6, 7, 5)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_run_equals_repeated_steps(candidate, shape, dtype):
+    """``Population.run`` (the candidate's ``Backend.run``) equals T calls of its ``step`` bit for bit,
+    with per-step shifts of up to 2.5 cells, per-step dt and injections (a repeated index among them)."""
+    from cansim import Axis, AttractorParams, Population
+
+    axes = [Axis.linear(f"a{i}", n, 0.1) for i, n in enumerate(shape)]
+    params = AttractorParams(exc_width=5, exc_sigma=1.0, inh_width=3, inh_sigma=1.5)
+    pops = [Population(axes, params, backend=candidate, dtype=dtype) for _ in range(2)]
+    pops[0].reset_gaussian([n / 3 for n in shape], 1.0)
+    pops[1].activity = pops[0].activity
+    rng = np.random.default_rng(sum(shape))
+    T = 10
+    velocity = rng.uniform(-0.25, 0.25, (T, len(shape)))
+    velocity[3] = 0.0
+    dt = rng.uniform(0.5, 1.0, T)
+    size = int(np.prod(shape))
+    injections = [None] * T
+    injections[1] = (np.array([0, 0, size - 1]), np.array([0.05, 0.1, 0.2]))
+    injections[7] = (np.array([size // 2]), np.array([0.4]))
+    decoded, activity = pops[0].run(velocity, dt=dt, injections=injections, record_activity=True)
+    for t in range(T):
+        d = pops[1].step(velocity[t], dt=float(dt[t]), injection=injections[t])
+        np.testing.assert_array_equal(activity[t], pops[1].activity)
+        np.testing.assert_array_equal(decoded[t], d)
+    np.testing.assert_array_equal(pops[0].activity, pops[1].activity)
