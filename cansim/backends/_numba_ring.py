@@ -16,36 +16,66 @@ from numba import njit
 
 from cansim.backends._numba_kernels import global_inhibit
 
-__all__ = ["ring_step"]
+__all__ = ["ring_step", "workspace_size"]
+
+
+def workspace_size(n: int, exc_taps: int, inh_taps: int) -> int:
+    """float64 cells of scratch :func:`ring_step` needs for a ring of ``n`` cells."""
+    return 4 * n + exc_taps + inh_taps + 2
 
 
 @njit(cache=True, fastmath=False)
-def _conv(src, taps, dst):
-    """dst[i + j - c] += src[i] * taps[j] with wrap (scatter form of Alg 3)."""
+def _pad(src, c, xp):
+    """``xp[p] = src[(p - c) mod n]`` for ``p in [0, n + 2c)``: the ring with c cells of wrap on each side."""
     n = src.shape[0]
-    c = taps.shape[0] // 2
+    mid = xp[c:c + n]
+    for i in range(n):
+        mid[i] = src[i]
+    for p in range(c):  # the pads (they wrap more than once when c > n)
+        q = p - c
+        while q < 0:
+            q += n
+        xp[p] = src[q]
+        q = p
+        while q >= n:
+            q -= n
+        xp[c + n + p] = src[q]
+
+
+@njit(cache=True, fastmath=False)
+def _conv(src, taps, dst, xp):
+    """dst[i + j - c] += src[i] * taps[j] with wrap (scatter form of Alg 3), tap after tap.
+
+    Gathered from the padded ring: ``dst[k] = sum_j taps[j] src[k + c - j]``, summed in tap
+    order from 0.0 as the reference's scatter does; every tap is one contiguous,
+    vectorised pass (slices, so no negative-index checks).
+    """
+    n = src.shape[0]
+    nt = taps.shape[0]
+    c = nt // 2
+    _pad(src, c, xp)
     for k in range(n):
         dst[k] = 0.0
-    for j in range(taps.shape[0]):
+    for j in range(nt):
         w = taps[j]
-        off = (j - c) % n
-        for i in range(n - off):  # split at the wrap point: two branch-free (vectorisable) runs
-            dst[i + off] += w * src[i]
-        for i in range(n - off, n):
-            dst[i + off - n] += w * src[i]
+        seg = xp[2 * c - j: 2 * c - j + n]
+        for k in range(n):
+            dst[k] += w * seg[k]
 
 
 @njit(cache=True, fastmath=False)
 def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
     """One ring iteration: inject, dynamics, shift by ``shift`` cells, decode.
 
-    ``out`` has ``a``'s dtype; ``work`` is float64 scratch of length >= 3n. Returns
-    False, with ``out`` untouched, when the activity collapses.
+    ``out`` has ``a``'s dtype; ``work`` is float64 scratch of length >= ``4n + len(exc) +
+    len(inh) + 2`` (:func:`workspace_size`). Returns False, with ``out`` untouched, when the
+    activity collapses.
     """
     n = a.shape[0]
     x = work[:n]
     e = work[n:2 * n]
     t = work[2 * n:3 * n]
+    xp = work[3 * n:]
     for i in range(n):
         x[i] = a[i]
     if fi.shape[0] > 0:
@@ -55,8 +85,8 @@ def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
         for i in range(n):
             rb[0] = x[i]
             x[i] = rb[0]
-    _conv(x, exc, e)
-    _conv(e, inh, t)
+    _conv(x, exc, e, xp)
+    _conv(e, inh, t, xp)
     total = global_inhibit(e, t, x, n, phi)
     if not (total > 0.0 and total < np.inf):
         return False
@@ -66,18 +96,25 @@ def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
     if shift != 0.0:
         lo = math.floor(shift)
         f = shift - lo
-        lo_m = lo % n
-        # t[i] = (1 - f) x[i - lo] + f x[i - lo - 1] (indices mod n), as the reference's two rolls
-        for i in range(n):
-            t[i] = x[(i - lo_m) % n]
+        lo_m = np.int64(lo % n)
+        # t[i] = (1 - f) x[i - lo] + f x[i - lo - 1] (indices mod n), as the reference's two rolls:
+        # with xp[p] = x[(p - lo - 1) mod n], p in [0, n], that is (1 - f) xp[i + 1] + f xp[i]
+        head = xp[:lo_m + 1]
+        src = x[n - lo_m - 1:]
+        for p in range(lo_m + 1):
+            head[p] = src[p]
+        tail = xp[lo_m + 1:n + 1]
+        for p in range(n - lo_m):
+            tail[p] = x[p]
+        hi = xp[1:n + 1]
         if f != 0.0:
             g = 1.0 - f
-            last = t[n - 1]
-            for i in range(n - 1, 0, -1):
-                t[i] = g * t[i] + f * t[i - 1]
-            t[0] = g * t[0] + f * last
-        for i in range(n):
-            x[i] = t[i]
+            lo_s = xp[:n]
+            for i in range(n):
+                x[i] = g * hi[i] + f * lo_s[i]
+        else:
+            for i in range(n):
+                x[i] = hi[i]
     best = 0
     for i in range(n):
         out[i] = x[i]

@@ -78,6 +78,7 @@ class NumbaBackend(Backend):
         self._shapes: dict = {}
         self._masks: dict = {}
         self._ring_kernel = None
+        self._ring_taps_cache = None
 
     # ------------------------------------------------------------------ helpers
     def _nthreads(self) -> int:
@@ -236,8 +237,10 @@ class NumbaBackend(Backend):
             uni = np.where(has_uni[:, None], uni, 0.0)  # a step without a uniform shift: zeros, as step() plans it
         small = self._small_plan(a.shape, exc, inh) if self._small and d > 1 else None
         if d == 1:
-            status = _r.ring_run(flat, bufs[0], bufs[1], hist, bool(record_activity), off, idx, val, exc[0], inh[0],
-                                 float(phi), np.ascontiguousarray(uni[:, 0]), int(window), decoded, ws)
+            status = _r.ring_run(flat, bufs[0], bufs[1], hist, bool(record_activity), off, idx, val,
+                                 *self._ring_taps(exc, inh),
+                                 float(phi), np.ascontiguousarray(uni[:, 0]), int(window), decoded,
+                                 self._ring_workspace(flat.shape[0], exc, inh))
         else:
             k = len(inputs.shift_axes) if inputs.shift_axes is not None else 1
             if inputs.cond_shifts is not None:
@@ -346,6 +349,20 @@ class NumbaBackend(Backend):
             dst = out
         return dst, decoded
 
+    def _ring_taps(self, exc, inh) -> tuple[np.ndarray, np.ndarray]:
+        """Writable float64 copies of a ring's taps (cached): numba compiles read-only arrays
+        (the kernels' taps are) into a kernel about 2x slower."""
+        cached = self._ring_taps_cache
+        if cached is None or cached[0] is not exc or cached[1] is not inh:
+            cached = (exc, inh, np.array(exc[0], dtype=np.float64), np.array(inh[0], dtype=np.float64))
+            self._ring_taps_cache = cached
+        return cached[2], cached[3]
+
+    def _ring_workspace(self, n: int, exc, inh) -> np.ndarray:
+        from cansim.backends._numba_ring import workspace_size
+
+        return self._workspace(-(-workspace_size(n, len(exc[0]), len(inh[0])) // 3))
+
     def _ring_step(self, a, flat_index, values, exc, inh, phi, uniform_shifts, window, out):
         """1-D rings: a small dedicated kernel (the N-D pipeline's dispatch cost dominates)."""
         kernel = self._ring_kernel
@@ -357,8 +374,8 @@ class NumbaBackend(Backend):
         fi, vals = _injection_arrays(flat_index, values)
         shift = 0.0 if uniform_shifts is None else float(uniform_shifts[0])
         decoded = np.empty(1, dtype=np.float64)
-        if not kernel(a, dst, fi, vals, exc[0], inh[0], float(phi), shift, int(window), decoded,
-                      self._workspace(a.shape[0])):
+        if not kernel(a, dst, fi, vals, *self._ring_taps(exc, inh), float(phi), shift, int(window), decoded,
+                      self._ring_workspace(a.shape[0], exc, inh)):
             return None, None
         if out is not None and dst is not out:
             out[...] = dst
