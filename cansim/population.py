@@ -147,7 +147,10 @@ class Population:
         """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``n`` cells per axis.
 
         Kernels per Eq 5.10: width 5 on every axis, excitation variance 1 (sigma 1),
-        inhibition variance 2 (sigma sqrt 2); phi 2e-5. ``cell_size`` is metres per
+        inhibition variance 2 (sigma sqrt 2), normalised as the printed normal density
+        (``kernel_normalisation="pdf"``: over the 5^6 window the excitation sums to 0.9464,
+        the inhibition to 0.6430; the thesis tuned its packet with these; the printed
+        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5. ``cell_size`` is metres per
         translational cell (the thesis does not give it; 0.02 m is this library's
         default), angular steps are ``2*pi/n_angle`` (``n_angle`` defaults to ``n``).
         """
@@ -160,7 +163,9 @@ class Population:
             Axis.angle("pitch", na),
             Axis.angle("yaw", na),
         )
-        p = params or AttractorParams(exc_width=5, exc_sigma=1.0, inh_width=5, inh_sigma=math.sqrt(2.0))
+        p = params or AttractorParams(
+            exc_width=5, exc_sigma=1.0, inh_width=5, inh_sigma=math.sqrt(2.0), kernel_normalisation="pdf"
+        )
         return cls(axes, p, motion=SixDofMotion(), **kwargs)
 
     # --------------------------------------------------------------- properties

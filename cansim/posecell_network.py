@@ -125,8 +125,8 @@ class PosecellNetwork:
         w_e_dim, w_i_dim = scalar("exc_width"), scalar("inh_width")
         w_e_var, w_i_var = scalar("exc_sigma"), scalar("inh_sigma")
         global_inhib, cells_to_avg = float(params.global_inhibition), int(decode_window)
-        if not params.normalise_kernels:
-            raise ConfigError("normalise_kernels must be True in the OpenRatSLAM engine (the C++ kernels sum to 1)")
+        if params.kernel_normalisation != "sum":
+            raise ConfigError("kernel_normalisation must be 'sum' in the OpenRatSLAM engine (the C++ kernels sum to 1)")
         for name, v in (("exc_sigma (pc_w_e_var)", w_e_var), ("inh_sigma (pc_w_i_var)", w_i_var)):
             if float(v) != int(v) or v <= 0:
                 raise ConfigError(f"{name} must be a positive integer in the OpenRatSLAM engine (a C++ int), got {v!r}")
