@@ -5,28 +5,16 @@ Names below load from their submodules on first access (``import maps`` is free)
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from whisker_io._lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
-    "ExperienceMap": "experience_map",
-    "ExperienceMapConfig": "experience_map",
-    "experience_metric": "metrics",
-    "energy_metric": "metrics",
-    "absolute_trajectory_error": "metrics",
+    "ExperienceMap": "maps.experience_map",
+    "ExperienceMapConfig": "maps.experience_map",
+    "experience_metric": "maps.metrics",
+    "energy_metric": "maps.metrics",
+    "absolute_trajectory_error": "maps.metrics",
 }
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'maps' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"maps.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import (
+from whisker_io.contact.detection import (
     DetectedContact,
     DetectionParams,
     detect_contact,
@@ -15,11 +15,11 @@ from whisker_io.contact_detection import (
     max_angle,
     threshold_contact_angle,
 )
-from whisker_io.contact_features import FEATURE_NAMES, contact_features, whisk_features
-from whisker_io.control import OpenLoop, RetractAtMax, WhiskPattern
+from whisker_io.contact.features import FEATURE_NAMES, contact_features, whisk_features
+from whisker_io.array.control import OpenLoop, RetractAtMax, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.signals import SignalParams, WhiskContact, bending_stiffness, simulate_rod_contact, simulate_whisk_cycle
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.sim.signals import SignalParams, WhiskContact, bending_stiffness, simulate_rod_contact, simulate_whisk_cycle
 
 FS = 2000.0
 
@@ -183,7 +183,7 @@ def test_plot_whisk_marks_onset_and_offset(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from whisker_io.plot_signals import plot_whisk
+    from whisker_io.plots.signals import plot_whisk
 
     rec = _hinge_record(noise=4.0)
     c = detect_contact(rec)

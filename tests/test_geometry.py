@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError, CansimError
-from whisker_io.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
-from whisker_io.kinematics import (
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
+from whisker_io.array.kinematics import (
     as_transform,
     contact_points,
     shaft_directions,

@@ -21,9 +21,9 @@ from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInpu
 from whisker_io.hw import MissingDependencyError
 from whisker_io.hw import arm as arm_module
 from whisker_io.hw.arm import CommandFailedError, SimArm, URArm, probe_rtde
-from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeReceiveInterface,
+from whisker_io.testing.fake_rtde_server import (FakeControlInterface, FakeReceiveInterface,
                                             FakeServerError, fake_rtde_server)
-from whisker_io.hw.pose import Pose, as_pose
+from whisker_io.pose import Pose, as_pose
 
 HOST = "127.0.0.1"
 S2 = math.sqrt(0.5)
@@ -276,7 +276,7 @@ def test_fake_server_waits_for_the_rtde_port_to_be_released():
     """ur-rtde only uses port 30004: a launch while another listener still holds it retries."""
     import threading
 
-    from whisker_io.hw.fake_rtde_server import RTDE_PORT, fake_rtde_server
+    from whisker_io.testing.fake_rtde_server import RTDE_PORT, fake_rtde_server
 
     holder = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)

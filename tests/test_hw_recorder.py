@@ -1,7 +1,7 @@
 """Recorder: live cycles on disk as they arrive, replay through the same pipeline.
 
 * a SimArm + SimArray session (simulated box, Ch.4/6 retract-at-maximum
-  whisking) replays bit-identically into whisker_io.contact_detection;
+  whisking) replays bit-identically into whisker_io.contact.detection;
 * the fake RTDE server killed mid-session -> typed error within 1 s, recorder
   closed, every whisk before the fault readable.
 """
@@ -14,18 +14,19 @@ import time
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.control import RetractAtMax
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.array.control import RetractAtMax
 from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
                                StaleStateError)
 from whisker_io.hw.arm import ArmState, SimArm, URArm
-from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeServerError,
+from whisker_io.testing.fake_rtde_server import (FakeControlInterface, FakeServerError,
                                             fake_rtde_server)
-from whisker_io.hw.pose import Pose
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore, replay_session
 from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import SimArray
-from whisker_io.recording import WhiskRecord, read_pose_log, replay
+from whisker_io.records.recording import read_pose_log, replay
+from whisker_io.records.whisk_record import WhiskRecord
 
 UPRIGHT = SafetyEnvelope(tool_reference_axis=(0.0, 0.0, 1.0))  # array axis (+y) horizontal
 
@@ -40,8 +41,8 @@ def upright(x, y, z):
 
 
 def test_sim_session_replays_bit_identically_into_contact_pipeline(tmp_path):
-    from whisker_io.objects import make_object
-    from whisker_io.simulator import ArraySimulator
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.simulator import ArraySimulator
 
     arm = SimArm(upright(0.0, -0.33, 0.15), envelope=UPRIGHT)
     array = SimArray.from_simulator(ArraySimulator(seed=3, controller=RetractAtMax()),
@@ -156,7 +157,7 @@ def test_recorder_refuses_time_reversal_and_closed_use(tmp_path):
 
 
 def test_failed_cycle_write_leaves_no_orphan_files(tmp_path, monkeypatch):
-    import whisker_io.recording as recording
+    import whisker_io.records.recording as recording
 
     real = recording.write_whisk_csv
     calls = []
@@ -193,10 +194,10 @@ CHILD = """
 import sys
 import numpy as np
 from whisker_io.hw.arm import ArmState
-from whisker_io.hw.pose import Pose
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder
-from whisker_io.recording import WhiskRecord
-from whisker_io.geometry import WhiskerArray
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.array.geometry import WhiskerArray
 names = WhiskerArray.thesis().names
 pose = Pose([0.4, 0.0, 0.4], [1, 0, 0, 0])
 with Recorder(sys.argv[1]) as rec:

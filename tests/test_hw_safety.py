@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
 from whisker_io.hw.arm import SimArm, URArm
-from whisker_io.hw.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
-from whisker_io.hw.pose import Pose
+from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
+from whisker_io.pose import Pose
 from whisker_io.hw.safety import SafetyEnvelope
 
 ENV = SafetyEnvelope()

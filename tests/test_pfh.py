@@ -8,8 +8,8 @@ from scipy.spatial.distance import pdist
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import make_object
-from whisker_io.pfh import (
+from whisker_io.sim.objects import make_object
+from whisker_io.features.pfh import (
     PFHParams,
     chi_squared,
     estimate_normals,

@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import InvalidInputError, CorruptFileError, CansimError
-from whisker_io.recording import (
+from whisker_io.records.recording import (
     POSE_LOG_NAME,
     PoseLogWriter,
     RecordingWriter,
-    WhiskRecord,
     read_pose_log,
     read_whisk_csv,
     replay,
     whisk_file_name,
     write_whisk_csv,
 )
+from whisker_io.records.whisk_record import WhiskRecord
 
 
 def _record(module: str = "C2", cycle: int = 3, n: int = 50, seed: int = 0) -> WhiskRecord:

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from whisker_io.contact_detection import detect_contact, detect_contacts
-from whisker_io.control import OpenLoop, WhiskPattern
+from whisker_io.contact.detection import detect_contact, detect_contacts
+from whisker_io.array.control import OpenLoop, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.sda import contact_gradient, nmse, slope_distribution
-from whisker_io.signals import WhiskContact, simulate_whisk_cycle
-from whisker_io.simulator import ArraySimulator
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.features.sda import contact_gradient, nmse, slope_distribution
+from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+from whisker_io.sim.simulator import ArraySimulator
 
 
 def _tilted_contact(theta_c: float, tilt: float, a: float = 0.05) -> WhiskContact:
@@ -115,7 +115,7 @@ def test_sda_plots_bars_per_module_and_nmse_title():
     import matplotlib
 
     matplotlib.use("Agg")
-    from whisker_io.plot_signals import plot_sda, plot_xy_gradient
+    from whisker_io.plots.signals import plot_sda, plot_xy_gradient
 
     tilts = np.radians([-35.0, 20.0, 50.0])
     recs, _ = simulate_whisk_cycle([_tilted_contact(math.radians(10.0), t, a=0.07) for t in tilts] + [None], seed=2)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from whisker_io.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
+from whisker_io.array.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
 from whisker_io.errors import InvalidInputError
-from whisker_io.signals import (
+from whisker_io.sim.signals import (
     SignalParams,
     WhiskContact,
     bending_stiffness,

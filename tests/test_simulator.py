@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.control import RCP, WhiskPattern
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.array.control import RCP, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import make_object
-from whisker_io.recording import RecordingWriter, replay
-from whisker_io.simulator import ArraySimulator, whisk_contact_from_sweep
-from whisker_io.sweep import MeshTarget
+from whisker_io.sim.objects import make_object
+from whisker_io.records.recording import RecordingWriter, replay
+from whisker_io.sim.simulator import ArraySimulator, whisk_contact_from_sweep
+from whisker_io.sim.sweep import MeshTarget
 
 POSES = [(0.0, -0.31, 0.175), (0.03, -0.315, 0.12), (-0.02, -0.305, 0.22)]
 

@@ -1,14 +1,14 @@
 """Crash-safe recording of live sessions, and replay through the same pipeline.
 
 :class:`Recorder` writes each whisk cycle as it arrives, with the session
-format of :mod:`whisker_io.recording` (per-module whisk CSVs written to a
+format of :mod:`whisker_io.records.recording` (per-module whisk CSVs written to a
 temporary name, fsynced and renamed; then the fsynced pose-log line). After a
 crash or an unplugged cable every completed whisk is on disk, complete, and
-readable by :func:`whisker_io.recording.replay`; a whisk in progress leaves
+readable by :func:`whisker_io.records.recording.replay`; a whisk in progress leaves
 nothing behind.
 
 A *pipeline* is any callable taking a
-:class:`~whisker_io.recording.ReplayedCycle` (pose-log entry + module
+:class:`~whisker_io.records.recording.ReplayedCycle` (pose-log entry + module
 records). The recorder hands every live cycle to it right after the cycle is
 on disk, and :func:`replay_session` hands every recorded cycle to it in the
 same form, so live and replayed data take the same path.
@@ -30,10 +30,17 @@ import numpy as np
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.hw.arm import Arm, ArmState
-from whisker_io.hw.pose import Pose, PoseLike, as_pose
+from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.hw.usb_array import Array
-from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle, WhiskRecord,
-                                  read_pose_log, replay, whisk_file_stem)
+from whisker_io.records.recording import (
+    POSE_LOG_NAME,
+    RecordingWriter,
+    ReplayedCycle,
+    read_pose_log,
+    replay,
+    whisk_file_stem,
+)
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["Pipeline", "Recorder", "explore", "replay_session", "raster_poses"]
 

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
-from whisker_io.hw.pose import Pose, PoseLike, as_pose
+from whisker_io.pose import Pose, PoseLike, as_pose
 
 __all__ = ["SafetyEnvelope", "HARD_CEILINGS"]
 

@@ -23,8 +23,8 @@ from typing import Any, Protocol, Union
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, contact_points
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import Pose, contact_points
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
 from whisker_io.radial.models import TipAssumption, TrainedModel, UniformRandom, check_feature_matrix
 

@@ -12,7 +12,7 @@ Decisions: the fit uses the span-100 smoothed x and y (the same preprocessing as
 detection); a whisker whose x-deflection does not vary over the window (a
 surface squarely facing the whisk) has an undefined gradient and is masked out
 (``min_x_spread_counts``). With the frictionless beam model of
-:mod:`whisker_io.signals` the gradient equals ``n_y / n_x``, the surface normal
+:mod:`whisker_io.sim.signals` the gradient equals ``n_y / n_x``, the surface normal
 on the sensor axes.
 
 ``NMSE(x, y) = MSE(x, y) / MSE(x, 0)`` with ``MSE(x, y) = ||x - y||^2 / n`` (Eq 5.3-5.4),
@@ -21,7 +21,7 @@ taken over the whiskers valid in both arrays.
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.sda import nmse
+>>> from whisker_io.features.sda import nmse
 >>> float(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])))   # (0 + 1) / (1 + 4)
 0.2
 """
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["SlopeDistribution", "contact_gradient", "slope_distribution", "nmse"]
 

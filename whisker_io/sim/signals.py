@@ -52,8 +52,8 @@ Whisker inertia is not modelled; slipping off an edge is an option of
 
 Example
 -------
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.control import OpenLoop, WhiskPattern
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.array.control import OpenLoop, WhiskPattern
 >>> contact = WhiskContact(angle_rad=0.0, radial_distance_m=0.05, whisker_length_m=0.1)
 >>> records, truths = simulate_whisk_cycle([contact, None], OpenLoop(WhiskPattern(1.0)), seed=1)
 >>> records[0].n_samples, truths[0].onset_index, truths[1] is None
@@ -68,9 +68,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from whisker_io.control import OpenLoop, WhiskController, WhiskPattern
+from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import SAMPLE_RATE_HZ, WhiskRecord
+from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 __all__ = [
     "SignalParams",
@@ -446,16 +446,16 @@ def simulate_whisk_cycle(
     """One whisk cycle of n whiskers: controller trajectories -> beam model -> sensor.
 
     The controller commands the cycle, the signals are synthesised, the
-    controller may react within the cycle (e.g. :class:`~whisker_io.control.RetractAtMax`),
+    controller may react within the cycle (e.g. :class:`~whisker_io.array.control.RetractAtMax`),
     the signals are re-synthesised with the same noise, and ``end_cycle`` is
-    called (e.g. :class:`~whisker_io.control.RCP` adapts the next amplitude).
+    called (e.g. :class:`~whisker_io.array.control.RCP` adapts the next amplitude).
 
     Parameters
     ----------
     contacts : sequence of WhiskContact or None, length n
         Contact geometry per whisker; ``None`` for free whisking (noise only).
     controller : WhiskController, optional
-        Defaults to 1-Hz :class:`~whisker_io.control.OpenLoop`. Its pattern's
+        Defaults to 1-Hz :class:`~whisker_io.array.control.OpenLoop`. Its pattern's
         sampling rate must equal ``params.sample_rate_hz``.
     params : SignalParams, optional
     seed : int or numpy Generator, optional

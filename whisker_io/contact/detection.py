@@ -37,8 +37,8 @@ threshold).
 
 Example
 -------
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.contact_detection import detect_contact
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.contact.detection import detect_contact
 >>> (rec,), (truth,) = simulate_whisk_cycle([WhiskContact(0.0, 0.05, 0.1)], seed=3)
 >>> c = detect_contact(rec)
 >>> abs(c.onset_index - truth.onset_index) <= 10, c.sign
@@ -56,7 +56,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.signal import find_peaks, peak_prominences, peak_widths
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = [
     "DetectionParams",

@@ -2,10 +2,10 @@
 
 One call of :meth:`ArraySimulator.whisk` places the array at an end-effector
 pose in front of a trimesh object, finds each whisker's first contact with the
-rigid-whisker sweep of :mod:`whisker_io.sweep` (Sec 4.1.2.3), turns every contact
+rigid-whisker sweep of :mod:`whisker_io.sim.sweep` (Sec 4.1.2.3), turns every contact
 into 2 kHz angle / x / y traces with the tapered-cantilever model of
-:mod:`whisker_io.signals` under the simulator's controller, and returns the 18
-:class:`~whisker_io.recording.WhiskRecord` s with the ground truth. The records go
+:mod:`whisker_io.sim.signals` under the simulator's controller, and returns the 18
+:class:`~whisker_io.records.whisk_record.WhiskRecord` s with the ground truth. The records go
 through the same contact pipeline and recording format as real data.
 
 The sweep's face normal (world frame, outward) is expressed in the whisker's
@@ -15,8 +15,8 @@ split of the deflection follows the contacted surface's orientation.
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.objects import make_object
->>> from whisker_io.simulator import ArraySimulator
+>>> from whisker_io.sim.objects import make_object
+>>> from whisker_io.sim.simulator import ArraySimulator
 >>> sim = ArraySimulator(seed=0)
 >>> pose = np.eye(4); pose[:3, 3] = [0.0, -0.45, 0.2]      # array axis +y toward the box
 >>> result = sim.whisk(make_object("box"), pose)
@@ -32,13 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from whisker_io.control import OpenLoop, WhiskController, WhiskPattern
+from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, rot_z
-from whisker_io.recording import PoseEntry, RecordingWriter, WhiskRecord
-from whisker_io.signals import ContactTruth, SignalParams, WhiskContact, simulate_whisk_cycle
-from whisker_io.sweep import MeshTarget, SweepContact, SweepParams, sweep_array
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import Pose, as_transform, rot_z
+from whisker_io.records.recording import RecordingWriter
+from whisker_io.records.whisk_record import PoseEntry, WhiskRecord
+from whisker_io.sim.signals import ContactTruth, SignalParams, WhiskContact, simulate_whisk_cycle
+from whisker_io.sim.sweep import MeshTarget, SweepContact, SweepParams, sweep_array
 
 __all__ = ["ArrayWhisk", "ArraySimulator", "whisk_contact_from_sweep"]
 
@@ -105,7 +106,7 @@ class ArraySimulator:
     array : WhiskerArray, optional
         Array geometry (default the thesis' 18 modules, Fig 2.15).
     controller : WhiskController, optional
-        Whisking controller (default 1-Hz :class:`~whisker_io.control.OpenLoop` over
+        Whisking controller (default 1-Hz :class:`~whisker_io.array.control.OpenLoop` over
         the array's whisk range). Stateful controllers (RCP) carry over between cycles.
     signal_params : SignalParams, optional
         Beam / sensor parameters.

@@ -19,14 +19,14 @@ them from the measured y-deflection:
   a half cosine lasting half a whisk period, then rests there.
 
 Every controller implements the :class:`WhiskController` protocol used by
-:func:`whisker_io.signals.simulate_whisk_cycle`: ``command`` (trajectories before
+:func:`whisker_io.sim.signals.simulate_whisk_cycle`: ``command`` (trajectories before
 the cycle), ``respond`` (within-cycle reaction to the measured y-deflection; it
 may only change samples after the one that triggered it) and ``end_cycle``.
 
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.control import WhiskPattern, OpenLoop
+>>> from whisker_io.array.control import WhiskPattern, OpenLoop
 >>> pattern = WhiskPattern(frequency_hz=1.0)
 >>> angles = OpenLoop(pattern).command(n_whiskers=18)
 >>> angles.shape, round(float(np.rad2deg(angles.max())), 6)
@@ -133,7 +133,7 @@ class WhiskPattern:
 
 @runtime_checkable
 class WhiskController(Protocol):
-    """What :func:`whisker_io.signals.simulate_whisk_cycle` needs from a controller."""
+    """What :func:`whisker_io.sim.signals.simulate_whisk_cycle` needs from a controller."""
 
     pattern: WhiskPattern
 
@@ -220,7 +220,7 @@ class RCP:
         The global pattern (full amplitude A_full).
     threshold_counts : float, default 80
         Contact threshold, counts; set it with :func:`contact_threshold_from_noise`
-        (default = 20 x the 4-count noise std of :class:`whisker_io.signals.SignalParams`).
+        (default = 20 x the 4-count noise std of :class:`whisker_io.sim.signals.SignalParams`).
     gain_rad_per_count : float, default 50 deg / 2047
         Amplitude reduction per count of mean deflection (assumption: a full-scale
         mean deflection halves the 100-deg amplitude).

@@ -25,9 +25,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, contact_points
-from whisker_io.sweep import SweepContact
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import Pose, contact_points
+from whisker_io.sim.sweep import SweepContact
 
 __all__ = [
     "TactileImageParams",
@@ -151,7 +151,7 @@ def tactile_image_from_contacts(
     contacts: Sequence[SweepContact | None],
     params: TactileImageParams = TactileImageParams(),
 ) -> NDArray[np.uint8]:
-    """Tactile image from simulator contacts (:func:`whisker_io.sweep.sweep_array` output)."""
+    """Tactile image from simulator contacts (:func:`whisker_io.sim.sweep.sweep_array` output)."""
     if len(contacts) != len(array):
         raise InvalidInputError(f"need one contact (or None) per module: {len(array)}, got {len(contacts)}")
     pts = np.array([np.full(3, np.nan) if c is None else c.point for c in contacts])

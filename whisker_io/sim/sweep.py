@@ -54,8 +54,8 @@ import trimesh
 from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, rot_z, rotate_shaft, whisker_base_transforms
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import Pose, as_transform, rot_z, rotate_shaft, whisker_base_transforms
 
 __all__ = [
     "RayEngine",

@@ -14,9 +14,9 @@ import numpy as np
 import trimesh
 from numpy.typing import ArrayLike
 
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, whisker_frames
-from whisker_io.sweep import SweepContact
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import Pose, as_transform, whisker_frames
+from whisker_io.sim.sweep import SweepContact
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -46,7 +46,7 @@ def plot_scene(
     pose : Pose
         End-effector pose ``T_BE``.
     contacts : sequence of SweepContact or None, optional
-        One per module (e.g. :func:`whisker_io.sweep.sweep_array` output).
+        One per module (e.g. :func:`whisker_io.sim.sweep.sweep_array` output).
     ax : matplotlib 3-D Axes, optional
     max_faces : int
         Faces drawn at most (a regular subset of larger meshes), for speed.
@@ -100,7 +100,7 @@ def draw_pfh(ax: "Axes", histogram: ArrayLike, color: str = "tab:blue", label: s
     ----------
     ax : matplotlib Axes
     histogram : array_like (B,)
-        Normalised histogram (:attr:`whisker_io.pfh.PointFeatureHistogram.histogram`).
+        Normalised histogram (:attr:`whisker_io.features.pfh.PointFeatureHistogram.histogram`).
     color, label : bar colour and legend label.
 
     Returns

@@ -7,9 +7,9 @@ Example
 -------
 >>> import matplotlib
 >>> matplotlib.use("Agg")
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.contact_detection import detect_contact
->>> from whisker_io.plot_signals import plot_whisk
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.contact.detection import detect_contact
+>>> from whisker_io.plots.signals import plot_whisk
 >>> (rec,), _ = simulate_whisk_cycle([WhiskContact(0.0, 0.05, 0.1)], seed=0)
 >>> fig = plot_whisk(rec, detect_contact(rec))
 >>> fig.savefig("whisk.png")                                    # doctest: +SKIP
@@ -22,10 +22,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.sda import SlopeDistribution, contact_gradient, nmse
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.features.sda import SlopeDistribution, contact_gradient, nmse
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes

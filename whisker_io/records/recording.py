@@ -54,7 +54,8 @@ an error naming the file and the 1-based line number.
 Example
 -------
 >>> import numpy as np, tempfile
->>> from whisker_io.recording import WhiskRecord, RecordingWriter, replay
+>>> from whisker_io.records.whisk_record import WhiskRecord
+>>> from whisker_io.records.recording import RecordingWriter, replay
 >>> rec = WhiskRecord("A1", np.zeros(4), np.zeros(4), np.ones(4), cycle=0)
 >>> with tempfile.TemporaryDirectory() as d:
 ...     with RecordingWriter(d) as w:
@@ -73,21 +74,19 @@ import os
 import re
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
 
-from whisker_io.errors import InvalidInputError, CorruptFileError
+from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.records.whisk_record import MODULE_NAME_RE, SAMPLE_RATE_HZ, PoseEntry, WhiskRecord
 
 __all__ = [
-    "SAMPLE_RATE_HZ",
     "WHISK_HEADER",
     "POSE_LOG_HEADER",
     "POSE_LOG_NAME",
-    "WhiskRecord",
-    "PoseEntry",
     "ReplayedCycle",
     "whisk_file_stem",
     "whisk_file_name",
@@ -101,8 +100,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Sampling rate of every whisker module, Hz (Sec 2.2: "maximum sensory sampling rate of 2kHz").
-SAMPLE_RATE_HZ: float = 2000.0
 #: Header line of a whisk CSV (canonical units).
 WHISK_HEADER: tuple[str, ...] = ("angle_rad", "x_deflection_counts", "y_deflection_counts", "spare")
 _WHISK_HEADER_DEG: tuple[str, ...] = ("angle_deg",) + WHISK_HEADER[1:]
@@ -111,163 +108,7 @@ POSE_LOG_HEADER: tuple[str, ...] = ("time_s", "x_m", "y_m", "z_m", "qx", "qy", "
 #: File name of the pose log inside a session directory.
 POSE_LOG_NAME: str = "pose_log.csv"
 
-_MODULE_RE = re.compile(r"^[A-Za-z0-9]+$")
-_STEM_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
 _FILE_RE = re.compile(r"^whisk_(\d+)_([A-Za-z0-9]+)\.csv$")
-_QUAT_NORM_TOL = 1e-6
-
-
-def _finite_vector(name: str, value: object) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64, copy=True)
-    if arr.ndim != 1:
-        raise InvalidInputError(f"{name} must be a 1-D array of samples, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise InvalidInputError(
-            f"{name} holds NaN/inf at sample {int(bad[0])} ({bad.size} bad samples); "
-            "repair or drop this whisk before building a WhiskRecord"
-        )
-    arr.setflags(write=False)
-    return arr
-
-
-@dataclass(frozen=True, eq=False)
-class WhiskRecord:
-    """One module's samples over one whisk cycle: the in-memory unit of a whisk file.
-
-    Parameters
-    ----------
-    module : str
-        Module name, e.g. ``"C2"`` (letters and digits only, it becomes part of a file name).
-    angle_rad : array_like, shape (T,)
-        Whisk angle theta per sample, radians (SPEC §4.1).
-    x_counts, y_counts : array_like, shape (T,)
-        Deflection along the sensor x- and y-axes, ADC counts. The y-axis is the
-        whisking direction (Sec 5.1.1.1.1).
-    sample_rate_hz : float, default 2000
-        Sampling rate, Hz.
-    cycle : int, default 0
-        Whisk cycle index within the session (>= 0).
-    spare : array_like, shape (T,), optional
-        The spare column (zeros when ``None``).
-
-    Records hold arrays, so ``==`` compares identity; compare the arrays.
-
-    Raises
-    ------
-    InvalidInputError
-        Non-finite samples (naming the first bad sample), arrays of unequal
-        length or other than 1-D, an empty record, a bad module name, cycle < 0 or
-        a non-positive sampling rate. The arrays are copied and made read-only.
-    """
-
-    module: str
-    angle_rad: np.ndarray
-    x_counts: np.ndarray
-    y_counts: np.ndarray
-    sample_rate_hz: float = SAMPLE_RATE_HZ
-    cycle: int = 0
-    spare: np.ndarray | None = field(default=None, repr=False)
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.module, str) or not _MODULE_RE.match(self.module):
-            raise InvalidInputError(
-                f"module name {self.module!r} must be a non-empty string of letters and digits, e.g. 'C2'"
-            )
-        arrays = {
-            "angle_rad": self.angle_rad,
-            "x_counts": self.x_counts,
-            "y_counts": self.y_counts,
-        }
-        if self.spare is not None:
-            arrays["spare"] = self.spare
-        checked = {k: _finite_vector(f"{self.module}.{k}", v) for k, v in arrays.items()}
-        lengths = {k: v.size for k, v in checked.items()}
-        if len(set(lengths.values())) != 1:
-            raise InvalidInputError(f"whisk record {self.module}: columns have different lengths {lengths}")
-        if lengths["angle_rad"] == 0:
-            raise InvalidInputError(f"whisk record {self.module}: no samples")
-        if not (isinstance(self.cycle, (int, np.integer)) and self.cycle >= 0):
-            raise InvalidInputError(f"cycle must be an integer >= 0, got {self.cycle!r}")
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
-            raise InvalidInputError(f"sample_rate_hz must be a positive number, got {self.sample_rate_hz!r}")
-        for k, v in checked.items():
-            object.__setattr__(self, k, v)
-        object.__setattr__(self, "cycle", int(self.cycle))
-        object.__setattr__(self, "sample_rate_hz", float(self.sample_rate_hz))
-
-    @property
-    def n_samples(self) -> int:
-        """Number of samples T."""
-        return int(self.angle_rad.size)
-
-    @property
-    def time_s(self) -> np.ndarray:
-        """Sample times from the start of the cycle, shape (T,), seconds."""
-        return np.arange(self.n_samples) / self.sample_rate_hz
-
-    def as_columns(self) -> np.ndarray:
-        """The four file columns (angle, x, y, spare) as an array of shape (T, 4)."""
-        spare = np.zeros(self.n_samples) if self.spare is None else self.spare
-        return np.column_stack([self.angle_rad, self.x_counts, self.y_counts, spare])
-
-
-@dataclass(frozen=True, eq=False)
-class PoseEntry:
-    """One pose-log line: the end-effector pose when a whisk cycle was completed.
-
-    Attributes
-    ----------
-    time_s : float
-        Time stamp, seconds.
-    position_m : ndarray, shape (3,)
-        End-effector position in the arm base frame, metres.
-    quaternion_xyzw : ndarray, shape (4,)
-        End-effector orientation, unit quaternion, scalar last.
-    whisk_file : str
-        Stem of the cycle's whisk files (``{whisk_file}_{module}.csv``).
-    """
-
-    time_s: float
-    position_m: np.ndarray
-    quaternion_xyzw: np.ndarray
-    whisk_file: str
-
-    def __post_init__(self) -> None:
-        t = float(self.time_s)
-        if not math.isfinite(t):
-            raise InvalidInputError(f"pose time_s must be finite, got {self.time_s!r}")
-        pos = np.array(self.position_m, dtype=np.float64, copy=True)
-        quat = np.array(self.quaternion_xyzw, dtype=np.float64, copy=True)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise InvalidInputError(f"position_m must be 3 finite numbers (metres), got {self.position_m!r}")
-        if quat.shape != (4,) or not np.all(np.isfinite(quat)):
-            raise InvalidInputError(
-                f"quaternion_xyzw must be 4 finite numbers (x, y, z, w), got {self.quaternion_xyzw!r}"
-            )
-        norm = float(np.linalg.norm(quat))
-        if abs(norm - 1.0) > _QUAT_NORM_TOL:
-            raise InvalidInputError(
-                f"quaternion_xyzw must have unit norm (got norm {norm:.9g}); normalise it before logging"
-            )
-        if not isinstance(self.whisk_file, str) or not _STEM_RE.match(self.whisk_file):
-            raise InvalidInputError(
-                f"whisk_file {self.whisk_file!r} must be a file stem of letters, digits, '_', '.', '-'"
-            )
-        pos.setflags(write=False)
-        quat.setflags(write=False)
-        object.__setattr__(self, "time_s", t)
-        object.__setattr__(self, "position_m", pos)
-        object.__setattr__(self, "quaternion_xyzw", quat)
-
-    def as_matrix(self) -> np.ndarray:
-        """The pose as a 4x4 homogeneous transform T_BE (arm base -> end effector)."""
-        from scipy.spatial.transform import Rotation
-
-        T = np.eye(4)
-        T[:3, :3] = Rotation.from_quat(self.quaternion_xyzw).as_matrix()
-        T[:3, 3] = self.position_m
-        return T
 
 
 @dataclass(frozen=True, eq=False)
@@ -295,7 +136,7 @@ def whisk_file_stem(cycle: int) -> str:
 
 def whisk_file_name(cycle: int, module: str) -> str:
     """File name of one module's whisk CSV, e.g. ``whisk_000012_C2.csv``."""
-    if not isinstance(module, str) or not _MODULE_RE.match(module):
+    if not isinstance(module, str) or not MODULE_NAME_RE.match(module):
         raise InvalidInputError(f"module name {module!r} must be letters and digits, e.g. 'C2'")
     return f"{whisk_file_stem(cycle)}_{module}.csv"
 
@@ -713,7 +554,7 @@ def replay(
         by_module: dict[str, Path] = {}
         for f in files:
             module = f.name[len(entry.whisk_file) + 1 : -len(".csv")]
-            if _MODULE_RE.match(module):
+            if MODULE_NAME_RE.match(module):
                 by_module[module] = f
         wanted = sorted(by_module) if modules is None else list(modules)
         missing = [m for m in wanted if m not in by_module]

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
+from whisker_io.array.geometry import WhiskerArray
 
 __all__ = [
     "Pose",

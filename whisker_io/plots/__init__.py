@@ -1,0 +1,1 @@
+"""Figures (matplotlib): the shared axes helper, the 3-D scene and the whisk signals."""
