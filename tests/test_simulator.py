@@ -68,7 +68,7 @@ def test_round_trip_write_read_detect_equals_in_memory(tmp_path, box):
     replayed = list(replay(tmp_path))
     assert len(replayed) == len(in_memory)
     for cyc, (res, dets) in zip(replayed, in_memory):
-        np.testing.assert_allclose(cyc.pose.as_matrix(), res.pose, atol=1e-12)
+        np.testing.assert_allclose(cyc.entry.pose.matrix, res.pose.matrix, atol=1e-12)
         recs = [cyc.records[m] for m in sim.array.names]
         assert detect_contacts(recs) == dets
         assert sum(d is not None for d in dets) >= 5

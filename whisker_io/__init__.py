@@ -31,6 +31,12 @@ from __future__ import annotations
 from whisker_io._lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
+    # shared by every stage
+    "Pose": "whisker_io.pose",
+    "as_pose": "whisker_io.pose",
+    "wrap_to_pi": "whisker_io.angles",
+    "wrap_to_pi_closed_above": "whisker_io.angles",
+    "wrap_to_2pi": "whisker_io.angles",
     # array geometry, kinematics, control
     "WhiskerArray": "whisker_io.array.geometry",
     "WhiskerModule": "whisker_io.array.geometry",

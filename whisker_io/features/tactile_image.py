@@ -26,7 +26,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.array.geometry import WhiskerArray
-from whisker_io.array.kinematics import Pose, contact_points
+from whisker_io.array.kinematics import contact_points
+from whisker_io.pose import PoseLike
 from whisker_io.sim.sweep import SweepContact
 
 __all__ = [
@@ -117,7 +118,7 @@ def tactile_image(
 
 def tactile_image_from_angles(
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     contact_angles_rad: ArrayLike,
     radial_distance_m: ArrayLike | None = None,
     params: TactileImageParams = TactileImageParams(),
@@ -127,7 +128,7 @@ def tactile_image_from_angles(
     Parameters
     ----------
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE`` at the whisk.
     contact_angles_rad : array_like (N,)
         Whisk angle at contact per module (max angle or contact angle of Ch.3);

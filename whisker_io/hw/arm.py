@@ -329,7 +329,7 @@ class SimArm(Arm):
             rots = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, target.rotation]))
             for k in range(1, n):
                 s = k / n
-                p = Pose.from_rotation((1 - s) * start.position + s * target.position, rots(s))
+                p = Pose.from_rotation((1 - s) * start.position_m + s * target.position_m, rots(s))
                 self.trajectory.append((self.time + k * duration / n, p))
         self.time += duration if self.rate_limited else self.control_period
         self._pose = target

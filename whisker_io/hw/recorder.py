@@ -136,8 +136,7 @@ class Recorder:
         relabelled = [r if r.cycle == cycle else _with_cycle(r, cycle) for r in records]
         try:
             entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
-                                             position_m=state.pose.position,
-                                             quaternion_xyzw=state.pose.quaternion)
+                                             pose=state.pose)
         except BaseException:
             # the cycle has no pose-log line: remove its module files written so far
             for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):
@@ -145,7 +144,7 @@ class Recorder:
             raise
         self._next_cycle += 1
         self.n_cycles += 1
-        item = ReplayedCycle(pose=entry, records=MappingProxyType(
+        item = ReplayedCycle(entry=entry, records=MappingProxyType(
             {r.module: r for r in sorted(relabelled, key=lambda r: r.module)}))
         if self._pipeline is not None:
             self.results.append(self._pipeline(item))
@@ -214,7 +213,7 @@ def raster_poses(centre: PoseLike, width_m: float, height_m: float, n_x: int,
     poses = []
     for row, z in enumerate(zs):
         for x in (xs if row % 2 == 0 else xs[::-1]):
-            poses.append(Pose(c.position + x * axes[:, 0] + z * axes[:, 2], c.quaternion))
+            poses.append(Pose(c.position_m + x * axes[:, 0] + z * axes[:, 2], c.quaternion_xyzw))
     return poses
 
 

@@ -586,7 +586,7 @@ class SimArray(Array):
             Returns the current :class:`~whisker_io.pose.Pose` (e.g. ``arm.pose``).
         """
         def source(pose: Any) -> Any:
-            return list(simulator.whisk(target, pose.as_matrix()).records)
+            return list(simulator.whisk(target, pose).records)
 
         return cls(source, pose_provider, layout)
 

@@ -15,7 +15,8 @@ import trimesh
 from numpy.typing import ArrayLike
 
 from whisker_io.array.geometry import WhiskerArray
-from whisker_io.array.kinematics import Pose, as_transform, whisker_frames
+from whisker_io.array.kinematics import whisker_frames
+from whisker_io.pose import PoseLike, as_pose
 from whisker_io.sim.sweep import SweepContact
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -28,7 +29,7 @@ __all__ = ["plot_scene", "draw_pfh", "plot_pfh", "plot_tactile_image"]
 def plot_scene(
     mesh: trimesh.Trimesh,
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     contacts: Sequence[SweepContact | None] | None = None,
     ax: "Axes | None" = None,
     max_faces: int = 4000,
@@ -43,7 +44,7 @@ def plot_scene(
     mesh : trimesh.Trimesh
         The object in the world frame.
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE``.
     contacts : sequence of SweepContact or None, optional
         One per module (e.g. :func:`whisker_io.sim.sweep.sweep_array` output).
@@ -70,11 +71,11 @@ def plot_scene(
     coll = Poly3DCollection(tris, facecolors=plt.cm.Blues(shade), edgecolors="none", alpha=0.35)
     ax.add_collection3d(coll)
 
-    T = as_transform(pose)
+    pose = as_pose(pose)
     n = len(array)
     contacts = list(contacts) if contacts is not None else [None] * n
     theta = np.array([0.0 if c is None else c.angle_rad for c in contacts])
-    frames = whisker_frames(array, T, theta)
+    frames = whisker_frames(array, pose, theta)
     for i, c in enumerate(contacts):
         base = frames[i, :3, 3]
         reach = array.lengths_m[i] if c is None else c.radial_distance_m

@@ -40,7 +40,10 @@ whisk cycle::
 * ``x_m, y_m, z_m``: end-effector position in the arm base frame, metres.
 * ``qx, qy, qz, qw``: end-effector orientation, unit quaternion, **scalar last**
   (the order of ``geometry_msgs/Quaternion`` and of
-  ``scipy.spatial.transform.Rotation.as_quat``).
+  ``scipy.spatial.transform.Rotation.as_quat``). The line is read into a
+  :class:`~whisker_io.pose.Pose`, so the package's one quaternion rule applies:
+  a norm within 1e-3 of 1 is normalised, anything else is a corrupt line; the
+  sign is made canonical (``qw >= 0``, the same rotation).
 * ``whisk_file``: the stem of the cycle's whisk files; the cycle's module files
   are ``{whisk_file}_{module}.csv`` in the same directory.
 
@@ -54,13 +57,13 @@ an error naming the file and the 1-based line number.
 Example
 -------
 >>> import numpy as np, tempfile
+>>> from whisker_io.pose import Pose
 >>> from whisker_io.records.whisk_record import WhiskRecord
 >>> from whisker_io.records.recording import RecordingWriter, replay
 >>> rec = WhiskRecord("A1", np.zeros(4), np.zeros(4), np.ones(4), cycle=0)
 >>> with tempfile.TemporaryDirectory() as d:
 ...     with RecordingWriter(d) as w:
-...         _ = w.write_cycle([rec], time_s=0.0, position_m=[0, 0, 0],
-...                           quaternion_xyzw=[0, 0, 0, 1])
+...         _ = w.write_cycle([rec], time_s=0.0, pose=Pose([0, 0, 0], [0, 0, 0, 1]))
 ...     cycles = list(replay(d))
 >>> cycles[0].records["A1"].y_counts.tolist()
 [1.0, 1.0, 1.0, 1.0]
@@ -81,6 +84,7 @@ from types import MappingProxyType
 import numpy as np
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.pose import PoseLike
 from whisker_io.records.whisk_record import MODULE_NAME_RE, SAMPLE_RATE_HZ, PoseEntry, WhiskRecord
 
 __all__ = [
@@ -117,13 +121,13 @@ class ReplayedCycle:
 
     Attributes
     ----------
-    pose : PoseEntry
-        The pose-log line of the cycle.
+    entry : PoseEntry
+        The pose-log line of the cycle (time, pose, whisk-file stem).
     records : Mapping[str, WhiskRecord]
         Module name -> record, in module-name order.
     """
 
-    pose: PoseEntry
+    entry: PoseEntry
     records: Mapping[str, WhiskRecord]
 
 
@@ -313,7 +317,7 @@ def _looks_numeric(token: str) -> bool:
 
 
 def _pose_line(entry: PoseEntry) -> str:
-    vals = [entry.time_s, *entry.position_m.tolist(), *entry.quaternion_xyzw.tolist()]
+    vals = [entry.time_s, *entry.pose.position_m.tolist(), *entry.pose.quaternion_xyzw.tolist()]
     return ",".join(format(v, ".17g") for v in vals) + "," + entry.whisk_file + "\n"
 
 
@@ -356,11 +360,19 @@ class PoseLogWriter:
     def append(
         self,
         time_s: float,
-        position_m: Sequence[float] | np.ndarray,
-        quaternion_xyzw: Sequence[float] | np.ndarray,
+        pose: PoseLike,
         whisk_file: str,
     ) -> PoseEntry:
         """Validate and append one line.
+
+        Parameters
+        ----------
+        time_s : float
+            Time stamp, s.
+        pose : PoseLike
+            End-effector pose (see :func:`whisker_io.pose.as_pose`).
+        whisk_file : str
+            Stem of the cycle's whisk files.
 
         Raises
         ------
@@ -370,7 +382,7 @@ class PoseLogWriter:
         """
         if self._fh.closed:
             raise InvalidInputError(f"pose log {self.path} is closed; open a new PoseLogWriter")
-        entry = PoseEntry(time_s, position_m, quaternion_xyzw, whisk_file)
+        entry = PoseEntry(time_s, pose, whisk_file)
         self.check_time(entry.time_s)
         self._write(_pose_line(entry))
         self._last_time = entry.time_s
@@ -440,7 +452,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
             )
         vals = [_parse_float(tok, p, i, POSE_LOG_HEADER[j]) for j, tok in enumerate(tokens[:8])]
         try:
-            entry = PoseEntry(vals[0], vals[1:4], vals[4:8], tokens[8].strip())
+            entry = PoseEntry(vals[0], (vals[1:4], vals[4:8]), tokens[8].strip())
         except InvalidInputError as exc:
             raise CorruptFileError(f"{p}: line {i}: {exc}") from None
         if entries and entry.time_s < entries[-1].time_s:
@@ -464,7 +476,7 @@ class RecordingWriter:
     Examples
     --------
     >>> with RecordingWriter(tmpdir) as w:                       # doctest: +SKIP
-    ...     w.write_cycle(records, time_s=t, position_m=p, quaternion_xyzw=q)
+    ...     w.write_cycle(records, time_s=t, pose=pose)
     """
 
     def __init__(self, directory: str | os.PathLike[str]) -> None:
@@ -476,10 +488,18 @@ class RecordingWriter:
         self,
         records: Iterable[WhiskRecord],
         time_s: float,
-        position_m: Sequence[float] | np.ndarray,
-        quaternion_xyzw: Sequence[float] | np.ndarray,
+        pose: PoseLike,
     ) -> PoseEntry:
         """Write all module records of one cycle, then append its pose line.
+
+        Parameters
+        ----------
+        records : iterable of WhiskRecord
+            The cycle's module records.
+        time_s : float
+            Time stamp of the pose line, s.
+        pose : PoseLike
+            End-effector pose at the end of the cycle (see :func:`whisker_io.pose.as_pose`).
 
         All records must share one cycle index and have distinct modules. The
         pose is validated before any file is written, so a bad pose or an
@@ -502,11 +522,11 @@ class RecordingWriter:
         if len(set(modules)) != len(modules):
             raise InvalidInputError(f"duplicate modules in one cycle: {sorted(modules)}")
         stem = whisk_file_stem(recs[0].cycle)
-        entry = PoseEntry(time_s, position_m, quaternion_xyzw, stem)
+        entry = PoseEntry(time_s, pose, stem)
         self._pose_log.check_time(entry.time_s)
         for r in recs:
             write_whisk_csv(self.directory / whisk_file_name(r.cycle, r.module), r)
-        return self._pose_log.append(entry.time_s, entry.position_m, entry.quaternion_xyzw, stem)
+        return self._pose_log.append(entry.time_s, entry.pose, stem)
 
     def close(self) -> None:
         """Close the pose log (idempotent)."""
@@ -567,4 +587,4 @@ def replay(
             mod: read_whisk_csv(by_module[mod], module=mod, cycle=cycle, sample_rate_hz=sample_rate_hz)
             for mod in wanted
         }
-        yield ReplayedCycle(pose=entry, records=MappingProxyType(records))
+        yield ReplayedCycle(entry=entry, records=MappingProxyType(records))

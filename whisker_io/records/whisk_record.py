@@ -10,13 +10,14 @@ format that stores them is in :mod:`whisker_io.records.recording`.
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.pose import Pose, as_pose
+from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = ["SAMPLE_RATE_HZ", "MODULE_NAME_RE", "WhiskRecord", "PoseEntry"]
 
@@ -25,19 +26,10 @@ SAMPLE_RATE_HZ: float = 2000.0
 #: A module name: letters and digits (it becomes part of a file name), e.g. ``"C2"``.
 MODULE_NAME_RE = re.compile(r"^[A-Za-z0-9]+$")
 _STEM_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
-_QUAT_NORM_TOL = 1e-6
 
 
-def _finite_vector(name: str, value: object) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64, copy=True)
-    if arr.ndim != 1:
-        raise InvalidInputError(f"{name} must be a 1-D array of samples, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise InvalidInputError(
-            f"{name} holds NaN/inf at sample {int(bad[0])} ({bad.size} bad samples); "
-            "repair or drop this whisk before building a WhiskRecord"
-        )
+def _samples(name: str, value: object) -> np.ndarray:
+    arr = finite_vector(value, None, name)
     arr.setflags(write=False)
     return arr
 
@@ -92,7 +84,7 @@ class WhiskRecord:
         }
         if self.spare is not None:
             arrays["spare"] = self.spare
-        checked = {k: _finite_vector(f"{self.module}.{k}", v) for k, v in arrays.items()}
+        checked = {k: _samples(f"{self.module}.{k}", v) for k, v in arrays.items()}
         lengths = {k: v.size for k, v in checked.items()}
         if len(set(lengths.values())) != 1:
             raise InvalidInputError(f"whisk record {self.module}: columns have different lengths {lengths}")
@@ -100,12 +92,13 @@ class WhiskRecord:
             raise InvalidInputError(f"whisk record {self.module}: no samples")
         if not (isinstance(self.cycle, (int, np.integer)) and self.cycle >= 0):
             raise InvalidInputError(f"cycle must be an integer >= 0, got {self.cycle!r}")
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
+        rate = finite_scalar(self.sample_rate_hz, "sample_rate_hz")
+        if not rate > 0:
             raise InvalidInputError(f"sample_rate_hz must be a positive number, got {self.sample_rate_hz!r}")
         for k, v in checked.items():
             object.__setattr__(self, k, v)
         object.__setattr__(self, "cycle", int(self.cycle))
-        object.__setattr__(self, "sample_rate_hz", float(self.sample_rate_hz))
+        object.__setattr__(self, "sample_rate_hz", rate)
 
     @property
     def n_samples(self) -> int:
@@ -127,55 +120,40 @@ class WhiskRecord:
 class PoseEntry:
     """One pose-log line: the end-effector pose when a whisk cycle was completed.
 
+    Parameters
+    ----------
+    time_s : float
+        Time stamp, seconds (finite).
+    pose : PoseLike
+        End-effector pose ``T_BE`` in the arm base frame; converted by
+        :func:`whisker_io.pose.as_pose` (so a quaternion obeys the one
+        quaternion rule of :mod:`whisker_io.pose`).
+    whisk_file : str
+        Stem of the cycle's whisk files (``{whisk_file}_{module}.csv``).
+
     Attributes
     ----------
     time_s : float
-        Time stamp, seconds.
-    position_m : ndarray, shape (3,)
-        End-effector position in the arm base frame, metres.
-    quaternion_xyzw : ndarray, shape (4,)
-        End-effector orientation, unit quaternion, scalar last.
+    pose : Pose
     whisk_file : str
-        Stem of the cycle's whisk files (``{whisk_file}_{module}.csv``).
+
+    Raises
+    ------
+    InvalidInputError
+        A non-finite time, a bad pose or a whisk-file stem that is not a plain
+        file stem.
     """
 
     time_s: float
-    position_m: np.ndarray
-    quaternion_xyzw: np.ndarray
+    pose: Pose
     whisk_file: str
 
     def __post_init__(self) -> None:
-        t = float(self.time_s)
-        if not math.isfinite(t):
-            raise InvalidInputError(f"pose time_s must be finite, got {self.time_s!r}")
-        pos = np.array(self.position_m, dtype=np.float64, copy=True)
-        quat = np.array(self.quaternion_xyzw, dtype=np.float64, copy=True)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise InvalidInputError(f"position_m must be 3 finite numbers (metres), got {self.position_m!r}")
-        if quat.shape != (4,) or not np.all(np.isfinite(quat)):
-            raise InvalidInputError(
-                f"quaternion_xyzw must be 4 finite numbers (x, y, z, w), got {self.quaternion_xyzw!r}"
-            )
-        norm = float(np.linalg.norm(quat))
-        if abs(norm - 1.0) > _QUAT_NORM_TOL:
-            raise InvalidInputError(
-                f"quaternion_xyzw must have unit norm (got norm {norm:.9g}); normalise it before logging"
-            )
+        t = finite_scalar(self.time_s, "pose time_s")
+        pose = as_pose(self.pose)
         if not isinstance(self.whisk_file, str) or not _STEM_RE.match(self.whisk_file):
             raise InvalidInputError(
                 f"whisk_file {self.whisk_file!r} must be a file stem of letters, digits, '_', '.', '-'"
             )
-        pos.setflags(write=False)
-        quat.setflags(write=False)
         object.__setattr__(self, "time_s", t)
-        object.__setattr__(self, "position_m", pos)
-        object.__setattr__(self, "quaternion_xyzw", quat)
-
-    def as_matrix(self) -> np.ndarray:
-        """The pose as a 4x4 homogeneous transform T_BE (arm base -> end effector)."""
-        from scipy.spatial.transform import Rotation
-
-        T = np.eye(4)
-        T[:3, :3] = Rotation.from_quat(self.quaternion_xyzw).as_matrix()
-        T[:3, 3] = self.position_m
-        return T
+        object.__setattr__(self, "pose", pose)

@@ -55,7 +55,8 @@ from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.array.geometry import WhiskerArray
-from whisker_io.array.kinematics import Pose, as_transform, rot_z, rotate_shaft, whisker_base_transforms
+from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
+from whisker_io.pose import PoseLike
 
 __all__ = [
     "RayEngine",
@@ -374,7 +375,7 @@ def _first_interval(hits: dict[str, NDArray]) -> NDArray[np.int64]:
 def sweep_array(
     array: WhiskerArray,
     target: MeshTarget | trimesh.Trimesh,
-    pose: Pose,
+    pose: PoseLike,
     params: SweepParams = SweepParams(),
 ) -> tuple[SweepContact | None, ...]:
     """Sweep every whisker from retraction to protraction and return its first contact.
@@ -386,8 +387,8 @@ def sweep_array(
     target : MeshTarget or trimesh.Trimesh
         The obstacle in the world frame. Pass a :class:`MeshTarget` when sweeping
         the same mesh repeatedly (a bare mesh builds its intersector each call).
-    pose : Pose
-        End-effector pose ``T_BE`` (4x4, or position + scalar-last quaternion).
+    pose : PoseLike
+        End-effector pose ``T_BE`` (a Pose, a 4x4 transform, or (position_m, quaternion_xyzw)).
     params : SweepParams
 
     Returns
@@ -397,7 +398,7 @@ def sweep_array(
     """
     if not isinstance(target, MeshTarget):
         target = MeshTarget(target)
-    T_BW = whisker_base_transforms(array, as_transform(pose))
+    T_BW = whisker_base_transforms(array, pose)
     base, X, Y = T_BW[:, :3, 3], T_BW[:, :3, 0], T_BW[:, :3, 1]
     L = array.lengths_m
     rays = _SweepRays(target, base, X, Y, L, params.tip_chords)
