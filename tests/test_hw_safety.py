@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from whisker_io.errors import ConfigError, InvalidInputError, SafetyViolationError, StaleStateError
+from whisker_io.errors import ConfigError, SafetyViolationError, StaleStateError
 from whisker_io.hw.arm import SimArm, URArm
 from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
 from whisker_io.pose import Pose

@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike
 
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import whisker_frames
+from whisker_io.plots.axes import figure_and_axes
 from whisker_io.pose import PoseLike, as_pose
 from whisker_io.sim.sweep import SweepContact
 
@@ -59,10 +60,7 @@ def plot_scene(
     import matplotlib.pyplot as plt
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    if ax is None:
-        fig = plt.figure(figsize=(6, 6))
-        ax = fig.add_subplot(projection="3d")
-    fig = ax.figure
+    fig, ax = figure_and_axes(ax, (6.0, 6.0), projection="3d")
     faces = np.arange(len(mesh.faces))
     if len(faces) > max_faces:
         faces = faces[:: int(np.ceil(len(faces) / max_faces))]
@@ -118,11 +116,8 @@ def draw_pfh(ax: "Axes", histogram: ArrayLike, color: str = "tab:blue", label: s
 
 def plot_pfh(histogram: ArrayLike, ax: "Axes | None" = None, title: str = "Point feature histogram") -> "Figure":
     """Figure of one PFH (:func:`draw_pfh`); returns the Figure."""
-    import matplotlib.pyplot as plt
-
     created = ax is None
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 2.5))
+    _, ax = figure_and_axes(ax, (6.0, 2.5))
     draw_pfh(ax, histogram)
     ax.set_title(title)
     if created:
@@ -132,11 +127,8 @@ def plot_pfh(histogram: ArrayLike, ax: "Axes | None" = None, title: str = "Point
 
 def plot_tactile_image(image: ArrayLike, ax: "Axes | None" = None) -> "Figure":
     """Grey-scale view of a tactile image (Fig 3.2 layout: columns A-F, rows 1-3)."""
-    import matplotlib.pyplot as plt
-
     img = np.asarray(image)
-    if ax is None:
-        _, ax = plt.subplots(figsize=(4, 2.2))
+    _, ax = figure_and_axes(ax, (4.0, 2.2))
     ax.imshow(img, cmap="gray", vmin=0, vmax=255)
     ax.set_xticks(range(img.shape[1]), [chr(ord("A") + i) for i in range(img.shape[1])])
     ax.set_yticks(range(img.shape[0]), [str(i + 1) for i in range(img.shape[0])])
