@@ -73,3 +73,13 @@ def test_scalar_is_finite_float_or_typed_error(x):
         return
     assert isinstance(out, float) and math.isfinite(out)
     assert not isinstance(x, (str, bool)) and x is not None
+
+
+def test_whole_number():
+    from whisker_io.validation import whole_number
+    assert whole_number(3, "n") == 3 and whole_number(np.int64(4), "n") == 4 and whole_number(5.0, "n") == 5
+    for bad in (2.5, "3", True, None, math.nan, math.inf):
+        with pytest.raises(InvalidInputError, match="n"):
+            whole_number(bad, "n")
+    with pytest.raises(InvalidInputError, match=">= 2"):
+        whole_number(1, "n", minimum=2)

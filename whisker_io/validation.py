@@ -6,7 +6,8 @@ typed error with a message naming the argument, never a NaN result later:
 
 * :func:`finite_scalar` - one finite real number -> ``float``;
 * :func:`finite_vector` - a 1-D array of finite reals, optionally of length n;
-* :func:`finite_array` - an array of finite reals of a given shape.
+* :func:`finite_array` - an array of finite reals of a given shape;
+* :func:`whole_number` - an integer count (an integral float is accepted).
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
 shape raises its subclass :class:`~whisker_io.errors.ShapeError`. Strings,
@@ -24,13 +25,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number"]
 
 
 def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
-    if isinstance(value, (str, bytes, bool, np.bool_)) or np.iscomplexobj(value):
+    if isinstance(value, (str, bytes, bool, np.bool_)):
         raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
     try:
+        if np.iscomplexobj(value):
+            raise TypeError("complex")
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"{name} must be real numbers, got {value!r}") from None
@@ -144,3 +147,32 @@ def finite_vector(value: ArrayLike, n: int | None, name: str) -> NDArray[np.floa
     if arr.ndim == 0 and n == 1:
         arr = arr.reshape(1)
     return finite_array(arr, (n,), name)
+
+
+def whole_number(value: object, name: str, minimum: int | None = None) -> int:
+    """Return ``value`` as an ``int`` (a count: samples, bins, neighbours).
+
+    Parameters
+    ----------
+    value : int, numpy integer, or an integral float
+        The count.
+    name : str
+        Argument name for the error message.
+    minimum : int, optional
+        Smallest value allowed.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a finite whole number (a bool, a string, 2.5, NaN), or below ``minimum``.
+    """
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        out = int(value)
+    else:
+        x = finite_scalar(value, name)
+        if not x.is_integer():
+            raise InvalidInputError(f"{name} must be a whole number, got {value!r}")
+        out = int(x)
+    if minimum is not None and out < minimum:
+        raise InvalidInputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return out

@@ -42,6 +42,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.validation import finite_scalar
 
 __all__ = [
     "MAX_WHISK_FREQUENCY_HZ",
@@ -83,17 +84,17 @@ class WhiskPattern:
     sample_rate_hz: float = 2000.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.frequency_hz) and 0.0 < self.frequency_hz <= MAX_WHISK_FREQUENCY_HZ):
+        if not 0.0 < finite_scalar(self.frequency_hz, "frequency_hz") <= MAX_WHISK_FREQUENCY_HZ:
             raise InvalidInputError(
                 f"frequency_hz must be in (0, {MAX_WHISK_FREQUENCY_HZ}] Hz, got {self.frequency_hz!r}"
             )
-        if not (math.isfinite(self.retraction_rad) and math.isfinite(self.protraction_rad)):
-            raise InvalidInputError("retraction_rad and protraction_rad must be finite")
+        finite_scalar(self.retraction_rad, "retraction_rad")
+        finite_scalar(self.protraction_rad, "protraction_rad")
         if not self.protraction_rad > self.retraction_rad:
             raise InvalidInputError(
                 f"protraction_rad ({self.protraction_rad}) must exceed retraction_rad ({self.retraction_rad})"
             )
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz >= 2 * self.frequency_hz):
+        if not finite_scalar(self.sample_rate_hz, "sample_rate_hz") >= 2 * self.frequency_hz:
             raise InvalidInputError(f"sample_rate_hz must be >= 2 x frequency_hz, got {self.sample_rate_hz!r}")
 
     @property
@@ -235,9 +236,11 @@ class RCP:
     amplitudes_rad: np.ndarray | None = field(default=None, init=False)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.pattern, WhiskPattern):
+            raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
         for name in ("threshold_counts", "gain_rad_per_count", "min_amplitude_rad"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
+            if not finite_scalar(v, name) >= 0:
                 raise InvalidInputError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.min_amplitude_rad > self.pattern.amplitude_rad:
             raise InvalidInputError("min_amplitude_rad must not exceed the pattern's full amplitude")
@@ -287,7 +290,9 @@ class RetractAtMax:
     threshold_counts: float = 2000.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.threshold_counts) and self.threshold_counts > 0):
+        if not isinstance(self.pattern, WhiskPattern):
+            raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
+        if not finite_scalar(self.threshold_counts, "threshold_counts") > 0:
             raise InvalidInputError(f"threshold_counts must be > 0, got {self.threshold_counts!r}")
 
     def command(self, n_whiskers: int) -> np.ndarray:

@@ -148,10 +148,22 @@ def nmse(
     -------
     float
         0 for identical arrays; ``inf`` when no entry is valid in both, or when
-        ``x`` is all zero there and ``y`` is not (0 if both are).
+        ``x`` is all zero there and ``y`` is not (0 if both are). The ratio is
+        scale-free, so it is computed on both arrays divided by their largest
+        magnitude: values near the float limit (``nmse([1e200], [0])`` is 1)
+        never overflow into NaN. A ratio beyond the float range is ``inf``.
+
+    Raises
+    ------
+    InvalidInputError
+        Non-numeric input, arrays that are not 1-D of equal length, a mask of
+        another shape, or NaN/inf at a valid entry.
     """
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(y, dtype=np.float64)
+    try:
+        xa = np.asarray(x, dtype=np.float64)
+        ya = np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"x and y must be arrays of numbers, got {x!r} and {y!r}") from None
     if xa.ndim != 1 or xa.shape != ya.shape:
         raise InvalidInputError(f"x and y must be 1-D of equal length, got {xa.shape} and {ya.shape}")
     both = np.ones(xa.shape, dtype=bool)
@@ -165,8 +177,14 @@ def nmse(
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
     if not both.any():
         return float("inf")
-    err = float(np.mean((xa[both] - ya[both]) ** 2))
-    power = float(np.mean(xa[both] ** 2))
+    xb, yb = xa[both], ya[both]
+    scale = float(max(np.max(np.abs(xb)), np.max(np.abs(yb))))
+    if scale == 0.0:
+        return 0.0
+    xb, yb = xb / scale, yb / scale  # |entries| <= 1: squares cannot overflow
+    err = float(np.mean((xb - yb) ** 2))
+    power = float(np.mean(xb**2))
     if power == 0.0:
         return 0.0 if err == 0.0 else float("inf")
-    return err / power
+    with np.errstate(over="ignore"):
+        return float(np.float64(err) / np.float64(power))
