@@ -74,17 +74,12 @@ def wrap_to_pi(angle_rad: float) -> float: ...
 @overload
 def wrap_to_pi(angle_rad: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def wrap_to_pi(angle_rad):
-    """Wrap angles to the half-open range [-pi, pi).
+    """``angle_rad - 2 pi k`` in the half-open range [-pi, pi).
 
     Parameters
     ----------
     angle_rad : float or array_like
-        Angle(s), radians, finite.
-
-    Returns
-    -------
-    float or ndarray
-        ``angle_rad - 2 pi k`` in [-pi, pi); same shape as the input.
+        Finite angle(s), radians; a scalar gives a float, an array the same shape.
 
     Raises
     ------
@@ -104,26 +99,9 @@ def wrap_to_pi_closed_above(angle_rad: float) -> float: ...
 @overload
 def wrap_to_pi_closed_above(angle_rad: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def wrap_to_pi_closed_above(angle_rad):
-    """Wrap angles to (-pi, pi], OpenRatSLAM's ``clip_rad_180`` convention.
+    """The same angle in (-pi, pi] - OpenRatSLAM's ``clip_rad_180`` result within
+    :data:`LOOP_TURNS` turns (input, output shape and errors as :func:`wrap_to_pi`).
 
-    Parameters
-    ----------
-    angle_rad : float or array_like
-        Angle(s), radians, finite.
-
-    Returns
-    -------
-    float or ndarray
-        In (-pi, pi]; equal to ``clip_rad_180``'s loop result when that loop
-        stops within :data:`LOOP_TURNS` turns.
-
-    Raises
-    ------
-    InvalidInputError
-        A NaN/inf or non-numeric angle.
-
-    Examples
-    --------
     >>> wrap_to_pi_closed_above(-math.pi)
     3.141592653589793
     """
@@ -135,25 +113,9 @@ def wrap_to_2pi(angle_rad: float) -> float: ...
 @overload
 def wrap_to_2pi(angle_rad: NDArray[np.float64]) -> NDArray[np.float64]: ...
 def wrap_to_2pi(angle_rad):
-    """Wrap angles to [0, 2 pi), OpenRatSLAM's ``clip_rad_360`` convention.
+    """The same angle in [0, 2 pi) - OpenRatSLAM's ``clip_rad_360`` result within
+    :data:`LOOP_TURNS` turns (input, output shape and errors as :func:`wrap_to_pi`).
 
-    Parameters
-    ----------
-    angle_rad : float or array_like
-        Angle(s), radians, finite.
-
-    Returns
-    -------
-    float or ndarray
-        In [0, 2 pi).
-
-    Raises
-    ------
-    InvalidInputError
-        A NaN/inf or non-numeric angle.
-
-    Examples
-    --------
     >>> wrap_to_2pi(-0.5 * math.pi)
     4.71238898038469
     """
