@@ -122,6 +122,9 @@ def test_pose_is_immutable():
         p.position_m[0] = 5.0
     with pytest.raises(AttributeError):
         p.position_m = np.zeros(3)
+    T = p.matrix
+    T[0, 3] = 99.0  # a caller's copy: the pose keeps its own
+    assert p.matrix[0, 3] == 1.0
 
 
 # ------------------------------------------------------------- properties

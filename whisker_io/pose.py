@@ -173,11 +173,15 @@ class Pose:
 
     @property
     def matrix(self) -> NDArray[np.float64]:
-        """The 4x4 homogeneous transform, shape (4, 4) (a new array)."""
-        T = np.eye(4)
-        T[:3, :3] = self.rotation.as_matrix()
-        T[:3, 3] = self.position_m
-        return T
+        """The 4x4 homogeneous transform, shape (4, 4) (a new array each call)."""
+        T = self.__dict__.get("_matrix")
+        if T is None:  # computed once: the pose is immutable
+            T = np.eye(4)
+            T[:3, :3] = self.rotation.as_matrix()
+            T[:3, 3] = self.position_m
+            T.setflags(write=False)
+            object.__setattr__(self, "_matrix", T)
+        return T.copy()
 
     @property
     def rotvec_rad(self) -> NDArray[np.float64]:

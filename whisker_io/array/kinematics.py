@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from whisker_io.errors import InvalidInputError
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.pose import PoseLike, as_pose
+from whisker_io.validation import finite_array
 
 __all__ = [
     "rot_z",
@@ -174,9 +175,13 @@ def contact_points(
     if radial_distance_m is None:
         r = array.lengths_m
     else:
-        r = np.broadcast_to(np.asarray(radial_distance_m, dtype=float), t.shape)
-        if not np.all(np.isfinite(r)):
-            raise InvalidInputError("radial_distance_m contains NaN or inf")
+        r = finite_array(radial_distance_m, None, "radial_distance_m")
+        try:
+            r = np.broadcast_to(r, t.shape)
+        except ValueError:
+            raise InvalidInputError(
+                f"radial_distance_m must be a scalar or shape ({len(array)},), got {r.shape}") from None
+    pose = as_pose(pose)  # once, for both uses below
     T_BW = whisker_base_transforms(array, pose)
     return T_BW[:, :3, 3] + r[:, None] * shaft_directions(array, pose, t)
 

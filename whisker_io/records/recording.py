@@ -205,6 +205,16 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
     return p
 
 
+def _read_lines(path: Path, what: str) -> list[str]:
+    """The file's lines split on ``\\n`` (the last one empty when the file ends with a newline)."""
+    try:
+        return path.read_text(encoding="utf-8").split("\n")
+    except FileNotFoundError:
+        raise CorruptFileError(f"{path}: {what} not found") from None
+    except UnicodeDecodeError as exc:
+        raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
+
+
 def _parse_float(token: str, path: Path, lineno: int, column: str) -> float:
     try:
         value = float(token)
@@ -256,13 +266,7 @@ def read_whisk_csv(
             )
         cycle = int(m.group(1)) if cycle is None else cycle
         module = m.group(2) if module is None else module
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CorruptFileError(f"{p}: whisk file not found") from None
-    except UnicodeDecodeError as exc:
-        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
-    lines = text.split("\n")
+    lines = _read_lines(p, "whisk file")
     if lines and lines[-1] == "":
         lines.pop()
     first_data = 0
@@ -426,13 +430,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
         ignored with a warning.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CorruptFileError(f"{p}: pose log not found") from None
-    except UnicodeDecodeError as exc:
-        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
-    lines = text.split("\n")
+    lines = _read_lines(p, "pose log")
     tail = lines.pop()  # "" when the file ends with a newline
     if tail:
         log.warning("%s: ignoring torn final line %d (no newline): %r", p, len(lines) + 1, tail)
