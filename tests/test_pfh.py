@@ -8,8 +8,8 @@ from scipy.spatial.distance import pdist
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import make_object
-from whisker_io.pfh import (
+from whisker_io.sim.objects import make_object
+from whisker_io.features.pfh import (
     PFHParams,
     chi_squared,
     estimate_normals,
@@ -194,3 +194,26 @@ def test_match_region_thresholds_and_sum():
     none = match_region(q, None, stored, t_pfh=0.1, t_sda=0.01, nmse=[0.1, 0.05, 0.5])
     assert none.index is None and none.score == float("inf")
     assert match_region(q, None, [], 1.0, 1.0, nmse=[]).index is None
+
+
+# ------------------------------------------------- issue 17: typed errors
+@pytest.mark.parametrize(("q", "v"), [
+    (np.array(0), np.ones(3)),            # a scalar has no bin axis (was IndexError)
+    (np.ones(3), np.array(1.0)),
+    (np.ones(3), np.ones(4)),
+    (np.ones((2, 3)), np.ones((3, 3))),   # leading axes do not broadcast
+    (np.array([1.0, np.nan, 0.0]), np.ones(3)),
+    (np.array([1.0, -0.5, 0.0]), np.ones(3)),
+    ("abc", np.ones(3)),
+])
+def test_chi_squared_bad_input_is_typed(q, v):
+    with pytest.raises(InvalidInputError):
+        chi_squared(q, v)
+
+
+@pytest.mark.parametrize("kwargs", [{"bins_per_feature": 0}, {"bins_per_feature": 2.5}, {"bins_per_feature": "3"},
+                                    {"radius_m": "0.3"}, {"radius_m": np.nan}, {"normal_neighbours": 2},
+                                    {"bins_per_feature": 1e300}])
+def test_pfh_params_bad_values_are_typed(kwargs):
+    with pytest.raises(InvalidInputError):
+        PFHParams(**kwargs)

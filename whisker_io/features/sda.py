@@ -12,7 +12,7 @@ Decisions: the fit uses the span-100 smoothed x and y (the same preprocessing as
 detection); a whisker whose x-deflection does not vary over the window (a
 surface squarely facing the whisk) has an undefined gradient and is masked out
 (``min_x_spread_counts``). With the frictionless beam model of
-:mod:`whisker_io.signals` the gradient equals ``n_y / n_x``, the surface normal
+:mod:`whisker_io.sim.signals` the gradient equals ``n_y / n_x``, the surface normal
 on the sensor axes.
 
 ``NMSE(x, y) = MSE(x, y) / MSE(x, 0)`` with ``MSE(x, y) = ||x - y||^2 / n`` (Eq 5.3-5.4),
@@ -21,7 +21,7 @@ taken over the whiskers valid in both arrays.
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.sda import nmse
+>>> from whisker_io.features.sda import nmse
 >>> float(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])))   # (0 + 1) / (1 + 4)
 0.2
 """
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["SlopeDistribution", "contact_gradient", "slope_distribution", "nmse"]
 
@@ -148,10 +148,22 @@ def nmse(
     -------
     float
         0 for identical arrays; ``inf`` when no entry is valid in both, or when
-        ``x`` is all zero there and ``y`` is not (0 if both are).
+        ``x`` is all zero there and ``y`` is not (0 if both are). The ratio is
+        scale-free, so it is computed on both arrays divided by their largest
+        magnitude: values near the float limit (``nmse([1e200], [0])`` is 1)
+        never overflow into NaN. A ratio beyond the float range is ``inf``.
+
+    Raises
+    ------
+    InvalidInputError
+        Non-numeric input, arrays that are not 1-D of equal length, a mask of
+        another shape, or NaN/inf at a valid entry.
     """
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(y, dtype=np.float64)
+    try:
+        xa = np.asarray(x, dtype=np.float64)
+        ya = np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"x and y must be arrays of numbers, got {x!r} and {y!r}") from None
     if xa.ndim != 1 or xa.shape != ya.shape:
         raise InvalidInputError(f"x and y must be 1-D of equal length, got {xa.shape} and {ya.shape}")
     both = np.ones(xa.shape, dtype=bool)
@@ -165,8 +177,14 @@ def nmse(
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
     if not both.any():
         return float("inf")
-    err = float(np.mean((xa[both] - ya[both]) ** 2))
-    power = float(np.mean(xa[both] ** 2))
+    xb, yb = xa[both], ya[both]
+    scale = float(max(np.max(np.abs(xb)), np.max(np.abs(yb))))
+    if scale == 0.0:
+        return 0.0
+    xb, yb = xb / scale, yb / scale  # |entries| <= 1: squares cannot overflow
+    err = float(np.mean((xb - yb) ** 2))
+    power = float(np.mean(xb**2))
     if power == 0.0:
         return 0.0 if err == 0.0 else float("inf")
-    return err / power
+    with np.errstate(over="ignore"):
+        return float(np.float64(err) / np.float64(power))

@@ -17,8 +17,14 @@ Pipeline for one whisk (at most 18 contact points):
    pair (``acos|n.dp|``, Eq 2.41 in PCL's form); Darboux frame ``u = n_s``,
    ``v = (p_t - p_s) x u / |...|``, ``w = u x v`` (Eq 2.42); features
    ``alpha = v . n_t``, ``theta = atan2(w . n_t, u . n_t)``,
-   ``phi = u . (p_t - p_s) / d``, ``d = |p_t - p_s|`` (Eq 2.43). Pairs with
-   ``d = 0`` or ``n_s`` parallel to the joining line are skipped, as in PCL.
+   ``phi = u . (p_t - p_s) / d``, ``d = |p_t - p_s|`` (Eq 2.43).
+   Degenerate pairs (``d = 0``, or ``n_s`` parallel to the joining line) have
+   no Darboux frame. Decision - this project departs from PCL here: they are
+   left out of the histogram, which is normalised over the pairs counted
+   (:attr:`PointFeatureHistogram.n_pairs`). PCL's ``PFHEstimation`` instead
+   counts such a pair with all-zero features, which puts its mass in the
+   centre bins; two whiskers touching one point would then add mass to a bin
+   that describes no surface.
 4. **Histogram** (Eq 2.44): each feature is cut into ``bins_per_feature``
    equal bins over a fixed range (alpha, phi in [-1, 1]; theta in [-pi, pi];
    d in [0, radius_m]); the joint bin ``sum_i b_i * bins**i`` over
@@ -45,7 +51,8 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
 
 __all__ = [
     "FEATURE_NAMES",
@@ -90,11 +97,13 @@ class PFHParams:
     orient_to_viewpoint: bool = True
 
     def __post_init__(self) -> None:
-        if int(self.bins_per_feature) < 1:
-            raise InvalidInputError(f"bins_per_feature must be >= 1, got {self.bins_per_feature!r}")
-        if not (np.isfinite(self.radius_m) and self.radius_m > 0):
+        whole_number(self.bins_per_feature, "bins_per_feature", minimum=1)
+        if self.bins_per_feature > 64:
+            raise InvalidInputError(
+                f"bins_per_feature must be <= 64 (the histogram has bins**4 entries), got {self.bins_per_feature!r}")
+        if not finite_scalar(self.radius_m, "radius_m") > 0:
             raise InvalidInputError(f"radius_m must be positive, got {self.radius_m!r}")
-        if int(self.normal_neighbours) < 3:
+        if whole_number(self.normal_neighbours, "normal_neighbours") < 3:
             raise InvalidInputError(
                 f"normal_neighbours must be >= 3 (a plane needs 3 points), got {self.normal_neighbours!r}"
             )
@@ -136,7 +145,10 @@ class PointFeatureHistogram:
 
 
 def _as_points(points: ArrayLike) -> NDArray[np.float64]:
-    p = np.asarray(points, dtype=float)
+    try:
+        p = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"points must be an (n, 3) array of numbers, got {points!r}") from None
     if p.ndim != 2 or p.shape[1] != 3:
         raise InvalidInputError(f"points must have shape (n, 3), got {p.shape}")
     if np.isinf(p).any():
@@ -281,9 +293,7 @@ def point_feature_histogram(
         (or no non-degenerate pair) are available; never raises for that.
     """
     p = _as_points(points)
-    vp = np.asarray(viewpoint, dtype=float)
-    if vp.shape != (3,) or not np.all(np.isfinite(vp)):
-        raise InvalidInputError(f"viewpoint must be 3 finite numbers, got {viewpoint!r}")
+    vp = finite_vector(viewpoint, 3, "viewpoint")
     hist = np.zeros(params.n_bins)
     k = int(params.normal_neighbours)
     if len(p) < max(3, k):
@@ -310,12 +320,29 @@ def chi_squared(q: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | float:
     Parameters
     ----------
     q, v : array_like (..., B)
-        Non-negative histograms.
+        Non-negative histograms (B >= 1 bins along the last axis).
+
+    Raises
+    ------
+    ShapeError
+        A histogram that is a scalar (no bin axis), lengths that differ, or
+        leading axes that do not broadcast.
+    InvalidInputError
+        Non-numeric, NaN/inf or negative entries.
     """
-    q = np.asarray(q, dtype=float)
-    v = np.asarray(v, dtype=float)
+    q = finite_array(q, None, "q")
+    v = finite_array(v, None, "v")
+    if q.ndim == 0 or v.ndim == 0:
+        raise ShapeError(f"histograms need a bin axis; got shapes {q.shape} and {v.shape} "
+                         "(pass arrays of shape (..., B))")
     if q.shape[-1] != v.shape[-1]:
-        raise InvalidInputError(f"histograms differ in length: {q.shape[-1]} vs {v.shape[-1]}")
+        raise ShapeError(f"histograms differ in length: {q.shape[-1]} vs {v.shape[-1]}")
+    try:
+        np.broadcast_shapes(q.shape, v.shape)
+    except ValueError:
+        raise ShapeError(f"histogram shapes {q.shape} and {v.shape} do not broadcast") from None
+    if np.any(q < 0) or np.any(v < 0):
+        raise InvalidInputError("histograms must be non-negative (bin counts or fractions)")
     s = q + v
     diff2 = (q - v) ** 2
     out = np.sum(np.divide(diff2, s, out=np.zeros(np.broadcast(q, v).shape), where=s > 0), axis=-1)
