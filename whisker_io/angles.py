@@ -3,13 +3,13 @@
 Three conventions, one function each (radians; a scalar gives a ``float``, an
 array gives an ndarray of the same shape):
 
-==============================  ==============  =====================================
- function                        range           used for
-==============================  ==============  =====================================
- :func:`wrap_to_pi`              [-pi, pi)       heading errors, metrics
- :func:`wrap_to_pi_closed_above`  (-pi, pi]       OpenRatSLAM's ``clip_rad_180``
- :func:`wrap_to_2pi`             [0, 2 pi)       OpenRatSLAM's ``clip_rad_360``
-==============================  ==============  =====================================
+================================  ==============  =====================================
+ function                          range           used for
+================================  ==============  =====================================
+ :func:`wrap_to_pi`                [-pi, pi)       heading errors, metrics
+ :func:`wrap_to_pi_closed_above`   (-pi, pi]       OpenRatSLAM's ``clip_rad_180``
+ :func:`wrap_to_2pi`               [0, 2 pi)       OpenRatSLAM's ``clip_rad_360``
+================================  ==============  =====================================
 
 Decision (exactness and cost): the C++ reference wraps with subtraction loops
 (``while (a > pi) a -= 2 pi``), which take time proportional to ``|a|`` - a

@@ -7,7 +7,7 @@ them from the measured y-deflection:
 * :class:`OpenLoop` - "a sinusoidal 1Hz pattern of fixed magnitude that moved
   the whiskers throughout their full range of motion" (Sec 3.2.2).
 * :class:`RCP` - rapid cessation of protraction as implemented in Ch.3: the
-  commanded amplitude is reduced by the mean |y-deflection| above the contact
+  commanded amplitude is reduced by the mean ``|y-deflection|`` above the contact
   threshold (20 x the free-whisking noise std, from calibration), keeping the
   starting angle. Decision: the reduction is applied cycle to cycle (the
   deflection measured in cycle n sets the amplitude of cycle n+1), which keeps
@@ -180,7 +180,7 @@ def contact_threshold_from_noise(free_whisk_y_counts: np.ndarray, factor: float 
     Returns
     -------
     float
-        Threshold on |y - mean|, counts.
+        Threshold on ``|y - mean|``, counts.
     """
     y = np.asarray(free_whisk_y_counts, dtype=np.float64).ravel()
     if y.size < 2 or not np.all(np.isfinite(y)):
@@ -207,9 +207,9 @@ class OpenLoop:
 
 @dataclass
 class RCP:
-    """Rapid cessation of protraction, Ch.3 form: amplitude reduced by the mean super-threshold |y|.
+    """Rapid cessation of protraction, Ch.3 form: amplitude reduced by the mean super-threshold ``|y|``.
 
-    After each cycle, for each whisker, ``P = mean(|y - b|)`` over the samples with
+    After each cycle, for each whisker, ``P = mean(``|y - b|``)`` over the samples with
     ``|y - b| > threshold_counts`` (``b`` = mean of the last 100 samples, the
     free-whisking baseline of Sec 5.1.1.1.1; ``P = 0`` without such samples), and
     the next cycle's amplitude is ``clip(A_full - gain * P, min_amplitude, A_full)``.
@@ -255,7 +255,7 @@ class RCP:
         return angles_rad
 
     def perturbation_counts(self, y_counts: np.ndarray) -> np.ndarray:
-        """Mean |y - baseline| over the super-threshold samples of each whisker, shape (n,), counts."""
+        """Mean ``|y - baseline|`` over the super-threshold samples of each whisker, shape (n,), counts."""
         y = _check_y(y_counts, None, self.pattern.n_samples)
         dev = np.abs(y - y[:, -100:].mean(axis=1, keepdims=True))
         above = dev > self.threshold_counts
@@ -274,14 +274,14 @@ class RCP:
 
 @dataclass
 class RetractAtMax:
-    """Ch.4/6 RCP: retract as soon as |y-deflection| reaches the sensor maximum (Sec 4.1.1).
+    """Ch.4/6 RCP: retract as soon as ``|y-deflection|`` reaches the sensor maximum (Sec 4.1.1).
 
     Parameters
     ----------
     pattern : WhiskPattern
         The global pattern.
     threshold_counts : float, default 2000
-        Trigger level on |y - b| (``b`` = mean of the first 100 samples, taken
+        Trigger level on ``|y - b|`` (``b`` = mean of the first 100 samples, taken
         before any contact), counts. Default: 98 % of the 2047-count ADC maximum,
         so sensor noise at saturation still triggers.
     """

@@ -32,7 +32,7 @@ Pipeline (:func:`detect_contact`), per module and whisk cycle:
 The contact angle is the (raw) whisk angle at the onset (Sec 5.1.1.1.2; the
 moving average of a fast cosine whisk is biased by up to a few degrees).
 Ch.3's alternatives are :func:`max_angle` (largest angle of the cycle) and
-:func:`threshold_contact_angle` (angle when |d deflection/dt| first crosses a
+:func:`threshold_contact_angle` (angle when ``|d deflection/dt|`` first crosses a
 threshold).
 
 Example
@@ -361,7 +361,7 @@ def threshold_contact_angle(
     threshold_counts_per_s: float = 2500.0,
     smoothing_span: int = 100,
 ) -> float | None:
-    """Ch.3 "contact angle": angle when |d deflection/dt| first crosses a threshold (Sec 3.1.1).
+    """Ch.3 "contact angle": angle when ``|d deflection/dt|`` first crosses a threshold (Sec 3.1.1).
 
     The y-deflection and angle are smoothed (``smoothing_span``), the deflection
     rate is ``np.gradient(y) * fs``; no lead compensation (the method is, as the

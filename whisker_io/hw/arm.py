@@ -217,7 +217,7 @@ class Arm(abc.ABC):
         Raises
         ------
         SafetyViolationError
-            Some |deflection| exceeds ``envelope.max_deflection``.
+            Some ``|deflection|`` exceeds ``envelope.max_deflection``.
         """
         try:
             self.envelope.check_deflection(deflection)

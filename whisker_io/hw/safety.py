@@ -318,7 +318,7 @@ class SafetyEnvelope:
         deflection : array_like, shape (..., T)
             x/y deflection traces in ADC counts, time along the last axis
             (e.g. shape (36, 2000): x and y of 18 modules over one cycle).
-            Overload: some trace stays at |d| >= ``max_deflection`` for
+            Overload: some trace stays at ``|d|`` >= ``max_deflection`` for
             ``overload_samples`` consecutive samples. Non-finite values count
             as overload (a broken sensor must not be trusted).
         """

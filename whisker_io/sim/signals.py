@@ -328,7 +328,7 @@ class ContactTruth:
     radial_distance_m, whisker_length_m : float
         a and L, m.
     peak_index : int
-        Sample of the largest noise-free |y-deflection|.
+        Sample of the largest noise-free ``|y-deflection|``.
     peak_y_counts : float
         Noise-free y-deflection at ``peak_index`` (after saturation), counts.
     """
@@ -536,7 +536,7 @@ def simulate_rod_contact(
     """A rod driven linearly into a still whisker and back (Evans et al. 2013, Sec 4.2.2).
 
     The whisker rests at ``angle_rad``. After ``lead_s`` the rod, perpendicular to
-    the shaft at radial distance a, advances at ``speed_m_s`` until |y| reaches
+    the shaft at radial distance a, advances at ``speed_m_s`` until ``|y|`` reaches
     ``threshold_counts`` (noise-free), then brakes at ``deceleration_m_s2`` (so
     the overshoot ``s^2 / 2A``, hence the peak, grows with speed, as in Fig 2.13;
     braking starts earlier if it would pass ``max_travel_m``) and withdraws
