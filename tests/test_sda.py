@@ -162,3 +162,20 @@ def test_nmse_is_scale_free_and_never_nan(x, exp10, data):
     assert not math.isnan(base) and not math.isnan(scaled) and base >= 0
     if math.isfinite(base) and all(abs(v) * c > 1e-300 or v == 0 for v in x + y):
         assert scaled == pytest.approx(base, rel=1e-9, abs=1e-12)
+
+
+def test_nmse_against_many_stored_arrays_equals_one_by_one():
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=18)
+    stored = rng.normal(size=(7, 18))
+    stored[3] = x
+    stored[5] = 0.0
+    many = nmse(x, stored)
+    assert many.shape == (7,)
+    for k in range(7):
+        assert many[k] == nmse(x, stored[k])
+    assert many[3] == 0.0 and many[5] == pytest.approx(1.0)  # identical; all-zero stored -> MSE(x,0)/MSE(x,0)
+    masks = rng.random((7, 18)) > 0.3
+    many_m = nmse(x, stored, None, masks)
+    for k in range(7):
+        assert many_m[k] == nmse(x, stored[k], None, masks[k])

@@ -83,7 +83,6 @@ _EXPORTS: dict[str, str] = {
     "PFHParams": "whisker_io.features.pfh",
     "point_feature_histogram": "whisker_io.features.pfh",
     "chi_squared": "whisker_io.features.pfh",
-    "match_region": "whisker_io.features.pfh",
     # errors
     "CansimError": "whisker_io.errors",
     "ConfigError": "whisker_io.errors",

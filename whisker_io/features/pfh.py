@@ -37,16 +37,14 @@ Pipeline for one whisk (at most 18 contact points):
 Fewer than 3 usable points is a defined case: an all-zero histogram with
 ``valid = False`` (chi-squared against it equals the other histogram's mass).
 
-Region matching (Eq 5.5) combines the PFH chi-squared with the slope
-distribution array NMSE of :mod:`whisker_io` part B; :func:`match_region`
-takes the NMSE as a callable or as precomputed values so it does not depend on
-that module.
+Region matching (Eq 5.5), which combines this chi-squared with the slope
+distribution array's NMSE, is the whisk front end's job:
+:mod:`cansim.frontends.whisk`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -63,8 +61,6 @@ __all__ = [
     "feature_bins",
     "point_feature_histogram",
     "chi_squared",
-    "RegionMatch",
-    "match_region",
 ]
 
 _BRUTE_FORCE_MAX = 256  # neighbour search by full distance matrix up to this many points
@@ -348,86 +344,3 @@ def chi_squared(q: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | float:
     out = np.sum(np.divide(diff2, s, out=np.zeros(np.broadcast(q, v).shape), where=s > 0), axis=-1)
     return float(out) if np.ndim(out) == 0 else out
 
-
-@dataclass(frozen=True, eq=False)
-class RegionMatch:
-    """Result of :func:`match_region` (Eq 5.5).
-
-    Attributes
-    ----------
-    index : int or None
-        Index of the matching stored region, None when no region passes both thresholds.
-    chi2 : ndarray (m,)
-        PFH chi-squared to every stored region.
-    nmse : ndarray (m,)
-        SDA NMSE to every stored region.
-    candidates : ndarray (k,) int
-        Stored regions with ``chi2 < t_pfh`` and ``nmse < t_sda``.
-    score : float
-        ``chi2 + nmse`` of the match (inf when none).
-    """
-
-    index: int | None
-    chi2: NDArray[np.float64]
-    nmse: NDArray[np.float64]
-    candidates: NDArray[np.int64]
-    score: float
-
-
-def match_region(
-    pfh_query: ArrayLike,
-    sda_query: object,
-    stored_regions: Sequence[tuple[ArrayLike, object]],
-    t_pfh: float,
-    t_sda: float,
-    nmse: Callable[[object, object], float] | ArrayLike,
-) -> RegionMatch:
-    """Region similarity and selection (Eq 5.5, Sec 5.1.1.1.4).
-
-    Every stored region ``o_i = (f_i, s_i)`` is compared with the query:
-    ``[chi2(f_n, f_i), NMSE(s_n, s_i)]``; regions with ``chi2 < t_pfh`` and
-    ``NMSE < t_sda`` are candidates, and the candidate with the smallest
-    ``chi2 + NMSE`` is the match.
-
-    Parameters
-    ----------
-    pfh_query : array_like (B,)
-        Histogram of the current whisk.
-    sda_query : object
-        The query's slope distribution array, passed unchanged to ``nmse``
-        (ignored when ``nmse`` is precomputed).
-    stored_regions : sequence of (pfh (B,), sda) pairs
-        The stored regions; the SDA part is passed unchanged to ``nmse``.
-    t_pfh, t_sda : float
-        Thresholds ``T_pfh`` and ``T_sda`` (hand-tuned in the thesis).
-    nmse : callable ``nmse(sda_query, sda_stored) -> float`` or array_like (m,)
-        The SDA dissimilarity (Eq 5.3; e.g. part B's NMSE function) or its
-        precomputed values for each stored region.
-
-    Returns
-    -------
-    RegionMatch
-    """
-    m = len(stored_regions)
-    q = np.asarray(pfh_query, dtype=float)
-    if m == 0:
-        empty = np.zeros(0)
-        return RegionMatch(None, empty, empty, np.zeros(0, dtype=np.int64), float("inf"))
-    stored = np.array([np.asarray(f, dtype=float) for f, _ in stored_regions])
-    if stored.ndim != 2 or stored.shape[1] != q.shape[-1]:
-        raise InvalidInputError(
-            f"stored PFHs must all have {q.shape[-1]} bins like the query; got shape {stored.shape}"
-        )
-    chi2 = np.atleast_1d(chi_squared(q, stored))
-    if callable(nmse):
-        e = np.array([float(nmse(sda_query, s)) for _, s in stored_regions])
-    else:
-        e = np.asarray(nmse, dtype=float).reshape(-1)
-        if e.shape != (m,):
-            raise InvalidInputError(f"precomputed nmse must have shape ({m},), got {e.shape}")
-    cand = np.flatnonzero((chi2 < t_pfh) & (e < t_sda))
-    if cand.size == 0:
-        return RegionMatch(None, chi2, e, cand, float("inf"))
-    total = chi2[cand] + e[cand]
-    best = int(cand[np.argmin(total)])
-    return RegionMatch(best, chi2, e, cand, float(chi2[best] + e[best]))

@@ -22,7 +22,7 @@ Example
 -------
 >>> import numpy as np
 >>> from whisker_io.features.sda import nmse
->>> float(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])))   # (0 + 1) / (1 + 4)
+>>> round(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])), 12)   # (0 + 1) / (1 + 4)
 0.2
 """
 
@@ -134,19 +134,23 @@ def nmse(
     y: np.ndarray,
     mask_x: np.ndarray | None = None,
     mask_y: np.ndarray | None = None,
-) -> float:
+) -> float | np.ndarray:
     """Normalised mean square error ``MSE(x, y) / MSE(x, 0)`` (Eq 5.3-5.4), masked.
 
     Parameters
     ----------
-    x, y : array_like, shape (N,)
-        Two SDAs (``x`` is the reference: the normaliser is its own power).
-    mask_x, mask_y : array_like of bool, shape (N,), optional
+    x : array_like, shape (N,)
+        The reference SDA (the normaliser is its own power; in region matching the
+        current whisk, Eq 5.5).
+    y : array_like, shape (N,) or (m, N)
+        One SDA, or ``m`` stored SDAs compared with ``x`` at once.
+    mask_x : array_like of bool, shape (N,), optional
+    mask_y : array_like of bool, shape of ``y``, optional
         Valid entries (all when omitted); only entries valid in both count.
 
     Returns
     -------
-    float
+    float or ndarray (m,)
         0 for identical arrays; ``inf`` when no entry is valid in both, or when
         ``x`` is all zero there and ``y`` is not (0 if both are). The ratio is
         scale-free, so it is computed on both arrays divided by their largest
@@ -156,7 +160,7 @@ def nmse(
     Raises
     ------
     InvalidInputError
-        Non-numeric input, arrays that are not 1-D of equal length, a mask of
+        Non-numeric input, ``x`` not 1-D, ``y`` not (N,) or (m, N), a mask of
         another shape, or NaN/inf at a valid entry.
     """
     try:
@@ -164,27 +168,29 @@ def nmse(
         ya = np.asarray(y, dtype=np.float64)
     except (TypeError, ValueError):
         raise InvalidInputError(f"x and y must be arrays of numbers, got {x!r} and {y!r}") from None
-    if xa.ndim != 1 or xa.shape != ya.shape:
-        raise InvalidInputError(f"x and y must be 1-D of equal length, got {xa.shape} and {ya.shape}")
-    both = np.ones(xa.shape, dtype=bool)
-    for m in (mask_x, mask_y):
+    single = ya.ndim == 1
+    if xa.ndim != 1 or ya.ndim not in (1, 2) or ya.shape[-1] != xa.shape[0]:
+        raise InvalidInputError(f"x must be 1-D and y (N,) or (m, N) of the same length N, got {xa.shape} and {ya.shape}")
+    y2 = ya.reshape(-1, xa.shape[0])
+    both = np.ones(y2.shape, dtype=bool)
+    for m, shape in ((mask_x, xa.shape), (mask_y, ya.shape)):
         if m is not None:
             ma = np.asarray(m, dtype=bool)
-            if ma.shape != xa.shape:
-                raise InvalidInputError(f"mask shape {ma.shape} does not match {xa.shape}")
-            both &= ma
-    if not np.all(np.isfinite(xa[both])) or not np.all(np.isfinite(ya[both])):
+            if ma.shape != shape:
+                raise InvalidInputError(f"mask shape {ma.shape} does not match {shape}")
+            both &= ma.reshape(-1, xa.shape[0]) if ma.ndim == ya.ndim else ma
+    xb = np.broadcast_to(xa, y2.shape)
+    if not np.all(np.isfinite(xb[both])) or not np.all(np.isfinite(y2[both])):
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
-    if not both.any():
-        return float("inf")
-    xb, yb = xa[both], ya[both]
-    scale = float(max(np.max(np.abs(xb)), np.max(np.abs(yb))))
-    if scale == 0.0:
-        return 0.0
-    xb, yb = xb / scale, yb / scale  # |entries| <= 1: squares cannot overflow
-    err = float(np.mean((xb - yb) ** 2))
-    power = float(np.mean(xb**2))
-    if power == 0.0:
-        return 0.0 if err == 0.0 else float("inf")
-    with np.errstate(over="ignore"):
-        return float(np.float64(err) / np.float64(power))
+    xz, yz = np.where(both, xb, 0.0), np.where(both, y2, 0.0)
+    scale = np.maximum(np.abs(xz).max(axis=1, initial=0.0), np.abs(yz).max(axis=1, initial=0.0))
+    safe = np.where(scale > 0, scale, 1.0)[:, None]
+    xz, yz = xz / safe, yz / safe  # |entries| <= 1: squares cannot overflow
+    count = both.sum(axis=1)
+    n = np.maximum(count, 1)
+    err = ((xz - yz) ** 2).sum(axis=1) / n  # MSE over the valid entries
+    power = (xz**2).sum(axis=1) / n
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        out = np.where(power > 0, err / np.where(power > 0, power, 1.0), np.where(err == 0, 0.0, np.inf))
+    out = np.where(count == 0, np.inf, np.where(scale == 0, 0.0, out))
+    return float(out[0]) if single else out
