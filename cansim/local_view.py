@@ -83,6 +83,10 @@ class LocalViewParams:
         False (OpenRatSLAM): the decay rises only when the previous view is seen again,
         before the energy is computed. True (thesis Ch.5): the energy is computed at the
         current decay, which then rises on every match.
+    decay_per_iteration : bool
+        False (OpenRatSLAM): the decay recovers once per view call. True (thesis Ch.5):
+        also on iterations without an observation (the model loop calls
+        :meth:`LocalViewCells.restore_decay`).
     recent_exclusion : int
         Views among this many most recent ones do not inject (OpenRatSLAM 10; 0 disables).
     cpp_unsigned_recent : bool
@@ -117,6 +121,7 @@ class LocalViewParams:
     decay_restore: float = 0.05
     decay_floor: Optional[float] = None
     rise_on_every_match: bool = False
+    decay_per_iteration: bool = False
     recent_exclusion: int = 10
     cpp_unsigned_recent: bool = True
     rounding: str = "truncate"
