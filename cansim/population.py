@@ -12,12 +12,12 @@ from cansim.axes import Axis
 from cansim.backends import Backend, get_backend
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
+from whisker_io.validation import finite_vector
 from cansim.path_integration import (
     MotionModel,
     PlanarMotion,
     SixDofMotion,
     UniformMotion,
-    _finite_vec,
 )
 
 __all__ = ["Population"]
@@ -258,7 +258,7 @@ class Population:
         center : sequence of float, one per axis, in cells.
         sigma : float or sequence of float, standard deviation in cells (> 0).
         """
-        c = _finite_vec(center, self.ndim, "center")
+        c = finite_vector(center, self.ndim, "center")
         s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (self.ndim,))
         if not np.all(np.isfinite(s)) or np.any(s <= 0):
             raise InvalidInputError(f"sigma must be finite and > 0 cells, got {sigma!r}")
@@ -309,7 +309,7 @@ class Population:
 
     def shift(self, cells: Sequence[float]) -> None:
         """Shift the whole grid by a real number of cells per axis (any magnitude)."""
-        s = _finite_vec(cells, self.ndim, "shift")
+        s = finite_vector(cells, self.ndim, "shift")
         self._commit(self._backend.shift(self._a, s, out=self._spare))
 
     def shift_conditional(self, shift_axes: Sequence[int], shifts: np.ndarray) -> None:
