@@ -193,8 +193,8 @@ class ReplayResult:
     ----------
     slam : RatSLAM
         The model after the last message (its ``experience_map`` is the map).
-    time_s : ndarray (n,)
-        Time of each odometry update, s (header stamps or record times, see ``stamps``).
+    stamp_ns : ndarray (n,) of int64
+        Time of each odometry update, ns (header stamps or record times, see ``stamps``).
     exp_ids : ndarray (n,) of int
         The current experience after each odometry update (-1 before the first).
     topics : ReplayTopics
@@ -205,12 +205,17 @@ class ReplayResult:
     """
 
     slam: RatSLAM
-    time_s: np.ndarray
+    stamp_ns: np.ndarray
     exp_ids: np.ndarray
     topics: ReplayTopics
     n_odometry: int
     n_images: int
     files: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """``stamp_ns`` in seconds, shape (n,)."""
+        return self.stamp_ns / 1e9
 
     def trajectory(self) -> np.ndarray:
         """Rows ``(time_s, x_m, y_m, th_rad, exp_id)`` once the map has an experience; shape (m, 5).
@@ -366,7 +371,10 @@ def replay(
     except Exception as exc:  # rosbags' reader errors: not a bag, truncated, unknown storage
         raise CorruptFileError(f"cannot open it as a ROS bag ({type(exc).__name__}: {exc})", path=name) from None
     try:
-        topics = {_norm(c.topic): c.msgtype for c in reader.connections}
+        types: dict[str, set[str]] = {}
+        for c in reader.connections:
+            types.setdefault(_norm(c.topic), set()).add(c.msgtype)
+        topics = {t: " + ".join(sorted(ty)) for t, ty in types.items()}  # several types on one topic: refused below
         odo_default, img_defaults = default_topics(root)
         odo_t = _pick(topics, odometry_topic, (odo_default,), ODOMETRY_TYPES, "odometry", "--odom-topic", name)
         img_t = _pick(topics, image_topic, img_defaults, IMAGE_TYPES, "image", "--image-topic", name)
@@ -374,9 +382,6 @@ def replay(
         if stamps == "header" and odo_type == "geometry_msgs/msg/Twist":
             raise InvalidInputError(f"{name}: {odo_t} is geometry_msgs/Twist, which has no header stamp; use stamps='log'")
         conns = [c for c in reader.connections if _norm(c.topic) in (odo_t, img_t)]
-        mixed = {c.msgtype for c in conns if _norm(c.topic) == odo_t} | {c.msgtype for c in conns if _norm(c.topic) == img_t}
-        if len(mixed) > 2:
-            raise InvalidInputError(f"{name}: a topic is recorded with several message types ({sorted(mixed)})")
         n_msgs = sum(c.msgcount for c in conns)
         result = _run(reader, conns, cfg, odo_t, odo_type, img_t, img_type, stamps, progress, n_msgs, name)
     finally:
@@ -387,7 +392,7 @@ def replay(
 def _run(reader: Any, conns: list[Any], cfg: RatSLAMConfig, odo_t: str, odo_type: str, img_t: str, img_type: str,
          stamps: str, progress: bool, n_msgs: int, name: str) -> ReplayResult:
     slam = RatSLAM(cfg)
-    times: list[float] = []
+    times: list[int] = []
     exp_ids: list[int] = []
     prev_ns: int | None = None
     n_odo = n_img = 0
@@ -437,7 +442,7 @@ def _run(reader: Any, conns: list[Any], cfg: RatSLAMConfig, odo_t: str, odo_type
                         state = slam.on_odo(v, w, (t_ns - prev_ns) / 1e9)
                     except InvalidInputError as exc:
                         raise type(exc)(f"{name}: {topic} message {n_odo}: {exc}") from None
-                    times.append(t_ns / 1e9)
+                    times.append(t_ns)
                     exp_ids.append(state.exp_id)
                 prev_ns = t_ns
                 n_odo += 1
@@ -452,7 +457,7 @@ def _run(reader: Any, conns: list[Any], cfg: RatSLAMConfig, odo_t: str, odo_type
             "a replay needs at least 2 odometry messages and 1 image"
         )
     topics = ReplayTopics(odo_t, odo_type, img_t, img_type)
-    return ReplayResult(slam, np.asarray(times, dtype=np.float64), np.asarray(exp_ids, dtype=np.int64), topics, n_odo, n_img)
+    return ReplayResult(slam, np.asarray(times, dtype=np.int64), np.asarray(exp_ids, dtype=np.int64), topics, n_odo, n_img)
 
 
 def write_outputs(result: ReplayResult, out: str | os.PathLike[str], *, title: str | None = None) -> dict[str, Path]:
@@ -481,8 +486,10 @@ def write_outputs(result: ReplayResult, out: str | os.PathLike[str], *, title: s
     with open(files["trajectory"], "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(["time_s", "x_m", "y_m", "th_rad", "exp_id"])
-        for t, x, y, th, eid in result.trajectory():
-            w.writerow([f"{t:.9f}", repr(float(x)), repr(float(y)), repr(float(th)), int(eid)])
+        keep = result.exp_ids >= 0
+        for ns, (_, x, y, th, eid) in zip(result.stamp_ns[keep], result.trajectory()):
+            w.writerow([f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}", repr(float(x)), repr(float(y)),
+                        repr(float(th)), int(eid)])
     import matplotlib.pyplot as plt
 
     from maps.plot_maps import plot_experience_map

@@ -208,6 +208,18 @@ def _check_scalar(key: str, value: Any) -> Scalar:
     return value
 
 
+def _kind(value: Scalar) -> str:
+    return "bool" if isinstance(value, bool) else "str" if isinstance(value, str) else "number"
+
+
+def _one_kind(key: str, values: tuple[Scalar, ...]) -> tuple[Scalar, ...]:
+    """A parameter's values share one kind (numbers, strings or booleans): a results column has one type."""
+    kinds = {_kind(v) for v in values}
+    if len(kinds) > 1:
+        raise ConfigError(f"{key}: values mix {' and '.join(sorted(kinds))}s ({list(values)}); a column holds one type")
+    return values
+
+
 def _int(key: str, value: Any, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise ConfigError(f"{key}: expected an integer >= {minimum}, got {value!r}")
@@ -246,7 +258,8 @@ def _random_param(key: str, value: Any) -> RandomParam:
         values = value["values"]
         if not isinstance(values, (list, tuple)) or not values:
             raise ConfigError(f"{key}.values: expected a non-empty list, got {values!r}")
-        return RandomParam(dist, {"values": tuple(_check_scalar(f"{key}.values", v) for v in values)})
+        checked = tuple(_check_scalar(f"{key}.values", v) for v in values)
+        return RandomParam(dist, {"values": _one_kind(f"{key}.values", checked)})
     a, b = (_number(f"{key}.{k}", value[k]) for k in needed)
     if dist in ("uniform", "loguniform") and not a < b:
         raise ConfigError(f"{key}.high: must be greater than low ({a!r}), got {b!r}")
@@ -295,7 +308,7 @@ def parse_spec(data: Mapping[str, Any]) -> SweepSpec:
         checked = tuple(_check_scalar(f"grid.{name}", v) for v in values)
         if len(set(map(_canonical, checked))) != len(checked):
             raise ConfigError(f"grid.{name}: values must be distinct, got {list(values)}")
-        grid[name] = checked
+        grid[name] = _one_kind(f"grid.{name}", checked)
 
     random: dict[str, RandomParam] = {}
     n_samples = 1
@@ -631,8 +644,23 @@ def _write_part(out: Path, row: dict[str, Any]) -> None:
 
 
 def _concat(tables: list[Any]) -> Any:
+    """Rows of several tables in one; a column whose types cannot be unified (a metric that is a
+    number in some rows and a string in others) is stored as strings."""
     pa, _ = _pa()
-    return pa.concat_tables(tables, promote_options="permissive")
+    try:
+        return pa.concat_tables(tables, promote_options="permissive")
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        rows = [r for t in tables for r in t.to_pylist()]
+        names = list(dict.fromkeys(n for t in tables for n in t.column_names))
+        columns = {}
+        for n in names:
+            vals = [r.get(n) for r in rows]
+            kinds = {_kind(v) for v in vals if v is not None}
+            if len(kinds) > 1:
+                log.warning("results column %r mixes %s values; stored as strings", n, " and ".join(sorted(kinds)))
+                vals = [None if v is None else str(v) for v in vals]
+            columns[n] = vals
+        return pa.table(columns)
 
 
 def read_results(out: str | os.PathLike[str]) -> Any:

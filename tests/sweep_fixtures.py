@@ -38,3 +38,9 @@ def slow(params: dict, seed: int) -> dict:
 def incomplete(params: dict, seed: int) -> dict:
     """Returns no ``noise`` key: a missing metric."""
     return {"value": 10 * params["a"] + params["b"]}
+
+
+def mixed(params: dict, seed: int) -> dict:
+    """``value`` is a number for ``a == 1`` and a string otherwise (an experiment with an untidy metric)."""
+    value = 10 * params["a"] + params["b"]
+    return {"value": value if params["a"] == 1 else f"v{value}"}

@@ -124,6 +124,12 @@ def test_a_missing_metric_is_an_error_of_that_cell(tmp_path, threads_client):
     assert rows[0]["status"] == "error" and "metric 'noise' missing" in rows[0]["error"]
 
 
+def test_a_metric_of_changing_type_is_kept_as_strings(tmp_path, threads_client):
+    spec = dict(SPEC, experiment="sweep_fixtures:mixed", metrics=["value"], grid={"a": [1, 2], "b": [0]})
+    rows = _rows(sweep.run(spec, client=threads_client, out=tmp_path, progress=False).table)
+    assert sorted(r["value"] for r in rows) == ["10", "v20"]
+
+
 def test_growing_a_grid_runs_only_the_new_cells_and_another_sweep_is_refused(tmp_path, threads_client):
     small = dict(SPEC, grid={"a": [1], "b": [0, 1, 2, 3]})
     assert sweep.run(small, client=threads_client, out=tmp_path, progress=False).ran == 4
@@ -134,6 +140,7 @@ def test_growing_a_grid_runs_only_the_new_cells_and_another_sweep_is_refused(tmp
         sweep.run(dict(SPEC, metrics=["value"]), client=threads_client, out=tmp_path, progress=False)
 
 
+@pytest.mark.filterwarnings("ignore:Port .* is already in use")  # the restarted worker's dashboard port
 def test_killing_a_worker_mid_sweep_still_ends_with_every_row(tmp_path):
     from distributed import Client, LocalCluster
 
@@ -224,7 +231,9 @@ def test_unreachable_scheduler_is_a_config_error(tmp_path):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     with pytest.raises(ConfigError, match="^scheduler: cannot connect"):
-        sweep.run(SPEC, out=tmp_path, scheduler=f"tcp://127.0.0.1:{port}", progress=False, connect_timeout_s=2)
+        sweep.run(SPEC, out=tmp_path, scheduler=f"tcp://127.0.0.1:{port}", progress=False, connect_timeout_s=1)
+    with pytest.raises(ConfigError, match=f"^scheduler: cannot connect to tcp://127.0.0.1:{port}"):  # the spec's key
+        sweep.run(dict(SPEC, scheduler=f"tcp://127.0.0.1:{port}"), out=tmp_path, progress=False, connect_timeout_s=1)
 
 
 # ------------------------------------------------------------------ spec parser
@@ -235,6 +244,8 @@ MALFORMED = [
     ({"grid": {"a": [1, 1]}}, "grid.a"),
     ({"grid": {"a": [float("nan")]}}, "grid.a"),
     ({"grid": {"a": [[1, 2]]}}, "grid.a"),
+    ({"grid": {"a": [1, "x"]}}, "grid.a"),
+    ({"grid": {"a": [True, 0]}}, "grid.a"),
     ({"grid": [1, 2]}, "grid"),
     ({"random": {"c": {"distribution": "uniform", "low": 0, "high": 1}}}, "random.n_samples"),
     ({"random": {"n_samples": 0, "c": {"distribution": "uniform", "low": 0, "high": 1}}}, "random.n_samples"),
@@ -244,6 +255,7 @@ MALFORMED = [
     ({"random": {"n_samples": 2, "c": {"distribution": "normal", "mean": 0}}}, "random.c.std"),
     ({"random": {"n_samples": 2, "c": {"distribution": "normal", "mean": 0, "std": 1, "sd": 2}}}, "random.c.sd"),
     ({"random": {"n_samples": 2, "c": {"distribution": "choice", "values": []}}}, "random.c.values"),
+    ({"random": {"n_samples": 2, "c": {"distribution": "choice", "values": [1, "one"]}}}, "random.c.values"),
     ({"random": {"n_samples": 2, "a": {"distribution": "choice", "values": [1]}}}, "random.a"),
     ({"seeds": [1, 2], "n_seeds": 3}, "seeds"),
     ({"seeds": [1, -2]}, "seeds"),
@@ -309,15 +321,17 @@ def test_seeds_and_samples_by_hand():
 
 
 # ------------------------------------------------------------------ hypothesis
-scalars = st.one_of(st.integers(-5, 5), st.floats(-1e3, 1e3, allow_nan=False), st.text("abc", min_size=1, max_size=3),
-                    st.booleans())
+numbers = st.one_of(st.integers(-5, 5), st.floats(-1e3, 1e3, allow_nan=False))
+kinds = [numbers, st.text("abc", min_size=1, max_size=3), st.booleans()]
+scalars = st.one_of(*kinds)
 names = st.text("pqrstuvwxyz", min_size=1, max_size=4)
 
 
 @st.composite
 def specs(draw):
     pnames = draw(st.lists(names, min_size=0, max_size=3, unique=True))
-    grid = {n: draw(st.lists(scalars, min_size=1, max_size=3, unique_by=lambda v: (type(v), v))) for n in pnames}
+    grid = {n: draw(st.lists(draw(st.sampled_from(kinds)), min_size=1, max_size=3, unique_by=lambda v: (type(v), v)))
+            for n in pnames}
     data = {"experiment": "sweep_fixtures:fast", "metrics": ["value"], "grid": grid}
     if draw(st.booleans()):
         data["random"] = {"n_samples": draw(st.integers(1, 3)),
