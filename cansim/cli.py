@@ -254,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
             "default, or an existing cluster with --scheduler - writing each finished task to OUT/parts/ at once and "
             "OUT/results.parquet at the end. Run the same command again to resume: tasks already recorded are "
             "skipped. Spec keys: see the cansim.sweep documentation.")
-    p.add_argument("spec", type=Path, metavar="SPEC", help="sweep spec file (.toml)")
+    p.add_argument("spec", type=Path, metavar="FILE.toml", help="sweep spec file (TOML)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="output folder (default: ./<spec name>)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="address of a running Dask scheduler (overrides the spec's 'scheduler')")

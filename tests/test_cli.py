@@ -55,7 +55,7 @@ def test_every_command_has_help(command):
 def test_usage_errors_exit_2():
     assert cansim("fly").returncode == 2
     proc = cansim("sweep")
-    assert proc.returncode == 2 and "SPEC" in proc.stderr
+    assert proc.returncode == 2 and "FILE.toml" in proc.stderr
     assert cansim("sweep", "x.toml", "--workers", "0").returncode == 2
     assert cansim("study", "ch9").returncode == 2
 
