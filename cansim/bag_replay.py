@@ -304,16 +304,31 @@ def _twist(msg: Any, msgtype: str) -> tuple[float, float]:
     return float(tw.linear.x), float(tw.angular.z)
 
 
-def _messages(reader: Any, conns: list[Any], image_topic: str) -> Iterator[tuple[Any, int, bytes]]:
+def _records(reader: Any, conns: list[Any], name: str) -> Iterator[tuple[Any, int, bytes]]:
+    """The reader's raw messages; a damaged or truncated bag is a CorruptFileError."""
+    it = iter(reader.messages(connections=conns))
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except Exception as exc:  # rosbags' reader errors, struct/zstd/lz4/sqlite errors of a damaged file
+            raise CorruptFileError(
+                f"reading its messages failed ({type(exc).__name__}: {exc}); the bag is truncated or damaged", path=name
+            ) from None
+        yield item
+
+
+def _messages(reader: Any, conns: list[Any], image_topic: str, name: str) -> Iterator[tuple[Any, int, bytes]]:
     """The reader's messages in log-time order; at one log time, images first (view, then odometry)."""
     batch: list[tuple[Any, int, bytes]] = []
-    for conn, t, raw in reader.messages(connections=conns):
+    for conn, t, raw in _records(reader, conns, name):
         if batch and t != batch[0][1]:
-            batch.sort(key=lambda m: m[0].topic != image_topic)  # stable
+            batch.sort(key=lambda m: _norm(m[0].topic) != image_topic)  # stable
             yield from batch
             batch = []
         batch.append((conn, t, raw))
-    batch.sort(key=lambda m: m[0].topic != image_topic)
+    batch.sort(key=lambda m: _norm(m[0].topic) != image_topic)
     yield from batch
 
 
@@ -385,7 +400,10 @@ def replay(
         n_msgs = sum(c.msgcount for c in conns)
         result = _run(reader, conns, cfg, odo_t, odo_type, img_t, img_type, stamps, progress, n_msgs, name)
     finally:
-        reader.close()
+        try:
+            reader.close()
+        except Exception:  # a damaged file may fail to close too; the error that matters is raised above
+            pass
     return result
 
 
@@ -402,7 +420,7 @@ def _run(reader: Any, conns: list[Any], cfg: RatSLAMConfig, odo_t: str, odo_type
 
         bar = tqdm(total=n_msgs, desc="replay", unit="msg", dynamic_ncols=True)
     try:
-        for conn, log_ns, raw in _messages(reader, conns, img_t):
+        for conn, log_ns, raw in _messages(reader, conns, img_t, name):
             topic = _norm(conn.topic)
             try:
                 msg = reader.deserialize(raw, conn.msgtype)

@@ -310,3 +310,39 @@ def test_decode_image_never_returns_a_wrong_size(h, w, extra, n, enc):
         return
     assert img.dtype == np.uint8 and img.shape[:2] == (h, w)
     assert img.ndim == (2 if enc in ("mono8", "mono16") else 3)
+
+
+@pytest.fixture(scope="module")
+def small_bags(synthetic, tmp_path_factory):
+    run, images = synthetic
+    d = tmp_path_factory.mktemp("bags")
+    write_ros1(d / "small.bag", _messages(run, images, False, True, get_typestore(Stores.ROS1_NOETIC), root="", n=6))
+    write_ros2(d / "small_mcap", _messages(run, images, False, False, get_typestore(Stores.ROS2_HUMBLE), root="", n=6),
+               StoragePlugin.MCAP)
+    return d
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(kind=st.sampled_from(["ros1", "mcap"]), cut=st.floats(0.0, 0.999), flip=st.integers(0, 2**16))
+def test_a_damaged_bag_is_a_typed_error_never_a_crash(small_bags, tmp_path_factory, kind, cut, flip):
+    """Truncated or bit-flipped bags replay, or raise CorruptFileError / InvalidInputError."""
+    d = tmp_path_factory.mktemp("damaged")
+    if kind == "ros1":
+        data = bytearray((small_bags / "small.bag").read_bytes())
+        target = d / "small.bag"
+    else:
+        src = small_bags / "small_mcap"
+        (d / "b").mkdir()
+        for f in src.iterdir():
+            (d / "b" / f.name).write_bytes(f.read_bytes())
+        target = next((d / "b").glob("*.mcap"))
+        data = bytearray(target.read_bytes())
+    data = data[: max(1, int(len(data) * (1 - cut)))] if cut > 0.5 else data
+    if cut <= 0.5 and data:
+        data[flip % len(data)] ^= 0xFF
+    target.write_bytes(bytes(data))
+    try:
+        res = replay(target if kind == "ros1" else d / "b", _config())
+    except (CorruptFileError, InvalidInputError):
+        return
+    assert res.n_odometry >= 2 and np.all(np.diff(res.stamp_ns) > 0)

@@ -10,6 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cansim import cli
 from cansim.backends import registered_backends
@@ -214,3 +216,17 @@ def test_readme_lists_every_command_and_exit_code():
         assert f"cansim {name}" in section, name
     for code in cli.EXIT_CODES:
         assert re.search(rf"\|\s*{code}\s*\|", section), code
+
+
+@settings(max_examples=50, deadline=None)
+@given(names=st.lists(st.text("abcdefxyz0123456789_^", min_size=1, max_size=8), min_size=1, max_size=3),
+       which=st.sampled_from(["backends", "workloads"]))
+def test_bench_refuses_unknown_names_before_timing_anything(names, which):
+    from cansim.benchmark import WORKLOADS, run_suite
+    from cansim.errors import InvalidInputError
+
+    known = set(registered_backends()) if which == "backends" else {*WORKLOADS, "61x61x36", "10^6"}
+    if set(names) <= known:
+        return
+    with pytest.raises(InvalidInputError, match=f"unknown {which[:-1]}"):
+        run_suite(quick=True, **{which: names})

@@ -393,3 +393,19 @@ def test_any_mapping_parses_or_raises_config_error(data):
         assert key.split(".")[0] in data or key in ("experiment", "metrics", "random.n_samples")
         return
     assert len(sweep.expand(spec)) == spec.n_tasks
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=st.one_of(st.text(max_size=120), st.sampled_from([
+    'experiment = "sweep_fixtures:fast"\nmetrics = ["value"]\n[grid]\na = [1, 2]\n',
+    'experiment = "m:f"\nmetrics = ["v"]\n[random]\nn_samples = 2\nx = {distribution = "normal", mean = 0, std = 1}\n',
+])))
+def test_load_spec_reads_any_text_or_raises_config_error(tmp_path, text):
+    path = tmp_path / "any.toml"
+    path.write_text(text, encoding="utf-8")
+    try:
+        spec = sweep.load_spec(path)
+    except ConfigError as exc:
+        assert str(exc).startswith(str(path))
+        return
+    assert spec.name == "any" and len(sweep.expand(spec)) == spec.n_tasks
