@@ -34,8 +34,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
-from whisker_io.features.pfh import chi_squared
-from whisker_io.features.sda import nmse
+from whisker_io.features._distances_numba import chi2_rows, nmse_rows
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "FEATURES"]
 
@@ -155,7 +154,14 @@ class WhiskFrontEnd:
         self._sda = np.zeros((16, c.n_whiskers))
         self._mask = np.ones((16, c.n_whiskers), dtype=bool)
         self._count = np.zeros(16, dtype=np.int64)
+        self._all = np.ones(c.n_whiskers, dtype=bool)
+        self._all_mask = np.ones((16, c.n_whiskers), dtype=bool)
         self.last_scores: RegionScores | None = None
+
+    def _all_rows(self, n: int) -> np.ndarray:
+        if self._all_mask.shape[0] < n:
+            self._all_mask = np.ones((2 * n, self.config.n_whiskers), dtype=bool)
+        return self._all_mask[:n]
 
     def __len__(self) -> int:
         return self._n
@@ -209,14 +215,15 @@ class WhiskFrontEnd:
             return RegionScores(zero, zero, np.zeros(0, dtype=np.int64), None)
         ok = np.ones(n, dtype=bool)
         chi2 = e = zero
+        # the parsed observation and the stored regions are validated: call the compiled
+        # kernels behind whisker_io's chi_squared (Eq 2.45) and nmse (Eq 5.3) directly
         if c.features in ("pfh", "both"):
-            chi2 = np.atleast_1d(chi_squared(pfh, self._pfh[:n]))
+            chi2 = chi2_rows(pfh, self._pfh[:n])
             ok &= chi2 < c.pfh_threshold
         if c.features in ("sda", "both"):
-            if c.use_sda_mask:
-                e = np.atleast_1d(nmse(sda, self._sda[:n], mask, self._mask[:n]))
-            else:
-                e = np.atleast_1d(nmse(sda, self._sda[:n]))
+            mx = mask if c.use_sda_mask else self._all
+            my = self._mask[:n] if c.use_sda_mask else self._all_rows(n)
+            e = nmse_rows(sda, self._sda[:n], mx, my)
             ok &= e < c.sda_threshold
         cand = np.flatnonzero(ok)
         best = int(cand[np.argmin((chi2 + e)[cand])]) if cand.size else None

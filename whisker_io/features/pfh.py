@@ -339,8 +339,14 @@ def chi_squared(q: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | float:
         raise ShapeError(f"histogram shapes {q.shape} and {v.shape} do not broadcast") from None
     if np.any(q < 0) or np.any(v < 0):
         raise InvalidInputError("histograms must be non-negative (bin counts or fractions)")
-    s = q + v
-    diff2 = (q - v) ** 2
-    out = np.sum(np.divide(diff2, s, out=np.zeros(np.broadcast(q, v).shape), where=s > 0), axis=-1)
+    from whisker_io.features._distances_numba import chi2_rows
+
+    lead = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    if q.ndim == 1:
+        out = chi2_rows(q, np.ascontiguousarray(v.reshape(-1, v.shape[-1]))).reshape(lead)
+    else:
+        qb = np.broadcast_to(q, lead + q.shape[-1:]).reshape(-1, q.shape[-1])
+        vb = np.broadcast_to(v, lead + v.shape[-1:]).reshape(-1, v.shape[-1])
+        out = np.array([chi2_rows(qr, vr[None, :])[0] for qr, vr in zip(qb, vb)]).reshape(lead)
     return float(out) if np.ndim(out) == 0 else out
 

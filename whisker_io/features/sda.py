@@ -179,18 +179,11 @@ def nmse(
             if ma.shape != shape:
                 raise InvalidInputError(f"mask shape {ma.shape} does not match {shape}")
             both &= ma.reshape(-1, xa.shape[0]) if ma.ndim == ya.ndim else ma
-    xb = np.broadcast_to(xa, y2.shape)
-    if not np.all(np.isfinite(xb[both])) or not np.all(np.isfinite(y2[both])):
+    mx = np.ones(xa.shape, dtype=bool) if mask_x is None else np.asarray(mask_x, dtype=bool)
+    my = np.ones(y2.shape, dtype=bool) if mask_y is None else np.asarray(mask_y, dtype=bool).reshape(y2.shape)
+    if not np.all(np.isfinite(np.broadcast_to(xa, y2.shape)[both])) or not np.all(np.isfinite(y2[both])):
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
-    xz, yz = np.where(both, xb, 0.0), np.where(both, y2, 0.0)
-    scale = np.maximum(np.abs(xz).max(axis=1, initial=0.0), np.abs(yz).max(axis=1, initial=0.0))
-    safe = np.where(scale > 0, scale, 1.0)[:, None]
-    xz, yz = xz / safe, yz / safe  # |entries| <= 1: squares cannot overflow
-    count = both.sum(axis=1)
-    n = np.maximum(count, 1)
-    err = ((xz - yz) ** 2).sum(axis=1) / n  # MSE over the valid entries
-    power = (xz**2).sum(axis=1) / n
-    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        out = np.where(power > 0, err / np.where(power > 0, power, 1.0), np.where(err == 0, 0.0, np.inf))
-    out = np.where(count == 0, np.inf, np.where(scale == 0, 0.0, out))
+    from whisker_io.features._distances_numba import nmse_rows
+
+    out = nmse_rows(np.ascontiguousarray(xa), np.ascontiguousarray(y2), np.ascontiguousarray(mx), np.ascontiguousarray(my))
     return float(out[0]) if single else out
