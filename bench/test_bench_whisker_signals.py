@@ -13,13 +13,13 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.contact_features import contact_features
-from whisker_io.control import OpenLoop, RetractAtMax, WhiskPattern
-from whisker_io.objects import make_object
-from whisker_io.signals import WhiskContact, simulate_whisk_cycle
-from whisker_io.simulator import ArraySimulator
-from whisker_io.sweep import MeshTarget
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.contact.features import contact_features
+from whisker_io.array.control import OpenLoop, RetractAtMax, WhiskPattern
+from whisker_io.sim.objects import make_object
+from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+from whisker_io.sim.simulator import ArraySimulator
+from whisker_io.sim.sweep import MeshTarget
 
 LENGTHS = np.repeat([[0.06, 0.1, 0.16]], 6, axis=0).ravel()
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from whisker_io.geometry import WhiskerArray
-from whisker_io.objects import make_object
-from whisker_io.pfh import point_feature_histogram
-from whisker_io.sweep import MeshTarget, embree_available, sweep_array
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.sim.objects import make_object
+from whisker_io.features.pfh import point_feature_histogram
+from whisker_io.sim.sweep import MeshTarget, embree_available, sweep_array
 
 
 def _kettle_pose() -> np.ndarray:

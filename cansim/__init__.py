@@ -28,6 +28,8 @@ __version__ = "0.1.0"
 _LAZY = {
     "RatSLAM": "cansim.ratslam",
     "RatSLAMConfig": "cansim.ratslam_config",
+    "WhiskerRatSLAM": "cansim.whisker_ratslam",
+    "WhiskerRatSLAMConfig": "cansim.whisker_ratslam",
     "SlamLoop": "cansim.slam_loop",
     "SlamState": "cansim.slam_loop",
     "SlamLog": "cansim.slam_loop",
@@ -62,6 +64,8 @@ __all__ = [
     "LocalViewParams",
     "RatSLAM",
     "RatSLAMConfig",
+    "WhiskerRatSLAM",
+    "WhiskerRatSLAMConfig",
     "SlamLoop",
     "SlamState",
     "SlamLog",

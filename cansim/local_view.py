@@ -7,9 +7,13 @@ cells are provided:
 ``mode="stored"`` (OpenRatSLAM's simplification, thesis Sec 2.1.2.1.2, Eq 5.8)
     each view remembers the decoded pose-cell location at its creation; when it is
     seen again, energy ``Omega = zeta / 30 * (30 - exp(1.2 * decay))`` (clamped at 0)
-    is injected into that one cell. ``decay`` rises by ``vt_active_decay`` when the
-    same view is seen twice in a row and falls by ``pc_vt_restore`` after every view
-    call, floored at ``vt_active_decay`` - a view seen on every step loses influence.
+    is injected into that one cell. ``decay`` rises by ``active_decay`` when the
+    same view is seen twice in a row and falls by ``decay_restore`` after every view
+    call, floored at ``active_decay`` - a view seen on every step loses influence.
+    The thesis' 6-D rule (Eq 5.8-5.9) is selectable: ``rise_on_every_match=True`` and
+    ``decay_floor=0`` - the energy is taken at the current decay, which then rises by
+    ``active_decay`` on every match and falls back by ``decay_restore`` per iteration
+    to 0 (maximum energy 29/30 zeta).
     Views among the ``recent_exclusion`` (10) most recent do not inject, with the C++
     unsigned-arithmetic quirk (while fewer than 10 views exist, every revisit injects)
     reproduced when ``cpp_unsigned_recent=True`` (default).
@@ -44,9 +48,9 @@ def stored_injection_energy(decay: float, max_energy: float) -> float:
     Parameters
     ----------
     decay : float
-        The view's decay value (>= ``vt_active_decay``).
+        The view's decay value (>= the decay floor).
     max_energy : float
-        zeta, the maximum injection (``pc_vt_inject_energy``; 0.15 OpenRatSLAM, 0.3 Ch.5).
+        zeta, the maximum injection (``inject_energy``; OpenRatSLAM ``pc_vt_inject_energy`` 0.15, Ch.5 0.3).
 
     Returns
     -------
@@ -64,12 +68,25 @@ class LocalViewParams:
     ----------
     mode : {"stored", "learnt"}
         Injection model (see module docstring).
-    pc_vt_inject_energy : float
-        zeta, maximum injected energy in stored mode (OpenRatSLAM default 0.15; Ch.5 uses 0.3).
-    vt_active_decay : float
-        Decay increment on a repeated view and floor of the decay (OpenRatSLAM 1.0).
-    pc_vt_restore : float
-        Decay recovery per view call (OpenRatSLAM 0.05).
+    inject_energy : float
+        zeta, maximum injected energy in stored mode (OpenRatSLAM ``pc_vt_inject_energy``,
+        default 0.15; Ch.5 uses 0.3).
+    active_decay : float
+        Decay increment on a match (OpenRatSLAM ``vt_active_decay``, 1.0).
+    decay_restore : float
+        Decay recovery per view call or :meth:`LocalViewCells.restore_decay` (OpenRatSLAM
+        ``pc_vt_restore``, 0.05).
+    decay_floor : float or None
+        Lowest decay, also a new view's decay; None = ``active_decay`` (OpenRatSLAM). The
+        thesis' 6-D model uses 0.
+    rise_on_every_match : bool
+        False (OpenRatSLAM): the decay rises only when the previous view is seen again,
+        before the energy is computed. True (thesis Ch.5): the energy is computed at the
+        current decay, which then rises on every match.
+    decay_per_iteration : bool
+        False (OpenRatSLAM): the decay recovers once per view call. True (thesis Ch.5):
+        also on iterations without an observation (the model loop calls
+        :meth:`LocalViewCells.restore_decay`).
     recent_exclusion : int
         Views among this many most recent ones do not inject (OpenRatSLAM 10; 0 disables).
     cpp_unsigned_recent : bool
@@ -99,9 +116,12 @@ class LocalViewParams:
     """
 
     mode: str = "stored"
-    pc_vt_inject_energy: float = 0.15
-    vt_active_decay: float = 1.0
-    pc_vt_restore: float = 0.05
+    inject_energy: float = 0.15
+    active_decay: float = 1.0
+    decay_restore: float = 0.05
+    decay_floor: Optional[float] = None
+    rise_on_every_match: bool = False
+    decay_per_iteration: bool = False
     recent_exclusion: int = 10
     cpp_unsigned_recent: bool = True
     rounding: str = "truncate"
@@ -116,7 +136,9 @@ class LocalViewParams:
             raise InvalidInputError(f"mode must be 'stored' or 'learnt', got {self.mode!r}")
         if self.rounding not in ("truncate", "round"):
             raise InvalidInputError(f"rounding must be 'truncate' or 'round', got {self.rounding!r}")
-        for name in ("pc_vt_inject_energy", "vt_active_decay", "pc_vt_restore", "learning_rate", "inject_gain"):
+        if self.decay_floor is not None and not (math.isfinite(self.decay_floor) and self.decay_floor >= 0):
+            raise InvalidInputError(f"decay_floor must be None or finite and >= 0, got {self.decay_floor!r}")
+        for name in ("inject_energy", "active_decay", "decay_restore", "learning_rate", "inject_gain"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InvalidInputError(f"{name} must be finite and >= 0, got {v!r}")
@@ -157,6 +179,7 @@ class LocalViewCells:
         if not self._shape or any(n < 1 for n in self._shape):
             raise ShapeError(f"pose_shape must be a non-empty tuple of positive sizes, got {pose_shape!r}")
         self._params = params
+        self._floor = params.active_decay if params.decay_floor is None else params.decay_floor
         if params.cpp_cells and len(self._shape) != 3:
             raise ShapeError(f"cpp_cells needs a 3-D (x, y, theta) pose grid, got shape {self._shape}")
         self._n_cells = int(np.prod(self._shape))
@@ -279,7 +302,7 @@ class LocalViewCells:
             self._locations.append(loc.copy() if p.cpp_cells else loc % np.array(self._shape))
             if self._n == len(self._decay_buf):
                 self._decay_buf = np.concatenate([self._decay_buf, np.zeros(len(self._decay_buf))])
-            self._decay_buf[self._n] = p.vt_active_decay
+            self._decay_buf[self._n] = self._floor
             self._n += 1
             self._rows.append((np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)))
             self._v = np.append(self._v, 0.0)
@@ -292,10 +315,16 @@ class LocalViewCells:
         if p.mode == "learnt":
             injection = self.injection()
         if p.mode == "stored":
-            d = self._decay
-            np.maximum(d - p.pc_vt_restore, p.vt_active_decay, out=d)
+            self.restore_decay()
         self._current = vid
         return injection
+
+    def restore_decay(self) -> None:
+        """Every view's decay falls by ``decay_restore``, down to the floor (done by every
+        :meth:`observe`; call it on iterations without an observation when the decay runs
+        per iteration, as in the thesis' 6-D model)."""
+        d = self._decay
+        np.maximum(d - self._params.decay_restore, self._floor, out=d)
 
     def _check_view(self, view_id: int) -> int:
         try:
@@ -317,9 +346,13 @@ class LocalViewCells:
             limit = n  # C++ unsigned wrap-around: every existing view qualifies
         if not vid < limit:
             return _EMPTY
-        if vid == self._current:
-            self._decay[vid] += p.vt_active_decay
-        energy = stored_injection_energy(self._decay[vid], p.pc_vt_inject_energy)
+        if p.rise_on_every_match:
+            energy = stored_injection_energy(self._decay[vid], p.inject_energy)
+            self._decay[vid] += p.active_decay
+        else:
+            if vid == self._current:
+                self._decay[vid] += p.active_decay
+            energy = stored_injection_energy(self._decay[vid], p.inject_energy)
         if energy <= 0.0:
             return _EMPTY
         self.last_energy = energy

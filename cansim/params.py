@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Sequence, Union
 
 from cansim.errors import InvalidInputError
-from cansim.kernels import SeparableKernel
+from cansim.kernels import NORMALISATIONS, SeparableKernel
 
 __all__ = ["AttractorParams"]
 
@@ -41,8 +41,9 @@ class AttractorParams:
         Inhibition standard deviation in cells (``pc_w_i_var``, default 2).
     global_inhibition : float
         phi of Alg 5 (``pc_global_inhib``, default 2e-5): ``A <- max(A - phi, 0)``.
-    normalise_kernels : bool
-        Normalise each kernel to sum 1 (OpenRatSLAM does; default True).
+    kernel_normalisation : {"sum", "pdf", "none"}
+        ``"sum"`` (default, OpenRatSLAM): each kernel sums to 1; ``"pdf"``: the sampled
+        normal density as Eq 5.10 is printed (the thesis' 6-D preset); ``"none"``: peak 1.
     """
 
     exc_width: PerAxis = 7
@@ -50,9 +51,11 @@ class AttractorParams:
     inh_width: PerAxis = 5
     inh_sigma: PerAxis = 2.0
     global_inhibition: float = 2e-5
-    normalise_kernels: bool = True
+    kernel_normalisation: str = "sum"
 
     def __post_init__(self) -> None:
+        if self.kernel_normalisation not in NORMALISATIONS:
+            raise InvalidInputError(f"kernel_normalisation must be one of {NORMALISATIONS}, got {self.kernel_normalisation!r}")
         if not (math.isfinite(self.global_inhibition) and self.global_inhibition >= 0):
             raise InvalidInputError(
                 f"global_inhibition must be finite and >= 0, got {self.global_inhibition!r}"
@@ -65,6 +68,6 @@ class AttractorParams:
         iw = [int(w) for w in _per_axis(self.inh_width, ndim, "inh_width")]
         is_ = _per_axis(self.inh_sigma, ndim, "inh_sigma")
         return (
-            SeparableKernel.gaussian(ew, es, normalise=self.normalise_kernels),
-            SeparableKernel.gaussian(iw, is_, normalise=self.normalise_kernels),
+            SeparableKernel.gaussian(ew, es, normalise=self.kernel_normalisation),
+            SeparableKernel.gaussian(iw, is_, normalise=self.kernel_normalisation),
         )

@@ -32,6 +32,7 @@ import numpy as np
 
 from cansim.axes import Axis
 from cansim.errors import InvalidInputError, ShapeError
+from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = [
     "split_weights",
@@ -70,49 +71,15 @@ def split_weights(shift_cells: float) -> tuple[int, float, float]:
     >>> lo, round(w_lo, 6), round(w_hi, 6)
     (2, 0.805556, 0.194444)
     """
-    _finite(shift_cells, "shift")
+    finite_scalar(shift_cells, "shift")
     lo = math.floor(shift_cells)
     frac = shift_cells - lo
     return int(lo), 1.0 - frac, frac
 
 
-def _finite(x: float, name: str) -> float:
-    try:
-        xf = float(x)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a real number, got {x!r}") from None
-    if not math.isfinite(xf):
-        raise InvalidInputError(f"{name} must be finite, got {xf!r}; check the odometry source")
-    return xf
-
-
-def _finite_vec(v: Sequence[float] | np.ndarray, n: int, name: str) -> np.ndarray:
-    if n == 1 and isinstance(v, (int, float)):
-        x = float(v)
-        if not math.isfinite(x):
-            raise InvalidInputError(f"{name} must be finite, got {x!r}; check the odometry source")
-        return np.array([x])
-    if isinstance(v, (list, tuple)) and len(v) == n:
-        try:
-            vals = [float(x) for x in v]
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"{name} must hold real numbers, got {v!r}") from None
-        if not all(math.isfinite(x) for x in vals):
-            raise InvalidInputError(f"{name} must be finite, got {vals}; check the odometry source")
-        return np.array(vals)
-    arr = np.asarray(v, dtype=np.float64)
-    if arr.ndim == 0 and n == 1:
-        arr = arr.reshape(1)
-    if arr.shape != (n,):
-        raise ShapeError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise InvalidInputError(f"{name} must be finite, got {arr.tolist()}; check the odometry source")
-    return arr
-
-
 def check_dt(dt: float) -> float:
     """Validate a time step in seconds: finite and >= 0."""
-    dtf = _finite(dt, "dt")
+    dtf = finite_scalar(dt, "dt")
     if dtf < 0:
         raise InvalidInputError(f"dt must be >= 0 seconds, got {dtf}")
     return dtf
@@ -187,7 +154,7 @@ class UniformMotion(MotionModel):
                 if not math.isfinite(velocity):
                     raise InvalidInputError(f"velocity must be finite, got {velocity!r}; check the odometry source")
                 return MotionShifts(None, None, np.array([velocity * dt * inv0]))
-            return MotionShifts(None, None, _finite_vec(velocity, n, "velocity") * (dt * inv))
+            return MotionShifts(None, None, finite_vector(velocity, n, "velocity") * (dt * inv))
 
         return shifts
 
@@ -228,8 +195,8 @@ class PlanarMotion(MotionModel):
         inv_th = 1.0 / axes[2].step
 
         def shifts(velocity, omega, dt):
-            v = _finite(0.0 if velocity is None else velocity, "vtrans")
-            w = _finite(0.0 if omega is None else omega, "vrot")
+            v = finite_scalar(0.0 if velocity is None else velocity, "vtrans")
+            w = finite_scalar(0.0 if omega is None else omega, "vrot")
             dt = check_dt(dt)
             cond = (v * dt) * directions if v != 0.0 else None
             rot = w * dt * inv_th
@@ -279,11 +246,11 @@ class SixDofMotion(MotionModel):
             dt = check_dt(dt)
             cond = uniform = None
             if velocity is not None:
-                v = _finite_vec(velocity, 3, "velocity")
+                v = finite_vector(velocity, 3, "velocity")
                 if v.any():
                     cond = (rot @ (v * dt)).reshape(cond_shape)
             if omega is not None:
-                w = _finite_vec(omega, 3, "omega")
+                w = finite_vector(omega, 3, "omega")
                 if w.any():
                     uniform = np.zeros(6)
                     uniform[3:] = w * (dt * inv_ang)

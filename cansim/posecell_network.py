@@ -45,6 +45,7 @@ from typing import Optional
 import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
+from cansim.params import AttractorParams
 from cansim.population import checked_injection
 from maps.odometry import MAX_STEP_M, MAX_TURN_RAD
 
@@ -81,14 +82,15 @@ class PosecellNetwork:
         ``pc_dim_xy`` (21) and ``pc_dim_th`` (36) cells.
     cell_size : float
         ``pc_cell_x_size``, metres per cell (> 0).
-    w_e_dim, w_i_dim : int
-        ``pc_w_e_dim`` (7) and ``pc_w_i_dim`` (5), odd kernel widths in cells.
-    w_e_var, w_i_var : float
-        ``pc_w_e_var`` (1) and ``pc_w_i_var`` (2); integers in OpenRatSLAM (its
-        fields are ``int``), so a non-integral value is rejected.
-    global_inhib : float
-        ``pc_global_inhib`` (2e-5), subtracted from every cell each step.
-    cells_to_avg : int
+    params : AttractorParams
+        Kernels and global inhibition, one scalar per field (the C++ grid is
+        isotropic): ``exc_width`` / ``inh_width`` odd widths in cells (OpenRatSLAM
+        ``pc_w_e_dim`` 7, ``pc_w_i_dim`` 5); ``exc_sigma`` / ``inh_sigma`` the C++
+        ``pc_w_e_var`` (1) and ``pc_w_i_var`` (2), used as sigma and integers in
+        OpenRatSLAM (its fields are ``int``), so a non-integral value is rejected;
+        ``global_inhibition`` (``pc_global_inhib``, 2e-5). The kernels are always
+        normalised to sum 1, as the C++ does.
+    decode_window : int
         ``find_best``'s half window (3 in the C++, not configurable there).
 
     Notes
@@ -111,29 +113,34 @@ class PosecellNetwork:
         dim_th: int = 36,
         cell_size: float = 1.0,
         *,
-        w_e_dim: int = 7,
-        w_i_dim: int = 5,
-        w_e_var: float = 1.0,
-        w_i_var: float = 2.0,
-        global_inhib: float = 2e-5,
-        cells_to_avg: int = 3,
+        params: AttractorParams = AttractorParams(),
+        decode_window: int = 3,
     ) -> None:
-        for name, v in (("pc_w_e_var", w_e_var), ("pc_w_i_var", w_i_var)):
+        def scalar(name: str) -> float:
+            value = getattr(params, name)
+            if isinstance(value, (list, tuple, np.ndarray)):
+                raise ConfigError(f"{name} must be one number in the OpenRatSLAM engine (an isotropic grid), got {value!r}")
+            return value
+
+        w_e_dim, w_i_dim = scalar("exc_width"), scalar("inh_width")
+        w_e_var, w_i_var = scalar("exc_sigma"), scalar("inh_sigma")
+        global_inhib, cells_to_avg = float(params.global_inhibition), int(decode_window)
+        if params.kernel_normalisation != "sum":
+            raise ConfigError("kernel_normalisation must be 'sum' in the OpenRatSLAM engine (the C++ kernels sum to 1)")
+        for name, v in (("exc_sigma (pc_w_e_var)", w_e_var), ("inh_sigma (pc_w_i_var)", w_i_var)):
             if float(v) != int(v) or v <= 0:
                 raise ConfigError(f"{name} must be a positive integer in the OpenRatSLAM engine (a C++ int), got {v!r}")
-        for name, v in (("pc_w_e_dim", w_e_dim), ("pc_w_i_dim", w_i_dim)):
+        for name, v in (("exc_width (pc_w_e_dim)", w_e_dim), ("inh_width (pc_w_i_dim)", w_i_dim)):
             if int(v) < 1 or int(v) % 2 == 0:
                 raise ConfigError(f"{name} must be a positive odd integer, got {v!r}")
         half_max = max(w_e_dim // 2, w_i_dim // 2, cells_to_avg)
         if min(dim_xy, dim_th) < half_max:
             raise ConfigError(
-                f"pc_dim_xy and pc_dim_th must be >= {half_max} (the widest kernel half-width / find_best window), "
-                f"got {dim_xy} and {dim_th}"
+                f"dim_xy and dim_th (pc_dim_xy, pc_dim_th) must be >= {half_max} (the widest kernel half-width / "
+                f"find_best window), got {dim_xy} and {dim_th}"
             )
         if not (math.isfinite(cell_size) and cell_size > 0):
-            raise ConfigError(f"pc_cell_x_size must be > 0 m, got {cell_size!r}")
-        if not (math.isfinite(global_inhib) and global_inhib >= 0):
-            raise ConfigError(f"pc_global_inhib must be >= 0, got {global_inhib!r}")
+            raise ConfigError(f"cell_size (pc_cell_x_size) must be > 0 m, got {cell_size!r}")
         self._nxy, self._nth = int(dim_xy), int(dim_th)
         self._cell = float(cell_size)
         self._gi = float(global_inhib)

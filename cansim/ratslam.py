@@ -86,8 +86,7 @@ class RatSLAM(SlamLoop):
         pose_cells: Population | PosecellNetwork
         if cfg.pose_cells == "openratslam":
             pose_cells = PosecellNetwork(
-                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, w_e_dim=cfg.pc_w_e_dim, w_i_dim=cfg.pc_w_i_dim,
-                w_e_var=cfg.pc_w_e_var, w_i_var=cfg.pc_w_i_var, global_inhib=cfg.pc_global_inhib, cells_to_avg=cfg.pc_cells_to_avg,
+                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, params=cfg.attractor_params(), decode_window=cfg.pc_cells_to_avg,
             )
         else:
             pose_cells = Population.openratslam(

@@ -237,8 +237,8 @@ class RatSLAMConfig:
         if self.lv_mode == "learnt":
             return LocalViewParams(mode="learnt", inject_gain=self.pc_vt_inject_energy, recent_exclusion=0)
         return LocalViewParams(
-            mode="stored", pc_vt_inject_energy=self.pc_vt_inject_energy, vt_active_decay=self.vt_active_decay,
-            pc_vt_restore=self.pc_vt_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
+            mode="stored", inject_energy=self.pc_vt_inject_energy, active_decay=self.vt_active_decay,
+            decay_restore=self.pc_vt_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
             cpp_cells=self.pose_cells == "openratslam",
         )
 

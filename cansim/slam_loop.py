@@ -173,6 +173,7 @@ class SlamLoop:
         self._odo_update = False
         self._vt_update = False
         self._learn_pending = False
+        self._viewed = False
         self._pending_index, self._pending_values = _NO_INDEX, _NO_VALUES
 
     # -------------------------------------------------------------- views
@@ -218,6 +219,7 @@ class SlamLoop:
             self._pending_values = np.concatenate([self._pending_values, values])
         self._prev_vt, self._current_vt = self._current_vt, match.view_id
         self._vt_update = True
+        self._viewed = True
         self._learn_pending = self.local_view.params.mode == "learnt"
         return match
 
@@ -231,6 +233,9 @@ class SlamLoop:
         if self._learn_pending:  # Eq 2.18: the active view learns the packet it now sees
             self.local_view.learn(self.pose_cells.activity)
             self._learn_pending = False
+        if not self._viewed and self.local_view.params.decay_per_iteration:
+            self.local_view.restore_decay()
+        self._viewed = False
         self._odo_update = True
         self.iteration += 1
         em = self.experience_map
@@ -331,7 +336,9 @@ class SlamLoop:
             "model": np.array(json.dumps(self.describe())),
             "pc_activity": self.pose_cells.activity,
             "pc_best": np.asarray(self._best, dtype=np.float64),
-            "loop_i": np.array([self.iteration, self._current_vt, self._prev_vt, int(self._odo_update), int(self._vt_update), int(self._learn_pending)], dtype=np.int64),
+            "loop_i": np.array(
+                [self.iteration, self._current_vt, self._prev_vt, int(self._odo_update), int(self._vt_update),
+                 int(self._learn_pending), int(self._viewed)], dtype=np.int64),
             "loop_offset": self._offset.copy(),
             "pending_index": self._pending_index,
             "pending_values": self._pending_values,
@@ -339,7 +346,15 @@ class SlamLoop:
         arrays.update(self.local_view.to_arrays(prefix="lv_"))
         arrays.update(self.experience_map.to_arrays(prefix="em_"))
         arrays.update(self.frontend.to_arrays(prefix="vt_"))
+        arrays.update(self.extra_arrays())
         np.savez(path, **arrays)
+
+    def extra_arrays(self) -> dict[str, np.ndarray]:
+        """Model-specific state for :meth:`save` (none here); :meth:`restore_extra` reads it back."""
+        return {}
+
+    def restore_extra(self, arrays: Mapping[str, np.ndarray]) -> None:
+        """Restore what :meth:`extra_arrays` wrote (raises CorruptFileError naming a bad field)."""
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "SlamLoop":
@@ -377,22 +392,23 @@ class SlamLoop:
         if best.shape != (nd,) or not np.all(np.isfinite(best)):
             raise CorruptFileError(f"expected {nd} finite numbers", field="pc_best")
         li, off = need("loop_i"), need("loop_offset")
-        if li.shape != (6,) or li.dtype.kind != "i":
-            raise CorruptFileError("expected 6 integers", field="loop_i")
+        if li.shape != (7,) or li.dtype.kind != "i":
+            raise CorruptFileError("expected 7 integers", field="loop_i")
         if off.shape != (nd,) or not np.all(np.isfinite(off)):
             raise CorruptFileError(f"expected {nd} finite numbers", field="loop_offset")
         model.local_view = LocalViewCells.from_arrays(dict(arrays), model.local_view.params, prefix="lv_")
-        model.experience_map = ExperienceMap.from_arrays(arrays, prefix="em_")
+        model.experience_map = type(model.experience_map).from_arrays(arrays, prefix="em_")
         model.frontend.from_arrays(dict(arrays), prefix="vt_")
         model._best = np.array(best, dtype=np.float64)
         if hasattr(pc, "best"):
             pc.best = model._best
         model.iteration, model._current_vt, model._prev_vt = int(li[0]), int(li[1]), int(li[2])
-        model._odo_update, model._vt_update, model._learn_pending = bool(li[3]), bool(li[4]), bool(li[5])
+        model._odo_update, model._vt_update, model._learn_pending, model._viewed = (bool(v) for v in li[3:7])
         model._offset = np.array(off, dtype=np.float64)
         p_idx, p_val = need("pending_index"), need("pending_values")
         if p_idx.ndim != 1 or p_idx.shape != p_val.shape or p_idx.dtype.kind != "i" or (len(p_idx) and (p_idx.min() < 0 or p_idx.max() >= pc.size)):
             raise CorruptFileError("expected matching 1-D index/value arrays of pose-cell indices", field="pending_index")
         model._pending_index, model._pending_values = p_idx.astype(np.int64), p_val.astype(np.float64)
+        model.restore_extra(arrays)
         return model
 

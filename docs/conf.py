@@ -72,15 +72,9 @@ html_static_path: list[str] = []
 # warnings. A warning located in one of them is dropped instead of failing the -W
 # build. Remove an entry once its module builds cleanly; keep the list empty.
 TOLERATED_DOCSTRING_WARNINGS: dict[str, str] = {
-    # module: what to fix (mostly "|x|" read as a reST substitution: write ``|x|``)
-    "cansim.frontends.tactile": "module docstring line 7: |a_ij - b_ij|",
-    "whisker_io.contact_detection": "|d deflection/dt| in the module and threshold_contact_angle",
-    "whisker_io.control": "|y-deflection|, |y|, |y - b|, |y - baseline|, |y - mean|",
-    "whisker_io.signals": "|y-deflection| (ContactTruth), |y| (simulate_rod_contact)",
-    "whisker_io.hw.safety": "|d| in SafetyEnvelope.check_deflection",
-    "whisker_io.hw.arm": "|deflection| in Arm.guard_deflection",
-    "whisker_io.hw.fake_rtde_server": "malformed table in the module docstring (line 12)",
-    "whisker_io.hw.fake_usb_backend": "unexpected indentation in the module docstring (line 18)",
+    # module: what to fix
+    "whisker_io.testing.fake_rtde_server": "malformed table in the module docstring (line 12)",
+    "whisker_io.testing.fake_usb_backend": "unexpected indentation in the module docstring (line 18)",
     "whisker_io.radial.features": "malformed table in the module docstring (line 9)",
 }
 

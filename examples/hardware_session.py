@@ -30,7 +30,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from whisker_io.control import WhiskPattern
+from whisker_io.array.control import WhiskPattern
 from whisker_io.errors import CansimError, ConnectionFailedError, HardwareError
 from whisker_io.hw import MissingDependencyError
 from whisker_io.hw.arm import URArm

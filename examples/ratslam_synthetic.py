@@ -4,18 +4,21 @@ Runs a clean and a kidnapped variant (Fig 3.5: the agent is carried 10 places
 forward three times), prints the Experience Metric (ARR, ARCR, Alg 1), the
 Energy Metric (Eq 3.2) and the absolute trajectory errors of the relaxed
 experience map and of dead reckoning, writes two figures (PNG) and
-``ratslam_metrics.json`` in the working directory.
+``ratslam_metrics.json`` in the working directory (or ``--out``).
 
 Usage::
 
-    python examples/ratslam_synthetic.py [--seed 0]
+    python examples/ratslam_synthetic.py [--seed 0] [--out DIR]
+    cansim demo [--seed 0] [--out DIR]          # the same, from the command line
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -53,10 +56,13 @@ def evaluate(run: SyntheticRun, seed_label: str) -> tuple[dict, RatSLAM, np.ndar
     return metrics, slam, log.exp_ids, exm
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
+    parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
+    args = parser.parse_args(argv)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     clean = make_run(ROUTE, loops=(1,) * 5, seed=args.seed)
     n = clean.n_places
@@ -71,12 +77,12 @@ def main() -> None:
     matplotlib.use("Agg")
     fig = plot_experience_map(slam.experience_map, clean.truth, clean.dead_reckoning, exp_log)
     fig.axes[0].set_title("Experience map after relaxation - clean run (no kidnapping)")
-    fig.savefig("ratslam_map.png", dpi=120)
+    fig.savefig(out / "ratslam_map.png", dpi=120)
     step = f"iteration (one odometry sample of {float(np.mean(clean.dt)):g} s)"
     fig = plot_experience_ids(exp_log, exm.relocalisation_indices, n + 1, correct_indices=exm.correct_indices)
     fig.axes[0].set_title("Experience id over time - clean run (no kidnapping)")
     fig.axes[0].set_xlabel(step)
-    fig.savefig("ratslam_experience_ids.png", dpi=120)
+    fig.savefig(out / "ratslam_experience_ids.png", dpi=120)
     fig = plot_experience_ids(kid_log, kid_exm.relocalisation_indices, n + 1, correct_indices=kid_exm.correct_indices)
     ax = fig.axes[0]
     for j, k in enumerate(kidnapped.kidnap_indices):
@@ -84,15 +90,17 @@ def main() -> None:
     ax.legend(loc="upper left", fontsize="small")  # again, so that the kidnap lines are in it
     ax.set_title(f"Experience id over time - kidnapped run ({len(kidnapped.kidnap_indices)} kidnaps)")
     ax.set_xlabel(step)
-    fig.savefig("ratslam_experience_ids_kidnapped.png", dpi=120)
+    fig.savefig(out / "ratslam_experience_ids_kidnapped.png", dpi=120)
 
-    out = {key: float(metrics[key]) for key in ("ARR", "ARCR", "EM", "ate_map", "ate_dead_reckoning")}
-    out["kidnapped"] = {key: float(kid_metrics[key]) for key in ("ARR", "ARCR", "EM", "ate_map", "ate_dead_reckoning")}
-    with open("ratslam_metrics.json", "w", encoding="utf-8") as fh:
-        json.dump(out, fh, indent=2)
+    summary = {key: float(metrics[key]) for key in ("ARR", "ARCR", "EM", "ate_map", "ate_dead_reckoning")}
+    summary["kidnapped"] = {key: float(kid_metrics[key]) for key in ("ARR", "ARCR", "EM", "ate_map", "ate_dead_reckoning")}
+    with open(out / "ratslam_metrics.json", "w", encoding="utf-8") as fh:
+        json.dump(summary, fh, indent=2)
     print(f"map error / dead-reckoning error = {metrics['ate_map'] / metrics['ate_dead_reckoning']:.2f}")
-    print(f"wrote ratslam_map.png, ratslam_experience_ids*.png, ratslam_metrics.json in {time.perf_counter() - t0:.1f} s")
+    print(f"wrote ratslam_map.png, ratslam_experience_ids*.png, ratslam_metrics.json in {out} "
+          f"in {time.perf_counter() - t0:.1f} s")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

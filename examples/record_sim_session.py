@@ -3,7 +3,7 @@
 A kinematic :class:`~whisker_io.hw.arm.SimArm` (rate-limited, behind the same
 safety envelope as the robot) carries the simulated 18-whisker array
 (:class:`~whisker_io.hw.usb_array.SimArray`: the
-:class:`~whisker_io.simulator.ArraySimulator` with the Ch.4/6 retract-at-maximum
+:class:`~whisker_io.sim.simulator.ArraySimulator` with the Ch.4/6 retract-at-maximum
 whisking, its samples passed through the USB frame codec) across a raster in
 front of an object; :func:`~whisker_io.hw.recorder.explore` takes one whisk per
 pose and the :class:`~whisker_io.hw.recorder.Recorder` writes the session
@@ -25,15 +25,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.control import RetractAtMax
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.array.control import RetractAtMax
 from whisker_io.hw.arm import SimArm
-from whisker_io.hw.pose import Pose
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_session
 from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import SimArray
-from whisker_io.objects import OBJECT_NAMES, make_object
-from whisker_io.simulator import ArraySimulator
+from whisker_io.sim.objects import OBJECT_NAMES, make_object
+from whisker_io.sim.simulator import ArraySimulator
 
 
 def contacts(cycle):

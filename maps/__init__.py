@@ -5,32 +5,25 @@ Names below load from their submodules on first access (``import maps`` is free)
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from whisker_io._lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
-    "ExperienceMap": "experience_map",
-    "MapConfig": "experience_map",
-    "SE2Geometry": "se2",
-    "SE3Geometry": "se3",
-    "PlanarOdometry": "odometry",
-    "SpatialOdometry": "odometry",
-    "experience_metric": "metrics",
-    "energy_metric": "metrics",
-    "absolute_trajectory_error": "metrics",
+    "ExperienceMap": "maps.experience_map",
+    "MapConfig": "maps.experience_map",
+    "SE2Geometry": "maps.se2",
+    "SE3Geometry": "maps.se3",
+    "PlanarOdometry": "maps.odometry",
+    "SpatialOdometry": "maps.odometry",
+    "ObjectMap": "maps.object_map",
+    "relocalisation_errors": "maps.localisation",
+    "map_pose_errors": "maps.localisation",
+    "step_sizes": "maps.localisation",
+    "rotation_error_rad": "maps.localisation",
+    "experience_metric": "maps.metrics",
+    "energy_metric": "maps.metrics",
+    "absolute_trajectory_error": "maps.metrics",
 }
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'maps' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"maps.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)

@@ -123,3 +123,18 @@ def relax_links_se3(
         if pos == n:
             pos = 0
     return pos
+
+
+@njit(cache=True)
+def accumulate_se3(acc: np.ndarray, v: np.ndarray, w: np.ndarray, dt: float) -> None:  # pragma: no cover - compiled
+    """Alg 6 and the frame-correct Eq 5.13 in place on ``acc = (d (3), q (4))``:
+    ``d <- d + R(q) v dt``, then ``q <- q * exp(omega dt)`` (rotation vector ``omega dt``)."""
+    qx, qy, qz, qw = acc[3], acc[4], acc[5], acc[6]
+    ox, oy, oz = _rotate(qx, qy, qz, qw, v[0] * dt, v[1] * dt, v[2] * dt)
+    acc[0] += ox
+    acc[1] += oy
+    acc[2] += oz
+    ex, ey, ez, ew = _exp(w[0] * dt, w[1] * dt, w[2] * dt)
+    rx, ry, rz, rw = _mul(qx, qy, qz, qw, ex, ey, ez, ew)
+    n = math.sqrt(rx * rx + ry * ry + rz * rz + rw * rw)
+    acc[3], acc[4], acc[5], acc[6] = rx / n, ry / n, rz / n, rw / n

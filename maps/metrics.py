@@ -19,6 +19,7 @@ from typing import Literal
 
 import numpy as np
 
+from whisker_io.angles import wrap_to_pi
 from whisker_io.errors import InvalidInputError
 
 __all__ = [
@@ -29,13 +30,7 @@ __all__ = [
     "energy_metric",
     "experience_metric",
     "relative_pose",
-    "wrap_angle",
 ]
-
-
-def wrap_angle(a: np.ndarray | float) -> np.ndarray:
-    """Wrap angles (rad) to [-pi, pi); returns an array (0-d for a scalar)."""
-    return np.mod(np.asarray(a, dtype=np.float64) + math.pi, 2.0 * math.pi) - math.pi
 
 
 def _poses(name: str, poses: np.ndarray | Sequence[Sequence[float]], n: int | None = None) -> np.ndarray:
@@ -166,7 +161,7 @@ def experience_metric(
             i_past = last_seen[e_i]
             eps_p = math.hypot(truth[i, 0] - truth[i_past, 0], truth[i, 1] - truth[i_past, 1])
             dth = truth[i, 2] - truth[i_past, 2]
-            eps_th = abs(float(wrap_angle(dth))) if wrap_angles else abs(dth)
+            eps_th = abs(float(wrap_to_pi(dth))) if wrap_angles else abs(dth)
             c1 = e_i in valid and eps_p < pos_threshold and eps_th < ang_thr
             c2 = e_i == e_prev and e_prev in correct_set
             if (c1 or c2) if combine == "or" else (c1 and c2):
@@ -206,7 +201,7 @@ def relative_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[..., 2] - a[..., 2])], axis=-1)
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_to_pi(b[..., 2] - a[..., 2])], axis=-1)
 
 
 @dataclass(frozen=True)

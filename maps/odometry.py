@@ -16,13 +16,13 @@ more than :data:`MAX_TURN_RAD` radians is rejected as corrupt (split it).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Sequence, Union
 
 import numpy as np
 
-from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.errors import InvalidInputError
+from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = ["PlanarOdometry", "SpatialOdometry", "Odometry", "MAX_STEP_M", "MAX_TURN_RAD"]
 
@@ -32,20 +32,8 @@ MAX_STEP_M = 1.0e4
 MAX_TURN_RAD = 1.0e4
 
 
-def _real(value: object, name: str) -> float:
-    if isinstance(value, (bool, np.bool_)):
-        raise InvalidInputError(f"odometry {name} must be a real number, got {value!r}")
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"odometry {name} must be a real number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise InvalidInputError(f"odometry {name} must be finite, got {x!r}; drop or repair the sample")
-    return x
-
-
 def _dt(value: object) -> float:
-    t = _real(value, "dt")
+    t = finite_scalar(value, "odometry dt")
     if t < 0:
         raise InvalidInputError(f"odometry dt must be >= 0 s, got {t!r}")
     return t
@@ -80,7 +68,7 @@ class PlanarOdometry:
     dt: float
 
     def __post_init__(self) -> None:
-        v, w, t = _real(self.v, "v"), _real(self.omega, "omega"), _dt(self.dt)
+        v, w, t = finite_scalar(self.v, "odometry v"), finite_scalar(self.omega, "odometry omega"), _dt(self.dt)
         _bounded(abs(v) * t, MAX_STEP_M, "translation (m)")
         _bounded(abs(w) * t, MAX_TURN_RAD, "rotation (rad)")
         object.__setattr__(self, "v", v)
@@ -89,14 +77,7 @@ class PlanarOdometry:
 
 
 def _vec3(value: object, name: str) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"odometry {name} must be 3 real numbers, got {value!r}") from None
-    if arr.shape != (3,):
-        raise ShapeError(f"odometry {name} must have shape (3,), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise InvalidInputError(f"odometry {name} must be finite, got {arr.tolist()}; drop or repair the sample")
+    arr = finite_vector(value, 3, f"odometry {name}")
     arr.flags.writeable = False
     return arr
 

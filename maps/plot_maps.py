@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.plots.axes import figure_and_axes
 from maps.experience_map import ExperienceMap
 from maps.metrics import absolute_trajectory_error
 
@@ -21,15 +22,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 __all__ = ["plot_experience_ids", "plot_experience_map"]
-
-
-def _new_axes(ax: "Axes | None", figsize: tuple[float, float]) -> tuple["Figure", "Axes"]:
-    if ax is not None:
-        return ax.figure, ax
-    import matplotlib.pyplot as plt
-
-    fig, new_ax = plt.subplots(figsize=figsize)
-    return fig, new_ax
 
 
 def plot_experience_map(
@@ -60,7 +52,7 @@ def plot_experience_map(
     -------
     matplotlib.figure.Figure
     """
-    fig, ax = _new_axes(ax, (6.0, 5.0))
+    fig, ax = figure_and_axes(ax, (6.0, 5.0))
     poses = experience_map.poses[:, :2]
     ends, _ = experience_map.links
     if truth is not None:
@@ -122,7 +114,7 @@ def plot_experience_ids(
     log = np.asarray(experience_log)
     if log.ndim != 1:
         raise InvalidInputError("experience_log must be one-dimensional")
-    fig, ax = _new_axes(ax, (8.0, 4.0))
+    fig, ax = figure_and_axes(ax, (8.0, 4.0))
     it = np.arange(log.shape[0])
     ax.plot(it, log, color="0.3", lw=0.8, label="current experience")
     if relocalisation_indices is not None and len(relocalisation_indices):

@@ -7,19 +7,20 @@ import math
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import (
+from whisker_io.contact.detection import (
     DetectedContact,
     DetectionParams,
     detect_contact,
     detect_contacts,
     max_angle,
+    moving_average,
     threshold_contact_angle,
 )
-from whisker_io.contact_features import FEATURE_NAMES, contact_features, whisk_features
-from whisker_io.control import OpenLoop, RetractAtMax, WhiskPattern
+from whisker_io.contact.features import FEATURE_NAMES, contact_features, whisk_features
+from whisker_io.array.control import OpenLoop, RetractAtMax, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.signals import SignalParams, WhiskContact, bending_stiffness, simulate_rod_contact, simulate_whisk_cycle
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.sim.signals import SignalParams, WhiskContact, bending_stiffness, simulate_rod_contact, simulate_whisk_cycle
 
 FS = 2000.0
 
@@ -183,7 +184,7 @@ def test_plot_whisk_marks_onset_and_offset(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from whisker_io.plot_signals import plot_whisk
+    from whisker_io.plots.signals import plot_whisk
 
     rec = _hinge_record(noise=4.0)
     c = detect_contact(rec)
@@ -203,3 +204,25 @@ def test_slipping_contact_offset_at_the_slip():
     slip_index = truths[0].peak_index + 1
     assert abs(det.onset_index - truths[0].onset_index) <= 10
     assert abs(det.offset_index - slip_index) <= 10
+
+
+# ------------------------------------------------- issue 17: typed errors
+@pytest.mark.parametrize("span", [0, -3, 2.5, "100", None, True, math.nan, 1e300])
+def test_smoothing_span_must_be_a_positive_whole_number(span):
+    # span 0 used to reach scipy's uniform_filter1d as a RuntimeError
+    with pytest.raises(InvalidInputError, match="span"):
+        moving_average(np.ones(50), span)
+
+
+def test_moving_average_hand_computed_and_bad_signal():
+    np.testing.assert_allclose(moving_average([0.0, 0.0, 3.0, 0.0, 0.0], 3), [0.0, 1.0, 1.0, 1.0, 0.0])
+    for bad in ([], [1.0, math.nan], "abc"):
+        with pytest.raises(InvalidInputError):
+            moving_average(bad, 3)
+
+
+@pytest.mark.parametrize("kwargs", [{"smoothing_span": 0}, {"smoothing_span": True}, {"min_width_samples": "2"},
+                                    {"min_prominence_counts": None}, {"signs": 1}, {"signs": (2,)}])
+def test_detection_params_bad_values_are_typed(kwargs):
+    with pytest.raises(InvalidInputError):
+        DetectionParams(**kwargs)

@@ -7,9 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError, CansimError
-from whisker_io.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
-from whisker_io.kinematics import (
-    as_transform,
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
+from whisker_io.array.kinematics import (
     contact_points,
     shaft_directions,
     whisker_coordinates,
@@ -148,11 +147,13 @@ def test_bad_pose_and_angles(arr):
     with pytest.raises(InvalidInputError):
         contact_points(arr, T, 0.0)
     with pytest.raises(InvalidInputError, match="rigid"):
-        as_transform(np.diag([2.0, 1.0, 1.0, 1.0]))
+        contact_points(arr, np.diag([2.0, 1.0, 1.0, 1.0]), 0.0)
+    with pytest.raises(InvalidInputError, match="reflection"):
+        contact_points(arr, np.diag([1.0, 1.0, -1.0, 1.0]), 0.0)
     with pytest.raises(InvalidInputError, match="theta"):
         contact_points(arr, np.eye(4), np.zeros(5))
     with pytest.raises(InvalidInputError, match="quaternion"):
-        as_transform(((0, 0, 0), (0, 0, 1)))
+        contact_points(arr, ((0, 0, 0), (0, 0, 1)), 0.0)
 
 
 def test_whisk_angles_grid(arr):

@@ -1,4 +1,4 @@
-"""Pose conversions, SimArm, and URArm against ur-rtde's real client.
+"""SimArm, and URArm against ur-rtde's real client (the Pose type itself: test_pose.py).
 
 The receive path uses the unmodified ``rtde_receive.RTDEReceiveInterface``
 talking to the fake RTDE server in a child process on 127.0.0.1 (ur-rtde's
@@ -21,49 +21,11 @@ from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInpu
 from whisker_io.hw import MissingDependencyError
 from whisker_io.hw import arm as arm_module
 from whisker_io.hw.arm import CommandFailedError, SimArm, URArm, probe_rtde
-from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeReceiveInterface,
+from whisker_io.testing.fake_rtde_server import (FakeControlInterface, FakeReceiveInterface,
                                             FakeServerError, fake_rtde_server)
-from whisker_io.hw.pose import Pose, as_pose
+from whisker_io.pose import Pose
 
 HOST = "127.0.0.1"
-S2 = math.sqrt(0.5)
-
-
-# ------------------------------------------------------------------ Pose
-def test_pose_from_ur_hand_computed():
-    p = Pose.from_ur([0.1, 0.2, 0.3, 0.0, 0.0, math.pi / 2])
-    assert np.allclose(p.quaternion, [0.0, 0.0, S2, S2])  # scalar last
-    T = p.as_matrix()
-    assert np.allclose(T[:3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
-    assert np.allclose(T[:3, 3], [0.1, 0.2, 0.3])
-    assert np.allclose(p.as_ur(), [0.1, 0.2, 0.3, 0.0, 0.0, math.pi / 2])
-
-
-def test_pose_tool_down_axis_and_round_trips():
-    down = Pose.from_ur([0.4, 0.0, 0.4, 0.0, math.pi, 0.0])  # 180 deg about y
-    assert np.allclose(down.tool_axis(), [0, 0, -1])
-    assert as_pose(down.as_matrix()).distance_to(down) == pytest.approx((0.0, 0.0), abs=1e-12)
-    ident = down @ down.inverse()
-    assert np.allclose(ident.position, 0, atol=1e-15)
-    assert np.allclose(ident.quaternion, [0, 0, 0, 1])
-
-
-def test_pose_canonical_sign_and_normalisation():
-    p = Pose([0, 0, 0], [0.0, 0.0, 0.0, -2.0])
-    assert np.array_equal(p.quaternion, [0.0, 0.0, 0.0, 1.0])
-    assert p == Pose([0, 0, 0], [0, 0, 0, 1])
-
-
-@pytest.mark.parametrize("bad", [[0, 0, 0], np.eye(3), [0, 0, 0, 0, 0, math.nan],
-                                 np.diag([1.0, 1.0, -1.0, 1.0])])
-def test_as_pose_rejects_bad_input(bad):
-    with pytest.raises(InvalidInputError):
-        as_pose(bad)
-
-
-def test_pose_rejects_zero_quaternion():
-    with pytest.raises(InvalidInputError, match="non-zero"):
-        Pose([0, 0, 0], [0, 0, 0, 0])
 
 
 # ---------------------------------------------------------------- SimArm
@@ -84,10 +46,10 @@ def test_simarm_rate_limited_takes_distance_over_speed():
     arm.move_linear(down(0.4, 0.05, 0.4), speed=0.1)
     assert arm.time == pytest.approx(0.5)  # 5 cm at 0.1 m/s
     times = np.array([t for t, _ in arm.trajectory])
-    ys = np.array([p.position[1] for _, p in arm.trajectory])
+    ys = np.array([p.position_m[1] for _, p in arm.trajectory])
     assert np.all(np.diff(times) > 0)
     assert np.all(np.diff(ys) / np.diff(times) <= 0.1 + 1e-9)  # never faster than commanded
-    assert np.allclose([p.position[[0, 2]] for _, p in arm.trajectory], [0.4, 0.4])
+    assert np.allclose([p.position_m[[0, 2]] for _, p in arm.trajectory], [0.4, 0.4])
     assert len(arm.trajectory) == 51
 
 
@@ -162,7 +124,7 @@ def test_urarm_link_down_is_connection_error():
 def test_urarm_read_only_refuses_commands():
     rx = FakeReceiveInterface()
     arm = URArm(HOST, receive_factory=lambda h: rx, control=False)
-    assert np.allclose(arm.pose().position, [0.4, 0.0, 0.4])
+    assert np.allclose(arm.pose().position_m, [0.4, 0.0, 0.4])
     with pytest.raises(CommandFailedError, match="read-only"):
         arm.move_linear([0.4, 0.0, 0.4, 0.0, math.pi, 0.0])
 
@@ -226,8 +188,8 @@ def test_urarm_streams_poses_from_real_ur_rtde_client(rtde_server):
         assert s2.timestamp > s1.timestamp
         for s in (s1, s2):
             # the fake robot moves on a 5 cm circle about (0.4, 0, 0.4), tool down
-            assert np.hypot(s.pose.position[0] - 0.4, s.pose.position[1]) == pytest.approx(0.05)
-            assert s.pose.position[2] == pytest.approx(0.4)
+            assert np.hypot(s.pose.position_m[0] - 0.4, s.pose.position_m[1]) == pytest.approx(0.05)
+            assert s.pose.position_m[2] == pytest.approx(0.4)
             assert np.allclose(s.pose.tool_axis(), [0, 0, -1])
             assert s.q.shape == (6,) and s.qd.shape == (6,)
     finally:
@@ -276,7 +238,7 @@ def test_fake_server_waits_for_the_rtde_port_to_be_released():
     """ur-rtde only uses port 30004: a launch while another listener still holds it retries."""
     import threading
 
-    from whisker_io.hw.fake_rtde_server import RTDE_PORT, fake_rtde_server
+    from whisker_io.testing.fake_rtde_server import RTDE_PORT, fake_rtde_server
 
     holder = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)

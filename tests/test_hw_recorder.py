@@ -1,7 +1,7 @@
 """Recorder: live cycles on disk as they arrive, replay through the same pipeline.
 
 * a SimArm + SimArray session (simulated box, Ch.4/6 retract-at-maximum
-  whisking) replays bit-identically into whisker_io.contact_detection;
+  whisking) replays bit-identically into whisker_io.contact.detection;
 * the fake RTDE server killed mid-session -> typed error within 1 s, recorder
   closed, every whisk before the fault readable.
 """
@@ -14,18 +14,19 @@ import time
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.control import RetractAtMax
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.array.control import RetractAtMax
 from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
                                StaleStateError)
 from whisker_io.hw.arm import ArmState, SimArm, URArm
-from whisker_io.hw.fake_rtde_server import (FakeControlInterface, FakeServerError,
+from whisker_io.testing.fake_rtde_server import (FakeControlInterface, FakeServerError,
                                             fake_rtde_server)
-from whisker_io.hw.pose import Pose
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore, replay_session
 from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import SimArray
-from whisker_io.recording import WhiskRecord, read_pose_log, replay
+from whisker_io.records.recording import read_pose_log, replay
+from whisker_io.records.whisk_record import WhiskRecord
 
 UPRIGHT = SafetyEnvelope(tool_reference_axis=(0.0, 0.0, 1.0))  # array axis (+y) horizontal
 
@@ -40,8 +41,8 @@ def upright(x, y, z):
 
 
 def test_sim_session_replays_bit_identically_into_contact_pipeline(tmp_path):
-    from whisker_io.objects import make_object
-    from whisker_io.simulator import ArraySimulator
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.simulator import ArraySimulator
 
     arm = SimArm(upright(0.0, -0.33, 0.15), envelope=UPRIGHT)
     array = SimArray.from_simulator(ArraySimulator(seed=3, controller=RetractAtMax()),
@@ -55,15 +56,14 @@ def test_sim_session_replays_bit_identically_into_contact_pipeline(tmp_path):
     replayed = replay_session(tmp_path, contact_pipeline)
     assert replayed == live  # DetectedContact dataclasses compared field by field, exactly
     for a, b in zip(live_cycles, replay(tmp_path)):
-        assert a.pose.time_s == b.pose.time_s and a.pose.whisk_file == b.pose.whisk_file
-        assert np.array_equal(a.pose.position_m, b.pose.position_m)
-        assert np.array_equal(a.pose.quaternion_xyzw, b.pose.quaternion_xyzw)
+        assert a.entry.time_s == b.entry.time_s and a.entry.whisk_file == b.entry.whisk_file
+        assert a.entry.pose == b.entry.pose
         for m in a.records:
             for col in ("angle_rad", "x_counts", "y_counts"):
                 assert np.array_equal(getattr(a.records[m], col), getattr(b.records[m], col))
     # the pose log holds the arm's poses at each whisk
     for entry, target in zip(read_pose_log(tmp_path / "pose_log.csv"), targets):
-        assert np.array_equal(entry.position_m, target.position)
+        assert np.array_equal(entry.pose.position_m, target.position_m)
 
 
 def _small_whisk(k, n=200):
@@ -109,7 +109,7 @@ def test_killed_rtde_server_mid_session(tmp_path, rtde_server):
     for k, cyc in enumerate(cycles):
         assert np.all(cyc.records["A1"].y_counts == k)  # each cycle whole and in order
         # poses come from the fake robot's 5 cm circle about (0.4, 0, 0.4)
-        p = cyc.pose.position_m
+        p = cyc.entry.pose.position_m
         assert math.hypot(p[0] - 0.4, p[1]) == pytest.approx(0.05)
     arm.close()
 
@@ -135,9 +135,9 @@ def test_recorder_resumes_numbering_and_relabels_device_cycles(tmp_path):
         assert not (tmp_path / "whisk_000002_C3.csv").exists()
         assert not list(tmp_path.glob(".*.tmp"))
         item = rec.record(_state(2.0), _records(cycle=0, value=2.0))
-    assert item.pose.whisk_file == "whisk_000002"
+    assert item.entry.whisk_file == "whisk_000002"
     cycles = list(replay(tmp_path))
-    assert [c.pose.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001", "whisk_000002"]
+    assert [c.entry.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001", "whisk_000002"]
     assert [float(c.records["B1"].y_counts[0]) for c in cycles] == [0.0, 1.0, 2.0]
     assert all(sorted(c.records) == ["A1", "B1"] for c in cycles)
 
@@ -156,7 +156,7 @@ def test_recorder_refuses_time_reversal_and_closed_use(tmp_path):
 
 
 def test_failed_cycle_write_leaves_no_orphan_files(tmp_path, monkeypatch):
-    import whisker_io.recording as recording
+    import whisker_io.records.recording as recording
 
     real = recording.write_whisk_csv
     calls = []
@@ -193,10 +193,10 @@ CHILD = """
 import sys
 import numpy as np
 from whisker_io.hw.arm import ArmState
-from whisker_io.hw.pose import Pose
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder
-from whisker_io.recording import WhiskRecord
-from whisker_io.geometry import WhiskerArray
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.array.geometry import WhiskerArray
 names = WhiskerArray.thesis().names
 pose = Pose([0.4, 0.0, 0.4], [1, 0, 0, 0])
 with Recorder(sys.argv[1]) as rec:
@@ -233,4 +233,4 @@ def test_recorder_process_killed_keeps_every_completed_whisk(tmp_path):
         assert not list(tmp_path.glob(".*.tmp"))
         assert len(list(tmp_path.glob("whisk_*.csv"))) == 18 * len(cycles)
         item = rec.record(_state(float(len(cycles))), _records(0))
-    assert item.pose.whisk_file == f"whisk_{len(cycles):06d}"
+    assert item.entry.whisk_file == f"whisk_{len(cycles):06d}"

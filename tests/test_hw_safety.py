@@ -16,10 +16,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
+from whisker_io.errors import ConfigError, SafetyViolationError, StaleStateError
 from whisker_io.hw.arm import SimArm, URArm
-from whisker_io.hw.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
-from whisker_io.hw.pose import Pose
+from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeReceiveInterface
+from whisker_io.pose import Pose
 from whisker_io.hw.safety import SafetyEnvelope
 
 ENV = SafetyEnvelope()
@@ -280,16 +280,33 @@ def test_servo_speed_hand_computed():
 
 
 def test_move_linear_rejects_path_tilting_beyond_limit():
-    from scipy.spatial.transform import Rotation
-    base = Rotation.from_quat([1.0, 0.0, 0.0, 0.0])
+    from scipy.spatial.transform import Rotation, Slerp
+    base = Rotation.from_quat([1.0, 0.0, 0.0, 0.0])  # tool pointing down
     env = SafetyEnvelope(max_tool_tilt=math.radians(30))
+
+    def tilt_deg(r):  # angle of the tool z-axis from straight down
+        return np.degrees(np.arccos(np.clip(-r.apply([0.0, 0.0, 1.0])[..., 2], -1, 1)))
+
     start = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", 25, degrees=True) * base)
-    # -25 deg is within 30, but the slerp from +25 passes through 0: fine;
+    # -25 deg is within 30, and the slerp from +25 passes through 0: accepted
     end = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("x", -25, degrees=True) * base)
     env.check_move_linear(start, end, 0.05, 0.1)
     # a rotation of ~180 deg about the tool axis keeps the tilt: accepted
     spun = Pose.from_rotation([0, 0, 0.4], start.rotation * Rotation.from_euler("z", 179, degrees=True))
     env.check_move_linear(start, spun, 0.05, 0.1)
+    # tilted 25 deg about y and spun half a turn: both ends are 25 deg from down,
+    # but the slerp between them swings the tool axis out past 30 deg: refused
+    far = Pose.from_rotation([0, 0, 0.4], Rotation.from_euler("y", 25, degrees=True) * base
+                             * Rotation.from_euler("z", 180, degrees=True))
+    assert tilt_deg(start.rotation) == pytest.approx(25) and tilt_deg(far.rotation) == pytest.approx(25)
+    mid = Slerp([0, 1], Rotation.concatenate([start.rotation, far.rotation]))([0.5])
+    assert tilt_deg(mid)[0] > 30
+    with pytest.raises(SafetyViolationError, match="orientation path tilts"):
+        env.check_move_linear(start, far, 0.05, 0.1)
+    arm = SimArm(start, envelope=env)
+    with pytest.raises(SafetyViolationError):
+        arm.move_linear(far, 0.05, 0.1)
+    assert arm.received == []  # nothing was sent
 
 
 def test_joint_speed_default_is_thesis_value_and_enforced():
@@ -309,9 +326,14 @@ def test_joint_speed_default_is_thesis_value_and_enforced():
     {"overload_samples": 2.5}, {"overload_samples": 0},
     {"workspace_min": (0.0, 0.0, 0.5), "workspace_max": (1.0, 1.0, 0.4)},
     {"tool_reference_axis": (0.0, 0.0, 0.0)}, {"joint_speed_tolerance": 0.5},
+    # a scalar limit given as a sequence must not skip its checks (issue 17)
+    {"max_tool_tilt": (0.5, 0.5, 0.7)}, {"max_deflection": (1e9, 1e9, 1e9)},
+    {"max_tcp_speed": [0.05]}, {"overload_samples": (200,)}, {"max_servo_step": "0.001"},
+    {"max_joint_speed": True}, {"workspace_min": 0.1}, {"workspace_max": (0.5, 0.5)},
+    {"tool_reference_axis": (0.0, math.nan, -1.0)},
 ])
 def test_envelope_cannot_be_disabled_or_widened_past_ceilings(kwargs):
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(ConfigError):
         SafetyEnvelope(**kwargs)
 
 

@@ -12,19 +12,19 @@ import struct
 import numpy as np
 import pytest
 
-from whisker_io.control import WhiskPattern
+from whisker_io.array.control import WhiskPattern
 from whisker_io.errors import (ConnectionFailedError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, USBFrameError)
-from whisker_io.geometry import WhiskerArray
+from whisker_io.array.geometry import WhiskerArray
 from whisker_io.hw.arm import SimArm
-from whisker_io.hw.fake_usb_backend import FakeUSBBackend
-from whisker_io.hw.pose import Pose
+from whisker_io.testing.fake_usb_backend import FakeUSBBackend
+from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore
 from whisker_io.hw.usb_array import (OP_SET_PATTERN, OP_SET_RCP_THRESHOLD, OP_START,
                                      CRCMismatchError, FrameLayout, SequenceGapError,
                                      ShortFrameError, SimArray, USBArray, encode_command,
                                      encode_frames, parse_command, parse_frame)
-from whisker_io.recording import read_pose_log, replay
+from whisker_io.records.recording import read_pose_log, replay
 
 LAYOUT = FrameLayout()
 M = 18
@@ -239,8 +239,8 @@ def test_sim_array_goes_through_the_same_codec():
 
 
 def test_sim_array_from_simulator_gives_18_records():
-    from whisker_io.objects import make_object
-    from whisker_io.simulator import ArraySimulator
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.simulator import ArraySimulator
 
     arm = SimArm(Pose([0.03, -0.32, 0.2], [0.0, 0.0, 0.0, 1.0]),
                  envelope=_upright_envelope())

@@ -29,7 +29,7 @@ def test_new_view_stores_location_and_injects_nothing():
     flat, vals = lv.observe(0, [5.7, 7.2, 9.9])
     assert len(flat) == 0 and len(vals) == 0
     np.testing.assert_allclose(lv.locations, [[5.7, 7.2, 9.9]])
-    assert lv.decay.tolist() == [1.0]  # created at vt_active_decay, floor keeps it there
+    assert lv.decay.tolist() == [1.0]  # created at active_decay, the floor keeps it there
     np.testing.assert_array_equal(lv.activity, [1.0])
 
 
@@ -125,3 +125,22 @@ def test_learning_is_elementwise_max_and_injection_averages_active_views():
     np.add.at(dense, flat, vals)
     # eta_act = 2 active views; view 1 has no weights yet: (1/2) * 0.5 * beta_0
     np.testing.assert_allclose(dense, [0.05, 0.0, 0.075, 0.0], rtol=1e-6)
+
+
+def test_thesis_decay_rule_by_hand():
+    """Ch.5 rule: energy at the current decay (floor 0), then +1 on every match, -0.05 per iteration."""
+    p = LocalViewParams(mode="stored", inject_energy=0.3, recent_exclusion=0, rounding="round", decay_floor=0.0,
+                        rise_on_every_match=True)
+    lv = LocalViewCells((5, 5), p)
+    lv.observe(0, (1.0, 2.0))  # new: decay 0, restore keeps the floor
+    assert lv.decay.tolist() == [0.0]
+    _, e = lv.observe(0, (0.0, 0.0))
+    assert e[0] == pytest.approx(0.3 / 30 * (30 - 1.0))  # 0.29, the thesis' maximum
+    assert lv.decay[0] == pytest.approx(0.95)
+    lv.restore_decay()  # an iteration without an observation
+    assert lv.decay[0] == pytest.approx(0.90)
+    _, e = lv.observe(0, (0.0, 0.0))
+    assert e[0] == pytest.approx(0.3 / 30 * (30 - math.exp(1.2 * 0.9)))
+    for _ in range(40):
+        lv.restore_decay()
+    assert lv.decay[0] == 0.0  # floored at 0

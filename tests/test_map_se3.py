@@ -45,6 +45,19 @@ def test_eq_5_13_displacement_is_rotated_into_the_experience_frame():
     np.testing.assert_allclose(Rotation.from_quat(pose[3:]).as_rotvec(), [0, 0, -math.pi / 2], atol=1e-12)
 
 
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-2, 2), min_size=3, max_size=3), st.lists(st.floats(-3, 3), min_size=3, max_size=3),
+       st.floats(0.01, 2.0), st.integers(0, 2**31 - 1))
+def test_compiled_accumulation_equals_the_scipy_form(v, w, dt, seed):
+    q0 = Rotation.random(random_state=seed)
+    acc = [0.3, -0.1, 0.2, *q0.as_quat()]
+    SE3Geometry().accumulate(acc, SpatialOdometry(v, w, dt))
+    d = np.array([0.3, -0.1, 0.2]) + q0.apply(np.array(v) * dt)
+    q = q0 * Rotation.from_rotvec(np.array(w) * dt)
+    np.testing.assert_allclose(acc[:3], d, atol=1e-12)
+    assert (Rotation.from_quat(acc[3:]).inv() * q).magnitude() < 1e-10
+
+
 def _reference_relax(poses, ends, links, c, order):
     """The same Gauss-Seidel update written with scipy's Rotation (the kernel's oracle)."""
     poses = poses.copy()

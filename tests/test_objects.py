@@ -1,4 +1,4 @@
-"""Procedural objects and the Ch.3 maze (whisker_io.objects)."""
+"""Procedural objects and the Ch.3 maze (whisker_io.sim.objects)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import MAZE_SIZE_M, OBJECT_NAMES, make_maze, make_object
+from whisker_io.sim.objects import MAZE_SIZE_M, OBJECT_NAMES, make_maze, make_object
 
 
 @pytest.mark.parametrize("name", ["box", "box_stack", "barrel", "blob", "plane", "mug", "kettle", "skull"])

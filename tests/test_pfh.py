@@ -8,13 +8,12 @@ from scipy.spatial.distance import pdist
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import make_object
-from whisker_io.pfh import (
+from whisker_io.sim.objects import make_object
+from whisker_io.features.pfh import (
     PFHParams,
     chi_squared,
     estimate_normals,
     feature_bins,
-    match_region,
     pair_features,
     point_feature_histogram,
 )
@@ -177,20 +176,24 @@ def test_chi_squared_hand_values():
     np.testing.assert_allclose(chi_squared(q, np.stack([q, v])), [0.0, 2 * 0.0625 / 0.75 + 0.5])
 
 
-def test_match_region_thresholds_and_sum():
-    f = np.eye(4)
-    stored = [(f[0], "s0"), (f[1], "s1"), (0.5 * (f[0] + f[1]), "s2")]
-    q = 0.5 * (f[0] + f[1])
-    table = {"s0": 0.1, "s1": 0.05, "s2": 0.9}
-    nmse = lambda a, b: table[b]  # noqa: E731 - stand-in for part B's NMSE
-    # chi2 to s0: (.5-1)^2/1.5 + .5^2/.5 = 1/6 + 1/2 = 2/3; same to s1; 0 to s2
-    m = match_region(q, "query", stored, t_pfh=1.0, t_sda=0.5, nmse=nmse)
-    np.testing.assert_allclose(m.chi2, [2 / 3, 2 / 3, 0.0])
-    assert m.candidates.tolist() == [0, 1] and m.index == 1  # s2 fails the SDA threshold
-    assert np.isclose(m.score, 2 / 3 + 0.05)
-    # precomputed NMSE values; sums 0.767, 0.717, 0.5 -> s2
-    m2 = match_region(q, None, stored, t_pfh=1.0, t_sda=1.0, nmse=[0.1, 0.05, 0.5])
-    assert m2.index == 2 and m2.candidates.tolist() == [0, 1, 2]
-    none = match_region(q, None, stored, t_pfh=0.1, t_sda=0.01, nmse=[0.1, 0.05, 0.5])
-    assert none.index is None and none.score == float("inf")
-    assert match_region(q, None, [], 1.0, 1.0, nmse=[]).index is None
+# ------------------------------------------------- issue 17: typed errors
+@pytest.mark.parametrize(("q", "v"), [
+    (np.array(0), np.ones(3)),            # a scalar has no bin axis (was IndexError)
+    (np.ones(3), np.array(1.0)),
+    (np.ones(3), np.ones(4)),
+    (np.ones((2, 3)), np.ones((3, 3))),   # leading axes do not broadcast
+    (np.array([1.0, np.nan, 0.0]), np.ones(3)),
+    (np.array([1.0, -0.5, 0.0]), np.ones(3)),
+    ("abc", np.ones(3)),
+])
+def test_chi_squared_bad_input_is_typed(q, v):
+    with pytest.raises(InvalidInputError):
+        chi_squared(q, v)
+
+
+@pytest.mark.parametrize("kwargs", [{"bins_per_feature": 0}, {"bins_per_feature": 2.5}, {"bins_per_feature": "3"},
+                                    {"radius_m": "0.3"}, {"radius_m": np.nan}, {"normal_neighbours": 2},
+                                    {"bins_per_feature": 1e300}])
+def test_pfh_params_bad_values_are_typed(kwargs):
+    with pytest.raises(InvalidInputError):
+        PFHParams(**kwargs)

@@ -1,4 +1,4 @@
-"""Figures of whisker_io.plot_scene: they draw what they are given."""
+"""Figures of whisker_io.plots.scene: they draw what they are given."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ matplotlib.use("Agg")
 
 import numpy as np  # noqa: E402
 
-from whisker_io.geometry import WhiskerArray  # noqa: E402
-from whisker_io.objects import make_object  # noqa: E402
-from whisker_io.pfh import point_feature_histogram  # noqa: E402
-from whisker_io.plot_scene import draw_pfh, plot_pfh, plot_scene, plot_tactile_image  # noqa: E402
-from whisker_io.sweep import sweep_array  # noqa: E402
+from whisker_io.array.geometry import WhiskerArray  # noqa: E402
+from whisker_io.sim.objects import make_object  # noqa: E402
+from whisker_io.features.pfh import point_feature_histogram  # noqa: E402
+from whisker_io.plots.scene import draw_pfh, plot_pfh, plot_scene, plot_tactile_image  # noqa: E402
+from whisker_io.sim.sweep import sweep_array  # noqa: E402
 
 
 def test_scene_shows_every_contact(tmp_path):

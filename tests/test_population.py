@@ -329,3 +329,21 @@ def test_six_dof_conditional_translation_of_one_voxel_by_hand(backend, orientati
     for k, w in cells.items():
         assert got[k] == pytest.approx(w, abs=1e-9)
     assert all(idx[3:] == orientation for idx in zip(*np.nonzero(a > 1e-12)))
+
+
+def test_thesis_6d_kernels_are_the_printed_normal_densities():
+    """Eq 5.10 as printed: variance 1 / 2 per axis, pdf-normalised -> window sums 0.9464 and 0.6430."""
+    exc, inh = Population.whisker6d().params.kernels(6)
+    assert float(np.prod([t.sum() for t in exc.taps])) == pytest.approx(0.9464, abs=5e-4)
+    assert float(np.prod([t.sum() for t in inh.taps])) == pytest.approx(0.6430, abs=5e-4)
+    assert exc.taps[0][2] == pytest.approx(1 / math.sqrt(2 * math.pi))
+
+
+def test_thesis_6d_packet_is_stable_without_input(backend):
+    """Fig 5.4: from one active cell the packet settles within a few steps and stays at the centre."""
+    pop = Population.whisker6d(backend=backend, dtype=np.float64)
+    decoded = [pop.step() for _ in range(12)]
+    for d in decoded[3:]:
+        np.testing.assert_allclose(d, [2.0] * 6, atol=1e-6)
+    a1, a2 = pop.activity, (pop.step(), pop.activity)[1]
+    assert np.abs(a1 - a2).max() < 1e-6

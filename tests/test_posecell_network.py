@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cansim.params import AttractorParams
+
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.population import Population
@@ -131,7 +133,7 @@ def test_whole_cell_rotation_is_an_exact_roll():
 
 
 def test_collapse_and_bad_input_leave_the_state_unchanged():
-    pc = PosecellNetwork(global_inhib=1.0)
+    pc = PosecellNetwork(params=AttractorParams(global_inhibition=1.0))
     before, best = pc.activity, pc.decode()
     with pytest.raises(ZeroActivityError):
         pc.step(0.1, 0.0, 1.0)
@@ -159,7 +161,9 @@ def test_injection_uses_x_y_theta_order():
 
 @pytest.mark.parametrize(
     "kwargs,match",
-    [({"w_e_var": 1.5}, "pc_w_e_var"), ({"w_i_dim": 4}, "pc_w_i_dim"), ({"dim_th": 2}, "pc_dim_th"), ({"cell_size": 0.0}, "pc_cell_x_size")],
+    [({"params": AttractorParams(exc_sigma=1.5)}, "pc_w_e_var"), ({"params": AttractorParams(inh_width=4)}, "pc_w_i_dim"),
+     ({"dim_th": 2}, "pc_dim_th"), ({"cell_size": 0.0}, "pc_cell_x_size"),
+     ({"params": AttractorParams(exc_width=(7, 7, 5))}, "exc_width")],
 )
 def test_bad_parameters_are_named(kwargs, match):
     with pytest.raises(ConfigError, match=match):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray, WhiskerModule
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule
 from whisker_io.radial.features import RadialDataset
 from whisker_io.radial.models import TrainedModel, make_estimator
 from whisker_io.radial.persistence import save_model

@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import InvalidInputError, CorruptFileError, CansimError
-from whisker_io.recording import (
+from whisker_io.records.recording import (
     POSE_LOG_NAME,
     PoseLogWriter,
     RecordingWriter,
-    WhiskRecord,
     read_pose_log,
     read_whisk_csv,
     replay,
     whisk_file_name,
     write_whisk_csv,
 )
+from whisker_io.records.whisk_record import WhiskRecord
 
 
 def _record(module: str = "C2", cycle: int = 3, n: int = 50, seed: int = 0) -> WhiskRecord:
@@ -99,7 +99,7 @@ def test_unparseable_file_name_requires_module_and_cycle(tmp_path):
 
 
 def test_whisk_record_rejects_nan_and_ragged_columns():
-    with pytest.raises(InvalidInputError, match="sample 2"):
+    with pytest.raises(InvalidInputError, match="index 2"):
         WhiskRecord("A1", [0, 0, np.nan], [0, 0, 0], [0, 0, 0])
     with pytest.raises(InvalidInputError, match="different lengths"):
         WhiskRecord("A1", [0, 0, 0], [0, 0], [0, 0, 0])
@@ -114,19 +114,19 @@ def test_pose_log_round_trip_and_scalar_last_quaternion(tmp_path):
     path = tmp_path / POSE_LOG_NAME
     q = [0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8)]  # 45 deg about z, scalar last
     with PoseLogWriter(path) as w:
-        w.append(1.0, [0.1, 0.2, 0.3], _identity_quat(), "whisk_000000")
-        w.append(2.5, [0.4, 0.5, 0.6], q, "whisk_000001")
+        w.append(1.0, ([0.1, 0.2, 0.3], _identity_quat()), "whisk_000000")
+        w.append(2.5, ([0.4, 0.5, 0.6], q), "whisk_000001")
     entries = read_pose_log(path)
     assert [e.time_s for e in entries] == [1.0, 2.5]
-    np.testing.assert_array_equal(entries[1].position_m, [0.4, 0.5, 0.6])
-    T = entries[1].as_matrix()
+    np.testing.assert_array_equal(entries[1].pose.position_m, [0.4, 0.5, 0.6])
+    T = entries[1].pose.matrix
     np.testing.assert_allclose(T[:3, 0], [math.sqrt(0.5), math.sqrt(0.5), 0], atol=1e-12)
     np.testing.assert_allclose(T[:3, 3], [0.4, 0.5, 0.6])
     # resuming a session appends after the existing lines and keeps the time order check
     with PoseLogWriter(path) as w:
         with pytest.raises(InvalidInputError, match="time order"):
-            w.append(2.0, [0, 0, 0], _identity_quat(), "whisk_000002")
-        w.append(3.0, [0, 0, 0], _identity_quat(), "whisk_000002")
+            w.append(2.0, ([0, 0, 0], _identity_quat()), "whisk_000002")
+        w.append(3.0, ([0, 0, 0], _identity_quat()), "whisk_000002")
     assert len(read_pose_log(path)) == 3
 
 
@@ -174,10 +174,10 @@ def test_session_write_and_replay_in_pose_log_order(tmp_path):
     with RecordingWriter(tmp_path) as w:
         for cycle, t in enumerate(times):
             recs = [_record(m, cycle, n=20 + cycle, seed=10 * cycle + i) for i, m in enumerate(modules)]
-            w.write_cycle(recs, time_s=t, position_m=[t, 0, 0], quaternion_xyzw=_identity_quat())
+            w.write_cycle(recs, time_s=t, pose=([t, 0, 0], _identity_quat()))
             written.append(recs)
     cycles = list(replay(tmp_path))
-    assert [c.pose.time_s for c in cycles] == times
+    assert [c.entry.time_s for c in cycles] == times
     for c, recs in zip(cycles, written):
         assert list(c.records) == modules
         for r in recs:
@@ -189,21 +189,21 @@ def test_session_write_and_replay_in_pose_log_order(tmp_path):
 
 def test_write_cycle_out_of_order_leaves_directory_unchanged(tmp_path):
     with RecordingWriter(tmp_path) as w:
-        w.write_cycle([_record("A1", 0)], time_s=5.0, position_m=[0, 0, 0], quaternion_xyzw=_identity_quat())
+        w.write_cycle([_record("A1", 0)], time_s=5.0, pose=([0, 0, 0], _identity_quat()))
         before = sorted(os.listdir(tmp_path))
         with pytest.raises(InvalidInputError, match="time order"):
-            w.write_cycle([_record("A1", 1)], time_s=4.0, position_m=[0, 0, 0], quaternion_xyzw=_identity_quat())
+            w.write_cycle([_record("A1", 1)], time_s=4.0, pose=([0, 0, 0], _identity_quat()))
         with pytest.raises(InvalidInputError, match="duplicate"):
-            w.write_cycle([_record("A1", 1), _record("A1", 1)], 6.0, [0, 0, 0], _identity_quat())
+            w.write_cycle([_record("A1", 1), _record("A1", 1)], 6.0, ([0, 0, 0], _identity_quat()))
     assert sorted(os.listdir(tmp_path)) == before
 
 
 def test_replay_reports_missing_whisk_files(tmp_path):
     with RecordingWriter(tmp_path) as w:
-        w.write_cycle([_record("A1", 0)], 0.0, [0, 0, 0], _identity_quat())
-        w.write_cycle([_record("A1", 1)], 1.0, [0, 0, 0], _identity_quat())
+        w.write_cycle([_record("A1", 0)], 0.0, ([0, 0, 0], _identity_quat()))
+        w.write_cycle([_record("A1", 1)], 1.0, ([0, 0, 0], _identity_quat()))
     os.remove(tmp_path / whisk_file_name(1, "A1"))
     it = replay(tmp_path)
-    assert next(it).pose.whisk_file == "whisk_000000"
+    assert next(it).entry.whisk_file == "whisk_000000"
     with pytest.raises(CorruptFileError, match=r"line 3: .*missing"):
         next(it)

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from whisker_io.contact_detection import detect_contact, detect_contacts
-from whisker_io.control import OpenLoop, WhiskPattern
+from whisker_io.contact.detection import detect_contact, detect_contacts
+from whisker_io.array.control import OpenLoop, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.sda import contact_gradient, nmse, slope_distribution
-from whisker_io.signals import WhiskContact, simulate_whisk_cycle
-from whisker_io.simulator import ArraySimulator
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.features.sda import contact_gradient, nmse, slope_distribution
+from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+from whisker_io.sim.simulator import ArraySimulator
 
 
 def _tilted_contact(theta_c: float, tilt: float, a: float = 0.05) -> WhiskContact:
@@ -115,7 +115,7 @@ def test_sda_plots_bars_per_module_and_nmse_title():
     import matplotlib
 
     matplotlib.use("Agg")
-    from whisker_io.plot_signals import plot_sda, plot_xy_gradient
+    from whisker_io.plots.signals import plot_sda, plot_xy_gradient
 
     tilts = np.radians([-35.0, 20.0, 50.0])
     recs, _ = simulate_whisk_cycle([_tilted_contact(math.radians(10.0), t, a=0.07) for t in tilts] + [None], seed=2)
@@ -132,3 +132,50 @@ def test_sda_plots_bars_per_module_and_nmse_title():
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+# ------------------------------------------------- issue 17: no NaN, typed errors
+def test_nmse_near_the_float_limit_is_finite_hand_computed():
+    # MSE = (1e200)^2, power = (1e200)^2: the ratio is 1, although both squares overflow
+    assert nmse([1e200], [0.0]) == 1.0
+    # x = (1e200, 0), y = (0, 1e200): MSE = 1e400, power = 1e400 / 2 -> 2
+    assert nmse([1e200, 0.0], [0.0, 1e200]) == pytest.approx(2.0)
+    assert nmse([1e-200], [0.0]) == 1.0  # and no underflow to 0/0 either
+    for bad in ("abc", [["a"]], None):
+        with pytest.raises(InvalidInputError):
+            nmse(bad, [0.0])
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_vals = st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=1, max_size=18)
+
+
+@settings(max_examples=100, deadline=None)
+@given(_vals, st.integers(-250, 250), st.data())
+def test_nmse_is_scale_free_and_never_nan(x, exp10, data):
+    y = data.draw(st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=len(x), max_size=len(x)))
+    base = nmse(x, y)
+    c = 10.0**exp10
+    scaled = nmse(np.asarray(x) * c, np.asarray(y) * c)
+    assert not math.isnan(base) and not math.isnan(scaled) and base >= 0
+    if math.isfinite(base) and all(abs(v) * c > 1e-300 or v == 0 for v in x + y):
+        assert scaled == pytest.approx(base, rel=1e-9, abs=1e-12)
+
+
+def test_nmse_against_many_stored_arrays_equals_one_by_one():
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=18)
+    stored = rng.normal(size=(7, 18))
+    stored[3] = x
+    stored[5] = 0.0
+    many = nmse(x, stored)
+    assert many.shape == (7,)
+    for k in range(7):
+        assert many[k] == nmse(x, stored[k])
+    assert many[3] == 0.0 and many[5] == pytest.approx(1.0)  # identical; all-zero stored -> MSE(x,0)/MSE(x,0)
+    masks = rng.random((7, 18)) > 0.3
+    many_m = nmse(x, stored, None, masks)
+    for k in range(7):
+        assert many_m[k] == nmse(x, stored[k], None, masks[k])

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from whisker_io.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
+from whisker_io.array.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
 from whisker_io.errors import InvalidInputError
-from whisker_io.signals import (
+from whisker_io.sim.signals import (
     SignalParams,
     WhiskContact,
     bending_stiffness,
@@ -208,3 +208,43 @@ def test_slip_drops_deflection_for_the_rest_of_the_cycle():
     assert np.all(y[k_slip:] == 0.0) and truths[0].peak_index == k_slip - 1
     with pytest.raises(InvalidInputError):
         WhiskContact(0.0, 0.05, 0.1, slip_rad=0.0)
+
+
+# ------------------------------------------------- issue 17: typed errors
+@pytest.mark.parametrize("kwargs", [{"angle_rad": "0.3"}, {"radial_distance_m": None}, {"whisker_length_m": "x"},
+                                    {"normal": [1.0, 0.0]}, {"normal": [[1, 0], [0]]}, {"slip_rad": "inf"},
+                                    {"normal": [0.0, 0.0, 0.0]}, {"angle_rad": math.inf}])
+def test_whisk_contact_bad_values_are_typed(kwargs):
+    args = dict(angle_rad=0.3, radial_distance_m=0.05, whisker_length_m=0.1) | kwargs
+    with pytest.raises(InvalidInputError):
+        WhiskContact(**args)
+
+
+@pytest.mark.parametrize("kwargs", [{"youngs_modulus_pa": "3e9"}, {"noise_std_counts": None}, {"base_radius_m": 0.0}])
+def test_signal_params_bad_values_are_typed(kwargs):
+    with pytest.raises(InvalidInputError):
+        SignalParams(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"frequency_hz": "1"}, {"frequency_hz": 0.0}, {"retraction_rad": None},
+                                    {"sample_rate_hz": math.nan}])
+def test_whisk_pattern_bad_values_are_typed(kwargs):
+    with pytest.raises(InvalidInputError):
+        WhiskPattern(**kwargs)
+
+
+def test_controllers_reject_a_non_pattern_and_bad_thresholds():
+    with pytest.raises(InvalidInputError, match="WhiskPattern"):
+        RCP(pattern=None)
+    with pytest.raises(InvalidInputError, match="WhiskPattern"):
+        RetractAtMax(pattern="fast")
+    with pytest.raises(InvalidInputError):
+        RetractAtMax(threshold_counts="2000")
+
+
+def test_rod_contact_refuses_a_push_that_never_ends():
+    # 1e-320 m/s: the push would take ~1e300 s (used to overflow int())
+    with pytest.raises(InvalidInputError, match="speed_m_s"):
+        simulate_rod_contact(0.05, 0.1, speed_m_s=1e-320)
+    with pytest.raises(InvalidInputError):
+        simulate_rod_contact(0.05, 0.1, speed_m_s="fast")

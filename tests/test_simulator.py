@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from whisker_io.contact_detection import detect_contacts
-from whisker_io.control import RCP, WhiskPattern
+from whisker_io.contact.detection import detect_contacts
+from whisker_io.array.control import RCP, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.objects import make_object
-from whisker_io.recording import RecordingWriter, replay
-from whisker_io.simulator import ArraySimulator, whisk_contact_from_sweep
-from whisker_io.sweep import MeshTarget
+from whisker_io.sim.objects import make_object
+from whisker_io.records.recording import RecordingWriter, replay
+from whisker_io.sim.simulator import ArraySimulator, whisk_contact_from_sweep
+from whisker_io.sim.sweep import MeshTarget
 
 POSES = [(0.0, -0.31, 0.175), (0.03, -0.315, 0.12), (-0.02, -0.305, 0.22)]
 
@@ -68,7 +68,7 @@ def test_round_trip_write_read_detect_equals_in_memory(tmp_path, box):
     replayed = list(replay(tmp_path))
     assert len(replayed) == len(in_memory)
     for cyc, (res, dets) in zip(replayed, in_memory):
-        np.testing.assert_allclose(cyc.pose.as_matrix(), res.pose, atol=1e-12)
+        np.testing.assert_allclose(cyc.entry.pose.matrix, res.pose.matrix, atol=1e-12)
         recs = [cyc.records[m] for m in sim.array.names]
         assert detect_contacts(recs) == dets
         assert sum(d is not None for d in dets) >= 5

@@ -46,7 +46,7 @@ W_TRUE = np.array([0.0, 0.0, 2 * math.pi / PLACES])
 
 def skeleton(relax_passes):
     pc = Population.whisker6d(5, CELL_M, backend="numpy", dtype=np.float64)
-    lv = LocalViewCells(pc.shape, LocalViewParams(mode="stored", pc_vt_inject_energy=0.3, recent_exclusion=0, rounding="round"))
+    lv = LocalViewCells(pc.shape, LocalViewParams(mode="stored", inject_energy=0.3, recent_exclusion=0, rounding="round"))
     em = ExperienceMap(MapConfig(pc_shape=pc.shape, offset_axes=(), match_distance_cells=1.5, relax_passes=relax_passes,
                                  relax_budget=None), SE3Geometry())
     return SlamLoop(pc, lv, IdsFrontEnd(6), em, SpatialOdometry)

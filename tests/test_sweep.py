@@ -8,10 +8,10 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray, WhiskerModule
-from whisker_io.kinematics import whisker_base_transforms
-from whisker_io.objects import make_object
-from whisker_io.sweep import (
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule
+from whisker_io.array.kinematics import whisker_base_transforms
+from whisker_io.sim.objects import make_object
+from whisker_io.sim.sweep import (
     ContactNoise,
     MeshTarget,
     SweepContact,

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.geometry import WhiskerArray, WhiskerModule
-from whisker_io.objects import make_maze
-from whisker_io.sweep import sweep_array
-from whisker_io.tactile_image import (
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule
+from whisker_io.sim.objects import make_maze
+from whisker_io.sim.sweep import sweep_array
+from whisker_io.features.tactile_image import (
     TactileImageParams,
     pixel_layout,
     tactile_image,

@@ -2,9 +2,9 @@
 
 The tactile image (Fig 3.2) has 3 rows x 6 columns (whisker columns A-F),
 8-bit values. It is used as is (no down-sampling, no shifts), and two images
-are compared with Eq 3.1 of the thesis,
+are compared with Eq 3.1 of the thesis::
 
-    S(A, B) = sum_ij sqrt(|a_ij - b_ij|),
+    S(A, B) = sum_ij sqrt(|a_ij - b_ij|)
 
 on the raw 0-255 values. The smallest ``S`` over the stored templates is a
 match when ``S <= vt_match_threshold`` (ties -> the lowest id); otherwise the

@@ -112,7 +112,7 @@ def to_nir(population: SpikingPopulation, *, max_dense_cells: int = 4096) -> Any
         "inh_width": _per_axis(a.inh_width),
         "inh_sigma": _per_axis(a.inh_sigma),
         "global_inhibition": float(a.global_inhibition),
-        "normalise_kernels": int(a.normalise_kernels),
+        "kernel_normalisation": a.kernel_normalisation,
         "recurrent_weight": float(p.recurrent_weight),
         "global_weight": float(p.global_weight),
         "velocity_lead_s": float(p.velocity_lead_s),
@@ -197,7 +197,7 @@ def from_nir(graph: Any, *, dt_s: Optional[float] = None, seed: Optional[int] = 
             inh_width=_scalar_or_tuple(meta["inh_width"], lambda x: int(round(float(x)))),
             inh_sigma=_scalar_or_tuple(meta["inh_sigma"]),
             global_inhibition=float(meta["global_inhibition"]),
-            normalise_kernels=bool(int(meta["normalise_kernels"])),
+            kernel_normalisation=str(meta["kernel_normalisation"]),
         )
         tau_syn = _uniform(cells, "tau_syn")
         r = _uniform(cells, "r")

@@ -11,6 +11,10 @@ records from the simulator and from the robot:
  :class:`Array`         :class:`USBArray` (pyusb)    :class:`SimArray`
 =====================  ==========================  =================================
 
+Poses cross these interfaces as the package's one pose type,
+:class:`whisker_io.pose.Pose`. The test doubles of the devices themselves (a
+fake RTDE server, a fake USB backend) live in :mod:`whisker_io.testing`.
+
 Hardware drivers need the optional ``hw`` extra (``pip install cansim[hw]``);
 it is imported lazily, so this package imports without it.
 """
@@ -42,7 +46,6 @@ def require(module: str, what: str) -> ModuleType:
 
 
 # Defined above before the submodules import it (they do ``from whisker_io.hw import ...``).
-from whisker_io.hw.pose import Pose, PoseLike, as_pose  # noqa: E402
 from whisker_io.hw.safety import SafetyEnvelope  # noqa: E402
 from whisker_io.hw.arm import Arm, ArmState, SimArm, URArm, probe_rtde  # noqa: E402
 from whisker_io.hw.usb_array import (  # noqa: E402
@@ -51,7 +54,7 @@ from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_sessi
 
 __all__ = [
     "MissingDependencyError", "require",
-    "Pose", "PoseLike", "as_pose", "SafetyEnvelope",
+    "SafetyEnvelope",
     "Arm", "ArmState", "SimArm", "URArm", "probe_rtde",
     "Array", "FrameLayout", "SimArray", "USBArray", "USBCounters",
     "Recorder", "explore", "raster_poses", "replay_session",

@@ -16,7 +16,7 @@ and nothing reaches the robot. Stale or lost state raises
 :class:`~whisker_io.errors.StaleStateError` /
 :class:`~whisker_io.errors.ConnectionFailedError` after a best-effort stop.
 
-Poses cross the interface as :class:`~whisker_io.hw.pose.Pose` (position in
+Poses cross the interface as :class:`~whisker_io.pose.Pose` (position in
 m + scalar-last quaternion); a 4x4 transform or a UR 6-vector is accepted too.
 """
 
@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from whisker_io.errors import (CommandFailedError, ConnectionFailedError, HardwareError, InvalidInputError,
                                SafetyViolationError)
 from whisker_io.hw import require
-from whisker_io.hw.pose import Pose, PoseLike
+from whisker_io.pose import Pose, PoseLike
 from whisker_io.hw.safety import SafetyEnvelope
 
 __all__ = ["ArmState", "Arm", "SimArm", "SentCommand", "URArm", "probe_rtde", "CommandFailedError",
@@ -217,7 +217,7 @@ class Arm(abc.ABC):
         Raises
         ------
         SafetyViolationError
-            Some |deflection| exceeds ``envelope.max_deflection``.
+            Some ``|deflection|`` exceeds ``envelope.max_deflection``.
         """
         try:
             self.envelope.check_deflection(deflection)
@@ -329,7 +329,7 @@ class SimArm(Arm):
             rots = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, target.rotation]))
             for k in range(1, n):
                 s = k / n
-                p = Pose.from_rotation((1 - s) * start.position + s * target.position, rots(s))
+                p = Pose.from_rotation((1 - s) * start.position_m + s * target.position_m, rots(s))
                 self.trajectory.append((self.time + k * duration / n, p))
         self.time += duration if self.rate_limited else self.control_period
         self._pose = target

@@ -1,14 +1,14 @@
 """Crash-safe recording of live sessions, and replay through the same pipeline.
 
 :class:`Recorder` writes each whisk cycle as it arrives, with the session
-format of :mod:`whisker_io.recording` (per-module whisk CSVs written to a
+format of :mod:`whisker_io.records.recording` (per-module whisk CSVs written to a
 temporary name, fsynced and renamed; then the fsynced pose-log line). After a
 crash or an unplugged cable every completed whisk is on disk, complete, and
-readable by :func:`whisker_io.recording.replay`; a whisk in progress leaves
+readable by :func:`whisker_io.records.recording.replay`; a whisk in progress leaves
 nothing behind.
 
 A *pipeline* is any callable taking a
-:class:`~whisker_io.recording.ReplayedCycle` (pose-log entry + module
+:class:`~whisker_io.records.recording.ReplayedCycle` (pose-log entry + module
 records). The recorder hands every live cycle to it right after the cycle is
 on disk, and :func:`replay_session` hands every recorded cycle to it in the
 same form, so live and replayed data take the same path.
@@ -30,10 +30,17 @@ import numpy as np
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.hw.arm import Arm, ArmState
-from whisker_io.hw.pose import Pose, PoseLike, as_pose
+from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.hw.usb_array import Array
-from whisker_io.recording import (POSE_LOG_NAME, RecordingWriter, ReplayedCycle, WhiskRecord,
-                                  read_pose_log, replay, whisk_file_stem)
+from whisker_io.records.recording import (
+    POSE_LOG_NAME,
+    RecordingWriter,
+    ReplayedCycle,
+    read_pose_log,
+    replay,
+    whisk_file_stem,
+)
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["Pipeline", "Recorder", "explore", "replay_session", "raster_poses"]
 
@@ -129,8 +136,7 @@ class Recorder:
         relabelled = [r if r.cycle == cycle else _with_cycle(r, cycle) for r in records]
         try:
             entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
-                                             position_m=state.pose.position,
-                                             quaternion_xyzw=state.pose.quaternion)
+                                             pose=state.pose)
         except BaseException:
             # the cycle has no pose-log line: remove its module files written so far
             for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):
@@ -138,7 +144,7 @@ class Recorder:
             raise
         self._next_cycle += 1
         self.n_cycles += 1
-        item = ReplayedCycle(pose=entry, records=MappingProxyType(
+        item = ReplayedCycle(entry=entry, records=MappingProxyType(
             {r.module: r for r in sorted(relabelled, key=lambda r: r.module)}))
         if self._pipeline is not None:
             self.results.append(self._pipeline(item))
@@ -207,7 +213,7 @@ def raster_poses(centre: PoseLike, width_m: float, height_m: float, n_x: int,
     poses = []
     for row, z in enumerate(zs):
         for x in (xs if row % 2 == 0 else xs[::-1]):
-            poses.append(Pose(c.position + x * axes[:, 0] + z * axes[:, 2], c.quaternion))
+            poses.append(Pose(c.position_m + x * axes[:, 0] + z * axes[:, 2], c.quaternion_xyzw))
     return poses
 
 

@@ -27,8 +27,9 @@ from typing import Optional
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from whisker_io.errors import InvalidInputError, SafetyViolationError, StaleStateError
-from whisker_io.hw.pose import Pose, PoseLike, as_pose
+from whisker_io.errors import ConfigError, InvalidInputError, SafetyViolationError, StaleStateError
+from whisker_io.pose import Pose, PoseLike, as_pose
+from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = ["SafetyEnvelope", "HARD_CEILINGS"]
 
@@ -51,14 +52,15 @@ HARD_CEILINGS = {
 _PATH_SAMPLES = 8
 
 
-def _finite_scalar(value, name: str) -> float:
+_VECTOR_FIELDS = frozenset({"workspace_min", "workspace_max", "tool_reference_axis"})
+
+
+def _command_scalar(value, name: str) -> float:
+    """A finite command value; anything else is refused (nothing is sent)."""
     try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise SafetyViolationError(f"refused: {name} must be a number; got {value!r}") from exc
-    if not math.isfinite(v):
-        raise SafetyViolationError(f"refused: {name} must be finite; got {v}")
-    return v
+        return finite_scalar(value, name)
+    except InvalidInputError as exc:
+        raise SafetyViolationError(f"refused: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -112,9 +114,10 @@ class SafetyEnvelope:
 
     Raises
     ------
-    InvalidInputError
-        A limit is non-finite, non-positive, above its hard ceiling, or the
-        box is empty.
+    ConfigError
+        A limit is not a finite number (a scalar limit given as a sequence, a
+        string, NaN/inf), non-positive, above its hard ceiling, a box corner or
+        axis is not 3 finite numbers, or the box is empty.
     """
 
     workspace_min: tuple[float, float, float] = (-0.5, -0.5, 0.05)
@@ -137,31 +140,37 @@ class SafetyEnvelope:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            values = value if isinstance(value, tuple) else (value,)
-            if isinstance(value, tuple) and len(value) != 3:
-                raise InvalidInputError(f"{f.name} must have 3 values; got {value!r}")
-            for v in values:
-                if not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise InvalidInputError(f"{f.name} must be finite numbers; got {value!r}")
-            if not isinstance(value, tuple):
-                if value <= 0:
-                    raise InvalidInputError(f"{f.name} must be > 0; got {value}")
+            try:
+                if f.name in _VECTOR_FIELDS:
+                    checked = tuple(float(v) for v in finite_vector(value, 3, f.name))
+                else:
+                    # a scalar limit given as a sequence would skip every limit check
+                    checked = finite_scalar(value, f.name)
+            except InvalidInputError as exc:
+                raise ConfigError(f"SafetyEnvelope: {exc}") from None
+            if f.name == "overload_samples":
+                if isinstance(value, bool) or not float(value).is_integer():
+                    raise ConfigError("overload_samples must be an integer number of samples; "
+                                      f"got {value!r}")
+                checked = int(checked)
+            object.__setattr__(self, f.name, checked)
+            if f.name not in _VECTOR_FIELDS:
+                if checked <= 0:
+                    raise ConfigError(f"{f.name} must be > 0; got {value}")
                 ceiling = HARD_CEILINGS.get(f.name)
-                if ceiling is not None and value > ceiling:
-                    raise InvalidInputError(
+                if ceiling is not None and checked > ceiling:
+                    raise ConfigError(
                         f"{f.name}={value} exceeds its hard ceiling {ceiling}; "
                         "the safety envelope cannot be widened beyond it")
         if not all(lo < hi for lo, hi in zip(self.workspace_min, self.workspace_max)):
-            raise InvalidInputError("workspace_min must be < workspace_max on every axis; got "
+            raise ConfigError("workspace_min must be < workspace_max on every axis; got "
                                     f"{self.workspace_min} / {self.workspace_max}")
         if np.linalg.norm(self.tool_reference_axis) < 1e-9:
-            raise InvalidInputError("tool_reference_axis must be a non-zero vector")
+            raise ConfigError("tool_reference_axis must be a non-zero vector")
         if self.min_servo_period > self.max_servo_period:
-            raise InvalidInputError("min_servo_period must be <= max_servo_period")
+            raise ConfigError("min_servo_period must be <= max_servo_period")
         if self.joint_speed_tolerance < 1.0:
-            raise InvalidInputError("joint_speed_tolerance must be >= 1")
-        if not isinstance(self.overload_samples, int):
-            raise InvalidInputError("overload_samples must be an integer number of samples")
+            raise ConfigError("joint_speed_tolerance must be >= 1")
 
     # ------------------------------------------------------------------ poses
     def _tilt(self, rotation: Rotation) -> np.ndarray:
@@ -197,7 +206,7 @@ class SafetyEnvelope:
                     f"refused: rotation vector of length {angle:.3g} rad; give |r| <= 2 pi")
         lo = np.asarray(self.workspace_min)
         hi = np.asarray(self.workspace_max)
-        p = pose.position
+        p = pose.position_m
         if np.any(p < lo) or np.any(p > hi):
             raise SafetyViolationError(
                 f"refused: target position {np.round(p, 4).tolist()} m is outside the "
@@ -210,7 +219,7 @@ class SafetyEnvelope:
         return pose
 
     def _check_range(self, value, name: str, limit: float, lower: float = 0.0) -> float:
-        v = _finite_scalar(value, name)
+        v = _command_scalar(value, name)
         if not lower < v <= limit:
             raise SafetyViolationError(f"refused: {name}={v} outside ({lower}, {limit}]")
         return v
@@ -254,7 +263,7 @@ class SafetyEnvelope:
         ``max_servo_step`` / ``max_servo_rotation_step`` or whose implied
         speed ``step / dt`` exceeds ``max_tcp_speed``.
         """
-        period = _finite_scalar(dt, "servo period dt (s)")
+        period = _command_scalar(dt, "servo period dt (s)")
         if not (self.min_servo_period <= period <= self.max_servo_period):
             raise SafetyViolationError(
                 f"refused: servo period {period} s outside "
@@ -309,7 +318,7 @@ class SafetyEnvelope:
         deflection : array_like, shape (..., T)
             x/y deflection traces in ADC counts, time along the last axis
             (e.g. shape (36, 2000): x and y of 18 modules over one cycle).
-            Overload: some trace stays at |d| >= ``max_deflection`` for
+            Overload: some trace stays at ``|d|`` >= ``max_deflection`` for
             ``overload_samples`` consecutive samples. Non-finite values count
             as overload (a broken sensor must not be trusted).
         """

@@ -6,7 +6,7 @@
   pass through the very same frame encoder/parser as USB data.
 
 Both return one whisk cycle at a time as 18
-:class:`~whisker_io.recording.WhiskRecord` (one per module, angle in rad,
+:class:`~whisker_io.records.whisk_record.WhiskRecord` (one per module, angle in rad,
 x/y deflection in ADC counts, 2 kHz; Sec 3.1.3 / SPEC §4.2).
 
 USB frame layout (device -> host, bulk-in endpoint, little-endian)
@@ -39,7 +39,7 @@ Commands (host -> device, bulk-out endpoint, little-endian)::
 
 opcodes: 0x01 SET_PATTERN (uint8 mode index in :data:`PATTERN_MODES`, float32
 frequency Hz, float32 retraction angle rad, float32 protraction angle rad:
-the fields of :class:`whisker_io.control.WhiskPattern`), 0x02
+the fields of :class:`whisker_io.array.control.WhiskPattern`), 0x02
 SET_RCP_THRESHOLD (float32 counts), 0x03 START, 0x04 STOP.
 
 Faults raise typed errors and are counted in :class:`USBCounters`: a USB
@@ -67,9 +67,9 @@ import numpy as np
 
 from whisker_io.errors import (ConnectionFailedError, CRCMismatchError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, SequenceGapError, ShortFrameError, USBFrameError)
-from whisker_io.control import WhiskPattern
+from whisker_io.array.control import WhiskPattern
 from whisker_io.hw import require
-from whisker_io.recording import SAMPLE_RATE_HZ, WhiskRecord
+from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 __all__ = [
     "Array", "USBArray", "SimArray", "FrameLayout", "Frame", "USBCounters", "PATTERN_MODES",
@@ -98,7 +98,7 @@ _LIBUSB_ERROR_NO_DEVICE = -4
 
 
 def _thesis_modules() -> tuple[str, ...]:
-    from whisker_io.geometry import WhiskerArray
+    from whisker_io.array.geometry import WhiskerArray
     return WhiskerArray.thesis().names
 
 
@@ -322,7 +322,7 @@ class Array(abc.ABC):
 
     @abc.abstractmethod
     def set_pattern(self, pattern: WhiskPattern, mode: str = "open_loop") -> None:
-        """Command the whisking pattern (:class:`whisker_io.control.WhiskPattern`:
+        """Command the whisking pattern (:class:`whisker_io.array.control.WhiskPattern`:
         frequency and whisk range) and mode, one of :data:`PATTERN_MODES`."""
 
     @abc.abstractmethod
@@ -354,7 +354,7 @@ def _check_threshold(counts: float) -> float:
 
 def _pattern_payload(pattern: WhiskPattern, mode: str) -> bytes:
     if not isinstance(pattern, WhiskPattern):
-        raise InvalidInputError("pattern must be a whisker_io.control.WhiskPattern")
+        raise InvalidInputError("pattern must be a whisker_io.array.control.WhiskPattern")
     if mode not in PATTERN_MODES:
         raise InvalidInputError(f"mode must be one of {PATTERN_MODES}; got {mode!r}")
     return struct.pack("<Bfff", PATTERN_MODES.index(mode), pattern.frequency_hz,
@@ -431,7 +431,7 @@ class USBArray(Array):
         Device ids and frame layout (defaults documented in the module).
     backend : usb.backend.IBackend, optional
         pyusb backend; default libusb1 found by pyusb. Tests pass
-        :class:`~whisker_io.hw.fake_usb_backend.FakeUSBBackend`.
+        :class:`~whisker_io.testing.fake_usb_backend.FakeUSBBackend`.
     timeout_ms : int
         Timeout of each bulk transfer in ms.
 
@@ -578,15 +578,15 @@ class SimArray(Array):
 
         Parameters
         ----------
-        simulator : whisker_io.simulator.ArraySimulator
+        simulator : whisker_io.sim.simulator.ArraySimulator
             Seeded simulator (its controller does the whisking).
-        target : trimesh.Trimesh or whisker_io.sweep.MeshTarget
+        target : trimesh.Trimesh or whisker_io.sim.sweep.MeshTarget
             The object, in the arm base frame.
         pose_provider : callable
-            Returns the current :class:`~whisker_io.hw.pose.Pose` (e.g. ``arm.pose``).
+            Returns the current :class:`~whisker_io.pose.Pose` (e.g. ``arm.pose``).
         """
         def source(pose: Any) -> Any:
-            return list(simulator.whisk(target, pose.as_matrix()).records)
+            return list(simulator.whisk(target, pose).records)
 
         return cls(source, pose_provider, layout)
 

@@ -1,9 +1,9 @@
 """The three seeded simulated data sets of thesis Ch.4.
 
 All three run the same sensing chain as the real array: the tapered-cantilever
-signal model (:mod:`whisker_io.signals`, Eq 2.33-2.38) synthesises 2 kHz angle
-and deflection traces, :func:`whisker_io.contact_detection.detect_contacts`
-finds the contacts and :func:`whisker_io.contact_features.contact_features`
+signal model (:mod:`whisker_io.sim.signals`, Eq 2.33-2.38) synthesises 2 kHz angle
+and deflection traces, :func:`whisker_io.contact.detection.detect_contacts`
+finds the contacts and :func:`whisker_io.contact.features.contact_features`
 extracts CP, CA, DV, DA, AV, AA, WL. Whisks whose contact the detector misses
 are dropped (their number is logged), exactly as a missed contact would be on
 the robot. The ground-truth radial distance is the simulator's.
@@ -11,14 +11,14 @@ the robot. The ground-truth radial distance is the simulator's.
 * :func:`make_training_set` (Sec 4.1.2.1): a rod perpendicular to the whisking
   plane at 20 equally spaced radial distances from 25 mm to the tip, whisking
   at 0.2-2.5 Hz, whisker lengths 65, 78, 87, 88, 94, 107, 113, 137 mm. Whisking
-  uses the Ch.4 RCP (:class:`~whisker_io.control.RetractAtMax`, Sec 4.1.1). The rod's
+  uses the Ch.4 RCP (:class:`~whisker_io.array.control.RetractAtMax`, Sec 4.1.1). The rod's
   position in the whisk range (the contact angle) is not given in the thesis;
   it is drawn per whisk uniformly from ``contact_angle_deg``.
 * :func:`make_validation_set` (Sec 4.1.2.2-4.1.2.3): an 18-whisker array with
   the unseen lengths 50, 64, 80, 95, 101, 127, 128, 150, 154 mm among its
   whiskers explores the Box from held-still waypoints. The ground truth is the
-  rigid-whisker sweep (:func:`whisker_io.sweep.sweep_array`); each whisk is
-  simulated by :class:`whisker_io.simulator.ArraySimulator` (sweep + signals)
+  rigid-whisker sweep (:func:`whisker_io.sim.sweep.sweep_array`); each whisk is
+  simulated by :class:`whisker_io.sim.simulator.ArraySimulator` (sweep + signals)
   under the Ch.4 RCP at a frequency drawn from 0.2-2.5 Hz. Waypoints are chosen "such that contact occurrences
   ranged from tip to anywhere along the length of the whiskers": each waypoint
   aims one whisker (round robin over the array) at a box edge at a random
@@ -26,7 +26,7 @@ the robot. The ground-truth radial distance is the simulator's.
   contact; every whisker's contact at that waypoint is then recorded. This
   uses geometry only, never a model's error.
 * :func:`make_evans_set` (Sec 4.2.2): one 185-mm whisker, a rod driven linearly
-  into the still whisker (:func:`whisker_io.signals.simulate_rod_contact`) at
+  into the still whisker (:func:`whisker_io.sim.signals.simulate_rod_contact`) at
   101 radial distances 80-180 mm x 26 speeds 36-216 mm/s x 4 repeats.
 
 Sizes: the defaults are the thesis' grids (training 8 x 20 x 6 frequencies x 2
@@ -44,15 +44,15 @@ from typing import Any
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectionParams, detect_contacts
-from whisker_io.contact_features import contact_features
-from whisker_io.control import RetractAtMax, WhiskPattern
+from whisker_io.contact.detection import DetectionParams, detect_contacts
+from whisker_io.contact.features import contact_features
+from whisker_io.array.control import RetractAtMax, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import whisker_base_transforms
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import whisker_base_transforms
 from whisker_io.radial.features import RadialDataset
-from whisker_io.recording import WhiskRecord
-from whisker_io.signals import SignalParams, WhiskContact, simulate_rod_contact, simulate_whisk_cycle
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.sim.signals import SignalParams, WhiskContact, simulate_rod_contact, simulate_whisk_cycle
 
 __all__ = [
     "TRAINING_LENGTHS_MM",
@@ -302,7 +302,7 @@ class ValidationSetParams:
     Parameters
     ----------
     object_name : str
-        Mesh from :func:`whisker_io.objects.make_object`.
+        Mesh from :func:`whisker_io.sim.objects.make_object`.
     lengths_mm : tuple of float
         The 18 whisker lengths (see :data:`VALIDATION_LENGTHS_MM`).
     n_waypoints : int
@@ -431,9 +431,9 @@ def make_validation_set(params: ValidationSetParams = ValidationSetParams(), pro
     InvalidInputError
         If fewer than ``n_waypoints`` poses are found in ``max_candidates`` tries.
     """
-    from whisker_io.objects import make_object
-    from whisker_io.simulator import ArraySimulator
-    from whisker_io.sweep import MeshTarget, sweep_array
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.simulator import ArraySimulator
+    from whisker_io.sim.sweep import MeshTarget, sweep_array
 
     rng = np.random.default_rng(params.seed)
     array = validation_array(params.lengths_mm)

@@ -26,7 +26,7 @@ from types import MappingProxyType
 import numpy as np
 
 # one definition of the columns: the contact-feature extractor's (Sec 4.1.2.4)
-from whisker_io.contact_features import FEATURE_NAMES, FEATURE_UNITS
+from whisker_io.contact.features import FEATURE_NAMES, FEATURE_UNITS
 from whisker_io.errors import InvalidInputError
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError
 

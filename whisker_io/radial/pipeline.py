@@ -23,8 +23,9 @@ from typing import Any, Protocol, Union
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, contact_points
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import contact_points
+from whisker_io.pose import PoseLike
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
 from whisker_io.radial.models import TipAssumption, TrainedModel, UniformRandom, check_feature_matrix
 
@@ -104,7 +105,7 @@ def estimate_radial_distance(
 
 def contact_points_from_features(
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     contact_angle_rad: Any,
     features: Any,
     model: RadialSource = "tip",
@@ -116,7 +117,7 @@ def contact_points_from_features(
     ----------
     array : WhiskerArray
         N modules.
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE`` held during the whisk.
     contact_angle_rad : array_like, shape (N,)
         Whisk angle at contact onset per module; NaN for modules without contact.

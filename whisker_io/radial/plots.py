@@ -11,25 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from whisker_io.plots.axes import figure_and_axes, figure_and_axes_grid
 from whisker_io.radial.evaluation import PCAResult
 
 __all__ = ["plot_pca_loadings", "plot_histograms", "plot_boxplots"]
-
-
-def _axes_grid(n: int, axes: Sequence[Any] | None, ncols: int, size: tuple[float, float]) -> tuple[Any, list[Any]]:
-    import matplotlib.pyplot as plt
-
-    if axes is not None:
-        axes = list(np.ravel(axes))
-        if len(axes) < n:
-            raise ValueError(f"need {n} axes, got {len(axes)}")
-        return axes[0].figure, axes[:n]
-    nrows = int(np.ceil(n / ncols))
-    fig, grid = plt.subplots(nrows, ncols, figsize=(size[0] * ncols, size[1] * nrows), squeeze=False)
-    flat = list(grid.ravel())
-    for ax in flat[n:]:
-        ax.set_visible(False)
-    return fig, flat[:n]
 
 
 def plot_pca_loadings(pca: PCAResult, axes: Sequence[Any] | None = None) -> Any:
@@ -43,7 +28,7 @@ def plot_pca_loadings(pca: PCAResult, axes: Sequence[Any] | None = None) -> Any:
         One per component; created side by side if omitted.
     """
     k = pca.components.shape[0]
-    fig, axs = _axes_grid(k, axes, ncols=k, size=(3.2, 3.0))
+    fig, axs = figure_and_axes_grid(k, axes, ncols=k, size=(3.2, 3.0))
     x = np.arange(len(pca.feature_names))
     for i, ax in enumerate(axs):
         ax.bar(x, pca.components[i], color="tab:blue")
@@ -89,7 +74,7 @@ def plot_histograms(
     matplotlib.figure.Figure
     """
     labels = list(samples)
-    fig, axs = _axes_grid(len(labels), axes, ncols=min(ncols, max(1, len(labels))), size=(3.0, 2.4))
+    fig, axs = figure_and_axes_grid(len(labels), axes, ncols=min(ncols, max(1, len(labels))), size=(3.0, 2.4))
     if value_range is None:
         pooled = np.concatenate([np.asarray(samples[k], dtype=float) for k in labels])
         lo, hi = np.percentile(pooled, [1, 99]) if pooled.size else (-1.0, 1.0)
@@ -137,12 +122,7 @@ def plot_boxplots(
     ymax : float, optional
         Upper y-limit (the thesis caps at 30 % of whisker length).
     """
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(1.4 * max(3, len(groups)) + 1.5, 4.0))
-    else:
-        fig = ax.figure
+    fig, ax = figure_and_axes(ax, (1.4 * max(3, len(groups)) + 1.5, 4.0))
     labels = list(groups)
     ax.boxplot([np.asarray(groups[k], dtype=float) for k in labels], notch=True, showfliers=False)
     ax.set_xticks(np.arange(1, len(labels) + 1), labels, rotation=30, ha="right", fontsize=8)

@@ -32,13 +32,13 @@ Pipeline (:func:`detect_contact`), per module and whisk cycle:
 The contact angle is the (raw) whisk angle at the onset (Sec 5.1.1.1.2; the
 moving average of a fast cosine whisk is biased by up to a few degrees).
 Ch.3's alternatives are :func:`max_angle` (largest angle of the cycle) and
-:func:`threshold_contact_angle` (angle when |d deflection/dt| first crosses a
+:func:`threshold_contact_angle` (angle when ``|d deflection/dt|`` first crosses a
 threshold).
 
 Example
 -------
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.contact_detection import detect_contact
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.contact.detection import detect_contact
 >>> (rec,), (truth,) = simulate_whisk_cycle([WhiskContact(0.0, 0.05, 0.1)], seed=3)
 >>> c = detect_contact(rec)
 >>> abs(c.onset_index - truth.onset_index) <= 10, c.sign
@@ -56,7 +56,8 @@ from scipy.ndimage import uniform_filter1d
 from scipy.signal import find_peaks, peak_prominences, peak_widths
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.validation import finite_array, finite_scalar, whole_number
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = [
     "DetectionParams",
@@ -109,16 +110,18 @@ class DetectionParams:
     refine_onset: bool = True
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.smoothing_span, (int, np.integer)) and self.smoothing_span >= 1):
+        if isinstance(self.smoothing_span, (bool, np.bool_)) or not (
+                isinstance(self.smoothing_span, (int, np.integer)) and self.smoothing_span >= 1):
             raise InvalidInputError(f"smoothing_span must be an integer >= 1, got {self.smoothing_span!r}")
-        if not (isinstance(self.baseline_samples, (int, np.integer)) and self.baseline_samples >= 1):
+        if isinstance(self.baseline_samples, (bool, np.bool_)) or not (
+                isinstance(self.baseline_samples, (int, np.integer)) and self.baseline_samples >= 1):
             raise InvalidInputError(f"baseline_samples must be an integer >= 1, got {self.baseline_samples!r}")
         names = ("min_width_samples", "min_prominence_counts", "confirm_threshold_counts", "plateau_tolerance_counts")
         for name in names:
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
+            if not finite_scalar(v, f"DetectionParams.{name}") >= 0:
                 raise InvalidInputError(f"DetectionParams.{name} must be a finite number >= 0, got {v!r}")
-        if not self.signs or any(s not in (1, -1) for s in self.signs):
+        if not isinstance(self.signs, tuple) or not self.signs or any(s not in (1, -1) for s in self.signs):
             raise InvalidInputError(f"signs must be a non-empty tuple of +1/-1, got {self.signs!r}")
 
 
@@ -171,11 +174,20 @@ def moving_average(signal: np.ndarray, span: int = 100) -> np.ndarray:
 
     Output ``k`` averages input samples ``k - ceil(span/2) + 1 .. k + floor(span/2)``
     for even spans shifted as in :func:`scipy.ndimage.uniform_filter1d`; shape kept.
+
+    Raises
+    ------
+    InvalidInputError
+        A span that is not a whole number >= 1 (0 would reach scipy as a
+        RuntimeError), or an empty or non-finite signal.
     """
-    arr = np.asarray(signal, dtype=np.float64)
-    if arr.shape[-1] == 0:
+    size = whole_number(span, "smoothing span", minimum=1)
+    if size > 2**31 - 1:
+        raise InvalidInputError(f"smoothing span {span!r} is too large; use at most the signal length")
+    arr = finite_array(signal, None, "signal")
+    if arr.ndim == 0 or arr.shape[-1] == 0:
         raise InvalidInputError("cannot smooth an empty signal")
-    return uniform_filter1d(arr, size=int(span), axis=-1, mode="nearest")
+    return uniform_filter1d(arr, size=size, axis=-1, mode="nearest")
 
 
 def _check_record(record: WhiskRecord) -> WhiskRecord:
@@ -349,7 +361,7 @@ def threshold_contact_angle(
     threshold_counts_per_s: float = 2500.0,
     smoothing_span: int = 100,
 ) -> float | None:
-    """Ch.3 "contact angle": angle when |d deflection/dt| first crosses a threshold (Sec 3.1.1).
+    """Ch.3 "contact angle": angle when ``|d deflection/dt|`` first crosses a threshold (Sec 3.1.1).
 
     The y-deflection and angle are smoothed (``smoothing_span``), the deflection
     rate is ``np.gradient(y) * fs``; no lead compensation (the method is, as the

@@ -26,9 +26,9 @@ inclusive; ``sign`` (+-1) is the detected deflection direction, so CA, DV > 0.
 
 Example
 -------
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.contact_detection import detect_contacts
->>> from whisker_io.contact_features import FEATURE_NAMES, contact_features
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.contact.detection import detect_contacts
+>>> from whisker_io.contact.features import FEATURE_NAMES, contact_features
 >>> recs, _ = simulate_whisk_cycle([WhiskContact(0.0, 0.04, 0.1), WhiskContact(0.0, 0.08, 0.1)], seed=0)
 >>> F = contact_features(recs, detect_contacts(recs), [0.1, 0.1])
 >>> F.shape, FEATURE_NAMES[2], bool(F[0, 2] > F[1, 2])   # nearer the base -> faster deflection
@@ -42,9 +42,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["FEATURE_NAMES", "FEATURE_UNITS", "contact_features", "whisk_features"]
 

@@ -35,7 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from whisker_io.errors import ConfigError
+from whisker_io.errors import ConfigError, InvalidInputError
+from whisker_io.validation import finite_scalar
 
 __all__ = [
     "COLUMNS",
@@ -329,10 +330,15 @@ class WhiskerArray:
 
         The last step is shortened if the range is not a multiple of the step.
         """
-        step = float(step_rad)
-        if not np.isfinite(step) or step <= 0.0:
+        try:
+            step = finite_scalar(step_rad, "step_rad")
+        except InvalidInputError as exc:
+            raise ConfigError(str(exc)) from None
+        if step <= 0.0:
             raise ConfigError(f"step_rad must be positive, got {step_rad!r}")
         span = self.protraction_rad - self.retraction_rad
+        if not span / step <= 1e7:
+            raise ConfigError(f"step_rad {step_rad!r} gives more than 1e7 angles; use a larger step")
         n = int(np.ceil(span / step - 1e-9))
         angles = self.retraction_rad + step * np.arange(n + 1)
         angles[-1] = self.protraction_rad

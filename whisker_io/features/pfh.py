@@ -17,8 +17,14 @@ Pipeline for one whisk (at most 18 contact points):
    pair (``acos|n.dp|``, Eq 2.41 in PCL's form); Darboux frame ``u = n_s``,
    ``v = (p_t - p_s) x u / |...|``, ``w = u x v`` (Eq 2.42); features
    ``alpha = v . n_t``, ``theta = atan2(w . n_t, u . n_t)``,
-   ``phi = u . (p_t - p_s) / d``, ``d = |p_t - p_s|`` (Eq 2.43). Pairs with
-   ``d = 0`` or ``n_s`` parallel to the joining line are skipped, as in PCL.
+   ``phi = u . (p_t - p_s) / d``, ``d = |p_t - p_s|`` (Eq 2.43).
+   Degenerate pairs (``d = 0``, or ``n_s`` parallel to the joining line) have
+   no Darboux frame. Decision - this project departs from PCL here: they are
+   left out of the histogram, which is normalised over the pairs counted
+   (:attr:`PointFeatureHistogram.n_pairs`). PCL's ``PFHEstimation`` instead
+   counts such a pair with all-zero features, which puts its mass in the
+   centre bins; two whiskers touching one point would then add mass to a bin
+   that describes no surface.
 4. **Histogram** (Eq 2.44): each feature is cut into ``bins_per_feature``
    equal bins over a fixed range (alpha, phi in [-1, 1]; theta in [-pi, pi];
    d in [0, radius_m]); the joint bin ``sum_i b_i * bins**i`` over
@@ -31,21 +37,20 @@ Pipeline for one whisk (at most 18 contact points):
 Fewer than 3 usable points is a defined case: an all-zero histogram with
 ``valid = False`` (chi-squared against it equals the other histogram's mass).
 
-Region matching (Eq 5.5) combines the PFH chi-squared with the slope
-distribution array NMSE of :mod:`whisker_io` part B; :func:`match_region`
-takes the NMSE as a callable or as precomputed values so it does not depend on
-that module.
+Region matching (Eq 5.5), which combines this chi-squared with the slope
+distribution array's NMSE, is the whisk front end's job:
+:mod:`cansim.frontends.whisk`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
 
 __all__ = [
     "FEATURE_NAMES",
@@ -56,8 +61,6 @@ __all__ = [
     "feature_bins",
     "point_feature_histogram",
     "chi_squared",
-    "RegionMatch",
-    "match_region",
 ]
 
 _BRUTE_FORCE_MAX = 256  # neighbour search by full distance matrix up to this many points
@@ -90,11 +93,13 @@ class PFHParams:
     orient_to_viewpoint: bool = True
 
     def __post_init__(self) -> None:
-        if int(self.bins_per_feature) < 1:
-            raise InvalidInputError(f"bins_per_feature must be >= 1, got {self.bins_per_feature!r}")
-        if not (np.isfinite(self.radius_m) and self.radius_m > 0):
+        whole_number(self.bins_per_feature, "bins_per_feature", minimum=1)
+        if self.bins_per_feature > 64:
+            raise InvalidInputError(
+                f"bins_per_feature must be <= 64 (the histogram has bins**4 entries), got {self.bins_per_feature!r}")
+        if not finite_scalar(self.radius_m, "radius_m") > 0:
             raise InvalidInputError(f"radius_m must be positive, got {self.radius_m!r}")
-        if int(self.normal_neighbours) < 3:
+        if whole_number(self.normal_neighbours, "normal_neighbours") < 3:
             raise InvalidInputError(
                 f"normal_neighbours must be >= 3 (a plane needs 3 points), got {self.normal_neighbours!r}"
             )
@@ -136,7 +141,10 @@ class PointFeatureHistogram:
 
 
 def _as_points(points: ArrayLike) -> NDArray[np.float64]:
-    p = np.asarray(points, dtype=float)
+    try:
+        p = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"points must be an (n, 3) array of numbers, got {points!r}") from None
     if p.ndim != 2 or p.shape[1] != 3:
         raise InvalidInputError(f"points must have shape (n, 3), got {p.shape}")
     if np.isinf(p).any():
@@ -281,9 +289,7 @@ def point_feature_histogram(
         (or no non-degenerate pair) are available; never raises for that.
     """
     p = _as_points(points)
-    vp = np.asarray(viewpoint, dtype=float)
-    if vp.shape != (3,) or not np.all(np.isfinite(vp)):
-        raise InvalidInputError(f"viewpoint must be 3 finite numbers, got {viewpoint!r}")
+    vp = finite_vector(viewpoint, 3, "viewpoint")
     hist = np.zeros(params.n_bins)
     k = int(params.normal_neighbours)
     if len(p) < max(3, k):
@@ -310,97 +316,37 @@ def chi_squared(q: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | float:
     Parameters
     ----------
     q, v : array_like (..., B)
-        Non-negative histograms.
+        Non-negative histograms (B >= 1 bins along the last axis).
+
+    Raises
+    ------
+    ShapeError
+        A histogram that is a scalar (no bin axis), lengths that differ, or
+        leading axes that do not broadcast.
+    InvalidInputError
+        Non-numeric, NaN/inf or negative entries.
     """
-    q = np.asarray(q, dtype=float)
-    v = np.asarray(v, dtype=float)
+    q = finite_array(q, None, "q")
+    v = finite_array(v, None, "v")
+    if q.ndim == 0 or v.ndim == 0:
+        raise ShapeError(f"histograms need a bin axis; got shapes {q.shape} and {v.shape} "
+                         "(pass arrays of shape (..., B))")
     if q.shape[-1] != v.shape[-1]:
-        raise InvalidInputError(f"histograms differ in length: {q.shape[-1]} vs {v.shape[-1]}")
-    s = q + v
-    diff2 = (q - v) ** 2
-    out = np.sum(np.divide(diff2, s, out=np.zeros(np.broadcast(q, v).shape), where=s > 0), axis=-1)
+        raise ShapeError(f"histograms differ in length: {q.shape[-1]} vs {v.shape[-1]}")
+    try:
+        np.broadcast_shapes(q.shape, v.shape)
+    except ValueError:
+        raise ShapeError(f"histogram shapes {q.shape} and {v.shape} do not broadcast") from None
+    if np.any(q < 0) or np.any(v < 0):
+        raise InvalidInputError("histograms must be non-negative (bin counts or fractions)")
+    from whisker_io.features._distances_numba import chi2_rows
+
+    lead = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    if q.ndim == 1:
+        out = chi2_rows(q, np.ascontiguousarray(v.reshape(-1, v.shape[-1]))).reshape(lead)
+    else:
+        qb = np.broadcast_to(q, lead + q.shape[-1:]).reshape(-1, q.shape[-1])
+        vb = np.broadcast_to(v, lead + v.shape[-1:]).reshape(-1, v.shape[-1])
+        out = np.array([chi2_rows(qr, vr[None, :])[0] for qr, vr in zip(qb, vb)]).reshape(lead)
     return float(out) if np.ndim(out) == 0 else out
 
-
-@dataclass(frozen=True, eq=False)
-class RegionMatch:
-    """Result of :func:`match_region` (Eq 5.5).
-
-    Attributes
-    ----------
-    index : int or None
-        Index of the matching stored region, None when no region passes both thresholds.
-    chi2 : ndarray (m,)
-        PFH chi-squared to every stored region.
-    nmse : ndarray (m,)
-        SDA NMSE to every stored region.
-    candidates : ndarray (k,) int
-        Stored regions with ``chi2 < t_pfh`` and ``nmse < t_sda``.
-    score : float
-        ``chi2 + nmse`` of the match (inf when none).
-    """
-
-    index: int | None
-    chi2: NDArray[np.float64]
-    nmse: NDArray[np.float64]
-    candidates: NDArray[np.int64]
-    score: float
-
-
-def match_region(
-    pfh_query: ArrayLike,
-    sda_query: object,
-    stored_regions: Sequence[tuple[ArrayLike, object]],
-    t_pfh: float,
-    t_sda: float,
-    nmse: Callable[[object, object], float] | ArrayLike,
-) -> RegionMatch:
-    """Region similarity and selection (Eq 5.5, Sec 5.1.1.1.4).
-
-    Every stored region ``o_i = (f_i, s_i)`` is compared with the query:
-    ``[chi2(f_n, f_i), NMSE(s_n, s_i)]``; regions with ``chi2 < t_pfh`` and
-    ``NMSE < t_sda`` are candidates, and the candidate with the smallest
-    ``chi2 + NMSE`` is the match.
-
-    Parameters
-    ----------
-    pfh_query : array_like (B,)
-        Histogram of the current whisk.
-    sda_query : object
-        The query's slope distribution array, passed unchanged to ``nmse``
-        (ignored when ``nmse`` is precomputed).
-    stored_regions : sequence of (pfh (B,), sda) pairs
-        The stored regions; the SDA part is passed unchanged to ``nmse``.
-    t_pfh, t_sda : float
-        Thresholds ``T_pfh`` and ``T_sda`` (hand-tuned in the thesis).
-    nmse : callable ``nmse(sda_query, sda_stored) -> float`` or array_like (m,)
-        The SDA dissimilarity (Eq 5.3; e.g. part B's NMSE function) or its
-        precomputed values for each stored region.
-
-    Returns
-    -------
-    RegionMatch
-    """
-    m = len(stored_regions)
-    q = np.asarray(pfh_query, dtype=float)
-    if m == 0:
-        empty = np.zeros(0)
-        return RegionMatch(None, empty, empty, np.zeros(0, dtype=np.int64), float("inf"))
-    stored = np.array([np.asarray(f, dtype=float) for f, _ in stored_regions])
-    if stored.ndim != 2 or stored.shape[1] != q.shape[-1]:
-        raise InvalidInputError(
-            f"stored PFHs must all have {q.shape[-1]} bins like the query; got shape {stored.shape}"
-        )
-    chi2 = np.atleast_1d(chi_squared(q, stored))
-    if callable(nmse):
-        e = np.array([float(nmse(sda_query, s)) for _, s in stored_regions])
-    else:
-        e = np.asarray(nmse, dtype=float).reshape(-1)
-        if e.shape != (m,):
-            raise InvalidInputError(f"precomputed nmse must have shape ({m},), got {e.shape}")
-    cand = np.flatnonzero((chi2 < t_pfh) & (e < t_sda))
-    if cand.size == 0:
-        return RegionMatch(None, chi2, e, cand, float("inf"))
-    total = chi2[cand] + e[cand]
-    best = int(cand[np.argmin(total)])
-    return RegionMatch(best, chi2, e, cand, float(chi2[best] + e[best]))

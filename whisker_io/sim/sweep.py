@@ -54,8 +54,10 @@ import trimesh
 from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, rot_z, rotate_shaft, whisker_base_transforms
+from whisker_io.validation import finite_scalar, whole_number
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
+from whisker_io.pose import PoseLike
 
 __all__ = [
     "RayEngine",
@@ -248,13 +250,10 @@ class SweepParams:
     tip_chords: bool = True
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.step_rad) and self.step_rad > 0):
+        if not finite_scalar(self.step_rad, "step_rad") > 0:
             raise InvalidInputError(f"step_rad must be positive, got {self.step_rad!r}")
-        if int(self.refine_subdivisions) < 2:
-            raise InvalidInputError(
-                f"refine_subdivisions must be >= 2, got {self.refine_subdivisions!r}"
-            )
-        if not (np.isfinite(self.angle_tolerance_rad) and self.angle_tolerance_rad > 0):
+        whole_number(self.refine_subdivisions, "refine_subdivisions", minimum=2)
+        if not finite_scalar(self.angle_tolerance_rad, "angle_tolerance_rad") > 0:
             raise InvalidInputError(
                 f"angle_tolerance_rad must be positive, got {self.angle_tolerance_rad!r}"
             )
@@ -374,7 +373,7 @@ def _first_interval(hits: dict[str, NDArray]) -> NDArray[np.int64]:
 def sweep_array(
     array: WhiskerArray,
     target: MeshTarget | trimesh.Trimesh,
-    pose: Pose,
+    pose: PoseLike,
     params: SweepParams = SweepParams(),
 ) -> tuple[SweepContact | None, ...]:
     """Sweep every whisker from retraction to protraction and return its first contact.
@@ -386,8 +385,8 @@ def sweep_array(
     target : MeshTarget or trimesh.Trimesh
         The obstacle in the world frame. Pass a :class:`MeshTarget` when sweeping
         the same mesh repeatedly (a bare mesh builds its intersector each call).
-    pose : Pose
-        End-effector pose ``T_BE`` (4x4, or position + scalar-last quaternion).
+    pose : PoseLike
+        End-effector pose ``T_BE`` (a Pose, a 4x4 transform, or (position_m, quaternion_xyzw)).
     params : SweepParams
 
     Returns
@@ -397,7 +396,7 @@ def sweep_array(
     """
     if not isinstance(target, MeshTarget):
         target = MeshTarget(target)
-    T_BW = whisker_base_transforms(array, as_transform(pose))
+    T_BW = whisker_base_transforms(array, pose)
     base, X, Y = T_BW[:, :3, 3], T_BW[:, :3, 0], T_BW[:, :3, 1]
     L = array.lengths_m
     rays = _SweepRays(target, base, X, Y, L, params.tip_chords)
@@ -517,9 +516,10 @@ class ContactNoise:
             raise InvalidInputError(
                 f"position_mode must be 'shaft' or 'isotropic', got {self.position_mode!r}"
             )
-        if not (self.position_sigma_fraction >= 0 and self.slope_sigma >= 0):
+        if not (finite_scalar(self.position_sigma_fraction, "position_sigma_fraction") >= 0
+                and finite_scalar(self.slope_sigma, "slope_sigma") >= 0):
             raise InvalidInputError("noise standard deviations must be >= 0")
-        if not (0.0 <= self.registration_probability <= 1.0):
+        if not 0.0 <= finite_scalar(self.registration_probability, "registration_probability") <= 1.0:
             raise InvalidInputError(
                 f"registration_probability must be in [0, 1], got {self.registration_probability!r}"
             )

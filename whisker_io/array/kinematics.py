@@ -6,27 +6,24 @@ angle ``theta``; translating by the radial distance ``r`` along that frame's
 y-axis (Eq 5.2, ``Ty(r)``; the printed matrix lacks its identity diagonal) gives
 the contact point. All functions are vectorised over whiskers (and angles).
 
-Poses at the API boundary are either a (4, 4) homogeneous matrix ``T_BE`` or a
-``(position, quaternion)`` pair with the quaternion **scalar-last**
-``(x, y, z, w)`` as in :class:`scipy.spatial.transform.Rotation` (ROS
-``geometry_msgs/Pose`` uses the same order). Units: metres, radians.
+Poses at the API boundary are any :data:`whisker_io.pose.PoseLike` (a
+:class:`~whisker_io.pose.Pose`, a (4, 4) homogeneous matrix ``T_BE`` or a
+``(position_m, quaternion_xyzw)`` pair, quaternion **scalar-last**), converted
+once by :func:`whisker_io.pose.as_pose`, so a reflection or a non-unit
+quaternion is refused here exactly as everywhere else. Units: metres, radians.
 """
 
 from __future__ import annotations
 
-from typing import Union
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.pose import PoseLike, as_pose
+from whisker_io.validation import finite_array
 
 __all__ = [
-    "Pose",
-    "transform_from_position_quaternion",
-    "as_transform",
     "rot_z",
     "whisker_base_transforms",
     "whisker_frames",
@@ -36,74 +33,10 @@ __all__ = [
     "whisker_coordinates",
 ]
 
-Pose = Union[ArrayLike, tuple[ArrayLike, ArrayLike]]
-"""A (4, 4) transform ``T_BE`` or a ``(position (3,), quaternion_xyzw (4,))`` pair."""
 
-
-def transform_from_position_quaternion(
-    position: ArrayLike, quaternion_xyzw: ArrayLike
-) -> NDArray[np.float64]:
-    """Homogeneous transform from a position (m) and a scalar-last unit quaternion.
-
-    Parameters
-    ----------
-    position : array_like, shape (3,)
-        Translation in metres.
-    quaternion_xyzw : array_like, shape (4,)
-        Orientation as ``(x, y, z, w)`` (scipy convention); normalised here.
-
-    Returns
-    -------
-    ndarray, shape (4, 4)
-    """
-    p = np.asarray(position, dtype=float)
-    q = np.asarray(quaternion_xyzw, dtype=float)
-    if p.shape != (3,) or q.shape != (4,):
-        raise InvalidInputError(
-            f"position must have shape (3,) and quaternion (4,) (x, y, z, w); got "
-            f"{p.shape} and {q.shape}"
-        )
-    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))) or np.linalg.norm(q) < 1e-12:
-        raise InvalidInputError(
-            "position and quaternion must be finite and the quaternion non-zero; "
-            f"got {p.tolist()}, {q.tolist()}"
-        )
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_quat(q).as_matrix()
-    T[:3, 3] = p
-    return T
-
-
-def as_transform(pose: Pose) -> NDArray[np.float64]:
-    """Normalise a pose argument to a (4, 4) float transform ``T_BE``.
-
-    Parameters
-    ----------
-    pose : (4, 4) array_like, or (position (3,), quaternion_xyzw (4,)) tuple
-        The end-effector pose in the world (arm base) frame.
-
-    Raises
-    ------
-    InvalidInputError
-        Wrong shape, non-finite entries, or a rotation block that is not orthonormal.
-    """
-    if isinstance(pose, tuple) and len(pose) == 2:
-        return transform_from_position_quaternion(*pose)
-    T = np.asarray(pose, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InvalidInputError(
-            "pose must be a finite (4, 4) homogeneous matrix or a (position, "
-            f"quaternion_xyzw) tuple; got an array of shape {T.shape}"
-        )
-    R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or not np.allclose(
-        T[3], [0.0, 0.0, 0.0, 1.0]
-    ):
-        raise InvalidInputError(
-            "pose is not a rigid transform: the rotation block must be orthonormal "
-            "and the last row (0, 0, 0, 1)"
-        )
-    return T
+def _transform(pose: PoseLike) -> NDArray[np.float64]:
+    """``T_BE`` (4, 4) of a pose argument, through the one coercion :func:`as_pose`."""
+    return as_pose(pose).matrix
 
 
 def rot_z(theta: ArrayLike) -> NDArray[np.float64]:
@@ -129,7 +62,7 @@ def rot_z(theta: ArrayLike) -> NDArray[np.float64]:
     return R
 
 
-def whisker_base_transforms(array: WhiskerArray, pose: Pose) -> NDArray[np.float64]:
+def whisker_base_transforms(array: WhiskerArray, pose: PoseLike) -> NDArray[np.float64]:
     """``T_BWi = T_BE @ T_EWi`` for every module (Sec 5.1.1.1.2).
 
     Returns
@@ -137,7 +70,7 @@ def whisker_base_transforms(array: WhiskerArray, pose: Pose) -> NDArray[np.float
     ndarray, shape (N, 4, 4)
         Base frames at whisk angle 0 in the world frame.
     """
-    return as_transform(pose) @ array.T_EW
+    return _transform(pose) @ array.T_EW
 
 
 def _angles(array: WhiskerArray, theta: ArrayLike) -> NDArray[np.float64]:
@@ -154,13 +87,13 @@ def _angles(array: WhiskerArray, theta: ArrayLike) -> NDArray[np.float64]:
     return t
 
 
-def whisker_frames(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArray[np.float64]:
+def whisker_frames(array: WhiskerArray, pose: PoseLike, theta: ArrayLike) -> NDArray[np.float64]:
     """Shaft frames ``T_BWi Rz(theta_i)`` at the given whisk angles (Eq 5.1).
 
     Parameters
     ----------
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE``.
     theta : array_like, scalar, (N,) or (N, M)
         Whisk angle(s) in radians (+ = protraction).
@@ -195,7 +128,7 @@ def rotate_shaft(x_axis: ArrayLike, y_axis: ArrayLike, theta: ArrayLike) -> NDAr
     return np.cos(t) * np.asarray(y_axis) - np.sin(t) * np.asarray(x_axis)
 
 
-def shaft_directions(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArray[np.float64]:
+def shaft_directions(array: WhiskerArray, pose: PoseLike, theta: ArrayLike) -> NDArray[np.float64]:
     """Unit shaft directions in the world (the frames' y-axes) at angles ``theta``.
 
     Equivalent to ``whisker_frames(...)[..., :3, 1]`` but without building the
@@ -206,7 +139,7 @@ def shaft_directions(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArr
     ndarray, shape theta.shape + (3,)
     """
     t = _angles(array, theta)
-    R = as_transform(pose)[:3, :3] @ array.rotations  # (N, 3, 3)
+    R = _transform(pose)[:3, :3] @ array.rotations  # (N, 3, 3)
     x, y = R[:, :, 0], R[:, :, 1]
     if t.ndim == 1:
         return rotate_shaft(x, y, t)
@@ -215,7 +148,7 @@ def shaft_directions(array: WhiskerArray, pose: Pose, theta: ArrayLike) -> NDArr
 
 def contact_points(
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     theta: ArrayLike,
     radial_distance_m: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
@@ -224,7 +157,7 @@ def contact_points(
     Parameters
     ----------
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE``.
     theta : array_like, (N,) or scalar
         Whisk angle at contact, radians.
@@ -242,15 +175,19 @@ def contact_points(
     if radial_distance_m is None:
         r = array.lengths_m
     else:
-        r = np.broadcast_to(np.asarray(radial_distance_m, dtype=float), t.shape)
-        if not np.all(np.isfinite(r)):
-            raise InvalidInputError("radial_distance_m contains NaN or inf")
+        r = finite_array(radial_distance_m, None, "radial_distance_m")
+        try:
+            r = np.broadcast_to(r, t.shape)
+        except ValueError:
+            raise InvalidInputError(
+                f"radial_distance_m must be a scalar or shape ({len(array)},), got {r.shape}") from None
+    pose = as_pose(pose)  # once, for both uses below
     T_BW = whisker_base_transforms(array, pose)
     return T_BW[:, :3, 3] + r[:, None] * shaft_directions(array, pose, t)
 
 
 def whisker_coordinates(
-    array: WhiskerArray, pose: Pose, points: ArrayLike
+    array: WhiskerArray, pose: PoseLike, points: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Inverse of :func:`contact_points`: express world points in each whisker's base frame.
 

@@ -7,7 +7,7 @@ them from the measured y-deflection:
 * :class:`OpenLoop` - "a sinusoidal 1Hz pattern of fixed magnitude that moved
   the whiskers throughout their full range of motion" (Sec 3.2.2).
 * :class:`RCP` - rapid cessation of protraction as implemented in Ch.3: the
-  commanded amplitude is reduced by the mean |y-deflection| above the contact
+  commanded amplitude is reduced by the mean ``|y-deflection|`` above the contact
   threshold (20 x the free-whisking noise std, from calibration), keeping the
   starting angle. Decision: the reduction is applied cycle to cycle (the
   deflection measured in cycle n sets the amplitude of cycle n+1), which keeps
@@ -19,14 +19,14 @@ them from the measured y-deflection:
   a half cosine lasting half a whisk period, then rests there.
 
 Every controller implements the :class:`WhiskController` protocol used by
-:func:`whisker_io.signals.simulate_whisk_cycle`: ``command`` (trajectories before
+:func:`whisker_io.sim.signals.simulate_whisk_cycle`: ``command`` (trajectories before
 the cycle), ``respond`` (within-cycle reaction to the measured y-deflection; it
 may only change samples after the one that triggered it) and ``end_cycle``.
 
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.control import WhiskPattern, OpenLoop
+>>> from whisker_io.array.control import WhiskPattern, OpenLoop
 >>> pattern = WhiskPattern(frequency_hz=1.0)
 >>> angles = OpenLoop(pattern).command(n_whiskers=18)
 >>> angles.shape, round(float(np.rad2deg(angles.max())), 6)
@@ -42,6 +42,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.validation import finite_scalar
 
 __all__ = [
     "MAX_WHISK_FREQUENCY_HZ",
@@ -83,17 +84,17 @@ class WhiskPattern:
     sample_rate_hz: float = 2000.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.frequency_hz) and 0.0 < self.frequency_hz <= MAX_WHISK_FREQUENCY_HZ):
+        if not 0.0 < finite_scalar(self.frequency_hz, "frequency_hz") <= MAX_WHISK_FREQUENCY_HZ:
             raise InvalidInputError(
                 f"frequency_hz must be in (0, {MAX_WHISK_FREQUENCY_HZ}] Hz, got {self.frequency_hz!r}"
             )
-        if not (math.isfinite(self.retraction_rad) and math.isfinite(self.protraction_rad)):
-            raise InvalidInputError("retraction_rad and protraction_rad must be finite")
+        finite_scalar(self.retraction_rad, "retraction_rad")
+        finite_scalar(self.protraction_rad, "protraction_rad")
         if not self.protraction_rad > self.retraction_rad:
             raise InvalidInputError(
                 f"protraction_rad ({self.protraction_rad}) must exceed retraction_rad ({self.retraction_rad})"
             )
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz >= 2 * self.frequency_hz):
+        if not finite_scalar(self.sample_rate_hz, "sample_rate_hz") >= 2 * self.frequency_hz:
             raise InvalidInputError(f"sample_rate_hz must be >= 2 x frequency_hz, got {self.sample_rate_hz!r}")
 
     @property
@@ -133,7 +134,7 @@ class WhiskPattern:
 
 @runtime_checkable
 class WhiskController(Protocol):
-    """What :func:`whisker_io.signals.simulate_whisk_cycle` needs from a controller."""
+    """What :func:`whisker_io.sim.signals.simulate_whisk_cycle` needs from a controller."""
 
     pattern: WhiskPattern
 
@@ -179,7 +180,7 @@ def contact_threshold_from_noise(free_whisk_y_counts: np.ndarray, factor: float 
     Returns
     -------
     float
-        Threshold on |y - mean|, counts.
+        Threshold on ``|y - mean|``, counts.
     """
     y = np.asarray(free_whisk_y_counts, dtype=np.float64).ravel()
     if y.size < 2 or not np.all(np.isfinite(y)):
@@ -206,9 +207,9 @@ class OpenLoop:
 
 @dataclass
 class RCP:
-    """Rapid cessation of protraction, Ch.3 form: amplitude reduced by the mean super-threshold |y|.
+    """Rapid cessation of protraction, Ch.3 form: amplitude reduced by the mean super-threshold ``|y|``.
 
-    After each cycle, for each whisker, ``P = mean(|y - b|)`` over the samples with
+    After each cycle, for each whisker, ``P = mean(``|y - b|``)`` over the samples with
     ``|y - b| > threshold_counts`` (``b`` = mean of the last 100 samples, the
     free-whisking baseline of Sec 5.1.1.1.1; ``P = 0`` without such samples), and
     the next cycle's amplitude is ``clip(A_full - gain * P, min_amplitude, A_full)``.
@@ -220,7 +221,7 @@ class RCP:
         The global pattern (full amplitude A_full).
     threshold_counts : float, default 80
         Contact threshold, counts; set it with :func:`contact_threshold_from_noise`
-        (default = 20 x the 4-count noise std of :class:`whisker_io.signals.SignalParams`).
+        (default = 20 x the 4-count noise std of :class:`whisker_io.sim.signals.SignalParams`).
     gain_rad_per_count : float, default 50 deg / 2047
         Amplitude reduction per count of mean deflection (assumption: a full-scale
         mean deflection halves the 100-deg amplitude).
@@ -235,9 +236,11 @@ class RCP:
     amplitudes_rad: np.ndarray | None = field(default=None, init=False)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.pattern, WhiskPattern):
+            raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
         for name in ("threshold_counts", "gain_rad_per_count", "min_amplitude_rad"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
+            if not finite_scalar(v, name) >= 0:
                 raise InvalidInputError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.min_amplitude_rad > self.pattern.amplitude_rad:
             raise InvalidInputError("min_amplitude_rad must not exceed the pattern's full amplitude")
@@ -252,7 +255,7 @@ class RCP:
         return angles_rad
 
     def perturbation_counts(self, y_counts: np.ndarray) -> np.ndarray:
-        """Mean |y - baseline| over the super-threshold samples of each whisker, shape (n,), counts."""
+        """Mean ``|y - baseline|`` over the super-threshold samples of each whisker, shape (n,), counts."""
         y = _check_y(y_counts, None, self.pattern.n_samples)
         dev = np.abs(y - y[:, -100:].mean(axis=1, keepdims=True))
         above = dev > self.threshold_counts
@@ -271,14 +274,14 @@ class RCP:
 
 @dataclass
 class RetractAtMax:
-    """Ch.4/6 RCP: retract as soon as |y-deflection| reaches the sensor maximum (Sec 4.1.1).
+    """Ch.4/6 RCP: retract as soon as ``|y-deflection|`` reaches the sensor maximum (Sec 4.1.1).
 
     Parameters
     ----------
     pattern : WhiskPattern
         The global pattern.
     threshold_counts : float, default 2000
-        Trigger level on |y - b| (``b`` = mean of the first 100 samples, taken
+        Trigger level on ``|y - b|`` (``b`` = mean of the first 100 samples, taken
         before any contact), counts. Default: 98 % of the 2047-count ADC maximum,
         so sensor noise at saturation still triggers.
     """
@@ -287,7 +290,9 @@ class RetractAtMax:
     threshold_counts: float = 2000.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.threshold_counts) and self.threshold_counts > 0):
+        if not isinstance(self.pattern, WhiskPattern):
+            raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
+        if not finite_scalar(self.threshold_counts, "threshold_counts") > 0:
             raise InvalidInputError(f"threshold_counts must be > 0, got {self.threshold_counts!r}")
 
     def command(self, n_whiskers: int) -> np.ndarray:

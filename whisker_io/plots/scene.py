@@ -14,9 +14,11 @@ import numpy as np
 import trimesh
 from numpy.typing import ArrayLike
 
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, whisker_frames
-from whisker_io.sweep import SweepContact
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import whisker_frames
+from whisker_io.plots.axes import figure_and_axes
+from whisker_io.pose import PoseLike, as_pose
+from whisker_io.sim.sweep import SweepContact
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -28,7 +30,7 @@ __all__ = ["plot_scene", "draw_pfh", "plot_pfh", "plot_tactile_image"]
 def plot_scene(
     mesh: trimesh.Trimesh,
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     contacts: Sequence[SweepContact | None] | None = None,
     ax: "Axes | None" = None,
     max_faces: int = 4000,
@@ -43,10 +45,10 @@ def plot_scene(
     mesh : trimesh.Trimesh
         The object in the world frame.
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE``.
     contacts : sequence of SweepContact or None, optional
-        One per module (e.g. :func:`whisker_io.sweep.sweep_array` output).
+        One per module (e.g. :func:`whisker_io.sim.sweep.sweep_array` output).
     ax : matplotlib 3-D Axes, optional
     max_faces : int
         Faces drawn at most (a regular subset of larger meshes), for speed.
@@ -58,10 +60,7 @@ def plot_scene(
     import matplotlib.pyplot as plt
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    if ax is None:
-        fig = plt.figure(figsize=(6, 6))
-        ax = fig.add_subplot(projection="3d")
-    fig = ax.figure
+    fig, ax = figure_and_axes(ax, (6.0, 6.0), projection="3d")
     faces = np.arange(len(mesh.faces))
     if len(faces) > max_faces:
         faces = faces[:: int(np.ceil(len(faces) / max_faces))]
@@ -70,11 +69,11 @@ def plot_scene(
     coll = Poly3DCollection(tris, facecolors=plt.cm.Blues(shade), edgecolors="none", alpha=0.35)
     ax.add_collection3d(coll)
 
-    T = as_transform(pose)
+    pose = as_pose(pose)
     n = len(array)
     contacts = list(contacts) if contacts is not None else [None] * n
     theta = np.array([0.0 if c is None else c.angle_rad for c in contacts])
-    frames = whisker_frames(array, T, theta)
+    frames = whisker_frames(array, pose, theta)
     for i, c in enumerate(contacts):
         base = frames[i, :3, 3]
         reach = array.lengths_m[i] if c is None else c.radial_distance_m
@@ -100,7 +99,7 @@ def draw_pfh(ax: "Axes", histogram: ArrayLike, color: str = "tab:blue", label: s
     ----------
     ax : matplotlib Axes
     histogram : array_like (B,)
-        Normalised histogram (:attr:`whisker_io.pfh.PointFeatureHistogram.histogram`).
+        Normalised histogram (:attr:`whisker_io.features.pfh.PointFeatureHistogram.histogram`).
     color, label : bar colour and legend label.
 
     Returns
@@ -117,11 +116,8 @@ def draw_pfh(ax: "Axes", histogram: ArrayLike, color: str = "tab:blue", label: s
 
 def plot_pfh(histogram: ArrayLike, ax: "Axes | None" = None, title: str = "Point feature histogram") -> "Figure":
     """Figure of one PFH (:func:`draw_pfh`); returns the Figure."""
-    import matplotlib.pyplot as plt
-
     created = ax is None
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 2.5))
+    _, ax = figure_and_axes(ax, (6.0, 2.5))
     draw_pfh(ax, histogram)
     ax.set_title(title)
     if created:
@@ -131,11 +127,8 @@ def plot_pfh(histogram: ArrayLike, ax: "Axes | None" = None, title: str = "Point
 
 def plot_tactile_image(image: ArrayLike, ax: "Axes | None" = None) -> "Figure":
     """Grey-scale view of a tactile image (Fig 3.2 layout: columns A-F, rows 1-3)."""
-    import matplotlib.pyplot as plt
-
     img = np.asarray(image)
-    if ax is None:
-        _, ax = plt.subplots(figsize=(4, 2.2))
+    _, ax = figure_and_axes(ax, (4.0, 2.2))
     ax.imshow(img, cmap="gray", vmin=0, vmax=255)
     ax.set_xticks(range(img.shape[1]), [chr(ord("A") + i) for i in range(img.shape[1])])
     ax.set_yticks(range(img.shape[0]), [str(i + 1) for i in range(img.shape[0])])

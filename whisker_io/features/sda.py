@@ -12,7 +12,7 @@ Decisions: the fit uses the span-100 smoothed x and y (the same preprocessing as
 detection); a whisker whose x-deflection does not vary over the window (a
 surface squarely facing the whisk) has an undefined gradient and is masked out
 (``min_x_spread_counts``). With the frictionless beam model of
-:mod:`whisker_io.signals` the gradient equals ``n_y / n_x``, the surface normal
+:mod:`whisker_io.sim.signals` the gradient equals ``n_y / n_x``, the surface normal
 on the sensor axes.
 
 ``NMSE(x, y) = MSE(x, y) / MSE(x, 0)`` with ``MSE(x, y) = ||x - y||^2 / n`` (Eq 5.3-5.4),
@@ -21,8 +21,8 @@ taken over the whiskers valid in both arrays.
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.sda import nmse
->>> float(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])))   # (0 + 1) / (1 + 4)
+>>> from whisker_io.features.sda import nmse
+>>> round(nmse(np.array([1.0, 2.0]), np.array([1.0, 3.0])), 12)   # (0 + 1) / (1 + 4)
 0.2
 """
 
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
+from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = ["SlopeDistribution", "contact_gradient", "slope_distribution", "nmse"]
 
@@ -134,39 +134,56 @@ def nmse(
     y: np.ndarray,
     mask_x: np.ndarray | None = None,
     mask_y: np.ndarray | None = None,
-) -> float:
+) -> float | np.ndarray:
     """Normalised mean square error ``MSE(x, y) / MSE(x, 0)`` (Eq 5.3-5.4), masked.
 
     Parameters
     ----------
-    x, y : array_like, shape (N,)
-        Two SDAs (``x`` is the reference: the normaliser is its own power).
-    mask_x, mask_y : array_like of bool, shape (N,), optional
+    x : array_like, shape (N,)
+        The reference SDA (the normaliser is its own power; in region matching the
+        current whisk, Eq 5.5).
+    y : array_like, shape (N,) or (m, N)
+        One SDA, or ``m`` stored SDAs compared with ``x`` at once.
+    mask_x : array_like of bool, shape (N,), optional
+    mask_y : array_like of bool, shape of ``y``, optional
         Valid entries (all when omitted); only entries valid in both count.
 
     Returns
     -------
-    float
+    float or ndarray (m,)
         0 for identical arrays; ``inf`` when no entry is valid in both, or when
-        ``x`` is all zero there and ``y`` is not (0 if both are).
+        ``x`` is all zero there and ``y`` is not (0 if both are). The ratio is
+        scale-free, so it is computed on both arrays divided by their largest
+        magnitude: values near the float limit (``nmse([1e200], [0])`` is 1)
+        never overflow into NaN. A ratio beyond the float range is ``inf``.
+
+    Raises
+    ------
+    InvalidInputError
+        Non-numeric input, ``x`` not 1-D, ``y`` not (N,) or (m, N), a mask of
+        another shape, or NaN/inf at a valid entry.
     """
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(y, dtype=np.float64)
-    if xa.ndim != 1 or xa.shape != ya.shape:
-        raise InvalidInputError(f"x and y must be 1-D of equal length, got {xa.shape} and {ya.shape}")
-    both = np.ones(xa.shape, dtype=bool)
-    for m in (mask_x, mask_y):
+    try:
+        xa = np.asarray(x, dtype=np.float64)
+        ya = np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"x and y must be arrays of numbers, got {x!r} and {y!r}") from None
+    single = ya.ndim == 1
+    if xa.ndim != 1 or ya.ndim not in (1, 2) or ya.shape[-1] != xa.shape[0]:
+        raise InvalidInputError(f"x must be 1-D and y (N,) or (m, N) of the same length N, got {xa.shape} and {ya.shape}")
+    y2 = ya.reshape(-1, xa.shape[0])
+    both = np.ones(y2.shape, dtype=bool)
+    for m, shape in ((mask_x, xa.shape), (mask_y, ya.shape)):
         if m is not None:
             ma = np.asarray(m, dtype=bool)
-            if ma.shape != xa.shape:
-                raise InvalidInputError(f"mask shape {ma.shape} does not match {xa.shape}")
-            both &= ma
-    if not np.all(np.isfinite(xa[both])) or not np.all(np.isfinite(ya[both])):
+            if ma.shape != shape:
+                raise InvalidInputError(f"mask shape {ma.shape} does not match {shape}")
+            both &= ma.reshape(-1, xa.shape[0]) if ma.ndim == ya.ndim else ma
+    mx = np.ones(xa.shape, dtype=bool) if mask_x is None else np.asarray(mask_x, dtype=bool)
+    my = np.ones(y2.shape, dtype=bool) if mask_y is None else np.asarray(mask_y, dtype=bool).reshape(y2.shape)
+    if not np.all(np.isfinite(np.broadcast_to(xa, y2.shape)[both])) or not np.all(np.isfinite(y2[both])):
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
-    if not both.any():
-        return float("inf")
-    err = float(np.mean((xa[both] - ya[both]) ** 2))
-    power = float(np.mean(xa[both] ** 2))
-    if power == 0.0:
-        return 0.0 if err == 0.0 else float("inf")
-    return err / power
+    from whisker_io.features._distances_numba import nmse_rows
+
+    out = nmse_rows(np.ascontiguousarray(xa), np.ascontiguousarray(y2), np.ascontiguousarray(mx), np.ascontiguousarray(my))
+    return float(out[0]) if single else out

@@ -40,7 +40,10 @@ whisk cycle::
 * ``x_m, y_m, z_m``: end-effector position in the arm base frame, metres.
 * ``qx, qy, qz, qw``: end-effector orientation, unit quaternion, **scalar last**
   (the order of ``geometry_msgs/Quaternion`` and of
-  ``scipy.spatial.transform.Rotation.as_quat``).
+  ``scipy.spatial.transform.Rotation.as_quat``). The line is read into a
+  :class:`~whisker_io.pose.Pose`, so the package's one quaternion rule applies:
+  a norm within 1e-3 of 1 is normalised, anything else is a corrupt line; the
+  sign is made canonical (``qw >= 0``, the same rotation).
 * ``whisk_file``: the stem of the cycle's whisk files; the cycle's module files
   are ``{whisk_file}_{module}.csv`` in the same directory.
 
@@ -54,12 +57,13 @@ an error naming the file and the 1-based line number.
 Example
 -------
 >>> import numpy as np, tempfile
->>> from whisker_io.recording import WhiskRecord, RecordingWriter, replay
+>>> from whisker_io.pose import Pose
+>>> from whisker_io.records.whisk_record import WhiskRecord
+>>> from whisker_io.records.recording import RecordingWriter, replay
 >>> rec = WhiskRecord("A1", np.zeros(4), np.zeros(4), np.ones(4), cycle=0)
 >>> with tempfile.TemporaryDirectory() as d:
 ...     with RecordingWriter(d) as w:
-...         _ = w.write_cycle([rec], time_s=0.0, position_m=[0, 0, 0],
-...                           quaternion_xyzw=[0, 0, 0, 1])
+...         _ = w.write_cycle([rec], time_s=0.0, pose=Pose([0, 0, 0], [0, 0, 0, 1]))
 ...     cycles = list(replay(d))
 >>> cycles[0].records["A1"].y_counts.tolist()
 [1.0, 1.0, 1.0, 1.0]
@@ -73,21 +77,20 @@ import os
 import re
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
 
-from whisker_io.errors import InvalidInputError, CorruptFileError
+from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.pose import PoseLike
+from whisker_io.records.whisk_record import MODULE_NAME_RE, SAMPLE_RATE_HZ, PoseEntry, WhiskRecord
 
 __all__ = [
-    "SAMPLE_RATE_HZ",
     "WHISK_HEADER",
     "POSE_LOG_HEADER",
     "POSE_LOG_NAME",
-    "WhiskRecord",
-    "PoseEntry",
     "ReplayedCycle",
     "whisk_file_stem",
     "whisk_file_name",
@@ -101,8 +104,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Sampling rate of every whisker module, Hz (Sec 2.2: "maximum sensory sampling rate of 2kHz").
-SAMPLE_RATE_HZ: float = 2000.0
 #: Header line of a whisk CSV (canonical units).
 WHISK_HEADER: tuple[str, ...] = ("angle_rad", "x_deflection_counts", "y_deflection_counts", "spare")
 _WHISK_HEADER_DEG: tuple[str, ...] = ("angle_deg",) + WHISK_HEADER[1:]
@@ -111,163 +112,7 @@ POSE_LOG_HEADER: tuple[str, ...] = ("time_s", "x_m", "y_m", "z_m", "qx", "qy", "
 #: File name of the pose log inside a session directory.
 POSE_LOG_NAME: str = "pose_log.csv"
 
-_MODULE_RE = re.compile(r"^[A-Za-z0-9]+$")
-_STEM_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
 _FILE_RE = re.compile(r"^whisk_(\d+)_([A-Za-z0-9]+)\.csv$")
-_QUAT_NORM_TOL = 1e-6
-
-
-def _finite_vector(name: str, value: object) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64, copy=True)
-    if arr.ndim != 1:
-        raise InvalidInputError(f"{name} must be a 1-D array of samples, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise InvalidInputError(
-            f"{name} holds NaN/inf at sample {int(bad[0])} ({bad.size} bad samples); "
-            "repair or drop this whisk before building a WhiskRecord"
-        )
-    arr.setflags(write=False)
-    return arr
-
-
-@dataclass(frozen=True, eq=False)
-class WhiskRecord:
-    """One module's samples over one whisk cycle: the in-memory unit of a whisk file.
-
-    Parameters
-    ----------
-    module : str
-        Module name, e.g. ``"C2"`` (letters and digits only, it becomes part of a file name).
-    angle_rad : array_like, shape (T,)
-        Whisk angle theta per sample, radians (SPEC §4.1).
-    x_counts, y_counts : array_like, shape (T,)
-        Deflection along the sensor x- and y-axes, ADC counts. The y-axis is the
-        whisking direction (Sec 5.1.1.1.1).
-    sample_rate_hz : float, default 2000
-        Sampling rate, Hz.
-    cycle : int, default 0
-        Whisk cycle index within the session (>= 0).
-    spare : array_like, shape (T,), optional
-        The spare column (zeros when ``None``).
-
-    Records hold arrays, so ``==`` compares identity; compare the arrays.
-
-    Raises
-    ------
-    InvalidInputError
-        Non-finite samples (naming the first bad sample), arrays of unequal
-        length or other than 1-D, an empty record, a bad module name, cycle < 0 or
-        a non-positive sampling rate. The arrays are copied and made read-only.
-    """
-
-    module: str
-    angle_rad: np.ndarray
-    x_counts: np.ndarray
-    y_counts: np.ndarray
-    sample_rate_hz: float = SAMPLE_RATE_HZ
-    cycle: int = 0
-    spare: np.ndarray | None = field(default=None, repr=False)
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.module, str) or not _MODULE_RE.match(self.module):
-            raise InvalidInputError(
-                f"module name {self.module!r} must be a non-empty string of letters and digits, e.g. 'C2'"
-            )
-        arrays = {
-            "angle_rad": self.angle_rad,
-            "x_counts": self.x_counts,
-            "y_counts": self.y_counts,
-        }
-        if self.spare is not None:
-            arrays["spare"] = self.spare
-        checked = {k: _finite_vector(f"{self.module}.{k}", v) for k, v in arrays.items()}
-        lengths = {k: v.size for k, v in checked.items()}
-        if len(set(lengths.values())) != 1:
-            raise InvalidInputError(f"whisk record {self.module}: columns have different lengths {lengths}")
-        if lengths["angle_rad"] == 0:
-            raise InvalidInputError(f"whisk record {self.module}: no samples")
-        if not (isinstance(self.cycle, (int, np.integer)) and self.cycle >= 0):
-            raise InvalidInputError(f"cycle must be an integer >= 0, got {self.cycle!r}")
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
-            raise InvalidInputError(f"sample_rate_hz must be a positive number, got {self.sample_rate_hz!r}")
-        for k, v in checked.items():
-            object.__setattr__(self, k, v)
-        object.__setattr__(self, "cycle", int(self.cycle))
-        object.__setattr__(self, "sample_rate_hz", float(self.sample_rate_hz))
-
-    @property
-    def n_samples(self) -> int:
-        """Number of samples T."""
-        return int(self.angle_rad.size)
-
-    @property
-    def time_s(self) -> np.ndarray:
-        """Sample times from the start of the cycle, shape (T,), seconds."""
-        return np.arange(self.n_samples) / self.sample_rate_hz
-
-    def as_columns(self) -> np.ndarray:
-        """The four file columns (angle, x, y, spare) as an array of shape (T, 4)."""
-        spare = np.zeros(self.n_samples) if self.spare is None else self.spare
-        return np.column_stack([self.angle_rad, self.x_counts, self.y_counts, spare])
-
-
-@dataclass(frozen=True, eq=False)
-class PoseEntry:
-    """One pose-log line: the end-effector pose when a whisk cycle was completed.
-
-    Attributes
-    ----------
-    time_s : float
-        Time stamp, seconds.
-    position_m : ndarray, shape (3,)
-        End-effector position in the arm base frame, metres.
-    quaternion_xyzw : ndarray, shape (4,)
-        End-effector orientation, unit quaternion, scalar last.
-    whisk_file : str
-        Stem of the cycle's whisk files (``{whisk_file}_{module}.csv``).
-    """
-
-    time_s: float
-    position_m: np.ndarray
-    quaternion_xyzw: np.ndarray
-    whisk_file: str
-
-    def __post_init__(self) -> None:
-        t = float(self.time_s)
-        if not math.isfinite(t):
-            raise InvalidInputError(f"pose time_s must be finite, got {self.time_s!r}")
-        pos = np.array(self.position_m, dtype=np.float64, copy=True)
-        quat = np.array(self.quaternion_xyzw, dtype=np.float64, copy=True)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise InvalidInputError(f"position_m must be 3 finite numbers (metres), got {self.position_m!r}")
-        if quat.shape != (4,) or not np.all(np.isfinite(quat)):
-            raise InvalidInputError(
-                f"quaternion_xyzw must be 4 finite numbers (x, y, z, w), got {self.quaternion_xyzw!r}"
-            )
-        norm = float(np.linalg.norm(quat))
-        if abs(norm - 1.0) > _QUAT_NORM_TOL:
-            raise InvalidInputError(
-                f"quaternion_xyzw must have unit norm (got norm {norm:.9g}); normalise it before logging"
-            )
-        if not isinstance(self.whisk_file, str) or not _STEM_RE.match(self.whisk_file):
-            raise InvalidInputError(
-                f"whisk_file {self.whisk_file!r} must be a file stem of letters, digits, '_', '.', '-'"
-            )
-        pos.setflags(write=False)
-        quat.setflags(write=False)
-        object.__setattr__(self, "time_s", t)
-        object.__setattr__(self, "position_m", pos)
-        object.__setattr__(self, "quaternion_xyzw", quat)
-
-    def as_matrix(self) -> np.ndarray:
-        """The pose as a 4x4 homogeneous transform T_BE (arm base -> end effector)."""
-        from scipy.spatial.transform import Rotation
-
-        T = np.eye(4)
-        T[:3, :3] = Rotation.from_quat(self.quaternion_xyzw).as_matrix()
-        T[:3, 3] = self.position_m
-        return T
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,13 +121,13 @@ class ReplayedCycle:
 
     Attributes
     ----------
-    pose : PoseEntry
-        The pose-log line of the cycle.
+    entry : PoseEntry
+        The pose-log line of the cycle (time, pose, whisk-file stem).
     records : Mapping[str, WhiskRecord]
         Module name -> record, in module-name order.
     """
 
-    pose: PoseEntry
+    entry: PoseEntry
     records: Mapping[str, WhiskRecord]
 
 
@@ -295,7 +140,7 @@ def whisk_file_stem(cycle: int) -> str:
 
 def whisk_file_name(cycle: int, module: str) -> str:
     """File name of one module's whisk CSV, e.g. ``whisk_000012_C2.csv``."""
-    if not isinstance(module, str) or not _MODULE_RE.match(module):
+    if not isinstance(module, str) or not MODULE_NAME_RE.match(module):
         raise InvalidInputError(f"module name {module!r} must be letters and digits, e.g. 'C2'")
     return f"{whisk_file_stem(cycle)}_{module}.csv"
 
@@ -360,6 +205,16 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
     return p
 
 
+def _read_lines(path: Path, what: str) -> list[str]:
+    """The file's lines split on ``\\n`` (the last one empty when the file ends with a newline)."""
+    try:
+        return path.read_text(encoding="utf-8").split("\n")
+    except FileNotFoundError:
+        raise CorruptFileError(f"{path}: {what} not found") from None
+    except UnicodeDecodeError as exc:
+        raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
+
+
 def _parse_float(token: str, path: Path, lineno: int, column: str) -> float:
     try:
         value = float(token)
@@ -411,13 +266,7 @@ def read_whisk_csv(
             )
         cycle = int(m.group(1)) if cycle is None else cycle
         module = m.group(2) if module is None else module
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CorruptFileError(f"{p}: whisk file not found") from None
-    except UnicodeDecodeError as exc:
-        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
-    lines = text.split("\n")
+    lines = _read_lines(p, "whisk file")
     if lines and lines[-1] == "":
         lines.pop()
     first_data = 0
@@ -472,7 +321,7 @@ def _looks_numeric(token: str) -> bool:
 
 
 def _pose_line(entry: PoseEntry) -> str:
-    vals = [entry.time_s, *entry.position_m.tolist(), *entry.quaternion_xyzw.tolist()]
+    vals = [entry.time_s, *entry.pose.position_m.tolist(), *entry.pose.quaternion_xyzw.tolist()]
     return ",".join(format(v, ".17g") for v in vals) + "," + entry.whisk_file + "\n"
 
 
@@ -515,11 +364,19 @@ class PoseLogWriter:
     def append(
         self,
         time_s: float,
-        position_m: Sequence[float] | np.ndarray,
-        quaternion_xyzw: Sequence[float] | np.ndarray,
+        pose: PoseLike,
         whisk_file: str,
     ) -> PoseEntry:
         """Validate and append one line.
+
+        Parameters
+        ----------
+        time_s : float
+            Time stamp, s.
+        pose : PoseLike
+            End-effector pose (see :func:`whisker_io.pose.as_pose`).
+        whisk_file : str
+            Stem of the cycle's whisk files.
 
         Raises
         ------
@@ -529,7 +386,7 @@ class PoseLogWriter:
         """
         if self._fh.closed:
             raise InvalidInputError(f"pose log {self.path} is closed; open a new PoseLogWriter")
-        entry = PoseEntry(time_s, position_m, quaternion_xyzw, whisk_file)
+        entry = PoseEntry(time_s, pose, whisk_file)
         self.check_time(entry.time_s)
         self._write(_pose_line(entry))
         self._last_time = entry.time_s
@@ -573,13 +430,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
         ignored with a warning.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CorruptFileError(f"{p}: pose log not found") from None
-    except UnicodeDecodeError as exc:
-        raise CorruptFileError(f"{p}: not UTF-8 text ({exc.reason})") from None
-    lines = text.split("\n")
+    lines = _read_lines(p, "pose log")
     tail = lines.pop()  # "" when the file ends with a newline
     if tail:
         log.warning("%s: ignoring torn final line %d (no newline): %r", p, len(lines) + 1, tail)
@@ -599,7 +450,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
             )
         vals = [_parse_float(tok, p, i, POSE_LOG_HEADER[j]) for j, tok in enumerate(tokens[:8])]
         try:
-            entry = PoseEntry(vals[0], vals[1:4], vals[4:8], tokens[8].strip())
+            entry = PoseEntry(vals[0], (vals[1:4], vals[4:8]), tokens[8].strip())
         except InvalidInputError as exc:
             raise CorruptFileError(f"{p}: line {i}: {exc}") from None
         if entries and entry.time_s < entries[-1].time_s:
@@ -623,7 +474,7 @@ class RecordingWriter:
     Examples
     --------
     >>> with RecordingWriter(tmpdir) as w:                       # doctest: +SKIP
-    ...     w.write_cycle(records, time_s=t, position_m=p, quaternion_xyzw=q)
+    ...     w.write_cycle(records, time_s=t, pose=pose)
     """
 
     def __init__(self, directory: str | os.PathLike[str]) -> None:
@@ -635,10 +486,18 @@ class RecordingWriter:
         self,
         records: Iterable[WhiskRecord],
         time_s: float,
-        position_m: Sequence[float] | np.ndarray,
-        quaternion_xyzw: Sequence[float] | np.ndarray,
+        pose: PoseLike,
     ) -> PoseEntry:
         """Write all module records of one cycle, then append its pose line.
+
+        Parameters
+        ----------
+        records : iterable of WhiskRecord
+            The cycle's module records.
+        time_s : float
+            Time stamp of the pose line, s.
+        pose : PoseLike
+            End-effector pose at the end of the cycle (see :func:`whisker_io.pose.as_pose`).
 
         All records must share one cycle index and have distinct modules. The
         pose is validated before any file is written, so a bad pose or an
@@ -661,11 +520,11 @@ class RecordingWriter:
         if len(set(modules)) != len(modules):
             raise InvalidInputError(f"duplicate modules in one cycle: {sorted(modules)}")
         stem = whisk_file_stem(recs[0].cycle)
-        entry = PoseEntry(time_s, position_m, quaternion_xyzw, stem)
+        entry = PoseEntry(time_s, pose, stem)
         self._pose_log.check_time(entry.time_s)
         for r in recs:
             write_whisk_csv(self.directory / whisk_file_name(r.cycle, r.module), r)
-        return self._pose_log.append(entry.time_s, entry.position_m, entry.quaternion_xyzw, stem)
+        return self._pose_log.append(entry.time_s, entry.pose, stem)
 
     def close(self) -> None:
         """Close the pose log (idempotent)."""
@@ -713,7 +572,7 @@ def replay(
         by_module: dict[str, Path] = {}
         for f in files:
             module = f.name[len(entry.whisk_file) + 1 : -len(".csv")]
-            if _MODULE_RE.match(module):
+            if MODULE_NAME_RE.match(module):
                 by_module[module] = f
         wanted = sorted(by_module) if modules is None else list(modules)
         missing = [m for m in wanted if m not in by_module]
@@ -726,4 +585,4 @@ def replay(
             mod: read_whisk_csv(by_module[mod], module=mod, cycle=cycle, sample_rate_hz=sample_rate_hz)
             for mod in wanted
         }
-        yield ReplayedCycle(pose=entry, records=MappingProxyType(records))
+        yield ReplayedCycle(entry=entry, records=MappingProxyType(records))

@@ -52,8 +52,8 @@ Whisker inertia is not modelled; slipping off an edge is an option of
 
 Example
 -------
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.control import OpenLoop, WhiskPattern
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.array.control import OpenLoop, WhiskPattern
 >>> contact = WhiskContact(angle_rad=0.0, radial_distance_m=0.05, whisker_length_m=0.1)
 >>> records, truths = simulate_whisk_cycle([contact, None], OpenLoop(WhiskPattern(1.0)), seed=1)
 >>> records[0].n_samples, truths[0].onset_index, truths[1] is None
@@ -67,10 +67,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from whisker_io.control import OpenLoop, WhiskController, WhiskPattern
-from whisker_io.errors import InvalidInputError
-from whisker_io.recording import SAMPLE_RATE_HZ, WhiskRecord
+from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern
+from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.validation import finite_array, finite_scalar, finite_vector
+from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
+
+#: Longest rod-push recording :func:`simulate_rod_contact` makes (about 83 min at 2 kHz).
+_MAX_ROD_SAMPLES = 10_000_000
 
 __all__ = [
     "SignalParams",
@@ -131,11 +136,11 @@ class SignalParams:
         positive = ("youngs_modulus_pa", "base_radius_m", "full_scale_moment_nm", "adc_max_counts", "sample_rate_hz")
         for name in positive:
             v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
+            if not finite_scalar(v, f"SignalParams.{name}") > 0:
                 raise InvalidInputError(f"SignalParams.{name} must be a finite number > 0, got {v!r}")
         for name in ("tip_radius_m", "noise_std_counts", "angle_noise_std_rad"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
+            if not finite_scalar(v, f"SignalParams.{name}") >= 0:
                 raise InvalidInputError(f"SignalParams.{name} must be a finite number >= 0, got {v!r}")
         if self.tip_radius_m > self.base_radius_m:
             raise InvalidInputError("SignalParams.tip_radius_m must not exceed base_radius_m")
@@ -169,13 +174,14 @@ class SignalParams:
         return L * self.base_radius_m / taper
 
 
-def _check_a_L(a: np.ndarray, L: np.ndarray) -> None:
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(L))):
-        raise InvalidInputError("radial distance and whisker length must be finite")
+def _check_a_L(a: ArrayLike, L: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    a = finite_array(a, None, "radial_distance_m")
+    L = finite_array(L, None, "whisker_length_m")
     if np.any(L <= 0):
         raise InvalidInputError("whisker_length_m must be > 0")
     if np.any(a <= 0) or np.any(a > L):
         raise InvalidInputError("radial_distance_m must lie in (0, whisker_length_m]")
+    return a, L
 
 
 def bending_stiffness(
@@ -203,9 +209,11 @@ def bending_stiffness(
         k, N m / rad (broadcast shape).
     """
     p = SignalParams() if params is None else params
-    a = np.asarray(radial_distance_m, dtype=np.float64)
-    L = np.asarray(whisker_length_m, dtype=np.float64)
-    _check_a_L(*np.broadcast_arrays(a, L))
+    a, L = _check_a_L(radial_distance_m, whisker_length_m)
+    try:
+        a, L = np.broadcast_arrays(a, L)
+    except ValueError:
+        raise ShapeError(f"radial_distance_m {a.shape} and whisker_length_m {L.shape} do not broadcast") from None
     Lc = p.cone_length_m(L)
     return 3.0 * p.youngs_modulus_pa * p.base_second_moment_m4 * (1.0 / a - 1.0 / Lc)
 
@@ -261,24 +269,27 @@ class WhiskContact:
     slip_rad: float = math.inf
 
     def __post_init__(self) -> None:
-        if not math.isfinite(self.angle_rad):
-            raise InvalidInputError(f"angle_rad must be finite, got {self.angle_rad!r}")
-        _check_a_L(np.asarray(self.radial_distance_m, float), np.asarray(self.whisker_length_m, float))
+        angle = finite_scalar(self.angle_rad, "WhiskContact.angle_rad")
+        a = finite_scalar(self.radial_distance_m, "WhiskContact.radial_distance_m")
+        L = finite_scalar(self.whisker_length_m, "WhiskContact.whisker_length_m")
+        _check_a_L(a, L)
         if self.normal is None:
-            n = np.array([math.cos(self.angle_rad), math.sin(self.angle_rad), 0.0])
+            n = np.array([math.cos(angle), math.sin(angle), 0.0])
         else:
-            n = np.array(self.normal, dtype=np.float64)
-            norm = float(np.linalg.norm(n)) if n.shape == (3,) else 0.0
-            if not (np.all(np.isfinite(n)) and norm > 0):
+            n = finite_vector(self.normal, 3, "WhiskContact.normal")
+            norm = float(np.linalg.norm(n))
+            if not 0 < norm < math.inf:
                 raise InvalidInputError(f"normal must be a finite non-zero 3-vector, got {self.normal!r}")
             n = n / norm
-        if not (self.slip_rad > 0):
+        slip = self.slip_rad
+        if isinstance(slip, (str, bytes, bool)) or not (isinstance(slip, (int, float, np.floating, np.integer))
+                                                        and slip > 0):
             raise InvalidInputError(f"slip_rad must be > 0 (inf for no slip), got {self.slip_rad!r}")
         n.setflags(write=False)
-        object.__setattr__(self, "slip_rad", float(self.slip_rad))
-        object.__setattr__(self, "angle_rad", float(self.angle_rad))
-        object.__setattr__(self, "radial_distance_m", float(self.radial_distance_m))
-        object.__setattr__(self, "whisker_length_m", float(self.whisker_length_m))
+        object.__setattr__(self, "slip_rad", float(slip))
+        object.__setattr__(self, "angle_rad", angle)
+        object.__setattr__(self, "radial_distance_m", a)
+        object.__setattr__(self, "whisker_length_m", L)
         object.__setattr__(self, "normal", n)
 
     def sensor_split(self) -> tuple[float, float]:
@@ -317,7 +328,7 @@ class ContactTruth:
     radial_distance_m, whisker_length_m : float
         a and L, m.
     peak_index : int
-        Sample of the largest noise-free |y-deflection|.
+        Sample of the largest noise-free ``|y-deflection|``.
     peak_y_counts : float
         Noise-free y-deflection at ``peak_index`` (after saturation), counts.
     """
@@ -446,16 +457,16 @@ def simulate_whisk_cycle(
     """One whisk cycle of n whiskers: controller trajectories -> beam model -> sensor.
 
     The controller commands the cycle, the signals are synthesised, the
-    controller may react within the cycle (e.g. :class:`~whisker_io.control.RetractAtMax`),
+    controller may react within the cycle (e.g. :class:`~whisker_io.array.control.RetractAtMax`),
     the signals are re-synthesised with the same noise, and ``end_cycle`` is
-    called (e.g. :class:`~whisker_io.control.RCP` adapts the next amplitude).
+    called (e.g. :class:`~whisker_io.array.control.RCP` adapts the next amplitude).
 
     Parameters
     ----------
     contacts : sequence of WhiskContact or None, length n
         Contact geometry per whisker; ``None`` for free whisking (noise only).
     controller : WhiskController, optional
-        Defaults to 1-Hz :class:`~whisker_io.control.OpenLoop`. Its pattern's
+        Defaults to 1-Hz :class:`~whisker_io.array.control.OpenLoop`. Its pattern's
         sampling rate must equal ``params.sample_rate_hz``.
     params : SignalParams, optional
     seed : int or numpy Generator, optional
@@ -525,7 +536,7 @@ def simulate_rod_contact(
     """A rod driven linearly into a still whisker and back (Evans et al. 2013, Sec 4.2.2).
 
     The whisker rests at ``angle_rad``. After ``lead_s`` the rod, perpendicular to
-    the shaft at radial distance a, advances at ``speed_m_s`` until |y| reaches
+    the shaft at radial distance a, advances at ``speed_m_s`` until ``|y|`` reaches
     ``threshold_counts`` (noise-free), then brakes at ``deceleration_m_s2`` (so
     the overshoot ``s^2 / 2A``, hence the peak, grows with speed, as in Fig 2.13;
     braking starts earlier if it would pass ``max_travel_m``) and withdraws
@@ -563,16 +574,16 @@ def simulate_rod_contact(
         ``onset_index`` = first sample of rod contact, ``contact_angle_rad`` = ``angle_rad``.
     """
     p = SignalParams() if params is None else params
-    if not (math.isfinite(speed_m_s) and speed_m_s > 0):
+    if not finite_scalar(speed_m_s, "speed_m_s") > 0:
         raise InvalidInputError(f"speed_m_s must be > 0, got {speed_m_s!r}")
-    if not (math.isfinite(max_travel_m) and max_travel_m > 0):
+    if not finite_scalar(max_travel_m, "max_travel_m") > 0:
         raise InvalidInputError(f"max_travel_m must be > 0, got {max_travel_m!r}")
-    if not (lead_s >= 0 and tail_s >= 0):
+    if not (finite_scalar(lead_s, "lead_s") >= 0 and finite_scalar(tail_s, "tail_s") >= 0):
         raise InvalidInputError("lead_s and tail_s must be >= 0")
-    if not (math.isfinite(deceleration_m_s2) and deceleration_m_s2 > 0):
+    if not finite_scalar(deceleration_m_s2, "deceleration_m_s2") > 0:
         raise InvalidInputError(f"deceleration_m_s2 must be > 0, got {deceleration_m_s2!r}")
-    thr = 0.6 * p.adc_max_counts if threshold_counts is None else float(threshold_counts)
-    if not (math.isfinite(thr) and thr > 0):
+    thr = 0.6 * p.adc_max_counts if threshold_counts is None else finite_scalar(threshold_counts, "threshold_counts")
+    if not thr > 0:
         raise InvalidInputError(f"threshold_counts must be > 0, got {threshold_counts!r}")
     stiffness = float(bending_stiffness(radial_distance_m, whisker_length_m, p))
     counts_per_m = p.gain_counts_per_nm * stiffness / radial_distance_m
@@ -582,6 +593,11 @@ def simulate_rod_contact(
     t_top = t_brake + v / acc
     fs = p.sample_rate_hz
     onset = int(round(lead_s * fs))
+    duration_s = lead_s + 2.0 * t_top + tail_s
+    if not duration_s * fs <= _MAX_ROD_SAMPLES:
+        raise InvalidInputError(
+            f"the rod push would last {duration_s:.3g} s ({duration_s * fs:.3g} samples, more than "
+            f"{_MAX_ROD_SAMPLES:.0e}); raise speed_m_s or deceleration_m_s2, or shorten lead_s/tail_s")
     half = max(1, int(math.ceil(t_top * fs)))
     T = onset + 2 * half + int(round(tail_s * fs)) + 1
     k = np.arange(T) - onset

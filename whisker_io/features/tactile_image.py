@@ -25,9 +25,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, contact_points
-from whisker_io.sweep import SweepContact
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import contact_points
+from whisker_io.pose import PoseLike
+from whisker_io.sim.sweep import SweepContact
 
 __all__ = [
     "TactileImageParams",
@@ -117,7 +118,7 @@ def tactile_image(
 
 def tactile_image_from_angles(
     array: WhiskerArray,
-    pose: Pose,
+    pose: PoseLike,
     contact_angles_rad: ArrayLike,
     radial_distance_m: ArrayLike | None = None,
     params: TactileImageParams = TactileImageParams(),
@@ -127,7 +128,7 @@ def tactile_image_from_angles(
     Parameters
     ----------
     array : WhiskerArray
-    pose : Pose
+    pose : PoseLike
         End-effector pose ``T_BE`` at the whisk.
     contact_angles_rad : array_like (N,)
         Whisk angle at contact per module (max angle or contact angle of Ch.3);
@@ -151,7 +152,7 @@ def tactile_image_from_contacts(
     contacts: Sequence[SweepContact | None],
     params: TactileImageParams = TactileImageParams(),
 ) -> NDArray[np.uint8]:
-    """Tactile image from simulator contacts (:func:`whisker_io.sweep.sweep_array` output)."""
+    """Tactile image from simulator contacts (:func:`whisker_io.sim.sweep.sweep_array` output)."""
     if len(contacts) != len(array):
         raise InvalidInputError(f"need one contact (or None) per module: {len(array)}, got {len(contacts)}")
     pts = np.array([np.full(3, np.nan) if c is None else c.point for c in contacts])

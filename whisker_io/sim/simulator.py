@@ -2,10 +2,10 @@
 
 One call of :meth:`ArraySimulator.whisk` places the array at an end-effector
 pose in front of a trimesh object, finds each whisker's first contact with the
-rigid-whisker sweep of :mod:`whisker_io.sweep` (Sec 4.1.2.3), turns every contact
+rigid-whisker sweep of :mod:`whisker_io.sim.sweep` (Sec 4.1.2.3), turns every contact
 into 2 kHz angle / x / y traces with the tapered-cantilever model of
-:mod:`whisker_io.signals` under the simulator's controller, and returns the 18
-:class:`~whisker_io.recording.WhiskRecord` s with the ground truth. The records go
+:mod:`whisker_io.sim.signals` under the simulator's controller, and returns the 18
+:class:`~whisker_io.records.whisk_record.WhiskRecord` s with the ground truth. The records go
 through the same contact pipeline and recording format as real data.
 
 The sweep's face normal (world frame, outward) is expressed in the whisker's
@@ -15,8 +15,8 @@ split of the deflection follows the contacted surface's orientation.
 Example
 -------
 >>> import numpy as np
->>> from whisker_io.objects import make_object
->>> from whisker_io.simulator import ArraySimulator
+>>> from whisker_io.sim.objects import make_object
+>>> from whisker_io.sim.simulator import ArraySimulator
 >>> sim = ArraySimulator(seed=0)
 >>> pose = np.eye(4); pose[:3, 3] = [0.0, -0.45, 0.2]      # array axis +y toward the box
 >>> result = sim.whisk(make_object("box"), pose)
@@ -32,13 +32,15 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from whisker_io.control import OpenLoop, WhiskController, WhiskPattern
+from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.geometry import WhiskerArray
-from whisker_io.kinematics import Pose, as_transform, rot_z
-from whisker_io.recording import PoseEntry, RecordingWriter, WhiskRecord
-from whisker_io.signals import ContactTruth, SignalParams, WhiskContact, simulate_whisk_cycle
-from whisker_io.sweep import MeshTarget, SweepContact, SweepParams, sweep_array
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.array.kinematics import rot_z
+from whisker_io.pose import Pose, PoseLike, as_pose
+from whisker_io.records.recording import RecordingWriter
+from whisker_io.records.whisk_record import PoseEntry, WhiskRecord
+from whisker_io.sim.signals import ContactTruth, SignalParams, WhiskContact, simulate_whisk_cycle
+from whisker_io.sim.sweep import MeshTarget, SweepContact, SweepParams, sweep_array
 
 __all__ = ["ArrayWhisk", "ArraySimulator", "whisk_contact_from_sweep"]
 
@@ -67,7 +69,7 @@ class ArrayWhisk:
 
     Attributes
     ----------
-    pose : ndarray, shape (4, 4)
+    pose : Pose
         End-effector pose T_BE used.
     records : tuple of WhiskRecord
         One per module, array order, cycle index set.
@@ -78,23 +80,19 @@ class ArrayWhisk:
         cycle, e.g. the sweep found none or RCP kept the whisker short of it).
     """
 
-    pose: np.ndarray
+    pose: Pose
     records: tuple[WhiskRecord, ...]
     sweep_contacts: tuple[SweepContact | None, ...]
     truths: tuple[ContactTruth | None, ...]
 
     def pose_entry(self, time_s: float) -> PoseEntry:
-        """The pose-log line of this cycle at ``time_s`` (scalar-last quaternion)."""
-        from scipy.spatial.transform import Rotation
-
-        q = Rotation.from_matrix(self.pose[:3, :3]).as_quat()
-        stem = f"whisk_{self.records[0].cycle:06d}"
-        return PoseEntry(time_s, self.pose[:3, 3], q / np.linalg.norm(q), stem)
+        """The pose-log line of this cycle at ``time_s``."""
+        return PoseEntry(time_s, self.pose, f"whisk_{self.records[0].cycle:06d}")
 
     def write(self, writer: RecordingWriter, time_s: float) -> PoseEntry:
         """Write this cycle (whisk CSVs + pose-log line) with a :class:`RecordingWriter`."""
         entry = self.pose_entry(time_s)
-        return writer.write_cycle(self.records, entry.time_s, entry.position_m, entry.quaternion_xyzw)
+        return writer.write_cycle(self.records, entry.time_s, entry.pose)
 
 
 class ArraySimulator:
@@ -105,7 +103,7 @@ class ArraySimulator:
     array : WhiskerArray, optional
         Array geometry (default the thesis' 18 modules, Fig 2.15).
     controller : WhiskController, optional
-        Whisking controller (default 1-Hz :class:`~whisker_io.control.OpenLoop` over
+        Whisking controller (default 1-Hz :class:`~whisker_io.array.control.OpenLoop` over
         the array's whisk range). Stateful controllers (RCP) carry over between cycles.
     signal_params : SignalParams, optional
         Beam / sensor parameters.
@@ -156,7 +154,7 @@ class ArraySimulator:
     def whisk(
         self,
         target: trimesh.Trimesh | MeshTarget,
-        pose: Pose,
+        pose: PoseLike,
         cycle: int | None = None,
     ) -> ArrayWhisk:
         """Simulate one whisk cycle of the whole array at ``pose`` against ``target``.
@@ -165,8 +163,8 @@ class ArraySimulator:
         ----------
         target : trimesh.Trimesh or MeshTarget
             Object in the world frame (pass a MeshTarget to reuse its ray intersector).
-        pose : (4, 4) array or (position, quaternion_xyzw)
-            End-effector pose T_BE.
+        pose : PoseLike
+            End-effector pose T_BE (a Pose, a 4x4 transform or (position_m, quaternion_xyzw)).
         cycle : int, optional
             Cycle index of the records (default: a counter starting at 0).
 
@@ -174,16 +172,16 @@ class ArraySimulator:
         -------
         ArrayWhisk
         """
-        T = as_transform(pose)
+        pose = as_pose(pose)
         if not isinstance(target, MeshTarget):
             if not isinstance(target, trimesh.Trimesh):
                 raise InvalidInputError(f"target must be a trimesh.Trimesh or MeshTarget, got {type(target).__name__}")
             target = MeshTarget(target)
         index = self.cycle if cycle is None else int(cycle)
-        sweep = sweep_array(self.array, target, T, self.sweep_params)
+        sweep = sweep_array(self.array, target, pose, self.sweep_params)
         contacts = [None if c is None else whisk_contact_from_sweep(c) for c in sweep]
         records, truths = simulate_whisk_cycle(
             contacts, self.controller, self.signal_params, seed=self.rng, modules=self.array.names, cycle=index
         )
         self.cycle = index + 1
-        return ArrayWhisk(pose=T, records=tuple(records), sweep_contacts=tuple(sweep), truths=tuple(truths))
+        return ArrayWhisk(pose=pose, records=tuple(records), sweep_contacts=tuple(sweep), truths=tuple(truths))

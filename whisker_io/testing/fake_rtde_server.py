@@ -44,7 +44,7 @@ a parent waits on that line instead of sleeping (``--port 0`` picks a free
 port). It binds 127.0.0.1 only. :func:`fake_rtde_server` runs it as a child
 process in a ``with`` block.
 
-Run: ``python -m whisker_io.hw.fake_rtde_server --port 30004``.
+Run: ``python -m whisker_io.testing.fake_rtde_server --port 30004``.
 
 For tests that need no socket at all, :class:`FakeReceiveInterface` and
 :class:`FakeControlInterface` stand in for ur-rtde's interfaces in-process

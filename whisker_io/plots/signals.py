@@ -7,9 +7,9 @@ Example
 -------
 >>> import matplotlib
 >>> matplotlib.use("Agg")
->>> from whisker_io.signals import WhiskContact, simulate_whisk_cycle
->>> from whisker_io.contact_detection import detect_contact
->>> from whisker_io.plot_signals import plot_whisk
+>>> from whisker_io.sim.signals import WhiskContact, simulate_whisk_cycle
+>>> from whisker_io.contact.detection import detect_contact
+>>> from whisker_io.plots.signals import plot_whisk
 >>> (rec,), _ = simulate_whisk_cycle([WhiskContact(0.0, 0.05, 0.1)], seed=0)
 >>> fig = plot_whisk(rec, detect_contact(rec))
 >>> fig.savefig("whisk.png")                                    # doctest: +SKIP
@@ -22,25 +22,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from whisker_io.contact_detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, moving_average
 from whisker_io.errors import InvalidInputError
-from whisker_io.recording import WhiskRecord
-from whisker_io.sda import SlopeDistribution, contact_gradient, nmse
+from whisker_io.plots.axes import figure_and_axes
+from whisker_io.records.whisk_record import WhiskRecord
+from whisker_io.features.sda import SlopeDistribution, contact_gradient, nmse
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 __all__ = ["plot_whisk", "plot_xy_gradient", "plot_sda"]
-
-
-def _axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
-    if ax is not None:
-        return ax.figure, ax
-    import matplotlib.pyplot as plt
-
-    fig, new_ax = plt.subplots(figsize=figsize)
-    return fig, new_ax
 
 
 def plot_whisk(
@@ -73,7 +65,7 @@ def plot_whisk(
     """
     if not isinstance(record, WhiskRecord):
         raise InvalidInputError(f"record must be a WhiskRecord, got {type(record).__name__}")
-    fig, ax = _axes(ax, (8.0, 3.5))
+    fig, ax = figure_and_axes(ax, (8.0, 3.5))
     t = record.time_s
     for values, name, colour in ((record.y_counts, "y", "tab:blue"), (record.x_counts, "x", "tab:orange")):
         ax.plot(t, values / adc_max_counts, color=colour, lw=0.5, alpha=0.4)
@@ -99,7 +91,7 @@ def plot_xy_gradient(
     record: WhiskRecord, contact: DetectedContact, ax: Axes | None = None, smoothing_span: int = 100
 ) -> Figure:
     """x- against y-deflection over the cycle, initial contact period highlighted, fitted line (Fig 5.2)."""
-    fig, ax = _axes(ax, (4.0, 4.0))
+    fig, ax = figure_and_axes(ax, (4.0, 4.0))
     xs = moving_average(record.x_counts, smoothing_span)
     ys = moving_average(record.y_counts, smoothing_span)
     lo, hi = contact.onset_index, contact.peak_index + 1
@@ -132,7 +124,7 @@ def plot_sda(
     -------
     matplotlib.figure.Figure
     """
-    fig, ax = _axes(ax, (8.0, 3.0))
+    fig, ax = figure_and_axes(ax, (8.0, 3.0))
     n = len(sda.modules)
     idx = np.arange(n)
     series = [(sda, labels[0], "tab:blue")]

@@ -1,0 +1,293 @@
+"""Whisk front end of WhiskerRatSLAM: regions by point feature histogram and slope distribution (Eq 5.5).
+
+A *region* is what one whisk of the array feels: the point feature histogram (PFH,
+Sec 2.5.1.1) of its contact points and the slope distribution array (SDA, Sec
+5.1.1.1.3) of its 18 whiskers. The front end keeps the stored regions - one local-view
+cell each - and matches a new whisk against them (Eq 5.5, Sec 5.1.1.1.4):
+
+* every stored region ``o_i = (f_i, s_i)`` gives ``[chi2(f_n, f_i), NMSE(s_n, s_i)]``
+  (Eq 2.45 and Eq 5.3-5.4; NMSE is asymmetric, the current whisk ``s_n`` is the
+  reference);
+* the candidates are the regions with ``chi2 < pfh_threshold`` AND
+  ``NMSE < sda_threshold``; the match is the candidate with the smallest
+  ``chi2 + NMSE``;
+* with no candidate the whisk becomes a new stored region.
+
+``features`` selects the terms (Table 5.1): ``"pfh"`` (one threshold, one term),
+``"sda"``, or ``"both"``. ``feature_update=True`` ("feature update ON" in Table 5.1)
+replaces a matched region's stored vectors by the running mean of every whisk matched
+to it; off (default) keeps the first whisk's features, the thesis' best configuration.
+The thresholds were tuned by hand in the thesis and are not printed; the defaults here
+were calibrated on the simulator (see :class:`WhiskFrontEndConfig`).
+
+A whisk with fewer than 3 contacts has no PFH and is not an observation; the model
+runs odometry only for it (the front end is not called).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
+from cansim.frontends.store import ViewMatch
+from whisker_io.features._distances_numba import chi2_rows, nmse_rows
+
+__all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "FEATURES"]
+
+FEATURES = ("pfh", "sda", "both")
+
+
+@dataclass(frozen=True)
+class WhiskFrontEndConfig:
+    """Parameters of the whisk front end.
+
+    Parameters
+    ----------
+    features : {"pfh", "sda", "both"}
+        Which terms of Eq 5.5 decide (Table 5.1).
+    pfh_threshold : float
+        ``T_pfh``: chi-squared distance (Eq 2.45) below which a stored region is a
+        candidate. Histograms sum to 1, so chi2 lies in [0, 2].
+    sda_threshold : float
+        ``T_sda``: NMSE (Eq 5.3) below which a stored region is a candidate.
+    feature_update : bool
+        Average a matched region's stored vectors with every new whisk matched to it.
+    use_sda_mask : bool
+        Compare SDAs only on whiskers in contact in both whisks; False (the thesis):
+        whiskers without contact count with slope 0.
+    n_bins : int
+        PFH length (81 for 3 bins per feature, Eq 2.44).
+    n_whiskers : int
+        SDA length (18 on the thesis' array).
+    """
+
+    features: str = "both"
+    pfh_threshold: float = 0.4
+    sda_threshold: float = 0.5
+    feature_update: bool = False
+    use_sda_mask: bool = False
+    n_bins: int = 81
+    n_whiskers: int = 18
+
+    def __post_init__(self) -> None:
+        if self.features not in FEATURES:
+            raise ConfigError(f"features must be one of {FEATURES}, got {self.features!r}")
+        for name in ("pfh_threshold", "sda_threshold"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("n_bins", "n_whiskers"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ConfigError(f"{name} must be an integer >= 1, got {v!r}")
+        for name in ("feature_update", "use_sda_mask"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"{name} must be a boolean, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class RegionScores:
+    """Eq 5.5 against every stored region (for inspection and Ch.6's similarity matrix).
+
+    Attributes
+    ----------
+    chi2 : ndarray (m,)
+        PFH chi-squared distance to each stored region (zeros when PFH is not used).
+    nmse : ndarray (m,)
+        SDA NMSE to each stored region (zeros when SDA is not used).
+    candidates : ndarray (k,) int64
+        Regions under both thresholds.
+    best : int or None
+        The match (smallest ``chi2 + nmse`` among the candidates).
+    """
+
+    chi2: np.ndarray
+    nmse: np.ndarray
+    candidates: np.ndarray
+    best: int | None
+
+
+def _vector(value: Any, n: int, name: str) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be {n} real numbers, got {type(value).__name__}") from None
+    if arr.shape != (n,):
+        raise ShapeError(f"{name} must have {n} entries, got {arr.size}")
+    if not np.isfinite(arr).all():
+        raise InvalidInputError(f"{name} must be finite")
+    return arr
+
+
+def _grow(arr: np.ndarray, needed: int) -> np.ndarray:
+    if needed <= arr.shape[0]:
+        return arr
+    new = np.zeros((max(needed, 2 * arr.shape[0], 16),) + arr.shape[1:], dtype=arr.dtype)
+    new[: arr.shape[0]] = arr
+    return new
+
+
+class WhiskFrontEnd:
+    """Stored regions and Eq 5.5 matching (see the module docstring).
+
+    Parameters
+    ----------
+    config : WhiskFrontEndConfig, optional
+
+    Notes
+    -----
+    :meth:`match` takes a region observation: any object with ``pfh`` (n_bins,) and
+    ``sda`` (n_whiskers,) attributes and optionally ``sda_mask`` (such as
+    :class:`whisker_io.features.region.RegionFeatures`), or a ``(pfh, sda)`` /
+    ``(pfh, sda, sda_mask)`` tuple.
+    """
+
+    def __init__(self, config: WhiskFrontEndConfig | None = None) -> None:
+        self.config = config if config is not None else WhiskFrontEndConfig()
+        c = self.config
+        self._n = 0
+        self._pfh = np.zeros((16, c.n_bins))
+        self._sda = np.zeros((16, c.n_whiskers))
+        self._mask = np.ones((16, c.n_whiskers), dtype=bool)
+        self._count = np.zeros(16, dtype=np.int64)
+        self._all = np.ones(c.n_whiskers, dtype=bool)
+        self._all_mask = np.ones((16, c.n_whiskers), dtype=bool)
+        self.last_scores: RegionScores | None = None
+
+    def _all_rows(self, n: int) -> np.ndarray:
+        if self._all_mask.shape[0] < n:
+            self._all_mask = np.ones((2 * n, self.config.n_whiskers), dtype=bool)
+        return self._all_mask[:n]
+
+    def __len__(self) -> int:
+        return self._n
+
+    @property
+    def pfh(self) -> np.ndarray:
+        """Stored histograms, (n_regions, n_bins) (a copy)."""
+        return self._pfh[: self._n].copy()
+
+    @property
+    def sda(self) -> np.ndarray:
+        """Stored SDAs, (n_regions, n_whiskers) (a copy)."""
+        return self._sda[: self._n].copy()
+
+    # ------------------------------------------------------------- input
+    def parse(self, observation: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Validate a region observation -> (pfh, sda, sda_mask) arrays."""
+        c = self.config
+        mask: Any = None
+        if isinstance(observation, tuple):
+            if len(observation) not in (2, 3):
+                raise InvalidInputError(f"a region observation tuple is (pfh, sda) or (pfh, sda, sda_mask), got {len(observation)} entries")
+            pfh, sda = observation[0], observation[1]
+            mask = observation[2] if len(observation) == 3 else None
+        elif hasattr(observation, "pfh") and hasattr(observation, "sda"):
+            pfh, sda, mask = observation.pfh, observation.sda, getattr(observation, "sda_mask", None)
+        else:
+            raise InvalidInputError(
+                f"a whisk observation has pfh and sda (e.g. whisker_io.features.region.RegionFeatures), got {type(observation).__name__}"
+            )
+        f = _vector(pfh, c.n_bins, "pfh")
+        if f.min() < 0 or not 0.999 < f.sum() < 1.001:
+            raise InvalidInputError("pfh must be a normalised histogram (entries >= 0 summing to 1)")
+        s = _vector(sda, c.n_whiskers, "sda")
+        if np.abs(s).max(initial=0.0) > 1e6:
+            raise InvalidInputError("sda slopes beyond 1e6 are not physical; check the gradient fit")
+        if mask is None:
+            m = np.ones(c.n_whiskers, dtype=bool)
+        else:
+            m = np.asarray(mask)
+            if m.shape != (c.n_whiskers,) or m.dtype != bool:
+                raise ShapeError(f"sda_mask must be {c.n_whiskers} booleans, got {m.shape} {m.dtype}")
+        return f, s, m.copy()
+
+    # ------------------------------------------------------------ matching
+    def scores(self, pfh: np.ndarray, sda: np.ndarray, mask: np.ndarray) -> RegionScores:
+        """Eq 5.5 of a parsed observation against every stored region (no state change)."""
+        c, n = self.config, self._n
+        zero = np.zeros(n)
+        if n == 0:
+            return RegionScores(zero, zero, np.zeros(0, dtype=np.int64), None)
+        ok = np.ones(n, dtype=bool)
+        chi2 = e = zero
+        # the parsed observation and the stored regions are validated: call the compiled
+        # kernels behind whisker_io's chi_squared (Eq 2.45) and nmse (Eq 5.3) directly
+        if c.features in ("pfh", "both"):
+            chi2 = chi2_rows(pfh, self._pfh[:n])
+            ok &= chi2 < c.pfh_threshold
+        if c.features in ("sda", "both"):
+            mx = mask if c.use_sda_mask else self._all
+            my = self._mask[:n] if c.use_sda_mask else self._all_rows(n)
+            e = nmse_rows(sda, self._sda[:n], mx, my)
+            ok &= e < c.sda_threshold
+        cand = np.flatnonzero(ok)
+        best = int(cand[np.argmin((chi2 + e)[cand])]) if cand.size else None
+        return RegionScores(chi2, e, cand, best)
+
+    def match(self, observation: Any) -> ViewMatch:
+        """Match a whisk: the best stored region, or a new one (validates first).
+
+        Returns
+        -------
+        ViewMatch
+            ``view_id`` = the region, ``error`` = its ``chi2 + NMSE`` (inf when new).
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            A malformed observation; nothing is stored.
+        """
+        f, s, m = self.parse(observation)
+        sc = self.scores(f, s, m)
+        self.last_scores = sc
+        if sc.best is None:
+            rid = self._n
+            self._pfh, self._sda = _grow(self._pfh, rid + 1), _grow(self._sda, rid + 1)
+            self._mask, self._count = _grow(self._mask, rid + 1), _grow(self._count, rid + 1)
+            self._pfh[rid], self._sda[rid], self._mask[rid], self._count[rid] = f, s, m, 1
+            self._n = rid + 1
+            return ViewMatch(rid, True, math.inf, None)
+        rid = sc.best
+        if self.config.feature_update:
+            k = self._count[rid]
+            self._pfh[rid] = (self._pfh[rid] * k + f) / (k + 1)
+            self._sda[rid] = (self._sda[rid] * k + s) / (k + 1)
+            self._mask[rid] |= m
+            self._count[rid] = k + 1
+        return ViewMatch(rid, False, float(sc.chi2[rid] + sc.nmse[rid]), None)
+
+    # --------------------------------------------------------- persistence
+    def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        """State as named arrays (bit exact)."""
+        n = self._n
+        return {
+            f"{prefix}pfh": self._pfh[:n].copy(), f"{prefix}sda": self._sda[:n].copy(),
+            f"{prefix}sda_mask": self._mask[:n].copy(), f"{prefix}count": self._count[:n].copy(),
+        }
+
+    def from_arrays(self, arrays: dict[str, np.ndarray], prefix: str) -> None:
+        """Restore :meth:`to_arrays` output; raises CorruptFileError naming a bad field."""
+        c = self.config
+        got = {}
+        for name, kind, width in (("pfh", "f", c.n_bins), ("sda", "f", c.n_whiskers), ("sda_mask", "b", c.n_whiskers), ("count", "i", None)):
+            key = prefix + name
+            if key not in arrays:
+                raise CorruptFileError("missing", field=key)
+            arr = np.asarray(arrays[key])
+            shape_ok = arr.ndim == (1 if width is None else 2) and (width is None or arr.shape[1] == width)
+            if arr.dtype.kind != kind or not shape_ok or (kind == "f" and not np.isfinite(arr).all()):
+                raise CorruptFileError(f"dtype {arr.dtype} / shape {arr.shape} is not a stored-region array", field=key)
+            got[name] = arr
+        n = got["pfh"].shape[0]
+        if any(a.shape[0] != n for a in got.values()) or (n and got["count"].min() < 1):
+            raise CorruptFileError("stored-region arrays disagree in length or hold a count < 1", field=prefix + "count")
+        self._n = n
+        self._pfh = _grow(got["pfh"].astype(np.float64), n)
+        self._sda = _grow(got["sda"].astype(np.float64), n)
+        self._mask = _grow(got["sda_mask"].astype(bool), n)
+        self._count = _grow(got["count"].astype(np.int64), n)

@@ -1,0 +1,260 @@
+"""WhiskerRatSLAM (thesis Ch.5, Alg 2): 6-D pose cells, a whisk front end and an object map, composed.
+
+One call per whisk, :meth:`WhiskerRatSLAM.step` ``(odometry, observation) -> SlamState``,
+in the order of Alg 2, run by the shared loop :class:`cansim.slam_loop.SlamLoop`:
+
+1. match features - the whisk's region (PFH + SDA) against the stored regions, Eq 5.5
+   (:class:`cansim.frontends.whisk.WhiskFrontEnd`); a whisk with fewer than 3 contacts
+   is no observation (odometry only);
+2. feature excitation - stored-location injection, Eq 5.8-5.9: energy
+   ``zeta / 30 * (30 - exp(1.2 decay))`` (zeta = 0.3) at the cell stored with the
+   region, the region's decay rising on every match and falling back by 0.05 per
+   iteration to 0 (:class:`cansim.local_view.LocalViewCells`); or explicit learnt
+   LV->PC weights (Eq 2.17/2.18), ``lv_mode="learnt"``;
+3. attractor dynamics and 6-D path integration - :meth:`cansim.population.Population.whisker6d`
+   (Eq 5.10 kernels; heading-conditional translation: each (roll, pitch, yaw) voxel
+   shifts its (x, y, z) block by ``R v dt / cell size``; rotation shifts from omega);
+4. best pose - the population vector (Eq 5.11-5.12);
+5. process the object map - :class:`maps.object_map.ObjectMap` (SE(3), Alg 6): a new
+   experience when the wrapped 6-D cell distance to the current one exceeds
+   ``match_distance_cells`` or the region is new, else re-localise to the closest
+   experience of the matched region and link; relaxation every iteration.
+
+Odometry is :class:`maps.odometry.SpatialOdometry` (Eq 5.7): ``v`` (3,) m/s and
+``omega`` (3,) rad/s in the array's own (end-effector) frame, ``dt`` s.
+
+Decisions where the thesis is silent: the translational cell size defaults to the
+typical step between whisks (about one cell per iteration, Ch.3's rule); the stored
+location is injected at the nearest cell (OpenRatSLAM truncates, which on a 5-cell axis
+biases by up to 72 deg); the experience rule is OpenRatSLAM's (Sec 2.1.2.1), which
+contains Ch.5's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
+from cansim.frontends.whisk import WhiskFrontEnd, WhiskFrontEndConfig
+from cansim.local_view import LocalViewCells, LocalViewParams
+from cansim.params import AttractorParams
+from cansim.population import Population
+from cansim.slam_loop import SlamLoop, SlamState
+from maps.experience_map import MapConfig
+from maps.object_map import ObjectMap
+from maps.odometry import SpatialOdometry
+
+__all__ = ["WhiskerRatSLAM", "WhiskerRatSLAMConfig"]
+
+
+def _thesis_kernels() -> AttractorParams:
+    return AttractorParams(exc_width=5, exc_sigma=1.0, inh_width=5, inh_sigma=math.sqrt(2.0), kernel_normalisation="pdf")
+
+
+@dataclass(frozen=True)
+class WhiskerRatSLAMConfig:
+    """Parameters of WhiskerRatSLAM (defaults: the thesis' Ch.5 model).
+
+    Parameters
+    ----------
+    grid_cells : int
+        Cells on each translational axis (thesis: 5).
+    angle_cells : int or None
+        Cells on each angular axis (None: ``grid_cells``).
+    cell_size_m : float
+        Metres per translational cell (not given in the thesis; default 0.1 m, about
+        the Ch.5 step between whisks).
+    attractor : AttractorParams
+        Kernels and global inhibition (Eq 5.10: width 5, variances 1 and 2, printed
+        normal densities; phi 2e-5).
+    lv_mode : {"stored", "learnt"}
+        Stored location (Eq 5.8-5.9, default) or learnt LV->PC weights (Eq 2.17/2.18).
+    inject_energy : float
+        zeta, the maximum injected energy (0.3); the gain delta in learnt mode.
+    active_decay, decay_restore : float
+        The decay rise per match (1.0) and fall per iteration (0.05).
+    match_distance_cells : float
+        Wrapped 6-D pose-cell distance above which a new experience is made (1 cell;
+        at most sqrt(24) on 5 cells).
+    correction, relax_passes, relax_budget
+        Object-map relaxation (Eq 2.25 rate 0.5, 10 passes, at most 2,000 link updates
+        per iteration).
+    frontend : WhiskFrontEndConfig
+        Features (PFH / SDA / both), thresholds T_pfh, T_sda, feature update.
+    backend : str
+        CAN backend (numba by default).
+    dtype : {"float64", "float32"}
+    """
+
+    grid_cells: int = 5
+    angle_cells: int | None = None
+    cell_size_m: float = 0.1
+    attractor: AttractorParams = field(default_factory=_thesis_kernels)
+    lv_mode: str = "stored"
+    inject_energy: float = 0.3
+    active_decay: float = 1.0
+    decay_restore: float = 0.05
+    match_distance_cells: float = 1.0
+    correction: float = 0.5
+    relax_passes: int = 10
+    relax_budget: int | None = 2_000
+    frontend: WhiskFrontEndConfig = field(default_factory=WhiskFrontEndConfig)
+    backend: str = "numba"
+    dtype: str = "float64"
+
+    def __post_init__(self) -> None:
+        for name in ("grid_cells",) + (("angle_cells",) if self.angle_cells is not None else ()):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 3:
+                raise ConfigError(f"{name} must be an integer >= 3, got {v!r}")
+        for name in ("cell_size_m", "inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or (name == "cell_size_m" and v == 0):
+                raise ConfigError(f"{name} must be a finite number >= 0 (> 0 for cell_size_m), got {v!r}")
+        if self.lv_mode not in ("stored", "learnt"):
+            raise ConfigError(f"lv_mode must be 'stored' or 'learnt', got {self.lv_mode!r}")
+        if self.dtype not in ("float64", "float32"):
+            raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        if not isinstance(self.attractor, AttractorParams) or not isinstance(self.frontend, WhiskFrontEndConfig):
+            raise ConfigError("attractor must be an AttractorParams and frontend a WhiskFrontEndConfig")
+        self.map_config()
+
+    @classmethod
+    def thesis(cls, **overrides: Any) -> "WhiskerRatSLAMConfig":
+        """The Ch.5 model: 5 cells per axis, Eq 5.10 kernels, zeta 0.3, PFH + SDA."""
+        return cls(**overrides)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Pose-cell grid shape (x, y, z, roll, pitch, yaw)."""
+        na = self.grid_cells if self.angle_cells is None else self.angle_cells
+        return (self.grid_cells,) * 3 + (na,) * 3
+
+    def map_config(self) -> MapConfig:
+        """The object map's core parameters."""
+        return MapConfig(
+            correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
+            pc_shape=self.shape, offset_axes=(), relax_budget=self.relax_budget,
+        )
+
+    def local_view_params(self) -> LocalViewParams:
+        """The region -> pose-cell connection (the thesis' decay rule in stored mode)."""
+        if self.lv_mode == "learnt":
+            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
+        return LocalViewParams(
+            mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay, decay_restore=self.decay_restore,
+            decay_floor=0.0, rise_on_every_match=True, decay_per_iteration=True, recent_exclusion=0, rounding="round",
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (for saved models)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "WhiskerRatSLAMConfig":
+        """Inverse of :meth:`to_dict`."""
+        d = dict(d)
+        d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
+        d["frontend"] = WhiskFrontEndConfig(**d["frontend"])
+        return cls(**d)
+
+
+def _positive_dt(odo: SpatialOdometry) -> None:
+    if odo.dt <= 0:
+        raise InvalidInputError(f"a whisk's odometry needs dt > 0 s, got {odo.dt!r}")
+
+
+class WhiskerRatSLAM(SlamLoop):
+    """The 6-DoF WhiskerRatSLAM model (see the module docstring).
+
+    Parameters
+    ----------
+    config : WhiskerRatSLAMConfig, optional
+        Parameters; keyword arguments override its fields (``WhiskerRatSLAM(cell_size_m=0.03)``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> slam = WhiskerRatSLAM(backend="numpy")
+    >>> s = slam.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.2], 1.0), None)  # a whisk without contact
+    >>> s.exp_id
+    -1
+    """
+
+    def __init__(self, config: WhiskerRatSLAMConfig | None = None, **params: Any) -> None:
+        cfg = config if config is not None else WhiskerRatSLAMConfig()
+        if params:
+            unknown = set(params) - {f.name for f in fields(WhiskerRatSLAMConfig)}
+            if unknown:
+                raise ConfigError(f"unknown WhiskerRatSLAM parameter(s) {sorted(unknown)}; see WhiskerRatSLAMConfig")
+            cfg = replace(cfg, **params)
+        self.config = cfg
+        na = cfg.grid_cells if cfg.angle_cells is None else cfg.angle_cells
+        pose_cells = Population.whisker6d(
+            cfg.grid_cells, cfg.cell_size_m, n_angle=na, params=cfg.attractor, backend=cfg.backend, dtype=np.dtype(cfg.dtype)
+        )
+        super().__init__(
+            pose_cells,
+            LocalViewCells(pose_cells.shape, cfg.local_view_params()),
+            WhiskFrontEnd(cfg.frontend),
+            ObjectMap(cfg.map_config()),
+            SpatialOdometry,
+            check_odometry=_positive_dt,
+        )
+
+    @property
+    def object_map(self) -> ObjectMap:
+        """The object map (an :class:`~maps.object_map.ObjectMap`)."""
+        return self.experience_map  # type: ignore[return-value]
+
+    def step(self, *args: Any) -> SlamState:  # type: ignore[override]
+        """One whisk: ``step(odometry, observation)`` or ``step(v (3,), omega (3,), dt, observation)``.
+
+        Parameters
+        ----------
+        odometry : SpatialOdometry
+            Body-frame ``v`` m/s, ``omega`` rad/s (rotation-vector rate) and ``dt`` s since
+            the previous whisk (Eq 5.7).
+        observation : RegionFeatures, (pfh, sda) tuple or None
+            The whisk's region; None, or a region with fewer than 3 contacts
+            (``is_observation`` False), is a whisk without observation.
+
+        Returns
+        -------
+        SlamState
+            ``best_pc`` in cells (x, y, z, roll, pitch, yaw); ``map_pose`` =
+            ``(x, y, z m, qx, qy, qz, qw)`` of the current experience.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            Bad odometry (non-finite, wrong shapes, ``dt <= 0``: a whisk takes time) or a
+            malformed region; the model is unchanged.
+        """
+        if len(args) not in (2, 4):
+            raise InvalidInputError("step takes (odometry, observation) or (v, omega, dt, observation)")
+        *odo, observation = args
+        if observation is not None and getattr(observation, "is_observation", True) is False:
+            observation = None
+        state = super().step(*odo, observation)
+        self.object_map.record()
+        return state
+
+    # ------------------------------------------------------- save / resume
+    def describe(self) -> dict[str, Any]:
+        """The configuration, for :meth:`save`."""
+        return {"model": "WhiskerRatSLAM", "config": self.config.to_dict()}
+
+    @classmethod
+    def from_description(cls, description: dict[str, Any]) -> "WhiskerRatSLAM":
+        """An empty model from :meth:`describe` output."""
+        if description.get("model") != "WhiskerRatSLAM":
+            raise ValueError(f"the file holds a {description.get('model')!r} model, not WhiskerRatSLAM")
+        try:
+            return cls(WhiskerRatSLAMConfig.from_dict(description["config"]))
+        except (ConfigError, CorruptFileError) as exc:
+            raise ValueError(str(exc)) from exc

@@ -1,0 +1,104 @@
+"""Angle wrapping (whisker_io.angles): named ranges, the C++ loop's results, constant time."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from whisker_io.angles import LOOP_TURNS, TWO_PI, wrap_to_2pi, wrap_to_pi, wrap_to_pi_closed_above
+from whisker_io.errors import InvalidInputError
+
+PI = math.pi
+any_angle = st.floats(-1e300, 1e300, allow_nan=False, allow_infinity=False)
+near_angle = st.floats(-LOOP_TURNS * TWO_PI, LOOP_TURNS * TWO_PI, allow_nan=False)
+
+
+def clip_rad_180(a):  # OpenRatSLAM's loop, written out independently
+    while a > PI:
+        a -= TWO_PI
+    while a <= -PI:
+        a += TWO_PI
+    return a
+
+
+def clip_rad_360(a):
+    while a < 0:
+        a += TWO_PI
+    while a >= TWO_PI:
+        a -= TWO_PI
+    return a
+
+
+@pytest.mark.parametrize(("a", "pi_open", "pi_closed", "two_pi"), [
+    (0.0, 0.0, 0.0, 0.0),
+    (PI, -PI, PI, PI),
+    (-PI, -PI, PI, PI),
+    (1.5 * PI, -0.5 * PI, -0.5 * PI, 1.5 * PI),
+    (-0.5 * PI, -0.5 * PI, -0.5 * PI, 1.5 * PI),
+    (TWO_PI, 0.0, 0.0, 0.0),
+    (7.0, 7.0 - TWO_PI, 7.0 - TWO_PI, 7.0 - TWO_PI),
+])
+def test_hand_computed_boundaries(a, pi_open, pi_closed, two_pi):
+    assert wrap_to_pi(a) == pytest.approx(pi_open, abs=1e-15)
+    assert wrap_to_pi_closed_above(a) == pytest.approx(pi_closed, abs=1e-15)
+    assert wrap_to_2pi(a) == pytest.approx(two_pi, abs=1e-15)
+
+
+def test_huge_angle_returns_at_once():
+    # a subtraction loop would run ~1e16 times here (issue 10: ExperienceMap.on_odo hung)
+    for f, lo, hi in ((wrap_to_pi, -PI, PI), (wrap_to_pi_closed_above, -PI, PI), (wrap_to_2pi, 0.0, TWO_PI)):
+        r = f(1e17)
+        assert lo <= r <= hi
+        assert f(np.array([1e17, -1e300])).shape == (2,)
+    # beyond LOOP_TURNS the angle is reduced modulo the double TWO_PI exactly;
+    # the exact remainder computed with rationals is the independent truth
+    for a in (1e17, -3.0e12, 123456789.125):
+        expect = float(Fraction(a) % Fraction(TWO_PI))
+        assert wrap_to_2pi(a) == expect
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, [0.0, math.nan], "1.0", None])
+def test_non_finite_or_non_numeric_raises(bad):
+    for f in (wrap_to_pi, wrap_to_pi_closed_above, wrap_to_2pi):
+        with pytest.raises(InvalidInputError):
+            f(bad)
+
+
+def test_scalar_and_array_forms():
+    assert isinstance(wrap_to_pi(4.0), float)
+    out = wrap_to_pi(np.array([[4.0, -4.0], [0.5, 10.0]]))
+    assert out.shape == (2, 2)
+    np.testing.assert_allclose(out, [[4.0 - TWO_PI, TWO_PI - 4.0], [0.5, 10.0 - 2 * TWO_PI]])
+
+
+@settings(max_examples=300, deadline=None)
+@given(any_angle)
+def test_ranges_and_idempotence(a):
+    r1, r2, r3 = wrap_to_pi(a), wrap_to_pi_closed_above(a), wrap_to_2pi(a)
+    assert -PI <= r1 < PI
+    assert -PI < r2 <= PI
+    assert 0.0 <= r3 < TWO_PI
+    assert wrap_to_pi(r1) == r1 and wrap_to_pi_closed_above(r2) == r2 and wrap_to_2pi(r3) == r3
+
+
+@settings(max_examples=300, deadline=None)
+@given(near_angle)
+def test_equals_the_reference_loops_within_loop_turns(a):
+    assert wrap_to_pi_closed_above(a) == clip_rad_180(a)
+    assert wrap_to_2pi(a) == clip_rad_360(a)
+    # [-pi, pi) differs from (-pi, pi] only at the boundary
+    r = wrap_to_pi(a)
+    assert r == clip_rad_180(a) or (r == -PI and clip_rad_180(a) == PI)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-1e6, 1e6, allow_nan=False))
+def test_result_differs_from_input_by_whole_turns(a):
+    for f in (wrap_to_pi, wrap_to_pi_closed_above, wrap_to_2pi):
+        turns = (a - f(a)) / TWO_PI
+        assert abs(turns - round(turns)) < 1e-6

@@ -1,0 +1,232 @@
+"""The ``cansim`` command line: help, exit codes, and each subcommand end to end (small)."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cansim import cli
+from cansim.backends import registered_backends
+
+ROOT = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parent
+COMMANDS = ("demo", "sweep", "study", "replay", "backends", "bench")
+
+
+def _env():
+    return dict(os.environ, MPLBACKEND="Agg",
+                PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), str(TESTS), os.environ.get("PYTHONPATH", "")])))
+
+
+def cansim(*args, cwd=ROOT, timeout=120):
+    return subprocess.run([sys.executable, "-m", "cansim", *args], cwd=cwd, env=_env(), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _one_line_error(stderr, command):
+    lines = [ln for ln in stderr.splitlines() if ln.strip() and ": warning: " not in ln]
+    assert "Traceback" not in stderr
+    assert len(lines) == 1 and lines[0].startswith(f"cansim {command}: error: "), stderr
+    return lines[0]
+
+
+def test_top_level_help_lists_every_command_and_the_exit_codes():
+    proc = cansim("--help")
+    assert proc.returncode == 0, proc.stderr
+    for name in COMMANDS:
+        assert re.search(rf"^\s+{name}\s+\S", proc.stdout, re.M), name
+    for code in (0, 2, 3, 4, 5, 6, 130):
+        assert re.search(rf"^\s+{code}\s+\S", proc.stdout, re.M), code
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_help(command):
+    proc = cansim(command, "--help")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"usage: cansim {command}")
+
+
+def test_usage_errors_exit_2():
+    assert cansim("fly").returncode == 2
+    proc = cansim("sweep")
+    assert proc.returncode == 2 and "FILE.toml" in proc.stderr
+    assert cansim("sweep", "x.toml", "--workers", "0").returncode == 2
+    assert cansim("study", "ch9").returncode == 2
+
+
+def test_a_malformed_spec_exits_3_with_one_line_naming_the_key(tmp_path):
+    spec = tmp_path / "bad.toml"
+    spec.write_text('experiment = "sweep_fixtures:fast"\nmetrics = ["value"]\n[grid]\na = 3\n')
+    proc = cansim("sweep", str(spec), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 3
+    assert "grid.a: " in _one_line_error(proc.stderr, "sweep")
+    proc = cansim("sweep", str(tmp_path / "missing.toml"))
+    assert proc.returncode == 3 and "no such sweep spec file" in _one_line_error(proc.stderr, "sweep")
+
+
+def test_a_sweep_with_failing_cells_exits_4_after_recording_every_row(tmp_path, capsys):
+    spec = tmp_path / "flaky.toml"
+    spec.write_text('experiment = "sweep_fixtures:flaky"\nmetrics = ["value"]\n[grid]\na = [1, 2]\nb = [0, 1]\n')
+    code = cli.main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "1", "--no-progress"])
+    captured = capsys.readouterr()
+    assert code == 4
+    assert "4 tasks (4 cells): ran 4" in captured.out
+    assert "2 task(s) ended with an error" in _one_line_error(captured.err, "sweep")
+    import pyarrow.parquet as pq
+
+    assert pq.read_table(tmp_path / "out" / "results.parquet").num_rows == 4
+
+
+def test_interrupt_exits_130_and_says_how_to_resume(tmp_path, capsys, monkeypatch):
+    from cansim import sweep
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep, "run", interrupted)
+    spec = tmp_path / "s.toml"
+    spec.write_text('experiment = "sweep_fixtures:fast"\nmetrics = ["value"]\n')
+    assert cli.main(["sweep", str(spec), "--out", str(tmp_path / "o")]) == 130
+    assert "run the same command again to resume" in capsys.readouterr().err
+
+
+def test_a_missing_extra_exits_6_naming_it(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "rosbags", None)  # as if rosbags were not installed
+    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
+    (tmp_path / "r.bag").write_bytes(b"")
+    assert cli.main(["replay", str(tmp_path / "r.bag"), "--out", str(tmp_path / "o")]) == 6
+    assert 'pip install "cansim[bags]"' in _one_line_error(capsys.readouterr().err, "replay")
+
+
+def test_demo_writes_the_readme_outputs(tmp_path, capsys):
+    assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+    metrics = json.loads((tmp_path / "ratslam_metrics.json").read_text())
+    assert metrics["ate_map"] < metrics["ate_dead_reckoning"]  # the map beats dead reckoning, as the README says
+    for name in ("ratslam_map.png", "ratslam_experience_ids.png", "ratslam_experience_ids_kidnapped.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+    assert "ARR" in capsys.readouterr().out
+
+
+def test_studies_not_built_yet_exit_5_and_start_working_when_their_script_lands(tmp_path, capsys, monkeypatch):
+    for chapter in ("ch3", "ch5", "ch6"):
+        if (ROOT / "examples" / cli.STUDIES[chapter]).exists():
+            continue  # built since: nothing to check here
+        assert cli.main(["study", chapter]) == 5
+        assert "not built yet" in _one_line_error(capsys.readouterr().err, "study")
+    fake = tmp_path / "examples"
+    fake.mkdir()
+    (fake / "ch3_maze.py").write_text(
+        "import json, sys\nfrom pathlib import Path\n"
+        "def main(argv=None):\n"
+        "    out = Path(argv[argv.index('--out') + 1])\n"
+        "    (out / 'argv.json').write_text(json.dumps(argv))\n"
+        "    return 0\n")
+    monkeypatch.setenv("CANSIM_EXAMPLES", str(fake))
+    assert cli.main(["study", "ch3", "--quick", "--out", str(tmp_path)]) == 0
+    assert json.loads((tmp_path / "argv.json").read_text()) == ["--quick", "--out", str(tmp_path)]
+    assert cli.main(["study", "ch5"]) == 5  # still not in the fake folder
+    assert "built studies: ch3" in _one_line_error(capsys.readouterr().err, "study")
+    monkeypatch.setenv("CANSIM_EXAMPLES", str(tmp_path / "nowhere"))
+    assert cli.main(["demo"]) == 5
+    assert "examples folder" in _one_line_error(capsys.readouterr().err, "demo")
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_study_ch4_quick_runs_the_radial_distance_study(tmp_path):
+    assert cli.main(["study", "ch4", "--quick", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "radial_results.csv").stat().st_size > 0
+    assert (tmp_path / "radial_study_summary.txt").read_text().startswith("radial-distance study (quick)")
+
+
+def test_backends_table_has_a_line_per_backend(capsys):
+    from cansim.backends import backend_status
+
+    assert cli.main(["backends"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    status = backend_status()
+    for name in registered_backends():
+        line = next(ln for ln in out if ln.split()[0] == name)
+        assert line.split()[1] == ("yes" if status[name][0] else "no")
+        assert status[name][1] in line
+
+
+def test_bench_quick_writes_a_comparable_json(tmp_path, capsys):
+    pytest.importorskip("numba")
+    out = tmp_path / "bench.json"
+    code = cli.main(["bench", "--quick", "--backends", "numpy,numba", "--workloads", "ring360,21x21x36",
+                     "--out", str(out), "--no-progress"])
+    assert code == 0
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "cansim-bench/1" and doc["quick"] is True
+    assert {"hostname", "cpu", "usable_cpus", "python", "numpy", "cansim", "numba"} <= set(doc["machine"])
+    assert set(doc["backends"]) == set(registered_backends())
+    plain = {(r["workload"], r["backend"]) for r in doc["results"] if r["threads"] is None}
+    assert plain == {(w, b) for w in ("ring360", "21x21x36") for b in ("numpy", "numba")}
+    import numba
+
+    threads = sorted(r["threads"] for r in doc["results"] if r["threads"] is not None)
+    assert threads == sorted({1, int(numba.config.NUMBA_NUM_THREADS)})  # quick: 1 and N threads, 21x21x36 only
+    for r in doc["results"]:
+        assert 0 < r["min_us"] <= r["median_us"] and r["rounds"] == 5 and r["steps"] >= 1
+    text = capsys.readouterr().out
+    assert "ring360" in text and "numba median / min (us)" in text and "thread(s)" in text
+    assert cli.main(["bench", "--quick", "--backends", "cuda", "--out", str(out)]) == 3
+
+
+def test_replay_command_writes_map_trajectory_and_figure(tmp_path, capsys):
+    pytest.importorskip("rosbags")
+    from rosbags.typesys import Stores, get_typestore
+    from test_bag_replay import CFG_TEXT, _messages, write_ros1
+
+    from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
+
+    route = LoopRoute(step_m=0.1)
+    run = make_run(route, loops=(1,), seed=2)
+    lm = scatter_landmarks(route, seed=1)
+    images = [render_view(p, lm, shape=(12, 48)) for p in run.truth]
+    write_ros1(tmp_path / "loop.bag", _messages(run, images, False, True, get_typestore(Stores.ROS1_NOETIC), n=30))
+    cfg = tmp_path / "config.txt"
+    cfg.write_text(CFG_TEXT)
+    code = cli.main(["replay", str(tmp_path / "loop.bag"), "--config", str(cfg), "--out", str(tmp_path / "o"),
+                     "--no-progress"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "30 odometry messages (/irat_red/odom), 30 images" in captured.out
+    assert "cansim replay: warning: OpenRatSLAM config key 'enable'" in captured.err  # warnings in one line
+    rows = (tmp_path / "o" / "trajectory.csv").read_text().splitlines()
+    assert rows[0] == "time_s,x_m,y_m,th_rad,exp_id" and len(rows) == 30
+    assert (tmp_path / "o" / "experience_map.npz").exists() and (tmp_path / "o" / "experience_map.png").exists()
+    assert cli.main(["replay", str(tmp_path / "loop.bag"), "--out", str(tmp_path / "o2")]) == 3  # no topic root
+    assert "the bag has: /irat_red/camera/image" in _one_line_error(capsys.readouterr().err, "replay")
+    assert cli.main(["replay", str(tmp_path / "nothing.bag")]) == 3
+
+
+def test_readme_lists_every_command_and_exit_code():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Command line", 1)[1].split("\n## ", 1)[0]
+    for name in COMMANDS:
+        assert f"cansim {name}" in section, name
+    for code in cli.EXIT_CODES:
+        assert re.search(rf"\|\s*{code}\s*\|", section), code
+
+
+@settings(max_examples=50, deadline=None)
+@given(names=st.lists(st.text("abcdefxyz0123456789_^", min_size=1, max_size=8), min_size=1, max_size=3),
+       which=st.sampled_from(["backends", "workloads"]))
+def test_bench_refuses_unknown_names_before_timing_anything(names, which):
+    from cansim.benchmark import WORKLOADS, run_suite
+    from cansim.errors import InvalidInputError
+
+    known = set(registered_backends()) if which == "backends" else {*WORKLOADS, "61x61x36", "10^6"}
+    if set(names) <= known:
+        return
+    with pytest.raises(InvalidInputError, match=f"unknown {which[:-1]}"):
+        run_suite(quick=True, **{which: names})

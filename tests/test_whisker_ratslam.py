@@ -1,0 +1,185 @@
+"""WhiskerRatSLAM (Ch.5, Alg 2) on synthetic regions: 6-D path integration, loop closure, persistence, backends, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from cansim import Population
+from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from maps.localisation import map_pose_errors, relocalisation_errors
+from maps.odometry import SpatialOdometry
+
+PLACES = 12
+STEP_M = 0.1
+
+
+def places(seed=0):
+    """One distinct (pfh, sda) region per place around a loop, plus whisk noise."""
+    rng = np.random.default_rng(seed)
+    pfh = rng.dirichlet(np.full(81, 0.3), PLACES)
+    sda = rng.normal(0, 1, (PLACES, 18))
+    return pfh, sda
+
+
+def observe(pfh, sda, k, rng, noise=0.02):
+    f = np.abs(pfh[k] + rng.normal(0, noise / 81, 81))
+    return (f / f.sum(), sda[k] + rng.normal(0, noise, 18))
+
+
+def loop_run(slam, laps=4, seed=1, bias=(1.06, 1.04)):
+    """A planar circle of PLACES whisks (body x forward, yaw turning), odometry over-reading by ``bias``."""
+    pfh, sda = places()
+    rng = np.random.default_rng(seed)
+    v, w = np.array([STEP_M, 0, 0]), np.array([0, 0, 2 * math.pi / PLACES])
+    p, q = [np.zeros(3)], [Rotation.identity()]
+    states = []
+    for k in range(laps * PLACES):
+        states.append(slam.step(SpatialOdometry(v * bias[0], w * bias[1], 1.0), observe(pfh, sda, k % PLACES, rng)))
+        p.append(p[-1] + q[-1].apply(v))
+        q.append(q[-1] * Rotation.from_rotvec(w))
+    truth_p = np.array(p[1:])
+    truth_q = np.array([r.as_quat() for r in q[1:]])
+    return states, truth_p, truth_q
+
+
+def test_six_dof_closed_translation_loop_returns_within_a_quarter_cell():
+    pop = Population.whisker6d(backend="numpy", dtype=np.float64)
+    for _ in range(5):
+        pop.step()
+    start = pop.decode()
+    cell = pop.axes[0].step
+    for axis in range(3):
+        v = np.zeros(3)
+        v[axis] = 0.3 * cell
+        for sign in (1, -1):
+            for _ in range(5):
+                pop.step(sign * v, np.zeros(3), 1.0)
+    d = (pop.decode() - start + 2.5) % 5 - 2.5
+    assert np.all(np.abs(d) < 0.25)
+
+
+@pytest.mark.parametrize("axis", [3, 4, 5])
+def test_a_whole_cell_of_rotation_is_an_exact_roll(axis):
+    pop = Population.whisker6d(backend="numpy", dtype=np.float64)
+    rng = np.random.default_rng(axis)
+    pop.activity = rng.random(pop.shape)
+    before = pop.activity
+    w = np.zeros(3)
+    w[axis - 3] = pop.axes[axis].step  # one cell per second
+    pop.integrate(np.zeros(3), w, 1.0)
+    np.testing.assert_array_equal(pop.activity, np.roll(before, 1, axis=axis))
+
+
+def test_decoding_on_five_cells_counts_no_cell_twice():
+    pop = Population.whisker6d(backend="numpy", dtype=np.float64)
+    a = np.zeros(pop.shape)
+    a[0, 0, 0, 0, 0, 0] = 1.0
+    a[4, 0, 0, 0, 0, 0] = 1.0  # the neighbour across the wrap; a window of +-3 would count cells twice
+    pop.activity = a
+    x = pop.decode()[0]
+    assert x == pytest.approx(4.5, abs=1e-9) or x == pytest.approx(-0.5 % 5, abs=1e-9)
+
+
+@pytest.mark.slow
+def test_loop_closure_relocalises_and_map_beats_dead_reckoning():
+    slam = WhiskerRatSLAM(backend="numba", cell_size_m=STEP_M)
+    states, tp, tq = loop_run(slam)
+    exp_ids = np.array([s.exp_id for s in states])
+    reloc = np.array([s.relocalised for s in states])
+    assert reloc[PLACES:].sum() >= PLACES  # re-localises on the later laps
+    assert slam.object_map.n_experiences <= 2 * PLACES
+    b = relocalisation_errors(exp_ids, reloc, tp, tq)
+    assert b.median_position_m < STEP_M and b.median_rotation_deg < 30.0
+    # the map (relaxed, loop closures) against dead reckoning of the same odometry
+    a = map_pose_errors(exp_ids, slam.object_map.poses, tp, tq)
+    dr = WhiskerRatSLAM(backend="numba", cell_size_m=STEP_M, relax_passes=0)
+    states_dr, _, _ = loop_run(dr)
+    a_dr = map_pose_errors(np.array([s.exp_id for s in states_dr]), dr.object_map.poses, tp, tq)
+    assert np.mean(a.position_m) < np.mean(a_dr.position_m)
+    assert np.array_equal(slam.object_map.history, exp_ids)
+
+
+def test_save_resume_equals_uninterrupted(tmp_path):
+    cfg = WhiskerRatSLAMConfig(backend="numpy", cell_size_m=STEP_M)
+    full = WhiskerRatSLAM(cfg)
+    all_states, _, _ = loop_run(full, laps=2)
+    first = WhiskerRatSLAM(cfg)
+    pfh, sda = places()
+    rng = np.random.default_rng(1)
+    v, w = np.array([STEP_M, 0, 0]) * 1.06, np.array([0, 0, 2 * math.pi / PLACES]) * 1.04
+    obs = [observe(pfh, sda, k % PLACES, rng) for k in range(2 * PLACES)]
+    half = PLACES + 3
+    for k in range(half):
+        first.step(SpatialOdometry(v, w, 1.0), obs[k])
+    first.save(tmp_path / "w.npz")
+    resumed = WhiskerRatSLAM.load(tmp_path / "w.npz")
+    rest = [resumed.step(SpatialOdometry(v, w, 1.0), obs[k]) for k in range(half, 2 * PLACES)]
+    assert [s.exp_id for s in rest] == [s.exp_id for s in all_states[half:]]
+    assert resumed.object_map.poses.tobytes() == full.object_map.poses.tobytes()
+    assert resumed.pose_cells.activity.tobytes() == full.pose_cells.activity.tobytes()
+    assert np.array_equal(resumed.object_map.history, full.object_map.history)
+
+
+@pytest.mark.slow
+def test_numpy_and_numba_give_the_same_experiences_and_links():
+    runs = []
+    for backend in ("numpy", "numba"):
+        slam = WhiskerRatSLAM(backend=backend, cell_size_m=STEP_M)
+        states, _, _ = loop_run(slam, laps=9)  # 108 whisks
+        runs.append(([s.exp_id for s in states], slam.object_map.links[0]))
+    assert runs[0][0] == runs[1][0]
+    assert np.array_equal(runs[0][1], runs[1][1])
+
+
+def test_whisk_without_observation_is_odometry_only():
+    slam = WhiskerRatSLAM(backend="numpy")
+    s = slam.step(SpatialOdometry([0.05, 0, 0], [0, 0, 0.1], 1.0), None)
+    assert s.exp_id == -1 and s.view_id == -1 and slam.n_views == 0
+
+    class FewContacts:
+        pfh = np.full(81, 1 / 81)
+        sda = np.zeros(18)
+        is_observation = False
+
+    s = slam.step(SpatialOdometry([0.05, 0, 0], [0, 0, 0.1], 1.0), FewContacts())
+    assert s.view_id == -1 and slam.n_views == 0
+
+
+def test_bad_config_is_named():
+    for kw, key in (({"grid_cells": 2}, "grid_cells"), ({"cell_size_m": 0.0}, "cell_size_m"), ({"lv_mode": "x"}, "lv_mode")):
+        with pytest.raises(ConfigError, match=key):
+            WhiskerRatSLAMConfig(**kw)
+    with pytest.raises(ConfigError, match="unknown"):
+        WhiskerRatSLAM(pc_dim_xy=3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["nan_v", "inf_w", "zero_dt", "neg_dt", "short_v", "pfh_shape", "sda_len", "nan_sda", "arity"]))
+def test_bad_input_raises_typed_error_and_leaves_state_unchanged(kind):
+    slam = WhiskerRatSLAM(backend="numpy", cell_size_m=STEP_M)
+    pfh, sda = places()
+    slam.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.5], 1.0), (pfh[0], sda[0]))
+    before = (slam.pose_cells.activity.tobytes(), slam.iteration, slam.n_views, slam.object_map.poses.tobytes(),
+              slam.local_view.decay.tobytes(), len(slam.object_map.history))
+    good_o, good_f = ([0.1, 0, 0], [0, 0, 0.5], 1.0), (pfh[1], sda[1])
+    args = {
+        "nan_v": ([math.nan, 0, 0], [0, 0, 0.5], 1.0, good_f),
+        "inf_w": ([0.1, 0, 0], [0, math.inf, 0.5], 1.0, good_f),
+        "zero_dt": ([0.1, 0, 0], [0, 0, 0.5], 0.0, good_f),
+        "neg_dt": ([0.1, 0, 0], [0, 0, 0.5], -1.0, good_f),
+        "short_v": ([0.1, 0], [0, 0, 0.5], 1.0, good_f),
+        "pfh_shape": (*good_o, (pfh[1][:80], sda[1])),
+        "sda_len": (*good_o, (pfh[1], sda[1][:17])),
+        "nan_sda": (*good_o, (pfh[1], np.full(18, math.nan))),
+        "arity": good_o,
+    }[kind]
+    with pytest.raises((InvalidInputError, ShapeError)):
+        slam.step(*args)
+    after = (slam.pose_cells.activity.tobytes(), slam.iteration, slam.n_views, slam.object_map.poses.tobytes(),
+             slam.local_view.decay.tobytes(), len(slam.object_map.history))
+    assert after == before

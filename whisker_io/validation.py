@@ -1,0 +1,178 @@
+"""The one set of finite-value validators of the distribution.
+
+Every public entry point that takes numbers checks them here before it touches
+any state, so bad input (NaN, inf, a string, a wrong shape) raises the project's
+typed error with a message naming the argument, never a NaN result later:
+
+* :func:`finite_scalar` - one finite real number -> ``float``;
+* :func:`finite_vector` - a 1-D array of finite reals, optionally of length n;
+* :func:`finite_array` - an array of finite reals of a given shape;
+* :func:`whole_number` - an integer count (an integral float is accepted).
+
+Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
+shape raises its subclass :class:`~whisker_io.errors.ShapeError`. Strings,
+bytes and booleans are not numbers here (``float("1")`` would accept a string,
+``True`` would pass as 1).
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from whisker_io.errors import InvalidInputError, ShapeError
+
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number"]
+
+
+def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
+    try:
+        if np.iscomplexobj(value):
+            raise TypeError("complex")
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}") from None
+    if arr.dtype != np.float64:  # pragma: no cover - np.array(dtype=float) guarantees it
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
+    return arr
+
+
+def _check_finite(arr: NDArray[np.float64], name: str) -> None:
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        where = tuple(int(i) for i in np.unravel_index(int(bad[0]), arr.shape)) if arr.ndim > 1 else int(bad[0])
+        raise InvalidInputError(
+            f"{name} holds NaN/inf at index {where} ({bad.size} non-finite values); "
+            "give finite numbers (mask or drop missing samples first)"
+        )
+
+
+def finite_scalar(value: object, name: str) -> float:
+    """Return ``value`` as a finite ``float``.
+
+    Parameters
+    ----------
+    value : real number or 0-d array
+        The value to check.
+    name : str
+        Argument name for the error message.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a real number (a string, a bool, None, a complex number) or NaN/inf.
+    ShapeError
+        An array with one or more dimensions.
+    """
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        try:
+            out = float(value)
+        except OverflowError:
+            raise InvalidInputError(f"{name} must be finite, got an integer too large for a float") from None
+    else:
+        arr = _as_float_array(value, name)
+        if arr.ndim != 0:
+            raise ShapeError(f"{name} must be a single number, got an array of shape {arr.shape}")
+        out = float(arr)
+    if out != out or out in (float("inf"), float("-inf")):
+        raise InvalidInputError(f"{name} must be finite, got {out!r}")
+    return out
+
+
+def finite_array(value: ArrayLike, shape: Sequence[int | None] | None, name: str) -> NDArray[np.float64]:
+    """Return ``value`` as a new float64 array of finite values.
+
+    Parameters
+    ----------
+    value : array_like
+        The values to check.
+    shape : sequence of int or None, optional
+        Required shape; ``None`` in a position accepts any length there, a
+        ``None`` shape accepts any shape.
+    name : str
+        Argument name for the error message.
+
+    Returns
+    -------
+    ndarray of float64
+        A fresh (writable) copy.
+
+    Raises
+    ------
+    ShapeError
+        The shape differs from ``shape``.
+    InvalidInputError
+        Non-numeric or NaN/inf entries (the message gives the first bad index).
+    """
+    arr = _as_float_array(value, name)
+    if shape is not None:
+        want = tuple(shape)
+        if arr.ndim != len(want) or any(w is not None and w != s for w, s in zip(want, arr.shape)):
+            shown = "(" + ", ".join("n" if w is None else str(w) for w in want) + ("," if len(want) == 1 else "") + ")"
+            raise ShapeError(f"{name} must have shape {shown}, got {arr.shape}")
+    _check_finite(arr, name)
+    return arr
+
+
+def finite_vector(value: ArrayLike, n: int | None, name: str) -> NDArray[np.float64]:
+    """Return ``value`` as a new 1-D float64 array of finite values.
+
+    Parameters
+    ----------
+    value : array_like, shape (n,)
+        The vector; a plain number is accepted when ``n == 1``.
+    n : int or None
+        Required length; ``None`` accepts any length.
+    name : str
+        Argument name for the error message.
+
+    Raises
+    ------
+    ShapeError
+        Not 1-D, or not of length ``n``.
+    InvalidInputError
+        Non-numeric or NaN/inf entries.
+
+    Examples
+    --------
+    >>> finite_vector([1, 2, 3], 3, "position_m").tolist()
+    [1.0, 2.0, 3.0]
+    """
+    arr = _as_float_array(value, name)
+    if arr.ndim == 0 and n == 1:
+        arr = arr.reshape(1)
+    return finite_array(arr, (n,), name)
+
+
+def whole_number(value: object, name: str, minimum: int | None = None) -> int:
+    """Return ``value`` as an ``int`` (a count: samples, bins, neighbours).
+
+    Parameters
+    ----------
+    value : int, numpy integer, or an integral float
+        The count.
+    name : str
+        Argument name for the error message.
+    minimum : int, optional
+        Smallest value allowed.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a finite whole number (a bool, a string, 2.5, NaN), or below ``minimum``.
+    """
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        out = int(value)
+    else:
+        x = finite_scalar(value, name)
+        if not x.is_integer():
+            raise InvalidInputError(f"{name} must be a whole number, got {value!r}")
+        out = int(x)
+    if minimum is not None and out < minimum:
+        raise InvalidInputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return out
