@@ -5,7 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from cansim.errors import InvalidInputError
+from whisker_io.validation import finite_scalar
 
 __all__ = ["Axis"]
 
@@ -46,14 +49,21 @@ class Axis:
     @classmethod
     def linear(cls, name: str, size: int, step: float) -> "Axis":
         """A translational axis with ``step`` metres per cell."""
-        return cls(name=name, size=int(size), step=float(step), angular=False)
+        return cls(name=name, size=_cells(name, size), step=finite_scalar(step, f"axis {name!r} step"), angular=False)
 
     @classmethod
     def angle(cls, name: str, size: int) -> "Axis":
         """An angular axis of ``size`` cells covering ``2*pi`` rad (step ``2*pi/size``)."""
-        return cls(name=name, size=int(size), step=2.0 * math.pi / int(size), angular=True)
+        n = _cells(name, size)
+        return cls(name=name, size=n, step=2.0 * math.pi / n, angular=True)
 
     @property
     def period(self) -> float:
         """Physical length of the whole axis (``size * step``), metres or radians."""
         return self.size * self.step
+
+
+def _cells(name: str, size: object) -> int:
+    if isinstance(size, (bool, np.bool_)) or not isinstance(size, (int, np.integer)) or size < 1:
+        raise InvalidInputError(f"axis {name!r}: size must be a positive integer, got {size!r}")
+    return int(size)

@@ -38,6 +38,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
+from whisker_io.validation import finite_vector
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -284,16 +285,12 @@ class LocalViewCells:
             ``view_id`` skips ids or is negative, or ``decoded`` is not finite; nothing changed.
         """
         vid = self._check_view(view_id)
-        loc = np.asarray(decoded, dtype=np.float64).ravel()
-        if loc.shape != (len(self._shape),):
-            raise ShapeError(f"decoded must have {len(self._shape)} entries, got {loc.shape}")
-        if not np.all(np.isfinite(loc)):
-            raise InvalidInputError("decoded location must be finite")
+        loc = finite_vector(np.ravel(decoded) if isinstance(decoded, np.ndarray) else decoded, len(self._shape), "decoded location")
         off = None
         if offset_cells is not None:
-            off = np.asarray(offset_cells, dtype=np.float64).ravel()
-            if off.shape != loc.shape or not np.all(np.isfinite(off)):
-                raise InvalidInputError(f"offset_cells must be {len(self._shape)} finite values")
+            off = finite_vector(offset_cells, len(self._shape), "offset_cells")
+            if np.abs(off).max() > 1e6:
+                raise InvalidInputError(f"offset_cells beyond +-1e6 cells are not an offset, got {off.tolist()}")
 
         p = self._params
         injection = _EMPTY
@@ -327,10 +324,9 @@ class LocalViewCells:
         np.maximum(d - self._params.decay_restore, self._floor, out=d)
 
     def _check_view(self, view_id: int) -> int:
-        try:
-            vid = int(view_id)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"view_id must be an integer, got {view_id!r}") from None
+        if isinstance(view_id, (bool, np.bool_)) or not isinstance(view_id, (int, np.integer)):
+            raise InvalidInputError(f"view_id must be an integer, got {view_id!r}")
+        vid = int(view_id)
         if vid < 0 or vid > self.n_views:
             raise InvalidInputError(
                 f"view_id {vid} is neither an existing view (< {self.n_views}) nor the next new one "

@@ -13,7 +13,7 @@ from cansim.backends import Backend, get_backend
 from cansim.backends.base import RunInputs
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
-from whisker_io.validation import finite_vector
+from whisker_io.validation import finite_scalar, finite_vector
 from cansim.path_integration import (
     MotionModel,
     MotionShifts,
@@ -27,6 +27,25 @@ __all__ = ["Population"]
 log = logging.getLogger(__name__)
 
 IndexLike = Union[Sequence[int], np.ndarray]
+
+#: Largest shift (cells, per axis and step) the kernels represent exactly (integer parts are
+#: 32-bit on OpenCL); a larger one comes from corrupt odometry and is refused.
+MAX_SHIFT_CELLS = 2.0**30
+#: Largest energy one injection may add to a cell; the activity is normalised to sum 1,
+#: so anything near this is corrupt input (and could overflow float32).
+MAX_INJECTION = 1.0e6
+
+
+def _check_shift(shifts: Optional[np.ndarray], what: str) -> None:
+    """Refuse a shift the kernels cannot represent (see :data:`MAX_SHIFT_CELLS`)."""
+    if shifts is None:
+        return
+    biggest = float(np.abs(shifts).max(initial=0.0))
+    if not biggest < MAX_SHIFT_CELLS:
+        raise InvalidInputError(
+            f"the {what} shift is {biggest!r} cells in one step, too large to represent; "
+            "check velocity * dt against the cell size (or split the step)"
+        )
 
 
 class Population:
@@ -239,7 +258,16 @@ class Population:
 
     # ---------------------------------------------------------------- resetting
     def _check_index(self, index: IndexLike) -> tuple[int, ...]:
-        idx = tuple(int(i) for i in np.asarray(index).ravel())
+        try:
+            arr = np.asarray(index)
+            ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
+        except (TypeError, ValueError):
+            ok = False
+        if not ok or arr.dtype.kind == "b":
+            raise InvalidInputError(f"index must be whole cell numbers, one per axis, got {index!r}")
+        if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
+            raise InvalidInputError(f"index {index!r} is out of any grid's range")
+        idx = tuple(int(i) for i in arr.ravel())
         if len(idx) != self.ndim:
             raise ShapeError(f"index must have {self.ndim} entries (one per axis), got {len(idx)}")
         return tuple(i % n for i, n in zip(idx, self.shape))
@@ -281,9 +309,9 @@ class Population:
     def inject(self, index: IndexLike, energy: float) -> None:
         """Add ``energy`` (>= 0) to one cell (wrapped index)."""
         idx = self._check_index(index)
-        e = float(energy)
-        if not math.isfinite(e) or e < 0:
-            raise InvalidInputError(f"energy must be finite and >= 0, got {energy!r}")
+        e = finite_scalar(energy, "energy")
+        if not 0 <= e <= MAX_INJECTION:
+            raise InvalidInputError(f"energy must be finite and in [0, {MAX_INJECTION:g}], got {energy!r}")
         flat = np.array([np.ravel_multi_index(idx, self.shape)], dtype=np.int64)
         self._commit(self._backend.inject(self._a, flat, np.array([e]), out=self._spare))
 
@@ -312,6 +340,7 @@ class Population:
     def shift(self, cells: Sequence[float]) -> None:
         """Shift the whole grid by a real number of cells per axis (any magnitude)."""
         s = finite_vector(cells, self.ndim, "shift")
+        _check_shift(s, "uniform")
         self._commit(self._backend.shift(self._a, s, out=self._spare))
 
     def shift_conditional(self, shift_axes: Sequence[int], shifts: np.ndarray) -> None:
@@ -336,6 +365,7 @@ class Population:
             raise ShapeError(f"shifts must have shape {cond_shape + (len(ax),)}, got {sh.shape}")
         if not np.all(np.isfinite(sh)):
             raise InvalidInputError("shifts must be finite")
+        _check_shift(sh, "conditional")
         return ax, sh
 
     def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
@@ -352,6 +382,8 @@ class Population:
             Seconds, >= 0.
         """
         ms = self._motion_shifts(velocity, omega, dt)
+        _check_shift(ms.cond_shifts, "translation")
+        _check_shift(ms.uniform, "uniform")
         cur = self._a
         if ms.cond_shifts is not None:
             cur = self._backend.shift_conditional(cur, ms.shift_axes, ms.cond_shifts)
@@ -400,6 +432,8 @@ class Population:
             The dynamics collapsed; nothing changed.
         """
         ms = self._motion_shifts(velocity, omega, dt)
+        _check_shift(ms.cond_shifts, "translation")
+        _check_shift(ms.uniform, "uniform")
         fi = vals = None
         if injection is not None:
             fi, vals = checked_injection(*injection, self._size)
@@ -576,7 +610,7 @@ class Population:
         if shifts is None:
             return
         s = np.abs(shifts.reshape(len(shifts), -1)).max(axis=1)
-        bad = np.flatnonzero(mask & ~(s < 2.0**30))
+        bad = np.flatnonzero(mask & ~(s < MAX_SHIFT_CELLS))
         if len(bad):
             raise InvalidInputError(
                 f"the {what} shift of step {bad[0]} is {s[bad[0]]!r} cells, too large to represent; "
@@ -703,11 +737,11 @@ def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> 
         fl, vl = fi.tolist(), vals.tolist()
         if n and (min(fl) < 0 or max(fl) >= size):
             raise InvalidInputError(f"flat indices must lie in [0, {size})")
-        if not all(0.0 <= x < math.inf for x in vl):  # also False for NaN
-            raise InvalidInputError("injected values must be finite and >= 0")
+        if not all(0.0 <= x <= MAX_INJECTION for x in vl):  # also False for NaN
+            raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
         return fi, vals
     if fi.min() < 0 or fi.max() >= size:
         raise InvalidInputError(f"flat indices must lie in [0, {size})")
-    if not np.isfinite(vals).all() or vals.min() < 0:
-        raise InvalidInputError("injected values must be finite and >= 0")
+    if not np.isfinite(vals).all() or vals.min() < 0 or vals.max() > MAX_INJECTION:
+        raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
     return fi, vals

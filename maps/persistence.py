@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import zipfile
 
 import numpy as np
 
@@ -21,7 +22,7 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """
     try:
         archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
     if not hasattr(archive, "files"):
         raise CorruptFileError("holds a single array, not an .npz archive", path=path)

@@ -333,6 +333,8 @@ def chi_squared(q: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | float:
                          "(pass arrays of shape (..., B))")
     if q.shape[-1] != v.shape[-1]:
         raise ShapeError(f"histograms differ in length: {q.shape[-1]} vs {v.shape[-1]}")
+    if q.shape[-1] == 0:
+        raise ShapeError("histograms need at least one bin")
     try:
         np.broadcast_shapes(q.shape, v.shape)
     except ValueError:

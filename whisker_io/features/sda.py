@@ -168,6 +168,8 @@ def nmse(
         ya = np.asarray(y, dtype=np.float64)
     except (TypeError, ValueError):
         raise InvalidInputError(f"x and y must be arrays of numbers, got {x!r} and {y!r}") from None
+    if xa.ndim == 1 and xa.shape[0] == 0:
+        raise InvalidInputError("an SDA needs at least one whisker")
     single = ya.ndim == 1
     if xa.ndim != 1 or ya.ndim not in (1, 2) or ya.shape[-1] != xa.shape[0]:
         raise InvalidInputError(f"x must be 1-D and y (N,) or (m, N) of the same length N, got {xa.shape} and {ya.shape}")
