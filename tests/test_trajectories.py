@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial.transform import Rotation
 
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import CansimError, ConfigError, InvalidInputError
@@ -31,11 +30,6 @@ COUNT = SweepParams(refine=False)  # which whiskers touch is decided by the coar
 @pytest.fixture(scope="module")
 def box():
     return make_object("box")
-
-
-@pytest.fixture(scope="module")
-def mug():
-    return make_object("mug")
 
 
 @pytest.fixture(scope="module")

@@ -15,9 +15,11 @@ Conventions
   the arm is: two whisks of the same region from the same relative pose give the
   same features wherever the object stands. World points are
   ``pose.apply(contact_points_m)``.
-* One histogram per whisk: every pair of contacts is closer than the PFH radius
+* One histogram per whisk over the pairs of contacts within the PFH radius
   ``r = 0.3 m`` (:class:`~whisker_io.features.pfh.PFHParams`), normals from the 3
-  nearest contacts.
+  nearest contacts. (On a flat wall facing the array the tips of the 160-mm
+  whiskers fan out over about 0.45 m, so about a quarter of the pairs fall outside
+  ``r``.)
 * The SDA is zero where a whisker has no contact (or no defined slope), as the
   thesis stores it; ``sda_mask`` says which entries are measured.
 * Fewer than 3 contacts is a defined "no observation" whisk

@@ -113,8 +113,8 @@ class _EmbreeScene:
         The far end is padded by 1e-6 relative + 1e-6 scaled units, so a hit at the
         segment's end in float64 is still returned; the caller applies the exact bound.
         """
-        o = ((origins - self.origin) * self.scale).astype(np.float32)
-        with np.errstate(over="ignore"):
+        with np.errstate(over="ignore", invalid="ignore"):  # a far-away segment overflows float32: no hit
+            o = ((origins - self.origin) * self.scale).astype(np.float32)
             far = (np.asarray(max_distance, dtype=np.float64) * (self.scale * (1.0 + 1e-6)) + 1e-6).astype(np.float32)
         tri = self.scene.run(o, directions.astype(np.float32), dists=far)
         return np.asarray(tri, dtype=np.int64)
