@@ -203,6 +203,10 @@ def test_bad_input_raises_typed_errors():
     for bad_dt in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(InvalidInputError):
             exact_odometry(good, good, bad_dt)
+    with pytest.raises(InvalidInputError, match="overflows"):
+        exact_odometry(good, Pose([1.0, 0.0, 0.0]), 1e-320)
+    with pytest.raises(InvalidInputError, match="longer than"):
+        noisy_odometry(good, Pose([2e4, 0.0, 0.0]), rng)  # millimetres typed as metres
     with pytest.raises(ShapeError):
         integrate_odometry(good, [0.0, 0.0], [0.0, 0.0, 0.0], 1.0)
     with pytest.raises(InvalidInputError):

@@ -156,6 +156,8 @@ def test_bad_input_raises_typed_errors():
         region_features(pts, NO_SLOPES, NO_MASK, pfh_params={"bins_per_feature": 3})  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError):
         region_features(pts, ["a"] * N, NO_MASK)
+    with pytest.raises(InvalidInputError, match="end-effector frame"):
+        region_features(pts * 1e3, NO_SLOPES, NO_MASK)  # millimetres, or world coordinates far away
 
 
 def test_region_features_constructor_checks_its_invariants():

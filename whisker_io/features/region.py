@@ -38,10 +38,13 @@ from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.features.pfh import PFHParams, point_feature_histogram
 from whisker_io.validation import finite_array, whole_number
 
-__all__ = ["MIN_OBSERVATION_CONTACTS", "RegionFeatures", "region_features"]
+__all__ = ["MIN_OBSERVATION_CONTACTS", "MAX_CONTACT_DISTANCE_M", "RegionFeatures", "region_features"]
 
 #: Fewest contacts of a whisk that make an observation (3 points define a plane, Sec 2.5.1.1).
 MIN_OBSERVATION_CONTACTS: int = 3
+#: Largest distance of a contact point from the end-effector origin, m (the thesis array
+#: reaches about 0.4 m; anything beyond this is corrupt data, not a contact).
+MAX_CONTACT_DISTANCE_M: float = 10.0
 
 _SUM_TOL = 1e-9
 
@@ -58,6 +61,13 @@ def _bool_vector(value: ArrayLike, name: str) -> NDArray[np.bool_]:
             raise InvalidInputError(f"{name} must hold booleans (True where a whisker has a slope), got {arr!r}")
         arr = arr.astype(bool)
     return arr
+
+
+def _check_reach(points: NDArray[np.float64], name: str) -> None:
+    if points.size and not float(np.max(np.abs(points))) <= MAX_CONTACT_DISTANCE_M:
+        raise InvalidInputError(
+            f"{name} holds a point {float(np.max(np.abs(points))):.3g} m from the end-effector origin (more than "
+            f"{MAX_CONTACT_DISTANCE_M:g} m); contact points must be in the end-effector frame, in metres")
 
 
 def _read_only(arr: NDArray) -> NDArray:
@@ -92,7 +102,8 @@ class RegionFeatures:
     ShapeError
         Wrong shapes (``sda`` and ``sda_mask`` of different lengths, points not (k, 3)).
     InvalidInputError
-        NaN/inf anywhere, a negative or unnormalised histogram, a histogram with
+        NaN/inf anywhere, a contact point farther than :data:`MAX_CONTACT_DISTANCE_M`,
+        a negative or unnormalised histogram, a histogram with
         mass for fewer than 3 contacts, a non-zero SDA entry outside the mask,
         more measured slopes than contacts, or ``n_contacts`` that disagrees with
         the points.
@@ -130,6 +141,7 @@ class RegionFeatures:
                 f"got {s.shape} and {m.shape}")
         if k != len(pts):
             raise InvalidInputError(f"n_contacts is {k} but {len(pts)} contact points were given")
+        _check_reach(pts, "contact_points_m")
         if np.any(h < 0):
             raise InvalidInputError("pfh must be non-negative (a normalised histogram)")
         total = float(h.sum())
@@ -208,7 +220,8 @@ def region_features(
     ShapeError
         Points not of shape (k, 3); slopes and mask not 1-D of one length.
     InvalidInputError
-        Non-finite contact points, a non-finite slope inside the mask, or
+        Non-finite contact points or one farther than :data:`MAX_CONTACT_DISTANCE_M`
+        from the end-effector origin, a non-finite slope inside the mask, or
         ``pfh_params`` that is not a :class:`PFHParams`.
 
     Examples
@@ -222,6 +235,7 @@ def region_features(
     if not isinstance(pfh_params, PFHParams):
         raise InvalidInputError(f"pfh_params must be a PFHParams, got {type(pfh_params).__name__}")
     pts = finite_array(contact_points_ee_m, (None, 3), "contact_points_ee_m")
+    _check_reach(pts, "contact_points_ee_m")
     m = _bool_vector(mask, "mask")
     try:
         s_raw = np.asarray(slopes, dtype=np.float64)

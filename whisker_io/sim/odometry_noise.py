@@ -60,6 +60,7 @@ from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = [
     "MAX_SPEED_DRAWS",
+    "MAX_STEP_M",
     "OdometryNoise",
     "relative_motion",
     "exact_odometry",
@@ -69,6 +70,8 @@ __all__ = [
 
 #: Draws of the angular speed before :func:`noisy_odometry` falls back to the mean (guard ``omega <= 0``).
 MAX_SPEED_DRAWS: int = 64
+#: Largest displacement between two successive whisk poses, m; a longer step is corrupt data.
+MAX_STEP_M: float = 1.0e4
 
 _ZERO_DISPLACEMENT_M = 1e-12
 
@@ -138,11 +141,17 @@ def relative_motion(pose_prev: PoseLike, pose_next: PoseLike) -> tuple[NDArray[n
     ------
     InvalidInputError
         A pose that is not a valid :data:`~whisker_io.pose.PoseLike` (NaN/inf, a
-        non-unit quaternion, a reflection).
+        non-unit quaternion, a reflection), or a step longer than :data:`MAX_STEP_M`.
     """
     a, b = as_pose(pose_prev), as_pose(pose_next)
     inv = a.rotation.inv()
-    return inv.apply(b.position_m - a.position_m), inv * b.rotation
+    with np.errstate(over="ignore", invalid="ignore"):
+        delta = inv.apply(b.position_m - a.position_m)
+    if not math.hypot(*delta) <= MAX_STEP_M:  # also catches an overflowing difference
+        raise InvalidInputError(
+            f"the step from {a} to {b} is longer than {MAX_STEP_M:g} m; poses of successive whisks "
+            "must be close (check the units: metres)")
+    return delta, inv * b.rotation
 
 
 def exact_odometry(
@@ -168,12 +177,27 @@ def exact_odometry(
 
     :func:`integrate_odometry` ``(pose_prev, v, omega, dt)`` returns ``pose_next``
     (to rounding).
+
+    Raises
+    ------
+    InvalidInputError
+        Invalid poses, a step longer than :data:`MAX_STEP_M`, ``dt`` not a finite
+        number > 0 or so small that the velocities overflow.
     """
     t = finite_scalar(dt, "dt")
     if not t > 0:
         raise InvalidInputError(f"dt must be > 0 s, got {dt!r}")
     delta, R = relative_motion(pose_prev, pose_next)
-    return delta / t, R.as_rotvec() / t, t
+    with np.errstate(over="ignore"):  # an overflow is reported as a typed error below
+        v, omega = delta / t, R.as_rotvec() / t
+    return _finite_odometry(v, omega, t)
+
+
+def _finite_odometry(v: NDArray[np.float64], omega: NDArray[np.float64], dt: float
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(omega))):
+        raise InvalidInputError(f"the odometry overflows (dt = {dt!r} s is too short for the step); use a longer dt")
+    return v, omega, dt
 
 
 def _angular_speed(params: OdometryNoise, rng: np.random.Generator) -> float:
@@ -220,7 +244,8 @@ def noisy_odometry(
     Raises
     ------
     InvalidInputError
-        Invalid poses, ``rng`` not a Generator, ``params`` not an :class:`OdometryNoise`.
+        Invalid poses, a step longer than :data:`MAX_STEP_M`, ``rng`` not a
+        Generator, ``params`` not an :class:`OdometryNoise`.
     """
     gen = _generator(rng)
     if not isinstance(params, OdometryNoise):
@@ -235,12 +260,12 @@ def noisy_odometry(
     theta = float(np.linalg.norm(rotvec))
     dt = max(theta / omega, params.min_dt_s)  # Eq 6.8 + guard theta_eta ~ 0
     omega_eta = rotvec / dt  # = omega e_eta (Eq 6.7) unless the floor is active
-    length = float(np.linalg.norm(delta))
+    length = math.hypot(*delta)
     if length <= _ZERO_DISPLACEMENT_M:  # guard |delta| = 0: a pure rotation stays one
         delta_eta = np.zeros(3)
     else:
         delta_eta = delta * (max(length + eta_m, 0.0) / length)  # Eq 6.9 + guard magnitude < 0
-    return delta_eta / dt, omega_eta, dt  # Eq 6.10-6.11
+    return _finite_odometry(delta_eta / dt, omega_eta, dt)  # Eq 6.10-6.11
 
 
 def integrate_odometry(pose: PoseLike, v: object, omega: object, dt: float) -> Pose:

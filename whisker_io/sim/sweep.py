@@ -53,7 +53,7 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.validation import finite_scalar, whole_number
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
@@ -578,6 +578,12 @@ def perturb_contacts(
     noise : ContactNoise
     rng : numpy Generator or int seed, optional
 
+    Raises
+    ------
+    InvalidInputError, ShapeError
+        Arrays of other shapes, a non-boolean ``present``, a non-finite radial
+        distance or length of a present contact, ``noise`` not a ContactNoise.
+
     Returns
     -------
     registered : ndarray of bool (N,)
@@ -594,21 +600,31 @@ def perturb_contacts(
     kept (one uniform, three normals for the position, one for the slope), so
     the noise of one whisker does not depend on the others.
     """
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    present = np.asarray(present, dtype=bool)
+    if not isinstance(noise, ContactNoise):
+        raise InvalidInputError(f"noise must be a ContactNoise, got {type(noise).__name__}")
+    present = np.asarray(present)
+    if present.ndim != 1 or present.dtype != np.bool_:
+        raise InvalidInputError(f"present must be a 1-D array of booleans, got {present.dtype} {present.shape}")
     n = present.shape[0]
+    arrays = [np.asarray(a, dtype=np.float64) for a in (radial_distance_m, slope, whisker_length_m)]
+    if any(a.shape != (n,) for a in arrays):
+        raise ShapeError(f"radial_distance_m, slope and whisker_length_m must have shape ({n},), "
+                         f"got {[a.shape for a in arrays]}")
+    if not (np.all(np.isfinite(arrays[0][present])) and np.all(arrays[2][present] > 0)
+            and np.all(np.isfinite(arrays[2][present]))):
+        raise InvalidInputError("present contacts need a finite radial distance and a finite whisker length > 0")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     keep = gen.random(n) < noise.registration_probability
     e_pos = gen.normal(0.0, 1.0, size=(n, 3))
     e_slope = gen.normal(0.0, 1.0, size=n)
-    r = np.array(radial_distance_m, dtype=np.float64)
-    L = np.asarray(whisker_length_m, dtype=np.float64)
-    sigma = noise.position_sigma_fraction * L
+    r, slope_in, L = arrays[0].copy(), arrays[1], arrays[2]
+    sigma = noise.position_sigma_fraction * np.where(present, L, 0.0)
     offset = np.zeros((n, 3))
     if noise.position_mode == "shaft":
         r = np.where(present, np.clip(r + sigma * e_pos[:, 0], 0.0, L), r)
     else:
         offset = np.where(present[:, None], sigma[:, None] * e_pos, 0.0)
-    s = np.asarray(slope, dtype=np.float64) + noise.slope_sigma * e_slope
+    s = slope_in + noise.slope_sigma * e_slope
     return present & keep, r, s, offset
 
 
