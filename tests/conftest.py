@@ -30,3 +30,11 @@ def backend(request):
         if request.param in REQUIRED:
             pytest.fail(f"required backend {request.param!r} is unavailable: {exc}")
         pytest.skip(str(exc))
+
+
+@pytest.fixture(scope="session")
+def mug():
+    """The simulated Mug (``whisker_io.sim.objects``), shared by the whisker tests that explore it."""
+    from whisker_io.sim.objects import make_object
+
+    return make_object("mug")

@@ -8,6 +8,9 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from whisker_io.errors import InvalidInputError, CorruptFileError, CansimError
 from whisker_io.records.recording import (
@@ -207,3 +210,51 @@ def test_replay_reports_missing_whisk_files(tmp_path):
     assert next(it).entry.whisk_file == "whisk_000000"
     with pytest.raises(CorruptFileError, match=r"line 3: .*missing"):
         next(it)
+
+
+def test_from_float_arrays_equals_the_validating_constructor():
+    rng = np.random.default_rng(0)
+    a, x, y = rng.normal(size=(3, 50))
+    fast = WhiskRecord.from_float_arrays("C2", a, x, y, sample_rate_hz=1000.0, cycle=4)
+    slow = WhiskRecord("C2", a, x, y, sample_rate_hz=1000.0, cycle=4)
+    for name in ("angle_rad", "x_counts", "y_counts"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+        with pytest.raises(ValueError):
+            getattr(fast, name)[0] = 1.0  # read-only views
+    assert (fast.module, fast.cycle, fast.sample_rate_hz, fast.spare) == ("C2", 4, 1000.0, None)
+    np.testing.assert_array_equal(fast.as_columns(), slow.as_columns())
+    # not 1-D float64: the validating constructor takes over
+    ints = WhiskRecord.from_float_arrays("C2", [1, 2], [3, 4], [5, 6])
+    assert ints.angle_rad.dtype == np.float64 and ints.angle_rad.tolist() == [1.0, 2.0]
+
+
+def test_from_float_arrays_refuses_what_the_constructor_refuses():
+    ok = np.zeros(5)
+    bad = ok.copy()
+    bad[3] = np.inf
+    with pytest.raises(InvalidInputError, match="index 3"):
+        WhiskRecord.from_float_arrays("A1", ok, bad, ok)
+    with pytest.raises(InvalidInputError, match="equal length"):
+        WhiskRecord.from_float_arrays("A1", ok, ok[:4], ok)
+    with pytest.raises(InvalidInputError, match="equal length"):
+        WhiskRecord.from_float_arrays("A1", ok[:0], ok[:0], ok[:0])
+    with pytest.raises(InvalidInputError, match="module name"):
+        WhiskRecord.from_float_arrays("A 1", ok, ok, ok)
+    with pytest.raises(InvalidInputError, match="cycle"):
+        WhiskRecord.from_float_arrays("A1", ok, ok, ok, cycle=-1)
+    with pytest.raises(InvalidInputError, match="sample_rate_hz"):
+        WhiskRecord.from_float_arrays("A1", ok, ok, ok, sample_rate_hz=0.0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(arrays(np.float64, st.integers(0, 6), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+       arrays(np.float64, st.integers(0, 6), elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+       st.text(max_size=4))
+def test_from_float_arrays_is_typed_or_valid(a, b, module):
+    try:
+        rec = WhiskRecord.from_float_arrays(module, a, b, a)
+    except CansimError as exc:
+        assert isinstance(exc, InvalidInputError)
+        return
+    assert a.size == b.size > 0 and np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and module.isalnum()
+    np.testing.assert_array_equal(rec.x_counts, b)

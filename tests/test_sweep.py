@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.array.geometry import WhiskerArray, WhiskerModule
 from whisker_io.array.kinematics import whisker_base_transforms
 from whisker_io.sim.objects import make_object
@@ -18,6 +20,7 @@ from whisker_io.sim.sweep import (
     SweepParams,
     add_contact_noise,
     embree_available,
+    perturb_contacts,
     sweep_array,
 )
 
@@ -267,3 +270,53 @@ def test_isotropic_noise_and_none_passthrough():
     assert all(o is None for o in out[1::2])
     d = np.array([o.point - np.array([0, 0.05, 0]) for o in out[0::2]])
     np.testing.assert_allclose(d.std(axis=0), 0.025, rtol=0.05)
+
+
+def test_perturb_contacts_hand_checked_cases():
+    present = np.array([True, False, True, True])
+    r = np.array([0.03, 0.0, 0.1, 0.05])
+    slope = np.array([0.5, 0.0, -1.0, np.inf])
+    L = np.array([0.06, 0.1, 0.1, 0.16])
+    quiet = ContactNoise(position_sigma_fraction=0.0, slope_sigma=0.0, registration_probability=1.0)
+    kept, r2, s2, off = perturb_contacts(present, r, slope, L, quiet, rng=0)
+    np.testing.assert_array_equal(kept, present)
+    np.testing.assert_array_equal(r2, r)
+    np.testing.assert_array_equal(s2, slope)  # an infinite slope (n_x = 0) stays infinite
+    assert not off.any()
+    kept, *_ = perturb_contacts(present, r, slope, L, ContactNoise(registration_probability=0.0), rng=0)
+    assert not kept.any()
+    # isotropic mode: the radial distance is left alone, the offset carries the noise
+    iso = ContactNoise(position_mode="isotropic", slope_sigma=0.0, registration_probability=1.0)
+    kept, r3, _, off = perturb_contacts(present, r, slope, L, iso, rng=1)
+    np.testing.assert_array_equal(r3, r)
+    assert not off[1].any() and np.all(np.linalg.norm(off[present], axis=1) > 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 30), st.integers(0, 2**32 - 1), st.floats(0.0, 1.0), st.floats(0.0, 2.0))
+def test_perturb_contacts_keeps_points_on_their_shafts(n, seed, sigma, slope_sigma):
+    rng = np.random.default_rng(seed)
+    present = rng.random(n) < 0.7
+    L = rng.uniform(0.05, 0.2, n)
+    r = rng.uniform(0.0, 1.0, n) * L
+    slope = rng.normal(0.0, 1.0, n)
+    noise = ContactNoise(position_sigma_fraction=sigma, slope_sigma=slope_sigma)
+    kept, r2, s2, off = perturb_contacts(present, r, slope, L, noise, np.random.default_rng(seed))
+    assert not (kept & ~present).any()  # never registers a contact that is not there
+    assert np.all((r2[present] >= 0.0) & (r2[present] <= L[present]))
+    np.testing.assert_array_equal(r2[~present], r[~present])
+    assert np.all(np.isfinite(s2)) and not off.any()
+    again = perturb_contacts(present, r, slope, L, noise, np.random.default_rng(seed))
+    assert all(np.array_equal(u, v) for u, v in zip(again, (kept, r2, s2, off)))
+
+
+def test_perturb_contacts_bad_input():
+    ok = np.ones(3)
+    with pytest.raises(InvalidInputError, match="booleans"):
+        perturb_contacts(np.ones(3), ok, ok, ok)
+    with pytest.raises(ShapeError):
+        perturb_contacts(np.ones(3, dtype=bool), ok[:2], ok, ok)
+    with pytest.raises(InvalidInputError, match="finite"):
+        perturb_contacts(np.ones(3, dtype=bool), np.array([1.0, np.nan, 1.0]), ok, ok)
+    with pytest.raises(InvalidInputError, match="ContactNoise"):
+        perturb_contacts(np.ones(3, dtype=bool), ok, ok, ok, noise=0.25)  # type: ignore[arg-type]

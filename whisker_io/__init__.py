@@ -6,16 +6,19 @@ Follow one whisk through the subpackages, in data-flow order:
    (``kinematics``, Eq 5.1-5.2) and how it whisks (``control``: open loop, RCP).
 2. ``sim`` - a simulated whisk: trimesh ``objects``, the rigid ``sweep`` of every
    whisker, the tapered-cantilever deflection ``signals`` and the ``simulator``
-   that ties them into one whisk per module. (On the robot, ``hw`` delivers the
-   same whisk: the UR arm and USB array drivers, the safety envelope, the recorder.)
+   that ties them into one whisk per module; arm ``trajectories`` around an
+   object and the ``odometry_noise`` between whisks (Sec 6.1.3.1.1); the
+   ``whisk_chain`` from an arm pose (or a recorded session) to the region
+   features of Ch.5. (On the robot, ``hw`` delivers the same whisk: the UR arm and
+   USB array drivers, the safety envelope, the recorder.)
 3. ``records`` - the data types every stage exchanges (``whisk_record``:
    :class:`WhiskRecord`, :class:`PoseEntry`) and their files (``recording``:
    per-whisk CSVs and the pose log).
 4. ``contact`` - contact ``detection`` on the deflection signal and the per-contact
    ``features``.
 5. ``features`` - the ``tactile_image``, point feature histograms (``pfh``) and the
-   slope distribution (``sda``) of Ch.5; ``radial`` regresses the radial contact
-   distance (Ch.4).
+   slope distribution (``sda``) of Ch.5, and the ``region`` features of one whisk
+   that combine them; ``radial`` regresses the radial contact distance (Ch.4).
 6. ``plots`` - figures of the scene and the signals (``axes``: the shared helper).
 
 Shared by every stage (top level): ``pose`` (the one pose type), ``angles``
@@ -62,6 +65,14 @@ _EXPORTS: dict[str, str] = {
     "simulate_whisk_cycle": "whisker_io.sim.signals",
     "simulate_rod_contact": "whisker_io.sim.signals",
     "ArraySimulator": "whisker_io.sim.simulator",
+    "OdometryNoise": "whisker_io.sim.odometry_noise",
+    "exact_odometry": "whisker_io.sim.odometry_noise",
+    "noisy_odometry": "whisker_io.sim.odometry_noise",
+    "integrate_odometry": "whisker_io.sim.odometry_noise",
+    "LoopShape": "whisker_io.sim.trajectories",
+    "object_trajectory": "whisker_io.sim.trajectories",
+    "WhiskChain": "whisker_io.sim.whisk_chain",
+    "RecordedChain": "whisker_io.sim.whisk_chain",
     # records and files
     "WhiskRecord": "whisker_io.records.whisk_record",
     "PoseEntry": "whisker_io.records.whisk_record",
@@ -83,6 +94,8 @@ _EXPORTS: dict[str, str] = {
     "PFHParams": "whisker_io.features.pfh",
     "point_feature_histogram": "whisker_io.features.pfh",
     "chi_squared": "whisker_io.features.pfh",
+    "RegionFeatures": "whisker_io.features.region",
+    "region_features": "whisker_io.features.region",
     # errors
     "CansimError": "whisker_io.errors",
     "ConfigError": "whisker_io.errors",

@@ -43,6 +43,8 @@ def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
 
 
 def _check_finite(arr: NDArray[np.float64], name: str) -> None:
+    if np.isfinite(arr).all():  # fast path: the error details below only when needed
+        return
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         where = tuple(int(i) for i in np.unravel_index(int(bad[0]), arr.shape)) if arr.ndim > 1 else int(bad[0])

@@ -207,6 +207,8 @@ def _best_peak(ys: np.ndarray, params: DetectionParams) -> tuple[int, int, float
     """
     best: tuple[int, int, float] | None = None
     P, W = params.min_prominence_counts, params.min_width_samples
+    if ys.size == 0 or float(ys.max()) - float(ys.min()) < P:  # a prominence never exceeds the range
+        return None
     for sign in params.signs:
         z = sign * ys
         bound = z - np.maximum(np.minimum.accumulate(z), np.minimum.accumulate(z[::-1])[::-1])

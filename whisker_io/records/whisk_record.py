@@ -100,6 +100,55 @@ class WhiskRecord:
         object.__setattr__(self, "cycle", int(self.cycle))
         object.__setattr__(self, "sample_rate_hz", rate)
 
+    @classmethod
+    def from_float_arrays(
+        cls,
+        module: str,
+        angle_rad: np.ndarray,
+        x_counts: np.ndarray,
+        y_counts: np.ndarray,
+        sample_rate_hz: float = SAMPLE_RATE_HZ,
+        cycle: int = 0,
+    ) -> WhiskRecord:
+        """A record from 1-D float64 sample arrays, taken as read-only views (no copy).
+
+        The fast constructor of the simulator: the same checks as the constructor
+        (finite samples, equal non-zero lengths, module name, cycle, rate) without
+        copying the columns. The caller must not modify the arrays afterwards.
+        Anything that is not a 1-D float64 array goes through the constructor.
+
+        Raises
+        ------
+        InvalidInputError
+            As the constructor.
+        """
+        cols = (angle_rad, x_counts, y_counts)
+        if not all(isinstance(c, np.ndarray) and c.dtype == np.float64 and c.ndim == 1 for c in cols):
+            return cls(module, angle_rad, x_counts, y_counts, sample_rate_hz, cycle)
+        if not isinstance(module, str) or not MODULE_NAME_RE.match(module):
+            raise InvalidInputError(
+                f"module name {module!r} must be a non-empty string of letters and digits, e.g. 'C2'")
+        if not (angle_rad.size == x_counts.size == y_counts.size) or angle_rad.size == 0:
+            raise InvalidInputError(f"whisk record {module}: columns must be non-empty and of equal length")
+        if not (isinstance(cycle, (int, np.integer)) and cycle >= 0):
+            raise InvalidInputError(f"cycle must be an integer >= 0, got {cycle!r}")
+        rate = finite_scalar(sample_rate_hz, "sample_rate_hz")
+        if not rate > 0:
+            raise InvalidInputError(f"sample_rate_hz must be a positive number, got {sample_rate_hz!r}")
+        for name, col in zip(("angle_rad", "x_counts", "y_counts"), cols):
+            if not np.isfinite(col).all():
+                _samples(f"{module}.{name}", col)  # raises, naming the first bad sample
+        rec = object.__new__(cls)
+        for name, col in zip(("angle_rad", "x_counts", "y_counts"), cols):
+            view = col.view()
+            view.setflags(write=False)
+            object.__setattr__(rec, name, view)
+        object.__setattr__(rec, "module", module)
+        object.__setattr__(rec, "sample_rate_hz", rate)
+        object.__setattr__(rec, "cycle", int(cycle))
+        object.__setattr__(rec, "spare", None)
+        return rec
+
     @property
     def n_samples(self) -> int:
         """Number of samples T."""

@@ -174,14 +174,23 @@ class SignalParams:
         return L * self.base_radius_m / taper
 
 
+_LENGTH_DOMAIN = "whisker_length_m must be > 0"
+_RADIAL_DOMAIN = "radial_distance_m must lie in (0, whisker_length_m]"
+
+
 def _check_a_L(a: ArrayLike, L: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     a = finite_array(a, None, "radial_distance_m")
     L = finite_array(L, None, "whisker_length_m")
     if np.any(L <= 0):
-        raise InvalidInputError("whisker_length_m must be > 0")
+        raise InvalidInputError(_LENGTH_DOMAIN)
     if np.any(a <= 0) or np.any(a > L):
-        raise InvalidInputError("radial_distance_m must lie in (0, whisker_length_m]")
+        raise InvalidInputError(_RADIAL_DOMAIN)
     return a, L
+
+
+def _stiffness(a: np.ndarray, L: np.ndarray, p: SignalParams) -> np.ndarray:
+    """``3 E I_b (1/a - 1/L')`` for checked arrays (the formula of :func:`bending_stiffness`)."""
+    return 3.0 * p.youngs_modulus_pa * p.base_second_moment_m4 * (1.0 / a - 1.0 / p.cone_length_m(L))
 
 
 def bending_stiffness(
@@ -214,8 +223,7 @@ def bending_stiffness(
         a, L = np.broadcast_arrays(a, L)
     except ValueError:
         raise ShapeError(f"radial_distance_m {a.shape} and whisker_length_m {L.shape} do not broadcast") from None
-    Lc = p.cone_length_m(L)
-    return 3.0 * p.youngs_modulus_pa * p.base_second_moment_m4 * (1.0 / a - 1.0 / Lc)
+    return _stiffness(a, L, p)
 
 
 def radial_distance_from_stiffness(
@@ -272,7 +280,10 @@ class WhiskContact:
         angle = finite_scalar(self.angle_rad, "WhiskContact.angle_rad")
         a = finite_scalar(self.radial_distance_m, "WhiskContact.radial_distance_m")
         L = finite_scalar(self.whisker_length_m, "WhiskContact.whisker_length_m")
-        _check_a_L(a, L)
+        if not L > 0:
+            raise InvalidInputError(_LENGTH_DOMAIN)
+        if not 0 < a <= L:
+            raise InvalidInputError(_RADIAL_DOMAIN)
         if self.normal is None:
             n = np.array([math.cos(angle), math.sin(angle), 0.0])
         else:
@@ -372,13 +383,17 @@ def deflection_counts(
     fx = np.zeros(n)
     fy = np.zeros(n)
     slip = np.full(n, np.inf)
+    a = np.ones(n)
+    L = np.ones(n)
     for i, c in enumerate(contacts):
         if c is None:
             continue
         theta_c[i] = c.angle_rad
         slip[i] = c.slip_rad
-        gain_k[i] = p.gain_counts_per_nm * float(bending_stiffness(c.radial_distance_m, c.whisker_length_m, p))
+        a[i], L[i] = c.radial_distance_m, c.whisker_length_m
         fx[i], fy[i] = c.sensor_split()
+    hit = np.isfinite(theta_c)
+    gain_k[hit] = p.gain_counts_per_nm * _stiffness(a[hit], L[hit], p)  # a, L checked by WhiskContact
     past = np.maximum(th - theta_c[:, None], 0.0)  # inf contact angle -> 0
     slipping = np.isfinite(slip)
     if slipping.any():
@@ -512,7 +527,7 @@ def simulate_whisk_cycle(
         x, y, th = add_sensor_noise(x0, y0, angles, noise, p)
     ctrl.end_cycle(y)
     records = [
-        WhiskRecord(names[i], th[i], x[i], y[i], sample_rate_hz=p.sample_rate_hz, cycle=cycle)
+        WhiskRecord.from_float_arrays(names[i], th[i], x[i], y[i], sample_rate_hz=p.sample_rate_hz, cycle=cycle)
         for i in range(n)
     ]
     return records, _truths(angles, y0, contacts, p.sample_rate_hz)

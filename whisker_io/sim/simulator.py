@@ -156,6 +156,7 @@ class ArraySimulator:
         target: trimesh.Trimesh | MeshTarget,
         pose: PoseLike,
         cycle: int | None = None,
+        rng: np.random.Generator | None = None,
     ) -> ArrayWhisk:
         """Simulate one whisk cycle of the whole array at ``pose`` against ``target``.
 
@@ -167,12 +168,17 @@ class ArraySimulator:
             End-effector pose T_BE (a Pose, a 4x4 transform or (position_m, quaternion_xyzw)).
         cycle : int, optional
             Cycle index of the records (default: a counter starting at 0).
+        rng : numpy Generator, optional
+            Source of this cycle's sensor noise (default: the simulator's own
+            generator, seeded at construction).
 
         Returns
         -------
         ArrayWhisk
         """
         pose = as_pose(pose)
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise InvalidInputError(f"rng must be a numpy Generator, got {type(rng).__name__}")
         if not isinstance(target, MeshTarget):
             if not isinstance(target, trimesh.Trimesh):
                 raise InvalidInputError(f"target must be a trimesh.Trimesh or MeshTarget, got {type(target).__name__}")
@@ -181,7 +187,7 @@ class ArraySimulator:
         sweep = sweep_array(self.array, target, pose, self.sweep_params)
         contacts = [None if c is None else whisk_contact_from_sweep(c) for c in sweep]
         records, truths = simulate_whisk_cycle(
-            contacts, self.controller, self.signal_params, seed=self.rng, modules=self.array.names, cycle=index
+            contacts, self.controller, self.signal_params, seed=self.rng if rng is None else rng, modules=self.array.names, cycle=index
         )
         self.cycle = index + 1
         return ArrayWhisk(pose=pose, records=tuple(records), sweep_contacts=tuple(sweep), truths=tuple(truths))

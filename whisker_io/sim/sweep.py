@@ -53,7 +53,7 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.validation import finite_scalar, whole_number
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
@@ -67,6 +67,7 @@ __all__ = [
     "SweepContact",
     "sweep_array",
     "ContactNoise",
+    "perturb_contacts",
     "add_contact_noise",
 ]
 
@@ -83,6 +84,40 @@ def embree_available() -> bool:
     except Exception:  # pragma: no cover - depends on the install
         return False
     return True
+
+
+class _EmbreeScene:
+    """An Embree BVH of a mesh, built as ``trimesh.ray.ray_pyembree`` builds it (vertices
+    shifted to the bounding-box corner and scaled to about 100 units for float32
+    precision), queried directly so each segment's far end bounds the traversal."""
+
+    def __init__(self, mesh: trimesh.Trimesh) -> None:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        self.origin = vertices.min(axis=0)
+        self.scale = 100.0 / float(mesh.scale)
+        self.scene = rtcore_scene.EmbreeScene()
+        self._geometry = TriangleMesh(
+            scene=self.scene,
+            vertices=((vertices - self.origin) * self.scale).astype(np.float32),
+            indices=np.asarray(mesh.faces).astype(np.int32),
+        )
+
+    def first_faces(
+        self, origins: NDArray[np.float64], directions: NDArray[np.float64], max_distance: NDArray[np.float64]
+    ) -> NDArray[np.int64]:
+        """Face of the first hit of each ray within (slightly more than) its max distance, -1 if none.
+
+        The far end is padded by 1e-6 relative + 1e-6 scaled units, so a hit at the
+        segment's end in float64 is still returned; the caller applies the exact bound.
+        """
+        with np.errstate(over="ignore", invalid="ignore"):  # a far-away segment overflows float32: no hit
+            o = ((origins - self.origin) * self.scale).astype(np.float32)
+            far = (np.asarray(max_distance, dtype=np.float64) * (self.scale * (1.0 + 1e-6)) + 1e-6).astype(np.float32)
+        tri = self.scene.run(o, directions.astype(np.float32), dists=far)
+        return np.asarray(tri, dtype=np.int64)
 
 
 class MeshTarget:
@@ -117,9 +152,7 @@ class MeshTarget:
                     "engine='embree' needs the 'embreex' package (pip install embreex); "
                     "use engine='triangle' or 'auto'"
                 )
-            from trimesh.ray.ray_pyembree import RayMeshIntersector as _Embree
-
-            self._embree = _Embree(mesh)
+            self._embree = _EmbreeScene(mesh)
         self.mesh = mesh
         self.engine: str = engine
         self._bounds = np.asarray(mesh.bounds, dtype=float)
@@ -159,7 +192,7 @@ class MeshTarget:
         face = np.full(R, -1, dtype=np.int64)
         location = np.full((R, 3), np.nan)
         if self.engine == "embree":
-            tri = np.asarray(self._embree.intersects_first(origins, directions))
+            tri = self._embree.first_faces(origins, directions, max_distance)
             ray = np.flatnonzero(tri >= 0)
             tri = tri[ray].astype(np.int64)
             # Embree (float32) picks the face; the hit point is recomputed in float64 on
@@ -525,6 +558,76 @@ class ContactNoise:
             )
 
 
+def perturb_contacts(
+    present: NDArray[np.bool_],
+    radial_distance_m: NDArray[np.float64],
+    slope: NDArray[np.float64],
+    whisker_length_m: NDArray[np.float64],
+    noise: ContactNoise = ContactNoise(),
+    rng: np.random.Generator | int | None = None,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The Sec 6.1.3.1.2 noise model on per-whisker contact arrays (the core of :func:`add_contact_noise`).
+
+    Parameters
+    ----------
+    present : ndarray of bool (N,)
+        Whiskers with a contact.
+    radial_distance_m, slope, whisker_length_m : ndarray (N,)
+        Radial distance (m), slope and whisker length (m) per whisker; entries of
+        absent whiskers are ignored.
+    noise : ContactNoise
+    rng : numpy Generator or int seed, optional
+
+    Raises
+    ------
+    InvalidInputError, ShapeError
+        Arrays of other shapes, a non-boolean ``present``, a non-finite radial
+        distance or length of a present contact, ``noise`` not a ContactNoise.
+
+    Returns
+    -------
+    registered : ndarray of bool (N,)
+        ``present`` and kept with probability ``registration_probability``.
+    radial_distance_m : ndarray (N,)
+        ``"shaft"`` mode: ``clip(r + N(0, sigma L), 0, L)``; ``"isotropic"``: unchanged.
+    slope : ndarray (N,)
+        ``slope + N(0, slope_sigma)``.
+    offset_m : ndarray (N, 3)
+        ``"isotropic"`` mode: the N(0, sigma L) displacement of each contact point
+        (any frame: the distribution is rotation-invariant); ``"shaft"``: zeros.
+
+    Every whisker draws the same variates whether or not it has a contact or is
+    kept (one uniform, three normals for the position, one for the slope), so
+    the noise of one whisker does not depend on the others.
+    """
+    if not isinstance(noise, ContactNoise):
+        raise InvalidInputError(f"noise must be a ContactNoise, got {type(noise).__name__}")
+    present = np.asarray(present)
+    if present.ndim != 1 or present.dtype != np.bool_:
+        raise InvalidInputError(f"present must be a 1-D array of booleans, got {present.dtype} {present.shape}")
+    n = present.shape[0]
+    arrays = [np.asarray(a, dtype=np.float64) for a in (radial_distance_m, slope, whisker_length_m)]
+    if any(a.shape != (n,) for a in arrays):
+        raise ShapeError(f"radial_distance_m, slope and whisker_length_m must have shape ({n},), "
+                         f"got {[a.shape for a in arrays]}")
+    if not (np.all(np.isfinite(arrays[0][present])) and np.all(arrays[2][present] > 0)
+            and np.all(np.isfinite(arrays[2][present]))):
+        raise InvalidInputError("present contacts need a finite radial distance and a finite whisker length > 0")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    keep = gen.random(n) < noise.registration_probability
+    e_pos = gen.normal(0.0, 1.0, size=(n, 3))
+    e_slope = gen.normal(0.0, 1.0, size=n)
+    r, slope_in, L = arrays[0].copy(), arrays[1], arrays[2]
+    sigma = noise.position_sigma_fraction * np.where(present, L, 0.0)
+    offset = np.zeros((n, 3))
+    if noise.position_mode == "shaft":
+        r = np.where(present, np.clip(r + sigma * e_pos[:, 0], 0.0, L), r)
+    else:
+        offset = np.where(present[:, None], sigma[:, None] * e_pos, 0.0)
+    s = slope_in + noise.slope_sigma * e_slope
+    return present & keep, r, s, offset
+
+
 def add_contact_noise(
     contacts: Sequence[SweepContact | None],
     noise: ContactNoise = ContactNoise(),
@@ -535,7 +638,8 @@ def add_contact_noise(
     Each contact is dropped (``None``) with probability ``1 - registration_probability``;
     otherwise its position is perturbed (see :class:`ContactNoise`) and
     ``slope`` gets additive N(0, ``slope_sigma``) noise. Angle, normal and frame
-    are kept (they are measured, not estimated).
+    are kept (they are measured, not estimated). The draws are those of
+    :func:`perturb_contacts`.
 
     Parameters
     ----------
@@ -548,26 +652,23 @@ def add_contact_noise(
     -------
     tuple of (SweepContact or None), same length as ``contacts``
     """
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    cs = list(contacts)
+    present = np.array([c is not None for c in cs], dtype=bool)
+    r = np.array([c.radial_distance_m if c is not None else 0.0 for c in cs])
+    slope = np.array([c.slope if c is not None else 0.0 for c in cs])
+    L = np.array([c.whisker_length_m if c is not None else 1.0 for c in cs])
+    kept, r, slope, offset = perturb_contacts(present, r, slope, L, noise, rng)
     out: list[SweepContact | None] = []
-    for c in contacts:
-        # draw the same number of variates per slot so results do not depend on earlier drops
-        keep = gen.random() < noise.registration_probability
-        e_pos = gen.normal(0.0, 1.0, size=3)
-        e_slope = gen.normal(0.0, 1.0)
-        if c is None or not keep:
+    for i, c in enumerate(cs):
+        if c is None or not kept[i]:
             out.append(None)
             continue
-        sigma = noise.position_sigma_fraction * c.whisker_length_m
-        base = c.frame[:3, 3]
-        shaft = c.frame[:3, 1]
+        base, shaft = c.frame[:3, 3], c.frame[:3, 1]
         if noise.position_mode == "shaft":
-            r = float(np.clip(c.radial_distance_m + sigma * e_pos[0], 0.0, c.whisker_length_m))
-            point = base + r * shaft
+            point = base + r[i] * shaft
+            radial = float(r[i])
         else:
-            point = c.point + sigma * e_pos
-            r = float((point - base) @ shaft)
-        out.append(
-            replace(c, point=point, radial_distance_m=r, slope=c.slope + noise.slope_sigma * e_slope)
-        )
+            point = c.point + offset[i]
+            radial = float((point - base) @ shaft)
+        out.append(replace(c, point=point, radial_distance_m=radial, slope=float(slope[i])))
     return tuple(out)

@@ -1,0 +1,240 @@
+"""Arm trajectories around an object (whisker_io.sim.trajectories): the fitted surface, the facing
+frame, step bounds, the two Ch.5 families, contact coverage on the Mug and the Box."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.errors import CansimError, ConfigError, InvalidInputError
+from whisker_io.sim.objects import make_object
+from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
+from whisker_io.sim.trajectories import (
+    LoopShape,
+    facing_pose,
+    fit_surface,
+    object_trajectory,
+    step_sizes,
+)
+
+ARRAY = WhiskerArray.thesis()
+STANDOFF = 0.015 + 0.201860  # default clearance + the rostral bases' distance along the axis (Fig 2.15)
+COUNT = SweepParams(refine=False)  # which whiskers touch is decided by the coarse 1-deg pass
+
+
+@pytest.fixture(scope="module")
+def box():
+    return make_object("box")
+
+
+@pytest.fixture(scope="module")
+def mug_a(mug):
+    return object_trajectory(mug, "A", n_loops=2)
+
+
+def _axis(pose):
+    return pose.rotation.apply([0.0, 1.0, 0.0])
+
+
+def _distance_along_axis(mesh, poses):
+    """Distance from each end-effector origin to the mesh along the array axis (+y), m."""
+    origins = np.array([p.position_m for p in poses])
+    axes = np.array([_axis(p) for p in poses])
+    dist, _, _ = MeshTarget(mesh).first_hits(origins, axes, np.full(len(poses), 1.0))
+    return dist
+
+
+# ------------------------------------------------------------- hand-computed
+def test_fit_surface_through_the_bounding_box_corners(box):
+    e = fit_surface(box)
+    np.testing.assert_allclose(e.centre_m, [0.0, 0.0, 0.175], atol=1e-12)
+    np.testing.assert_allclose(e.semi_axes_m, math.sqrt(3) * np.array([0.1, 0.1, 0.175]), atol=1e-12)
+    corner = np.array([0.1, 0.1, 0.35])  # on the ellipsoid: sum (x_i / a_i)^2 = 3 * (1/3) = 1
+    assert np.sum(((corner - e.centre_m) / e.semi_axes_m) ** 2) == pytest.approx(1.0)
+    s = fit_surface(box, "sphere")
+    np.testing.assert_allclose(s.semi_axes_m, np.full(3, math.sqrt(0.01 + 0.01 + 0.175**2)), atol=1e-12)
+    np.testing.assert_allclose(e.point(0.0, 0.0), [math.sqrt(3) * 0.1, 0.0, 0.175], atol=1e-12)
+
+
+def test_facing_pose_hand_computed():
+    """Axis +y toward (0, 1, 0) from 0.5 m: origin (0, 0.5, 0); z is world up, x = y x z = +x:
+    the identity rotation."""
+    p = facing_pose([0.0, 1.0, 0.0], [0.0, 2.0, 0.0], 0.5)
+    np.testing.assert_allclose(p.position_m, [0.0, 0.5, 0.0], atol=1e-15)
+    np.testing.assert_allclose(p.quaternion_xyzw, [0.0, 0.0, 0.0, 1.0], atol=1e-15)
+    # looking straight down: z kept from the previous pose (Alg 8), made perpendicular to the axis
+    down = facing_pose([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], 0.2, previous_z=[1.0, 0.0, 0.1])
+    np.testing.assert_allclose(down.rotation.apply([0, 0, 1]), [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(down.position_m, [0.0, 0.0, 0.2], atol=1e-15)
+
+
+def test_loops_repeat_and_steps_are_bounded(mug_a):
+    n = len(mug_a)
+    assert n % 2 == 0
+    m = n // 2
+    assert all(mug_a[k] == mug_a[k + m] for k in range(m))  # the second loop revisits the first
+    ring = mug_a[:m] + mug_a[:1]  # the closing step back to the start counts too
+    trans, rot = step_sizes(ring)
+    cost = np.maximum(trans / 0.11, rot / math.radians(12.0))
+    # every step within both bounds, and one of them reached (equal cost increments)
+    assert cost.max() <= 1.0 + 1e-9
+    assert np.median(cost) > 0.95
+
+
+def test_array_faces_the_surface_and_stays_clear_of_it(mug, mug_a):
+    target = MeshTarget(mug)
+    poses = mug_a[: len(mug_a) // 2]
+    dist = _distance_along_axis(mug, poses)
+    assert np.all(np.isfinite(dist))  # +y (the rostral array axis) points at the object
+    # backing off only ever moves away; poses interpolated between two at the standoff sit on
+    # the chord, a fraction of a millimetre closer to a convex surface
+    assert np.all(dist >= STANDOFF - 1e-3)
+    assert np.mean(np.abs(dist - STANDOFF) < 1e-3) > 0.8  # most poses at the standoff itself
+    for p in poses:  # no whisker base inside or behind the object
+        bases = p.apply(ARRAY.positions_m)
+        seg = bases - p.position_m
+        length = np.linalg.norm(seg, axis=1)
+        d, _, _ = target.first_hits(np.tile(p.position_m, (len(seg), 1)), seg / length[:, None], length)
+        assert not np.isfinite(d).any()
+
+
+def test_roll_convention():
+    """roll_deg = 0 is Alg 8's frame: z in the (up, axis) plane on the upward side. The default
+    90 deg roll turns E's x-axis downward instead."""
+    box = make_object("box")
+    for pose in object_trajectory(box, "A", n_loops=1, roll_deg=0.0)[::5]:
+        x, y, z = pose.rotation.as_matrix().T
+        up = np.array([0.0, 0.0, 1.0])
+        assert abs(np.linalg.det(np.column_stack([z, y, up]))) < 1e-9 and z @ up >= 0
+    for pose in object_trajectory(box, "A", n_loops=1)[::5]:
+        x, y, z = pose.rotation.as_matrix().T
+        assert x @ [0.0, 0.0, 1.0] < 0 and abs(z @ [0.0, 0.0, 1.0]) < 1e-9
+
+
+def test_families_a_and_b_are_different_loops(mug):
+    """A turns counter-clockwise about the object's vertical axis, B clockwise; B starts
+    elsewhere and passes at other heights."""
+    centre = fit_surface(mug).centre_m
+    for family, sign in (("A", 1), ("B", -1)):
+        poses = object_trajectory(mug, family, n_loops=1)
+        rel = np.array([p.position_m for p in poses]) - centre
+        az = np.arctan2(rel[:, 1], rel[:, 0])
+        turns = (np.diff(np.append(az, az[0])) + math.pi) % (2 * math.pi) - math.pi  # closed loop
+        assert np.sum(turns) == pytest.approx(sign * 2 * math.pi, abs=1e-6)
+        assert np.mean(np.sign(turns) == sign) > 0.9
+    a = object_trajectory(mug, "A", n_loops=1)
+    b = object_trajectory(mug, "B", n_loops=1)
+    assert a[0].distance_to(b[0])[0] > 0.05
+    pa = np.array([p.position_m for p in a])
+    pb = np.array([p.position_m for p in b])
+    nearest = np.min(np.linalg.norm(pb[:, None] - pa[None], axis=2), axis=1)
+    assert np.median(nearest) > 0.01  # B's whisks are not A's
+
+
+@pytest.mark.parametrize("name,step_m,step_deg", [("mug", 0.11, 12.0), ("box", 0.11, 12.0), ("box", 0.03, 3.0)])
+@pytest.mark.parametrize("family", ["A", "B"])
+def test_most_whisks_touch_with_three_contacts(name, step_m, step_deg, family):
+    mesh = make_object(name)
+    target = MeshTarget(mesh)
+    poses = object_trajectory(mesh, family, n_loops=1, step_m=step_m, step_deg=step_deg)
+    contacts = np.array([sum(c is not None for c in sweep_array(ARRAY, target, p, COUNT))
+                         for p in poses])
+    assert np.mean(contacts >= 3) >= 0.85, contacts
+
+
+def test_sphere_loops_touch_too(box):
+    target = MeshTarget(box)
+    poses = object_trajectory(box, "A", n_loops=1, shape="sphere")
+    contacts = np.array([sum(c is not None for c in sweep_array(ARRAY, target, p, COUNT))
+                         for p in poses])
+    assert np.mean(contacts >= 3) >= 0.8
+
+
+# ------------------------------------------------------------- bad input
+def test_bad_input_raises_typed_errors(box):
+    with pytest.raises(InvalidInputError, match="Trimesh"):
+        object_trajectory("box")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="family"):
+        object_trajectory(box, "C")
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, step_m=0.0)
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, step_deg=np.nan)
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, n_loops=0)
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, shape="cube")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, clearance_m=-0.01)
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, up=[0.0, 0.0, 0.0])
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, array="thesis")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError):
+        LoopShape(direction=2)
+    with pytest.raises(ConfigError):
+        LoopShape(elevation_amplitude_deg=70.0, elevation_offset_deg=15.0)
+    with pytest.raises(InvalidInputError):
+        LoopShape(elevation_waves=-1)
+    with pytest.raises(InvalidInputError):
+        facing_pose([0, 0, 0], [0, 0, 0], 0.2)
+    with pytest.raises(InvalidInputError):
+        facing_pose([0, 0, np.nan], [0, 1, 0], 0.2)
+
+
+# ------------------------------------------------------------- properties
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.02, 0.3), st.floats(2.0, 30.0), st.floats(0.0, 40.0), st.integers(0, 4),
+       st.sampled_from([1, -1]), st.floats(-180, 180), st.sampled_from(["ellipsoid", "sphere"]))
+def test_any_loop_gives_valid_bounded_poses(box, step_m, step_deg, amplitude, waves, direction, start, shape):
+    loop = LoopShape(azimuth_start_deg=start, direction=direction, elevation_amplitude_deg=amplitude,
+                     elevation_waves=waves)
+    poses = object_trajectory(box, loop, n_loops=1, step_m=step_m, step_deg=step_deg, shape=shape)
+    assert len(poses) >= 3
+    for p in poses:
+        assert np.all(np.isfinite(p.position_m)) and np.linalg.norm(p.quaternion_xyzw) == pytest.approx(1.0)
+    trans, rot = step_sizes(poses + poses[:1])
+    cost = np.maximum(trans / step_m, rot / math.radians(step_deg))
+    # the bound holds between poses at the standoff; a pose that backed off (its bases would be
+    # behind a face it sees obliquely) may exceed it by the back-off
+    dist = _distance_along_axis(box, poses)
+    assert np.all(dist >= STANDOFF - 3e-3)  # interpolated poses round a corner: within millimetres
+    at_standoff = dist < STANDOFF + 2.5e-3
+    both = at_standoff & np.roll(at_standoff, -1)
+    assert np.all(cost[both] <= 1.0 + 1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=3, max_size=3), st.lists(st.floats(-1, 1), min_size=3, max_size=3),
+       st.floats(0.0, 1.0))
+def test_facing_pose_points_its_axis(point, axis, standoff):
+    a = np.asarray(axis)
+    try:
+        p = facing_pose(point, axis, standoff)
+    except CansimError as exc:
+        assert isinstance(exc, InvalidInputError) and np.linalg.norm(a) == 0
+        return
+    y = a / np.linalg.norm(a)
+    np.testing.assert_allclose(_axis(p), y, atol=1e-9)
+    np.testing.assert_allclose(p.position_m + standoff * y, point, atol=1e-9)
+    R = p.rotation.as_matrix()
+    assert np.allclose(R @ R.T, np.eye(3), atol=1e-9) and np.linalg.det(R) == pytest.approx(1.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0.01, 1.0), min_size=3, max_size=3), st.lists(st.floats(-1, 1), min_size=3, max_size=3))
+def test_fitted_surface_encloses_the_box(extents, centre):
+    import trimesh
+
+    mesh = trimesh.creation.box(extents=extents)
+    mesh.apply_translation(centre)
+    for shape in ("ellipsoid", "sphere"):
+        e = fit_surface(mesh, shape)
+        inside = np.sum(((mesh.vertices - e.centre_m) / e.semi_axes_m) ** 2, axis=1)
+        assert np.all(inside <= 1.0 + 1e-9)  # every vertex inside or on the surface
+        assert np.max(inside) == pytest.approx(1.0)  # and the corners on it
