@@ -138,7 +138,7 @@ class WhiskerRatSLAMConfig:
         """The object map's core parameters."""
         return MapConfig(
             correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
-            pc_shape=self.shape, offset_axes=(), relax_budget=self.relax_budget,
+            pc_shape=self.shape, offset_axes=(), relax_budget=self.relax_budget, keep_first_accumulator=False,
         )
 
     def local_view_params(self) -> LocalViewParams:

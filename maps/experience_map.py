@@ -143,6 +143,11 @@ class MapConfig:
     link_time_since_start : bool
         True: every link's time is the time since the first odometry (OpenRatSLAM's
         never-reset timer); False (default): the time since the link's source.
+    keep_first_accumulator : bool
+        True (OpenRatSLAM): creating the very first experience does not reset the
+        dead-reckoning accumulator (the C++ sets experience 0 while 0 is already
+        current, a no-op), so the motion before it is counted again in the next link.
+        False: every creation resets it (the object map, thesis Alg 6).
     """
 
     correction: float = 0.5
@@ -152,6 +157,7 @@ class MapConfig:
     offset_axes: tuple[int, ...] = (2,)
     relax_budget: int | None = 2_000
     link_time_since_start: bool = False
+    keep_first_accumulator: bool = True
 
     def __post_init__(self) -> None:
         c = self.correction
@@ -173,8 +179,9 @@ class MapConfig:
         object.__setattr__(self, "offset_axes", tuple(int(a) for a in axes))
         if self.relax_budget is not None:
             _positive_int(self.relax_budget, "relax_budget", 1)
-        if not isinstance(self.link_time_since_start, (bool, np.bool_)):
-            raise ConfigError(f"link_time_since_start must be a boolean, got {self.link_time_since_start!r}")
+        for name in ("link_time_since_start", "keep_first_accumulator"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"{name} must be a boolean, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)
@@ -453,6 +460,10 @@ class ExperienceMap:
             self._graph.add_node(n, view_id=vt_id, pc_cells=tuple(best))
         if n:
             self._add_link(self.current_id, n, 0.0)
+        elif not self.config.keep_first_accumulator:
+            self.geometry.reset_accumulator(self._acc, a.pose[0], 0.0)
+            if not self.config.link_time_since_start:
+                self.accum_time_s = 0.0
         self._set_current(n, 0.0)
 
     def _add_link(self, id_from: int, id_to: int, rotation: float) -> bool:

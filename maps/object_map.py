@@ -34,7 +34,9 @@ class ObjectMap(ExperienceMap):
     """
 
     def __init__(self, config: MapConfig | None = None, geometry: SE3Geometry | None = None) -> None:
-        config = config if config is not None else MapConfig(pc_shape=(5,) * 6, offset_axes=(), match_distance_cells=1.0)
+        config = config if config is not None else MapConfig(
+            pc_shape=(5,) * 6, offset_axes=(), match_distance_cells=1.0, keep_first_accumulator=False
+        )
         super().__init__(config, geometry if geometry is not None else SE3Geometry())
         if not isinstance(self.geometry, SE3Geometry):
             raise InvalidInputError("an ObjectMap needs the SE3Geometry")

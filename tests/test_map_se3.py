@@ -199,3 +199,16 @@ def test_huge_odometry_is_rejected_not_hanging():
         em.on_odo(0.0, 1.0, 1e17)
     with pytest.raises(InvalidInputError):
         SpatialOdometry([1e300, 0, 0], [0, 0, 0], 1.0)
+
+
+def test_object_map_resets_the_accumulator_at_the_first_experience():
+    """Motion before the first experience is not counted again in the next link (Alg 6)."""
+    from maps.object_map import ObjectMap
+
+    om = ObjectMap()
+    om.on_odo([0.2, 0, 0], [0, 0, 0], 1.0)
+    om.update((0,) * 6, 0, 0)  # first experience at the accumulated pose (0.2, 0, 0)
+    om.on_odo([0.1, 0, 0], [0, 0, 0], 1.0)
+    om.update((2,) * 6, 1, 0)
+    np.testing.assert_allclose(om.poses[1, :3], [0.3, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(om.links[1][0, :3], [0.1, 0, 0], atol=1e-12)
