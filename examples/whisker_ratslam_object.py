@@ -46,18 +46,31 @@ from maps.odometry import SpatialOdometry
 from whisker_io.sim.objects import OBJECT_NAMES, make_object
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
 from whisker_io.sim.trajectories import object_trajectory
+from whisker_io.sim.sweep import ContactNoise
 from whisker_io.sim.whisk_chain import WhiskChain
 
 log = logging.getLogger("whisker_ratslam_object")
 
 
-def run(object_name: str = "mug", loops: int = 2, seed: int = 0, backend: str = "numba", progress: bool = True) -> dict:
-    """Explore ``object_name`` for ``loops`` loops; return the run's arrays and metrics."""
+def run(
+    object_name: str = "mug", loops: int = 2, seed: int = 0, backend: str = "numba", progress: bool = True,
+    contact_noise: float = 0.25,
+) -> dict:
+    """Explore ``object_name`` for ``loops`` loops; return the run's arrays and metrics.
+
+    ``contact_noise`` is the contact-position noise as a fraction of the whisker length
+    (Sec 6.1.3.1.2: 0.25; the slope noise 0.33 and the 0.98 registration probability
+    scale with it; 0 = noise-free contacts).
+    """
     mesh = make_object(object_name)
     steps = dict(step_m=0.03, step_deg=3.0) if object_name == "box" else dict(step_m=0.11, step_deg=12.0)
     poses = object_trajectory(mesh, "A", n_loops=loops, **steps)
     st, sr = step_sizes(np.array([p.position_m for p in poses]), np.array([p.quaternion_xyzw for p in poses]))
-    chain = WhiskChain(mesh)
+    noise = None if contact_noise == 0 else ContactNoise(
+        position_sigma_fraction=contact_noise, slope_sigma=0.33 * contact_noise / 0.25,
+        registration_probability=1.0 - 0.02 * contact_noise / 0.25,
+    )
+    chain = WhiskChain(mesh, contact_noise=noise)
     rng = np.random.default_rng(seed)
     cfg = WhiskerRatSLAMConfig(
         cell_size_m=float(max(np.median(st), 1e-3)), backend=backend,
@@ -165,10 +178,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("."))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--backend", default="numba")
+    ap.add_argument("--contact-noise", type=float, default=0.25,
+                    help="contact-position noise, fraction of the whisker length (thesis Sec 6.1.3.1.2: 0.25; 0 = none)")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend, progress=not args.no_progress)
+    if not 0.0 <= args.contact_noise <= 1.0:
+        ap.error("--contact-noise must lie in [0, 1]")
+    result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
+                 progress=not args.no_progress, contact_noise=args.contact_noise)
     figures(result, args.out)
     m = result["metrics"]
     # NaN (no re-localisation happened) is not JSON: write null
