@@ -149,12 +149,20 @@ class DefaultSearch:
         Icosphere subdivisions (1: 80 faces).
     roll_rad : float
         Roll about y after Alg 8 (the trajectories' pi/2).
+    mesh : trimesh.Trimesh, optional
+        In simulation: the ray from the face toward the centre is cast against the mesh
+        and the whisker bases are put ``clearance_m`` in front of the hit (a sphere
+        through the bounding-box corners leaves up to 12 cm of air before a Box face,
+        beyond the 60-160 mm whiskers). Without it the bases sit on the sphere.
+    clearance_m : float
+        Gap in front of the hit, m.
     """
 
     name = "default"
 
     def __init__(self, centre_m: ArrayLike, radius_m: float, standoff_m: float = 0.2019, *, seed: int = 0,
-                 subdivisions: int = 1, roll_rad: float = math.pi / 2) -> None:
+                 subdivisions: int = 1, roll_rad: float = math.pi / 2, mesh: trimesh.Trimesh | None = None,
+                 clearance_m: float = 0.015) -> None:
         try:
             c = np.asarray(centre_m, dtype=float)
         except (TypeError, ValueError):
@@ -171,12 +179,18 @@ class DefaultSearch:
         self.visited = np.zeros(len(self.directions), dtype=bool)
         self.current = int(np.random.default_rng(seed).integers(len(self.directions)))
         self._started = False
+        self.distance_m = np.full(len(self.directions), self.radius_m)
+        if mesh is not None:
+            origins = c + 2.0 * self.radius_m * self.directions
+            locs, rays, _ = mesh.ray.intersects_location(origins, -self.directions, multiple_hits=False)
+            for loc, r in zip(locs, rays):
+                self.distance_m[r] = min(self.radius_m, float((loc - c) @ self.directions[r]) + float(clearance_m))
 
     def face_pose(self, face: int) -> Pose:
         """End-effector pose facing the centre from face ``face``."""
         u = self.directions[face]
         rot = maintain_yaw(-u) * Rotation.from_rotvec([0.0, self.roll_rad, 0.0])
-        return Pose.from_rotation(self.centre_m + (self.radius_m + self.standoff_m) * u, rot)
+        return Pose.from_rotation(self.centre_m + (self.distance_m[face] + self.standoff_m) * u, rot)
 
     def next_face(self) -> int:
         """Mark the current face visited and return the closest unvisited one (all visited: start over)."""
