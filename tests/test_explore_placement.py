@@ -1,0 +1,134 @@
+"""SPC (Alg 7-8) against hand-computed geometry."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.spatial.transform import Rotation
+
+from cansim.errors import CansimError, ConfigError
+from cansim.explore.placement import PlacementParams, maintain_yaw, place
+from whisker_io.pose import Pose
+
+P = PlacementParams(mu=3, delta_theta_rad=math.radians(10), delta_l_m=0.21, delta_u_m=0.26, rotation_steps=2, translation_steps=2)
+# the frame facing +x with z up: columns x = y cross z = (0,-1,0), y = (1,0,0), z = (0,0,1)
+FACING_X = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _pose(p=(0.0, 0.0, 0.3)):
+    return Pose.from_rotation(p, Rotation.from_matrix(FACING_X))
+
+
+def _wall(distance_m, n=5, spread=0.02):
+    """Contacts in the end-effector frame on a wall perpendicular to y at distance_m."""
+    xs = np.linspace(-spread, spread, n)
+    return np.stack([xs, np.full(n, distance_m), xs[::-1] * 0.5], axis=1)
+
+
+def test_maintain_yaw_hand_frames():
+    np.testing.assert_allclose(maintain_yaw([2.0, 0, 0]).as_matrix(), FACING_X, atol=1e-12)
+    # y tilted down by 30 deg toward +x: z = up made perpendicular to y
+    y = np.array([math.cos(math.radians(30)), 0.0, -math.sin(math.radians(30))])
+    R = maintain_yaw(y).as_matrix()
+    np.testing.assert_allclose(R[:, 1], y, atol=1e-12)
+    np.testing.assert_allclose(R[:, 2], [math.sin(math.radians(30)), 0.0, math.cos(math.radians(30))], atol=1e-12)
+    np.testing.assert_allclose(R[:, 0], np.cross(R[:, 1], R[:, 2]), atol=1e-12)
+
+
+def test_y_parallel_to_gravity_keeps_previous_z():
+    R = maintain_yaw([0, 0, -1], previous_z=[0.0, 1.0, 0.0]).as_matrix()
+    np.testing.assert_allclose(R[:, 2], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(R[:, 1], [0, 0, -1], atol=1e-12)
+    # through place(): array looking down at a floor, current z = +y world stays
+    start = Pose.from_rotation([0, 0, 0.5], Rotation.from_matrix(np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])))
+    goal = place(start, _wall(0.40), P)  # too far: translation only
+    np.testing.assert_allclose(goal.rotation.as_matrix()[:, 2], [0, 1, 0], atol=1e-9)
+
+
+def test_flat_wall_in_cone_and_band_keeps_pose():
+    pose = _pose()
+    goal = place(pose, _wall(0.235), P)
+    assert goal == pose
+
+
+def test_fewer_than_mu_contacts_keeps_goal():
+    pose = _pose()
+    goal = place(pose, _wall(0.40, n=2), P)
+    assert goal == pose
+    assert place(pose, np.zeros((0, 3)), P) == pose
+
+
+def test_flat_wall_too_far_translates_along_y():
+    pose = _pose()
+    goal = place(pose, _wall(0.335), P)
+    # (0.335 - 0.235) / 2 = 0.05 m along y = +x world
+    np.testing.assert_allclose(goal.position_m, [0.05, 0.0, 0.3], atol=1e-12)
+    np.testing.assert_allclose(goal.rotation.as_matrix(), FACING_X, atol=1e-12)
+
+
+def test_flat_wall_too_near_backs_off():
+    goal = place(_pose(), _wall(0.135), P)
+    np.testing.assert_allclose(goal.position_m, [-0.05, 0.0, 0.3], atol=1e-12)
+
+
+def test_tilted_wall_rotates_toward_median_by_half_the_angle():
+    # median contact 40 deg off the y-axis toward world +y (the frame's -x): outside the cone
+    a = math.radians(40)
+    c = np.array([[-0.25 * math.sin(a) + dx, 0.25 * math.cos(a) - dx * math.tan(a), 0.0] for dx in (-0.01, 0.0, 0.01)])
+    goal = place(_pose(), c, P)
+    y = goal.rotation.as_matrix()[:, 1]
+    # hand value: y turned by 20 deg (40 / 2 steps)... capped at delta_theta = 10 deg
+    np.testing.assert_allclose(y, [math.cos(math.radians(10)), math.sin(math.radians(10)), 0.0], atol=1e-9)
+    np.testing.assert_allclose(goal.position_m, [0, 0, 0.3], atol=1e-12)
+    uncapped = place(_pose(), c, PlacementParams(max_rotation_step_rad=math.pi / 2))
+    np.testing.assert_allclose(uncapped.rotation.as_matrix()[:, 1], [math.cos(math.radians(20)), math.sin(math.radians(20)), 0.0], atol=1e-9)
+
+
+def test_goal_z_in_plane_of_gravity_and_y():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        c = _wall(0.3) + rng.normal(0, 0.08, (5, 3))
+        goal = place(_pose(), c, P)
+        R = goal.rotation.as_matrix()
+        # z lies in span(g, y): its component along x = y cross z, i.e. normal to that plane, is 0
+        normal = np.cross([0, 0, 1.0], R[:, 1])
+        if np.linalg.norm(normal) > 1e-6:
+            assert abs(R[:, 2] @ normal / np.linalg.norm(normal)) < 1e-9
+        assert R[:, 2] @ [0, 0, 1.0] >= -1e-12
+
+
+def test_roll_is_reapplied():
+    roll = PlacementParams(roll_rad=math.pi / 2)
+    start = Pose.from_rotation([0, 0, 0.3], Rotation.from_matrix(FACING_X) * Rotation.from_rotvec([0, math.pi / 2, 0]))
+    goal = place(start, _wall(0.335), roll)
+    np.testing.assert_allclose(goal.rotation.as_matrix(), start.rotation.as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(goal.rotation.as_matrix()[:, 0], [0, 0, -1], atol=1e-9)  # x down
+
+
+@pytest.mark.parametrize("kw", [dict(mu=0), dict(delta_theta_rad=0.0), dict(delta_l_m=0.3, delta_u_m=0.2),
+                                dict(rotation_steps=1.5), dict(up=(0, 0, 0)), dict(delta_l_m=float("nan"))])
+def test_bad_params(kw):
+    with pytest.raises(ConfigError):
+        PlacementParams(**kw)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=3, max_size=3), min_size=0, max_size=8))
+def test_place_any_contacts_typed_error_or_finite_pose(rows):
+    c = np.array(rows, dtype=float).reshape(-1, 3)
+    try:
+        goal = place(_pose(), c, P)
+    except CansimError:
+        return
+    assert np.isfinite(goal.position_m).all()
+    assert np.linalg.norm(goal.position_m - [0, 0, 0.3]) <= 5.0  # at most half of a 10-m contact
+    R = goal.rotation.as_matrix()
+    assert R[:, 2] @ [0, 0, 1.0] >= -1e-9
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.one_of(st.integers(), st.text(), st.lists(st.floats(), max_size=4)))
+def test_place_bad_shapes(c):
+    with pytest.raises(CansimError):
+        place(_pose(), c, P)

@@ -1,0 +1,157 @@
+"""Search strategies (Sec 6.1.2) on hand-made maps."""
+
+import math
+from types import SimpleNamespace
+
+import networkx as nx
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from cansim.errors import CansimError, ConfigError
+from cansim.explore.search import (
+    DefaultSearch, FollowExperienceHistory, LeastSimilarRegion, ObjectView, SearchContext,
+    active_strategy, cheapest_experience, make_strategy, similarity_rows,
+)
+from whisker_io.pose import Pose
+
+I = [0.0, 0.0, 0.0, 1.0]
+
+
+class _FrontEnd:
+    """Stored regions with given (chi2, nmse) against the current region."""
+
+    def __init__(self, chi2, nmse):
+        self.chi2, self.nmse = np.array(chi2, float), np.array(nmse, float)
+
+    def parse(self, obs):
+        return obs, obs, obs
+
+    def scores(self, f, s, m):
+        return SimpleNamespace(chi2=self.chi2, nmse=self.nmse)
+
+
+def _graph(edges):
+    """Eq 6.3 weights by hand: w = w_t + w_r + 1 / n_l(target), n_l = links of the node."""
+    g = nx.DiGraph()
+    n_l = {}
+    for a, b, _, _ in edges:
+        n_l[a] = n_l.get(a, 0) + 1
+        n_l[b] = n_l.get(b, 0) + 1
+    for a, b, wt, wr in edges:
+        g.add_edge(a, b, weight=wt + wr + 1.0 / n_l[b])
+        g.add_edge(b, a, weight=wt + wr + 1.0 / n_l[a])
+    return g
+
+
+def _map(positions, view_ids, edges, history, current):
+    poses = np.array([list(p) + I for p in positions], float)
+    return SimpleNamespace(poses=poses, view_ids=np.array(view_ids), graph=_graph(edges), history=np.array(history), current_id=current)
+
+
+def test_cheapest_path_cost_by_hand():
+    # chain 0-1-2 and a shortcut 0-3-2: n_l = {0: 2, 1: 2, 2: 2, 3: 2}
+    g = _graph([(0, 1, 0.1, 0.0), (1, 2, 0.1, 0.0), (0, 3, 0.05, 0.2), (3, 2, 0.05, 0.2)])
+    t, cost = cheapest_experience(g, 0, [2])
+    assert t == 2
+    assert cost == pytest.approx((0.1 + 0.5) + (0.1 + 0.5))  # 1.2 < (0.25 + 0.5) * 2 = 1.5
+    t, cost = cheapest_experience(g, 0, [2, 3])
+    assert (t, cost) == (3, pytest.approx(0.75))
+    assert cheapest_experience(g, 0, [99]) is None
+
+
+def test_lsr_picks_least_similar_region_of_pair_of_maps():
+    # object 0: regions 0, 1; object 1: regions 0, 1, 2. Least similar: object 1 region 2 (chi2 1.8)
+    m0 = _map([(0, 0, 0), (0.1, 0, 0)], [0, 1], [(0, 1, 0.1, 0.0)], [0, 1], 0)
+    m1 = _map([(0, 0, 0), (0.1, 0, 0), (0.2, 0, 0), (0.0, 0.1, 0)], [0, 1, 2, 2],
+              [(0, 1, 0.1, 0.0), (1, 2, 0.1, 0.0), (0, 3, 0.1, 0.0)], [0, 1, 2, 3], 0)
+    objs = [ObjectView(m0, _FrontEnd([1.2, 1.0], [0.5, 0.1]), 2, 2, 2),
+            ObjectView(m1, _FrontEnd([1.0, 1.2, 1.8], [0.2, 0.9, 0.3]), 4, 3, 4, last_relocalised=0)]
+    ctx = SearchContext(Pose([0, 0, 0.3]), objs, np.array([0.5, 1.0]), observation=object())
+    rows = similarity_rows(ctx, [0, 1])
+    assert rows[0, :2].tolist() == [1, 2]
+    # chi2 ties (1.2) broken by NMSE descending: object 1 region 1 (0.9) before object 0 region 0 (0.5)
+    assert rows[1, :2].tolist() == [1, 1] and rows[2, :2].tolist() == [0, 0]
+    lsr = LeastSimilarRegion(step_m=0.03)
+    # region 2 lives at experiences 2 and 3; n_l = {0: 2, 1: 2, 2: 1, 3: 1}
+    # path 0-1-2: (0.1 + 1/2) + (0.1 + 1/1) = 1.7; path 0-3: 0.1 + 1/1 = 1.1, the cheaper
+    assert lsr.choose_target(ctx) == (1, 3)
+    assert lsr.last_cost == pytest.approx(1.1)
+    goal = lsr.propose(ctx)
+    # experience 3 is 0.1 m along map y from the current (0); a 3-cm step that way
+    np.testing.assert_allclose(goal.position_m, [0.0, 0.03, 0.3], atol=1e-12)
+    # only objects with non-zero confidence are candidates
+    ctx0 = SearchContext(Pose([0, 0, 0.3]), objs, np.array([0.5, 0.0]), observation=object())
+    assert lsr.choose_target(ctx0)[0] == 0
+
+
+def test_lsr_retargets_when_leader_changes():
+    m = _map([(0, 0, 0), (0.5, 0, 0)], [0, 1], [(0, 1, 0.1, 0.0)], [0, 1], 0)
+    objs = [ObjectView(m, _FrontEnd([0.1, 1.5], [0, 0]), 2, 2, 2), ObjectView(m, _FrontEnd([1.9, 0.1], [0, 0]), 2, 2, 2)]
+    lsr = LeastSimilarRegion()
+    lsr.propose(SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0, 0.0]), object()))
+    assert lsr.target == (0, 1)
+    lsr.propose(SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0, 0.5]), object()))
+    assert lsr.target == (0, 1)  # same leader: kept
+    lsr.propose(SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0, 2.0]), object()))
+    assert lsr.target == (1, 0)  # overtaken: re-targeted (object 1's region 0 is least similar)
+
+
+def test_feh_next_experience_flattened_3cm():
+    m = _map([(0, 0, 0), (0.1, 0, 0.1), (0.2, 0, 0)], [0, 1, 2], [(0, 1, 0.1, 0), (1, 2, 0.1, 0)], [0, 0, 1, 2, 1, 0], 0)
+    assert FollowExperienceHistory.next_in_history(m.history, 0) == 1
+    assert FollowExperienceHistory.next_in_history(m.history, 1) == 2
+    assert FollowExperienceHistory.next_in_history(np.array([0, 1]), 1) is None
+    objs = [ObjectView(m, None, 3, 3, 6)]
+    feh = FollowExperienceHistory()
+    ctx = SearchContext(Pose([1.0, 1.0, 0.3]), objs, np.array([1.0]), object(), relocalised=[(0, 0)])
+    goal = feh.propose(ctx)
+    # target exp 1 is (+0.1, 0, +0.1) from the current: flattened to +x, 3 cm
+    np.testing.assert_allclose(goal.position_m, [1.03, 1.0, 0.3], atol=1e-12)
+    assert FollowExperienceHistory().propose(SearchContext(Pose([0, 0, 0]), objs, np.array([1.0]))) is None
+
+
+def test_default_search_visits_every_face_closest_first():
+    d = DefaultSearch([0, 0, 0.175], 0.225, seed=4)
+    seen = []
+    for _ in range(len(d.directions)):
+        d.propose()
+        seen.append(d.current)
+    assert sorted(seen) == list(range(len(d.directions)))
+    assert seen[0] == DefaultSearch([0, 0, 0.175], 0.225, seed=4).next_face()
+    # faces of one seed differ from another for most seeds
+    starts = {DefaultSearch([0, 0, 0], 0.2, seed=s).next_face() for s in range(10)}
+    assert len(starts) > 3
+    # every step goes to the closest unvisited face
+    d2 = DefaultSearch([0, 0, 0], 0.2, seed=1)
+    a = d2.next_face()
+    b = d2.next_face()
+    others = np.delete(np.arange(len(d2.directions)), a)
+    dist = np.linalg.norm(d2.directions[others] - d2.directions[a], axis=1)
+    assert np.linalg.norm(d2.directions[b] - d2.directions[a]) == pytest.approx(dist.min())
+    # the pose faces the centre with the bases on the sphere
+    p = d2.face_pose(b)
+    np.testing.assert_allclose(p.rotation.as_matrix()[:, 1], -d2.directions[b], atol=1e-12)
+    assert np.linalg.norm(p.position_m) == pytest.approx(0.2 + 0.2019)
+
+
+def test_switching_rules():
+    assert active_strategy("lsr", np.zeros(2), True) == "default"
+    assert active_strategy("lsr", np.array([0, 0.1]), False) == "default"
+    assert active_strategy("feh", np.array([0, 0.1]), True) == "feh"
+    with pytest.raises(ConfigError):
+        active_strategy("random", np.zeros(2), True)
+    with pytest.raises(ConfigError):
+        make_strategy("bogus")
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.none()))
+def test_bad_constructor_input_typed(x):
+    for make in (lambda: FollowExperienceHistory(step_m=x), lambda: LeastSimilarRegion(step_m=x),
+                 lambda: DefaultSearch([0, 0, x], 0.2), lambda: DefaultSearch([0, 0, 0], x)):
+        try:
+            make()
+        except CansimError:
+            continue
+        assert isinstance(x, float) and math.isfinite(x)
