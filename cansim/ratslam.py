@@ -37,7 +37,7 @@ to ~1e-15 cells per step until a truncated coordinate falls the other way.
 
 from __future__ import annotations
 
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict
 from typing import Any
 
 import numpy as np
@@ -51,7 +51,7 @@ from cansim.local_view import LocalViewCells
 from cansim.population import Population
 from cansim.posecell_network import PosecellNetwork
 from cansim.ratslam_config import RatSLAMConfig
-from cansim.slam_loop import SlamLog, SlamLoop, SlamState
+from cansim.slam_loop import SlamLog, SlamLoop, SlamState, configured
 from maps.experience_map import ExperienceMap
 from maps.odometry import PlanarOdometry
 
@@ -76,13 +76,7 @@ class RatSLAM(SlamLoop):
     """
 
     def __init__(self, config: RatSLAMConfig | None = None, **params: Any) -> None:
-        cfg = config if config is not None else RatSLAMConfig()
-        if params:
-            unknown = set(params) - {f.name for f in fields(RatSLAMConfig)}
-            if unknown:
-                raise ConfigError(f"unknown RatSLAM parameter(s) {sorted(unknown)}; see RatSLAMConfig")
-            cfg = replace(cfg, **params)
-        self.config = cfg
+        cfg = self.config = configured(RatSLAMConfig, config, params, "RatSLAM")
         pose_cells: Population | PosecellNetwork
         if cfg.pose_cells == "openratslam":
             pose_cells = PosecellNetwork(

@@ -24,6 +24,7 @@ uninterrupted one. Odometry is a :class:`maps.odometry.PlanarOdometry` or
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -31,18 +32,29 @@ from typing import Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
-from cansim.errors import CorruptFileError, InvalidInputError
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
 from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells, LocalViewParams
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
 from maps.persistence import read_npz
 
-__all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState"]
+__all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState", "configured"]
 
 _NO_INDEX = np.zeros(0, dtype=np.int64)
 _NO_VALUES = np.zeros(0, dtype=np.float64)
 _LOOP_FORMAT = 1
+
+
+def configured(config_type: type, config: Any, params: dict[str, Any], model: str) -> Any:
+    """A model's configuration: ``config`` (or the defaults) with keyword overrides, unknown keys refused."""
+    cfg = config if config is not None else config_type()
+    if params:
+        unknown = set(params) - {f.name for f in dataclasses.fields(config_type)}
+        if unknown:
+            raise ConfigError(f"unknown {model} parameter(s) {sorted(unknown)}; see {config_type.__name__}")
+        cfg = dataclasses.replace(cfg, **params)
+    return cfg
 
 
 class PoseCells(Protocol):

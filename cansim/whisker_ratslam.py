@@ -33,7 +33,7 @@ contains Ch.5's.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -43,7 +43,7 @@ from cansim.frontends.whisk import WhiskFrontEnd, WhiskFrontEndConfig
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
-from cansim.slam_loop import SlamLoop, SlamState
+from cansim.slam_loop import SlamLoop, SlamState, configured
 from maps.experience_map import MapConfig
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
@@ -186,13 +186,7 @@ class WhiskerRatSLAM(SlamLoop):
     """
 
     def __init__(self, config: WhiskerRatSLAMConfig | None = None, **params: Any) -> None:
-        cfg = config if config is not None else WhiskerRatSLAMConfig()
-        if params:
-            unknown = set(params) - {f.name for f in fields(WhiskerRatSLAMConfig)}
-            if unknown:
-                raise ConfigError(f"unknown WhiskerRatSLAM parameter(s) {sorted(unknown)}; see WhiskerRatSLAMConfig")
-            cfg = replace(cfg, **params)
-        self.config = cfg
+        cfg = self.config = configured(WhiskerRatSLAMConfig, config, params, "WhiskerRatSLAM")
         na = cfg.grid_cells if cfg.angle_cells is None else cfg.angle_cells
         pose_cells = Population.whisker6d(
             cfg.grid_cells, cfg.cell_size_m, n_angle=na, params=cfg.attractor, backend=cfg.backend, dtype=np.dtype(cfg.dtype)
