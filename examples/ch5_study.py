@@ -276,7 +276,8 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Sett
 # --------------------------------------------------------------------------- calibration
 def calibrate(noise_scale: float, quantile: float, seed: int, contact: str = "tip") -> dict[str, float]:
     """T_pfh, T_sda from same-pose whisk pairs on one loop of trajectory A around the Mug (module docstring)."""
-    from whisker_io.features.distances import chi_squared, nmse
+    from whisker_io.features.pfh import chi_squared
+    from whisker_io.features.sda import nmse
     from whisker_io.sim.objects import make_object
     from whisker_io.sim.trajectories import object_trajectory
 
@@ -395,7 +396,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     # Fig 5.14b: dead-reckoning displacement error over one loop of A
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
-    ax.boxplot(data, labels=objs)
+    ax.boxplot(data, tick_labels=objs)
     ax.set_ylabel("dead-reckoning displacement error (m)")
     ax.set_title("Fig 5.14b: integrated odometry vs truth, one loop of A")
     fig.tight_layout()
@@ -405,7 +406,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
-        ax.boxplot([v if len(v) else np.zeros(1) for v in vals], labels=objs, showfliers=False)
+        ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=objs, showfliers=False)
         for i, o in enumerate(objs):
             st = next(b[step_key] for b in builds if b["object"] == o)
             ax.hlines(st, i + 0.6, i + 1.4, colors="tab:red", linestyles="--")
