@@ -36,7 +36,10 @@ Outputs (working directory or ``--out``): ``ch5_localisation.csv``,
 
 Noise: ``--noise-scale 1`` is the Ch.6 contact noise of Sec 6.1.3.1.2 (N(0, 0.25 x
 whisker length) along the shaft, slope N(0, 0.33)); the Ch.5 values are not printed.
-The summary states the scale used. The SVR contact estimate uses a Ch.4 model
+The default is 0.3 of it (:data:`DEFAULT_NOISE_SCALE`, a documented choice): with the
+full Ch.6 noise region matching is too weak for Ch.5's localisation (see the summary
+of a ``--noise-scale 1`` run). The odometry noise is always Eq 6.4-6.11's. The summary
+states the scale used. The SVR contact estimate uses a Ch.4 model
 (``--radial-model``); without one the script trains the quick Ch.4 models with
 ``examples/radial_distance_study.py --quick`` into ``OUT/ch5_radial``.
 """
@@ -68,6 +71,12 @@ LOC_COLUMNS = ("object", "features", "feature_update", "contact_model", "iterati
 ID_COLUMNS = ("presented", "trajectory", "map_identity", "max_confidence", "mean_confidence", "final_ic",
               "threshold", "ic_threshold", "rc_decision", "ic_decision", "n_relocalisations", "n_iterations")
 RC_THRESHOLD = 3.0
+#: Default contact-noise scale (a documented choice, not a thesis value). The Ch.5 noise
+#: is not printed; with the Ch.6 values (scale 1) the PFH chi2 between two whisks at the
+#: same pose (median ~1.0) barely differs from that between neighbouring poses (~1.2),
+#: false re-localisations dominate and no object localises below its step. At 0.3 the
+#: same-pose medians are chi2 ~0.65 / NMSE ~0.2 against ~1.1 / ~0.7 between poses.
+DEFAULT_NOISE_SCALE = 0.3
 
 
 @dataclass(frozen=True)
@@ -550,7 +559,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--objects", nargs="+", choices=MAPPED, help="mapped objects (default: all six; --quick: mug box plane)")
     ap.add_argument("--loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="loops per identification run (default 1)")
-    ap.add_argument("--noise-scale", type=float, default=1.0, help="contact noise as a multiple of Sec 6.1.3.1.2 (default 1)")
+    ap.add_argument("--noise-scale", type=float, default=DEFAULT_NOISE_SCALE,
+                    help=f"contact noise as a multiple of Sec 6.1.3.1.2 (default {DEFAULT_NOISE_SCALE}; 1 = the Ch.6 values)")
     ap.add_argument("--pfh-threshold", type=float, help="T_pfh (default: calibrated)")
     ap.add_argument("--sda-threshold", type=float, help="T_sda (default: calibrated)")
     ap.add_argument("--calibration-quantile", type=float, default=0.75)
