@@ -1,0 +1,190 @@
+"""The Ch.5 study (examples/ch5_study.py) and the appended object maps (maps.object_library).
+
+End-to-end outcomes on the study's --quick run (fixed seed): recognition by leaky
+integration of re-localisations over appended object maps (Fig 5.16-5.17) and 6-D
+localisation against the step size (Fig 5.15).
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cansim.whisker_ratslam import WhiskerRatSLAM
+from maps.object_library import append_object_maps
+from maps.object_map import ObjectMap
+from maps.odometry import SpatialOdometry
+from whisker_io.errors import InvalidInputError
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+import ch5_study  # noqa: E402
+
+
+def _region(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
+    pfh = np.zeros(81)
+    pfh[k % 81] = 0.6
+    pfh[(7 * k + 3) % 81] += 0.4
+    return pfh, np.full(18, float(k % 5))
+
+
+def _toy_model(n_views: int, seed: int) -> WhiskerRatSLAM:
+    """A model that whisks distinct regions, then revisits them (re-localisations)."""
+    slam = WhiskerRatSLAM(backend="numpy")
+    rng = np.random.default_rng(seed)
+    for k in list(range(n_views)) * 2:
+        slam.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.3], 1.0), _region(rng, k + 11 * seed))
+    return slam
+
+
+@pytest.fixture(scope="module")
+def two_maps() -> tuple[WhiskerRatSLAM, WhiskerRatSLAM]:
+    return _toy_model(4, 1), _toy_model(3, 2)
+
+
+def test_append_object_maps_keeps_objects_apart(two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM]) -> None:
+    a, b = two_maps
+    na, nb = a.object_map.n_experiences, b.object_map.n_experiences
+    lib = append_object_maps([a.object_map, b.object_map], ["a", "b"], [0, len(a.frontend)])
+    m = lib.object_map
+    assert m.n_experiences == na + nb
+    assert lib.exp_object.tolist() == [0] * na + [1] * nb
+    ends = m.to_arrays()["link_ends"]
+    assert len(ends) == len(a.object_map.to_arrays()["link_ends"]) + len(b.object_map.to_arrays()["link_ends"])
+    assert np.all(lib.exp_object[ends[:, 0]] == lib.exp_object[ends[:, 1]])  # no link between objects
+    vt = m.to_arrays()["exp_vt"]
+    assert vt[:na].tolist() == a.object_map.to_arrays()["exp_vt"].tolist()
+    assert vt[na:].tolist() == (b.object_map.to_arrays()["exp_vt"] + len(a.frontend)).tolist()
+    h = m.history
+    assert len(h) == len(a.object_map.history) + len(b.object_map.history)
+    hb = h[len(a.object_map.history):]
+    assert hb.tolist() == [x + na if x >= 0 else -1 for x in b.object_map.history.tolist()]
+    assert lib.with_explored(na + nb + 2).tolist()[-2:] == [-1, -1]
+
+
+def test_library_model_relocalises_to_the_right_object(tmp_path: Path, two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM]) -> None:
+    a, b = two_maps
+    a.save(tmp_path / "a.npz")
+    b.save(tmp_path / "b.npz")
+    model, lib = ch5_study.library_model([tmp_path / "a.npz", tmp_path / "b.npz"], ["a", "b"])
+    assert len(model.frontend) == len(a.frontend) + len(b.frontend)
+    rng = np.random.default_rng(0)
+    objs = []
+    for k in list(range(3)) * 3:  # revisit object b's regions
+        s = model.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.3], 1.0), _region(rng, k + 22))
+        assert not s.new_view
+        if s.relocalised:
+            objs.append(int(lib.with_explored(model.object_map.n_experiences)[s.exp_id]))
+    assert objs and set(objs) == {1}
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    names=st.lists(st.text(min_size=0, max_size=3), min_size=0, max_size=3),
+    offsets=st.lists(st.integers(-3, 5), min_size=0, max_size=3),
+    n_maps=st.integers(0, 3),
+    empty=st.booleans(),
+)
+def test_append_object_maps_refuses_bad_input(two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM], names: list[str],
+                                              offsets: list[int], n_maps: int, empty: bool) -> None:
+    a, b = two_maps
+    maps = [a.object_map, b.object_map, ObjectMap() if empty else a.object_map][:n_maps]
+    ok = (n_maps > 0 and len(names) == len(offsets) == n_maps and len(set(names)) == n_maps
+          and all(o >= 0 for o in offsets) and offsets == sorted(offsets) and not (empty and n_maps == 3))
+    before = [m.n_experiences for m in maps]
+    if ok:
+        lib = append_object_maps(maps, names, offsets)
+        assert lib.object_map.n_experiences == sum(before)
+    else:
+        with pytest.raises(InvalidInputError):
+            append_object_maps(maps, names, offsets)
+    assert [m.n_experiences for m in maps] == before  # inputs never change
+
+
+@settings(max_examples=20, deadline=None)
+@given(n=st.one_of(st.integers(-5, 100), st.floats(allow_nan=True), st.booleans()))
+def test_with_explored_validates(two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM], n: object) -> None:
+    a, _ = two_maps
+    lib = append_object_maps([a.object_map], ["a"], [0])
+    n_lib = len(lib.exp_object)
+    if isinstance(n, int) and not isinstance(n, bool) and n >= n_lib:
+        t = lib.with_explored(n)
+        assert len(t) == n and np.all(t[n_lib:] == -1)
+    else:
+        with pytest.raises(InvalidInputError):
+            lib.with_explored(n)  # type: ignore[arg-type]
+
+
+# ----------------------------------------------------------------- the --quick study
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("ch5")
+    assert ch5_study.main(["--quick", "--contacts", "tip", "--out", str(out), "--workers", "2"]) == 0
+    return out
+
+
+def _rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with open(path) as f:
+        r = csv.DictReader(f)
+        return list(r.fieldnames or []), list(r)
+
+
+def test_quick_writes_the_outputs(quick: Path) -> None:
+    cols, loc = _rows(quick / "ch5_localisation.csv")
+    assert set(["object", "features", "feature_update", "contact_model", "position_error_m", "rotation_error_deg",
+                "step_translation_m", "step_rotation_deg"]) <= set(cols)
+    assert loc and {r["object"] for r in loc} == {"mug", "box", "plane"}
+    cols, ids = _rows(quick / "ch5_identification.csv")
+    assert set(["presented", "trajectory", "map_identity", "max_confidence", "final_ic", "threshold", "rc_decision",
+                "ic_decision"]) <= set(cols)
+    assert {r["trajectory"] for r in ids} == {"A", "B"}
+    assert "skull" in {r["presented"] for r in ids} and "skull" not in {r["map_identity"] for r in ids}
+    for name in ("fig5_14b_dead_reckoning.png", "fig5_15_localisation.png", "fig5_16_history.png", "fig5_17_confidence.png",
+                 "ch5_summary.txt"):
+        assert (quick / name).stat().st_size > 0
+
+
+def _id(quick: Path) -> list[dict[str, str]]:
+    return _rows(quick / "ch5_identification.csv")[1]
+
+
+def test_own_map_has_the_highest_ic_under_a(quick: Path) -> None:
+    rows = [r for r in _id(quick) if r["trajectory"] == "A" and r["presented"] != "skull"]
+    for p in {r["presented"] for r in rows}:
+        mine = [r for r in rows if r["presented"] == p]
+        win = max(mine, key=lambda r: float(r["final_ic"]))
+        assert win["map_identity"] == p, (p, [(r["map_identity"], r["final_ic"]) for r in mine])
+
+
+def test_novel_object_stays_below_the_threshold(quick: Path) -> None:
+    rows = [r for r in _id(quick) if r["presented"] == "skull"]
+    assert rows
+    for r in rows:
+        assert float(r["max_confidence"]) < float(r["threshold"]), r
+
+
+def test_trajectory_b_gives_lower_confidence_than_a(quick: Path) -> None:
+    rows = [r for r in _id(quick) if r["presented"] == r["map_identity"]]
+    mean = {f: np.mean([float(r["mean_confidence"]) for r in rows if r["trajectory"] == f]) for f in "AB"}
+    assert mean["B"] < mean["A"], mean
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "measured (seed 0, 2 loops of A, noise scale 0.3, calibrated T_pfh 0.98 / T_sda 0.27, quick Ch.4 svr9): "
+    "both + SVR median re-localisation error Box 0.46 m / 90 deg (step 0.012 m / 3.0 deg), "
+    "Mug 0.52 m / 117 deg (step 0.065 m / 11.7 deg); with tip contacts the Mug is at 0 m, the Box still 0.64 m / 155 deg"))
+def test_both_features_svr_localise_below_the_step_on_box_and_mug(tmp_path: Path) -> None:
+    model = ch5_study._ensure_radial_model(None, tmp_path)
+    cal = ch5_study.calibrate(ch5_study.DEFAULT_NOISE_SCALE, 0.75, 0)
+    s = ch5_study.Settings(2, ch5_study.DEFAULT_NOISE_SCALE, cal["pfh_threshold"], cal["sda_threshold"], model, 0, 1)
+    for name in ("box", "mug"):
+        b = ch5_study.build_job((name, ch5_study.BEST, s, None))
+        assert len(b["position_m"]) > 0
+        assert np.median(b["position_m"]) < b["step_m"], name
+        assert np.median(b["rotation_deg"]) < b["step_deg"], name
