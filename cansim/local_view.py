@@ -316,6 +316,28 @@ class LocalViewCells:
         self._current = vid
         return injection
 
+    def extend_stored(self, other: "LocalViewCells") -> int:
+        """Append ``other``'s views (stored-location mode) after this population's.
+
+        The appended views keep their stored pose-cell locations; their decay starts at
+        the floor and they are inactive (an object library, Fig 5.16). Returns the id
+        offset of ``other``'s views here.
+        """
+        if not isinstance(other, LocalViewCells) or other.shape != self.shape:
+            raise ShapeError("extend_stored needs LocalViewCells on the same pose grid")
+        if self._params.mode != "stored" or other.params.mode != "stored":
+            raise InvalidInputError("extend_stored joins stored-location views only (mode='stored')")
+        offset, m = self._n, other.n_views
+        self._locations.extend(loc.copy() for loc in other._locations)
+        need = offset + m
+        if need > len(self._decay_buf):
+            self._decay_buf = np.concatenate([self._decay_buf, np.zeros(need)])
+        self._decay_buf[offset:need] = self._floor
+        self._n = need
+        self._rows.extend((np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)) for _ in range(m))
+        self._v = np.concatenate([self._v, np.zeros(m)])
+        return offset
+
     def restore_decay(self) -> None:
         """Every view's decay falls by ``decay_restore``, down to the floor (done by every
         :meth:`observe`; call it on iterations without an observation when the decay runs

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from cansim.params import AttractorParams
 from cansim.population import Population
 from cansim.slam_loop import SlamLoop, SlamState, configured
 from maps.experience_map import MapConfig
+from maps.object_library import ObjectLibrary, append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
 
@@ -237,6 +238,42 @@ class WhiskerRatSLAM(SlamLoop):
         state = super().step(*odo, observation)
         self.object_map.record()
         return state
+
+    @classmethod
+    def library(
+        cls, models: Sequence["WhiskerRatSLAM"], names: Sequence[str], config: WhiskerRatSLAMConfig | None = None
+    ) -> tuple["WhiskerRatSLAM", ObjectLibrary]:
+        """One model holding the object maps of several models, for identification (Fig 5.16).
+
+        The stored regions and their pose-cell locations are appended in order; the object
+        maps are appended with :func:`maps.object_library.append_object_maps` (ids shifted,
+        no link between objects). The pose cells start from the initial packet and every
+        region's decay at the floor, as for an array brought to an unknown object.
+
+        Parameters
+        ----------
+        models : sequence of WhiskerRatSLAM
+            The objects' models (stored-location mode, the same grid and front end).
+        names : sequence of str
+            Object names, in the order of ``models``.
+        config : WhiskerRatSLAMConfig, optional
+            Of the exploring model (default: the first model's).
+
+        Returns
+        -------
+        (WhiskerRatSLAM, ObjectLibrary)
+            The model and the experience -> object table.
+        """
+        if not models or len(models) != len(names) or not all(isinstance(m, WhiskerRatSLAM) for m in models):
+            raise InvalidInputError("library needs one WhiskerRatSLAM per name (at least one)")
+        model = cls(config if config is not None else models[0].config)
+        offsets = []
+        for m in models:
+            offsets.append(model.frontend.extend(m.frontend))
+            model.local_view.extend_stored(m.local_view)
+        lib = append_object_maps([m.object_map for m in models], names, offsets)
+        model.experience_map = lib.object_map
+        return model, lib
 
     # ------------------------------------------------------- save / resume
     def describe(self) -> dict[str, Any]:

@@ -219,42 +219,10 @@ def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m
     (WhiskerRatSLAM, ObjectLibrary)
     """
     from cansim.whisker_ratslam import WhiskerRatSLAM
-    from maps.object_library import append_object_maps
-    from maps.persistence import read_npz
 
     models = [WhiskerRatSLAM.load(p) for p in paths]
-    offsets = np.concatenate([[0], np.cumsum([len(m.frontend) for m in models])[:-1]]).astype(int).tolist()
-    lib = append_object_maps([m.object_map for m in models], names, offsets)
     cfg = models[0].config if cell_size_m is None else replace(models[0].config, cell_size_m=cell_size_m)
-    fresh = WhiskerRatSLAM(cfg)
-    arrays = {k: np.asarray(v) for k, v in read_npz_arrays(fresh).items()}
-    raw = [dict(read_npz(p)) for p in paths]
-    for key in ("vt_pfh", "vt_sda", "vt_sda_mask", "vt_count"):
-        arrays[key] = np.concatenate([np.asarray(r[key]) for r in raw])
-    n_views = [len(np.asarray(r["lv_decay"])) for r in raw]
-    arrays["lv_locations"] = np.concatenate([np.asarray(r["lv_locations"]).reshape(n, -1) for r, n in zip(raw, n_views)])
-    arrays["lv_decay"] = np.zeros(sum(n_views))
-    arrays["lv_v"] = np.zeros(sum(n_views))
-    arrays["lv_current"] = np.array(-1, dtype=np.int64)
-    arrays["lv_w_indptr"] = np.zeros(sum(n_views) + 1, dtype=np.int64)  # stored-location mode: no learnt weights
-    arrays["lv_w_indices"] = np.zeros(0, dtype=np.int64)
-    arrays["lv_w_data"] = np.zeros(0, dtype=np.float32)
-    if any(len(np.asarray(r["lv_w_data"])) for r in raw):
-        raise ValueError("library_model supports stored-location models (lv_mode='stored') only")
-    arrays.update({"em_" + k: v for k, v in lib.object_map.to_arrays().items()})
-    model = WhiskerRatSLAM.from_arrays(arrays)
-    return model, lib
-
-
-def read_npz_arrays(model: Any) -> dict[str, np.ndarray]:
-    """The arrays ``model.save`` would write (without touching the disk)."""
-    import io
-
-    buf = io.BytesIO()
-    model.save(buf)
-    buf.seek(0)
-    with np.load(buf, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+    return WhiskerRatSLAM.library(models, names, cfg)
 
 
 def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Settings]) -> dict[str, Any]:

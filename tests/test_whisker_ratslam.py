@@ -183,3 +183,32 @@ def test_bad_input_raises_typed_error_and_leaves_state_unchanged(kind):
     after = (slam.pose_cells.activity.tobytes(), slam.iteration, slam.n_views, slam.object_map.poses.tobytes(),
              slam.local_view.decay.tobytes(), len(slam.object_map.history))
     assert after == before
+
+
+def test_library_joins_models_and_relocalises_to_the_right_object():
+    def model_for(seed):
+        m = WhiskerRatSLAM(backend="numpy", cell_size_m=STEP_M)
+        pfh, sda = places(seed)
+        rng = np.random.default_rng(seed)
+        v, w = np.array([STEP_M, 0, 0]), np.array([0, 0, 2 * math.pi / PLACES])
+        for k in range(PLACES):
+            m.step(SpatialOdometry(v, w, 1.0), observe(pfh, sda, k, rng))
+        return m, pfh, sda
+
+    (a, pa, sa), (b, pb, sb) = model_for(3), model_for(4)
+    lib_model, lib = WhiskerRatSLAM.library([a, b], ["a", "b"])
+    assert lib_model.n_views == a.n_views + b.n_views
+    assert lib_model.object_map.n_experiences == a.object_map.n_experiences + b.object_map.n_experiences
+    assert lib.exp_object.tolist() == [0] * a.object_map.n_experiences + [1] * b.object_map.n_experiences
+    np.testing.assert_array_equal(lib_model.frontend.pfh[a.n_views:], b.frontend.pfh)
+    # exploring object b from scratch: its regions match b's stored ones
+    rng = np.random.default_rng(9)
+    v, w = np.array([STEP_M, 0, 0]), np.array([0, 0, 2 * math.pi / PLACES])
+    hits = []
+    for k in range(PLACES):
+        s = lib_model.step(SpatialOdometry(v, w, 1.0), observe(pb, sb, k, rng))
+        if not s.new_view:
+            hits.append(s.view_id >= a.n_views)
+    assert len(hits) >= PLACES // 2 and all(hits)
+    with pytest.raises(InvalidInputError):
+        WhiskerRatSLAM.library([a], ["a", "b"])

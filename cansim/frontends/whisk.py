@@ -261,6 +261,27 @@ class WhiskFrontEnd:
             self._count[rid] = k + 1
         return ViewMatch(rid, False, float(sc.chi2[rid] + sc.nmse[rid]), None)
 
+    def extend(self, other: "WhiskFrontEnd") -> int:
+        """Append ``other``'s stored regions after this front end's (an object library, Fig 5.16).
+
+        Returns
+        -------
+        int
+            The id offset of ``other``'s regions here (the number stored before).
+        """
+        if not isinstance(other, WhiskFrontEnd) or (other.config.n_bins, other.config.n_whiskers) != (
+            self.config.n_bins, self.config.n_whiskers
+        ):
+            raise InvalidInputError("extend needs a WhiskFrontEnd with the same PFH length and number of whiskers")
+        offset, m = self._n, other._n
+        n = offset + m
+        self._pfh, self._sda = _grow(self._pfh, n), _grow(self._sda, n)
+        self._mask, self._count = _grow(self._mask, n), _grow(self._count, n)
+        self._pfh[offset:n], self._sda[offset:n] = other._pfh[:m], other._sda[:m]
+        self._mask[offset:n], self._count[offset:n] = other._mask[:m], other._count[:m]
+        self._n = n
+        return offset
+
     # --------------------------------------------------------- persistence
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
         """State as named arrays (bit exact)."""
