@@ -21,6 +21,7 @@ from cansim.errors import (
 from cansim.params import AttractorParams
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.population import Population
+from whisker_io._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -46,15 +47,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'cansim' has no attribute {name!r}")
-    import importlib
-
-    value = getattr(importlib.import_module(mod), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
 __all__ = [
     "Axis",

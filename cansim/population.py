@@ -63,8 +63,8 @@ class Population:
     dtype : numpy dtype
         ``np.float32`` (default) or ``np.float64``.
     backend : str or Backend
-        ``"numpy"`` (reference), ``"numba"`` or ``"opencl"``; see
-        :func:`cansim.available_backends`.
+        ``"numba"`` (default, the fast CPU path), ``"numpy"`` (the reference, slow) or
+        ``"opencl"``; see :func:`cansim.available_backends`.
     motion : MotionModel or None
         How odometry becomes shifts in :meth:`integrate` / :meth:`step`;
         default :class:`UniformMotion`.
@@ -83,7 +83,7 @@ class Population:
         params: AttractorParams = AttractorParams(),
         *,
         dtype: np.dtype | type = np.float32,
-        backend: str | Backend = "numpy",
+        backend: str | Backend = "numba",
         motion: Optional[MotionModel] = None,
         decode_window: int = 3,
     ) -> None:

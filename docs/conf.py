@@ -71,12 +71,7 @@ html_static_path: list[str] = []
 # Modules under refactoring whose docstrings still produce reStructuredText/numpydoc
 # warnings. A warning located in one of them is dropped instead of failing the -W
 # build. Remove an entry once its module builds cleanly; keep the list empty.
-TOLERATED_DOCSTRING_WARNINGS: dict[str, str] = {
-    # module: what to fix
-    "whisker_io.testing.fake_rtde_server": "malformed table in the module docstring (line 12)",
-    "whisker_io.testing.fake_usb_backend": "unexpected indentation in the module docstring (line 18)",
-    "whisker_io.radial.features": "malformed table in the module docstring (line 9)",
-}
+TOLERATED_DOCSTRING_WARNINGS: dict[str, str] = {}
 
 
 def _where(record: logging.LogRecord) -> str:

@@ -3,17 +3,17 @@
 The seven contact features of Sec 4.1.2.4 of the thesis, in the column order
 used everywhere in :mod:`whisker_io.radial`:
 
-====  ===========================  ===========
-name  meaning                      unit
-====  ===========================  ===========
-CP    contact period (onset->peak) s
-CA    contact amplitude            ADC counts
-DV    deflection velocity          counts/s
-DA    deflection acceleration      counts/s^2
-AV    angular velocity             rad/s
-AA    angular acceleration         rad/s^2
-WL    whisker length               m
-====  ===========================  ===========
+====  ============================  ===========
+name  meaning                       unit
+====  ============================  ===========
+CP    contact period (onset->peak)  s
+CA    contact amplitude             ADC counts
+DV    deflection velocity           counts/s
+DA    deflection acceleration       counts/s^2
+AV    angular velocity              rad/s
+AA    angular acceleration          rad/s^2
+WL    whisker length                m
+====  ============================  ===========
 """
 
 from __future__ import annotations

@@ -4,17 +4,13 @@ It speaks enough of the Universal Robots Real-Time Data Exchange protocol
 (RTDE, TCP port 30004, protocol version 2) for ``ur_rtde``'s unmodified
 ``RTDEReceiveInterface`` to connect and receive a stream of robot states:
 
-======  ====================================  =====================================
- type    request (client -> server)            reply (server -> client)
-======  ====================================  =====================================
- ``V``   uint16 protocol version               uint8 accepted (1)
- ``v``   (empty)                               4 x uint32 major, minor, bugfix, build
- ``O``   float64 frequency + ``name,name,..``  uint8 recipe id + ``TYPE,TYPE,...``
- ``I``   ``name,name,...``                     uint8 recipe id + ``TYPE,...``
- ``S``   (empty)                               uint8 accepted; data packages follow
- ``P``   (empty)                               uint8 accepted; data packages stop
- ``U``   (server -> client) data package       uint8 recipe id + values, big-endian
-======  ====================================  =====================================
+* ``V`` - request: uint16 protocol version; reply: uint8 accepted (1)
+* ``v`` - request: (empty); reply: 4 x uint32 major, minor, bugfix, build
+* ``O`` - request: float64 frequency + ``name,name,..``; reply: uint8 recipe id + ``TYPE,TYPE,...``
+* ``I`` - request: ``name,name,...``; reply: uint8 recipe id + ``TYPE,...``
+* ``S`` - request: (empty); reply: uint8 accepted, then data packages follow
+* ``P`` - request: (empty); reply: uint8 accepted, data packages stop
+* ``U`` - server -> client data package: uint8 recipe id + values, big-endian
 
 Every package starts with a 3-byte header: big-endian uint16 total size
 (header included) and a uint8 type. Values in a data package are packed in

@@ -10,12 +10,12 @@ with :func:`~whisker_io.hw.usb_array.encode_frames` in the documented layout.
 Faults are injected into the stream of bulk-in transfers with
 :meth:`FakeUSBBackend.inject`:
 
-``"timeout"``  the next read raises ``usb.core.USBTimeoutError``;
-``"short"``    the next frame is truncated to half its length;
-``"gap"``      the next frame is dropped (the host sees a sequence jump);
-``"crc"``      one byte of the next frame's samples is flipped;
-``"remove"``   the device disappears: this and every later call raises
-               ``usb.core.USBError`` with ``errno.ENODEV`` (as libusb does).
+* ``"timeout"``: the next read raises ``usb.core.USBTimeoutError``;
+* ``"short"``: the next frame is truncated to half its length;
+* ``"gap"``: the next frame is dropped (the host sees a sequence jump);
+* ``"crc"``: one byte of the next frame's samples is flipped;
+* ``"remove"``: the device disappears: this and every later call raises
+  ``usb.core.USBError`` with ``errno.ENODEV`` (as libusb does).
 """
 
 from __future__ import annotations
