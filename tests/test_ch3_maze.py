@@ -311,6 +311,15 @@ def test_route_and_terrain_refuse_bad_numbers(value):
 
 
 @HYP
+@given(st.floats(1e-300, 1e-6))
+def test_route_refuses_a_step_giving_too_many_places(step):
+    with pytest.raises(InvalidInputError, match="places"):
+        MazeRoute(step_m=step)
+    with pytest.raises(InvalidInputError, match="metres"):
+        MazeRoute(((0.0, 0.0), (1e300, 0.0), (0.0, 1e300)), corner_radius_m=0.01)
+
+
+@HYP
 @given(st.lists(st.tuples(finite, finite), min_size=0, max_size=6), st.booleans())
 def test_route_refuses_bad_waypoints(points, poison):
     wp = [list(p) for p in points]
@@ -336,7 +345,7 @@ def test_schedule_refuses_bad_rates(rate):
 
 
 @HYP
-@given(st.one_of(st.integers(max_value=0), st.just(1.5), st.just(True), st.integers(min_value=10**8 + 1)))
+@given(st.one_of(st.integers(max_value=0), st.just(1.5), st.just(True), st.integers(min_value=10**7 + 1)))
 def test_schedule_refuses_bad_iteration_counts(n):
     with pytest.raises(InvalidInputError):
         WhiskSchedule().image_index(n)

@@ -44,9 +44,10 @@ from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import make_maze
+from whisker_io.sim.planar_chain import MAX_COORDINATE_M
 from whisker_io.validation import finite_array, finite_scalar
 
-__all__ = ["CH3_MAZE_WAYPOINTS_M", "CH3_OBSTACLE_HEIGHT_M", "MazeRoute", "ch3_terrain"]
+__all__ = ["CH3_MAZE_WAYPOINTS_M", "CH3_OBSTACLE_HEIGHT_M", "MAX_PLACES", "MazeRoute", "ch3_terrain"]
 
 CH3_MAZE_WAYPOINTS_M: tuple[tuple[float, float], ...] = (
     (0.45, 0.125),
@@ -59,6 +60,9 @@ CH3_MAZE_WAYPOINTS_M: tuple[tuple[float, float], ...] = (
 
 CH3_OBSTACLE_HEIGHT_M: float = 0.07
 """Height of the tallest obstacle of :func:`ch3_terrain`, metres (below the 77 mm plane of the array)."""
+
+MAX_PLACES: int = 1_000_000
+"""Most places a :class:`MazeRoute` may have (a guard against a step far too small for the route)."""
 
 _ARC_POINTS = 64  # polyline points per rounded corner before resampling
 
@@ -92,7 +96,7 @@ class MazeRoute:
     Parameters
     ----------
     waypoints_m : sequence of (x, y)
-        Corners of the closed polyline, metres, counter-clockwise, at least 3.
+        Corners of the closed polyline, metres (``|x|, |y| <= 1000``), counter-clockwise, at least 3.
     corner_radius_m : float
         Radius of the arc that rounds every corner, metres (> 0; the arcs of two
         neighbouring corners must fit on the leg between them).
@@ -105,7 +109,8 @@ class MazeRoute:
     ------
     InvalidInputError
         Non-finite or too few waypoints, repeated consecutive waypoints, a
-        clockwise polyline, a radius whose arcs do not fit, or a bad step.
+        clockwise polyline, a radius whose arcs do not fit, or a step that is not
+        positive or gives fewer than 4 or more than :data:`MAX_PLACES` places.
     """
 
     waypoints_m: tuple[tuple[float, float], ...] = CH3_MAZE_WAYPOINTS_M
@@ -116,6 +121,8 @@ class MazeRoute:
         wp = finite_array(self.waypoints_m, (None, 2), "waypoints_m")
         if wp.shape[0] < 3:
             raise InvalidInputError(f"waypoints_m needs at least 3 corners of a closed route, got {wp.shape[0]}")
+        if np.any(np.abs(wp) > MAX_COORDINATE_M):
+            raise InvalidInputError(f"waypoints_m has a coordinate above {MAX_COORDINATE_M:g} m; give the corners in metres in the maze frame")
         legs = np.roll(wp, -1, axis=0) - wp
         lengths = np.hypot(legs[:, 0], legs[:, 1])
         if np.any(lengths < 1e-9):
@@ -143,8 +150,12 @@ class MazeRoute:
         object.__setattr__(self, "waypoints_m", tuple((float(x), float(y)) for x, y in wp))
         object.__setattr__(self, "corner_radius_m", r)
         object.__setattr__(self, "step_m", step)
-        if self.perimeter_m / step < 4:
-            raise InvalidInputError(f"step_m {step} leaves fewer than 4 places on a {self.perimeter_m:.3f} m route")
+        places = self.perimeter_m / step
+        if not 4 <= places <= MAX_PLACES:
+            raise InvalidInputError(
+                f"step_m {step} gives {places:.3g} places on a {self.perimeter_m:.3g} m route; "
+                f"choose a step that gives 4 to {MAX_PLACES} places"
+            )
 
     @staticmethod
     def _turns(wp: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -127,14 +127,14 @@ class WhiskSchedule:
         Parameters
         ----------
         n_iterations : int
-            Number of odometry iterations (>= 1).
+            Number of odometry iterations, 1 to 10 million.
 
         Returns
         -------
         ndarray (n_iterations,) int64
         """
-        if isinstance(n_iterations, bool) or not isinstance(n_iterations, (int, np.integer)) or not 1 <= n_iterations <= 10**8:
-            raise InvalidInputError(f"n_iterations must be an integer in [1, 1e8], got {n_iterations!r}")
+        if isinstance(n_iterations, bool) or not isinstance(n_iterations, (int, np.integer)) or not 1 <= n_iterations <= 10**7:
+            raise InvalidInputError(f"n_iterations must be an integer in [1, 1e7], got {n_iterations!r}")
         k = np.arange(int(n_iterations), dtype=np.float64)
         return (np.floor(k * self.whisk_rate_hz / self.odometry_rate_hz + 1e-9) - 1).astype(np.int64)
 
