@@ -43,6 +43,9 @@ from whisker_io.validation import finite_vector
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
 
+_LN_30 = math.log(30.0)
+
+
 def stored_injection_energy(decay: float, max_energy: float) -> float:
     """Eq 5.8 / OpenRatSLAM: ``zeta / 30 * (30 - exp(1.2 * decay))``, clamped at 0.
 
@@ -56,8 +59,12 @@ def stored_injection_energy(decay: float, max_energy: float) -> float:
     Returns
     -------
     float
-        Energy added to one pose cell; 0 from ``decay >= ln(30)/1.2 = 2.834``.
+        Energy added to one pose cell; 0 from ``decay >= ln(30)/1.2 = 2.834`` (also for
+        a decay so large that the exponential would overflow: a view seen hundreds
+        of times in a row, where C++'s ``exp`` gives inf).
     """
+    if 1.2 * decay >= _LN_30:
+        return 0.0
     return max(0.0, max_energy / 30.0 * (30.0 - math.exp(1.2 * decay)))
 
 

@@ -91,9 +91,10 @@ def plot_experience_ids(
     base_end: int | None = None,
     *,
     correct_indices: Sequence[int] | None = None,
+    kidnap_indices: Sequence[int] | None = None,
     ax: "Axes | None" = None,
 ) -> "Figure":
-    """Experience id over iterations (Fig 3.4): re-localisations marked, base set delimited.
+    """Experience id over iterations (Fig 3.4, 3.5): re-localisations marked, base set delimited.
 
     Parameters
     ----------
@@ -105,6 +106,9 @@ def plot_experience_ids(
         Entries in the base set (drawn as a dotted vertical line).
     correct_indices : sequence of int, optional
         Re-localisations judged correct; the others are drawn as incorrect.
+    kidnap_indices : sequence of int, optional
+        Iterations at which the agent was kidnapped (moved without odometry, Fig 3.5),
+        drawn as vertical lines with a legend entry.
     ax : matplotlib Axes, optional
 
     Returns
@@ -114,6 +118,10 @@ def plot_experience_ids(
     log = np.asarray(experience_log)
     if log.ndim != 1:
         raise InvalidInputError("experience_log must be one-dimensional")
+    kidnaps = np.asarray([] if kidnap_indices is None else kidnap_indices)
+    if kidnaps.size and (kidnaps.ndim != 1 or not np.issubdtype(kidnaps.dtype, np.integer)
+                         or kidnaps.min() < 0 or kidnaps.max() >= log.shape[0]):
+        raise InvalidInputError(f"kidnap_indices must be iteration numbers in [0, {log.shape[0]}), got {kidnap_indices!r}")
     fig, ax = figure_and_axes(ax, (8.0, 4.0))
     it = np.arange(log.shape[0])
     ax.plot(it, log, color="0.3", lw=0.8, label="current experience")
@@ -128,6 +136,8 @@ def plot_experience_ids(
                 ax.scatter(r[~good], log[r[~good]], s=14, marker="x", color="tab:red", label="incorrect re-localisation", zorder=4)
     if base_end is not None:
         ax.axvline(base_end - 0.5, color="tab:red", ls=":", label="end of base set")
+    for j, k in enumerate(kidnaps.tolist()):
+        ax.axvline(k - 0.5, color="tab:purple", lw=1.0, label="kidnapped" if j == 0 else None)
     ax.set_xlabel("iteration")
     ax.set_ylabel("experience id")
     ax.legend(loc="upper left", fontsize="small")

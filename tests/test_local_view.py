@@ -22,6 +22,8 @@ def test_eq_5_8_energy_and_clamp():
     assert stored_injection_energy(1.0, 0.3) == pytest.approx(0.3 / 30 * (30 - 3.3201169227365472))
     assert stored_injection_energy(math.log(30) / 1.2 + 1e-9, 0.15) == 0.0
     assert stored_injection_energy(5.0, 0.15) == 0.0
+    # a view matched hundreds of times in a row: exp(1.2 * decay) would overflow a float
+    assert stored_injection_energy(1000.0, 0.15) == 0.0
 
 
 def test_new_view_stores_location_and_injects_nothing():
