@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cansim.errors import InvalidInputError
-from cansim.testing.worlds import LoopRoute, OdometryNoise, ch3_loops, make_run, render_view, scatter_landmarks
+from cansim.testing.worlds import LoopRoute, Ch3OdometryNoise, ch3_loops, make_run, render_view, scatter_landmarks
 
 
 def test_route_geometry():
@@ -50,7 +50,7 @@ def test_odometry_noise_statistics_match_ch3_model():
     assert abs(np.mean(np.sign(lin_err))) < 0.05  # random sign
     assert ang_err.std() == pytest.approx(0.3, abs=0.02)
     assert abs(ang_err.mean()) < 0.02
-    pos = make_run(route, loops=(1,) * 5, seed=3, noise=OdometryNoise(linear_sign="positive"))
+    pos = make_run(route, loops=(1,) * 5, seed=3, noise=Ch3OdometryNoise(linear_sign="positive"))
     assert np.all((pos.vtrans - make_run(route, loops=(1,) * 5, noise=None).vtrans)[1:] > 0)
 
 

@@ -34,11 +34,11 @@ import numpy as np
 
 from cansim.errors import InvalidInputError
 
-__all__ = ["LoopRoute", "OdometryNoise", "SyntheticRun", "ch3_loops", "dead_reckon", "make_run", "render_view", "scatter_landmarks"]
+__all__ = ["LoopRoute", "Ch3OdometryNoise", "SyntheticRun", "ch3_loops", "dead_reckon", "make_run", "render_view", "scatter_landmarks"]
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class Ch3OdometryNoise:
     """Per-step odometry error model of Sec 3.1.2 of the thesis.
 
     Parameters
@@ -185,7 +185,7 @@ def make_run(
     route: LoopRoute | None = None,
     loops: Sequence[int] = (1, 1, 1, 1, 1),
     *,
-    noise: OdometryNoise | None = OdometryNoise(),
+    noise: Ch3OdometryNoise | None = Ch3OdometryNoise(),
     seed: int = 0,
     dt: float = 1.0,
     turn_steps: int = 6,
@@ -201,7 +201,7 @@ def make_run(
     loops : sequence of {+1, -1}
         Direction of each loop: +1 counter-clockwise, -1 clockwise
         (:func:`ch3_loops` gives the Ch.3 sequence).
-    noise : OdometryNoise or None
+    noise : Ch3OdometryNoise or None
         Odometry error model; None = perfect odometry.
     seed : int
         Seed of ``np.random.default_rng``.
