@@ -32,6 +32,7 @@ __all__ = [name for name in (
     "test_dynamics_matches_reference", "test_uniform_shift_matches_reference", "test_conditional_shift_matches_reference",
     "test_inject_matches_reference", "test_decode_matches_reference", "test_fused_step_matches_reference",
     "test_backend_population_runs_identically", "test_run_equals_repeated_steps",
+    "test_spiking_population_spikes_identically",
 )]
 
 SETTINGS = dict(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -204,3 +205,26 @@ def test_run_equals_repeated_steps(candidate, shape, dtype):
         np.testing.assert_array_equal(activity[t], pops[1].activity)
         np.testing.assert_array_equal(decoded[t], d)
     np.testing.assert_array_equal(pops[0].activity, pops[1].activity)
+
+
+SPIKING_BACKENDS = ("numba",)  # backends with a spiking implementation besides the numpy reference
+
+
+@pytest.mark.parametrize("shape", [(36,), (7, 6), (5, 4, 3)])
+def test_spiking_population_spikes_identically(candidate, reference, shape):
+    """A spiking population (LIF, seeded noise, path integration) emits the reference's spikes, step for step."""
+    from cansim.axes import Axis
+    from cansim.spiking import NeuronParams, SpikingParams, SpikingPopulation
+
+    if candidate.name not in SPIKING_BACKENDS:
+        pytest.skip(f"backend {candidate.name!r} has no spiking implementation")
+    axes = tuple(Axis.angle(f"a{i}", n) for i, n in enumerate(shape))
+    params = SpikingParams(neurons=NeuronParams(noise_sigma=0.3, bias_current=1.05), recurrent_weight=60.0, global_weight=0.5)
+    ref = SpikingPopulation(axes, params, seed=7, backend=reference.name)
+    got = SpikingPopulation(axes, params, seed=7, backend=candidate.name)
+    drive = np.random.default_rng(len(shape))
+    for k in range(120):
+        vel = drive.normal(0.0, 20.0, len(shape)) if k % 3 else None
+        cur = drive.normal(0.2, 0.4, shape) if k % 5 == 0 else None
+        np.testing.assert_array_equal(got.step(vel, cur), ref.step(vel, cur))
+    np.testing.assert_array_equal(got.v, ref.v)
