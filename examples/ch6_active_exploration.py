@@ -175,9 +175,9 @@ def outside_envelope(arm: Any) -> int:
     env = envelope()
     n = 0
     for cmd in arm.received:
-        if cmd.kind == "move_linear" and not _inside(cmd.target):
+        if cmd.kind == "moveL" and not _inside(cmd.target):
             n += 1
-        elif cmd.kind == "move_linear" and not (cmd.speed <= env.max_tcp_speed and cmd.acceleration_or_dt <= env.max_tcp_acceleration):
+        elif cmd.kind == "moveL" and not (cmd.speed <= env.max_tcp_speed and cmd.acceleration_or_dt <= env.max_tcp_acceleration):
             n += 1
     return n
 
