@@ -39,6 +39,8 @@ __all__ = [
     "RecognitionResult",
     "relocalisation_targets",
     "confidence",
+    "leaky_step",
+    "confidence_from_impulses",
     "integrated_confidence",
     "first_crossing",
     "decide",
@@ -114,6 +116,59 @@ def confidence(targets: np.ndarray, n_objects: int, params: LeakyIntegrator = Le
         level = level * params.decay
         if k >= 0:
             level[k] += params.impulse
+        c[i] = level
+    return c
+
+
+def _check_level(level: np.ndarray, impulses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lv = np.asarray(level, dtype=np.float64)
+    imp = np.asarray(impulses)
+    if lv.ndim != 1 or imp.shape != lv.shape:
+        raise ShapeError(f"level and impulses must both be (n_objects,), got {lv.shape}, {imp.shape}")
+    if imp.dtype.kind not in "biu":
+        raise InvalidInputError(f"impulses must be booleans or counts, got dtype {imp.dtype}")
+    if imp.size and imp.dtype.kind == "i" and imp.min() < 0:
+        raise InvalidInputError("impulse counts must be >= 0")
+    if not np.isfinite(lv).all() or (lv.size and lv.min() < 0):
+        raise InvalidInputError("level must be finite and >= 0 (a raw confidence)")
+    return lv, imp.astype(np.float64)
+
+
+def leaky_step(level: np.ndarray, impulses: np.ndarray, params: LeakyIntegrator = LeakyIntegrator()) -> np.ndarray:
+    """One iteration of every object's integrator: ``c[t] = decay c[t-1] + impulse n_k[t]``.
+
+    Several objects may receive an impulse in the same iteration (one model per object
+    map, each re-localising on its own).
+
+    Parameters
+    ----------
+    level : (n_objects,) float
+        Raw confidence ``c[t-1]`` (>= 0).
+    impulses : (n_objects,) bool or int
+        Re-localisations ``n_k[t]`` to each object this iteration.
+
+    Returns
+    -------
+    (n_objects,) float
+        ``c[t]`` (a new array; ``level`` is not changed).
+    """
+    lv, imp = _check_level(level, impulses)
+    return lv * params.decay + params.impulse * imp
+
+
+def confidence_from_impulses(impulses: np.ndarray, params: LeakyIntegrator = LeakyIntegrator()) -> np.ndarray:
+    """Raw confidence (n, n_objects) from per-iteration impulses (n, n_objects), bool or counts.
+
+    :func:`leaky_step` over the rows from a zero level; with at most one impulse per row
+    it equals :func:`confidence` of the corresponding targets.
+    """
+    a = np.asarray(impulses)
+    if a.ndim != 2 or a.shape[1] < 1:
+        raise ShapeError(f"impulses must be (n, n_objects) with n_objects >= 1, got {a.shape}")
+    c = np.zeros(a.shape)
+    level = np.zeros(a.shape[1])
+    for i in range(len(a)):
+        level = leaky_step(level, a[i], params)
         c[i] = level
     return c
 

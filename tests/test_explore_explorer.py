@@ -30,3 +30,157 @@ def test_bad_traces(bad):
         ic_metrics(np.zeros((3, 2)), 2, 300)
     with pytest.raises(CansimError):
         ic_metrics(np.zeros((3, 2)), 0, math.nan)
+
+
+# ------------------------------------------------------------------ the loop (SimArm, Box)
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from cansim.explore.explorer import Explorer, build_object_model  # noqa: E402
+from cansim.explore.placement import PlacementParams  # noqa: E402
+from cansim.explore.search import DefaultSearch  # noqa: E402
+from whisker_io.errors import SafetyViolationError  # noqa: E402
+
+#: T_pfh, T_sda of the Ch.6 experiment's calibration at the Sec 6.1.3.1.2 noise (0.75 quantile).
+PFH_T, SDA_T = 1.2, 1.29
+#: The object stands on z = 0 (0.35 m tall): the floor at z = 0.15 m makes about half the sphere's faces unreachable.
+WORKSPACE = dict(workspace_min=(-0.75, -0.75, 0.15), workspace_max=(0.75, 0.75, 1.0), max_tool_tilt=math.pi)
+
+
+def _model():
+    from cansim.frontends.whisk import WhiskFrontEndConfig
+    from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+
+    fe = WhiskFrontEndConfig(features="both", pfh_threshold=PFH_T, sda_threshold=SDA_T, feature_update=False)
+    return WhiskerRatSLAM(WhiskerRatSLAMConfig(cell_size_m=0.03, frontend=fe))
+
+
+def _odometry(seed):
+    from whisker_io.sim.odometry_noise import noisy_odometry
+
+    rng = np.random.default_rng(seed)
+    return lambda a, b: noisy_odometry(a, b, rng)
+
+
+@pytest.fixture(scope="module")
+def world():
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    known, chains = [], {}
+    for i, name in enumerate(("box", "box_stack")):
+        mesh = make_object(name)
+        chain = WhiskChain(mesh, contact_model="tip")
+        rng = np.random.default_rng(10 + i)
+        traj = object_trajectory(mesh, "A", n_loops=1)
+        known.append(build_object_model(name, traj, lambda p, c=chain, r=rng: c.features(p, r), _odometry(i),
+                                        placement=PlacementParams(roll_rad=math.pi / 2), model=_model()))
+        chains[name] = (mesh, chain)
+    return known, chains
+
+
+class CountingArm:
+    """A SimArm wrapper that counts the refusals itself (independent of the explorer's count)."""
+
+    def __init__(self, arm):
+        self.arm, self.refused = arm, 0
+
+    def pose(self):
+        return self.arm.pose()
+
+    def move_linear(self, goal):
+        try:
+            return self.arm.move_linear(goal)
+        except SafetyViolationError:
+            self.refused += 1
+            raise
+
+
+def _explorer(world, strategy="lsr", seed=3, n=60, spc=True):
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.hw.safety import SafetyEnvelope
+
+    known, chains = world
+    mesh, chain = chains["box_stack"]
+    search = DefaultSearch(mesh.bounds.mean(axis=0), float(np.linalg.norm(mesh.extents)) / 2, mesh=mesh, seed=seed)
+    env = SafetyEnvelope(**WORKSPACE)
+    search.current = int(np.argmax([search.face_pose(i).position_m[2] for i in range(len(search.directions))]))
+    arm = CountingArm(SimArm(search.face_pose(search.current), env))
+    rng = np.random.default_rng(seed)
+    cycles = []
+
+    def sensor(pose):
+        f = chain.features(pose, rng)
+        cycles.append((pose, f))
+        return f
+
+    ex = Explorer(known, sensor, arm, _odometry(100 + seed), search, strategy=strategy,
+                  placement=PlacementParams(roll_rad=math.pi / 2) if spc else None, stop_threshold=math.inf, max_iterations=n)
+    return ex, arm, env, cycles
+
+
+@pytest.mark.parametrize("strategy,spc", [("default", False), ("feh", False), ("lsr", False), ("lsr", True)])
+def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world, strategy, spc):
+    ex, arm, env, cycles = _explorer(world, strategy, spc=spc, n=60 if not spc else 150)
+    res = ex.run()
+    n = len(res.ic)
+    assert n == (60 if not spc else 150) == len(res.poses) == len(res.strategies) and res.stop_reason == "iterations"
+    sent = [c for c in arm.arm.received if c.kind == "moveL"]
+    for c in sent:  # re-checked here: nothing outside the envelope reached the arm
+        env.check_pose(c.target)
+        assert c.speed <= env.max_tcp_speed
+    # faces below the floor are refused: counted, and the explorer moved on
+    assert res.refused_commands == arm.refused
+    if strategy == "default":  # the default search walks the sphere's faces and meets the floor
+        assert arm.refused > 0
+    assert len(sent) == n - res.strategies.count("none")  # a move per whisk unless every re-plan was refused
+    # every whisk happened where the arm was
+    moved = [p for p, s in zip(res.poses[1:], res.strategies) if s != "none"]
+    np.testing.assert_allclose([p.position_m for p in moved], [c.target.position_m for c in sent][: len(moved)], atol=1e-9)
+    assert set(res.strategies) <= {"spc", "default", "feh", "lsr", "none"}
+    # IC is the running sum of the raw confidence (dt = 1)
+    np.testing.assert_allclose(res.ic, np.cumsum(res.confidence, axis=0))
+
+
+def test_replay_of_a_recorded_session_gives_the_live_beliefs(world):
+    ex, _, _, cycles = _explorer(world, "lsr", seed=5, n=50)
+    live = ex.run()
+    assert live.impulses.sum() > 0  # the comparison covers re-localisations
+    known, _ = world
+    again = Explorer(known, None, None, _odometry(105), DefaultSearch((0, 0, 0.17), 0.3), strategy="lsr")
+    rep = again.replay(cycles)
+    np.testing.assert_array_equal(rep.impulses, live.impulses)
+    np.testing.assert_allclose(rep.ic, live.ic)
+    assert rep.poses == live.poses
+
+
+def test_fresh_models_do_not_share_state(world):
+    known, _ = world
+    a = known[0].fresh_model()
+    n0 = a.object_map.n_experiences
+    ex, _, _, _ = _explorer(world, "default", seed=7, n=15)
+    ex.run()
+    assert known[0].fresh_model().object_map.n_experiences == n0 == known[0].n_built
+
+
+def test_build_object_model_with_spc_whisks_more_and_stores_the_map(world):
+    known, _ = world
+    for k in known:
+        assert k.n_built == k.model.object_map.n_experiences > 0
+        assert len(k.poses) >= k.n_history > 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(st.integers(-3, 0), st.floats(allow_nan=True), st.text(max_size=3), st.booleans()),
+       st.sampled_from(["default", "feh", "lsr", "random", ""]))
+def test_explorer_bad_arguments_are_typed(world, max_iterations, strategy):
+    known, _ = world
+    with pytest.raises(CansimError):
+        Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy=strategy, max_iterations=max_iterations)
+
+
+def test_empty_known_and_short_trajectory_are_typed():
+    with pytest.raises(CansimError):
+        Explorer([], None, None, None, DefaultSearch((0, 0, 0), 0.3))
+    with pytest.raises(CansimError):
+        build_object_model("x", [], None, None)

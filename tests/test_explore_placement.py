@@ -132,3 +132,59 @@ def test_place_any_contacts_typed_error_or_finite_pose(rows):
 def test_place_bad_shapes(c):
     with pytest.raises(CansimError):
         place(_pose(), c, P)
+
+
+# ---------------------------------------------------------------- reference point (decision)
+REF = PlacementParams(delta_theta_rad=math.radians(10), delta_l_m=0.028, delta_u_m=0.078,
+                      rotation_steps=2, translation_steps=2, reference_point_m=(0.0, 0.18, 0.0))
+
+
+def test_reference_point_flat_wall_in_band_keeps_pose():
+    # wall 0.23 m along y from the flange = 0.05 m from the reference: in [0.028, 0.078]
+    pose = _pose()
+    assert place(pose, _wall(0.23), REF) == pose
+
+
+def test_reference_point_flat_wall_too_far_translates_from_reference():
+    # 0.30 m from the flange = 0.12 m from the reference; band middle 0.053 -> (0.12 - 0.053) / 2
+    pose = _pose()
+    goal = place(pose, _wall(0.30), REF)
+    np.testing.assert_allclose(goal.position_m, [0.0335, 0.0, 0.3], atol=1e-9)
+    np.testing.assert_allclose(goal.rotation.as_matrix(), FACING_X, atol=1e-9)
+
+
+def test_reference_point_tilted_wall_turns_where_the_origin_would_not():
+    # median contact (0.02, 0.23, 0) in E: 4.97 deg off y from the flange (inside 10 deg),
+    # atan(0.02 / 0.05) = 21.8 deg from the reference -> turn min(21.8 / 2, 10) = 10 deg toward +x_E
+    c = np.array([[0.02, 0.23, 0.0], [0.01, 0.22, 0.0], [0.03, 0.24, 0.0]])
+    pose = _pose()
+    assert place(pose, c, P) == pose  # from the flange: in the cone, e_dy = 0.23 in [0.21, 0.26]
+    goal = place(pose, c, REF)
+    y_e = np.array([math.sin(math.radians(10)), math.cos(math.radians(10)), 0.0])
+    np.testing.assert_allclose(goal.rotation.as_matrix()[:, 1], FACING_X @ y_e, atol=1e-9)
+    np.testing.assert_allclose(goal.position_m, pose.position_m, atol=1e-12)  # turned about the flange
+
+
+def test_centroid_params_shift_the_band_by_the_centroid_y():
+    from cansim.explore.placement import base_centroid, centroid_params
+    from whisker_io.array.geometry import WhiskerArray
+
+    pos = WhiskerArray.thesis().positions_m
+    c = base_centroid()
+    assert c[1] == pytest.approx(sum(p[1] for p in pos) / len(pos))
+    q = centroid_params(PlacementParams(delta_l_m=0.21, delta_u_m=0.26))
+    assert q.reference_point_m == c
+    assert (q.delta_l_m, q.delta_u_m) == pytest.approx((0.21 - c[1], 0.26 - c[1]))
+    with pytest.raises(ConfigError):
+        centroid_params(PlacementParams(delta_l_m=0.01, delta_u_m=0.05))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=2)), min_size=0, max_size=4))
+def test_bad_reference_point_is_a_config_error(values):
+    ok = len(values) == 3 and all(isinstance(v, float) and math.isfinite(v) and abs(v) <= 10 for v in values)
+    if ok:
+        assert PlacementParams(reference_point_m=tuple(values)).reference_point_m == tuple(values)
+    else:
+        with pytest.raises(ConfigError):
+            PlacementParams(reference_point_m=tuple(values))

@@ -94,3 +94,41 @@ def test_bad_input_is_typed():
         recognise(np.array([0]), 2, correct=2)
     with pytest.raises(InvalidInputError):
         relocalisation_targets(np.array([9]), np.array([True]), np.array([0, 1]))
+
+
+# ------------------------------------------------ several impulses per iteration (one model per map)
+def test_leaky_step_by_hand_with_two_objects_at_once():
+    from maps.recognition import confidence_from_impulses, leaky_step
+
+    p = LeakyIntegrator(impulse=1.0, decay=0.5)
+    np.testing.assert_allclose(leaky_step(np.array([2.0, 0.0, 1.0]), np.array([True, True, False]), p), [2.0, 1.0, 0.5])
+    imp = np.array([[1, 1], [0, 1], [0, 0], [2, 0]])
+    # hand: [1,1] -> [0.5,1.5] -> [0.25,0.75] -> [2.125,0.375]
+    np.testing.assert_allclose(confidence_from_impulses(imp, p), [[1, 1], [0.5, 1.5], [0.25, 0.75], [2.125, 0.375]])
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.integers(-1, 2), min_size=1, max_size=30))
+def test_confidence_from_impulses_equals_confidence_for_single_targets(targets):
+    from maps.recognition import confidence_from_impulses
+
+    t = np.array(targets)
+    imp = np.zeros((len(t), 3), dtype=bool)
+    imp[np.arange(len(t))[t >= 0], t[t >= 0]] = True
+    np.testing.assert_allclose(confidence_from_impulses(imp), confidence(t, 3))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.just(np.array([np.nan, 0.0])), st.just(np.array([-1.0, 0.0])), st.just(np.zeros(3)),
+                 st.just(np.zeros((2, 2)))),
+       st.one_of(st.just(np.array([True, False])), st.just(np.array([-1, 0])), st.just(np.array([0.5, 0.0]))))
+def test_leaky_step_bad_input_is_typed(level, impulses):
+    from cansim.errors import CansimError
+    from maps.recognition import leaky_step
+
+    good = level.shape == (2,) and np.isfinite(level).all() and (level >= 0).all() and impulses.dtype.kind == "b"
+    if good:
+        assert leaky_step(level, impulses).shape == (2,)
+    else:
+        with pytest.raises(CansimError):
+            leaky_step(level, impulses)

@@ -49,7 +49,7 @@ from cansim.explore.search import (
 )
 from cansim.whisker_ratslam import WhiskerRatSLAM
 from maps.odometry import SpatialOdometry
-from maps.recognition import LeakyIntegrator, first_crossing
+from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
 from whisker_io.errors import SafetyViolationError
 from whisker_io.pose import Pose
 
@@ -321,7 +321,7 @@ class Explorer:
                 reloc.append((k, int(st.exp_id)))
                 v.last_relocalised = int(st.exp_id)
                 imp[k] = True
-        self._level = self._level * self.integrator.decay + self.integrator.impulse * imp
+        self._level = leaky_step(self._level, imp, self.integrator)
         self._ic = self._ic + self._level * self.integrator.dt
         self._c.append(self._level.copy())
         self._icl.append(self._ic.copy())

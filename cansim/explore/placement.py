@@ -3,11 +3,13 @@
 Given the end-effector pose ``T_BE`` and the whisk's contact points, with at least
 ``mu`` contacts (Alg 7, with two misprints of the printed algorithm fixed):
 
-1. ``e = median(c)`` (per coordinate, world frame); ``n = (e - p_ee) / |e - p_ee|``.
+1. ``e = median(c)`` (per coordinate, world frame); ``n = (e - p_ref) / |e - p_ref|``, where
+   ``p_ref`` is the reference point (``reference_point_m``, end-effector frame; default
+   the end-effector origin ``p_ee`` of Alg 7).
 2. If ``acos(y_ee . n) > delta_theta`` the array turns toward the median: the goal's
    y-axis is ``y_ee`` rotated toward ``n`` by ``angle / rotation_steps``, at most
    ``max_rotation_step_rad``, about the end-effector origin (position kept).
-3. Otherwise ``e_dy = median((c - p_ee) . y_ee)`` (the median perpendicular distance);
+3. Otherwise ``e_dy = median((c - p_ref) . y_ee)`` (the median perpendicular distance);
    if it lies outside ``[delta_l, delta_u]`` the array moves along ``y_ee`` by
    ``(e_dy - (delta_l + delta_u) / 2) / translation_steps``.
 4. Either goal is made by :func:`maintain_yaw` (Alg 8; the thesis' ``maintain_roll``
@@ -19,6 +21,18 @@ Given the end-effector pose ``T_BE`` and the whisk's contact points, with at lea
 
 Rotation comes before translation; with fewer than ``mu`` contacts, or with the median
 already in the cone and in the band, the goal is the current pose.
+
+Decision (reference point): Alg 7 measures the cone and the distance from ``p_ee``, which
+is ambiguous for an array whose whisker bases sit 0.16-0.20 m along y from the flange.
+``reference_point_m`` makes the point explicit; :func:`base_centroid` gives the centroid
+of the whisker bases (the array's sensing origin) with the band shifted by the
+centroid's y (:func:`centroid_params`). Measured on the thesis array (no noise, roll
+pi/2, flat wall faced squarely 1-4 cm in front of the bases) the median contact lies
+9-12 deg off y from ``p_ee`` but 25-48 deg off from the base centroid (the contacts are
+only 2-8 cm in front of it while their median sits ~4 cm off the axis, the array's
+whisker lengths being uneven); on the Box trajectories 29 deg (median) from ``p_ee``
+and 67 deg from the centroid. The centroid therefore does not bring the median into a
+10-deg cone; the default stays ``p_ee`` (Alg 7 as printed).
 """
 
 from __future__ import annotations
@@ -34,7 +48,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.sim.trajectories import facing_pose
 
-__all__ = ["PlacementParams", "maintain_yaw", "place"]
+__all__ = ["PlacementParams", "base_centroid", "centroid_params", "maintain_yaw", "place"]
 
 _MAX_CONTACT_DISTANCE_M = 10.0
 
@@ -63,6 +77,10 @@ class PlacementParams:
         Fixed roll about y after Alg 8 (default 0; the simulated trajectories use pi/2).
     up : tuple of 3 float
         World up direction, Alg 8's ``g``.
+    reference_point_m : tuple of 3 float or None
+        Point (end-effector frame, m) the cone and the perpendicular distance are
+        measured from (None: the end-effector origin, Alg 7's ``p_ee``); see the
+        module docstring and :func:`centroid_params`.
     """
 
     mu: int = 3
@@ -74,6 +92,7 @@ class PlacementParams:
     max_rotation_step_rad: float | None = None
     roll_rad: float = 0.0
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    reference_point_m: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("mu", "rotation_steps", "translation_steps"):
@@ -94,11 +113,55 @@ class PlacementParams:
         g = np.asarray(self.up, dtype=float)
         if g.shape != (3,) or not np.isfinite(g).all() or not np.linalg.norm(g) > 0:
             raise ConfigError(f"up must be 3 finite numbers, not all zero, got {self.up!r}")
+        r = self.reference_point_m
+        if r is not None:
+            try:
+                ra = np.asarray(r, dtype=float)
+            except (TypeError, ValueError):
+                raise ConfigError(f"reference_point_m must be 3 finite numbers (m) or None, got {r!r}") from None
+            if ra.shape != (3,) or not np.isfinite(ra).all() or np.abs(ra).max() > _MAX_CONTACT_DISTANCE_M:
+                raise ConfigError(f"reference_point_m must be 3 finite numbers within {_MAX_CONTACT_DISTANCE_M} m, got {r!r}")
+            object.__setattr__(self, "reference_point_m", tuple(float(x) for x in ra))
 
     @property
     def rotation_cap_rad(self) -> float:
         """The largest turn per call."""
         return self.delta_theta_rad if self.max_rotation_step_rad is None else float(self.max_rotation_step_rad)
+
+
+def base_centroid(array: object | None = None) -> tuple[float, float, float]:
+    """Centroid of the whisker bases in the end-effector frame, m (the array's sensing origin).
+
+    Parameters
+    ----------
+    array : whisker_io.array.geometry.WhiskerArray, optional
+        Default the thesis array (Fig 2.15; its centroid is about (-0.002, 0.182, 0.013) m).
+    """
+    from whisker_io.array.geometry import WhiskerArray
+
+    arr = WhiskerArray.thesis() if array is None else array
+    if not isinstance(arr, WhiskerArray):
+        raise InvalidInputError(f"array must be a WhiskerArray, got {type(arr).__name__}")
+    c = np.asarray(arr.positions_m, dtype=float).mean(axis=0)
+    return float(c[0]), float(c[1]), float(c[2])
+
+
+def centroid_params(params: PlacementParams = PlacementParams(), array: object | None = None) -> PlacementParams:
+    """``params`` measured from the base centroid, the band shifted by the centroid's y.
+
+    The band ``[delta_l, delta_u]`` of ``params`` (from the end-effector origin) becomes
+    ``[delta_l - y_c, delta_u - y_c]`` (clipped at 0), so the same surface distance lies
+    in the band; with the defaults and the thesis array, 0.028-0.078 m.
+    """
+    if not isinstance(params, PlacementParams):
+        raise InvalidInputError(f"params must be a PlacementParams, got {type(params).__name__}")
+    c = base_centroid(array)
+    lo, hi = max(0.0, params.delta_l_m - c[1]), params.delta_u_m - c[1]
+    if not hi > lo:
+        raise ConfigError(f"the band [{params.delta_l_m}, {params.delta_u_m}] m lies behind the base centroid (y = {c[1]:.3f} m)")
+    from dataclasses import replace
+
+    return replace(params, reference_point_m=c, delta_l_m=lo, delta_u_m=hi)
 
 
 def _roll(roll_rad: float) -> Rotation:
@@ -168,8 +231,9 @@ def place(ee_pose: PoseLike, contacts_ee_m: ArrayLike, params: PlacementParams =
     c = _contacts_world(pose, contacts_ee_m)
     if len(c) < params.mu:
         return pose
-    p = pose.position_m
     R = pose.rotation.as_matrix()
+    p = pose.position_m if params.reference_point_m is None else pose.apply(np.asarray(params.reference_point_m)[None])[0]
+    p_ee = pose.position_m
     y = R[:, 1]
     unrolled = pose.rotation * _roll(params.roll_rad).inv()
     prev_z = unrolled.as_matrix()[:, 2]
@@ -188,10 +252,10 @@ def place(ee_pose: PoseLike, contacts_ee_m: ArrayLike, params: PlacementParams =
             axis, an = R[:, 0], 1.0
         y_new = Rotation.from_rotvec(axis / an * turn).apply(y)
         rot = maintain_yaw(y_new, prev_z, params.up) * _roll(params.roll_rad)
-        return Pose.from_rotation(p, rot)
+        return Pose.from_rotation(p_ee, rot)
     e_dy = float(np.median((c - p) @ y))
     if params.delta_l_m <= e_dy <= params.delta_u_m:
         return pose
     shift = (e_dy - 0.5 * (params.delta_l_m + params.delta_u_m)) / params.translation_steps
     rot = maintain_yaw(y, prev_z, params.up) * _roll(params.roll_rad)
-    return Pose.from_rotation(p + shift * y, rot)
+    return Pose.from_rotation(p_ee + shift * y, rot)

@@ -1,0 +1,381 @@
+"""Thesis Ch.6 in one command: active exploration for fast recognition (Alg 7-8, Eq 6.1-6.3, Fig 6.2-6.9).
+
+Run::
+
+    python examples/ch6_active_exploration.py            # 10 seeds x 3 strategies, up to 1000 whisks a run
+    python examples/ch6_active_exploration.py --quick    # 2 seeds, 300 whisks a run (< 3 min)
+
+Steps:
+
+1. **Thresholds** T_pfh, T_sda: :func:`ch5_study.calibrate` (same-pose whisk pairs on the
+   Mug, not one of the Ch.6 objects) at the contact noise of Sec 6.1.3.1.2.
+2. **Object maps** of Box and Box-Stack: two loops over the ellipsoid fitted to each
+   object (:func:`whisker_io.sim.trajectories.object_trajectory`), the surface placement
+   controller (SPC) at every pose, Eq 6.4-6.11 odometry noise
+   (:func:`cansim.explore.explorer.build_object_model`).
+3. **Exploration runs** (:class:`cansim.explore.explorer.Explorer`): every seed x
+   strategy (default, FEH, LSR) x presented object (Box, Box-Stack; the unknown object is
+   not named), SPC on; and SPC on vs off with the default search, Box-Stack presented.
+   The arm is a :class:`whisker_io.hw.arm.SimArm`: every command passes its safety
+   envelope (workspace z >= 0.02 m, so faces under the table are refused and re-planned).
+   A run goes to the iteration limit (no early stop) and the IC thresholds 100, 300,
+   600 and 900 are evaluated on its IC trace (:func:`cansim.explore.explorer.ic_metrics`;
+   a crossing that never happens is censored at the run's end).
+
+Outputs (working directory or ``--out``): ``ch6_runs.csv`` (one row per run and
+threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_spc.png``,
+``fig6_7_im_threshold.png``, ``fig6_8_im_strategy.png``, ``fig6_9_srt_strategy.png`` and
+``ch6_summary.txt`` (each thesis finding, the measured figure, reproduced or not).
+
+Settings (this project's choices where the thesis is silent): contact estimate
+``tip`` (the sweep-only chain; the hardware path uses an SVR model); the SPC defaults of
+:class:`cansim.explore.placement.PlacementParams` with the trajectories' roll of 90 deg;
+10 SPC adjustments per region; leaky integrator impulse 1, decay 0.75 per whisk.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import ch5_study  # noqa: E402
+
+logger = logging.getLogger("ch6_active_exploration")
+
+OBJECTS = ("box", "box_stack")
+STRATEGY_NAMES = ("default", "feh", "lsr")
+THRESHOLDS = (100.0, 300.0, 600.0, 900.0)
+COLUMNS = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
+           "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands",
+           "commands_outside_envelope", "stop_reason")
+#: Workspace of the simulated arm (object on a table at z = 0, centred at the origin), m.
+WORKSPACE_MIN = (-0.75, -0.75, 0.02)
+WORKSPACE_MAX = (0.75, 0.75, 1.0)
+
+
+@dataclass(frozen=True)
+class Setup:
+    """Shared state of one study: thresholds and object maps."""
+
+    known: list[Any]
+    pfh_threshold: float
+    sda_threshold: float
+    noise_scale: float
+
+
+def envelope() -> Any:
+    """The simulated arm's safety envelope (any tool tilt: the array faces the object sideways)."""
+    from whisker_io.hw.safety import SafetyEnvelope
+
+    return SafetyEnvelope(workspace_min=WORKSPACE_MIN, workspace_max=WORKSPACE_MAX, max_tool_tilt=math.pi)
+
+
+def chain_for(name: str, noise_scale: float) -> Any:
+    """The simulated whisk chain on object ``name`` (sweep-only, tip contact, Sec 6.1.3.1.2 noise)."""
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    return WhiskChain(make_object(name), contact_model="tip", contact_noise=ch5_study._noise(noise_scale))
+
+
+def spc_params() -> Any:
+    from cansim.explore.placement import PlacementParams
+
+    return PlacementParams(roll_rad=math.pi / 2)
+
+
+def slam_model(pfh_threshold: float, sda_threshold: float) -> Any:
+    from cansim.frontends.whisk import WhiskFrontEndConfig
+    from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+
+    fe = WhiskFrontEndConfig(features="both", pfh_threshold=pfh_threshold, sda_threshold=sda_threshold, feature_update=False)
+    return WhiskerRatSLAM(WhiskerRatSLAMConfig(cell_size_m=0.03, frontend=fe))
+
+
+def prepare(seed: int, noise_scale: float = 1.0, n_loops: int = 2) -> Setup:
+    """Thresholds (step 1) and the object maps of Box and Box-Stack (step 2)."""
+    from cansim.explore.explorer import build_object_model
+    from whisker_io.sim.odometry_noise import noisy_odometry
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.trajectories import object_trajectory
+
+    cal = ch5_study.calibrate(noise_scale, 0.75, seed)
+    known = []
+    for name in OBJECTS:
+        rng = np.random.default_rng(ch5_study.run_seed(seed, "map", name))
+        chain = chain_for(name, noise_scale)
+        traj = object_trajectory(make_object(name), "A", n_loops=n_loops)
+        known.append(build_object_model(
+            name, traj, lambda p, c=chain, r=rng: c.features(p, r), lambda a, b, r=rng: noisy_odometry(a, b, r),
+            placement=spc_params(), model=slam_model(cal["pfh_threshold"], cal["sda_threshold"])))
+    return Setup(known, cal["pfh_threshold"], cal["sda_threshold"], noise_scale)
+
+
+def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
+                 arm: Any = None, stop_threshold: float = math.inf) -> tuple[Any, Any, list[tuple[Any, Any]]]:
+    """An Explorer on the simulated ``presented`` object; returns (explorer, arm, recorded cycles).
+
+    The sensor appends every ``(pose, features)`` it produces to the returned list (a
+    recorded session for :meth:`Explorer.replay`); the odometry noise has its own
+    generator seeded from ``seed``, so a replay with :func:`replay_odometry` sees the same noise.
+    """
+    from cansim.explore.explorer import Explorer
+    from cansim.explore.search import DefaultSearch
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.sim.objects import make_object
+
+    mesh = make_object(presented)
+    chain = chain_for(presented, setup.noise_scale)
+    sensor_rng = np.random.default_rng(ch5_study.run_seed(seed, "sensor", presented, strategy, spc))
+    search = DefaultSearch(mesh.bounds.mean(axis=0), float(np.linalg.norm(mesh.extents)) / 2, mesh=mesh, seed=seed)
+    if arm is None:
+        arm = SimArm(search.face_pose(search.current) if _inside(search.face_pose(search.current)) else None, envelope())
+    cycles: list[tuple[Any, Any]] = []
+
+    def sensor(pose: Any) -> Any:
+        f = chain.features(pose, sensor_rng)
+        cycles.append((pose, f))
+        return f
+
+    ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
+                  placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations)
+    return ex, arm, cycles
+
+
+def replay_odometry(seed: int, presented: str, strategy: str, spc: bool) -> Any:
+    """Eq 6.4-6.11 noisy odometry with a generator fixed by the run's identity."""
+    from whisker_io.sim.odometry_noise import noisy_odometry
+
+    rng = np.random.default_rng(ch5_study.run_seed(seed, "odometry", presented, strategy, spc))
+    return lambda a, b: noisy_odometry(a, b, rng)
+
+
+def _inside(pose: Any) -> bool:
+    from whisker_io.errors import SafetyViolationError
+
+    try:
+        envelope().check_pose(pose)
+        return True
+    except SafetyViolationError:
+        return False
+
+
+def outside_envelope(arm: Any) -> int:
+    """Commands that reached the simulated arm outside the envelope (re-checked independently)."""
+    env = envelope()
+    n = 0
+    for cmd in arm.received:
+        if cmd.kind == "moveL" and not _inside(cmd.target):
+            n += 1
+        elif cmd.kind == "moveL" and not (cmd.speed <= env.max_tcp_speed and cmd.acceleration_or_dt <= env.max_tcp_acceleration):
+            n += 1
+    return n
+
+
+def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int) -> dict[str, Any]:
+    """One exploration run and its traces."""
+    ex, arm, _ = explorer_for(setup, presented, strategy, spc, seed, max_iterations)
+    res = ex.run()
+    return {"seed": seed, "presented": presented, "strategy": strategy, "spc": "on" if spc else "off", "result": res,
+            "correct": OBJECTS.index(presented), "outside": outside_envelope(arm)}
+
+
+def run_rows(run: dict[str, Any]) -> list[dict[str, Any]]:
+    """One ``ch6_runs.csv`` row per IC threshold."""
+    res, k = run["result"], run["correct"]
+    c = res.confidence
+    others = [j for j in range(c.shape[1]) if j != k]
+    rows = []
+    for thr in THRESHOLDS:
+        m = res.metrics(k, thr)
+        rows.append({
+            "seed": run["seed"], "presented": run["presented"], "strategy": run["strategy"], "spc": run["spc"],
+            "threshold": thr, "im": m.im, "srt": m.srt,
+            "identity": "" if m.identity is None else OBJECTS[m.identity], "correct_first": m.correct_first,
+            "mean_correct_confidence": float(c[:, k].mean()) if len(c) else 0.0,
+            "mean_incorrect_confidence": float(c[:, others].mean()) if len(c) and others else 0.0,
+            "iterations": len(c), "refused_commands": res.refused_commands,
+            "commands_outside_envelope": run["outside"], "stop_reason": res.stop_reason,
+        })
+    return rows
+
+
+# --------------------------------------------------------------------------- figures
+def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[str, Any]], rows: list[dict[str, Any]]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    # Fig 6.2: whisk poses with and without SPC (noisy odometry), one seed
+    fig = plt.figure(figsize=(10, 5))
+    for i, label in enumerate(("on", "off")):
+        r = next((x for x in spc_runs if x["spc"] == label), None)
+        ax = fig.add_subplot(1, 2, i + 1, projection="3d")
+        if r is not None:
+            P = np.array([p.position_m for p in r["result"].poses])
+            Y = np.array([p.rotation.as_matrix()[:, 1] for p in r["result"].poses])
+            ax.quiver(P[:, 0], P[:, 1], P[:, 2], Y[:, 0], Y[:, 1], Y[:, 2], length=0.05, linewidth=0.5)
+            ax.plot(P[:, 0], P[:, 1], P[:, 2], lw=0.4, color="grey")
+        ax.set_title(f"SPC {label}: whisk poses (y-axis arrows)")
+        ax.set_xlabel("x (m)"); ax.set_ylabel("y (m)"); ax.set_zlabel("z (m)")
+    fig.tight_layout(); fig.savefig(out / "fig6_2_spc_poses.png", dpi=100); plt.close(fig)
+
+    # Fig 6.4: raw (RC) and integrated confidence over time, one run
+    r = runs[0]["result"] if runs else None
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    if r is not None:
+        for k, name in enumerate(OBJECTS):
+            axes[0].plot(r.confidence[:, k], label=name)
+            axes[1].plot(r.ic[:, k], label=name)
+        for thr in THRESHOLDS:
+            axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
+    axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
+    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {runs[0]['presented']} presented, {runs[0]['strategy']}" if runs else "")
+    fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
+
+    first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
+    spc_rows = [x for x in first if x.get("study") == "spc"]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    data = [[x[col] for x in spc_rows if x["spc"] == s] for col in ("mean_correct_confidence", "mean_incorrect_confidence")
+            for s in ("on", "off")]
+    ax.boxplot([d if d else [np.nan] for d in data], notch=True)
+    ax.set_xticks([1, 2, 3, 4], ["correct\nSPC on", "correct\nSPC off", "incorrect\nSPC on", "incorrect\nSPC off"])
+    ax.set_ylabel("mean raw confidence"); ax.set_title("Fig 6.6: SPC on vs off")
+    fig.tight_layout(); fig.savefig(out / "fig6_6_confidence_spc.png", dpi=100); plt.close(fig)
+
+    strat_rows = [x for x in rows if x["spc"] == "on" and x.get("study") == "strategy"]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for s in STRATEGY_NAMES:
+        med = [np.median([x["im"] for x in strat_rows if x["strategy"] == s and x["threshold"] == t] or [np.nan]) for t in THRESHOLDS]
+        ax.plot(THRESHOLDS, med, marker="o", label=s)
+    ax.set_xlabel("IC threshold"); ax.set_ylabel("median IM (whisks)"); ax.legend(); ax.set_title("Fig 6.7: IM vs threshold")
+    fig.tight_layout(); fig.savefig(out / "fig6_7_im_threshold.png", dpi=100); plt.close(fig)
+
+    for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: IM at IC 300"),
+                              ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: SRT at IC 300")):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        d = [[x[col] for x in strat_rows if x["strategy"] == s and x["threshold"] == 300.0] or [np.nan] for s in STRATEGY_NAMES]
+        ax.boxplot(d, notch=True)
+        ax.set_xticks([1, 2, 3], list(STRATEGY_NAMES)); ax.set_ylabel(f"{col.upper()} (whisks)"); ax.set_title(title)
+        fig.tight_layout(); fig.savefig(out / fname, dpi=100); plt.close(fig)
+
+
+# --------------------------------------------------------------------------- summary
+def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float) -> str:
+    from scipy import stats
+
+    lines = [f"Thesis Ch.6 active exploration ({'quick' if args.quick else 'full'} run, seeds {args.seeds}, "
+             f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)",
+             f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}",
+             "maps: " + ", ".join(f"{k.name} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
+                                  for k in setup.known), ""]
+    first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
+    spc_rows = [x for x in first if x.get("study") == "spc"]
+    on = [x["mean_correct_confidence"] for x in spc_rows if x["spc"] == "on"]
+    off = [x["mean_correct_confidence"] for x in spc_rows if x["spc"] == "off"]
+    on_i = [x["mean_incorrect_confidence"] for x in spc_rows if x["spc"] == "on"]
+    off_i = [x["mean_incorrect_confidence"] for x in spc_rows if x["spc"] == "off"]
+    p = stats.mannwhitneyu(on, off, alternative="greater").pvalue if on and off and len(set(on + off)) > 1 else math.nan
+    rep = bool(on and off and np.median(on) > np.median(off) and p < 0.05)
+    lines.append(f"1. SPC raises the correct-identity confidence significantly (thesis Fig 6.6): median on {np.median(on) if on else math.nan:.3f} "
+                 f"vs off {np.median(off) if off else math.nan:.3f}, Mann-Whitney one-sided p = {p:.3g} (n = {len(on)}, {len(off)}); "
+                 f"incorrect on {np.median(on_i) if on_i else math.nan:.3f} vs off {np.median(off_i) if off_i else math.nan:.3f}. "
+                 f"{'REPRODUCED' if rep else 'NOT reproduced'}")
+    strat = [x for x in rows if x.get("study") == "strategy"]
+    at300 = {s: [x for x in strat if x["strategy"] == s and x["threshold"] == 300.0] for s in STRATEGY_NAMES}
+    med = {s: (float(np.median([x["im"] for x in v])) if v else math.nan, float(np.median([x["srt"] for x in v])) if v else math.nan)
+           for s, v in at300.items()}
+    groups_im = [[x["im"] for x in v] for v in at300.values() if v]
+    groups_srt = [[x["srt"] for x in v] for v in at300.values() if v]
+
+    def kw(g: list[list[float]]) -> float:
+        flat = [y for x in g for y in x]
+        return stats.kruskal(*g).pvalue if len(g) > 1 and len(set(flat)) > 1 else math.nan
+
+    p_im, p_srt = kw(groups_im), kw(groups_srt)
+    best_im = max(med, key=lambda s: med[s][0]) if strat else None
+    best_srt = min(med, key=lambda s: med[s][1]) if strat else None
+    lines.append("2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): "
+                 + "; ".join(f"{s} IM {m[0]:.0f} SRT {m[1]:.0f}" for s, m in med.items())
+                 + f"; Kruskal-Wallis p(IM) = {p_im:.3g}, p(SRT) = {p_srt:.3g}. "
+                 + ("REPRODUCED" if best_im == "lsr" and best_srt == "lsr" else "NOT reproduced")
+                 + f" (highest IM: {best_im}, lowest SRT: {best_srt})")
+    per_thr = {}
+    for t in THRESHOLDS:
+        v = [x for x in strat if x["threshold"] == t]
+        crossed = [x for x in v if x["identity"] != ""]
+        per_thr[t] = (sum(x["correct_first"] for x in v), len(v), len(crossed), float(np.median([x["im"] for x in v])) if v else math.nan)
+    best_thr = max(THRESHOLDS, key=lambda t: (per_thr[t][0], -t)) if strat else None
+    lines.append("3. IC ~300 is the best threshold (Fig 6.7): per threshold correct-first / runs / runs with any crossing / median IM: "
+                 + "; ".join(f"{t:.0f}: {a}/{b}/{c}/{d:.0f}" for t, (a, b, c, d) in per_thr.items())
+                 + f". Best by correct-first count: {best_thr}. " + ("REPRODUCED" if best_thr == 300.0 else "NOT reproduced"))
+    lines.append("")
+    lines.append("Correct identity first at IC 300, per strategy: "
+                 + "; ".join(f"{s} {sum(x['correct_first'] for x in v)}/{len(v)}" for s, v in at300.items()))
+    reasons = {}
+    for x in first:
+        reasons[x["stop_reason"]] = reasons.get(x["stop_reason"], 0) + 1
+    censored = sum(1 for x in strat if x["threshold"] == 300.0 and x["identity"] == "")
+    lines.append(f"Runs: {len(first)} ({reasons}); at IC 300, {censored} strategy runs never crossed (IM/SRT censored at the run's end).")
+    lines.append(f"Safety: refused commands (re-planned) {sum(x['refused_commands'] for x in first)}; "
+                 f"commands that reached the arm outside the envelope {sum(x['commands_outside_envelope'] for x in first)}.")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="2 seeds, 300 whisks a run (< 3 min)")
+    ap.add_argument("--out", type=Path, default=Path("."), help="output folder (default: working directory)")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds per strategy (default 10, quick 2)")
+    ap.add_argument("--iterations", type=int, default=None, help="whisks per run (default 1000, quick 300)")
+    ap.add_argument("--seed", type=int, default=0, help="base seed")
+    ap.add_argument("--noise-scale", type=float, default=1.0, help="contact-noise scale (1: Sec 6.1.3.1.2)")
+    args = ap.parse_args(list(argv) if argv is not None else None)
+    args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 10)
+    args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
+    if args.seeds < 1 or args.iterations < 2 or not (math.isfinite(args.noise_scale) and args.noise_scale >= 0):
+        print("ch6_active_exploration: --seeds >= 1, --iterations >= 2 and a finite --noise-scale >= 0 are needed", file=sys.stderr)
+        return 2
+    logging.basicConfig(level=logging.WARNING)
+    logging.getLogger("cansim.explore.explorer").setLevel(logging.ERROR)  # refusals are counted in the CSV
+    args.out.mkdir(parents=True, exist_ok=True)
+    from tqdm import tqdm
+
+    t0 = time.monotonic()
+    setup = prepare(args.seed, args.noise_scale)
+    jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in OBJECTS]
+    jobs += [("spc", "box_stack", "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
+    runs, spc_runs, rows = [], [], []
+    for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr):
+        if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
+            r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
+        else:
+            r = run_one(setup, p, s, spc, seed, args.iterations)
+        (runs if study == "strategy" else spc_runs).append(r)
+        for row in run_rows(r):
+            row["study"] = study
+            rows.append(row)
+    with open(args.out / "ch6_runs.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(COLUMNS) + ["study"])
+        w.writeheader()
+        w.writerows(rows)
+    figures(args.out, runs, spc_runs, rows)
+    text = summary(rows, setup, args, time.monotonic() - t0)
+    (args.out / "ch6_summary.txt").write_text(text)
+    sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

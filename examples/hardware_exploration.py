@@ -1,0 +1,215 @@
+"""Active exploration (thesis Ch.6) on the real platform: a UR arm + the USB whisker array.
+
+The explorer of :mod:`cansim.explore.explorer` drives a :class:`~whisker_io.hw.arm.URArm`
+(every command through its safety envelope; a refused command is counted and re-planned)
+with the Ch.6 settings: the array whisks with RCP retract-at-maximum, each cycle is
+recorded (CSV + pose log, :class:`~whisker_io.hw.recorder.Recorder`) and turned into
+region features by :class:`~whisker_io.sim.whisk_chain.RecordedChain` with an SVR radial
+model (``svr10`` of Table 4.1, ``--radial-model``). The known objects are WhiskerRatSLAM
+models saved with ``WhiskerRatSLAM.save`` (``--map NAME=PATH``, at least one). The
+default search visits the faces of a sphere of ``--object-radius`` around
+``--object-centre`` (base frame). Odometry is the arm's (exact). The run stops at the IC
+threshold or after ``--iterations`` whisks; ``exploration.csv`` in ``--out`` holds the
+per-whisk raw and integrated confidence of every known object.
+Needs the ``hw`` extra: ``pip install cansim[hw]``.
+
+Usage::
+
+    python examples/hardware_exploration.py --robot-ip 192.168.1.10 --radial-model svr10.skops \\
+        --map box=box.npz --map box_stack=box_stack.npz --object-centre 0.4 0 0.2 [--out hw_explore]
+
+Replay a recorded session through the same code: ``--replay DIR`` (no robot needed).
+
+Exit status (one line on stderr says why, never a traceback):
+
+=====  =====================================================================
+0      done
+1      any other failure reported by the library (a typed ``CansimError``)
+2      usage error: bad command line, envelope, map or radial-model argument
+3      no robot reachable at ``--robot-ip``
+4      no whisker array found on USB
+5      the session stopped on a fault (completed whisks are kept on disk)
+6      the ``hw`` extra (ur-rtde, pyusb) is not installed
+=====  =====================================================================
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import math
+import sys
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from whisker_io.errors import CansimError, ConnectionFailedError, HardwareError
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = range(7)
+#: RCP retract-at-maximum threshold (counts; 98 % of the 2047-count maximum, Sec 4.1.1).
+RCP_THRESHOLD = 2000.0
+
+
+def fail(status: int, message: str) -> int:
+    print(f"hardware_exploration: {message}", file=sys.stderr)
+    return status
+
+
+def exact_odometry() -> Callable[[Any, Any], tuple[np.ndarray, np.ndarray, float]]:
+    """The arm's odometry between two poses (Eq 6.4-6.11 with every noise term zero)."""
+    from whisker_io.sim.odometry_noise import OdometryNoise, noisy_odometry
+
+    params = OdometryNoise(angular_speed_std_rad_s=0.0, euler_std_rad=0.0, displacement_std_m=0.0)
+    rng = np.random.default_rng(0)
+    return lambda a, b: noisy_odometry(a, b, rng, params)
+
+
+def load_known(specs: Sequence[str]) -> list[Any]:
+    """``NAME=PATH`` -> :class:`~cansim.explore.explorer.KnownObject` (a saved WhiskerRatSLAM)."""
+    from cansim.explore.explorer import KnownObject
+    from cansim.whisker_ratslam import WhiskerRatSLAM
+
+    known = []
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep or not name or not path:
+            raise ValueError(f"--map takes NAME=PATH, got {spec!r}")
+        m = WhiskerRatSLAM.load(path)
+        om = m.object_map
+        known.append(KnownObject(name, m, om.n_experiences, len(m.frontend), len(om.history)))
+    return known
+
+
+def write_trace(path: Path, names: Sequence[str], result: Any) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["iteration", "source"] + [f"confidence_{n}" for n in names] + [f"ic_{n}" for n in names])
+        for i in range(len(result.ic)):
+            w.writerow([i, result.strategies[i]] + [f"{v:.6g}" for v in result.confidence[i]] + [f"{v:.6g}" for v in result.ic[i]])
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot-ip", help="UR controller address (not needed with --replay)")
+    ap.add_argument("--radial-model", required=True, help="Ch.4 svr10 model (.skops)")
+    ap.add_argument("--map", action="append", default=[], metavar="NAME=PATH", help="a known object's saved model")
+    ap.add_argument("--object-centre", type=float, nargs=3, default=(0.4, 0.0, 0.2), help="base frame, m")
+    ap.add_argument("--object-radius", type=float, default=0.15, help="default-search sphere radius, m")
+    ap.add_argument("--strategy", choices=("default", "feh", "lsr"), default="lsr")
+    ap.add_argument("--spc", choices=("on", "off"), default="on")
+    ap.add_argument("--threshold", type=float, default=300.0, help="IC threshold")
+    ap.add_argument("--iterations", type=int, default=300)
+    ap.add_argument("--time-limit", type=float, default=math.inf, help="s")
+    ap.add_argument("--seed", type=int, default=0, help="picks the default search's first face")
+    ap.add_argument("--out", type=Path, default=Path("hw_explore"), help="session directory")
+    ap.add_argument("--replay", type=Path, default=None, help="replay a recorded session directory instead")
+    ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=None)
+    ap.add_argument("--product-id", type=lambda s: int(s, 0), default=None)
+    ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
+                    help="nominal tool z-axis in the base frame (safety envelope)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None, *, control_factory: Callable[[str], Any] | None = None,
+         usb_backend: Any = None) -> int:
+    """Run (see the module docstring). ``control_factory`` and ``usb_backend`` are test doubles."""
+    try:
+        return _session(argv, control_factory, usb_backend)
+    except CansimError as exc:
+        return fail(EXIT_FAILURE, f"{type(exc).__name__}: {exc}")
+
+
+def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any) -> int:
+    args = _parser().parse_args(list(argv) if argv is not None else None)  # exits 2 on a usage error
+    from cansim.explore.explorer import Explorer
+    from cansim.explore.placement import PlacementParams
+    from cansim.explore.search import DefaultSearch
+    from whisker_io.hw.safety import SafetyEnvelope
+    from whisker_io.sim.whisk_chain import RecordedChain
+
+    if not (args.iterations >= 1 and args.threshold > 0 and args.object_radius > 0):
+        return fail(EXIT_USAGE, "--iterations >= 1, --threshold > 0 and --object-radius > 0 are needed")
+    try:
+        envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
+    except CansimError as exc:
+        return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
+    if not args.map:
+        return fail(EXIT_USAGE, "give at least one known object with --map NAME=PATH")
+    try:
+        known = load_known(args.map)
+    except (ValueError, OSError, CansimError) as exc:
+        return fail(EXIT_USAGE, f"invalid --map: {exc}")
+    try:
+        chain = RecordedChain(contact_model="svr", radial_model=args.radial_model)
+    except (OSError, CansimError) as exc:
+        return fail(EXIT_USAGE, f"invalid --radial-model: {exc}")
+    search = DefaultSearch(args.object_centre, args.object_radius, seed=args.seed)
+    placement = PlacementParams(roll_rad=math.pi / 2) if args.spc == "on" else None
+
+    def make_explorer(sensor: Any, arm: Any) -> Explorer:
+        return Explorer(known, sensor, arm, exact_odometry(), search, strategy=args.strategy, placement=placement,
+                        stop_threshold=args.threshold, max_iterations=args.iterations, time_limit_s=args.time_limit)
+
+    names = [k.name for k in known]
+    if args.replay is not None:
+        from whisker_io.hw.recorder import replay_session
+
+        result = make_explorer(None, None).replay(replay_session(args.replay, chain))
+        write_trace(args.replay / "exploration_replay.csv", names, result)
+        print(f"replayed {len(result.ic)} whisks; final IC " + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+        return EXIT_OK
+    if not args.robot_ip:
+        return fail(EXIT_USAGE, "--robot-ip is needed (or --replay DIR)")
+
+    from whisker_io.array.control import WhiskPattern
+    from whisker_io.hw import MissingDependencyError
+    from whisker_io.hw.arm import URArm
+    from whisker_io.hw.recorder import Recorder
+    from whisker_io.hw.usb_array import FrameLayout, USBArray
+
+    try:
+        arm = URArm(args.robot_ip, envelope, control_factory=control_factory) if control_factory else URArm(args.robot_ip, envelope)
+    except MissingDependencyError as exc:
+        return fail(EXIT_NO_EXTRA, str(exc))
+    except ConnectionFailedError as exc:
+        return fail(EXIT_NO_ROBOT, f"no robot reachable at {args.robot_ip}: {exc}")
+    with arm:
+        layout = FrameLayout(**{k: v for k, v in (("vendor_id", args.vendor_id), ("product_id", args.product_id)) if v is not None})
+        try:
+            array = USBArray(layout, backend=usb_backend) if usb_backend is not None else USBArray(layout)
+        except MissingDependencyError as exc:
+            return fail(EXIT_NO_EXTRA, str(exc))
+        except ConnectionFailedError as exc:
+            return fail(EXIT_NO_ARRAY, f"no whisker array found: {exc}")
+        with array:
+            recorder = None
+            try:
+                array.set_pattern(WhiskPattern(), "retract_on_max")
+                array.set_rcp_threshold(RCP_THRESHOLD)
+                array.start()
+                with Recorder(args.out) as recorder:
+                    def sensor(pose: Any) -> Any:
+                        # the state with the pose the explorer whisks at, so a replay sees the same poses
+                        cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
+                        return chain(cycle)[1]
+
+                    result = make_explorer(sensor, arm).run()
+            except HardwareError as exc:
+                done = recorder.n_cycles if recorder is not None else 0
+                return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
+            finally:
+                try:
+                    array.stop()
+                except HardwareError:
+                    pass
+    write_trace(args.out / "exploration.csv", names, result)
+    ident = int(np.argmax(result.ic[-1])) if len(result.ic) else None
+    print(f"{len(result.ic)} whisks ({result.stop_reason}), {result.refused_commands} refused commands; "
+          f"highest IC: {names[ident] if ident is not None else '-'} " + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())

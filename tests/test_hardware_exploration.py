@@ -1,0 +1,112 @@
+"""examples/hardware_exploration.py end to end: the fake RTDE server (ur-rtde's receive interface over a
+socket), an in-process fake control interface and the fake USB backend; exit codes; replay = live."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+import hardware_exploration as hx  # noqa: E402
+
+needs_hw = pytest.mark.skipif(importlib.util.find_spec("rtde_receive") is None or importlib.util.find_spec("usb") is None,
+                              reason='needs the hw extra (pip install -e ".[hw]")')
+
+
+@pytest.fixture(scope="module")
+def assets(tmp_path_factory):
+    """A saved object model (a short simulated Box map) and a quickly trained svr10 model."""
+    from cansim.explore.explorer import build_object_model
+    from whisker_io.radial.features import RadialDataset
+    from whisker_io.radial.models import SearchSettings, train_models
+    from whisker_io.radial.persistence import save_model
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    d = tmp_path_factory.mktemp("hx")
+    mesh = make_object("box")
+    chain, rng = WhiskChain(mesh, contact_model="tip"), np.random.default_rng(0)
+    k = build_object_model("box", object_trajectory(mesh, "A", n_loops=1)[:20], lambda p: chain.features(p, rng),
+                           hx.exact_odometry(), placement=None)
+    k.model.save(d / "box.npz")
+    n = 200
+    wl = rng.choice([0.065, 0.087, 0.137], n)
+    s, av = rng.uniform(0.2, 1.0, n), rng.uniform(0.5, 4.0, n)
+    cp, ca = s / av, 2000.0 * (1.2 - s)
+    X = np.column_stack([cp, ca, ca / cp, ca / cp / cp, av, rng.normal(0, 1, n), wl])
+    model = train_models(RadialDataset(X, wl * s, name="known"), ["svr10"], SearchSettings().quick())["svr10"]
+    save_model(model, d / "svr10.skops")
+    return d
+
+
+def test_usage_errors_exit_2(assets, capsys):
+    with pytest.raises(SystemExit) as e:
+        hx.main(["--no-such-option"])
+    assert e.value.code == 2
+    assert hx.main(["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "svr10.skops")]) == 2  # no --map
+    assert hx.main(["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "none.skops"), "--map", f"box={assets / 'box.npz'}"]) == 2
+    assert hx.main(["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "svr10.skops"), "--map", "box"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "invalid --map" in err
+
+
+@needs_hw
+def test_no_robot_reachable_exits_3(assets, capsys):
+    # 127.0.0.3: loopback where nothing listens (the fake server binds 127.0.0.1 only)
+    rc = hx.main(["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}"])
+    err = capsys.readouterr().err.strip()
+    assert rc == hx.EXIT_NO_ROBOT and "no robot reachable at 127.0.0.3" in err and err.count("\n") == 0
+
+
+@needs_hw
+def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
+    from whisker_io.hw.safety import SafetyEnvelope
+    from whisker_io.hw.usb_array import FrameLayout
+    from whisker_io.pose import Pose
+    from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeServerError, fake_rtde_server
+    from whisker_io.testing.fake_usb_backend import FakeUSBBackend
+
+    layout = FrameLayout()
+    T, M = 2000, 18
+
+    def whisk(k):
+        s = np.zeros((T, M, 3))
+        s[:, :, 0] = np.linspace(-0.8727, 0.8727, T)[:, None]
+        return s
+
+    control = FakeControlInterface()
+    backend = FakeUSBBackend(layout, source=whisk)
+    out = tmp_path / "session"
+    args = ["--robot-ip", "127.0.0.1", "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}",
+            "--iterations", "6", "--object-centre", "0.4", "0.0", "0.3", "--object-radius", "0.1", "--out", str(out)]
+    try:
+        with fake_rtde_server("stream"):
+            rc = hx.main(args, control_factory=lambda h: control, usb_backend=backend)
+    except FakeServerError as exc:
+        pytest.skip(f"cannot run the fake RTDE server on port 30004: {exc}")
+    assert rc == hx.EXIT_OK
+    # RCP retract-at-max was set on the array before whisking
+    assert len(backend.commands) >= 3
+    from scipy.spatial.transform import Rotation
+
+    env = SafetyEnvelope(max_tool_tilt=math.pi / 2 + 1e-6)  # the driver's limit; 1e-6 rad for the rotvec round trip
+    motions = control.motions()
+    assert motions, "the explorer moved the arm"
+    for name, a in motions:
+        assert name == "moveL"
+        target = np.asarray(a[0], dtype=float)
+        env.check_pose(Pose.from_rotation(target[:3], Rotation.from_rotvec(target[3:])))
+    with open(out / "exploration.csv", newline="") as f:
+        live = list(csv.DictReader(f))
+    assert len(live) == 6
+    assert hx.main(["--replay", str(out), "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}"]) == 0
+    with open(out / "exploration_replay.csv", newline="") as f:
+        rep = list(csv.DictReader(f))
+    assert [r["ic_box"] for r in rep] == [r["ic_box"] for r in live]
