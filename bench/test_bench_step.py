@@ -1,6 +1,6 @@
 """One full CAN step for every backend and grid: injection, dynamics, path integration, decoding.
 
-Each round is one ``Population.step`` call (SPEC §1.2): a local-view injection at the
+Each round is one ``Population.step`` call (Alg 3-5, OpenRatSLAM's step order): a local-view injection at the
 packet, excitation, inhibition, global inhibition, normalisation, heading-conditional
 translation plus rotation (non-zero velocity and angular velocity) and population-vector
 decoding. The motion alternates its sign every step so the packet stays where the

@@ -1,4 +1,4 @@
-"""Population-vector decoding (SPEC §1.6, thesis Eq 5.11-5.12, Fig 5.12)."""
+"""Population-vector decoding (Eq 5.11-5.12, thesis Eq 5.11-5.12, Fig 5.12)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Local-view (LV) cells and their connection to a pose-cell population (SPEC §1.5).
+"""Local-view (LV) cells and their connection to a pose-cell population (Eq 2.17/2.18, Eq 5.8).
 
 LV cells form a growing population, one cell per distinct template/observation
 (the view id given by a front end). Two ways of feeding them back into the pose

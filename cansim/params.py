@@ -1,4 +1,4 @@
-"""Parameters of the attractor dynamics (SPEC §1.2)."""
+"""Parameters of the attractor dynamics (Alg 3-5, OpenRatSLAM's step order)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Path integration by weighted shifts of activity (SPEC §1.4, thesis Sec 5.1.2.3.3).
+"""Path integration by weighted shifts of activity (Fig 5.7-5.11, thesis Sec 5.1.2.3.3).
 
 RatSLAM moves the activity packet rather than integrating velocity. A shift by a
 real number ``s`` of cells along one axis is an integer roll by ``floor(s)`` plus

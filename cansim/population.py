@@ -1,4 +1,4 @@
-"""N-dimensional periodic continuous-attractor population (SPEC §1.1-1.2, 1.4, 1.6)."""
+"""N-dimensional periodic continuous-attractor population (the CAN model page of the docs-1.2, 1.4, 1.6)."""
 
 from __future__ import annotations
 
@@ -322,7 +322,7 @@ class Population:
             self._commit(self._backend.inject(self._a, fi, vals, out=self._spare))
 
     def dynamics(self) -> None:
-        """Local excitation, local inhibition, global inhibition, normalisation (SPEC §1.2 2-5).
+        """Local excitation, local inhibition, global inhibition, normalisation (Alg 3-5, OpenRatSLAM's step order 2-5).
 
         Raises
         ------
@@ -369,7 +369,7 @@ class Population:
         return ax, sh
 
     def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
-        """Path integration only (SPEC §1.4) with the population's motion model.
+        """Path integration only (Fig 5.7-5.11) with the population's motion model.
 
         Parameters
         ----------
@@ -393,7 +393,7 @@ class Population:
             self._commit(cur)
 
     def decode(self) -> np.ndarray:
-        """Population-vector estimate, fractional cell index per axis, shape (ndim,) (SPEC §1.6)."""
+        """Population-vector estimate, fractional cell index per axis, shape (ndim,) (Eq 5.11-5.12)."""
         if self._last_decoded is None:
             self._last_decoded = self._backend.decode(self._a, self._window)
         return self._last_decoded.copy()
@@ -410,7 +410,7 @@ class Population:
         *,
         injection: Optional[tuple[np.ndarray, np.ndarray]] = None,
     ) -> np.ndarray:
-        """One iteration: injection, dynamics, path integration, decoding (SPEC §1.2).
+        """One iteration: injection, dynamics, path integration, decoding (Alg 3-5, OpenRatSLAM's step order).
 
         Parameters
         ----------

@@ -1,4 +1,4 @@
-"""Array geometry (Fig 2.15, SPEC §4.1) and forward kinematics (Eq 5.1-5.2)."""
+"""Array geometry (Fig 2.15, Fig 2.15) and forward kinematics (Eq 5.1-5.2)."""
 
 from __future__ import annotations
 

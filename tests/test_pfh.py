@@ -1,4 +1,4 @@
-"""Point feature histogram (Sec 2.5.1.1, SPEC §4.3) and region matching (Eq 5.5)."""
+"""Point feature histogram (Sec 2.5.1.1, Sec 2.5.1.1) and region matching (Eq 5.5)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 One module at (0.1, 0, 0) m in the end-effector frame: its shaft at theta = 0
 points radially outward (+x_E); at theta = +90 deg it points to +y_E
-(protraction, SPEC §4.1). With the identity pose a contact at radial distance r
+(protraction, Fig 2.15). With the identity pose a contact at radial distance r
 is at (0.1 + r, 0, 0) for theta = 0 and (0.1, r, 0) for theta = 90 deg.
 """
 

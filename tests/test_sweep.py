@@ -1,4 +1,4 @@
-"""Rigid-whisker sweep simulator (SPEC §4.7, Sec 4.1.2.3) against closed-form geometry."""
+"""Rigid-whisker sweep simulator (Sec 4.1.2.3, 6.1.3.1, Sec 4.1.2.3) against closed-form geometry."""
 
 from __future__ import annotations
 

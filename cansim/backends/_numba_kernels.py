@@ -555,7 +555,7 @@ def _cond_pass(src, dst, s, m, k, n, col, cmask, cond_tab, par_work, nthreads):
 @njit(**_OPTS)
 def run_shift_cycle(bufs, cur, s, m, n, kinds, cmask, cond_tab, uni, round_after, proto, par_work, nthreads):
     """One rotating pass per axis: ``kinds[k]`` 0 = none (layout only), 1 = uniform shift by
-    ``uni[k]``, 2 = conditional shift (SPEC §1.4). Rounds to the storage dtype after axis
+    ``uni[k]``, 2 = conditional shift (Fig 5.7-5.11). Rounds to the storage dtype after axis
     ``round_after`` (``>= d``: only at the end) and at the end. Returns the buffer index of the result."""
     d = n.shape[0]
     col = 0
@@ -609,7 +609,7 @@ def circular_mean_index(profile, nk):
 
 @njit(**_OPTS)
 def decode_window(grid, n, centre, window, res):
-    """Population vector (SPEC §1.6) of the flat grid around the cell ``centre`` into ``res``."""
+    """Population vector (Eq 5.11-5.12) of the flat grid around the cell ``centre`` into ``res``."""
     d = n.shape[0]
     nmax = n.max()
     wlen = np.empty(d, np.int64)

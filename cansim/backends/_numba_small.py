@@ -9,7 +9,7 @@ axis as the leading axis of the buffer (``n`` contiguous streams) and writes it 
 trailing one ("rotating" passes: after one pass per axis the buffer is back in C
 order), with the tap positions baked into the code. An unrolled 5-cell, 5-tap pass
 over 5^6 cells takes ~3 us against ~14 us for the generic table-driven pass. The step
-(SPEC §1.2) is: inject, excitation and inhibition (Alg 3-4), global inhibition and
+(Alg 3-5, OpenRatSLAM's step order) is: inject, excitation and inhibition (Alg 3-4), global inhibition and
 normalisation (Alg 5), heading-conditional then uniform fractional shifts (Fig 5.11),
 and decoding (Eq 5.11-5.12), which for a window covering the grid is the circular mean
 of the marginal sums, accumulated while the result is copied out.

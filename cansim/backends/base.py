@@ -143,7 +143,7 @@ class Backend(ABC):
 
     @abstractmethod
     def shift(self, a: np.ndarray, shifts: np.ndarray, out: Optional[np.ndarray] = None) -> np.ndarray:
-        """Shift the whole grid by a real number of cells per axis (SPEC §1.4).
+        """Shift the whole grid by a real number of cells per axis (Fig 5.7-5.11).
 
         Along each axis a shift ``s`` is an integer roll by ``floor(s)`` plus a linear split
         ``(1 - f, f)``, ``f = s - floor(s)``, between ``floor(s)`` and ``floor(s) + 1``;
@@ -187,7 +187,7 @@ class Backend(ABC):
 
     @abstractmethod
     def decode(self, a: np.ndarray, window: int) -> np.ndarray:
-        """Population-vector decoding around the most active cell (SPEC §1.6, Eq 5.11-5.12).
+        """Population-vector decoding around the most active cell (Eq 5.11-5.12, Eq 5.11-5.12).
 
         Takes the first argmax cell (C order), a window of ``+-window`` cells on every
         axis with wrap-around (clipped to the axis so no cell counts twice), sums the
@@ -210,7 +210,7 @@ class Backend(ABC):
         window: int,
         out: Optional[np.ndarray] = None,
     ) -> tuple[Optional[np.ndarray], Optional[np.ndarray]]:
-        """One full iteration in SPEC §1.2 order: inject, dynamics, conditional shift,
+        """One full iteration in Alg 3-5, OpenRatSLAM's step order order: inject, dynamics, conditional shift,
         uniform shift, decode. Returns ``(activity, decoded)`` or ``(None, None)`` when
         the dynamics collapse to zero. Backends may override with a fused kernel.
         """

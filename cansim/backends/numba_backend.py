@@ -194,7 +194,7 @@ class NumbaBackend(Backend):
 
     def step(self, a, *, flat_index, values, exc, inh, phi, shift_axes, cond_shifts,
              uniform_shifts, window, out=None):
-        """Fused step (SPEC §1.2): one compiled call for injection to decoding."""
+        """Fused step (Alg 3-5, OpenRatSLAM's step order): one compiled call for injection to decoding."""
         if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
             return self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
         if self._small and a.flags.c_contiguous:

@@ -13,7 +13,7 @@ The kernels are the gather forms of the numpy reference (:mod:`cansim.backends.n
   ``sum_partials`` reduces the row sums in a fixed order to the total for normalisation.
   The total is therefore the same bits whether a step computes the whole grid or a
   window of it (see *Locality*), and so is every result.
-* ``shift_*`` - the fractional shift of SPEC §1.4 along one axis, the reference's
+* ``shift_*`` - the fractional shift of Fig 5.7-5.11 along one axis, the reference's
   expression ``(1 - f) a[m - lo] + f a[m - lo - 1]``; axes are applied one after another
   (the product of the 1-D splits). The split of a cell is looked up by its *condition
   index* (the flat index over the axes that are not shifted), so one kernel serves the
@@ -249,7 +249,7 @@ __kernel void sum_partials(__global const ACC *partial, const int m, __global AC
     if (lid == 0) total[0] = scratch[0];
 }
 
-/* Fractional shift along one axis (SPEC 1.4): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
+/* Fractional shift along one axis (Fig 5.11): out[m] = (1 - f) in[m - lo] + f in[m - lo - 1]
    (wrapped; on a cut-out axis, the *_cut kernels, sources off the axis count 0 and lo
    is not reduced mod n), the same expression as the reference's _fractional_roll. NDRange as
    the convolution; n = 1 copies. The split of a cell is
@@ -833,7 +833,7 @@ class OpenCLBackend(Backend):
         return prog, self._bufs(tuple(a.shape), prog).grid(tuple(a.shape))
 
     def _iterate(self, a, out, injection, exc, inh, phi, shift_axes, cond_shifts, uniform) -> Optional[np.ndarray]:
-        """Injection, dynamics and shifts (SPEC §1.2 steps 1-6) on the device; the result or
+        """Injection, dynamics and shifts (Alg 3-5, OpenRatSLAM's step order steps 1-6) on the device; the result or
         None when the dynamics collapse (``out`` is then left alone).
 
         When the activity and everything the step can spread it to fill at most half the
@@ -916,7 +916,7 @@ class OpenCLBackend(Backend):
              window, out=None):
         """Fused iteration: one upload, every kernel enqueued, one read of the total and one download.
 
-        Order as SPEC §1.2 and :meth:`Backend.step`: injection (the touched cells are
+        Order as Alg 3-5, OpenRatSLAM's step order and :meth:`Backend.step`: injection (the touched cells are
         computed on the host and written by ``scatter_set``), excitation, inhibition,
         global inhibition, normalisation (folded into the first shift pass), conditional
         shift, uniform shift; decoding on the downloaded grid. Only the window the packet

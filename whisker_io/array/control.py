@@ -1,6 +1,6 @@
 """Whisking controllers: open loop, RCP (Ch.3) and retract-at-sensor-maximum (Ch.4/6).
 
-SPEC §4.5 / thesis Sec 2.3.1, 3.2.2, 4.1.1. A controller turns a whisking
+Sec 2.3.1, 3.2.2 / thesis Sec 2.3.1, 3.2.2, 4.1.1. A controller turns a whisking
 pattern into per-whisker angle trajectories sampled at 2 kHz, and may change
 them from the measured y-deflection:
 
@@ -70,7 +70,7 @@ class WhiskPattern:
     frequency_hz : float, default 1.0
         Whisking frequency f, Hz, in (0, 10] (Ch.3 uses 1 Hz, Ch.4 0.2-2.5 Hz).
     retraction_rad : float, default -50 deg
-        Start (fully retracted) angle, radians (SPEC §4.1).
+        Start (fully retracted) angle, radians (Fig 2.15).
     protraction_rad : float, default +50 deg
         Fully protracted angle, radians; ``protraction - retraction`` is the full
         amplitude (100 deg, Fig 2.8).

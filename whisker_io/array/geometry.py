@@ -9,7 +9,7 @@ by building a :class:`WhiskerArray` from :class:`WhiskerModule` objects.
 Units: metres and radians everywhere. The thesis table is in millimetres and is
 converted once, here.
 
-Frames (SPEC §4.1 decision; the thesis gives positions, not orientations)
+Frames (Fig 2.15 decision; the thesis gives positions, not orientations)
 --------------------------------------------------------------------------
 * ``E`` is the end-effector / array-adapter frame (point O of Fig 2.15); the
   array axis is ``+y`` (rostral).
@@ -84,7 +84,7 @@ _ARRAY_AXIS = np.array([0.0, 1.0, 0.0])
 
 
 def radial_base_rotation(base_position_m: ArrayLike) -> NDArray[np.float64]:
-    """Base-frame orientation of a module at ``base_position_m`` (SPEC §4.1).
+    """Base-frame orientation of a module at ``base_position_m`` (Fig 2.15).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 "Using a moving average filter, the deflection and angular sensor data for each
 whisk-sample was smoothed and further processed to extract the following contact
 features; deflection velocity, deflection acceleration, angular velocity, angular
-acceleration, contact period and contact amplitude." Decision (SPEC §4.2): all
+acceleration, contact period and contact amplitude." Decision (Sec 5.1.1.1.1): all
 are evaluated over the initial contact period, onset -> peak, rates as means.
 
 Columns of the feature matrix (:data:`FEATURE_NAMES`, units :data:`FEATURE_UNITS`):

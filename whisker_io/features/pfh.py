@@ -1,4 +1,4 @@
-"""Point feature histogram of a whisk's contact points (Sec 2.5.1.1, SPEC §4.3).
+"""Point feature histogram of a whisk's contact points (Sec 2.5.1.1, Sec 2.5.1.1).
 
 Pipeline for one whisk (at most 18 contact points):
 
@@ -7,7 +7,7 @@ Pipeline for one whisk (at most 18 contact points):
    that define a plane, which is why the thesis switched from a radius to the
    three closest points). The normal is the eigenvector of the *smallest*
    eigenvalue of the neighbourhood covariance (the thesis text says largest,
-   a slip: SPEC §4.3). Each normal is flipped to face the viewpoint (Eq 2.40;
+   a slip: Sec 2.5.1.1). Each normal is flipped to face the viewpoint (Eq 2.40;
    the viewpoint is the origin of the end-effector frame).
 2. **Pairs**: every unordered pair closer than ``radius_m`` (0.3 m: all contacts
    of a whisk, Sec 2.5.1.1).
@@ -29,7 +29,7 @@ Pipeline for one whisk (at most 18 contact points):
    equal bins over a fixed range (alpha, phi in [-1, 1]; theta in [-pi, pi];
    d in [0, radius_m]); the joint bin ``sum_i b_i * bins**i`` over
    ``(alpha, theta, phi, d)`` is incremented; the histogram is normalised to
-   sum 1 (the thesis' ``k(k+1)/2`` divisor is not the pair count; SPEC §4.3).
+   sum 1 (the thesis' ``k(k+1)/2`` divisor is not the pair count; Sec 2.5.1.1).
    Default 3 bins per feature (81 bins), the only value the thesis names
    (Sec 2.5.1.1 example); 153 pairs of 18 points fill that reasonably.
 5. **Similarity**: chi-squared, Eq 2.45, skipping bins with ``q + v = 0``.

@@ -187,7 +187,7 @@ def raster_poses(centre: PoseLike, width_m: float, height_m: float, n_x: int,
     """Poses on a boustrophedon raster across the array's view, same orientation.
 
     The raster lies in the plane of the end-effector's x- and z-axes through
-    ``centre`` (the plane perpendicular to the array axis +y, SPEC §4.1), so
+    ``centre`` (the plane perpendicular to the array axis +y, Fig 2.15), so
     the array sweeps a face of the object in front of it.
 
     Parameters

@@ -7,7 +7,7 @@
 
 Both return one whisk cycle at a time as 18
 :class:`~whisker_io.records.whisk_record.WhiskRecord` (one per module, angle in rad,
-x/y deflection in ADC counts, 2 kHz; Sec 3.1.3 / SPEC §4.2).
+x/y deflection in ADC counts, 2 kHz; Sec 3.1.3 / Sec 5.1.1.1.1).
 
 USB frame layout (device -> host, bulk-in endpoint, little-endian)
 ------------------------------------------------------------------
@@ -89,7 +89,7 @@ OP_SET_PATTERN = 0x01
 OP_SET_RCP_THRESHOLD = 0x02
 OP_START = 0x03
 OP_STOP = 0x04
-#: Whisking modes of SET_PATTERN (SPEC §4.5): open-loop cosine, RCP amplitude
+#: Whisking modes of SET_PATTERN (Sec 2.3.1, 3.2.2): open-loop cosine, RCP amplitude
 #: reduction (Ch.3), retract at the sensor maximum (Ch.4/6).
 PATTERN_MODES = ("open_loop", "rcp", "retract_on_max")
 _LIBUSB_ERROR_NO_DEVICE = -4
@@ -327,7 +327,7 @@ class Array(abc.ABC):
 
     @abc.abstractmethod
     def set_rcp_threshold(self, counts: float) -> None:
-        """Set the RCP contact threshold in ADC counts (SPEC §4.5)."""
+        """Set the RCP contact threshold in ADC counts (Sec 2.3.1, 3.2.2)."""
 
     def start(self) -> None:
         """Start whisking/streaming (default: nothing to do)."""

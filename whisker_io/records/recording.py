@@ -17,7 +17,7 @@ one header line followed by one line per 2 kHz sample::
     -0.87266462599716477,3,-2,0
     ...
 
-* ``angle_rad``: whisk angle theta in **radians** (SPEC §4.1: -50 deg full
+* ``angle_rad``: whisk angle theta in **radians** (Fig 2.15: -50 deg full
   retraction, +50 deg full protraction). Radians, not degrees, so that a value
   written with 17 significant digits reads back bit-identical and replay gives
   exactly the in-memory contacts.

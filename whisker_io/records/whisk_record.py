@@ -43,7 +43,7 @@ class WhiskRecord:
     module : str
         Module name, e.g. ``"C2"`` (letters and digits only, it becomes part of a file name).
     angle_rad : array_like, shape (T,)
-        Whisk angle theta per sample, radians (SPEC §4.1).
+        Whisk angle theta per sample, radians (Fig 2.15).
     x_counts, y_counts : array_like, shape (T,)
         Deflection along the sensor x- and y-axes, ADC counts. The y-axis is the
         whisking direction (Sec 5.1.1.1.1).

@@ -30,7 +30,7 @@ al. 2007), the rotation needed to reach the sensor limit (hence CP with a
 retract-at-max controller, or CA when the whisk ends first) does too.
 
 Split on the sensor axes (decision, frictionless contact): in the whisker base
-frame of SPEC §4.1 (z = whisk axis, shaft along ``Rz(theta) y``), the sensor
+frame of Fig 2.15 (z = whisk axis, shaft along ``Rz(theta) y``), the sensor
 y-axis is ``Rz(theta_c) x`` (opposite to the protraction motion, so a contact
 while protracting gives positive y) and the sensor x-axis is ``z``. With the
 surface normal ``n`` (unit, pointing out of the surface at the whisker) projected
@@ -261,7 +261,7 @@ class WhiskContact:
     whisker_length_m : float
         Whisker length L, m.
     normal : array_like, shape (3,), default Rz(theta_c) x
-        Surface normal at the contact in the whisker base frame (SPEC §4.1),
+        Surface normal at the contact in the whisker base frame (Fig 2.15),
         pointing out of the surface toward the whisker; normalised here. The
         default faces the protracting whisker squarely (pure y-deflection).
     slip_rad : float, default inf

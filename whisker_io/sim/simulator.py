@@ -1,4 +1,4 @@
-"""Whole-array whisk simulator: rigid sweep + beam-model signals + whisking controller (SPEC §4.7).
+"""Whole-array whisk simulator: rigid sweep + beam-model signals + whisking controller (Sec 4.1.2.3, 6.1.3.1).
 
 One call of :meth:`ArraySimulator.whisk` places the array at an end-effector
 pose in front of a trimesh object, finds each whisker's first contact with the

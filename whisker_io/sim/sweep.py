@@ -1,7 +1,7 @@
 """Rigid-whisker sweep simulator: where and at which angle each whisker first touches a mesh.
 
 This is the "simulated ground truth" of Sec 4.1.2.3 of the thesis, also used
-for the contact features of Ch.5-6 (SPEC §4.7): every whisker is treated as a
+for the contact features of Ch.5-6 (Sec 4.1.2.3, 6.1.3.1): every whisker is treated as a
 rigid straight segment of its length, swept about its base frame's z-axis from
 the retraction limit (-50 deg) to the protraction limit (+50 deg). The contact
 is the first touch nearest the retraction limit and, at that angle, nearest the
@@ -519,7 +519,7 @@ def sweep_array(
 
 @dataclass(frozen=True)
 class ContactNoise:
-    """Contact-feature noise of the Ch.6 simulation (Sec 6.1.3.1.2, SPEC §4.7).
+    """Contact-feature noise of the Ch.6 simulation (Sec 6.1.3.1.2, Sec 4.1.2.3, 6.1.3.1).
 
     Attributes
     ----------
