@@ -237,7 +237,10 @@ class SlamLoop:
 
     def on_odo(self, *odometry: Any) -> SlamState:
         """An odometry update alone (pose cells, learning, map); see :meth:`step`."""
-        odo = self.odometry(*odometry)
+        return self._advance(self.odometry(*odometry))
+
+    def _advance(self, odo: Odometry) -> SlamState:
+        """The odometry part of an iteration, for an odometry that :meth:`odometry` checked."""
         injection = (self._pending_index, self._pending_values) if len(self._pending_index) else None
         best = self.pose_cells.step(odo.v, odo.omega, odo.dt, injection=injection)
         self._best = np.asarray(best, dtype=np.float64)
@@ -251,7 +254,7 @@ class SlamLoop:
         self._odo_update = True
         self.iteration += 1
         em = self.experience_map
-        em.on_odometry(odo)
+        em.on_odo(odo)
         result = None
         if self._odo_update and self._vt_update and self.local_view.n_views > 0:
             self._odo_update = self._vt_update = False
@@ -288,9 +291,9 @@ class SlamLoop:
         *odo_args, observation = args if len(args) in (2, 4) else (*args, None)
         odo = self.odometry(*odo_args)  # before the view changes anything
         if observation is None:
-            return self.on_odo(odo)
+            return self._advance(odo)
         match = self.on_view(observation)
-        state = self.on_odo(odo)
+        state = self._advance(odo)
         return SlamState(**{**state.__dict__, "view_id": match.view_id, "new_view": bool(match.is_new)})
 
     def run(self, odometry: Sequence[Any], observations: Sequence[Any], *, progress: bool = False) -> SlamLog:

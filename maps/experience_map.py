@@ -83,7 +83,6 @@ from typing import Any, Sequence, Union
 
 import numpy as np
 
-from maps.odometry import Odometry
 from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
@@ -346,11 +345,6 @@ class ExperienceMap:
         """
         odo = self.geometry.odometry(*odometry)
         self.geometry.accumulate(self._acc, odo)
-        self.accum_time_s += odo.dt
-
-    def on_odometry(self, odo: Odometry) -> None:
-        """:meth:`on_odo` for an already validated odometry object (the model loop's path)."""
-        self.geometry.accumulate(self._acc, odo)  # type: ignore[arg-type]
         self.accum_time_s += odo.dt
 
     # ------------------------------------------------------- action (get_action)

@@ -92,6 +92,12 @@ def _log(exp_ids: np.ndarray, n: int) -> np.ndarray:
     return e.astype(np.int64)
 
 
+def _truth_and_log(true_p: np.ndarray, true_q: np.ndarray, exp_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validated ground truth (n, 3), (n, 4) and experience log (n,)."""
+    p = _positions(true_p, "true_position_m")
+    return p, _quats(true_q, "true_quaternion_xyzw", len(p)), _log(exp_ids, len(p))
+
+
 def relocalisation_errors(
     exp_ids: np.ndarray, relocalised: np.ndarray, true_position_m: np.ndarray, true_quaternion_xyzw: np.ndarray
 ) -> LocalisationErrors:
@@ -107,10 +113,8 @@ def relocalisation_errors(
     true_quaternion_xyzw : (n, 4)
         Ground truth per iteration.
     """
-    p = _positions(true_position_m, "true_position_m")
+    p, q, e = _truth_and_log(true_position_m, true_quaternion_xyzw, exp_ids)
     n = len(p)
-    q = _quats(true_quaternion_xyzw, "true_quaternion_xyzw", n)
-    e = _log(exp_ids, n)
     r = np.asarray(relocalised, dtype=bool)
     if r.shape != (n,):
         raise ShapeError(f"relocalised must have shape ({n},), got {r.shape}")
@@ -139,10 +143,8 @@ def map_pose_errors(
     true_position_m, true_quaternion_xyzw : (n, 3), (n, 4)
         Ground truth per iteration.
     """
-    p = _positions(true_position_m, "true_position_m")
+    p, q, e = _truth_and_log(true_position_m, true_quaternion_xyzw, exp_ids)
     n = len(p)
-    q = _quats(true_quaternion_xyzw, "true_quaternion_xyzw", n)
-    e = _log(exp_ids, n)
     mp = np.asarray(map_poses, dtype=np.float64)
     if mp.ndim != 2 or mp.shape[1] != 7:
         raise ShapeError(f"map_poses must have shape (n_exp, 7), got {mp.shape}")
