@@ -34,7 +34,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
 from cansim.frontends.store import ViewMatch
-from cansim.local_view import LocalViewCells, LocalViewParams
+from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
 from maps.persistence import read_npz

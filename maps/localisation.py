@@ -144,7 +144,6 @@ def map_pose_errors(
         Ground truth per iteration.
     """
     p, q, e = _truth_and_log(true_position_m, true_quaternion_xyzw, exp_ids)
-    n = len(p)
     mp = np.asarray(map_poses, dtype=np.float64)
     if mp.ndim != 2 or mp.shape[1] != 7:
         raise ShapeError(f"map_poses must have shape (n_exp, 7), got {mp.shape}")

@@ -16,7 +16,6 @@ caller discards).
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from cansim.backends._numba_kernels import STATUS_OK, pipeline

@@ -30,7 +30,7 @@ from cansim.axes import Axis
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, kernel_params
 from cansim.experiments.fitting import fit_line, unwrap_cells
 from cansim.experiments.params import require, resolve
-from cansim.path_integration import PlanarMotion, SixDofMotion
+from cansim.path_integration import SixDofMotion
 from cansim.population import Population
 
 __all__ = ["DEFAULTS", "run", "trajectory", "figure"]

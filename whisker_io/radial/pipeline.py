@@ -27,7 +27,7 @@ from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import contact_points
 from whisker_io.pose import PoseLike
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
-from whisker_io.radial.models import TipAssumption, TrainedModel, UniformRandom, check_feature_matrix
+from whisker_io.radial.models import TipAssumption, UniformRandom, check_feature_matrix
 
 __all__ = [
     "RadialPredictor",
