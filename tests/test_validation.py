@@ -83,3 +83,11 @@ def test_whole_number():
             whole_number(bad, "n")
     with pytest.raises(InvalidInputError, match=">= 2"):
         whole_number(1, "n", minimum=2)
+
+
+def test_text_or_bools_nested_in_lists_are_not_numbers():
+    """np.array(["0"], float) parses text; the validator must not (found by the explorer's fuzz test)."""
+    for bad in ([0, 0, "0"], [[1.0, "2"]], [True, 0.0], (0.0, b"1")):
+        with pytest.raises(InvalidInputError):
+            finite_vector(bad, None, "v") if np.ndim(bad) == 1 else finite_array(bad, None, "v")
+    np.testing.assert_array_equal(finite_vector([0, 1.5, 2], 3, "v"), [0.0, 1.5, 2.0])

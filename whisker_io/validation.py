@@ -28,12 +28,22 @@ from whisker_io.errors import InvalidInputError, ShapeError
 __all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number"]
 
 
+def _holds_text(value: list | tuple) -> bool:
+    """True when a (nested) list or tuple holds a string, bytes or a bool anywhere."""
+    return any(
+        isinstance(x, (str, bytes, bool, np.bool_, np.str_)) or (isinstance(x, (list, tuple)) and _holds_text(x))
+        for x in value
+    )
+
+
 def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
     if isinstance(value, (str, bytes, bool, np.bool_)):
         raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
     try:
         if np.iscomplexobj(value):
             raise TypeError("complex")
+        if isinstance(value, (list, tuple)) and _holds_text(value):  # np.array would parse "0" as 0.0
+            raise TypeError("text")
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"{name} must be real numbers, got {value!r}") from None

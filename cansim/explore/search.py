@@ -38,6 +38,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from cansim.errors import ConfigError, InvalidInputError
 from cansim.explore.placement import maintain_yaw
 from whisker_io.pose import Pose
+from whisker_io.validation import finite_vector
 
 __all__ = [
     "STRATEGIES",
@@ -163,12 +164,7 @@ class DefaultSearch:
     def __init__(self, centre_m: ArrayLike, radius_m: float, standoff_m: float = 0.2019, *, seed: int = 0,
                  subdivisions: int = 1, roll_rad: float = math.pi / 2, mesh: trimesh.Trimesh | None = None,
                  clearance_m: float = 0.015) -> None:
-        try:
-            c = np.asarray(centre_m, dtype=float)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"centre_m must be 3 finite numbers, got {centre_m!r}") from None
-        if c.shape != (3,) or not np.isfinite(c).all():
-            raise InvalidInputError(f"centre_m must be 3 finite numbers, got {centre_m!r}")
+        c = finite_vector(centre_m, 3, "centre_m")  # the one validator: rejects strings, NaN, wrong shapes
         for name, v in (("radius_m", radius_m), ("standoff_m", standoff_m)):
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InvalidInputError(f"{name} must be a positive number of metres, got {v!r}")
