@@ -7,25 +7,22 @@ import math
 import numpy as np
 from numba import njit
 
+from whisker_io.angles import wrap_scalar
+
 __all__ = ["relax_links"]
+
+
+_wrap = njit(cache=True)(wrap_scalar)
 
 
 @njit(cache=True)
 def _clip180(a: float) -> float:  # pragma: no cover - compiled
-    while a > math.pi:
-        a -= 2.0 * math.pi
-    while a <= -math.pi:
-        a += 2.0 * math.pi
-    return a
+    return _wrap(a, -math.pi, True)
 
 
 @njit(cache=True)
 def _clip360(a: float) -> float:  # pragma: no cover - compiled
-    while a < 0:
-        a += 2.0 * math.pi
-    while a >= 2.0 * math.pi:
-        a -= 2.0 * math.pi
-    return a
+    return _wrap(a, 0.0, False)
 
 
 @njit(cache=True)

@@ -10,10 +10,9 @@ direction relative to the source's facing and the relative facing. Relaxation
 :func:`maps._relax_numba.relax_links`).
 
 The angle helpers reproduce OpenRatSLAM's ``clip_rad_180``, ``clip_rad_360`` and
-``get_signed_delta_rad`` bit for bit (repeated subtraction of 2 pi); an angle
-beyond :data:`_LOOP_LIMIT` is first reduced with ``fmod`` so a corrupt value can
-never make the loop run long (odometry that large is rejected earlier anyway, see
-:mod:`maps.odometry`).
+``get_signed_delta_rad`` bit for bit: the wraps are :func:`whisker_io.angles.wrap_scalar`
+(the C++ subtraction loop's result within a few turns, constant time beyond - odometry
+that large is rejected earlier anyway, see :mod:`maps.odometry`).
 """
 
 from __future__ import annotations
@@ -24,32 +23,20 @@ from typing import Any, Sequence
 import numpy as np
 
 from maps.odometry import PlanarOdometry
+from whisker_io.angles import TWO_PI, wrap_scalar
 
 __all__ = ["SE2Geometry", "clip_rad_180", "signed_delta_rad"]
 
-_TWO_PI = 2.0 * math.pi
-_LOOP_LIMIT = 64.0 * math.pi
+_TWO_PI = TWO_PI
 
 
 def clip_rad_180(angle: float) -> float:
-    """Wrap an angle to (-pi, pi] radians exactly as OpenRatSLAM's ``clip_rad_180``."""
-    if abs(angle) > _LOOP_LIMIT:
-        angle = math.fmod(angle, _TWO_PI)
-    while angle > math.pi:
-        angle -= _TWO_PI
-    while angle <= -math.pi:
-        angle += _TWO_PI
-    return angle
+    """Wrap a finite angle to (-pi, pi] radians exactly as OpenRatSLAM's ``clip_rad_180``."""
+    return wrap_scalar(angle, -math.pi, True)
 
 
 def _clip_rad_360(angle: float) -> float:
-    if abs(angle) > _LOOP_LIMIT:
-        angle = math.fmod(angle, _TWO_PI)
-    while angle < 0:
-        angle += _TWO_PI
-    while angle >= _TWO_PI:
-        angle -= _TWO_PI
-    return angle
+    return wrap_scalar(angle, 0.0, False)
 
 
 def signed_delta_rad(angle1: float, angle2: float) -> float:

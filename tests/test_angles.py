@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from whisker_io.angles import LOOP_TURNS, TWO_PI, wrap_to_2pi, wrap_to_pi, wrap_to_pi_closed_above
+from whisker_io.angles import LOOP_TURNS, TWO_PI, wrap_scalar, wrap_to_2pi, wrap_to_pi, wrap_to_pi_closed_above
 from whisker_io.errors import InvalidInputError
 
 PI = math.pi
@@ -102,3 +102,20 @@ def test_result_differs_from_input_by_whole_turns(a):
     for f in (wrap_to_pi, wrap_to_pi_closed_above, wrap_to_2pi):
         turns = (a - f(a)) / TWO_PI
         assert abs(turns - round(turns)) < 1e-6
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.one_of(near_angle, any_angle), min_size=1, max_size=8))
+def test_scalar_kernel_array_path_and_compiled_kernel_agree(angles):
+    # one algorithm, three callers: the scalar kernel (SE(2) map), the vectorised
+    # array path, and the numba copy compiled from the same source (relaxation kernel)
+    from maps import _relax_numba
+
+    arr = np.asarray(angles, dtype=np.float64)
+    for lower, closed, public in ((-PI, True, wrap_to_pi_closed_above), (0.0, False, wrap_to_2pi), (-PI, False, wrap_to_pi)):
+        kernel = [wrap_scalar(a, lower, closed) for a in angles]
+        assert [float(v) for v in public(arr)] == kernel
+        assert kernel == [public(a) for a in angles]
+        assert kernel == [_relax_numba._wrap(a, lower, closed) for a in angles]
+    assert [_relax_numba._clip180(a) for a in angles if abs(a) <= LOOP_TURNS * TWO_PI] == [
+        clip_rad_180(a) for a in angles if abs(a) <= LOOP_TURNS * TWO_PI]

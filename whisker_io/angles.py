@@ -19,6 +19,10 @@ experience map fed ordinary odometry behaves exactly as OpenRatSLAM's); beyond
 that the angle is reduced by an exact floating-point remainder (``np.fmod``)
 first. Either way the cost is constant and the result is inside the range.
 Non-finite angles raise :class:`~whisker_io.errors.InvalidInputError`.
+
+:func:`wrap_scalar` is the same algorithm on one float, pure arithmetic with no
+validation, for hot loops: the SE(2) map calls it directly and its numba relaxation
+kernel compiles it (``numba.njit(wrap_scalar)``), so the wrap is written once.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.validation import finite_array, finite_scalar
 
-__all__ = ["TWO_PI", "LOOP_TURNS", "wrap_to_pi", "wrap_to_pi_closed_above", "wrap_to_2pi"]
+__all__ = ["TWO_PI", "LOOP_TURNS", "wrap_to_pi", "wrap_to_pi_closed_above", "wrap_to_2pi", "wrap_scalar"]
 
 #: 2 pi, exactly twice the double ``math.pi``.
 TWO_PI: float = 2.0 * math.pi
@@ -39,9 +43,74 @@ TWO_PI: float = 2.0 * math.pi
 LOOP_TURNS: int = 4
 
 
+def wrap_scalar(angle_rad: float, lower_rad: float, closed_above: bool) -> float:
+    """One finite angle wrapped into ``[lower, lower + 2 pi)`` (or ``(lower, lower + 2 pi]``).
+
+    The kernel behind the public functions, for callers that have validated already:
+    no checks, plain float arithmetic (numba-compilable). ``lower_rad`` is ``-pi``
+    (``closed_above``: OpenRatSLAM's ``clip_rad_180``; else :func:`wrap_to_pi`) or
+    ``0`` (OpenRatSLAM's ``clip_rad_360``). Bit for bit the subtraction loop's result
+    within :data:`LOOP_TURNS` turns; beyond, exact ``fmod`` first (constant time).
+
+    Parameters
+    ----------
+    angle_rad : float
+        A finite angle, radians (NaN gives NaN: validate first).
+    lower_rad : float
+        ``-math.pi`` or ``0.0``.
+    closed_above : bool
+        True for the range ``(lower, lower + 2 pi]``.
+
+    Returns
+    -------
+    float
+        The wrapped angle, radians.
+
+    Examples
+    --------
+    >>> wrap_scalar(3.5 * math.pi, -math.pi, True) == wrap_to_pi_closed_above(3.5 * math.pi)
+    True
+    """
+    upper = lower_rad + TWO_PI  # exact for lower in {-pi, 0}
+    r = angle_rad
+    if closed_above:
+        for _ in range(LOOP_TURNS):
+            if r > upper:
+                r -= TWO_PI
+        for _ in range(LOOP_TURNS):
+            if r <= lower_rad:
+                r += TWO_PI
+        if lower_rad < r <= upper:
+            return r
+    else:
+        for _ in range(LOOP_TURNS):
+            if r < lower_rad:
+                r += TWO_PI
+        for _ in range(LOOP_TURNS):
+            if r >= upper:
+                r -= TWO_PI
+        if lower_rad <= r < upper:
+            return r
+    # Python's float modulo is the exact remainder (fmod) moved into [0, 2 pi), the same
+    # as the array path's fmod-then-shift; numba implements the same semantics.
+    f = (angle_rad - lower_rad) % TWO_PI + lower_rad
+    if closed_above:
+        if f <= lower_rad:
+            f += TWO_PI
+        if f > upper:
+            f -= TWO_PI
+    else:
+        if f >= upper:
+            f -= TWO_PI
+        if f < lower_rad:
+            f += TWO_PI
+    return f
+
+
 def _wrap(angle: ArrayLike, lower: float, closed_above: bool, name: str) -> float | NDArray[np.float64]:
-    scalar = np.ndim(angle) == 0
-    a = np.atleast_1d(finite_scalar(angle, name) if scalar else finite_array(angle, None, name))
+    if np.ndim(angle) == 0:
+        return wrap_scalar(finite_scalar(angle, name), lower, closed_above)
+    a = np.atleast_1d(finite_array(angle, None, name))
     upper = lower + TWO_PI  # exact for lower in {-pi, 0}
     r = a.copy()
     # The reference loops, each unrolled LOOP_TURNS times. clip_rad_180 (closed
@@ -66,7 +135,7 @@ def _wrap(angle: ArrayLike, lower: float, closed_above: bool, name: str) -> floa
             f = np.where(f >= upper, f - TWO_PI, f)
             f = np.where(f < lower, f + TWO_PI, f)
         r[outside] = f
-    return float(r[0]) if scalar else r
+    return r
 
 
 @overload
