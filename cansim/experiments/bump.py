@@ -91,14 +91,7 @@ def run(params: dict, seed: int) -> dict:
 def figure(results: Sequence[dict]):
     """Packet FWHM and amplitude against ``exc_sigma_cells``, one line per ``global_inhibition``.
 
-    Parameters
-    ----------
-    results : sequence of dict
-        :func:`run` results (collapsed ones are drawn as crosses at 0).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    ``results``: :func:`run` results (collapsed ones are drawn as crosses at 0); returns a matplotlib Figure.
     """
     import matplotlib.pyplot as plt
 

@@ -132,14 +132,7 @@ def run(params: dict, seed: int) -> dict:
 def figure(results: Sequence[dict]):
     """Diffusion constant against the noise level, one line per ``noise_kind``, with the fits' R^2.
 
-    Parameters
-    ----------
-    results : sequence of dict
-        :func:`run` results.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    ``results``: :func:`run` results; returns a matplotlib Figure.
     """
     import matplotlib.pyplot as plt
 

@@ -145,14 +145,7 @@ def run(params: dict, seed: int) -> dict:
 def figure(results: Sequence[dict]):
     """Decoded against commanded speed and the gain with its CI, one line per (ndim, dynamics).
 
-    Parameters
-    ----------
-    results : sequence of dict
-        :func:`run` results.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    ``results``: :func:`run` results; returns a matplotlib Figure.
     """
     import matplotlib.pyplot as plt
 

@@ -128,14 +128,7 @@ def run(params: dict, seed: int) -> dict:
 def figure(results: Sequence[dict]):
     """Recall rate and cross-talk against the number of stored views, one line per ``trace_decay``.
 
-    Parameters
-    ----------
-    results : sequence of dict
-        :func:`run` results.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    ``results``: :func:`run` results; returns a matplotlib Figure.
     """
     import matplotlib.pyplot as plt
 

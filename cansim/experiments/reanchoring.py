@@ -99,14 +99,7 @@ def run(params: dict, seed: int) -> dict:
 def figure(results: Sequence[dict]):
     """Re-anchoring steps against the view's offset, one line per injection energy (never: not drawn).
 
-    Parameters
-    ----------
-    results : sequence of dict
-        :func:`run` results.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    ``results``: :func:`run` results; returns a matplotlib Figure.
     """
     import matplotlib.pyplot as plt
 
