@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import hashlib
 import logging
 import math
 import sys
@@ -58,6 +57,8 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
+
+from cansim.seeding import derive_seed
 
 logger = logging.getLogger("ch5_study")
 
@@ -113,25 +114,14 @@ def step_of(name: str) -> tuple[float, float]:
     return (0.03, 3.0) if name == "box" else (0.11, 12.0)
 
 
-def run_seed(seed: int, *parts: object) -> int:
-    """A fixed seed per run from the base seed and the run's identity (stable across processes)."""
-    h = hashlib.sha256(repr((seed, parts)).encode()).digest()
-    return int.from_bytes(h[:4], "little")
-
-
-def _noise(scale: float) -> Any:
+def _chain(mesh: Any, contact: str, noise_scale: float, radial_model: str | None = None) -> Any:
     from whisker_io.sim.sweep import ContactNoise
-
-    base = ContactNoise()
-    return replace(base, position_sigma_fraction=base.position_sigma_fraction * scale, slope_sigma=base.slope_sigma * scale)
-
-
-def _chain(mesh: Any, contact: str, s: Settings) -> Any:
     from whisker_io.sim.whisk_chain import WhiskChain
 
+    noise = ContactNoise().scaled(noise_scale)
     if contact == "svr":
-        return WhiskChain(mesh, signals=True, contact_model="svr", radial_model=s.radial_model, contact_noise=_noise(s.noise_scale))
-    return WhiskChain(mesh, signals=False, contact_model=contact, contact_noise=_noise(s.noise_scale))
+        return WhiskChain(mesh, signals=True, contact_model="svr", radial_model=radial_model, contact_noise=noise)
+    return WhiskChain(mesh, signals=False, contact_model=contact, contact_noise=noise)
 
 
 def _slam_config(cfg: Config, s: Settings, cell_size_m: float) -> Any:
@@ -180,8 +170,8 @@ def build_job(job: tuple[str, Config, Settings, str | None]) -> dict[str, Any]:
     step_m, step_deg = step_of(name)
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
-    rng = np.random.default_rng(run_seed(s.seed, "build", name, cfg.label))
-    log = explore(slam, _chain(mesh, cfg.contact_model, s), poses, rng)
+    rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
+    log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
     err = relocalisation_errors(log["exp_ids"], log["relocalised"], log["true_p"], log["true_q"])
     st, sr = step_sizes(log["true_p"], log["true_q"])
     if save_to is not None:
@@ -237,8 +227,8 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Sett
     poses = object_trajectory(mesh, family, s.id_loops, step_m=step_m, step_deg=step_deg)
     slam, lib = library_model(paths, names, cell_size_m=step_m)
     n_lib_hist = len(lib.history_object)
-    rng = np.random.default_rng(run_seed(s.seed, "identify", presented, family, cfg.label))
-    log = explore(slam, _chain(mesh, cfg.contact_model, s), poses, rng)
+    rng = np.random.default_rng(derive_seed(s.seed, "identify", presented, family, cfg.label))
+    log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
     table = lib.with_explored(slam.object_map.n_experiences)
     targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)
     params = LeakyIntegrator()
@@ -251,36 +241,21 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Sett
 
 
 # --------------------------------------------------------------------------- calibration
-def calibrate(noise_scale: float, quantile: float, seed: int, contact: str = "tip") -> dict[str, float]:
-    """T_pfh, T_sda from same-pose whisk pairs on one loop of trajectory A around the Mug (module docstring)."""
-    from whisker_io.features.pfh import chi_squared
-    from whisker_io.features.sda import nmse
+def calibrate(noise_scale: float, quantile: float, seed: int) -> dict[str, Any]:
+    """T_pfh, T_sda from same-pose whisk pairs on one loop of trajectory A around the Mug (module docstring).
+
+    The ``ch5_calibration.csv`` row: the noise scale, then
+    :meth:`whisker_io.features.match_thresholds.ThresholdCalibration.as_row`.
+    """
+    from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
     from whisker_io.sim.trajectories import object_trajectory
 
     mesh = make_object("mug")
-    s = Settings(1, noise_scale, 1.0, 1.0, None, seed, 1)
-    chain = _chain(mesh, contact, s)
-    rng = np.random.default_rng(run_seed(seed, "calibrate", noise_scale))
-    poses = object_trajectory(mesh, "A", 1)
-    same_c, same_e, next_c, next_e = [], [], [], []
-    feats = [(chain.features(p, rng), chain.features(p, rng)) for p in poses]
-    for k, (a, b) in enumerate(feats):
-        c = feats[(k + 1) % len(feats)][0]
-        if a.is_observation and b.is_observation and c.is_observation:
-            same_c.append(chi_squared(a.pfh, b.pfh))
-            same_e.append(nmse(a.sda, b.sda))
-            next_c.append(chi_squared(a.pfh, c.pfh))
-            next_e.append(nmse(a.sda, c.sda))
-    q = lambda x, f: float(np.quantile(x, f))  # noqa: E731
-    return {
-        "noise_scale": noise_scale, "quantile": quantile, "n_pairs": len(same_c),
-        "pfh_threshold": q(same_c, quantile), "sda_threshold": q(same_e, quantile),
-        "same_chi2_median": q(same_c, 0.5), "next_chi2_median": q(next_c, 0.5),
-        "same_nmse_median": q(same_e, 0.5), "next_nmse_median": q(next_e, 0.5),
-        "next_chi2_below_threshold": float(np.mean(np.array(next_c) < q(same_c, quantile))),
-        "next_nmse_below_threshold": float(np.mean(np.array(next_e) < q(same_e, quantile))),
-    }
+    chain = _chain(mesh, "tip", noise_scale)
+    rng = np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
+    cal = calibrate_match_thresholds(lambda p: chain.features(p, rng), object_trajectory(mesh, "A", 1), quantile)
+    return {"noise_scale": noise_scale, **cal.as_row()}
 
 
 # --------------------------------------------------------------------------- the study

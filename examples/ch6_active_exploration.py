@@ -7,8 +7,10 @@ Run::
 
 Steps:
 
-1. **Thresholds** T_pfh, T_sda: :func:`ch5_study.calibrate` (same-pose whisk pairs on the
-   Mug, not one of the Ch.6 objects) at the contact noise of Sec 6.1.3.1.2.
+1. **Thresholds** T_pfh, T_sda:
+   :func:`whisker_io.features.match_thresholds.calibrate_match_thresholds` on one loop of
+   trajectory A around the Mug (not one of the Ch.6 objects; the Ch.5 study's
+   calibration), at the contact noise of Sec 6.1.3.1.2.
 2. **Object maps** of Box and Box-Stack: two loops over the ellipsoid fitted to each
    object (:func:`whisker_io.sim.trajectories.object_trajectory`), the surface placement
    controller (SPC) at every pose, Eq 6.4-6.11 odometry noise
@@ -41,14 +43,14 @@ import logging
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import ch5_study  # noqa: E402
+from cansim.seeding import derive_seed
 
 logger = logging.getLogger("ch6_active_exploration")
 
@@ -83,9 +85,10 @@ def envelope() -> Any:
 def chain_for(name: str, noise_scale: float) -> Any:
     """The simulated whisk chain on object ``name`` (sweep-only, tip contact, Sec 6.1.3.1.2 noise)."""
     from whisker_io.sim.objects import make_object
+    from whisker_io.sim.sweep import ContactNoise
     from whisker_io.sim.whisk_chain import WhiskChain
 
-    return WhiskChain(make_object(name), contact_model="tip", contact_noise=ch5_study._noise(noise_scale))
+    return WhiskChain(make_object(name), contact_model="tip", contact_noise=ContactNoise().scaled(noise_scale))
 
 
 def spc_params() -> Any:
@@ -105,20 +108,22 @@ def slam_model(pfh_threshold: float, sda_threshold: float) -> Any:
 def prepare(seed: int, noise_scale: float = 1.0, n_loops: int = 2) -> Setup:
     """Thresholds (step 1) and the object maps of Box and Box-Stack (step 2)."""
     from cansim.explore.explorer import build_object_model
-    from whisker_io.sim.odometry_noise import noisy_odometry
+    from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
+    from whisker_io.sim.odometry_noise import noisy_odometry
     from whisker_io.sim.trajectories import object_trajectory
 
-    cal = ch5_study.calibrate(noise_scale, 0.75, seed)
+    mug, cal_rng = chain_for("mug", noise_scale), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
+    cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
     known = []
     for name in OBJECTS:
-        rng = np.random.default_rng(ch5_study.run_seed(seed, "map", name))
+        rng = np.random.default_rng(derive_seed(seed, "map", name))
         chain = chain_for(name, noise_scale)
         traj = object_trajectory(make_object(name), "A", n_loops=n_loops)
         known.append(build_object_model(
             name, traj, lambda p, c=chain, r=rng: c.features(p, r), lambda a, b, r=rng: noisy_odometry(a, b, r),
-            placement=spc_params(), model=slam_model(cal["pfh_threshold"], cal["sda_threshold"])))
-    return Setup(known, cal["pfh_threshold"], cal["sda_threshold"], noise_scale)
+            placement=spc_params(), model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
+    return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale)
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
@@ -136,7 +141,7 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
 
     mesh = make_object(presented)
     chain = chain_for(presented, setup.noise_scale)
-    sensor_rng = np.random.default_rng(ch5_study.run_seed(seed, "sensor", presented, strategy, spc))
+    sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", presented, strategy, spc))
     search = DefaultSearch(mesh.bounds.mean(axis=0), float(np.linalg.norm(mesh.extents)) / 2, mesh=mesh, seed=seed)
     if arm is None:
         arm = SimArm(search.face_pose(search.current) if _inside(search.face_pose(search.current)) else None, envelope())
@@ -156,7 +161,7 @@ def replay_odometry(seed: int, presented: str, strategy: str, spc: bool) -> Any:
     """Eq 6.4-6.11 noisy odometry with a generator fixed by the run's identity."""
     from whisker_io.sim.odometry_noise import noisy_odometry
 
-    rng = np.random.default_rng(ch5_study.run_seed(seed, "odometry", presented, strategy, spc))
+    rng = np.random.default_rng(derive_seed(seed, "odometry", presented, strategy, spc))
     return lambda a, b: noisy_odometry(a, b, rng)
 
 
@@ -175,9 +180,7 @@ def outside_envelope(arm: Any) -> int:
     env = envelope()
     n = 0
     for cmd in arm.received:
-        if cmd.kind == "moveL" and not _inside(cmd.target):
-            n += 1
-        elif cmd.kind == "moveL" and not (cmd.speed <= env.max_tcp_speed and cmd.acceleration_or_dt <= env.max_tcp_acceleration):
+        if cmd.kind == "moveL" and not _inside(cmd.target) or cmd.kind == "moveL" and not (cmd.speed <= env.max_tcp_speed and cmd.acceleration_or_dt <= env.max_tcp_acceleration):
             n += 1
     return n
 

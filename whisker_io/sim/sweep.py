@@ -557,6 +557,33 @@ class ContactNoise:
                 f"registration_probability must be in [0, 1], got {self.registration_probability!r}"
             )
 
+    def scaled(self, scale: float) -> ContactNoise:
+        """This noise with both standard deviations multiplied by ``scale``.
+
+        ``ContactNoise().scaled(s)`` is ``s`` times the Sec 6.1.3.1.2 noise: contact
+        position N(0, 0.25 s x whisker length), slope N(0, 0.33 s); the registration
+        probability and the position mode are kept. ``scaled(0)`` leaves only the
+        missed registrations; ``scaled(1)`` is an equal copy.
+
+        Parameters
+        ----------
+        scale : float
+            Factor, finite and >= 0 (dimensionless).
+
+        Raises
+        ------
+        InvalidInputError
+            A scale that is not a finite number >= 0 (or a bool), or that makes a
+            standard deviation overflow.
+        """
+        k = finite_scalar(scale, "scale")
+        if k < 0:
+            raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
+        pos, slope = self.position_sigma_fraction * k, self.slope_sigma * k
+        if not (np.isfinite(pos) and np.isfinite(slope)):
+            raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")
+        return replace(self, position_sigma_fraction=float(pos), slope_sigma=float(slope))
+
 
 def perturb_contacts(
     present: NDArray[np.bool_],
