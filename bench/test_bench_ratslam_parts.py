@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cansim.frontends.tactile import TactileTemplates
+from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
 from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run
@@ -22,20 +22,20 @@ ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
 
 def _filled_visual(n, cfg):
     rng = np.random.default_rng(0)
-    vt = VisualTemplates(VisualTemplateConfig(**cfg, vt_match_threshold=0.0))
+    vt = VisualTemplates(VisualTemplateConfig(**cfg, match_threshold=0.0))
     for _ in range(n):  # similar means: the mean pre-filter skips nothing (worst case)
-        vt.match(rng.integers(110, 146, size=(10 * cfg["template_y_size"], 4 * cfg["template_x_size"]), dtype=np.uint8))
-    matcher = VisualTemplates(VisualTemplateConfig(**cfg, vt_match_threshold=0.5))
+        vt.match(rng.integers(110, 146, size=(10 * cfg["template_height_blocks"], 4 * cfg["template_width_blocks"]), dtype=np.uint8))
+    matcher = VisualTemplates(VisualTemplateConfig(**cfg, match_threshold=0.5))
     matcher.from_arrays(vt.to_arrays())
-    probe = rng.integers(110, 146, size=(10 * cfg["template_y_size"], 4 * cfg["template_x_size"]), dtype=np.uint8)
+    probe = rng.integers(110, 146, size=(10 * cfg["template_height_blocks"], 4 * cfg["template_width_blocks"]), dtype=np.uint8)
     return matcher, probe
 
 
 @pytest.mark.parametrize(
     "name,cfg",
     [
-        ("60x10_shift5_step1", dict(template_x_size=60, template_y_size=10, vt_shift_match=5, vt_step_match=1)),
-        ("60x10_shift25_step5_openratslam_defaults", dict(template_x_size=60, template_y_size=10, vt_shift_match=25, vt_step_match=5)),
+        ("60x10_shift5_step1", dict(template_width_blocks=60, template_height_blocks=10, shift_match_blocks=5, step_match_blocks=1)),
+        ("60x10_shift25_step5_openratslam_defaults", dict(template_width_blocks=60, template_height_blocks=10, shift_match_blocks=25, step_match_blocks=5)),
     ],
 )
 def test_visual_template_match_1000_templates(benchmark, name, cfg):
@@ -89,7 +89,7 @@ def test_experience_map_update_and_relax_1000_experiences(benchmark, budget):
 def _ratslam_with_map(cfg, n_views=1000):
     slam = RatSLAM(cfg)
     for k in range(n_views):  # a straight corridor of 1,000 views -> 1,000 experiences
-        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, k)
+        slam.step(0.5 * cfg.cell_size_m, 0.0, 1.0, k)
     return slam
 
 
@@ -98,9 +98,9 @@ def _ratslam_with_map(cfg, n_views=1000):
     [
         ("default_numba_21x21x36", RatSLAMConfig()),
         ("openratslam_parity_21x21x36", RatSLAMConfig.openratslam()),
-        ("openratslam_parity_61x61x36", RatSLAMConfig.openratslam(pc_dim_xy=61)),
+        ("openratslam_parity_61x61x36", RatSLAMConfig.openratslam(xy_cells=61)),
         ("parity_population_engine_21x21x36", RatSLAMConfig.openratslam(pose_cells="population")),
-        ("parity_population_engine_61x61x36", RatSLAMConfig.openratslam(pose_cells="population", pc_dim_xy=61)),
+        ("parity_population_engine_61x61x36", RatSLAMConfig.openratslam(pose_cells="population", xy_cells=61)),
     ],
 )
 def test_ratslam_iteration_1000_experiences(benchmark, label, cfg):
@@ -110,14 +110,14 @@ def test_ratslam_iteration_1000_experiences(benchmark, label, cfg):
 
     def step():
         state["k"] = (state["k"] + 1) % 1000
-        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, state["k"])
+        slam.step(0.5 * cfg.cell_size_m, 0.0, 1.0, state["k"])
 
     benchmark(step)
 
 
 def _long_run(n_steps):
     run = make_run(ROUTE, loops=(1,) * (n_steps // 254 + 2), seed=0)
-    slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_vt_inject_energy=0.05))
+    slam = RatSLAM(RatSLAMConfig(cell_size_m=0.05, inject_energy=0.05))
     slam.step(0.0, 0.0, 1.0, 0)
     times = np.empty(n_steps)
     for k in range(1, n_steps + 1):
@@ -147,18 +147,18 @@ def test_ratslam_20000_iterations_time_growth_and_memory(benchmark):
 def test_ratslam_iteration_tactile_1000_templates(benchmark):
     """The whole iteration the issue targets: Eq 3.1 matching of a 3x6 tactile image against
     1,000 stored templates + pose cells (numba, 21x21x36) + an experience map of ~1,000 experiences."""
-    cfg = RatSLAMConfig(frontend="tactile", vt_match_threshold=20.0)
+    cfg = RatSLAMConfig(frontend=TactileTemplateConfig(match_threshold=20.0))
     slam = RatSLAM(cfg)
     rng = np.random.default_rng(0)
     images = rng.integers(0, 256, size=(1000, 3, 6), dtype=np.uint8)  # far apart: each becomes a template
     for k in range(1000):
-        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, images[k])
+        slam.step(0.5 * cfg.cell_size_m, 0.0, 1.0, images[k])
     assert slam.experience_map.n_experiences >= 900
     state = {"k": 0}
 
     def step():
         state["k"] = (state["k"] + 1) % 1000
-        slam.step(0.5 * cfg.pc_cell_x_size, 0.0, 1.0, images[state["k"]])
+        slam.step(0.5 * cfg.cell_size_m, 0.0, 1.0, images[state["k"]])
 
     benchmark(step)
 
@@ -182,7 +182,7 @@ def test_replay_cpp_trace_300_steps(benchmark, engine):
     rows = _cpp_trace_inputs()
 
     def replay():
-        slam = RatSLAM(RatSLAMConfig.openratslam(pc_cell_x_size=0.25, pose_cells=engine))
+        slam = RatSLAM(RatSLAMConfig.openratslam(cell_size_m=0.25, pose_cells=engine))
         for vtrans, vrot, dt, obs in rows:
             slam.step(vtrans, vrot, dt, obs)
         return slam

@@ -58,6 +58,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
+from cansim.frontends.visual import VisualTemplateConfig
 from cansim.ratslam import RatSLAM
 from cansim.ratslam_config import RatSLAMConfig
 
@@ -230,10 +231,12 @@ class ReplayResult:
 
 def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None) -> tuple[RatSLAMConfig, str]:
     if config is None:
-        return RatSLAMConfig(frontend="visual"), ""
+        return RatSLAMConfig(frontend=VisualTemplateConfig()), ""
     if isinstance(config, RatSLAMConfig):
-        if config.frontend != "visual":
-            raise ConfigError(f"frontend: a bag replay feeds camera images, so it must be 'visual', not {config.frontend!r}")
+        if not isinstance(config.frontend, VisualTemplateConfig):
+            raise ConfigError(
+                f"frontend: a bag replay feeds camera images, so it must be a VisualTemplateConfig, not {config.frontend!r}"
+            )
         return config, ""
     path = Path(config)
     try:
@@ -247,7 +250,7 @@ def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None) -> tuple
         with warnings.catch_warnings():
             # topic_root is read here; other keys of the ROS nodes are ignored by RatSLAMConfig with a warning
             warnings.filterwarnings("ignore", message=r".*'topic_root'.*")
-            cfg = RatSLAMConfig.from_file(path, frontend="visual")
+            cfg = RatSLAMConfig.from_text(text)  # an OpenRatSLAM file's front end is visual
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     return cfg, root
@@ -348,9 +351,10 @@ def replay(
     bag : path
         A ROS1 ``.bag`` file, a folder of them, or a ROS2 bag folder (sqlite3 or mcap).
     config : path or RatSLAMConfig, optional
-        An OpenRatSLAM ``config_*.txt`` file (its ``topic_root`` names the topics; the
-        front end is set to ``"visual"``) or a config with ``frontend="visual"``.
-        Default: ``RatSLAMConfig(frontend="visual")`` and topic root "".
+        An OpenRatSLAM ``config_*.txt`` file (its ``topic_root`` names the topics; its
+        front end is visual) or a config whose ``frontend`` is a
+        :class:`~cansim.frontends.visual.VisualTemplateConfig`. Default:
+        ``RatSLAMConfig(frontend=VisualTemplateConfig())`` and topic root "".
     odometry_topic, image_topic : str, optional
         Override the topics derived from ``topic_root``.
     stamps : {"header", "log"}

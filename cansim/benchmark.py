@@ -172,7 +172,7 @@ def _step_fn(workload: str, backend: Any) -> Callable[[], Any]:
 
         run = make_run(LoopRoute(step_m=0.05), loops=(1,) * 3, seed=0)
         name = backend if isinstance(backend, str) else backend.name
-        slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=0.05, backend=name))
+        slam = RatSLAM(RatSLAMConfig(cell_size_m=0.05, xy_cells=21, inject_energy=0.05, backend=name))
         k = [0]
 
         def one() -> Any:

@@ -79,9 +79,10 @@ class PosecellNetwork:
     Parameters
     ----------
     dim_xy, dim_th : int
-        ``pc_dim_xy`` (21) and ``pc_dim_th`` (36) cells.
+        Cells on the x and y axes (21) and on the heading axis (36): OpenRatSLAM's
+        ``pc_dim_xy`` and ``pc_dim_th``, ``RatSLAMConfig.xy_cells`` and ``heading_cells``.
     cell_size : float
-        ``pc_cell_x_size``, metres per cell (> 0).
+        Metres per cell (> 0): ``pc_cell_x_size``, ``RatSLAMConfig.cell_size_m``.
     params : AttractorParams
         Kernels and global inhibition, one scalar per field (the C++ grid is
         isotropic): ``exc_width`` / ``inh_width`` odd widths in cells (OpenRatSLAM
@@ -127,20 +128,20 @@ class PosecellNetwork:
         global_inhib, cells_to_avg = float(params.global_inhibition), int(decode_window)
         if params.kernel_normalisation != "sum":
             raise ConfigError("kernel_normalisation must be 'sum' in the OpenRatSLAM engine (the C++ kernels sum to 1)")
-        for name, v in (("exc_sigma (pc_w_e_var)", w_e_var), ("inh_sigma (pc_w_i_var)", w_i_var)):
+        for name, v in (("exc_sigma", w_e_var), ("inh_sigma", w_i_var)):
             if float(v) != int(v) or v <= 0:
                 raise ConfigError(f"{name} must be a positive integer in the OpenRatSLAM engine (a C++ int), got {v!r}")
-        for name, v in (("exc_width (pc_w_e_dim)", w_e_dim), ("inh_width (pc_w_i_dim)", w_i_dim)):
+        for name, v in (("exc_width", w_e_dim), ("inh_width", w_i_dim)):
             if int(v) < 1 or int(v) % 2 == 0:
                 raise ConfigError(f"{name} must be a positive odd integer, got {v!r}")
         half_max = max(w_e_dim // 2, w_i_dim // 2, cells_to_avg)
         if min(dim_xy, dim_th) < half_max:
             raise ConfigError(
-                f"dim_xy and dim_th (pc_dim_xy, pc_dim_th) must be >= {half_max} (the widest kernel half-width / "
+                f"dim_xy and dim_th (xy_cells, heading_cells) must be >= {half_max} (the widest kernel half-width / "
                 f"find_best window), got {dim_xy} and {dim_th}"
             )
         if not (math.isfinite(cell_size) and cell_size > 0):
-            raise ConfigError(f"cell_size (pc_cell_x_size) must be > 0 m, got {cell_size!r}")
+            raise ConfigError(f"cell_size (cell_size_m) must be > 0 m, got {cell_size!r}")
         self._nxy, self._nth = int(dim_xy), int(dim_th)
         self._cell = float(cell_size)
         self._gi = float(global_inhib)
@@ -297,7 +298,7 @@ class PosecellNetwork:
         if not total > 0.0:
             raise ZeroActivityError(
                 "global inhibition silenced every pose cell (OpenRatSLAM would abort); state left unchanged - "
-                "lower pc_global_inhib or inject energy"
+                "lower attractor.global_inhibition or inject energy"
             )
         v, w = v * t, w * t
         v /= self._cell

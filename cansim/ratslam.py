@@ -2,11 +2,12 @@
 
 The loop itself (order of the calls, save / resume) is :class:`cansim.slam_loop.SlamLoop`;
 this module only wires the parts from a :class:`~cansim.ratslam_config.RatSLAMConfig`
-(OpenRatSLAM's parameter names and config files):
+(OpenRatSLAM's config files are read by :mod:`cansim.openratslam_config`):
 
-1. front end - precomputed view ids (:class:`~cansim.frontends.ids.IdsFrontEnd`),
-   camera images (:class:`~cansim.frontends.visual.VisualTemplates`) or the 3 x 6
-   tactile image of thesis Ch.3 (:class:`~cansim.frontends.tactile.TactileTemplates`);
+1. front end, selected by ``frontend`` - precomputed view ids ("ids",
+   :class:`~cansim.frontends.ids.IdsFrontEnd`), camera images (a ``VisualTemplateConfig``,
+   :class:`~cansim.frontends.visual.VisualTemplates`) or the 3 x 6 tactile image of thesis
+   Ch.3 (a ``TactileTemplateConfig``, :class:`~cansim.frontends.tactile.TactileTemplates`);
 2. local-view cells - OpenRatSLAM's stored location (``PosecellNetwork::on_view_template``:
    C++ truncation, no injection for the 10 most recent templates - with fewer than 10
    every revisit injects, as C++'s unsigned arithmetic does - and the decay rules) or
@@ -21,7 +22,7 @@ along +y), C++ view-cell arithmetic (raw stored coordinates, theta wrapped once,
 truncation, out-of-grid cells skipped), OpenRatSLAM's unbounded relaxation and
 never-reset link timer, and translation limited to one cell per step - the C++
 four-weight shift is only valid up to one cell, so larger steps raise
-:class:`InvalidInputError` (reduce the speed or raise ``pc_cell_x_size``). Fed the same
+:class:`InvalidInputError` (reduce the speed or raise ``cell_size_m``). Fed the same
 odometry and view ids (with panoramic ``relative_rad``) as OpenRatSLAM's C++ core driven
 the way its ROS nodes drive it, every step's decoded (x, y, theta), experience id, action
 and the final map are bit-identical (``tests/data/openratslam_cpp_trace.csv``). Remaining
@@ -37,7 +38,6 @@ to ~1e-15 cells per step until a truncated coordinate falls the other way.
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from typing import Any
 
 import numpy as np
@@ -46,7 +46,7 @@ from cansim.errors import ConfigError, InvalidInputError
 from cansim.frontends.ids import IdsFrontEnd
 from cansim.frontends.panoramic import HeadingOffset
 from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
-from cansim.frontends.visual import VisualTemplates
+from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.local_view import LocalViewCells
 from cansim.population import Population
 from cansim.posecell_network import PosecellNetwork
@@ -64,36 +64,39 @@ class RatSLAM(SlamLoop):
     Parameters
     ----------
     config : RatSLAMConfig, optional
-        Parameters; keyword arguments with OpenRatSLAM names override it
-        (``RatSLAM(pc_dim_xy=30, vt_match_threshold=0.05)``).
+        Parameters; keyword arguments (its field names) override it
+        (``RatSLAM(xy_cells=30, relax_passes=3)``). OpenRatSLAM's key names raise
+        :class:`ConfigError` naming the field; read OpenRatSLAM files with
+        :meth:`RatSLAMConfig.from_file`.
 
     Examples
     --------
-    >>> slam = RatSLAM(pc_cell_x_size=0.1)
+    >>> slam = RatSLAM(cell_size_m=0.1)
     >>> s = slam.step(0.05, 0.0, 1.0, 0)      # 5 cm/s for 1 s, view id 0
     >>> s.exp_id
     0
     """
 
     def __init__(self, config: RatSLAMConfig | None = None, **params: Any) -> None:
+        RatSLAMConfig.check_names(params)
         cfg = self.config = configured(RatSLAMConfig, config, params, "RatSLAM")
         pose_cells: Population | PosecellNetwork
         if cfg.pose_cells == "openratslam":
             pose_cells = PosecellNetwork(
-                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, params=cfg.attractor_params(), decode_window=cfg.pc_cells_to_avg,
+                cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, params=cfg.attractor, decode_window=cfg.decode_window,
             )
         else:
             pose_cells = Population.openratslam(
-                cfg.pc_dim_xy, cfg.pc_dim_th, cfg.pc_cell_x_size, frame=cfg.frame, params=cfg.attractor_params(),
-                dtype=np.dtype(cfg.dtype), backend=cfg.backend, decode_window=cfg.pc_cells_to_avg,
+                cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, frame=cfg.frame, params=cfg.attractor,
+                dtype=np.dtype(cfg.dtype), backend=cfg.backend, decode_window=cfg.decode_window,
             )
         frontend: Any
-        if cfg.frontend == "visual":
-            frontend = HeadingOffset(VisualTemplates(cfg.visual_config()), 3, 2, cfg.pc_dim_th)
-        elif cfg.frontend == "tactile":
-            frontend = HeadingOffset(TactileTemplates(TactileTemplateConfig(vt_match_threshold=cfg.vt_match_threshold)), 3, 2, cfg.pc_dim_th)
+        if isinstance(cfg.frontend, VisualTemplateConfig):
+            frontend = HeadingOffset(VisualTemplates(cfg.frontend), 3, 2, cfg.heading_cells)
+        elif isinstance(cfg.frontend, TactileTemplateConfig):
+            frontend = HeadingOffset(TactileTemplates(cfg.frontend), 3, 2, cfg.heading_cells)
         else:
-            frontend = IdsFrontEnd(3, heading_axis=2, heading_cells=cfg.pc_dim_th)
+            frontend = IdsFrontEnd(3, heading_axis=2, heading_cells=cfg.heading_cells)
         super().__init__(
             pose_cells,
             LocalViewCells(pose_cells.shape, cfg.local_view_params()),
@@ -105,11 +108,11 @@ class RatSLAM(SlamLoop):
 
     def _check_strict(self, odo: PlanarOdometry) -> None:
         step_m = abs(odo.v * odo.dt)
-        if step_m > self.config.pc_cell_x_size * (1 + 1e-12):
+        if step_m > self.config.cell_size_m * (1 + 1e-12):
             raise InvalidInputError(
-                f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.pc_cell_x_size:.3g} cells; "
+                f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
                 "OpenRatSLAM's path integration is valid for at most one cell per step - "
-                "raise pc_cell_x_size or split the step"
+                "raise cell_size_m or split the step"
             )
 
     def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> SlamState:  # type: ignore[override]
@@ -126,8 +129,9 @@ class RatSLAM(SlamLoop):
         observation : int, tuple, ndarray or None
             ``frontend="ids"``: a view id (any non-negative integer; first-seen order
             numbers the views) or a ``(view_id, relative_rad)`` pair - the rotation (rad)
-            of a panoramic match, OpenRatSLAM's ``ViewTemplate`` message; ``"visual"``: a
-            uint8 image; ``"tactile"``: a 3 x 6 tactile image; None: odometry only.
+            of a panoramic match, OpenRatSLAM's ``ViewTemplate`` message; a
+            ``VisualTemplateConfig`` front end: a uint8 image; a ``TactileTemplateConfig``:
+            a 3 x 6 tactile image; None: odometry only.
 
         Returns
         -------
@@ -153,7 +157,7 @@ class RatSLAM(SlamLoop):
     # ------------------------------------------------------- save / resume
     def describe(self) -> dict[str, Any]:
         """The configuration, for :meth:`save`."""
-        return {"model": "RatSLAM", "config": asdict(self.config)}
+        return {"model": "RatSLAM", "config": self.config.to_dict()}
 
     @classmethod
     def from_description(cls, description: dict[str, Any]) -> "RatSLAM":
@@ -161,6 +165,6 @@ class RatSLAM(SlamLoop):
         if description.get("model") != "RatSLAM":
             raise ValueError(f"the file holds a {description.get('model')!r} model, not RatSLAM")
         try:
-            return cls(RatSLAMConfig(**description["config"]))
+            return cls(RatSLAMConfig.from_dict(description["config"]))
         except ConfigError as exc:
             raise ValueError(str(exc)) from exc

@@ -1,24 +1,24 @@
-"""RatSLAM's parameters, with OpenRatSLAM's names, and the adapter for its config files.
+"""RatSLAM's parameters: one name per concept, shared with WhiskerRatSLAM.
 
-:class:`RatSLAMConfig` is the one place where OpenRatSLAM's flat key names live: it
-reads OpenRatSLAM ``config_*.txt.in`` files (:meth:`RatSLAMConfig.from_file`) and maps
-the keys onto the parts' own parameters - :class:`cansim.params.AttractorParams`
-(kernels, global inhibition), :class:`cansim.local_view.LocalViewParams`,
-:class:`maps.experience_map.MapConfig` and :class:`maps.se2.SE2Geometry`, and the
-visual / tactile front-end configs.
+:class:`RatSLAMConfig` holds the 3-DoF model's parameters under the names the rest of
+cansim uses (``cell_size_m``, ``attractor``, ``inject_energy``,
+``match_distance_cells``, ``relax_passes``, ``frontend``...) and builds the parts'
+own parameters from them: :class:`cansim.params.AttractorParams` (a field),
+:class:`cansim.local_view.LocalViewParams`, :class:`maps.experience_map.MapConfig`
+and :class:`maps.se2.SE2Geometry`.
+
+OpenRatSLAM's ``config_*.txt.in`` files are read by :meth:`RatSLAMConfig.from_file`,
+which delegates to the adapter :mod:`cansim.openratslam_config`; that module holds
+the one table from OpenRatSLAM's flat key names to these fields. Passing an
+OpenRatSLAM name as a keyword raises :class:`~cansim.errors.ConfigError` naming the
+field to use.
 """
 
 from __future__ import annotations
 
-import functools
-import math
 import os
-import typing
-import warnings
-from dataclasses import dataclass, fields
-from typing import Any, Optional
-
-import numpy as np
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any, Union
 
 from cansim.errors import ConfigError
 from cansim.frontends.tactile import TactileTemplateConfig
@@ -27,129 +27,175 @@ from cansim.local_view import LocalViewParams
 from cansim.params import AttractorParams
 from maps.experience_map import MapConfig
 from maps.se2 import SE2Geometry
+from whisker_io.validation import config_field
 
-__all__ = ["RatSLAMConfig"]
+__all__ = ["RatSLAMConfig", "FrontEndConfig"]
 
-_VISUAL_KEYS = tuple(f.name for f in fields(VisualTemplateConfig) if f.name != "emulate_uninitialised_clear")
-_VT_DEFAULTS = VisualTemplateConfig()
+FrontEndConfig = Union[str, VisualTemplateConfig, TactileTemplateConfig]
+"""What :attr:`RatSLAMConfig.frontend` holds: ``"ids"`` or a front-end config."""
+
+_FRONTEND_KINDS: dict[str, type] = {"visual": VisualTemplateConfig, "tactile": TactileTemplateConfig}
+
+
+def _per_axis(value: Any) -> tuple[Any, ...]:
+    return tuple(value) if isinstance(value, (list, tuple)) else (value,)
 
 
 @dataclass(frozen=True)
 class RatSLAMConfig:
-    """All RatSLAM parameters, with OpenRatSLAM's names and defaults.
+    """All RatSLAM parameters (defaults: OpenRatSLAM's).
 
-    Pose cells: ``pc_dim_xy`` (21), ``pc_dim_th`` (36), ``pc_w_e_dim`` (7),
-    ``pc_w_i_dim`` (5), ``pc_w_e_var`` (1, used as sigma in cells),
-    ``pc_w_i_var`` (2), ``pc_global_inhib`` (2e-5), ``pc_cell_x_size`` (1.0 m
-    per cell), ``pc_cells_to_avg`` (3, the find_best half window).
-    Local view: ``pc_vt_inject_energy`` (0.15), ``pc_vt_restore`` (0.05),
-    ``vt_active_decay`` (1.0). Experience map: ``exp_delta_pc_threshold`` (2
-    cells), ``exp_correction`` (0.5), ``exp_loops`` (10), ``exp_initial_em_deg``
-    (90). Visual templates: the fields of
-    :class:`cansim.frontends.visual.VisualTemplateConfig` (``template_x_size``,
-    ``vt_shift_match``, ``vt_match_threshold``, ...); ``vt_match_threshold`` is
-    also the Eq 3.1 threshold of the tactile front end.
+    OpenRatSLAM's key for a field is given in brackets, for translating its config
+    files by hand (:meth:`from_file` does it; see :mod:`cansim.openratslam_config`).
 
-    Library settings (not in OpenRatSLAM): ``frontend`` - ``"ids"``
-    (precomputed view ids), ``"visual"`` or ``"tactile"``; ``relax_budget`` -
-    single-link relaxation updates per step (None = OpenRatSLAM's unbounded
-    O(links) relaxation; see :mod:`maps.experience_map`); ``frame`` -
-    ``"standard"`` or ``"openratslam"`` pose-cell frame; ``dtype`` -
-    ``"float64"``/``"float32"``; ``backend`` - CAN backend name;
-    ``strict_translation`` - raise when a step moves the packet more than one cell;
-    ``pose_cells`` - the pose-cell engine: ``"population"`` (cansim's
-    :class:`~cansim.population.Population`, any backend and dtype) or
-    ``"openratslam"`` (:class:`~cansim.posecell_network.PosecellNetwork`, the C++
-    core's arithmetic bit for bit, float64, numba); ``link_time_since_start`` -
-    OpenRatSLAM never resets its link timer, so every link's ``delta_time_s``
-    is the time since the first odometry; True reproduces that, False (default)
-    stores the time since the link's source experience; ``lv_mode`` - how views
-    feed the pose cells: ``"stored"`` (OpenRatSLAM's stored location, Eq 5.8;
-    default) or ``"learnt"`` (explicit LV->PC weights, Eq 2.17/2.18, with
-    ``pc_vt_inject_energy`` as the gain delta).
+    Parameters
+    ----------
+    xy_cells : int
+        Pose cells on each of the x and y axes (21) [``pc_dim_xy``].
+    heading_cells : int
+        Pose cells on the heading axis (36, 10 deg each) [``pc_dim_th``].
+    cell_size_m : float
+        Metres per translational pose cell (1.0; thesis Table 3.1: 0.015) [``pc_cell_x_size``].
+    attractor : AttractorParams
+        Kernels and global inhibition (Alg 3-5): OpenRatSLAM's 7-tap sigma-1
+        excitation, 5-tap sigma-2 inhibition, phi 2e-5. Widths odd, sigmas > 0 cells
+        [``pc_w_e_dim``, ``pc_w_e_var``, ``pc_w_i_dim``, ``pc_w_i_var``, ``pc_global_inhib``].
+    decode_window : int
+        Half-width (cells) of the population-vector box around the maximum (3) [``pc_cells_to_avg``].
+    lv_mode : {"stored", "learnt"}
+        How views feed the pose cells: OpenRatSLAM's stored location (Eq 5.8, default)
+        or explicit learnt LV->PC weights (Eq 2.17/2.18, ``inject_energy`` as the gain).
+    inject_energy : float
+        Energy a view injects at its stored cell (0.15) [``pc_vt_inject_energy``].
+    active_decay, decay_restore : float
+        A view's decay rise per match (1.0) and fall per iteration (0.05)
+        [``vt_active_decay``, ``pc_vt_restore``].
+    match_distance_cells : float
+        Wrapped pose-cell distance (cells, Eq 2.22) above which a new experience is
+        made (2; thesis Table 3.1: 1) [``exp_delta_pc_threshold``].
+    correction : float
+        Relaxation rate alpha of Eq 2.25, in (0, 1] (0.5) [``exp_correction``].
+    relax_passes : int
+        Relaxation passes over all links per action (10) [``exp_loops``].
+    relax_budget : int or None
+        Single-link relaxation updates per step (2,000; None = OpenRatSLAM's
+        unbounded O(links) relaxation; see :mod:`maps.experience_map`).
+    initial_heading_deg : float
+        Facing (deg) of the map's dead reckoning before the first experience (90;
+        thesis Table 3.1: 180) [``exp_initial_em_deg``].
+    link_time_since_start : bool
+        OpenRatSLAM never resets its link timer, so every link's ``delta_time_s`` is
+        the time since the first odometry; True reproduces that, False (default)
+        stores the time since the link's source experience.
+    frontend : "ids", VisualTemplateConfig or TactileTemplateConfig
+        The front end, selected by the type: ``"ids"`` (precomputed view ids,
+        default), a :class:`~cansim.frontends.visual.VisualTemplateConfig` (camera
+        images) or a :class:`~cansim.frontends.tactile.TactileTemplateConfig` (the
+        3 x 6 tactile image of Ch.3, Eq 3.1).
+    frame : {"standard", "openratslam"}
+        Pose-cell frame (``"openratslam"``: theta index 0 moves the packet along +y).
+    dtype : {"float64", "float32"}
+    backend : str
+        CAN backend name (numba by default).
+    strict_translation : bool
+        Raise when a step moves the packet more than one cell.
+    pose_cells : {"population", "openratslam"}
+        The pose-cell engine: cansim's :class:`~cansim.population.Population` (any
+        backend and dtype) or :class:`~cansim.posecell_network.PosecellNetwork` (the
+        C++ core's arithmetic bit for bit, float64, numba).
+
+    Raises
+    ------
+    ConfigError
+        A field of the wrong type or out of range, an unknown field, or an OpenRatSLAM
+        key name (the message names the field to use; :meth:`from_file` reads
+        OpenRatSLAM files).
     """
 
-    pc_dim_xy: int = 21
-    pc_dim_th: int = 36
-    pc_w_e_dim: int = 7
-    pc_w_i_dim: int = 5
-    pc_w_e_var: float = 1.0
-    pc_w_i_var: float = 2.0
-    pc_global_inhib: float = 2e-5
-    pc_cell_x_size: float = 1.0
-    pc_cells_to_avg: int = 3
-    pc_vt_inject_energy: float = 0.15
-    pc_vt_restore: float = 0.05
-    vt_active_decay: float = 1.0
-    exp_delta_pc_threshold: float = 2.0
-    exp_correction: float = 0.5
-    exp_loops: int = 10
-    exp_initial_em_deg: float = 90.0
-    template_x_size: int = _VT_DEFAULTS.template_x_size
-    template_y_size: int = _VT_DEFAULTS.template_y_size
-    image_crop_x_min: int = _VT_DEFAULTS.image_crop_x_min
-    image_crop_x_max: int = _VT_DEFAULTS.image_crop_x_max
-    image_crop_y_min: int = _VT_DEFAULTS.image_crop_y_min
-    image_crop_y_max: int = _VT_DEFAULTS.image_crop_y_max
-    vt_shift_match: int = _VT_DEFAULTS.vt_shift_match
-    vt_step_match: int = _VT_DEFAULTS.vt_step_match
-    vt_match_threshold: float = _VT_DEFAULTS.vt_match_threshold
-    vt_normalisation: float = _VT_DEFAULTS.vt_normalisation
-    vt_patch_normalise: int = _VT_DEFAULTS.vt_patch_normalise
-    vt_min_patch_normalisation_std: float = _VT_DEFAULTS.vt_min_patch_normalisation_std
-    vt_panoramic: bool = _VT_DEFAULTS.vt_panoramic
-    frontend: str = "ids"
+    xy_cells: int = 21
+    heading_cells: int = 36
+    cell_size_m: float = 1.0
+    attractor: AttractorParams = field(default_factory=AttractorParams)
+    decode_window: int = 3
+    lv_mode: str = "stored"
+    inject_energy: float = 0.15
+    active_decay: float = 1.0
+    decay_restore: float = 0.05
+    match_distance_cells: float = 2.0
+    correction: float = 0.5
+    relax_passes: int = 10
     relax_budget: int | None = 2_000
+    initial_heading_deg: float = 90.0
+    link_time_since_start: bool = False
+    frontend: FrontEndConfig = "ids"
     frame: str = "standard"
     dtype: str = "float64"
     backend: str = "numba"
     strict_translation: bool = False
     pose_cells: str = "population"
-    link_time_since_start: bool = False
-    lv_mode: str = "stored"
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> "RatSLAMConfig":
+        # a dataclass __init__ would raise TypeError for a foreign keyword; refuse it by name
+        if kwargs:
+            cls.check_names(kwargs)
+        return super().__new__(cls)
+
+    @classmethod
+    def check_names(cls, names: Any) -> None:
+        """Raise :class:`ConfigError` unless every name is a field (OpenRatSLAM names get the field to use)."""
+        from cansim.openratslam_config import renamed
+
+        unknown = [n for n in names if n not in {f.name for f in fields(cls)}]
+        for name in unknown:
+            new = renamed(name)
+            if new is not None:
+                raise ConfigError(f"{name} is OpenRatSLAM's name: use {new}; RatSLAMConfig.from_file reads OpenRatSLAM files")
+        if unknown:
+            raise ConfigError(f"unknown RatSLAMConfig field(s) {sorted(unknown)}; the fields are {[f.name for f in fields(cls)]}")
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            kind = _field_kinds()[f.name]
-            if kind == "int" and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
-                raise ConfigError(f"{f.name} must be an integer, got {value!r}")
-            if kind == "float" and (isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not math.isfinite(value)):
-                raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
-            if kind == "bool" and not isinstance(value, (bool, np.bool_)):
-                raise ConfigError(f"{f.name} must be a boolean, got {value!r}")
-        for name in ("pc_dim_xy", "pc_dim_th", "pc_w_e_dim", "pc_w_i_dim"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
-        for name in ("pc_w_e_dim", "pc_w_i_dim"):
-            if getattr(self, name) % 2 == 0:
-                raise ConfigError(f"{name} must be odd (kernel centred on a cell), got {getattr(self, name)}")
-        for name in ("pc_w_e_var", "pc_w_i_var", "pc_cell_x_size"):
-            if getattr(self, name) <= 0:
-                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("pc_global_inhib", "pc_vt_inject_energy", "pc_vt_restore", "vt_active_decay", "exp_delta_pc_threshold", "pc_cells_to_avg"):
-            if getattr(self, name) < 0:
-                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.frontend not in ("ids", "visual", "tactile"):
-            raise ConfigError(f"frontend must be 'ids', 'visual' or 'tactile', got {self.frontend!r}")
-        if self.frame not in ("standard", "openratslam"):
-            raise ConfigError(f"frame must be 'standard' or 'openratslam', got {self.frame!r}")
-        if self.dtype not in ("float64", "float32"):
-            raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
-        if self.lv_mode not in ("stored", "learnt"):
-            raise ConfigError(f"lv_mode must be 'stored' or 'learnt', got {self.lv_mode!r}")
+        config_field(self.xy_cells, "xy_cells", int, minimum=1)
+        config_field(self.heading_cells, "heading_cells", int, minimum=1)
+        config_field(self.cell_size_m, "cell_size_m", float, above=0)
+        config_field(self.decode_window, "decode_window", int, minimum=0)
+        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
+            config_field(getattr(self, name), name, float, minimum=0)
+        config_field(self.initial_heading_deg, "initial_heading_deg", float)
+        for name in ("link_time_since_start", "strict_translation"):
+            config_field(getattr(self, name), name, bool)
+        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
+        config_field(self.frame, "frame", str, choices=("standard", "openratslam"))
+        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
+        config_field(self.backend, "backend", str)
+        config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam"))
+        self._check_attractor()
+        fe = self.frontend
+        if not ((isinstance(fe, str) and fe == "ids") or isinstance(fe, (VisualTemplateConfig, TactileTemplateConfig))):
+            raise ConfigError(
+                f"frontend must be 'ids', a VisualTemplateConfig (camera images) or a TactileTemplateConfig "
+                f"(Ch.3 tactile images), got {self.frontend!r}; e.g. frontend=VisualTemplateConfig(match_threshold=0.05)"
+            )
         if self.lv_mode == "learnt" and self.pose_cells == "openratslam":
             raise ConfigError("lv_mode='learnt' needs pose_cells='population' (the C++ engine is the stored-location model)")
-        if self.pose_cells not in ("population", "openratslam"):
-            raise ConfigError(f"pose_cells must be 'population' or 'openratslam', got {self.pose_cells!r}")
         if self.pose_cells == "openratslam" and (self.frame != "openratslam" or self.dtype != "float64"):
             raise ConfigError("pose_cells='openratslam' is the C++ engine: it needs frame='openratslam' and dtype='float64'")
-        self.map_config()
+        self.map_config()  # correction, relax_passes, relax_budget
         self.map_geometry()
-        if self.frontend == "visual":
-            self.visual_config()
-        if self.frontend == "tactile":
-            TactileTemplateConfig(vt_match_threshold=self.vt_match_threshold)
+
+    def _check_attractor(self) -> None:
+        a = self.attractor
+        if not isinstance(a, AttractorParams):
+            raise ConfigError(f"attractor must be an AttractorParams (cansim.params), got {a!r}")
+        for name in ("exc_width", "inh_width", "exc_sigma", "inh_sigma"):
+            values = _per_axis(getattr(a, name))
+            if len(values) not in (1, 3):
+                raise ConfigError(f"attractor.{name} must be one value or 3 (x, y, heading), got {getattr(a, name)!r}")
+            for v in values:
+                if name.endswith("width"):
+                    config_field(v, f"attractor.{name}", int, minimum=1, odd=True, hint="a kernel is centred on a cell")
+                else:
+                    config_field(v, f"attractor.{name}", float, above=0, hint="a standard deviation in cells")
+        config_field(a.global_inhibition, "attractor.global_inhibition", float, minimum=0)
 
     # ------------------------------------------------------------- presets
     @classmethod
@@ -166,13 +212,15 @@ class RatSLAMConfig:
     def thesis_ch3(cls, **overrides: Any) -> "RatSLAMConfig":
         """Table 3.1 of the thesis (whisker-array RatSLAM) with the tactile front end.
 
-        The two tuned values (``vt_match_threshold``, ``pc_vt_inject_energy``) are not
-        printed in the thesis; pass them as overrides.
+        Table 3.1's template (6 x 3, no shift, step 1) is the tactile image itself
+        (:data:`cansim.frontends.tactile.TACTILE_SHAPE`, compared without shifts). The
+        two tuned values - the Eq 3.1 match threshold and the injected energy - are not
+        printed in the thesis; pass them as overrides, e.g.
+        ``thesis_ch3(frontend=TactileTemplateConfig(match_threshold=5.0), inject_energy=0.05)``.
         """
         params: dict[str, Any] = {
-            "vt_shift_match": 0, "vt_step_match": 1, "vt_active_decay": 1.0, "template_x_size": 6,
-            "template_y_size": 3, "pc_dim_xy": 30, "pc_cell_x_size": 0.015, "exp_delta_pc_threshold": 1.0,
-            "exp_loops": 10, "exp_initial_em_deg": 180.0, "frontend": "tactile", "vt_match_threshold": 20.0,
+            "active_decay": 1.0, "xy_cells": 30, "cell_size_m": 0.015, "match_distance_cells": 1.0,
+            "relax_passes": 10, "initial_heading_deg": 180.0, "frontend": TactileTemplateConfig(match_threshold=20.0),
         }
         params.update(overrides)
         return cls(**params)
@@ -181,97 +229,68 @@ class RatSLAMConfig:
     def from_file(cls, path: str | os.PathLike[str], **overrides: Any) -> "RatSLAMConfig":
         """Read an OpenRatSLAM ``config_*.txt.in`` file (``key=value`` lines, ``[section]`` headers).
 
-        Unknown keys (ROS topics, drawing, visual odometry...) are ignored with a
-        ``UserWarning``; a known key with a malformed value raises :class:`ConfigError`
-        naming the key. ``overrides`` win over the file.
+        The keys are mapped onto the fields by :mod:`cansim.openratslam_config` (its
+        docstring has the table); the front end is a
+        :class:`~cansim.frontends.visual.VisualTemplateConfig` (OpenRatSLAM's is a
+        camera). Unknown keys (ROS topics, drawing, visual odometry...) are ignored
+        with a ``UserWarning``; a known key with a malformed or out-of-range value
+        raises :class:`ConfigError` naming the key and its line. ``overrides`` (field
+        names, e.g. ``frontend="ids"``) replace whole fields and win over the file.
         """
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
-        return cls.from_text(text, **overrides)
+        from cansim.openratslam_config import read_openratslam_file
+
+        return read_openratslam_file(path, **overrides)
 
     @classmethod
     def from_text(cls, text: str, **overrides: Any) -> "RatSLAMConfig":
         """As :meth:`from_file`, from the file's text."""
-        types = _field_kinds()
-        values: dict[str, Any] = {}
-        for lineno, raw in enumerate(text.splitlines(), 1):
-            line = raw.strip()
-            if not line or line.startswith(("#", ";", "[")):
-                continue
-            if "=" not in line:
-                raise ConfigError(f"line {lineno}: {line!r} is not 'key=value'")
-            key, value = (s.strip() for s in line.split("=", 1))
-            if key not in types:
-                warnings.warn(f"OpenRatSLAM config key {key!r} (line {lineno}) is not used by cansim; ignored", UserWarning, stacklevel=3)
-                continue
-            values[key] = _parse_value(key, value, types[key])
-        values.update(overrides)
-        return cls(**values)
+        from cansim.openratslam_config import read_openratslam_text
+
+        return read_openratslam_text(text, **overrides)
+
+    # ---------------------------------------------------------- save / load
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (for saved models); the front end as ``"ids"`` or ``{"kind": ..., fields}``."""
+        out = asdict(self)
+        if not isinstance(self.frontend, str):
+            kind = next(k for k, t in _FRONTEND_KINDS.items() if isinstance(self.frontend, t))
+            out["frontend"] = {"kind": kind, **asdict(self.frontend)}
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RatSLAMConfig":
+        """Inverse of :meth:`to_dict`."""
+        try:
+            d = dict(d)
+            if isinstance(d.get("attractor"), dict):
+                d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
+            fe = d.get("frontend")
+            if isinstance(fe, dict):
+                fe = dict(fe)
+                d["frontend"] = _FRONTEND_KINDS[fe.pop("kind")](**fe)
+            return cls(**d)
+        except (KeyError, TypeError) as exc:
+            raise ConfigError(f"not a RatSLAMConfig description ({exc!r})") from None
 
     # --------------------------------------------------------- sub-configs
-    def attractor_params(self) -> AttractorParams:
-        """The pose cells' kernels and global inhibition."""
-        return AttractorParams(
-            exc_width=self.pc_w_e_dim, exc_sigma=self.pc_w_e_var, inh_width=self.pc_w_i_dim, inh_sigma=self.pc_w_i_var,
-            global_inhibition=self.pc_global_inhib,
-        )
-
-    def visual_config(self) -> VisualTemplateConfig:
-        """The visual front end's parameters."""
-        return VisualTemplateConfig(**{k: getattr(self, k) for k in _VISUAL_KEYS})
-
     def map_config(self) -> MapConfig:
         """The experience map's core parameters."""
         return MapConfig(
-            correction=self.exp_correction, relax_passes=self.exp_loops, match_distance_cells=self.exp_delta_pc_threshold,
-            pc_shape=(self.pc_dim_xy, self.pc_dim_xy, self.pc_dim_th), offset_axes=(2,), relax_budget=self.relax_budget,
+            correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
+            pc_shape=(self.xy_cells, self.xy_cells, self.heading_cells), offset_axes=(2,), relax_budget=self.relax_budget,
             link_time_since_start=self.link_time_since_start,
         )
 
     def map_geometry(self) -> SE2Geometry:
         """The experience map's SE(2) geometry (initial heading, panoramic theta axis)."""
-        return SE2Geometry(initial_heading_deg=self.exp_initial_em_deg, heading_axis=2, heading_cells=self.pc_dim_th)
+        return SE2Geometry(initial_heading_deg=self.initial_heading_deg, heading_axis=2, heading_cells=self.heading_cells)
 
     def local_view_params(self) -> LocalViewParams:
         """The local-view cells' parameters: OpenRatSLAM's stored location, or learnt LV->PC weights (``lv_mode``)."""
         if self.lv_mode == "learnt":
-            return LocalViewParams(mode="learnt", inject_gain=self.pc_vt_inject_energy, recent_exclusion=0)
+            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
         return LocalViewParams(
-            mode="stored", inject_energy=self.pc_vt_inject_energy, active_decay=self.vt_active_decay,
-            decay_restore=self.pc_vt_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
+            mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay,
+            decay_restore=self.decay_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
             cpp_cells=self.pose_cells == "openratslam",
         )
-
-
-@functools.lru_cache(maxsize=None)
-def _field_kinds() -> dict[str, str]:
-    """``{field: "int" | "float" | "bool" | "str" | "int | None"}`` from RatSLAMConfig's type hints."""
-    names = {int: "int", float: "float", bool: "bool", str: "str", Optional[int]: "int | None"}
-    return {name: names[hint] for name, hint in typing.get_type_hints(RatSLAMConfig).items()}
-
-
-def _parse_value(key: str, value: str, kind: str) -> Any:
-    try:
-        if kind == "int":
-            f = float(value)
-            if not f.is_integer():
-                raise ValueError
-            return int(f)
-        if kind == "float":
-            f = float(value)
-            if not math.isfinite(f):
-                raise ValueError
-            return f
-        if kind == "bool":
-            low = value.lower()
-            if low in ("1", "true", "yes", "on"):
-                return True
-            if low in ("0", "false", "no", "off"):
-                return False
-            raise ValueError
-        if kind == "int | None":
-            return None if value.lower() in ("none", "") else int(value)
-        return value
-    except ValueError:
-        raise ConfigError(f"config key {key!r}: malformed value {value!r} (expected {kind})") from None
-

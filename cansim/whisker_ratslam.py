@@ -48,6 +48,7 @@ from maps.experience_map import MapConfig
 from maps.object_library import ObjectLibrary, append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
+from whisker_io.validation import config_field
 
 __all__ = ["WhiskerRatSLAM", "WhiskerRatSLAMConfig"]
 
@@ -108,18 +109,13 @@ class WhiskerRatSLAMConfig:
     dtype: str = "float64"
 
     def __post_init__(self) -> None:
-        for name in ("grid_cells",) + (("angle_cells",) if self.angle_cells is not None else ()):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 3:
-                raise ConfigError(f"{name} must be an integer >= 3, got {v!r}")
-        for name in ("cell_size_m", "inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or (name == "cell_size_m" and v == 0):
-                raise ConfigError(f"{name} must be a finite number >= 0 (> 0 for cell_size_m), got {v!r}")
-        if self.lv_mode not in ("stored", "learnt"):
-            raise ConfigError(f"lv_mode must be 'stored' or 'learnt', got {self.lv_mode!r}")
-        if self.dtype not in ("float64", "float32"):
-            raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        config_field(self.grid_cells, "grid_cells", int, minimum=3)
+        config_field(self.angle_cells, "angle_cells", int, minimum=3, optional=True, hint="None uses grid_cells")
+        config_field(self.cell_size_m, "cell_size_m", float, above=0)
+        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
+            config_field(getattr(self, name), name, float, minimum=0)
+        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
+        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
         if not isinstance(self.attractor, AttractorParams) or not isinstance(self.frontend, WhiskFrontEndConfig):
             raise ConfigError("attractor must be an AttractorParams and frontend a WhiskFrontEndConfig")
         self.map_config()

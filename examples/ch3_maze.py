@@ -35,8 +35,8 @@ What runs
   of the relaxed map (the active experience's pose per iteration) and of dead
   reckoning.
 
-Calibration (``vt_match_threshold``, ``pc_vt_inject_energy``)
-------------------------------------------------------------
+Calibration (the Eq 3.1 ``match_threshold``, ``inject_energy``)
+----------------------------------------------------------------
 The thesis tuned these two on the first run of every condition and does not print
 them. Here each condition (control x contact-angle strategy) is tuned on two tuning
 runs of its own (seeds 1000 and 1001; the quick mode one, 1000; not kidnapped, never
@@ -92,6 +92,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
@@ -189,9 +190,9 @@ def kidnapped(recording: Recording, route: MazeRoute, settings: StudySettings) -
 
 
 # ------------------------------------------------------------------ RatSLAM and metrics
-def run_slam(recording: Recording, contact_angle: str, vt_match_threshold: float, pc_vt_inject_energy: float) -> tuple[RatSLAM, np.ndarray]:
+def run_slam(recording: Recording, contact_angle: str, match_threshold: float, inject_energy: float) -> tuple[RatSLAM, np.ndarray]:
     """RatSLAM (Table 3.1 + the two calibrated values) over a recording; returns the model and its experience log."""
-    cfg = RatSLAMConfig.thesis_ch3(vt_match_threshold=float(vt_match_threshold), pc_vt_inject_energy=float(pc_vt_inject_energy))
+    cfg = RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=float(match_threshold)), inject_energy=float(inject_energy))
     slam = RatSLAM(cfg)
     run = recording.run
     log = slam.run(run.vtrans, run.vrot, run.dt, recording.observations(contact_angle))
@@ -246,7 +247,7 @@ def choose(grid: list[dict[str, Any]]) -> int:
 
 
 def calibrate(recordings: Sequence[Recording], contact_angle: str, settings: StudySettings, progress: Any = None) -> tuple[tuple[float, float], list[dict[str, Any]]]:
-    """Grid search of (vt_match_threshold, pc_vt_inject_energy) on the tuning recordings (ARR, ARCR averaged)."""
+    """Grid search of (match_threshold, inject_energy) on the tuning recordings (ARR, ARCR averaged)."""
     grid = []
     for thr in settings.thresholds:
         for inj in settings.energies:
@@ -258,12 +259,12 @@ def calibrate(recordings: Sequence[Recording], contact_angle: str, settings: Stu
                 arcr.append(m["ARCR"])
                 if progress is not None:
                     progress.update(1)
-            grid.append({"vt_match_threshold": thr, "pc_vt_inject_energy": inj, "ARR": float(np.mean(arr)),
+            grid.append({"match_threshold": thr, "inject_energy": inj, "ARR": float(np.mean(arr)),
                          "ARCR": float(np.nanmean(arcr)) if not np.all(np.isnan(arcr)) else math.nan})
     best = choose(grid)
     for i, g in enumerate(grid):
         g["chosen"] = i == best
-    return (grid[best]["vt_match_threshold"], grid[best]["pc_vt_inject_energy"]), grid
+    return (grid[best]["match_threshold"], grid[best]["inject_energy"]), grid
 
 
 # ------------------------------------------------------------------ figures
@@ -375,10 +376,10 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
                        f"map {_mean(rows, 'map_error_m', **k):.3f} / dr {_mean(rows, 'dr_error_m', **k):.3f}")
     out.append("")
     out.append(f"Calibration (not printed in the thesis): per condition on its tuning runs (seeds {list(settings.tuning_seeds)}, not kidnapped, not scored),")
-    out.append(f"grid vt_match_threshold {list(settings.thresholds)} x pc_vt_inject_energy {list(settings.energies)};")
+    out.append(f"grid match_threshold {list(settings.thresholds)} x inject_energy {list(settings.energies)};")
     out.append(f"largest mean ARR among points with mean ARCR >= {ARCR_FLOOR}, else the largest ARCR; whole grid in ch3_calibration.csv")
     for (control, m), (thr, inj) in calibration.items():
-        out.append(f"   {control:9} {m:9}: vt_match_threshold {thr:g}, pc_vt_inject_energy {inj:g}")
+        out.append(f"   {control:9} {m:9}: match_threshold {thr:g}, inject_energy {inj:g}")
     return out
 
 
@@ -455,7 +456,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.writerow(METRIC_COLUMNS)
         for r in rows:
             writer.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
-    grid_columns = ("control", "contact_angle", "vt_match_threshold", "pc_vt_inject_energy", "ARR", "ARCR", "chosen")
+    grid_columns = ("control", "contact_angle", "match_threshold", "inject_energy", "ARR", "ARCR", "chosen")
     with open(out / "ch3_calibration.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(grid_columns)

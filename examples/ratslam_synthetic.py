@@ -28,7 +28,7 @@ from maps.metrics import absolute_trajectory_error, energy_metric, experience_me
 from maps.plot_maps import plot_experience_ids, plot_experience_map
 
 ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
-CONFIG = RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=0.05)
+CONFIG = RatSLAMConfig(cell_size_m=0.05, xy_cells=21, inject_energy=0.05)
 
 
 def evaluate(run: SyntheticRun, seed_label: str) -> tuple[dict, RatSLAM, np.ndarray, object]:

@@ -87,6 +87,7 @@ from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
+from whisker_io.validation import config_field
 
 __all__ = [
     "FORMAT_VERSION",
@@ -113,9 +114,13 @@ class Action(IntEnum):
     SET_NODE = 3
 
 
-def _positive_int(value: Any, name: str, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ConfigError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def _sequence(value: Any, name: str) -> tuple[Any, ...]:
+    if isinstance(value, (str, bytes)):
+        raise ConfigError(f"{name} must be a tuple of integers, got {value!r}")
+    try:
+        return tuple(value)
+    except TypeError:
+        raise ConfigError(f"{name} must be a tuple of integers, got {value!r}") from None
 
 
 @dataclass(frozen=True)
@@ -159,28 +164,21 @@ class MapConfig:
     keep_first_accumulator: bool = True
 
     def __post_init__(self) -> None:
-        c = self.correction
-        if isinstance(c, bool) or not isinstance(c, (int, float)) or not (math.isfinite(c) and 0.0 < c <= 1.0):
-            raise ConfigError(f"correction must be in (0, 1], got {c!r}")
-        _positive_int(self.relax_passes, "relax_passes", 0)
-        t = self.match_distance_cells
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not (math.isfinite(t) and t >= 0):
-            raise ConfigError(f"match_distance_cells must be a finite number >= 0 (cells), got {t!r}")
-        shape = tuple(self.pc_shape)
+        config_field(self.correction, "correction", float, above=0, maximum=1, hint="alpha of Eq 2.25")
+        config_field(self.relax_passes, "relax_passes", int, minimum=0)
+        config_field(self.match_distance_cells, "match_distance_cells", float, minimum=0, hint="a distance in cells")
+        config_field(self.relax_budget, "relax_budget", int, minimum=1, optional=True, hint="None relaxes every link")
+        for name in ("link_time_since_start", "keep_first_accumulator"):
+            config_field(getattr(self, name), name, bool)
+        shape, axes = _sequence(self.pc_shape, "pc_shape"), _sequence(self.offset_axes, "offset_axes")
         if not shape:
             raise ConfigError("pc_shape must have at least one axis")
         for n in shape:
-            _positive_int(n, "pc_shape entries", 1)
+            config_field(n, "pc_shape entries", int, minimum=1)
+        for a in axes:
+            config_field(a, "offset_axes entries", int, minimum=0, maximum=len(shape) - 1, hint=f"axes of pc_shape {shape}")
         object.__setattr__(self, "pc_shape", tuple(int(n) for n in shape))
-        axes = tuple(self.offset_axes)
-        if any(isinstance(a, bool) or not isinstance(a, (int, np.integer)) or not 0 <= a < len(shape) for a in axes):
-            raise ConfigError(f"offset_axes must be axes of pc_shape {shape}, got {axes!r}")
         object.__setattr__(self, "offset_axes", tuple(int(a) for a in axes))
-        if self.relax_budget is not None:
-            _positive_int(self.relax_budget, "relax_budget", 1)
-        for name in ("link_time_since_start", "keep_first_accumulator"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ConfigError(f"{name} must be a boolean, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from cansim.bag_replay import decode_image, default_topics, replay, topic_root, write_outputs
 from cansim.errors import CorruptFileError, InvalidInputError
+from cansim.frontends.visual import VisualTemplateConfig
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
 
@@ -59,8 +60,8 @@ def config_file(tmp_path):
 
 
 def _config():
-    return RatSLAMConfig(frontend="visual", pc_cell_x_size=0.1, template_x_size=24, template_y_size=4,
-                         vt_shift_match=2, vt_step_match=1, vt_match_threshold=0.02)
+    return RatSLAMConfig(cell_size_m=0.1, frontend=VisualTemplateConfig(
+        template_width_blocks=24, template_height_blocks=4, shift_match_blocks=2, step_match_blocks=1, match_threshold=0.02))
 
 
 def _speeds(run, k):

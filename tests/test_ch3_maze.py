@@ -21,6 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cansim.errors import CansimError, InvalidInputError, ShapeError
+from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import make_run
 from maps.metrics import absolute_trajectory_error, experience_metric
@@ -204,7 +205,7 @@ def _clean_run(terrain, seed: int, loops, control: str = "open_loop", method: st
 
 
 def _slam(run, image_index, images, threshold=3.0, energy=0.05):
-    slam = RatSLAM(RatSLAMConfig.thesis_ch3(vt_match_threshold=threshold, pc_vt_inject_energy=energy))
+    slam = RatSLAM(RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=threshold), inject_energy=energy))
     log = slam.run(run.vtrans, run.vrot, run.dt, [None if j < 0 else images[j] for j in image_index])
     valid = log.exp_ids >= 0
     return slam, log.exp_ids[valid], run.truth[valid], run.dead_reckoning[valid], int(np.count_nonzero(valid[: run.n_places + 1]))
@@ -244,7 +245,7 @@ def test_kidnapping_lowers_arr(anticlockwise_run):
 
 
 def test_bad_tactile_images_raise_typed_errors_and_leave_the_model_unchanged(tmp_path):
-    slam = RatSLAM(RatSLAMConfig.thesis_ch3(vt_match_threshold=3.0, pc_vt_inject_energy=0.05))
+    slam = RatSLAM(RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=3.0), inject_energy=0.05))
     good = np.zeros((3, 6), dtype=np.uint8)
     good[0, 2] = 120
     for _ in range(3):
@@ -288,7 +289,7 @@ def test_study_quick_mode_writes_the_named_columns(tmp_path):
     for name in ("ch3_map.png", "ch3_experience_ids.png", "ch3_performance.png"):
         assert (tmp_path / name).stat().st_size > 20_000
     summary = (tmp_path / "ch3_summary.txt").read_text(encoding="utf-8")
-    for figure in ("0.1765", "0.2257", "0.1916", "0.1568", "vt_match_threshold", "pc_vt_inject_energy"):
+    for figure in ("0.1765", "0.2257", "0.1916", "0.1568", "match_threshold", "inject_energy"):
         assert figure in summary
     assert study.main(["--repetitions", "0", "--out", str(tmp_path)]) == 2
     assert study.main(["--no-such-option"]) == 2

@@ -11,9 +11,9 @@ from maps.experience_map import Action, ExperienceMap, MapConfig
 from maps.se2 import SE2Geometry, signed_delta_rad
 
 
-def square_map(exp_loops=1):
+def square_map(relax_passes=1):
     """Four experiences around a 1 x 1 square; the last step closes the loop 0.2 m short."""
-    em = ExperienceMap(MapConfig(relax_passes=exp_loops, relax_budget=None), SE2Geometry(initial_heading_deg=0.0))
+    em = ExperienceMap(MapConfig(relax_passes=relax_passes, relax_budget=None), SE2Geometry(initial_heading_deg=0.0))
     em.update((0, 0, 0), 0, 0)  # exp 0 at the origin, facing 0
     em.on_odo(1.0, 0.0, 1.0)
     em.update((5, 0, 0), 1, 0)  # exp 1 at (1, 0)
@@ -47,12 +47,12 @@ def test_dead_reckoning_and_links_hand_computed():
 
 
 def test_loop_closure_single_eq_2_25_update_hand_computed():
-    em = square_map(exp_loops=1)
+    em = square_map(relax_passes=1)
     r = em.update((0, 0, 0), 0, 3)  # view 0 again, packet on exp 0 -> link 3->0 and switch
     assert r.action == Action.CREATE_EDGE and r.relocalised and r.new_link and r.exp_id == 0 and r.src_id == 3
     # one Gauss-Seidel pass: links 0->1, 1->2, 2->3 are consistent; link 3->0 (d=1,
     # heading pi/2, facing pi) predicts exp 0 at (-0.2, 0) facing 0 while it is at
-    # (0, 0) facing 0: both ends move by half (exp_correction) of the 0.2 m residual.
+    # (0, 0) facing 0: both ends move by half (correction 0.5) of the 0.2 m residual.
     np.testing.assert_allclose(em.links[1][3], [1.0, math.pi / 2, math.pi, 3.0], atol=1e-12)
     p = em.poses
     np.testing.assert_allclose(p[3], [-0.1, 1.0, math.pi], atol=1e-12)
@@ -61,7 +61,7 @@ def test_loop_closure_single_eq_2_25_update_hand_computed():
 
 
 def test_relaxation_reduces_closure_error():
-    em = square_map(exp_loops=0)
+    em = square_map(relax_passes=0)
     em.update((0, 0, 0), 0, 3)
     before = link_residual(em)
     assert before == pytest.approx(0.04)
@@ -106,7 +106,7 @@ def test_first_experience_does_not_reset_accumulators():
 
 
 def test_initial_facing_from_config():
-    em = ExperienceMap(MapConfig())  # initial heading 90 deg (OpenRatSLAM exp_initial_em_deg)
+    em = ExperienceMap(MapConfig())  # initial heading 90 deg (OpenRatSLAM's default)
     em.on_odo(1.0, 0.0, 1.0)
     em.update((0, 0, 0), 0, 0)
     np.testing.assert_allclose(em.poses[0], [0.0, 1.0, math.pi / 2], atol=1e-15)

@@ -122,7 +122,7 @@ def ratslam_snapshot(slam):
 @settings(**SETTINGS)
 @given(weird_scalars, weird_scalars, weird_scalars, st.one_of(weird_scalars, st.tuples(st.integers(-5, 2**64), weird_floats)))
 def test_ratslam_step(vtrans, vrot, dt, observation):
-    slam = RatSLAM(RatSLAMConfig(pc_dim_xy=9, pc_dim_th=12, pc_cell_x_size=0.1))
+    slam = RatSLAM(RatSLAMConfig(xy_cells=9, heading_cells=12, cell_size_m=0.1))
     slam.step(0.05, 0.1, 1.0, 0)
     guarded(lambda: ratslam_snapshot(slam), lambda: slam.step(vtrans, vrot, dt, observation))
     slam.step(0.05, 0.1, 1.0, 1)  # still usable: a later new view is accepted
@@ -225,7 +225,7 @@ def test_pose(position, quaternion):
 def test_loading_random_or_truncated_bytes_is_a_typed_error(tmp_path_factory, junk, cut):
     d = tmp_path_factory.mktemp("f")
     good = d / "good.npz"
-    slam = RatSLAM(pc_dim_xy=9, pc_dim_th=12)
+    slam = RatSLAM(xy_cells=9, heading_cells=12)
     slam.step(0.1, 0.0, 1.0, 0)
     slam.save(good)
     data = good.read_bytes()

@@ -48,7 +48,7 @@ def load_trace():
 def test_parity_preset_reproduces_the_cpp_core_bit_for_bit():
     steps, exps, links = load_trace()
     assert len(steps) == 300 and len(exps) > 100 and sum(s[7][3] == 2 for s in steps) > 20  # many loop closures
-    slam = RatSLAM(RatSLAMConfig.openratslam(pc_cell_x_size=0.25))
+    slam = RatSLAM(RatSLAMConfig.openratslam(cell_size_m=0.25))
     em = slam.experience_map
     for k, (has_vt, vid, rad, vtrans, vrot, dt, best, counts) in enumerate(steps):
         s = slam.step(vtrans, vrot, dt, (vid, rad) if has_vt else None)
@@ -161,8 +161,8 @@ def test_injection_uses_x_y_theta_order():
 
 @pytest.mark.parametrize(
     "kwargs,match",
-    [({"params": AttractorParams(exc_sigma=1.5)}, "pc_w_e_var"), ({"params": AttractorParams(inh_width=4)}, "pc_w_i_dim"),
-     ({"dim_th": 2}, "pc_dim_th"), ({"cell_size": 0.0}, "pc_cell_x_size"),
+    [({"params": AttractorParams(exc_sigma=1.5)}, "exc_sigma"), ({"params": AttractorParams(inh_width=4)}, "inh_width"),
+     ({"dim_th": 2}, "heading_cells"), ({"cell_size": 0.0}, "cell_size_m"),
      ({"params": AttractorParams(exc_width=(7, 7, 5))}, "exc_width")],
 )
 def test_bad_parameters_are_named(kwargs, match):

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.frontends.tactile import TactileTemplateConfig
+from cansim.frontends.visual import VisualTemplateConfig
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
 from whisker_io.errors import CorruptFileError
@@ -15,7 +17,7 @@ from maps.experience_map import Action
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 
 ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
-CFG = RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=0.05)
+CFG = RatSLAMConfig(cell_size_m=0.05, xy_cells=21, inject_energy=0.05)
 
 
 def snapshot(slam):
@@ -25,15 +27,18 @@ def snapshot(slam):
 
 
 def test_keyword_parameters_and_presets():
-    slam = RatSLAM(pc_dim_xy=15, pc_dim_th=24, exp_loops=3)
+    slam = RatSLAM(xy_cells=15, heading_cells=24, relax_passes=3)
     assert slam.pose_cells.shape == (15, 15, 24)
     assert slam.experience_map.config.relax_passes == 3
     with pytest.raises(ConfigError, match="pc_dimxy"):
         RatSLAM(pc_dimxy=3)
+    with pytest.raises(ConfigError, match="pc_dim_xy is OpenRatSLAM's name: use xy_cells="):
+        RatSLAM(pc_dim_xy=30)
     par = RatSLAMConfig.openratslam()
     assert (par.frame, par.dtype, par.relax_budget, par.strict_translation) == ("openratslam", "float64", None, True)
     ch3 = RatSLAMConfig.thesis_ch3()
-    assert (ch3.pc_dim_xy, ch3.pc_cell_x_size, ch3.exp_delta_pc_threshold, ch3.exp_initial_em_deg) == (30, 0.015, 1.0, 180.0)
+    assert (ch3.xy_cells, ch3.cell_size_m, ch3.match_distance_cells, ch3.initial_heading_deg) == (30, 0.015, 1.0, 180.0)
+    assert ch3.frontend == TactileTemplateConfig(match_threshold=20.0) and ch3.relax_passes == 10
     assert RatSLAM(ch3).pose_cells.shape == (30, 30, 36)
 
 
@@ -43,11 +48,11 @@ def test_config_file_unknown_key_warned_malformed_rejected(tmp_path):
     path.write_text(text)
     with pytest.warns(UserWarning, match="topic_root"):
         cfg = RatSLAMConfig.from_file(path)
-    assert (cfg.pc_dim_xy, cfg.vt_panoramic, cfg.vt_match_threshold, cfg.exp_loops) == (31, True, 0.05, 20)
+    assert (cfg.xy_cells, cfg.frontend.panoramic, cfg.frontend.match_threshold, cfg.relax_passes) == (31, True, 0.05, 20)
     for bad in ("pc_dim_xy=2.5", "vt_match_threshold=abc", "vt_panoramic=maybe", "pc_w_e_dim=4"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            with pytest.raises(ConfigError, match=bad.split("=")[0]):
+            with pytest.raises(ConfigError, match=bad.split("=")[0] + ".*line 2|line 2.*" + bad.split("=")[0]):
                 RatSLAMConfig.from_text("[ratslam]\n" + bad + "\n")
 
 
@@ -65,7 +70,8 @@ def test_nan_odometry_and_bad_observation_leave_state_unchanged():
 
 
 def test_wrong_image_size_leaves_state_unchanged():
-    slam = RatSLAM(CFG, frontend="visual", template_x_size=20, template_y_size=4, vt_shift_match=2, vt_step_match=1)
+    visual = VisualTemplateConfig(template_width_blocks=20, template_height_blocks=4, shift_match_blocks=2, step_match_blocks=1)
+    slam = RatSLAM(CFG, frontend=visual)
     lm = scatter_landmarks(ROUTE, seed=0)
     slam.step(0.05, 0.0, 1.0, render_view((0, -1.5, 0), lm, shape=(20, 80)))
     before = snapshot(slam)
@@ -75,7 +81,7 @@ def test_wrong_image_size_leaves_state_unchanged():
 
 
 def test_tactile_frontend_reuses_templates():
-    slam = RatSLAM(RatSLAMConfig.thesis_ch3(vt_match_threshold=5.0))
+    slam = RatSLAM(RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=5.0)))
     img = np.zeros((3, 6), dtype=np.uint8)
     img[1, 2] = 200
     a = slam.step(0.0, 0.0, 1.0, img)
@@ -102,7 +108,7 @@ def test_theta_index_zero_direction_per_frame(frame, engine, axis, sign):
 
 
 def test_parity_translation_limited_to_one_cell():
-    slam = RatSLAM(RatSLAMConfig.openratslam(pc_cell_x_size=0.1))
+    slam = RatSLAM(RatSLAMConfig.openratslam(cell_size_m=0.1))
     slam.step(0.1, 0.0, 1.0, 0)
     with pytest.raises(InvalidInputError, match="one cell per step"):
         slam.step(0.25, 0.0, 1.0, 0)
@@ -121,7 +127,7 @@ def test_experience_only_after_odometry_and_view():
 
 @pytest.mark.parametrize(
     "cfg",
-    [RatSLAMConfig(pc_cell_x_size=0.05, relax_budget=300), RatSLAMConfig.openratslam(pc_cell_x_size=0.1)],
+    [RatSLAMConfig(cell_size_m=0.05, relax_budget=300), RatSLAMConfig.openratslam(cell_size_m=0.1)],
     ids=["default", "openratslam_parity"],
 )
 def test_save_resume_equals_uninterrupted(tmp_path, cfg):
@@ -191,7 +197,7 @@ def test_long_run_relaxation_work_is_bounded():
     for k in range(len(run)):
         ids.append(slam.step(run.vtrans[k], run.vrot[k], run.dt, int(run.view_ids[k])).exp_id)
         work.append(slam.experience_map.last_relax_updates)
-    assert slam.experience_map.n_links * CFG.exp_loops > 600  # the budget was binding
+    assert slam.experience_map.n_links * CFG.relax_passes > 600  # the budget was binding
     assert max(work) == 600
     est = slam.experience_map.poses[np.array(ids)]
     assert absolute_trajectory_error(est, run.truth).rmse < 0.5 * absolute_trajectory_error(run.dead_reckoning, run.truth).rmse
@@ -201,8 +207,8 @@ def test_visual_model_save_resume_equals_uninterrupted(tmp_path):
     run = make_run(LoopRoute(step_m=0.1), loops=(1, 1), seed=5)
     lm = scatter_landmarks(LoopRoute(step_m=0.1), seed=1)
     images = [render_view(p, lm, shape=(12, 48)) for p in run.truth]
-    cfg = RatSLAMConfig(pc_cell_x_size=0.1, frontend="visual", template_x_size=24, template_y_size=4,
-                        vt_shift_match=2, vt_step_match=1, vt_match_threshold=0.02)
+    cfg = RatSLAMConfig(cell_size_m=0.1, frontend=VisualTemplateConfig(
+        template_width_blocks=24, template_height_blocks=4, shift_match_blocks=2, step_match_blocks=1, match_threshold=0.02))
     full = RatSLAM(cfg)
     full_log = full.run(run.vtrans, run.vrot, run.dt, images)
     assert full.n_views < len(run)  # the second loop re-uses templates
@@ -249,7 +255,7 @@ def test_20000_iterations_stay_under_200_mb():
     run = make_run(route, loops=(1,) * (n // 254 + 2), seed=0)
     tracemalloc.start()
     try:
-        slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_vt_inject_energy=0.05))
+        slam = RatSLAM(RatSLAMConfig(cell_size_m=0.05, inject_energy=0.05))
         slam.step(0.0, 0.0, 1.0, 0)
         for k in range(1, n + 1):
             slam.step(run.vtrans[k], run.vrot[k], run.dt, int(run.view_ids[k]))

@@ -125,7 +125,7 @@ ROUTE = LoopRoute()
 @pytest.mark.parametrize("lv_mode,gain,ratio", [("stored", 0.05, 0.5), ("learnt", 0.5, 0.8)])
 def test_both_local_view_modes_relocalise_the_synthetic_loop(lv_mode, gain, ratio):
     run = make_run(ROUTE, loops=(1,) * 4, seed=0)
-    slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_dim_xy=21, pc_vt_inject_energy=gain, lv_mode=lv_mode))
+    slam = RatSLAM(RatSLAMConfig(cell_size_m=0.05, xy_cells=21, inject_energy=gain, lv_mode=lv_mode))
     log = slam.run(run.vtrans, run.vrot, run.dt, run.view_ids)
     est = slam.experience_map.poses[log.exp_ids]
     assert log.relocalised.sum() > run.n_places  # re-localised on the later loops
@@ -137,7 +137,7 @@ def test_both_local_view_modes_relocalise_the_synthetic_loop(lv_mode, gain, rati
 
 def test_learnt_mode_save_resume_equals_uninterrupted(tmp_path):
     run = make_run(ROUTE, loops=(1, 1), seed=2)
-    cfg = RatSLAMConfig(pc_cell_x_size=0.05, pc_vt_inject_energy=0.5, lv_mode="learnt")
+    cfg = RatSLAMConfig(cell_size_m=0.05, inject_energy=0.5, lv_mode="learnt")
     full = RatSLAM(cfg)
     full_log = full.run(run.vtrans, run.vrot, run.dt, run.view_ids)
     half = len(run) // 2
@@ -156,7 +156,7 @@ def test_ratslam_numpy_and_numba_backends_build_the_same_map():
     run = make_run(ROUTE, loops=(1, 1, 1), seed=4)
     logs, maps_ = [], []
     for backend in ("numpy", "numba"):
-        slam = RatSLAM(RatSLAMConfig(pc_cell_x_size=0.05, pc_vt_inject_energy=0.05, backend=backend))
+        slam = RatSLAM(RatSLAMConfig(cell_size_m=0.05, inject_energy=0.05, backend=backend))
         logs.append(slam.run(run.vtrans, run.vrot, run.dt, run.view_ids))
         maps_.append(slam.experience_map)
     assert np.array_equal(logs[0].exp_ids, logs[1].exp_ids)

@@ -15,36 +15,36 @@ def row(*values):
 
 
 def small(**kw):
-    params = dict(template_x_size=4, template_y_size=1, vt_shift_match=1, vt_step_match=1, vt_match_threshold=0.2)
+    params = dict(template_width_blocks=4, template_height_blocks=1, shift_match_blocks=1, step_match_blocks=1, match_threshold=0.2)
     params.update(kw)
     return VisualTemplates(VisualTemplateConfig(**params))
 
 
 def test_block_average_grey_rgb_and_crop():
-    vt = VisualTemplates(VisualTemplateConfig(template_x_size=2, template_y_size=1, vt_shift_match=0, vt_step_match=1))
+    vt = VisualTemplates(VisualTemplateConfig(template_width_blocks=2, template_height_blocks=1, shift_match_blocks=0, step_match_blocks=1))
     img = np.array([[0, 255, 51, 51], [255, 255, 51, 51], [7, 7, 7, 7]], dtype=np.uint8)  # 3rd row: remainder, ignored? no: 3//1
     v = vt.view_template(img[:2])
     np.testing.assert_allclose(v, [[765 / 255 / 4, 0.2]])
     rgb = np.zeros((1, 2, 3), dtype=np.uint8)
     rgb[0, 0] = (255, 0, 0)
-    vt_rgb = VisualTemplates(VisualTemplateConfig(template_x_size=2, template_y_size=1, vt_shift_match=0))
+    vt_rgb = VisualTemplates(VisualTemplateConfig(template_width_blocks=2, template_height_blocks=1, shift_match_blocks=0))
     np.testing.assert_allclose(vt_rgb.view_template(rgb), [[1 / 3, 0.0]])
     # crop x in [1, 3): two 1-px blocks; 5 columns -> blocks of 2 px from x=0, the 5th ignored
-    vc = VisualTemplates(VisualTemplateConfig(template_x_size=2, template_y_size=1, vt_shift_match=0, image_crop_x_min=1, image_crop_x_max=3))
+    vc = VisualTemplates(VisualTemplateConfig(template_width_blocks=2, template_height_blocks=1, shift_match_blocks=0, crop_x_min_px=1, crop_x_max_px=3))
     np.testing.assert_allclose(vc.view_template(row(0, 255, 0, 9)), [[1.0, 0.0]])
-    v5 = VisualTemplates(VisualTemplateConfig(template_x_size=2, template_y_size=1, vt_shift_match=0))
+    v5 = VisualTemplates(VisualTemplateConfig(template_width_blocks=2, template_height_blocks=1, shift_match_blocks=0))
     np.testing.assert_allclose(v5.view_template(row(255, 0, 0, 0, 255)), [[0.5, 0.0]])
 
 
 def test_global_normalisation_and_black_image():
-    vt = VisualTemplates(VisualTemplateConfig(template_x_size=2, template_y_size=1, vt_shift_match=0, vt_normalisation=0.6))
+    vt = VisualTemplates(VisualTemplateConfig(template_width_blocks=2, template_height_blocks=1, shift_match_blocks=0, normalisation_mean=0.6))
     np.testing.assert_allclose(vt.view_template(row(51, 102)), [[0.4, 0.8]])
     # C++: 0 * N / 0 = NaN and std::max(0, std::min(NaN, 1)) = 0
     np.testing.assert_array_equal(vt.view_template(row(0, 0)), [[0.0, 0.0]])
 
 
 def test_patch_normalisation_hand_example():
-    vt = VisualTemplates(VisualTemplateConfig(template_x_size=3, template_y_size=1, vt_shift_match=0, vt_patch_normalise=1))
+    vt = VisualTemplates(VisualTemplateConfig(template_width_blocks=3, template_height_blocks=1, shift_match_blocks=0, patch_half_width_blocks=1))
     # p = 1 over a 1-row template: 3x3 edge-clamped patches. Pixel 1: patch columns
     # 0,1,2 = {0,0,1} (x3 rows) -> mean 1/3, std sqrt(2)/3 -> z = (-1/3 / (sqrt(2)/3) + 3) / 6;
     # pixel 2: columns 1,2,2 = {0,1,1} -> mean 2/3 -> z = (1/3 / (sqrt(2)/3) + 3) / 6
@@ -53,7 +53,7 @@ def test_patch_normalisation_hand_example():
     assert v[0, 2] == pytest.approx(((1 / 3) / (math.sqrt(2) / 3) + 3) / 6)
     assert v[0, 0] == 1.0  # columns 0,0,1 = {0,0,0}: std 0 -> C++ std::min(1, NaN) = 1
     # a flat patch has std 0: C++ yields std::min(1, NaN) = 1
-    flat = VisualTemplates(VisualTemplateConfig(template_x_size=3, template_y_size=1, vt_shift_match=0, vt_patch_normalise=1))
+    flat = VisualTemplates(VisualTemplateConfig(template_width_blocks=3, template_height_blocks=1, shift_match_blocks=0, patch_half_width_blocks=1))
     np.testing.assert_array_equal(flat.view_template(row(9, 9, 9)), [[1.0, 1.0, 1.0]])
 
 
@@ -69,21 +69,21 @@ def test_sad_with_shifts_hand_examples():
     assert c.is_new and c.template_id == 1
     assert c.error == pytest.approx((128 / 255) / 2)
     # mean filter: |0.5 - 0.25| > threshold + 0.005 -> template 0 not compared
-    d = small(vt_match_threshold=0.1)
+    d = small(match_threshold=0.1)
     d.match(row(0, 255, 0, 0))
     assert d.match(row(255, 0, 0, 255)).error == math.inf
 
 
 def test_denominator_uses_all_rows():
     img = np.array([[0, 255, 0, 0], [0, 255, 0, 0]], dtype=np.uint8)
-    two = VisualTemplates(VisualTemplateConfig(template_x_size=4, template_y_size=2, vt_shift_match=1, vt_step_match=1, vt_match_threshold=0.2))
+    two = VisualTemplates(VisualTemplateConfig(template_width_blocks=4, template_height_blocks=2, shift_match_blocks=1, step_match_blocks=1, match_threshold=0.2))
     two.match(img)
     r = two.match(np.array([[0, 255, 128, 0], [0, 255, 128, 0]], dtype=np.uint8))
     assert r.error == pytest.approx(2 * (128 / 255) / (8 - 2 * 1 * 2))
 
 
 def test_panoramic_circular_shift_and_relative_rotation():
-    vt = small(vt_panoramic=True, vt_shift_match=0, vt_match_threshold=0.01)
+    vt = small(panoramic=True, shift_match_blocks=0, match_threshold=0.01)
     vt.match(row(0, 255, 0, 0))
     r = vt.match(row(255, 0, 0, 0))  # data[c] == template[(c + 1) % 4]
     assert (r.template_id, r.is_new, r.error) == (0, False, 0.0)
@@ -107,13 +107,13 @@ def naive_best(view, templates, shift, step, thr):
 
 def test_matches_naive_reference_on_many_templates():
     rng = np.random.default_rng(5)
-    cfg = VisualTemplateConfig(template_x_size=16, template_y_size=4, vt_shift_match=4, vt_step_match=2, vt_match_threshold=0.0)
+    cfg = VisualTemplateConfig(template_width_blocks=16, template_height_blocks=4, shift_match_blocks=4, step_match_blocks=2, match_threshold=0.0)
     vt = VisualTemplates(cfg)
     images = rng.integers(100, 156, size=(300, 4, 16), dtype=np.uint8)
     for img in images:
         vt.match(img)  # threshold 0: each distinct image is new
     assert len(vt) == 300
-    loose = VisualTemplates(VisualTemplateConfig(template_x_size=16, template_y_size=4, vt_shift_match=4, vt_step_match=2, vt_match_threshold=0.05))
+    loose = VisualTemplates(VisualTemplateConfig(template_width_blocks=16, template_height_blocks=4, shift_match_blocks=4, step_match_blocks=2, match_threshold=0.05))
     loose.store = vt.store
     loose._means = vt._means
     loose.image_shape = vt.image_shape
@@ -133,8 +133,8 @@ def test_wrong_image_size_and_type_raise_and_keep_state():
     assert len(vt) == 1
     with pytest.raises(ShapeError):
         small().match(row(0, 255))  # smaller than the template
-    with pytest.raises(ConfigError, match="vt_shift_match"):
-        VisualTemplateConfig(template_x_size=4, vt_shift_match=2)
+    with pytest.raises(ConfigError, match="shift_match_blocks"):
+        VisualTemplateConfig(template_width_blocks=4, shift_match_blocks=2)
 
 
 def test_uninitialised_clear_emulation_adds_previous_view():
@@ -149,17 +149,17 @@ def test_tactile_eq_3_1_hand_example():
     b = a.copy()
     b[0, 0], b[2, 5] = 16, 9
     assert tactile_similarity(a, b) == pytest.approx(4 + 3)
-    tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=7.0))
+    tt = TactileTemplates(TactileTemplateConfig(match_threshold=7.0))
     assert tt.match(a).is_new
     r = tt.match(b)
     assert (r.template_id, r.is_new, r.error) == (0, False, 7.0)
-    strict = TactileTemplates(TactileTemplateConfig(vt_match_threshold=6.9))
+    strict = TactileTemplates(TactileTemplateConfig(match_threshold=6.9))
     strict.match(a)
     assert strict.match(b).is_new and len(strict) == 2
 
 
 def test_tactile_no_shift_and_bad_input():
-    tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=1.0))
+    tt = TactileTemplates(TactileTemplateConfig(match_threshold=1.0))
     a = np.zeros((3, 6), dtype=np.uint8)
     a[:, 0] = 200
     tt.match(a)
@@ -176,11 +176,11 @@ def test_tactile_compiled_scan_equals_eq_3_1_reference():
     """The numba scan picks the same template and S as argmin of the numpy Eq 3.1."""
     rng = np.random.default_rng(7)
     stored = rng.integers(0, 256, size=(300, 3, 6), dtype=np.uint8)
-    tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=0.0))
+    tt = TactileTemplates(TactileTemplateConfig(match_threshold=0.0))
     for img in stored:
         tt.match(img)
     assert len(tt) == 300
-    probe_tt = TactileTemplates(TactileTemplateConfig(vt_match_threshold=1e9))
+    probe_tt = TactileTemplates(TactileTemplateConfig(match_threshold=1e9))
     probe_tt.store = tt.store
     for _ in range(20):
         probe = rng.integers(0, 256, size=(3, 6), dtype=np.uint8)

@@ -91,3 +91,49 @@ def test_text_or_bools_nested_in_lists_are_not_numbers():
         with pytest.raises(InvalidInputError):
             finite_vector(bad, None, "v") if np.ndim(bad) == 1 else finite_array(bad, None, "v")
     np.testing.assert_array_equal(finite_vector([0, 1.5, 2], 3, "v"), [0.0, 1.5, 2.0])
+
+
+# ------------------------------------------------------------- config_field
+def test_config_field_hand_cases():
+    from whisker_io.errors import ConfigError
+    from whisker_io.validation import config_field
+
+    assert config_field(7, "exc_width", int, minimum=1, odd=True) == 7
+    assert config_field(np.int64(3), "n", int, minimum=3) == 3
+    assert config_field(2, "sigma", float, above=0) == 2 and config_field(1.0, "correction", float, above=0, maximum=1) == 1.0
+    assert config_field(None, "budget", int, minimum=1, optional=True) is None
+    assert config_field("learnt", "lv_mode", str, choices=("stored", "learnt")) == "learnt"
+    assert config_field(np.bool_(True), "flag", bool)
+    cases = [
+        ((4, "exc_width", int), dict(minimum=1, odd=True), "exc_width must be an odd integer >= 1, got 4"),
+        ((2.0, "n", int), {}, "n must be an integer, got 2.0"),
+        ((True, "n", int), {}, "n must be an integer, got True"),
+        ((0, "cell_size_m", float), dict(above=0), "cell_size_m must be a finite number > 0, got 0"),
+        ((1.5, "correction", float), dict(above=0, maximum=1), "correction must be a finite number > 0 and <= 1, got 1.5"),
+        ((math.nan, "x", float), {}, "x must be a finite number, got nan"),
+        ((10**400, "x", float), {}, "x must be a finite number"),
+        (("1", "x", float), {}, "x must be a finite number, got '1'"),
+        ((1, "flag", bool), {}, "flag must be a boolean"),
+        (("x", "lv_mode", str), dict(choices=("stored", "learnt")), "lv_mode must be one of 'stored', 'learnt', got 'x'"),
+        ((None, "n", int), dict(minimum=1), "n must be an integer >= 1, got None"),
+        ((0, "n", int), dict(minimum=1, optional=True, hint="None means all"), "n must be an integer >= 1 or None, got 0; None means all"),
+    ]
+    for args, kw, message in cases:
+        with pytest.raises(ConfigError) as info:
+            config_field(*args, **kw)
+        assert str(info.value).startswith(message), str(info.value)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.one_of(st.integers(-10, 10), st.floats(), st.booleans(), st.none(), st.text(max_size=2)), st.booleans())
+def test_config_field_int_accepts_exactly_the_odd_or_any_ints_in_range(value, odd):
+    from whisker_io.errors import ConfigError
+    from whisker_io.validation import config_field
+
+    good = isinstance(value, int) and not isinstance(value, bool) and value >= 1 and (not odd or value % 2 == 1)
+    try:
+        assert config_field(value, "w", int, minimum=1, odd=odd) is value
+    except ConfigError as exc:
+        assert not good and str(exc).startswith("w must be")
+        return
+    assert good

@@ -7,25 +7,30 @@ typed error with a message naming the argument, never a NaN result later:
 * :func:`finite_scalar` - one finite real number -> ``float``;
 * :func:`finite_vector` - a 1-D array of finite reals, optionally of length n;
 * :func:`finite_array` - an array of finite reals of a given shape;
-* :func:`whole_number` - an integer count (an integral float is accepted).
+* :func:`whole_number` - an integer count (an integral float is accepted);
+* :func:`config_field` - one field of a configuration dataclass (its kind, range,
+  oddness or allowed names), raising :class:`~whisker_io.errors.ConfigError`.
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
-shape raises its subclass :class:`~whisker_io.errors.ShapeError`. Strings,
-bytes and booleans are not numbers here (``float("1")`` would accept a string,
-``True`` would pass as 1).
+shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
+configuration field raises its subclass :class:`~whisker_io.errors.ConfigError`.
+Strings, bytes and booleans are not numbers here (``float("1")`` would accept a
+string, ``True`` would pass as 1).
 """
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field"]
 
 
 def _holds_text(value: list | tuple) -> bool:
@@ -188,3 +193,109 @@ def whole_number(value: object, name: str, minimum: int | None = None) -> int:
     if minimum is not None and out < minimum:
         raise InvalidInputError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return out
+
+
+_KIND_NAMES = {int: "an integer", float: "a finite number", bool: "a boolean (True or False)", str: "a name"}
+
+
+def _is_kind(value: object, kind: type) -> bool:
+    if kind is bool:
+        return isinstance(value, (bool, np.bool_))
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if kind is int:
+        return isinstance(value, (int, np.integer))
+    if kind is float:
+        if not isinstance(value, numbers.Real):
+            return False
+        try:
+            return math.isfinite(float(value))
+        except OverflowError:  # an int too large for a float
+            return False
+    return isinstance(value, str)
+
+
+def config_field(
+    value: Any,
+    name: str,
+    kind: type,
+    *,
+    minimum: float | None = None,
+    above: float | None = None,
+    maximum: float | None = None,
+    odd: bool = False,
+    choices: Sequence[str] | None = None,
+    optional: bool = False,
+    hint: str = "",
+) -> Any:
+    """Check one field of a configuration and return it unchanged.
+
+    The one validator of the configuration dataclasses (``MapConfig``,
+    ``RatSLAMConfig``, ``WhiskerRatSLAMConfig``, the front-end configs): each
+    ``__post_init__`` lists its fields here with the kind and range, so every
+    bad value is refused before any part is built, with a message naming the
+    field, the allowed values and the value given.
+
+    Parameters
+    ----------
+    value : object
+        The field's value.
+    name : str
+        The field's name (for the message).
+    kind : {int, float, bool, str}
+        ``int``: an integer (``numpy`` integers too; not a bool, not 2.0);
+        ``float``: a finite real number (ints accepted; not a bool, NaN or inf);
+        ``bool``: ``True``/``False``; ``str``: a string (one of ``choices`` if given).
+    minimum, above, maximum : float, optional
+        ``value >= minimum``, ``value > above``, ``value <= maximum`` (numbers only).
+    odd : bool
+        An odd integer (a kernel width centred on a cell).
+    choices : sequence of str, optional
+        The allowed names of a ``str`` field.
+    optional : bool
+        ``None`` is allowed too.
+    hint : str
+        Appended to the message: what to do.
+
+    Returns
+    -------
+    object
+        ``value``.
+
+    Raises
+    ------
+    ConfigError
+        The value is of another kind, out of range, even where odd is needed, or not
+        one of ``choices``.
+
+    Examples
+    --------
+    >>> config_field(7, "exc_width", int, minimum=1, odd=True)
+    7
+    >>> config_field(4, "exc_width", int, minimum=1, odd=True)
+    Traceback (most recent call last):
+    ...
+    whisker_io.errors.ConfigError: exc_width must be an odd integer >= 1, got 4
+    """
+    if optional and value is None:
+        return value
+    ok = _is_kind(value, kind)
+    if ok and kind in (int, float):
+        ok = not (
+            (minimum is not None and value < minimum)
+            or (above is not None and value <= above)
+            or (maximum is not None and value > maximum)
+            or (odd and value % 2 == 0)
+        )
+    if ok and choices is not None:
+        ok = value in tuple(choices)
+    if ok:
+        return value
+    if choices is not None:
+        want = "one of " + ", ".join(repr(c) for c in choices)
+    else:
+        bounds = [f"{op} {bound:g}" for op, bound in ((">=", minimum), (">", above), ("<=", maximum)) if bound is not None]
+        want = ("an odd integer" if odd else _KIND_NAMES[kind]) + (" " + " and ".join(bounds) if bounds else "")
+    if optional:
+        want += " or None"
+    raise ConfigError(f"{name} must be {want}, got {value!r}" + (f"; {hint}" if hint else ""))

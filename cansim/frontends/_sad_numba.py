@@ -30,7 +30,7 @@ def sad_compare(
     mean_tol : float
         Templates whose mean differs by more than this are skipped (threshold + 0.005).
     shift, step : int
-        ``vt_shift_match`` and ``vt_step_match``.
+        ``shift_match_blocks`` and ``step_match_blocks`` of the config.
     panoramic : bool
         Circular shifts over all columns instead of +-shift on the central columns.
 

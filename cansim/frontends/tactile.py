@@ -7,7 +7,7 @@ are compared with Eq 3.1 of the thesis::
     S(A, B) = sum_ij sqrt(|a_ij - b_ij|)
 
 on the raw 0-255 values. The smallest ``S`` over the stored templates is a
-match when ``S <= vt_match_threshold`` (ties -> the lowest id); otherwise the
+match when ``S <= match_threshold`` (ties -> the lowest id); otherwise the
 image becomes a new template. The thesis tuned the threshold per setup and
 does not print it; the default here (20) accepts e.g. four pixels differing
 by 25 levels.
@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.errors import InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
+from whisker_io.validation import config_field
 
 __all__ = ["TACTILE_SHAPE", "TactileTemplateConfig", "TactileTemplates", "tactile_similarity"]
 
@@ -53,15 +54,16 @@ class TactileTemplateConfig:
 
     Parameters
     ----------
-    vt_match_threshold : float
-        Largest Eq 3.1 dissimilarity ``S`` counted as a match (units sqrt(level)).
+    match_threshold : float
+        Largest Eq 3.1 dissimilarity ``S(A, B) = sum_ij sqrt(|a_ij - b_ij|)`` counted as
+        a match, in sqrt(grey level) (8-bit levels); >= 0, default 20 (OpenRatSLAM's
+        ``vt_match_threshold`` plays this part for camera images).
     """
 
-    vt_match_threshold: float = 20.0
+    match_threshold: float = 20.0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.vt_match_threshold, (int, float)) and math.isfinite(self.vt_match_threshold) and self.vt_match_threshold >= 0):
-            raise ConfigError(f"vt_match_threshold must be a finite number >= 0, got {self.vt_match_threshold!r}")
+        config_field(self.match_threshold, "match_threshold", float, minimum=0, hint="an Eq 3.1 dissimilarity in sqrt(level)")
 
 
 class TactileTemplates:
@@ -105,7 +107,7 @@ class TactileTemplates:
             flat = self.store._data.reshape(self.store._data.shape[0], -1)
             best, err = best_tactile_match(flat, n, img.astype(np.float64).ravel(), SQRT_LEVELS)
             best, err = int(best), float(err)
-        if err <= self.config.vt_match_threshold:
+        if err <= self.config.match_threshold:
             self.store.set_current(best)
             return TemplateMatch(best, False, err)
         new_id = self.store.add(img.astype(np.float64))

@@ -3,20 +3,22 @@
 Processing of one image, as OpenRatSLAM's ``convert_view_to_view_template``
 and ``compare``:
 
-1. crop to ``[image_crop_y_min, image_crop_y_max) x [image_crop_x_min, image_crop_x_max)``
-   (-1 = image edge), split into ``template_y_size x template_x_size`` blocks of
-   ``floor(range / size)`` pixels (the remainder is ignored) and average each block
-   to a value in [0, 1] (RGB: the mean of the three channels);
-2. optional global normalisation ``v <- clip(v * vt_normalisation / mean(v), 0, 1)``;
-3. optional patch normalisation over a ``(2 p + 1)^2`` neighbourhood (edge-clamped):
-   ``v <- clip(((v - mean) / std + 3) / 6, 0, 1)``, 0.5 where std < ``vt_min_patch_normalisation_std``;
-4. compare with the stored templates whose mean is within ``vt_match_threshold + 0.005``:
+1. crop to ``[crop_y_min_px, crop_y_max_px) x [crop_x_min_px, crop_x_max_px)``
+   (None = image edge), split into ``Y x X`` blocks (``template_height_blocks`` x
+   ``template_width_blocks``) of ``floor(range / size)`` pixels (the remainder is
+   ignored) and average each block to a value in [0, 1] (RGB: the mean of the three
+   channels);
+2. optional global normalisation ``v <- clip(v * normalisation_mean / mean(v), 0, 1)``;
+3. optional patch normalisation over a ``(2 p + 1)^2`` neighbourhood, ``p =
+   patch_half_width_blocks`` (edge-clamped): ``v <- clip(((v - mean) / std + 3) / 6, 0, 1)``,
+   0.5 where std < ``min_patch_std``;
+4. compare with the stored templates whose mean is within ``match_threshold + 0.005``:
    sum of absolute differences between the view's central columns
    ``[shift, X - shift)`` and the template's columns ``[o, o + X - 2 shift)`` for
-   ``o = 0, step, ..., 2 shift``; ``error = min SAD / (X Y - 2 shift Y)``;
+   ``o = 0, step, ..., 2 shift`` (``shift_match_blocks``, ``step_match_blocks``); ``error = min SAD / (X Y - 2 shift Y)``;
    panoramic mode: circular shifts ``o = 0, step, ... < X`` over all columns,
    ``error = min SAD / (X Y)`` and the relative rotation ``o / X * 2 pi`` (wrapped to (-pi, pi]);
-5. ``error <= vt_match_threshold`` -> that template, otherwise the view becomes a new template.
+5. ``error <= match_threshold`` -> that template, otherwise the view becomes a new template.
 
 Decision on the C++ bug at ``local_view_match.cpp`` ~l.141 (``for (unsigned int i; ...)``
 clears the view buffer with an uninitialised index): the view is always
@@ -27,83 +29,94 @@ the garbage index skips the clearing (block sums added to the previous view).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
+from whisker_io.validation import config_field
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
 
 @dataclass(frozen=True)
 class VisualTemplateConfig:
-    """Parameters of :class:`VisualTemplates` (OpenRatSLAM names).
+    """Parameters of :class:`VisualTemplates` (OpenRatSLAM's ``LocalViewMatch``).
+
+    A *block* is one element of the template: the mean of a rectangle of pixels
+    (step 1 of the module docstring). OpenRatSLAM's key is given in brackets;
+    :mod:`cansim.openratslam_config` maps its config files onto these fields.
 
     Parameters
     ----------
-    template_x_size, template_y_size : int
-        Template size in blocks (columns, rows). OpenRatSLAM's compiled-in
-        default is 1 x 1, which no real config uses; 60 x 10 here.
-    image_crop_x_min, image_crop_x_max, image_crop_y_min, image_crop_y_max : int
-        Crop in pixels; ``-1`` for a maximum means the image edge.
-    vt_shift_match : int
-        Column shift range +- (blocks); OpenRatSLAM default 25.
-    vt_step_match : int
-        Step between tried shifts (blocks); default 5.
-    vt_match_threshold : float
-        Largest mean absolute difference counted as a match; default 0.03.
-    vt_normalisation : float
-        Target mean of global normalisation; 0 = off.
-    vt_patch_normalise : int
-        Patch half-size ``p`` of patch normalisation; 0 = off.
-    vt_min_patch_normalisation_std : float
-        Patches with a smaller standard deviation become 0.5.
-    vt_panoramic : bool
-        Panoramic (circular-shift) matching.
+    template_width_blocks, template_height_blocks : int
+        Template size in blocks (columns X, rows Y), >= 1. OpenRatSLAM's compiled-in
+        default is 1 x 1, which no real config uses; 60 x 10 here [``template_x_size``,
+        ``template_y_size``].
+    crop_x_min_px, crop_y_min_px : int
+        First pixel column / row of the crop (>= 0) [``image_crop_x_min``, ``image_crop_y_min``].
+    crop_x_max_px, crop_y_max_px : int or None
+        One past the last pixel column / row of the crop; None = the image edge
+        [``image_crop_x_max``, ``image_crop_y_max``; -1 there].
+    shift_match_blocks : int
+        Column shift range +- (blocks) tried when comparing, >= 0 and < X / 2 unless
+        panoramic; OpenRatSLAM default 25 [``vt_shift_match``].
+    step_match_blocks : int
+        Step between tried shifts (blocks), >= 1; default 5 [``vt_step_match``].
+    match_threshold : float
+        Largest mean absolute difference of the block intensities (in [0, 1]) counted
+        as a match (step 5); default 0.03 [``vt_match_threshold``].
+    normalisation_mean : float
+        Target mean intensity of global normalisation (step 2); 0 = off [``vt_normalisation``].
+    patch_half_width_blocks : int
+        Half-width ``p`` (blocks) of the ``(2 p + 1)^2`` patch normalisation (step 3);
+        0 = off [``vt_patch_normalise``].
+    min_patch_std : float
+        Patches with a smaller intensity standard deviation become 0.5 (step 3)
+        [``vt_min_patch_normalisation_std``].
+    panoramic : bool
+        Panoramic (circular-shift) matching, which also gives the relative rotation
+        [``vt_panoramic``].
     emulate_uninitialised_clear : bool
         Reproduce the C++ uninitialised-index bug outcome (see the module docstring).
     """
 
-    template_x_size: int = 60
-    template_y_size: int = 10
-    image_crop_x_min: int = 0
-    image_crop_x_max: int = -1
-    image_crop_y_min: int = 0
-    image_crop_y_max: int = -1
-    vt_shift_match: int = 25
-    vt_step_match: int = 5
-    vt_match_threshold: float = 0.03
-    vt_normalisation: float = 0.0
-    vt_patch_normalise: int = 0
-    vt_min_patch_normalisation_std: float = 0.0
-    vt_panoramic: bool = False
+    template_width_blocks: int = 60
+    template_height_blocks: int = 10
+    crop_x_min_px: int = 0
+    crop_x_max_px: int | None = None
+    crop_y_min_px: int = 0
+    crop_y_max_px: int | None = None
+    shift_match_blocks: int = 25
+    step_match_blocks: int = 5
+    match_threshold: float = 0.03
+    normalisation_mean: float = 0.0
+    patch_half_width_blocks: int = 0
+    min_patch_std: float = 0.0
+    panoramic: bool = False
     emulate_uninitialised_clear: bool = False
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.type in ("int", int) and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
-                raise ConfigError(f"{f.name} must be an integer, got {value!r}")
-            if f.type in ("float", float) and not (isinstance(value, (int, float, np.floating)) and math.isfinite(value)):
-                raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
-        if self.template_x_size < 1 or self.template_y_size < 1:
-            raise ConfigError("template_x_size and template_y_size must be >= 1")
-        if self.vt_step_match < 1:
-            raise ConfigError(f"vt_step_match must be >= 1, got {self.vt_step_match}")
-        if self.vt_shift_match < 0:
-            raise ConfigError(f"vt_shift_match must be >= 0, got {self.vt_shift_match}")
-        if not self.vt_panoramic and 2 * self.vt_shift_match >= self.template_x_size:
+        for name in ("template_width_blocks", "template_height_blocks", "step_match_blocks"):
+            config_field(getattr(self, name), name, int, minimum=1)
+        for name in ("crop_x_min_px", "crop_y_min_px", "shift_match_blocks", "patch_half_width_blocks"):
+            config_field(getattr(self, name), name, int, minimum=0)
+        for name in ("crop_x_max_px", "crop_y_max_px"):
+            config_field(getattr(self, name), name, int, minimum=1, optional=True, hint="None is the image edge")
+        for name in ("match_threshold", "normalisation_mean", "min_patch_std"):
+            config_field(getattr(self, name), name, float, minimum=0)
+        for name in ("panoramic", "emulate_uninitialised_clear"):
+            config_field(getattr(self, name), name, bool)
+        for lo, hi in (("crop_x_min_px", "crop_x_max_px"), ("crop_y_min_px", "crop_y_max_px")):
+            if getattr(self, hi) is not None and getattr(self, hi) <= getattr(self, lo):
+                raise ConfigError(f"{hi} ({getattr(self, hi)}) must be > {lo} ({getattr(self, lo)}): the crop would be empty")
+        if not self.panoramic and 2 * self.shift_match_blocks >= self.template_width_blocks:
             raise ConfigError(
-                f"vt_shift_match ({self.vt_shift_match}) must be < template_x_size/2 ({self.template_x_size}/2) "
-                "so that some columns are compared"
+                f"shift_match_blocks ({self.shift_match_blocks}) must be < template_width_blocks/2 "
+                f"({self.template_width_blocks}/2) so that some columns are compared"
             )
-        if self.vt_match_threshold < 0 or self.vt_normalisation < 0 or self.vt_patch_normalise < 0:
-            raise ConfigError("vt_match_threshold, vt_normalisation and vt_patch_normalise must be >= 0")
-        if self.image_crop_x_min < 0 or self.image_crop_y_min < 0:
-            raise ConfigError("image_crop_x_min and image_crop_y_min must be >= 0")
 
 
 def _cpp_min(a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
@@ -133,10 +146,10 @@ class VisualTemplates:
     def __init__(self, config: VisualTemplateConfig | None = None, image_shape: tuple[int, ...] | None = None) -> None:
         self.config = config if config is not None else VisualTemplateConfig()
         c = self.config
-        self.store = TemplateStore((c.template_y_size, c.template_x_size))
+        self.store = TemplateStore((c.template_height_blocks, c.template_width_blocks))
         self._means = np.zeros(16)
         self.image_shape: tuple[int, ...] | None = None
-        self._last_view = np.zeros((c.template_y_size, c.template_x_size))
+        self._last_view = np.zeros((c.template_height_blocks, c.template_width_blocks))
         if image_shape is not None:
             self._check_geometry(tuple(int(s) for s in image_shape))
             self.image_shape = tuple(int(s) for s in image_shape)
@@ -151,9 +164,9 @@ class VisualTemplates:
 
     def _crop(self, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
         c = self.config
-        x1 = shape[1] if c.image_crop_x_max == -1 else c.image_crop_x_max
-        y1 = shape[0] if c.image_crop_y_max == -1 else c.image_crop_y_max
-        return c.image_crop_x_min, x1, c.image_crop_y_min, y1
+        x1 = shape[1] if c.crop_x_max_px is None else c.crop_x_max_px
+        y1 = shape[0] if c.crop_y_max_px is None else c.crop_y_max_px
+        return c.crop_x_min_px, x1, c.crop_y_min_px, y1
 
     def _check_geometry(self, shape: tuple[int, ...]) -> None:
         if len(shape) not in (2, 3) or (len(shape) == 3 and shape[2] != 3):
@@ -162,10 +175,10 @@ class VisualTemplates:
         c = self.config
         if not (0 <= x0 < x1 <= shape[1] and 0 <= y0 < y1 <= shape[0]):
             raise ShapeError(f"crop x[{x0}, {x1}) y[{y0}, {y1}) does not fit the image of shape {shape}")
-        if (x1 - x0) < c.template_x_size or (y1 - y0) < c.template_y_size:
+        if (x1 - x0) < c.template_width_blocks or (y1 - y0) < c.template_height_blocks:
             raise ShapeError(
                 f"the crop ({x1 - x0} x {y1 - y0} px) is smaller than the template "
-                f"({c.template_x_size} x {c.template_y_size} blocks); use a larger image or a smaller template"
+                f"({c.template_width_blocks} x {c.template_height_blocks} blocks); use a larger image or a smaller template"
             )
 
     def view_template(self, image: np.ndarray) -> np.ndarray:
@@ -186,30 +199,30 @@ class VisualTemplates:
             raise ShapeError(f"image shape {shape} differs from the expected {self.image_shape}; resize or crop it first")
         c = self.config
         x0, x1, y0, y1 = self._crop(shape)
-        bx, by = (x1 - x0) // c.template_x_size, (y1 - y0) // c.template_y_size
-        crop = img[y0 : y0 + by * c.template_y_size, x0 : x0 + bx * c.template_x_size].astype(np.float64)
+        bx, by = (x1 - x0) // c.template_width_blocks, (y1 - y0) // c.template_height_blocks
+        crop = img[y0 : y0 + by * c.template_height_blocks, x0 : x0 + bx * c.template_width_blocks].astype(np.float64)
         if crop.ndim == 3:
             crop = crop.sum(axis=2)
             scale = 255.0 * 3.0
         else:
             scale = 255.0
-        sums = crop.reshape(c.template_y_size, by, c.template_x_size, bx).sum(axis=(1, 3))  # exact: integers
+        sums = crop.reshape(c.template_height_blocks, by, c.template_width_blocks, bx).sum(axis=(1, 3))  # exact: integers
         if c.emulate_uninitialised_clear:
             sums = sums + self._last_view
         view = sums / scale / (bx * by)
-        if c.vt_normalisation > 0:
+        if c.normalisation_mean > 0:
             avg = np.cumsum(view.ravel())[-1] / view.size  # sequential sum, as C++
             with np.errstate(divide="ignore", invalid="ignore"):
-                view = _cpp_max(0.0, _cpp_min(view * c.vt_normalisation / avg, 1.0))
-        if c.vt_patch_normalise > 0:
-            p = c.vt_patch_normalise
+                view = _cpp_max(0.0, _cpp_min(view * c.normalisation_mean / avg, 1.0))
+        if c.patch_half_width_blocks > 0:
+            p = c.patch_half_width_blocks
             padded = np.pad(view, p, mode="edge")
             win = np.lib.stride_tricks.sliding_window_view(padded, (2 * p + 1, 2 * p + 1))
             mean = win.mean(axis=(2, 3))
             std = np.sqrt(((win - mean[..., None, None]) ** 2).mean(axis=(2, 3)))
             with np.errstate(divide="ignore", invalid="ignore"):
                 z = _cpp_max(0.0, _cpp_min(1.0, ((view - mean) / std + 3.0) / 6.0))
-            view = np.where(std < c.vt_min_patch_normalisation_std, 0.5, z)
+            view = np.where(std < c.min_patch_std, 0.5, z)
         return view
 
     def match(self, image: np.ndarray) -> TemplateMatch:
@@ -234,19 +247,19 @@ class VisualTemplates:
             from cansim.frontends._sad_numba import sad_compare
 
             sad, best, off = sad_compare(
-                view, self.store._data[:n], self._means[:n], view_mean, c.vt_match_threshold + 0.005,
-                c.vt_shift_match, c.vt_step_match, bool(c.vt_panoramic),
+                view, self.store._data[:n], self._means[:n], view_mean, c.match_threshold + 0.005,
+                c.shift_match_blocks, c.step_match_blocks, bool(c.panoramic),
             )
             if math.isfinite(sad):
-                if c.vt_panoramic:
+                if c.panoramic:
                     err = sad / float(view.size)
-                    rel = off / c.template_x_size * 2.0 * math.pi
+                    rel = off / c.template_width_blocks * 2.0 * math.pi
                     if rel > math.pi:
                         rel -= 2.0 * math.pi
                 else:
-                    err = sad / float(view.size - 2 * c.vt_shift_match * c.template_y_size)
+                    err = sad / float(view.size - 2 * c.shift_match_blocks * c.template_height_blocks)
         self._last_view = view
-        if err <= c.vt_match_threshold:
+        if err <= c.match_threshold:
             self.store.set_current(int(best))
             return TemplateMatch(int(best), False, float(err), float(rel))
         new_id = self.store.add(view)

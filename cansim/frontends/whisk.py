@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
+from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_rows, nmse_rows
+from whisker_io.validation import config_field
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "FEATURES"]
 
@@ -74,19 +75,13 @@ class WhiskFrontEndConfig:
     n_whiskers: int = 18
 
     def __post_init__(self) -> None:
-        if self.features not in FEATURES:
-            raise ConfigError(f"features must be one of {FEATURES}, got {self.features!r}")
+        config_field(self.features, "features", str, choices=FEATURES)
         for name in ("pfh_threshold", "sda_threshold"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
-                raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
+            config_field(getattr(self, name), name, float, above=0)
         for name in ("n_bins", "n_whiskers"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ConfigError(f"{name} must be an integer >= 1, got {v!r}")
+            config_field(getattr(self, name), name, int, minimum=1)
         for name in ("feature_update", "use_sda_mask"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ConfigError(f"{name} must be a boolean, got {getattr(self, name)!r}")
+            config_field(getattr(self, name), name, bool)
 
 
 @dataclass(frozen=True)
