@@ -41,6 +41,22 @@ N = int(os.environ.get("CANSIM_FUZZ_EXAMPLES", "500"))
 SETTINGS = dict(max_examples=N, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 BOUND_S = 5.0
 
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled_kernels():
+    """Compile (or load) the numba kernels the fuzzed calls reach, outside the time bound.
+
+    The bound is there to catch work that grows with a huge input; a first numba
+    compilation on a loaded machine can take longer than it and says nothing about that.
+    """
+    for pop in (Population.openratslam(9, 12, 0.1, backend="numba"), Population.head_direction(36, backend="numba")):
+        pop.inject([3] * pop.ndim, 0.1)
+        pop.step(velocity=0.3, omega=0.1 if pop.ndim > 1 else None, dt=1.0)
+        pop.shift([0.5] * pop.ndim)
+    yield
+
+
 # numbers a user or a corrupt sensor might hand over
 weird_floats = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
