@@ -63,7 +63,7 @@ from cansim.errors import ConfigError, InvalidInputError
 from cansim.frontends.visual import VisualTemplateConfig
 from cansim.ratslam_config import RatSLAMConfig
 
-__all__ = ["OPENRATSLAM_KEYS", "read_openratslam_file", "read_openratslam_text", "renamed"]
+__all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed"]
 
 
 class _Key(NamedTuple):
@@ -206,3 +206,45 @@ def read_openratslam_file(path: str | os.PathLike[str], **overrides: Any) -> Rat
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read it as a text config file ({exc})") from None
     return read_openratslam_text(text, **overrides)
+
+
+def config_from_flat_dict(d: dict[str, Any]) -> RatSLAMConfig:
+    """A :class:`RatSLAMConfig` from the flat description that cansim 0.x saved before the
+    configs had one name per concept (OpenRatSLAM's keys plus ``frontend="ids" | "visual" |
+    "tactile"`` and the library settings), so that models saved then still load.
+
+    Parameters
+    ----------
+    d : dict
+        The saved ``config`` mapping (already parsed from JSON).
+
+    Raises
+    ------
+    ConfigError
+        A key that is neither an OpenRatSLAM key nor a field, or a value the config refuses.
+    """
+    from cansim.frontends.tactile import TactileTemplateConfig
+
+    parts: dict[str, dict[str, Any]] = {"": {}, "attractor": {}, "frontend": {}}
+    for key, value in d.items():
+        if key in OPENRATSLAM_KEYS:
+            part, _, name = OPENRATSLAM_KEYS[key].field.rpartition(".")
+            if OPENRATSLAM_KEYS[key].kind == "edge" and value == -1:
+                value = None
+            parts[part][name] = value
+        else:
+            parts[""][key] = value
+    kind = parts[""].pop("frontend", "ids")
+    if kind == "visual":
+        frontend: Any = VisualTemplateConfig(**parts["frontend"])
+    elif kind == "tactile":
+        frontend = TactileTemplateConfig(**{k: v for k, v in parts["frontend"].items() if k == "match_threshold"})
+    elif kind == "ids":
+        frontend = "ids"
+    else:
+        raise ConfigError(f"saved config: frontend must be 'ids', 'visual' or 'tactile', got {kind!r}")
+    RatSLAMConfig.check_names(parts[""])
+    try:
+        return RatSLAMConfig(**parts[""], attractor=replace(RatSLAMConfig().attractor, **parts["attractor"]), frontend=frontend)
+    except (InvalidInputError, TypeError) as exc:
+        raise ConfigError(f"saved config: {exc}") from None

@@ -259,7 +259,12 @@ class RatSLAMConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "RatSLAMConfig":
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`; also reads the flat form saved by earlier versions
+        (:func:`cansim.openratslam_config.config_from_flat_dict`)."""
+        from cansim.openratslam_config import OPENRATSLAM_KEYS, config_from_flat_dict
+
+        if isinstance(d, dict) and any(k in OPENRATSLAM_KEYS for k in d):
+            return config_from_flat_dict(d)
         try:
             d = dict(d)
             if isinstance(d.get("attractor"), dict):

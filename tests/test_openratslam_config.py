@@ -14,6 +14,7 @@ import tokenize
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -339,3 +340,43 @@ def test_openratslam_key_names_appear_in_code_only_in_the_adapter():
     offenders = {str(p.relative_to(ROOT)): _uses_of_keys(p) for p in sources if p != adapter_path}
     assert {k: v for k, v in offenders.items() if v} == {}
     assert _uses_of_keys(adapter_path) == sorted(EXPECTED)  # the scan sees them where they are
+
+
+# ------------------------------------------------- saves of the flat config (cansim 0.x)
+def test_flat_dict_of_earlier_versions_maps_onto_the_fields():
+    from cansim.frontends.tactile import TactileTemplateConfig
+    from cansim.openratslam_config import config_from_flat_dict
+
+    cfg = config_from_flat_dict({
+        "pc_dim_xy": 11, "pc_dim_th": 12, "pc_w_e_dim": 5, "pc_w_e_var": 1.5, "pc_cell_x_size": 0.02,
+        "pc_vt_inject_energy": 0.2, "exp_loops": 7, "exp_initial_em_deg": 180.0, "vt_match_threshold": 15.0,
+        "image_crop_x_max": -1, "frontend": "tactile", "relax_budget": 300, "lv_mode": "stored",
+    })
+    assert (cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m) == (11, 12, 0.02)
+    assert (cfg.attractor.exc_width, cfg.attractor.exc_sigma) == (5, 1.5)
+    assert (cfg.inject_energy, cfg.relax_passes, cfg.initial_heading_deg, cfg.relax_budget) == (0.2, 7, 180.0, 300)
+    assert cfg.frontend == TactileTemplateConfig(match_threshold=15.0)
+    visual = config_from_flat_dict({"pc_dim_xy": 9, "frontend": "visual", "image_crop_x_max": -1, "template_x_size": 80})
+    assert visual.frontend.crop_x_max_px is None and visual.frontend.template_width_blocks == 80
+    with pytest.raises(ConfigError, match="frontend"):
+        config_from_flat_dict({"pc_dim_xy": 9, "frontend": "sonar"})
+    with pytest.raises(ConfigError, match="not_a_key"):
+        config_from_flat_dict({"pc_dim_xy": 9, "not_a_key": 1})
+
+
+def test_a_model_saved_by_an_earlier_version_loads_and_continues_as_it_would_have():
+    # tests/data/ratslam_0x_tactile.npz and its next state were written by cansim at commit
+    # 93c784f (the flat OpenRatSLAM-named config): the thesis Ch.3 preset on a 10 x 10 x 12
+    # grid after 12 tactile steps, then one more step with the image stored in the JSON
+    import json
+    from pathlib import Path
+
+    from cansim import RatSLAM
+
+    data = Path(__file__).parent / "data"
+    expected = json.loads((data / "ratslam_0x_tactile_next_state.json").read_text())
+    slam = RatSLAM.load(data / "ratslam_0x_tactile.npz")
+    assert (slam.config.xy_cells, slam.config.heading_cells, slam.config.cell_size_m) == (10, 12, 0.02)
+    s = slam.step(0.01, 0.02, 1.0, np.array(expected["image"], dtype=np.uint8))
+    assert list(s.best_pc) == expected["best_pc"] and list(s.map_pose) == expected["map_pose"]
+    assert (s.exp_id, s.relocalised, s.view_id) == (expected["exp_id"], expected["relocalised"], expected["view_id"])
