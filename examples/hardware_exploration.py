@@ -186,24 +186,17 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
         with array:
             recorder = None
             try:
-                array.set_pattern(WhiskPattern(), "retract_on_max")
-                array.set_rcp_threshold(RCP_THRESHOLD)
-                array.start()
-                with Recorder(args.out) as recorder:
-                    def sensor(pose: Any) -> Any:
-                        # the state with the pose the explorer whisks at, so a replay sees the same poses
-                        cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
-                        return chain(cycle)[1]
+                with array.whisking(WhiskPattern(), "retract_on_max", RCP_THRESHOLD):
+                    with Recorder(args.out) as recorder:
+                        def sensor(pose: Any) -> Any:
+                            # the state with the pose the explorer whisks at, so a replay sees the same poses
+                            cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
+                            return chain(cycle)[1]
 
-                    result = make_explorer(sensor, arm).run()
+                        result = make_explorer(sensor, arm).run()
             except HardwareError as exc:
                 done = recorder.n_cycles if recorder is not None else 0
                 return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
-            finally:
-                try:
-                    array.stop()
-                except HardwareError:
-                    pass
     write_trace(args.out / "exploration.csv", names, result)
     ident = int(np.argmax(result.ic[-1])) if len(result.ic) else None
     print(f"{len(result.ic)} whisks ({result.stop_reason}), {result.refused_commands} refused commands; "

@@ -90,20 +90,13 @@ def _session(argv: list[str] | None) -> int:
         with array:
             recorder = None
             try:
-                array.set_pattern(WhiskPattern(), args.mode)
-                array.set_rcp_threshold(args.rcp_threshold)
-                array.start()
-                targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
-                with Recorder(args.out) as recorder:
-                    explore(arm, array, recorder, targets, description="exploring")
+                with array.whisking(WhiskPattern(), args.mode, args.rcp_threshold):
+                    targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
+                    with Recorder(args.out) as recorder:
+                        explore(arm, array, recorder, targets, description="exploring")
             except HardwareError as exc:
                 done = recorder.n_cycles if recorder is not None else 0
                 return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
-            finally:
-                try:
-                    array.stop()
-                except HardwareError:
-                    pass
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/")
     return EXIT_OK
 

@@ -20,7 +20,7 @@ from whisker_io.hw.arm import SimArm
 from whisker_io.testing.fake_usb_backend import FakeUSBBackend
 from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore
-from whisker_io.hw.usb_array import (OP_SET_PATTERN, OP_SET_RCP_THRESHOLD, OP_START,
+from whisker_io.hw.usb_array import (OP_SET_PATTERN, OP_SET_RCP_THRESHOLD, OP_START, OP_STOP,
                                      CRCMismatchError, FrameLayout, SequenceGapError,
                                      ShortFrameError, SimArray, USBArray, encode_command,
                                      encode_frames, parse_command, parse_frame)
@@ -254,3 +254,29 @@ def _upright_envelope():
     from whisker_io.hw.safety import SafetyEnvelope
     return SafetyEnvelope(workspace_min=(-0.5, -0.5, 0.05), workspace_max=(0.5, 0.5, 0.7),
                           tool_reference_axis=(0.0, 0.0, 1.0))
+
+
+def test_whisking_block_starts_and_always_stops():
+    arr, backend = open_array(1)
+    with arr.whisking(WhiskPattern(frequency_hz=2.0), "retract_on_max", 500.0):
+        arr.read_whisk()
+    ops = [op for op, _ in backend.commands]
+    assert ops == [OP_SET_PATTERN, OP_SET_RCP_THRESHOLD, OP_START, OP_STOP]
+    # a fault inside the block: the array is stopped and the fault propagates
+    arr, backend = open_array(0, timeout_ms=5)
+    with pytest.raises(DeviceTimeoutError):
+        with arr.whisking():
+            arr.read_whisk()
+    assert [op for op, _ in backend.commands][-1] == OP_STOP
+    # the device gone inside the block: the failed stop is logged, the first error is the one raised
+    arr, backend = open_array(1)
+    backend.inject("remove")
+    with pytest.raises(DeviceRemovedError):
+        with arr.whisking():
+            arr.read_whisk()
+    # bad arguments: nothing is started
+    arr, backend = open_array()
+    with pytest.raises(InvalidInputError):
+        with arr.whisking(mode="wiggle"):
+            pass
+    assert backend.commands == []

@@ -55,13 +55,14 @@ from __future__ import annotations
 
 import abc
 import binascii
+import contextlib
 import errno
 import logging
 import math
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Iterator, Optional
 
 import numpy as np
 
@@ -337,6 +338,50 @@ class Array(abc.ABC):
 
     def close(self) -> None:
         """Release the device (default: nothing to do)."""
+
+    @contextlib.contextmanager
+    def whisking(self, pattern: Optional[WhiskPattern] = None, mode: str = "open_loop",
+                 rcp_threshold_counts: Optional[float] = None) -> Iterator["Array"]:
+        """Set the pattern (and RCP threshold), start whisking; stop on leaving the block.
+
+        The array is stopped however the block ends. After a fault inside the block a
+        failing stop is logged and the block's error propagates (it says what went
+        wrong first); after a clean block a failing stop raises.
+
+        Parameters
+        ----------
+        pattern : WhiskPattern, optional
+            Frequency and whisk range (default :class:`WhiskPattern()`).
+        mode : str
+            One of :data:`PATTERN_MODES`.
+        rcp_threshold_counts : float, optional
+            RCP contact threshold, ADC counts (Sec 2.3.1); None keeps the device's.
+
+        Raises
+        ------
+        InvalidInputError
+            A bad pattern, mode or threshold (nothing is started).
+        HardwareError
+            The device refused a command or failed to stop.
+
+        Examples
+        --------
+        >>> with array.whisking(mode="retract_on_max", rcp_threshold_counts=2000.0):  # doctest: +SKIP
+        ...     cycle = array.read_whisk()
+        """
+        self.set_pattern(WhiskPattern() if pattern is None else pattern, mode)
+        if rcp_threshold_counts is not None:
+            self.set_rcp_threshold(rcp_threshold_counts)
+        self.start()
+        try:
+            yield self
+        except BaseException:
+            try:
+                self.stop()
+            except HardwareError as stop_error:
+                _LOG.warning("stopping the array after a fault failed too: %s", stop_error)
+            raise
+        self.stop()
 
     def __enter__(self) -> "Array":
         return self
