@@ -31,7 +31,8 @@ threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_
 
 Settings (this project's choices where the thesis is silent): contact estimate
 ``tip`` (the sweep-only chain; the hardware path uses an SVR model); the SPC defaults of
-:class:`cansim.explore.placement.PlacementParams` with the trajectories' roll of 90 deg;
+:class:`cansim.explore.placement.PlacementParams` (cone half-angle 24 deg, the array's
+innermost contact ring, see :mod:`cansim.explore.placement`) with the trajectories' roll of 90 deg;
 10 SPC adjustments per region; leaky integrator impulse 1, decay 0.75 per whisk.
 """
 
@@ -275,11 +276,26 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
 
 
 # --------------------------------------------------------------------------- summary
-def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float) -> str:
+def spc_sequences(runs: Sequence[dict[str, Any]]) -> list[int]:
+    """Lengths of the stretches of consecutive SPC adjustments in ``runs`` (one per region the SPC worked on)."""
+    out: list[int] = []
+    for r in runs:
+        n = 0
+        for src in r["result"].strategies + ["end"]:
+            if src == "spc":
+                n += 1
+            elif n:
+                out.append(n)
+                n = 0
+    return out
+
+
+def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float,
+            runs: Sequence[dict[str, Any]] = ()) -> str:
     from scipy import stats
 
-    lines = [f"Thesis Ch.6 active exploration ({'quick' if args.quick else 'full'} run, seeds {args.seeds}, "
-             f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)",
+    lines = [(f"Thesis Ch.6 active exploration ({'quick' if args.quick else 'full'} run, seeds {args.seeds}, "
+              f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)"),
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}",
              "maps: " + ", ".join(f"{k.name} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
@@ -294,7 +310,11 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     lines.append(f"1. SPC raises the correct-identity confidence significantly (thesis Fig 6.6): median on {np.median(on) if on else math.nan:.3f} "
                  f"vs off {np.median(off) if off else math.nan:.3f}, Mann-Whitney one-sided p = {p:.3g} (n = {len(on)}, {len(off)}); "
                  f"incorrect on {np.median(on_i) if on_i else math.nan:.3f} vs off {np.median(off_i) if off_i else math.nan:.3f}. "
-                 f"{'REPRODUCED' if rep else 'NOT reproduced'}")
+                 f"{'REPRODUCED' if rep else 'NOT reproduced'}"
+                 + (f"; the thesis' 'incorrect raised less': incorrect +{np.median(on_i) - np.median(off_i):.3f} vs correct "
+                    f"+{np.median(on) - np.median(off):.3f}, "
+                    + ("reproduced" if np.median(on_i) - np.median(off_i) < np.median(on) - np.median(off) else "NOT reproduced")
+                    if on and off and on_i and off_i else ""))
     strat = [x for x in rows if x.get("study") == "strategy"]
     at300 = {s: [x for x in strat if x["strategy"] == s and x["threshold"] == 300.0] for s in STRATEGY_NAMES}
     med = {s: (float(np.median([x["im"] for x in v])) if v else math.nan, float(np.median([x["srt"] for x in v])) if v else math.nan)
@@ -326,6 +346,25 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     lines.append("")
     lines.append("Correct identity first at IC 300, per strategy: "
                  + "; ".join(f"{s} {sum(x['correct_first'] for x in v)}/{len(v)}" for s, v in at300.items()))
+    lines.append("Correct identity first, per strategy and threshold (runs where it crossed first / runs): "
+                 + "; ".join(f"{t:.0f}: " + ", ".join(
+                     f"{s} {sum(x['correct_first'] for x in strat if x['strategy'] == s and x['threshold'] == t)}"
+                     f"/{sum(1 for x in strat if x['strategy'] == s and x['threshold'] == t)}" for s in STRATEGY_NAMES)
+                     for t in THRESHOLDS))
+    for p in OBJECTS:
+        v = [x for x in strat if x["threshold"] == 300.0 and x["presented"] == p]
+        ids = [x["identity"] or "none" for x in v]
+        lines.append(f"  {p} presented: identity first at IC 300 " + ", ".join(f"{k} {ids.count(k)}" for k in (*OBJECTS, "none"))
+                     + f" of {len(v)}; mean confidence correct {np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan:.3f}"
+                     f" vs incorrect {np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan:.3f}")
+    lines.append(f"SPC on vs off (default search, Box-Stack presented): mean correct confidence {np.mean(on) if on else math.nan:.3f} "
+                 f"vs {np.mean(off) if off else math.nan:.3f} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
+                 f"{min(len(on), len(off))} seeds); mean incorrect {np.mean(on_i) if on_i else math.nan:.3f} vs "
+                 f"{np.mean(off_i) if off_i else math.nan:.3f}")
+    seq = spc_sequences(runs)
+    if seq:
+        lines.append(f"SPC adjustments per region (runs with SPC on): {len(seq)} regions, median {np.median(seq):.0f}, "
+                     f"{np.mean(np.array(seq) <= 5):.0%} within 5, {np.mean(np.array(seq) >= 10):.0%} stopped at the limit of 10")
     reasons = {}
     for x in first:
         reasons[x["stop_reason"]] = reasons.get(x["stop_reason"], 0) + 1
@@ -374,7 +413,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         w.writeheader()
         w.writerows(rows)
     figures(args.out, runs, spc_runs, rows)
-    text = summary(rows, setup, args, time.monotonic() - t0)
+    text = summary(rows, setup, args, time.monotonic() - t0, runs)
     (args.out / "ch6_summary.txt").write_text(text)
     sys.stdout.write(text)
     return 0

@@ -4,11 +4,18 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from cansim.errors import CansimError, ConfigError
-from cansim.explore.placement import PlacementParams, maintain_yaw, place
+from cansim.explore.placement import (
+    DEFAULT_CONE_HALF_ANGLE_RAD,
+    PlacementParams,
+    maintain_yaw,
+    place,
+    ring_half_angle_rad,
+)
 from whisker_io.pose import Pose
 
 P = PlacementParams(mu=3, delta_theta_rad=math.radians(10), delta_l_m=0.21, delta_u_m=0.26, rotation_steps=2, translation_steps=2)
@@ -165,20 +172,6 @@ def test_reference_point_tilted_wall_turns_where_the_origin_would_not():
     np.testing.assert_allclose(goal.position_m, pose.position_m, atol=1e-12)  # turned about the flange
 
 
-def test_centroid_params_shift_the_band_by_the_centroid_y():
-    from cansim.explore.placement import base_centroid, centroid_params
-    from whisker_io.array.geometry import WhiskerArray
-
-    pos = WhiskerArray.thesis().positions_m
-    c = base_centroid()
-    assert c[1] == pytest.approx(sum(p[1] for p in pos) / len(pos))
-    q = centroid_params(PlacementParams(delta_l_m=0.21, delta_u_m=0.26))
-    assert q.reference_point_m == c
-    assert (q.delta_l_m, q.delta_u_m) == pytest.approx((0.21 - c[1], 0.26 - c[1]))
-    with pytest.raises(ConfigError):
-        centroid_params(PlacementParams(delta_l_m=0.01, delta_u_m=0.05))
-
-
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=2)), min_size=0, max_size=4))
 def test_bad_reference_point_is_a_config_error(values):
@@ -188,3 +181,97 @@ def test_bad_reference_point_is_a_config_error(values):
     else:
         with pytest.raises(ConfigError):
             PlacementParams(reference_point_m=tuple(values))
+
+
+# ------------------------------------------------------- cone calibrated on the array (decision)
+def _wall_mesh(distance_m):
+    """A 3 x 3 m wall whose face is the plane y = distance_m (world = end-effector frame at the identity)."""
+    import trimesh
+
+    wall = trimesh.creation.box(extents=(3.0, 0.2, 3.0))
+    wall.apply_translation((0.0, distance_m + 0.1, 0.0))
+    return wall
+
+
+@pytest.mark.parametrize("distance_m", [0.205, 0.235])
+def test_ring_half_angle_matches_the_simulated_sweep(distance_m):
+    # reference: the ray-cast sweep of the whisk chain (an independent code path) against a wall
+    from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    arr = WhiskerArray.thesis()
+    whisk = WhiskChain(_wall_mesh(distance_m), contact_model="truth", contact_noise=None).whisk(
+        Pose.identity(), np.random.default_rng(0))
+    touched = [i for i, c in enumerate(whisk.sweep_contacts) if c is not None]
+    pts = whisk.features.contact_points_m
+    short = [k for k, i in enumerate(touched) if arr.lengths_m[i] == arr.lengths_m.min()]
+    assert len(short) == 6
+    sim = np.median(np.arctan2(np.hypot(pts[short, 0], pts[short, 2]), pts[short, 1]))
+    assert ring_half_angle_rad(arr, distance_m) == pytest.approx(sim, abs=math.radians(0.1))
+    # nothing lies inside the ring: every contact is at least the ring's angle off y
+    every = np.arctan2(np.hypot(pts[:, 0], pts[:, 2]), pts[:, 1])
+    assert every.min() >= ring_half_angle_rad(arr, distance_m) - math.radians(0.1)
+
+
+def test_default_cone_is_the_innermost_ring_at_the_band_middle():
+    mid = 0.5 * (PlacementParams().delta_l_m + PlacementParams().delta_u_m)
+    assert abs(PlacementParams().delta_theta_rad - ring_half_angle_rad(None, mid)) <= math.radians(0.5)
+    assert PlacementParams().delta_theta_rad == DEFAULT_CONE_HALF_ANGLE_RAD
+
+
+def test_squarely_faced_flat_wall_settles_at_once_with_the_default_cone():
+    # the full contact rings: median 9.9 deg off y at 0.235 m (inside 24 deg), e_dy in the band
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    chain = WhiskChain(_wall_mesh(0.235), contact_model="truth", contact_noise=None)
+    pose = Pose.identity()
+    c = chain.features(pose, np.random.default_rng(0)).contact_points_m
+    assert len(c) == 18
+    assert place(pose, c, PlacementParams()) == pose
+
+
+def test_spc_settles_within_a_few_steps_on_the_box():
+    # every pose of one loop of trajectory A around the Box, perturbed as noisy odometry would
+    # (2 cm, 8 deg), with the Sec 6.1.3.1.2 contact noise: the goal equals the pose within 5 steps
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.sweep import ContactNoise
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    mesh = make_object("box")
+    chain = WhiskChain(mesh, contact_model="tip", contact_noise=ContactNoise())
+    params = PlacementParams(roll_rad=math.pi / 2)
+    rng = np.random.default_rng(5)
+    steps = []
+    for p in object_trajectory(mesh, "A", 1):
+        q = Pose.from_rotation(p.position_m + rng.normal(0, 0.02 / math.sqrt(3), 3),
+                               Rotation.from_rotvec(rng.normal(0, math.radians(8) / math.sqrt(3), 3)) * p.rotation)
+        k = 0
+        while k < 10:
+            goal = place(q, chain.features(q, rng).contact_points_m, params)
+            if goal == q:
+                break
+            q, k = goal, k + 1
+        steps.append(k)
+    steps = np.array(steps)
+    assert np.median(steps) <= 1
+    assert np.mean(steps <= 5) >= 0.85, np.bincount(steps)
+
+
+@settings(max_examples=30, deadline=None)
+@given(d=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([True, "0.2", None, 0.0, -0.1, 0.4, 11.0])),
+       step=st.sampled_from([math.radians(0.5), 0.0, -1.0, 1.0, math.nan]))
+def test_ring_half_angle_bad_input_is_a_typed_error(d, step):
+    ok = (isinstance(d, float) and math.isfinite(d) and 0.19 <= d <= 0.24 and 0 < step <= math.radians(1))
+    if ok:
+        assert 0 < ring_half_angle_rad(None, d, step) < math.pi / 2
+    elif isinstance(d, float) and math.isfinite(d) and 0.0 < d <= 10 and 0 < step <= math.radians(1):
+        try:  # in range but maybe beyond the shortest whiskers' reach: a value or a typed error
+            assert 0 < ring_half_angle_rad(None, d, step) < math.pi / 2
+        except CansimError:
+            pass
+    else:
+        with pytest.raises(CansimError):
+            ring_half_angle_rad(None, d, step)
+    with pytest.raises(CansimError):
+        ring_half_angle_rad("thesis", 0.235)

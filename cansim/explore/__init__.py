@@ -7,6 +7,6 @@
   recognition by integrated confidence, strategy, SPC, arm (through its safety envelope).
 """
 
-from cansim.explore.placement import PlacementParams, base_centroid, centroid_params, maintain_yaw, place
+from cansim.explore.placement import DEFAULT_CONE_HALF_ANGLE_RAD, PlacementParams, maintain_yaw, place, ring_half_angle_rad
 
-__all__ = ["PlacementParams", "base_centroid", "centroid_params", "maintain_yaw", "place"]
+__all__ = ["DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place", "ring_half_angle_rad"]

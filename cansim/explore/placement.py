@@ -22,17 +22,34 @@ Given the end-effector pose ``T_BE`` and the whisk's contact points, with at lea
 Rotation comes before translation; with fewer than ``mu`` contacts, or with the median
 already in the cone and in the band, the goal is the current pose.
 
-Decision (reference point): Alg 7 measures the cone and the distance from ``p_ee``, which
-is ambiguous for an array whose whisker bases sit 0.16-0.20 m along y from the flange.
-``reference_point_m`` makes the point explicit; :func:`base_centroid` gives the centroid
-of the whisker bases (the array's sensing origin) with the band shifted by the
-centroid's y (:func:`centroid_params`). Measured on the thesis array (no noise, roll
-pi/2, flat wall faced squarely 1-4 cm in front of the bases) the median contact lies
-9-12 deg off y from ``p_ee`` but 25-48 deg off from the base centroid (the contacts are
-only 2-8 cm in front of it while their median sits ~4 cm off the axis, the array's
-whisker lengths being uneven); on the Box trajectories 29 deg (median) from ``p_ee``
-and 67 deg from the centroid. The centroid therefore does not bring the median into a
-10-deg cone; the default stays ``p_ee`` (Alg 7 as printed).
+Decision (cone half-angle, calibrated on the array): the thesis does not print
+``delta_theta``. The thesis array (Fig 2.15) has six columns of 60/100/160-mm whiskers
+that splay outward: against a flat wall faced squarely 0.235 m along y from the
+end-effector origin (the band middle) its 18 contacts form rings about the y-axis of
+radius 0.104 m (the 60-mm whiskers), 0.151 m and 0.221 m, with no contact closer to the
+axis, i.e. 23.9, 32.7 and 43.2 deg off y seen from ``p_ee`` (:func:`ring_half_angle_rad`).
+The median contact therefore lies inside the innermost ring's cone when the contacts
+come from more than one side of the array (the surface is centred in the array's
+view; on the wall the median is 9.9 deg off y, 11.3 deg at the trajectories' 0.217 m)
+and outside it when only the outer whiskers of one side touch (the surface is off to
+that side: turn toward it). The default ``delta_theta_rad`` is that cone, 24 deg
+(:data:`DEFAULT_CONE_HALF_ANGLE_RAD`).
+Measured on the Box and Box-Stack (one loop of trajectory A each, the poses perturbed by
+2 cm / 8 deg as noisy odometry would, Sec 6.1.3.1.2 contact noise, tip contacts): with
+25 deg the SPC settles (goal == current pose) within 5 steps from 99 % (Box) and
+95 % (Box-Stack) of the starts, median 1 step; with the 10-deg cone 65 % of the starts
+settle within 5 steps and 27-29 % are still turning after 10, the median of a few
+contacts jumping between columns on either side of objects narrower (0.2 m) than
+the contact rings (0.46 m across). Even squarely faced at the centre of a Box face the
+median lies 15-18 deg (median) off y from ``p_ee``: a 10-deg cone is below the
+measurement's spread for this array.
+
+Decision (reference point): the cone and the distance are measured from ``p_ee`` as in
+Alg 7 (``reference_point_m`` None); the contact rings are centred on the y-axis there
+(the six 60-mm contacts at 0.111-0.112 m from it). ``reference_point_m`` moves the apex
+for an array whose sensing origin is elsewhere; measured from the whisker bases'
+centroid instead (0.18 m along y) the median lies 63-67 deg off y on the Box
+trajectories and the SPC never settles from half of the starts.
 """
 
 from __future__ import annotations
@@ -48,9 +65,12 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.sim.trajectories import facing_pose
 
-__all__ = ["PlacementParams", "base_centroid", "centroid_params", "maintain_yaw", "place"]
+__all__ = ["DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place", "ring_half_angle_rad"]
 
 _MAX_CONTACT_DISTANCE_M = 10.0
+#: Default ``delta_theta`` (rad): 24 deg, the innermost contact ring of the thesis array
+#: at the band middle, :func:`ring_half_angle_rad` (23.9 deg) to a whole degree (module docstring).
+DEFAULT_CONE_HALF_ANGLE_RAD = math.radians(24.0)
 
 
 @dataclass(frozen=True)
@@ -63,7 +83,8 @@ class PlacementParams:
         Fewest contacts for an adjustment (default 3, the fewest that give a PFH).
     delta_theta_rad : float
         Half-angle of the cone about the array's y-axis the median contact must lie
-        in (default 10 deg).
+        in (default :data:`DEFAULT_CONE_HALF_ANGLE_RAD`, 24 deg: the innermost contact
+        ring of the thesis array, see the module docstring and :func:`ring_half_angle_rad`).
     delta_l_m, delta_u_m : float
         Band of the median perpendicular contact distance from the end-effector origin
         (default 0.21-0.26 m: the thesis array's most rostral bases sit 0.20 m along y;
@@ -80,11 +101,11 @@ class PlacementParams:
     reference_point_m : tuple of 3 float or None
         Point (end-effector frame, m) the cone and the perpendicular distance are
         measured from (None: the end-effector origin, Alg 7's ``p_ee``); see the
-        module docstring and :func:`centroid_params`.
+        module docstring.
     """
 
     mu: int = 3
-    delta_theta_rad: float = math.radians(10.0)
+    delta_theta_rad: float = DEFAULT_CONE_HALF_ANGLE_RAD
     delta_l_m: float = 0.21
     delta_u_m: float = 0.26
     rotation_steps: int = 2
@@ -129,39 +150,69 @@ class PlacementParams:
         return self.delta_theta_rad if self.max_rotation_step_rad is None else float(self.max_rotation_step_rad)
 
 
-def base_centroid(array: object | None = None) -> tuple[float, float, float]:
-    """Centroid of the whisker bases in the end-effector frame, m (the array's sensing origin).
+def ring_half_angle_rad(array: object | None = None, distance_m: float = 0.235, step_rad: float = math.radians(0.05)) -> float:
+    """Half-angle, seen from the end-effector origin about y, of the innermost contact ring on a flat wall.
+
+    The wall is the plane ``y = distance_m`` of the end-effector frame (faced squarely).
+    Each of the shortest whiskers sweeps from retraction to protraction (Eq 5.1,
+    ``T_EWi Rz(theta)``); its contact is the first angle at which its shaft reaches the
+    plane (the point ``b + r s`` with ``0 <= r <= L``, ``b`` the base, ``s`` the shaft
+    direction, ``L`` the length). The result is the median over those whiskers of the
+    contact's angle from the y-axis, ``atan2(sqrt(x^2 + z^2), y)``. With the thesis array
+    at the band middle of :class:`PlacementParams` (0.235 m) it is 23.9 deg (27.3 deg at
+    0.217 m); the 60-mm whiskers reach no wall beyond about 0.245 m.
 
     Parameters
     ----------
     array : whisker_io.array.geometry.WhiskerArray, optional
-        Default the thesis array (Fig 2.15; its centroid is about (-0.002, 0.182, 0.013) m).
+        Default the thesis array (Fig 2.15).
+    distance_m : float
+        Wall distance along y from the end-effector origin, m (> 0).
+    step_rad : float
+        Resolution of the sweep, rad (> 0, at most 1 deg).
+
+    Returns
+    -------
+    float
+        Radians, in (0, pi/2).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a WhiskerArray, a non-finite or non-positive distance or step, or a wall that
+        none of the shortest whiskers reaches.
     """
     from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.array.kinematics import shaft_directions
 
     arr = WhiskerArray.thesis() if array is None else array
     if not isinstance(arr, WhiskerArray):
         raise InvalidInputError(f"array must be a WhiskerArray, got {type(arr).__name__}")
-    c = np.asarray(arr.positions_m, dtype=float).mean(axis=0)
-    return float(c[0]), float(c[1]), float(c[2])
-
-
-def centroid_params(params: PlacementParams = PlacementParams(), array: object | None = None) -> PlacementParams:
-    """``params`` measured from the base centroid, the band shifted by the centroid's y.
-
-    The band ``[delta_l, delta_u]`` of ``params`` (from the end-effector origin) becomes
-    ``[delta_l - y_c, delta_u - y_c]`` (clipped at 0), so the same surface distance lies
-    in the band; with the defaults and the thesis array, 0.028-0.078 m.
-    """
-    if not isinstance(params, PlacementParams):
-        raise InvalidInputError(f"params must be a PlacementParams, got {type(params).__name__}")
-    c = base_centroid(array)
-    lo, hi = max(0.0, params.delta_l_m - c[1]), params.delta_u_m - c[1]
-    if not hi > lo:
-        raise ConfigError(f"the band [{params.delta_l_m}, {params.delta_u_m}] m lies behind the base centroid (y = {c[1]:.3f} m)")
-    from dataclasses import replace
-
-    return replace(params, reference_point_m=c, delta_l_m=lo, delta_u_m=hi)
+    for name, v in (("distance_m", distance_m), ("step_rad", step_rad)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+            raise InvalidInputError(f"{name} must be a finite number, got {v!r}")
+    if not 0 < distance_m <= _MAX_CONTACT_DISTANCE_M:
+        raise InvalidInputError(f"distance_m must lie in (0, {_MAX_CONTACT_DISTANCE_M}] m, got {distance_m!r}")
+    if not 0 < step_rad <= math.radians(1.0):
+        raise InvalidInputError(f"step_rad must lie in (0, 1 deg], got {step_rad!r}")
+    lengths = np.asarray(arr.lengths_m, dtype=float)
+    idx = np.flatnonzero(np.isclose(lengths, lengths.min()))
+    theta = arr.whisk_angles(step_rad)  # retraction -> protraction
+    s = shaft_directions(arr, Pose.identity(), np.tile(theta, (len(arr), 1)))  # (N, M, 3), end-effector frame
+    b = np.asarray(arr.positions_m, dtype=float)
+    angles = []
+    for i in idx:
+        sy = s[i, :, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = (distance_m - b[i, 1]) / sy
+        hit = np.flatnonzero((sy > 0) & (r >= 0) & (r <= lengths[i]))
+        if hit.size:
+            c = b[i] + r[hit[0]] * s[i, hit[0]]
+            angles.append(math.atan2(math.hypot(c[0], c[2]), c[1]))
+    if not angles:
+        raise InvalidInputError(f"none of the shortest whiskers reaches a wall {distance_m} m along y; "
+                                "give a distance within their reach")
+    return float(np.median(angles))
 
 
 def _roll(roll_rad: float) -> Rotation:
