@@ -113,9 +113,32 @@ class MotionModel:
     def check_axes(self, axes: Sequence[Axis]) -> None:
         """Raise :class:`ShapeError` if the model cannot drive a grid with these axes."""
 
-    def bind(self, axes: Sequence[Axis]) -> Callable[..., MotionShifts]:  # pragma: no cover
-        """Return ``f(velocity, omega, dt) -> MotionShifts`` for a grid with ``axes``."""
-        raise NotImplementedError
+    def bind(self, axes: Sequence[Axis]) -> Callable[..., MotionShifts]:
+        """Return ``f(velocity, omega, dt) -> MotionShifts`` for a grid with ``axes``; ``f`` validates its inputs."""
+        return self._bind_pair(axes)[0]
+
+    def bind_checked_and_trusted(
+        self, axes: Sequence[Axis]
+    ) -> tuple[Callable[..., MotionShifts], Callable[..., MotionShifts]]:
+        """:meth:`bind`'s function and a twin for inputs validated already, e.g. the fields of a
+        :class:`maps.odometry.PlanarOdometry` / :class:`maps.odometry.SpatialOdometry`
+        (finite floats or float64 (3,) arrays, ``dt >= 0``).
+
+        The built-in models' twin computes the same shifts (the same bits) without checking
+        the values again; an input not of that form (another type, shape or dtype) is
+        checked as :meth:`bind`'s function checks it. A model that implements (or
+        overrides) :meth:`bind` gets its checked function twice.
+        """
+        mro = type(self).__mro__
+        binder = next(c for c in mro if "bind" in c.__dict__)
+        pairer = next(c for c in mro if "_bind_pair" in c.__dict__)
+        if binder is not MotionModel and mro.index(binder) <= mro.index(pairer):
+            f = self.bind(axes)
+            return f, f
+        return self._bind_pair(axes)
+
+    def _bind_pair(self, axes: Sequence[Axis]) -> tuple[Callable[..., MotionShifts], Callable[..., MotionShifts]]:
+        raise NotImplementedError(f"{type(self).__name__} must implement bind(axes)")
 
     def shifts(self, axes: Sequence[Axis], velocity, omega, dt: float) -> MotionShifts:
         """Shifts in cells for linear ``velocity``, angular ``omega`` over ``dt`` seconds."""
@@ -124,6 +147,11 @@ class MotionModel:
 
 
 _NO_MOTION = MotionShifts(None, None, None)
+
+
+def _is_vector(x, n: int) -> bool:
+    """Whether ``x`` has the validated form of a vector field: a float64 array of shape (n,)."""
+    return isinstance(x, np.ndarray) and x.dtype == np.float64 and x.shape == (n,)
 
 
 @dataclass(frozen=True)
@@ -136,27 +164,41 @@ class UniformMotion(MotionModel):
     angular velocity as ``velocity``.
     """
 
-    def bind(self, axes):
+    def _bind_pair(self, axes):
         n = len(axes)
         inv = 1.0 / np.array([a.step for a in axes])
         inv0 = float(inv[0])
 
-        def shifts(velocity, omega, dt):
-            dt = check_dt(dt)
-            if omega is not None:
+        def no_omega(omega):
+            if omega is not None:  # a model mismatch, not a bad value: refused on both paths
                 raise InvalidInputError(
                     "this population's axes move uniformly and take no omega; pass the angular "
                     "velocity of a ring as velocity (rad/s)"
                 )
+
+        def compute(velocity, dt):
             if velocity is None:
                 return _NO_MOTION
             if n == 1 and isinstance(velocity, float):
-                if not math.isfinite(velocity):
-                    raise InvalidInputError(f"velocity must be finite, got {velocity!r}; check the odometry source")
                 return MotionShifts(None, None, np.array([velocity * dt * inv0]))
-            return MotionShifts(None, None, finite_vector(velocity, n, "velocity") * (dt * inv))
+            return MotionShifts(None, None, velocity * (dt * inv))
 
-        return shifts
+        def shifts(velocity, omega, dt):
+            dt = check_dt(dt)
+            no_omega(omega)
+            if velocity is None or (n == 1 and isinstance(velocity, float)):
+                if velocity is not None and not math.isfinite(velocity):
+                    raise InvalidInputError(f"velocity must be finite, got {velocity!r}; check the odometry source")
+                return compute(velocity, dt)
+            return compute(finite_vector(velocity, n, "velocity"), dt)
+
+        def trusted(velocity, omega, dt):
+            no_omega(omega)
+            if velocity is None or (n == 1 and isinstance(velocity, float)) or _is_vector(velocity, n):
+                return compute(velocity, dt)
+            return shifts(velocity, omega, dt)  # not of a validated form: check it
+
+        return shifts, trusted
 
 
 @dataclass(frozen=True)
@@ -185,7 +227,7 @@ class PlanarMotion(MotionModel):
         if len(axes) != 3 or axes[0].angular or axes[1].angular or not axes[2].angular:
             raise ShapeError("PlanarMotion needs axes (x linear, y linear, theta angular)")
 
-    def bind(self, axes):
+    def _bind_pair(self, axes):
         th = np.arange(axes[2].size) * axes[2].step
         if self.frame == "standard":
             d = np.stack([np.cos(th), np.sin(th)], axis=1)
@@ -194,16 +236,23 @@ class PlanarMotion(MotionModel):
         directions = d / np.array([axes[0].step, axes[1].step])
         inv_th = 1.0 / axes[2].step
 
-        def shifts(velocity, omega, dt):
-            v = finite_scalar(0.0 if velocity is None else velocity, "vtrans")
-            w = finite_scalar(0.0 if omega is None else omega, "vrot")
-            dt = check_dt(dt)
+        def compute(v, w, dt):
             cond = (v * dt) * directions if v != 0.0 else None
             rot = w * dt * inv_th
             uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
             return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
 
-        return shifts
+        def shifts(velocity, omega, dt):
+            v = finite_scalar(0.0 if velocity is None else velocity, "vtrans")
+            w = finite_scalar(0.0 if omega is None else omega, "vrot")
+            return compute(v, w, check_dt(dt))
+
+        def trusted(velocity, omega, dt):
+            if isinstance(velocity, float) and isinstance(omega, float) and isinstance(dt, float):
+                return compute(velocity, omega, dt)
+            return shifts(velocity, omega, dt)  # not of a validated form: check it
+
+        return shifts, trusted
 
 
 def euler_grid_rotations(angle_axes: Sequence[Axis], convention: str = EULER_CONVENTION) -> np.ndarray:
@@ -236,24 +285,30 @@ class SixDofMotion(MotionModel):
         if len(axes) != 6 or any(a.angular for a in axes[:3]) or not all(a.angular for a in axes[3:]):
             raise ShapeError("SixDofMotion needs axes (x, y, z linear; roll, pitch, yaw angular)")
 
-    def bind(self, axes):
+    def _bind_pair(self, axes):
         rot = euler_grid_rotations(axes[3:]) / np.array([a.step for a in axes[:3]])[:, None]
         rot = np.ascontiguousarray(rot.reshape(-1, 3))  # (n_r*n_p*n_y*3, 3): one gemv per step
         cond_shape = tuple(a.size for a in axes[3:]) + (3,)
         inv_ang = 1.0 / np.array([a.step for a in axes[3:]])
 
-        def shifts(velocity, omega, dt):
-            dt = check_dt(dt)
+        def compute(v, w, dt):
             cond = uniform = None
-            if velocity is not None:
-                v = finite_vector(velocity, 3, "velocity")
-                if v.any():
-                    cond = (rot @ (v * dt)).reshape(cond_shape)
-            if omega is not None:
-                w = finite_vector(omega, 3, "omega")
-                if w.any():
-                    uniform = np.zeros(6)
-                    uniform[3:] = w * (dt * inv_ang)
+            if v is not None and v.any():
+                cond = (rot @ (v * dt)).reshape(cond_shape)
+            if w is not None and w.any():
+                uniform = np.zeros(6)
+                uniform[3:] = w * (dt * inv_ang)
             return MotionShifts((0, 1, 2) if cond is not None else None, cond, uniform)
 
-        return shifts
+        def shifts(velocity, omega, dt):
+            dt = check_dt(dt)
+            v = None if velocity is None else finite_vector(velocity, 3, "velocity")
+            w = None if omega is None else finite_vector(omega, 3, "omega")
+            return compute(v, w, dt)
+
+        def trusted(velocity, omega, dt):
+            if _is_vector(velocity, 3) and _is_vector(omega, 3) and isinstance(dt, float):
+                return compute(velocity, omega, dt)
+            return shifts(velocity, omega, dt)  # not of a validated form: check it
+
+        return shifts, trusted

@@ -106,7 +106,7 @@ class Population:
         self._dtype = dt
         self._motion = motion if motion is not None else UniformMotion()
         self._motion.check_axes(axes)
-        self._motion_shifts = self._motion.bind(axes)
+        self._motion_shifts, self._motion_trusted = self._motion.bind_checked_and_trusted(axes)
         exc, inh = params.kernels(len(axes))
         self._exc = exc.taps
         self._inh = inh.taps
@@ -431,7 +431,21 @@ class Population:
         ZeroActivityError
             The dynamics collapsed; nothing changed.
         """
-        ms = self._motion_shifts(velocity, omega, dt)
+        return self._step_shifts(self._motion_shifts(velocity, omega, dt), injection)
+
+    def _step_validated(self, velocity, omega, dt: float, *, injection=None) -> np.ndarray:
+        """:meth:`step` for odometry validated already: the fields of a :class:`maps.odometry.PlanarOdometry`
+        or :class:`maps.odometry.SpatialOdometry` (finite floats or float64 (3,) arrays, ``dt >= 0``).
+
+        The loop that built the odometry object (:class:`cansim.slam_loop.SlamLoop`) calls
+        this, so one step's odometry is checked once. The values are not checked again; the
+        shifts they make are (:data:`MAX_SHIFT_CELLS` depends on this grid's cell sizes),
+        and so is the injection. Same result as :meth:`step`, bit for bit.
+        """
+        return self._step_shifts(self._motion_trusted(velocity, omega, dt), injection)
+
+    def _step_shifts(self, ms: MotionShifts, injection) -> np.ndarray:
+        """The step from its shifts on: the checks of what the kernels can represent, then the backend."""
         _check_shift(ms.cond_shifts, "translation")
         _check_shift(ms.uniform, "uniform")
         fi = vals = None

@@ -59,7 +59,11 @@ def configured(config_type: type, config: Any, params: dict[str, Any], model: st
 
 class PoseCells(Protocol):
     """What the loop needs of a pose-cell engine (:class:`~cansim.population.Population`,
-    :class:`~cansim.posecell_network.PosecellNetwork`)."""
+    :class:`~cansim.posecell_network.PosecellNetwork`).
+
+    An engine may also have ``_step_validated``, ``step`` for odometry fields that were
+    validated already (:meth:`cansim.population.Population._step_validated`); the loop
+    then calls it, so each odometry sample is checked once."""
 
     shape: tuple[int, ...]
     size: int
@@ -242,7 +246,9 @@ class SlamLoop:
     def _advance(self, odo: Odometry) -> SlamState:
         """The odometry part of an iteration, for an odometry that :meth:`odometry` checked."""
         injection = (self._pending_index, self._pending_values) if len(self._pending_index) else None
-        best = self.pose_cells.step(odo.v, odo.omega, odo.dt, injection=injection)
+        # the odometry object is validated: an engine with a trusted step skips the second check
+        step = getattr(self.pose_cells, "_step_validated", None) or self.pose_cells.step
+        best = step(odo.v, odo.omega, odo.dt, injection=injection)
         self._best = np.asarray(best, dtype=np.float64)
         self._pending_index, self._pending_values = _NO_INDEX, _NO_VALUES
         if self._learn_pending:  # Eq 2.18: the active view learns the packet it now sees

@@ -429,3 +429,65 @@ def test_small_grid_with_different_kernel_widths_per_axis():
     kw["exc"] = [gaussian_kernel_1d(w, 1.0) for w in (5, 7, 9)]
     kw["inh"] = [gaussian_kernel_1d(w, 1.5) for w in (3, 5, 7)]
     _assert_small_path_exact(a, kw)
+
+
+@settings(max_examples=60, deadline=None)
+@given(mo=st.integers(1, 40), rest=st.integers(1, 120), nw=st.integers(1, 7), m_in=st.integers(1, 40),
+       seed=st.integers(0, 2**31 - 1))
+def test_short_line_pass_sums_every_tap_in_order(mo, rest, nw, m_in, seed):
+    """The pass over short lines (blocks of rows, tap after tap) gives the bits of summing
+    ``w[j] * src[tab[p, j]]`` for j = 0, 1, ... in float64 and writes the rotated layout;
+    -1 entries (outside the box) and zero taps add nothing. Sizes above ``_BLOCK`` cells
+    take several blocks."""
+    from cansim.backends._numba_kernels import rot_short_lines
+
+    rng = np.random.default_rng(seed)
+    src = rng.random(m_in * rest) * (rng.random(m_in * rest) < 0.7)
+    start = rng.integers(-3, m_in + 3, nw)  # consecutive sources (runs) that leave the box at the ends
+    tab = (np.arange(mo)[:, None] + start[None, :]) % (m_in + 4) - 2
+    tab[(tab < 0) | (tab >= m_in) | (rng.random((mo, nw)) < 0.1)] = -1
+    w = rng.random(nw) * (rng.random(nw) < 0.8)
+    want = np.zeros((mo, rest))
+    rows = src.reshape(m_in, rest)
+    for j in range(nw):
+        ok = tab[:, j] >= 0
+        want[ok] += w[j] * rows[tab[ok, j]]
+    dst = np.full(rest * mo, np.nan)
+    rot_short_lines(src, dst, np.int64(mo), np.int64(rest), tab.astype(np.int64), w)
+    np.testing.assert_array_equal(dst.reshape(rest, mo), want.T)
+
+
+@pytest.mark.parametrize("shape", [(32, 32), (13, 3), (11, 7, 12), (61, 61, 36)])
+@pytest.mark.parametrize("window", [1, 3, 40])
+def test_a_box_of_the_grid_decodes_and_bounds_like_the_grid(shape, window):
+    """What lets a numba run keep the activity in its box between steps: any box holding
+    every non-zero cell (across the wrap, or wider than the packet) decodes to the bits of
+    the whole grid, with or without the tabulated sines, close to the numpy reference; and
+    the box found from it equals the one found from the grid."""
+    from cansim.backends import _numba_kernels as k
+
+    rng = np.random.default_rng(len(shape) + window)
+    n = np.array(shape, np.int64)
+    a = _packets(shape, [tuple(x - 1 for x in shape), tuple(x // 3 for x in shape)], np.float32, half=1)
+    grid = a.reshape(-1)
+    s, m = np.zeros(len(shape), np.int64), n.copy()
+    assert k.occupied_box(grid.view(np.uint32), np.zeros_like(n), n, n, np.empty(0, np.int64), s, m)
+    want = np.empty(len(shape))
+    k.decode_box(grid, np.zeros(len(shape), np.int64), n, n, k.unravel(int(np.argmax(grid)), n), window, want,
+                 np.empty((0, 2, 1)))
+    np.testing.assert_allclose(want, REF.decode(a, window), rtol=0, atol=1e-4)
+    for grow in (0, 1, 5):
+        bs = (s - grow) % n
+        bm = np.minimum(m + 2 * grow, n)
+        bs[bm == n] = 0
+        buf = np.empty(int(np.prod(bm)))
+        k.crop(grid.astype(np.float64), np.zeros(len(shape), np.int64), n, buf, bs, bm, n)
+        centre = k.unravel(k.box_argmax(buf, bs, bm, n), n)
+        for trig in (np.empty((0, 2, 1)), k.trig_table(n)):
+            got = np.empty(len(shape))
+            k.decode_box(buf, bs, bm, n, centre, window, got, trig)
+            np.testing.assert_array_equal(got, want)
+        ts, tm = np.empty_like(s), np.empty_like(m)
+        assert k.occupied_box(buf.view(np.uint64), bs, bm, n, np.empty(0, np.int64), ts, tm)
+        np.testing.assert_array_equal(ts, s)
+        np.testing.assert_array_equal(tm, m)

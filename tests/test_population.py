@@ -8,8 +8,10 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from cansim import AttractorParams, Axis, Population
+from cansim import AttractorParams, Axis, InvalidInputError, Population
 from cansim.backends.numpy_backend import dense_periodic_convolve, separable_periodic_convolve
 from cansim.decoding import circular_mean_index, population_vector_window
 from cansim.kernels import SeparableKernel
@@ -347,3 +349,94 @@ def test_thesis_6d_packet_is_stable_without_input(backend):
         np.testing.assert_allclose(d, [2.0] * 6, atol=1e-6)
     a1, a2 = pop.activity, (pop.step(), pop.activity)[1]
     assert np.abs(a1 - a2).max() < 1e-6
+
+
+# ------------------------------------------------ validated odometry, trusted twin
+def _motion_cases():
+    from cansim.path_integration import PlanarMotion, SixDofMotion, UniformMotion
+
+    return {
+        "ring": (UniformMotion(), Population.head_direction(36).axes),
+        "sheet": (UniformMotion(), (Axis.linear("x", 9, 0.5), Axis.linear("y", 7, 2.0))),
+        "planar": (PlanarMotion("openratslam"), Population.openratslam(9, 12, 0.25).axes),
+        "6d": (SixDofMotion(), Population.whisker6d(5, 0.02, n_angle=6).axes),
+    }
+
+
+def _odometry(kind, rng, zero):
+    """Valid odometry fields as maps.odometry builds them (floats, read-only float64 (3,) arrays)."""
+    if kind in ("ring", "planar"):
+        v, w = (0.0 if zero else float(rng.uniform(-2, 2)) for _ in range(2))
+        return (v, None if kind == "ring" else w, float(rng.uniform(0, 2)))
+    if kind == "sheet":
+        return (np.zeros(2) if zero else rng.uniform(-3, 3, 2), None, float(rng.uniform(0, 2)))
+    v, w = (np.zeros(3) if zero else rng.uniform(-0.1, 0.1, 3) for _ in range(2))
+    v.flags.writeable = w.flags.writeable = False
+    return (v, w, float(rng.uniform(0, 2)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(kind=st.sampled_from(["ring", "sheet", "planar", "6d"]), zero=st.booleans(), seed=st.integers(0, 2**31 - 1))
+def test_trusted_motion_twin_gives_the_checked_shifts_bit_for_bit(kind, zero, seed):
+    """The built-in models' twin for validated odometry computes what the checking function
+    computes (same axes, same bits, None where it gives None), and a population's trusted
+    step equals its public step; the checking function still refuses bad values."""
+    model, axes = _motion_cases()[kind]
+    checked, trusted = model.bind_checked_and_trusted(axes)
+    assert checked is not trusted
+    args = _odometry(kind, np.random.default_rng(seed), zero)
+    want, got = checked(*args), trusted(*args)
+    assert got.shift_axes == want.shift_axes
+    for g, w in ((got.cond_shifts, want.cond_shifts), (got.uniform, want.uniform)):
+        assert (g is None) == (w is None)
+        if w is not None:
+            assert g.tobytes() == w.tobytes()
+    a, b = (Population(axes, motion=model, backend="numpy") for _ in range(2))
+    a.reset_gaussian([n / 3 for n in a.shape], 1.0)
+    b.activity = a.activity
+    assert a._step_validated(*args).tobytes() == b.step(*args).tobytes()
+    assert a.activity.tobytes() == b.activity.tobytes()
+    bad = list(args)
+    bad[2] = -1.0
+    with pytest.raises(InvalidInputError):
+        checked(*bad)
+
+
+def test_a_model_that_overrides_bind_keeps_its_checks_on_the_trusted_path():
+    """A subclass's own ``bind`` (here doubling the velocity) is what both paths run."""
+    from cansim.path_integration import UniformMotion
+
+    class Doubled(UniformMotion):
+        def bind(self, axes):
+            inner = super().bind(axes)
+            return lambda velocity, omega, dt: inner(None if velocity is None else 2.0 * np.asarray(velocity), omega, dt)
+
+    axes = (Axis.linear("x", 9, 1.0),)
+    checked, trusted = Doubled().bind_checked_and_trusted(axes)
+    assert checked(np.array([0.5]), None, 1.0).uniform.tolist() == [1.0]
+    assert trusted(np.array([0.5]), None, 1.0).uniform.tolist() == [1.0]
+    with pytest.raises(InvalidInputError):
+        trusted(np.array([np.nan]), None, 1.0)
+
+
+@pytest.mark.parametrize("kind,args", [
+    ("planar", (np.array([0.3, 0.0, 0.0]), 0.1, 1.0)),  # a spatial field on a planar grid
+    ("planar", ("fast", 0.0, 1.0)),
+    ("6d", (0.3, 0.1, 1.0)),  # planar fields on the 6-D grid
+    ("6d", (np.array([0.1, np.nan, 0.0], np.float32), np.zeros(3), 1.0)),  # not float64: checked
+    ("6d", ([0.1, 0.0], np.zeros(3), 1.0)),
+    ("sheet", ([np.inf, 0.0], None, 1.0)),
+    ("sheet", (np.zeros(3), None, 1.0)),
+    ("ring", (0.1, 0.2, 1.0)),  # omega on a ring
+])
+def test_trusted_twin_checks_inputs_not_of_the_validated_form(kind, args):
+    """Trust covers values of the validated form only: anything else gets the checked
+    function's typed error, never a crash or a silent result."""
+    from cansim import ShapeError
+
+    model, axes = _motion_cases()[kind]
+    checked, trusted = model.bind_checked_and_trusted(axes)
+    with pytest.raises((InvalidInputError, ShapeError)) as want:
+        checked(*args)
+    with pytest.raises(type(want.value)):
+        trusted(*args)

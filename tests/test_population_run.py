@@ -176,6 +176,67 @@ def test_opencl_windowed_step_equals_whole_grid_step_bit_for_bit():
         np.testing.assert_array_equal(pos, want_pos)
 
 
+@settings(**SETTINGS)
+@given(
+    shape=st.sampled_from([(32, 32), (9, 40), (13, 3), (11, 7, 12), (6, 9, 5, 4)]),
+    start=st.sampled_from(["packet", "two packets", "broad"]),
+    locality=st.booleans(),
+    dtype=st.sampled_from([np.float32, np.float64]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_numba_run_keeps_the_box_between_steps_and_still_equals_steps(shape, start, locality, dtype, seed):
+    """The numba run keeps the activity in its box from step to step (it never writes the
+    grid in between); its result equals T calls of ``step`` bit for bit when the packet
+    crosses the wrap of every axis, when two packets make the box span an axis, when a
+    broad start narrows, and when injections land far from the packet (the box grows to
+    hold them); on the locality and the dense path."""
+    pytest.importorskip("numba")
+    from cansim.backends.numba_backend import NumbaBackend
+
+    rng = np.random.default_rng(seed)
+    axes = [Axis.linear(f"a{i}", n, 1.0) for i, n in enumerate(shape)]
+    a, b = (Population(axes, backend=NumbaBackend(locality=locality), dtype=dtype) for _ in range(2))
+    if start == "broad":
+        a.activity = rng.random(shape)
+    else:
+        for k in range(1 if start == "packet" else 2):
+            a.inject_flat(np.array([rng.integers(a.size)]), np.array([1.0]))
+        a.activity = a.activity + (rng.random(shape) < 0.02) * rng.random(shape) * 0.1
+    b.activity = a.activity
+    T = 25
+    velocity = rng.uniform(-3.0, 3.0, (T, len(shape)))  # crosses every wrap within a few steps
+    velocity[rng.integers(T)] = 0.0
+    injections = [None] * T
+    for t in rng.choice(T, 5, replace=False):
+        cells = rng.integers(0, a.size, rng.integers(1, 4))
+        injections[t] = (cells, np.full(len(cells), 0.3))
+    decoded, activity = a.run(velocity, injections=injections, record_activity=True)
+    want_decoded, want_activity = _stepped(b, velocity, None, np.ones(T), injections)
+    np.testing.assert_array_equal(activity, want_activity)
+    np.testing.assert_array_equal(decoded, want_decoded)
+    np.testing.assert_array_equal(a.activity, b.activity)
+
+
+def test_collapse_mid_run_on_a_sheet_names_the_step_of_repeated_steps(backend):
+    """The generic N-D run stops at the collapse where repeated steps do, and keeps nothing of the run."""
+    params = AttractorParams(global_inhibition=0.09)  # a single cell survives step 0, its shifted packet does not
+    axes = [Axis.linear("x", 14, 1.0), Axis.linear("y", 10, 1.0)]
+    pop, twin = (Population(axes, params, backend=backend) for _ in range(2))
+    velocity = np.tile([0.4, -0.3], (8, 1))
+    failed = None
+    for t in range(8):
+        try:
+            twin.step(velocity[t])
+        except ZeroActivityError:
+            failed = t
+            break
+    assert failed is not None and failed >= 1
+    before = pop.activity
+    with pytest.raises(ZeroActivityError, match=f"step {failed} of the run"):
+        pop.run(velocity)
+    np.testing.assert_array_equal(pop.activity, before)
+
+
 # ------------------------------------------------------------------ bad input
 BAD_VELOCITY = st.sampled_from(["nan", "inf", "short", "3d", "text", "huge"])
 

@@ -106,6 +106,53 @@ def test_loop_rejects_the_wrong_odometry_kind_and_leaves_state():
     assert (loop.pose_cells.activity.tobytes(), loop.iteration, loop.n_views) == before
 
 
+@pytest.fixture
+def validated_names(monkeypatch):
+    """Names passed to the finite-value validators, from every module that holds them."""
+    import whisker_io.validation as validation
+
+    names: list[str] = []
+    for fname in ("finite_scalar", "finite_vector"):
+        original = getattr(validation, fname)
+
+        def counting(value, *args, _original=original):
+            names.append(args[-1])  # (value, name) or (value, n, name)
+            return _original(value, *args)
+
+        for module in list(sys.modules.values()):
+            if getattr(module, fname, None) is original:
+                monkeypatch.setattr(module, fname, counting)
+    return names
+
+
+@pytest.mark.parametrize("model", ["ratslam", "whisker", "skeleton"])
+def test_a_loop_step_validates_its_odometry_once(validated_names, model):
+    """v, omega and dt are checked once per step, when the odometry object is built
+    (maps.odometry); the population's motion model trusts them (Population._step_validated),
+    for the RatSLAM and WhiskerRatSLAM wiring as for a bare loop; with the same result
+    as the public, checking ``step``. The public ``step`` still checks them itself."""
+    from cansim.whisker_ratslam import WhiskerRatSLAM
+
+    once = ["odometry v", "odometry omega", "odometry dt"]
+    if model == "ratslam":
+        loop = RatSLAM(pose_cells="population", frontend="ids", backend="numpy")
+        args = [(0.3, 0.1, 1.0), (0.2, -0.05, 0.5)]
+    else:
+        loop = WhiskerRatSLAM(backend="numpy") if model == "whisker" else skeleton(1)
+        args = [([0.01, 0.0, 0.002], [0.0, 0.05, 0.3], 1.0), ([0.0, 0.01, 0.0], [0.0, 0.0, 0.0], 0.5)]
+    twin = Population(loop.pose_cells.axes, loop.pose_cells.params, dtype=loop.pose_cells.dtype, backend="numpy",
+                      motion=loop.pose_cells.motion)
+    twin.activity = loop.pose_cells.activity
+    for k, a in enumerate(args):
+        validated_names.clear()
+        loop.step(*a, None)
+        assert sorted(validated_names) == sorted(once), validated_names
+        validated_names.clear()
+        twin.step(*a)  # the public step checks v, omega, dt itself
+        assert len(validated_names) >= 2 and not set(validated_names) & set(once)
+        np.testing.assert_array_equal(loop.pose_cells.activity, twin.activity)
+
+
 def test_a_bare_loop_cannot_be_saved(tmp_path):
     with pytest.raises(InvalidInputError, match="model class"):
         skeleton(1).save(tmp_path / "x.npz")

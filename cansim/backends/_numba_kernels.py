@@ -192,23 +192,6 @@ def mark_occupancy(bits, m, occ):
     return marks
 
 
-@njit(**_OPTS)
-def tight_box(occ_local, s, m, n, ts, tm):
-    """Global arcs ``(ts, tm)`` covering the occupied local indices of a box ``(s, m)``."""
-    d = n.shape[0]
-    nmax = n.max()
-    occ = np.zeros(nmax, np.uint8)
-    for k in range(d):
-        for i in range(n[k]):
-            occ[i] = 0
-        for p in range(m[k]):
-            if occ_local[k, p] != 0:
-                occ[(s[k] + p) % n[k]] = 1
-        a0, l0 = arc_from_occupancy(occ, n[k])
-        ts[k] = a0
-        tm[k] = l0
-
-
 # ------------------------------------------------------------------- gather/scatter
 @njit(**_OPTS)
 def _offset_tables(s_from, m_from, s_to, m_to, n):
@@ -334,6 +317,53 @@ def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
                 col[i * mo] = tmp[i]
 
 
+_BLOCK = 2048  # cells of one block of short lines (16 kB of float64: stays in L1)
+_SHORT = 64  # lines shorter take rot_short_lines (measured: ~2.5x faster at 12 cells, even at ~80, slower from ~100)
+
+
+@njit(**_OPTS)
+def rot_short_lines(src, dst, mo, rest, tab, w):
+    """:func:`rot_lines` over all lines when the lines are short (``rest < _SHORT``).
+
+    A pass over a small box has short rows (a 12 x 12 box: 12 cells), too short for the
+    per-row loops of :func:`rot_lines` to vectorise. Here the output rows are taken in
+    blocks of about :data:`_BLOCK` cells and summed tap after tap: for one tap, output
+    rows ``p, p + 1, ...`` whose source rows ``tab[p, j], tab[p, j] + 1, ...`` are
+    consecutive are one contiguous run of cells in ``src`` and in the block, so each tap
+    is a few long vectorised loops. Every cell sums the same products in the same tap
+    order from 0.0 as :func:`rot_lines` (which assigns the first product: the same value
+    for the non-negative activity), so the two give the same bits.
+    """
+    nw = w.shape[0]
+    pb = max(1, _BLOCK // max(rest, 1))
+    tmp = np.empty(min(pb, mo) * rest, np.float64)
+    for p0 in range(0, mo, pb):
+        p1 = min(mo, p0 + pb)
+        blk = tmp[:(p1 - p0) * rest]
+        for i in range(blk.shape[0]):
+            blk[i] = 0.0
+        for j in range(nw):
+            wj = w[j]
+            p = p0
+            while p < p1:
+                q = tab[p, j]
+                if q < 0:
+                    p += 1
+                    continue
+                e = p + 1
+                while e < p1 and tab[e, j] == q + (e - p):
+                    e += 1
+                acc = blk[(p - p0) * rest:(e - p0) * rest]
+                row = src[q * rest:(q + e - p) * rest]
+                for i in range(acc.shape[0]):
+                    acc[i] += wj * row[i]
+                p = e
+        for r in range(rest):
+            out = dst[r * mo + p0:r * mo + p1]
+            for pp in range(p1 - p0):
+                out[pp] = blk[pp * rest + r]
+
+
 @njit(parallel=True, **_OPTS)
 def rot_lines_par(src, dst, mo, rest, tab, w, nchunks):
     """:func:`rot_lines` split over ``nchunks`` threads."""
@@ -396,6 +426,8 @@ def run_conv_pass(src, dst, s, m, k, taps, nt, left, right, n, par_work, nthread
     rest = box_size(m) // m_in
     if nthreads > 1 and rest * m_out * nt >= par_work and rest >= nthreads * _CHUNK:
         rot_lines_par(src, dst, m_out, rest, tab, taps[:nt], nthreads)
+    elif rest < _SHORT:
+        rot_short_lines(src, dst, m_out, rest, tab, taps[:nt])
     else:
         rot_lines(src, dst, m_out, rest, tab, taps[:nt], np.int64(0), rest)
     s[k] = s_out
@@ -464,6 +496,8 @@ def rot_class_lines_par(src, dst, mo, rest, qtab, gw, gcls, gtab, inner, nchunks
 def _rot_tables(tab, w, src, dst, mo, rest, par_work, nthreads):
     if nthreads > 1 and rest * mo * w.shape[0] >= par_work and rest >= nthreads * _CHUNK:
         rot_lines_par(src, dst, mo, rest, tab, w, nthreads)
+    elif rest < _SHORT:
+        rot_short_lines(src, dst, mo, rest, tab, w)
     else:
         rot_lines(src, dst, mo, rest, tab, w, np.int64(0), rest)
 
@@ -592,6 +626,13 @@ def run_shift_cycle(bufs, cur, s, m, n, kinds, cmask, cond_tab, uni, round_after
 
 
 # ------------------------------------------------------------------------ decoding
+@njit(inline="always", **_OPTS)
+def _mean_index(ssum, csum, nk):
+    mean = math.atan2(ssum, csum)
+    idx = (mean % _TWO_PI) * nk / _TWO_PI
+    return idx if idx < nk else 0.0
+
+
 @njit(**_OPTS)
 def circular_mean_index(profile, nk):
     """Activity-weighted circular mean index of ``profile[:nk]`` (Eq 5.11-5.12)."""
@@ -602,19 +643,53 @@ def circular_mean_index(profile, nk):
             ang = _TWO_PI * i / nk
             ssum += profile[i] * math.sin(ang)
             csum += profile[i] * math.cos(ang)
-    mean = math.atan2(ssum, csum)
-    idx = (mean % _TWO_PI) * nk / _TWO_PI
-    return idx if idx < nk else 0.0
+    return _mean_index(ssum, csum, nk)
 
 
 @njit(**_OPTS)
-def decode_window(grid, n, centre, window, res):
-    """Population vector (Eq 5.11-5.12) of the flat grid around the cell ``centre`` into ``res``."""
+def trig_table(n):
+    """``tab[k, 0, i]``, ``tab[k, 1, i]``: the sine and cosine :func:`circular_mean_index` takes for cell i of axis k."""
+    d = n.shape[0]
+    tab = np.zeros((d, 2, n.max()), np.float64)
+    for k in range(d):
+        nk = n[k]
+        for i in range(nk):
+            ang = _TWO_PI * i / nk
+            tab[k, 0, i] = math.sin(ang)
+            tab[k, 1, i] = math.cos(ang)
+    return tab
+
+
+@njit(**_OPTS)
+def circular_mean_index_table(profile, nk, trig):
+    """:func:`circular_mean_index` with the sines ``trig[0]`` and cosines ``trig[1]`` of :func:`trig_table` (same bits)."""
+    ssum = 0.0
+    csum = 0.0
+    for i in range(nk):
+        if profile[i] != 0.0:
+            ssum += profile[i] * trig[0, i]
+            csum += profile[i] * trig[1, i]
+    return _mean_index(ssum, csum, nk)
+
+
+@njit(**_OPTS)
+def decode_box(buf, s, m, n, centre, window, res, trig):
+    """Population vector (Eq 5.11-5.12) around the cell ``centre`` of the grid a box buffer stands for.
+
+    ``buf`` holds the box ``(s, m)`` of a grid of shape ``n`` that is zero outside it (a
+    whole grid is the box ``s = 0, m = n``). Sums the window's cells in the grid's order;
+    cells outside the box would add exact zeros and are skipped, so every box of the same
+    grid gives the same bits. ``trig`` is :func:`trig_table` of ``n``, or an empty array
+    to compute the sines and cosines here.
+    """
     d = n.shape[0]
     nmax = n.max()
+    wmax = min(nmax, 2 * window + 1)
     wlen = np.empty(d, np.int64)
-    widx = np.empty((d, min(nmax, 2 * window + 1)), np.int64)
-    for k in range(d):
+    widx = np.empty((d, wmax), np.int64)
+    loc = np.empty((d, wmax), np.int64)  # offset in the box of window index t of axis k, -1 outside
+    stride = 1
+    for k in range(d - 1, -1, -1):
         if 2 * window + 1 >= n[k]:
             wlen[k] = n[k]
             for t in range(n[k]):
@@ -623,11 +698,10 @@ def decode_window(grid, n, centre, window, res):
             wlen[k] = 2 * window + 1
             for t in range(2 * window + 1):
                 widx[k, t] = (centre[k] - window + t) % n[k]
-    stride = np.empty(d, np.int64)
-    acc = 1
-    for k in range(d - 1, -1, -1):
-        stride[k] = acc
-        acc *= n[k]
+        for t in range(wlen[k]):
+            q = (widx[k, t] - s[k]) % n[k]
+            loc[k, t] = q * stride if q < m[k] else -1
+        stride *= m[k]
     prof = np.zeros((d, nmax), np.float64)
     last = d - 1
     nrows = 1
@@ -637,19 +711,37 @@ def decode_window(grid, n, centre, window, res):
     for r in range(nrows):
         b = 0
         for k in range(last):
-            b += widx[k, idx[k]] * stride[k]
-        rowsum = 0.0
-        for t in range(wlen[last]):
-            c = widx[last, t]
-            v = np.float64(grid[b + c])
-            prof[last, c] += v
-            rowsum += v
-        if rowsum != 0.0:
-            for k in range(last):
-                prof[k, widx[k, idx[k]]] += rowsum
+            v = loc[k, idx[k]]
+            if v < 0:
+                b = -1
+                break
+            b += v
+        if b >= 0:
+            rowsum = 0.0
+            for t in range(wlen[last]):
+                o = loc[last, t]
+                if o >= 0:
+                    v = np.float64(buf[b + o])
+                    prof[last, widx[last, t]] += v
+                    rowsum += v
+            if rowsum != 0.0:
+                for k in range(last):
+                    prof[k, widx[k, idx[k]]] += rowsum
         _advance(idx, wlen, last - 1)
     for k in range(d):
-        res[k] = circular_mean_index(prof[k], n[k])
+        if trig.shape[0] > 0:
+            res[k] = circular_mean_index_table(prof[k], n[k], trig[k])
+        else:
+            res[k] = circular_mean_index(prof[k], n[k])
+
+
+_NO_TRIG = np.empty((0, 2, 1), np.float64)
+
+
+@njit(**_OPTS)
+def decode_window(grid, n, centre, window, res):
+    """Population vector (Eq 5.11-5.12) of the flat grid around the cell ``centre`` into ``res``."""
+    decode_box(grid, np.zeros(n.shape[0], np.int64), n, n, centre, window, res, _NO_TRIG)
 
 
 @njit(**_OPTS)
@@ -712,21 +804,45 @@ def global_inhibit(e, inhibition, out, n, phi):
 
 
 @njit(**_OPTS)
-def pipeline(
-    a, a_bits, out, ws, n,
-    inj_idx, inj_val,
-    do_dyn, exc, exc_w, inh, inh_w, phi,
-    do_cond, cmask, cond_tab,
-    do_uni, uni,
-    do_decode, window, decoded,
-    dense, par_work, nthreads,
-):
-    """Inject, dynamics (Alg 3-5 and normalisation), conditional and uniform shift, decode.
+def occupied_box(bits, s, m, n, inj_idx, ts, tm):
+    """The tight box ``(ts, tm)`` of the non-zero cells of a box buffer and of the injected cells.
 
-    ``a``/``out`` are flat C-order grids of shape ``n``; ``a_bits`` is ``a`` viewed as
-    unsigned integers (for the occupancy scan); ``ws`` is a float64 workspace of at least
-    ``3 * a.size`` cells. ``dense`` turns the locality (box) path off. Passes of at least
-    ``par_work`` multiply-adds run on ``nthreads`` threads. Returns a status code.
+    ``bits`` is the buffer of box ``(s, m)`` (a whole grid: ``s = 0``, ``m = n``) viewed as
+    unsigned integers; ``inj_idx`` are flat grid indices. The arcs are found in grid
+    coordinates, so every box holding the same non-zero cells gives the same box.
+    Returns False when nothing is occupied (``ts``, ``tm`` untouched).
+    """
+    d = n.shape[0]
+    nmax = n.max()
+    occ = np.zeros((d, nmax), np.uint8)
+    anyset = mark_occupancy(bits, m, occ) > 0
+    grid = np.zeros((d, nmax), np.uint8)
+    for k in range(d):
+        for p in range(m[k]):
+            if occ[k, p] != 0:
+                grid[k, (s[k] + p) % n[k]] = 1
+    for t in range(inj_idx.shape[0]):
+        r = inj_idx[t]
+        for k in range(d - 1, -1, -1):
+            grid[k, r % n[k]] = 1
+            r //= n[k]
+        anyset = True
+    if anyset:
+        for k in range(d):
+            a0, l0 = arc_from_occupancy(grid[k], n[k])
+            ts[k] = a0
+            tm[k] = l0
+    return anyset
+
+
+@njit(**_OPTS)
+def start_box(a, a_bits, out, ws, n, inj_idx, dense):
+    """Step 1 of :func:`pipeline`: the box of a flat grid's non-zero cells and injections, cropped.
+
+    Returns ``(occupied, proto, bufs, s, m)``: ``bufs`` are three float64 box buffers of
+    ``ws`` (at least ``3 * a.size`` cells), ``bufs[0]`` holding the box ``(s, m)`` (the
+    whole grid when ``dense``) unless nothing is occupied; ``proto`` is a 1-element
+    array of the storage dtype (``out``'s).
     """
     d = n.shape[0]
     size = a.shape[0]
@@ -734,28 +850,31 @@ def pipeline(
     bufs = (ws[:size], ws[size:2 * size], ws[2 * size:3 * size])
     s = np.zeros(d, np.int64)
     m = n.copy()
-    nmax = n.max()
-    # 1. the box holding every non-zero input cell and every injection
-    if not dense:
-        occ = np.zeros((d, nmax), np.uint8)
-        anyset = mark_occupancy(a_bits, n, occ) > 0
-        for t in range(inj_idx.shape[0]):
-            r = inj_idx[t]
-            for k in range(d - 1, -1, -1):
-                occ[k, r % n[k]] = 1
-                r //= n[k]
-            anyset = True
-        if not anyset:
-            if do_dyn:
-                return STATUS_COLLAPSE
-            out[:] = 0
-            if do_decode:
-                decode_grid(out, n, window, decoded)
-            return STATUS_OK
-        zero = np.zeros(d, np.int64)
-        tight_box(occ, zero, n, n, s, m)
-    cur = 0
-    crop(a, np.zeros(d, np.int64), n, bufs[cur], s, m, n)
+    zero = np.zeros(d, np.int64)
+    if not dense and not occupied_box(a_bits, zero, n, n, inj_idx, s, m):
+        return False, proto, bufs, s, m
+    crop(a, zero, n, bufs[0], s, m, n)
+    return True, proto, bufs, s, m
+
+
+@njit(**_OPTS)
+def box_step(
+    bufs, cur, s, m, n,
+    inj_idx, inj_val,
+    do_dyn, exc, exc_w, inh, inh_w, phi,
+    do_cond, cmask, cond_tab,
+    do_uni, uni,
+    proto, dense, par_work, nthreads,
+):
+    """One step on a box: inject, dynamics (Alg 3-5 and normalisation), conditional and uniform shift.
+
+    The activity is ``bufs[cur]``, a box buffer of box ``(s, m)`` holding every non-zero
+    cell and every injected cell (float64 values of the storage dtype, whose 1-element
+    array is ``proto``). ``s``, ``m`` are updated in place to the result's box. Returns
+    ``(status, index of the buffer holding the result)``; the result is in ``bufs[0]``
+    or ``bufs[1]``, ``bufs[2]`` is scratch.
+    """
+    d = n.shape[0]
     if inj_idx.shape[0] > 0:
         src_box = bufs[cur]
         for t in range(inj_idx.shape[0]):
@@ -790,18 +909,16 @@ def pipeline(
         # 4. global inhibition (Alg 5) and 5. normalisation
         total = global_inhibit(e, src, e, size_e, phi)
         if not (np.isfinite(total) and total > 0.0):
-            return STATUS_COLLAPSE
+            return STATUS_COLLAPSE, cur
         for t in range(size_e):
             e[t] = e[t] / total
         round_to(e, size_e, proto)
         cur = ecur
         # the packet is narrower than e's box: shrink to its non-zero cells
         if not dense:
-            occ = np.zeros((d, nmax), np.uint8)
-            mark_occupancy(e[:size_e].view(np.uint64), m, occ)
             ts = np.empty(d, np.int64)
             tm = np.empty(d, np.int64)
-            tight_box(occ, s, m, n, ts, tm)
+            occupied_box(e[:size_e].view(np.uint64), s, m, n, inj_idx[:0], ts, tm)
             shrink = False
             for k in range(d):
                 if tm[k] < m[k]:
@@ -843,10 +960,43 @@ def pipeline(
             moving = True
     if moving:
         cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, np.int64(last_cond), proto, par_work, nthreads)
-    scatter(sb[cur], s, m, out, n)
+    return STATUS_OK, cur
+
+
+@njit(**_OPTS)
+def pipeline(
+    a, a_bits, out, ws, n,
+    inj_idx, inj_val,
+    do_dyn, exc, exc_w, inh, inh_w, phi,
+    do_cond, cmask, cond_tab,
+    do_uni, uni,
+    do_decode, window, decoded,
+    dense, par_work, nthreads,
+):
+    """Inject, dynamics (Alg 3-5 and normalisation), conditional and uniform shift, decode.
+
+    ``a``/``out`` are flat C-order grids of shape ``n``; ``a_bits`` is ``a`` viewed as
+    unsigned integers (for the occupancy scan); ``ws`` is a float64 workspace of at least
+    ``3 * a.size`` cells. ``dense`` turns the locality (box) path off. Passes of at least
+    ``par_work`` multiply-adds run on ``nthreads`` threads. Returns a status code.
+    """
+    # 1. the box holding every non-zero input cell and every injection
+    occupied, proto, bufs, s, m = start_box(a, a_bits, out, ws, n, inj_idx, dense)
+    if not occupied:
+        if do_dyn:
+            return STATUS_COLLAPSE
+        out[:] = 0
+        if do_decode:
+            decode_grid(out, n, window, decoded)
+        return STATUS_OK
+    status, cur = box_step(bufs, 0, s, m, n, inj_idx, inj_val, do_dyn, exc, exc_w, inh, inh_w, phi,
+                           do_cond, cmask, cond_tab, do_uni, uni, proto, dense, par_work, nthreads)
+    if status != STATUS_OK:
+        return status
+    scatter(bufs[cur], s, m, out, n)
     # 7. decoding
     if do_decode:
-        decode_window(out, n, unravel(box_argmax(sb[cur], s, m, n), n), window, decoded)
+        decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, _NO_TRIG)
     return STATUS_OK
 
 

@@ -5,7 +5,8 @@ calls for that grid (the ring kernel of :mod:`cansim.backends._numba_ring`, the 
 N-D pipeline of :mod:`cansim.backends._numba_kernels`; the small-grid loop lives with its
 generated step in :mod:`cansim.backends._numba_small`) with the arguments the step would
 pass, so a run equals T calls of ``step`` bit for bit; only the Python call per step is
-gone. The activity ping-pongs between two buffers, so the input is never written.
+gone (and, on the generic pipeline, the whole-grid work between steps: the activity stays
+in its box). The input is never written.
 
 Per-step inputs arrive as arrays with a leading step axis: injections in CSR form
 (``inj_off[t]:inj_off[t + 1]`` slices ``inj_idx`` / ``inj_val``), shifts as (T, ...)
@@ -16,9 +17,12 @@ caller discards).
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
-from cansim.backends._numba_kernels import STATUS_OK, pipeline
+from cansim.backends._numba_kernels import (
+    STATUS_OK, box_argmax, box_size, box_step, crop, decode_box, occupied_box, scatter, start_box, trig_table, unravel,
+)
 from cansim.backends._numba_ring import ring_step
 
 __all__ = ["ring_run", "pipeline_run"]
@@ -45,42 +49,59 @@ def ring_run(a, buf0, buf1, hist, record, inj_off, inj_idx, inj_val, exc, inh, p
 
 
 @njit(**_OPTS)
-def pipeline_run(a, a_bits, buf0, bits0, buf1, bits1, hist, record, ws, n,
+def pipeline_run(a, a_bits, out, hist, record, ws, n,
                  inj_off, inj_idx, inj_val,
                  exc, exc_w, inh, inh_w, phi,
                  has_cond, cmask, cond_tabs,
                  has_uni, unis,
                  window, decoded,
                  dense, par_work, nthreads):
-    """T iterations of the generic :func:`pipeline` (flat grids; ``*_bits`` are the unsigned views).
+    """T iterations of the generic :func:`pipeline` (flat grids; ``a_bits`` is ``a``'s unsigned view).
 
     ``cond_tabs[t]`` is step t's (n_conditions, n_shifted_axes) table, used when
-    ``has_cond[t]``; ``unis[t]`` its uniform shift, used when ``has_uni[t]``.
+    ``has_cond[t]``; ``unis[t]`` its uniform shift, used when ``has_uni[t]``. The
+    activity stays a box buffer between steps (:func:`box_step`): the next step's box is
+    found from the box (:func:`occupied_box` finds the arcs :func:`pipeline` finds on the
+    whole grid), decoding reads the box (:func:`decode_box`, with the sines and cosines of the
+    grid tabulated once), and the grid is written only for ``hist`` and, at the end, to
+    ``out``. Each step thus computes what :func:`pipeline` computes, on the same box.
     """
-    src = a
-    src_bits = a_bits
+    d = n.shape[0]
+    occupied, proto, bufs, s, m = start_box(a, a_bits, out, ws, n, inj_idx[inj_off[0]:inj_off[1]], dense)
+    if not occupied:
+        return 0
+    ts = np.empty(d, np.int64)
+    tm = np.empty(d, np.int64)
+    trig = trig_table(n)
+    cur = 0
     for t in range(decoded.shape[0]):
-        if t % 2 == 0:
-            dst = buf0
-            dst_bits = bits0
-        else:
-            dst = buf1
-            dst_bits = bits1
         lo = inj_off[t]
         hi = inj_off[t + 1]
-        status = pipeline(
-            src, src_bits, dst, ws, n,
-            inj_idx[lo:hi], inj_val[lo:hi],
+        inj = inj_idx[lo:hi]
+        if t > 0 and not dense:
+            if not occupied_box(bufs[cur][:box_size(m)].view(np.uint64), s, m, n, inj, ts, tm):
+                return t
+            same = True
+            for k in range(d):
+                if ts[k] != s[k] or tm[k] != m[k]:
+                    same = False
+            if not same:
+                crop(bufs[cur], s, m, bufs[1 - cur], ts, tm, n)
+                cur = 1 - cur
+                s[:] = ts
+                m[:] = tm
+        status, cur = box_step(
+            bufs, cur, s, m, n,
+            inj, inj_val[lo:hi],
             True, exc, exc_w, inh, inh_w, phi,
             has_cond[t], cmask, cond_tabs[t],
             has_uni[t], unis[t],
-            True, window, decoded[t],
-            dense, par_work, nthreads,
+            proto, dense, par_work, nthreads,
         )
         if status != STATUS_OK:
             return t
+        decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded[t], trig)
         if record:
-            hist[t, :] = dst
-        src = dst
-        src_bits = dst_bits
+            scatter(bufs[cur], s, m, hist[t], n)
+    scatter(bufs[cur], s, m, out, n)
     return -1

@@ -268,8 +268,7 @@ class NumbaBackend(Backend):
                 cmask = self._cmask(inputs.shift_axes, d) if inputs.shift_axes is not None else self._shape(a.shape)
                 ubits = _BITS[a.dtype.itemsize]
                 status = _r.pipeline_run(
-                    flat, flat.view(ubits), bufs[0], bufs[0].view(ubits), bufs[1], bufs[1].view(ubits),
-                    hist, bool(record_activity), ws, self._shape(a.shape),
+                    flat, flat.view(ubits), bufs[0], hist, bool(record_activity), ws, self._shape(a.shape),
                     off, idx, val,
                     excp, exc_w, inhp, inh_w, float(phi),
                     has_cond, cmask, ctabs,
@@ -279,7 +278,8 @@ class NumbaBackend(Backend):
                 )
         if status >= 0:
             return RunResult(None, None, None, int(status))
-        last = bufs[(T - 1) % 2].reshape(a.shape)
+        # the ring and small-grid loops alternate between the two buffers; the generic one ends in bufs[0]
+        last = bufs[0 if small is None and d > 1 else (T - 1) % 2].reshape(a.shape)
         return RunResult(last, decoded, hist.reshape((T,) + a.shape) if record_activity else None, None)
 
     def _small_plan(self, shape, exc, inh):
