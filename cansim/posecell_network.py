@@ -287,6 +287,15 @@ class PosecellNetwork:
                 f"odometry step of {v * t:g} m / {w * t:g} rad exceeds {MAX_STEP_M:g} m / {MAX_TURN_RAD:g} rad; "
                 "the sample is corrupt or must be split"
             )
+        return self._step_validated(v, w, t, injection=injection)
+
+    def _step_validated(
+        self, vtrans: float, vrot: float, dt: float, *, injection: Optional[tuple[np.ndarray, np.ndarray]] = None
+    ) -> np.ndarray:
+        """:meth:`step` for odometry checked already (:class:`maps.odometry.PlanarOdometry`:
+        finite, within the step bounds) - the path of :class:`cansim.slam_loop.SlamLoop`,
+        so a sample is validated once. The injection is still checked."""
+        v, w, t = float(vtrans), float(vrot), float(dt)
         cells = self._injection_cells(injection)
         kern = self._kernels
         p = self._p.copy()

@@ -153,6 +153,32 @@ def test_a_loop_step_validates_its_odometry_once(validated_names, model):
         np.testing.assert_array_equal(loop.pose_cells.activity, twin.activity)
 
 
+def test_the_parity_engine_takes_the_trusted_path_with_the_public_result(monkeypatch):
+    """RatSLAM's C++-parity pose cells (PosecellNetwork) check odometry in their public
+    ``step``; the loop, whose odometry is validated already, calls the trusted path."""
+    import copy
+
+    from cansim.posecell_network import PosecellNetwork
+
+    loop = RatSLAM(RatSLAMConfig.openratslam(cell_size_m=0.25, frontend="ids"))
+    twin = copy.deepcopy(loop.pose_cells)
+    public_calls: list[tuple] = []
+    original = PosecellNetwork.step
+
+    def spy(self, *a, **k):
+        public_calls.append(a)
+        return original(self, *a, **k)
+
+    monkeypatch.setattr(PosecellNetwork, "step", spy)
+    for a in [(0.2, 0.05, 1.0), (0.1, -0.1, 0.5), (0.0, 0.3, 1.0)]:
+        loop.step(*a, None)
+        assert public_calls == []
+        original(twin, *a)
+        np.testing.assert_array_equal(loop.pose_cells.activity, twin.activity)
+    with pytest.raises(InvalidInputError):
+        twin.step(math.nan, 0.0, 1.0)  # the public step still checks
+
+
 def test_a_bare_loop_cannot_be_saved(tmp_path):
     with pytest.raises(InvalidInputError, match="model class"):
         skeleton(1).save(tmp_path / "x.npz")
