@@ -45,9 +45,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from whisker_io.errors import CansimError, ConnectionFailedError, HardwareError
+from whisker_io.errors import CansimError, HardwareError
+from whisker_io.hw.platform import EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED  # noqa: F401 - the exit table
 
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = range(7)
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2  # 3-6: whisker_io.hw.platform (a hardware fault)
 #: RCP retract-at-maximum threshold (counts; 98 % of the 2047-count maximum, Sec 4.1.1).
 RCP_THRESHOLD = 2000.0
 
@@ -164,39 +165,23 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
         return fail(EXIT_USAGE, "--robot-ip is needed (or --replay DIR)")
 
     from whisker_io.array.control import WhiskPattern
-    from whisker_io.hw import MissingDependencyError
-    from whisker_io.hw.arm import URArm
+    from whisker_io.hw.platform import open_platform, session_failure
     from whisker_io.hw.recorder import Recorder
-    from whisker_io.hw.usb_array import FrameLayout, USBArray
+    from whisker_io.hw.usb_array import FrameLayout
 
+    layout = FrameLayout(**{k: v for k, v in (("vendor_id", args.vendor_id), ("product_id", args.product_id)) if v is not None})
+    recorder = None
     try:
-        arm = URArm(args.robot_ip, envelope, control_factory=control_factory) if control_factory else URArm(args.robot_ip, envelope)
-    except MissingDependencyError as exc:
-        return fail(EXIT_NO_EXTRA, str(exc))
-    except ConnectionFailedError as exc:
-        return fail(EXIT_NO_ROBOT, f"no robot reachable at {args.robot_ip}: {exc}")
-    with arm:
-        layout = FrameLayout(**{k: v for k, v in (("vendor_id", args.vendor_id), ("product_id", args.product_id)) if v is not None})
-        try:
-            array = USBArray(layout, backend=usb_backend) if usb_backend is not None else USBArray(layout)
-        except MissingDependencyError as exc:
-            return fail(EXIT_NO_EXTRA, str(exc))
-        except ConnectionFailedError as exc:
-            return fail(EXIT_NO_ARRAY, f"no whisker array found: {exc}")
-        with array:
-            recorder = None
-            try:
-                with array.whisking(WhiskPattern(), "retract_on_max", RCP_THRESHOLD):
-                    with Recorder(args.out) as recorder:
-                        def sensor(pose: Any) -> Any:
-                            # the state with the pose the explorer whisks at, so a replay sees the same poses
-                            cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
-                            return chain(cycle)[1]
+        with open_platform(args.robot_ip, envelope, layout, control_factory=control_factory, usb_backend=usb_backend) as (arm, array):
+            with array.whisking(WhiskPattern(), "retract_on_max", RCP_THRESHOLD), Recorder(args.out) as recorder:
+                def sensor(pose: Any) -> Any:
+                    # the state with the pose the explorer whisks at, so a replay sees the same poses
+                    cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
+                    return chain(cycle)[1]
 
-                        result = make_explorer(sensor, arm).run()
-            except HardwareError as exc:
-                done = recorder.n_cycles if recorder is not None else 0
-                return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
+                result = make_explorer(sensor, arm).run()
+    except HardwareError as exc:
+        return fail(*session_failure(exc, recorder.n_cycles if recorder is not None else 0))
     write_trace(args.out / "exploration.csv", names, result)
     ident = int(np.argmax(result.ic[-1])) if len(result.ic) else None
     print(f"{len(result.ic)} whisks ({result.stop_reason}), {result.refused_commands} refused commands; "

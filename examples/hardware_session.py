@@ -31,15 +31,15 @@ import sys
 from pathlib import Path
 
 from whisker_io.array.control import WhiskPattern
-from whisker_io.errors import CansimError, ConnectionFailedError, HardwareError
-from whisker_io.hw import MissingDependencyError
-from whisker_io.hw.arm import URArm
+from whisker_io.errors import CansimError, HardwareError
+from whisker_io.hw.platform import (EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED,  # noqa: F401 - the exit table
+                                    open_platform, session_failure)
 from whisker_io.hw.recorder import Recorder, explore, raster_poses
 from whisker_io.hw.safety import SafetyEnvelope
-from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout, USBArray
+from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout
 
 
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = range(7)
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2  # 3-6: whisker_io.hw.platform (a hardware fault)
 
 
 def fail(status: int, message: str) -> int:
@@ -74,29 +74,15 @@ def _session(argv: list[str] | None) -> int:
         envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
     except CansimError as exc:
         return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
+    recorder = None
     try:
-        arm = URArm(args.robot_ip, envelope)
-    except MissingDependencyError as exc:
-        return fail(EXIT_NO_EXTRA, str(exc))
-    except ConnectionFailedError as exc:
-        return fail(EXIT_NO_ROBOT, f"no robot reachable at {args.robot_ip}: {exc}")
-    with arm:
-        try:
-            array = USBArray(FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id))
-        except MissingDependencyError as exc:
-            return fail(EXIT_NO_EXTRA, str(exc))
-        except ConnectionFailedError as exc:
-            return fail(EXIT_NO_ARRAY, f"no whisker array found: {exc}")
-        with array:
-            recorder = None
-            try:
-                with array.whisking(WhiskPattern(), args.mode, args.rcp_threshold):
-                    targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
-                    with Recorder(args.out) as recorder:
-                        explore(arm, array, recorder, targets, description="exploring")
-            except HardwareError as exc:
-                done = recorder.n_cycles if recorder is not None else 0
-                return fail(EXIT_STOPPED, f"stopped after {done} whisks ({type(exc).__name__}): {exc}")
+        with open_platform(args.robot_ip, envelope, FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id)) as (arm, array):
+            with array.whisking(WhiskPattern(), args.mode, args.rcp_threshold):
+                targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
+                with Recorder(args.out) as recorder:
+                    explore(arm, array, recorder, targets, description="exploring")
+    except HardwareError as exc:
+        return fail(*session_failure(exc, recorder.n_cycles if recorder is not None else 0))
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/")
     return EXIT_OK
 

@@ -35,6 +35,8 @@ __all__ = [
     "HardwareError",
     "MissingDependencyError",
     "ConnectionFailedError",
+    "RobotUnreachableError",
+    "ArrayNotFoundError",
     "CommandFailedError",
     "StaleStateError",
     "SafetyViolationError",
@@ -124,6 +126,14 @@ class MissingDependencyError(HardwareError, ImportError):
 
 class ConnectionFailedError(HardwareError):
     """The driver could not connect to (or lost) the device; check cabling/IP."""
+
+
+class RobotUnreachableError(ConnectionFailedError):
+    """:func:`whisker_io.hw.platform.open_platform` could not reach the arm; check its IP and network."""
+
+
+class ArrayNotFoundError(ConnectionFailedError):
+    """:func:`whisker_io.hw.platform.open_platform` found no whisker array on USB; check the cable and ids."""
 
 
 class CommandFailedError(HardwareError):
