@@ -25,7 +25,7 @@ Writes (in ``--out``, default the working folder):
   ``observations``, ``whisks``, ``whisks_per_s`` (and the run's ``matching``,
   ``contact_noise`` and ``seed``).
 
-Run ``python examples/whisker_ratslam_object.py`` (~1 min) or ``--quick`` (one loop
+Run ``python examples/whisker_ratslam_object.py`` (a few seconds) or ``--quick`` (one loop
 each on a shorter trajectory, < 30 s); ``--object box`` explores the Box.
 
 Decisions (measured with fixed seeds; the thesis does not print these values)
