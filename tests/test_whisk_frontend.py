@@ -109,3 +109,34 @@ def test_bad_observations_raise_typed_errors_and_store_nothing(kind):
     with pytest.raises((InvalidInputError, ShapeError)):
         fe.match(obs)
     assert (fe.pfh.tobytes(), fe.sda.tobytes(), len(fe)) == before
+
+
+def test_pose_prior_restricts_candidates_and_breaks_near_ties_by_hand():
+    # sums chi2 + NMSE to the three stored regions: 2/3 + 0.04/1.04, 2/3 + 1.64/1.04, 0 + 0.64/1.04
+    q = region(0.5 * (F[0] + F[1]), [1.0, 0.2])
+    sums = [2 / 3 + 0.04 / 1.04, 2 / 3 + 1.64 / 1.04, 0.64 / 1.04]
+    fe = stored_three(pfh_threshold=2.0, sda_threshold=2.0)
+    assert fe.match(q).view_id == 2  # Eq 5.5: the smallest sum
+    fe.pose_prior = lambda n: (np.array([True, True, False]), np.array([0.2, 0.0, 0.0]))
+    m = fe.match(q)  # region 2 is not pose-consistent; 0: sums[0] + 0.2 < sums[1]
+    assert (m.view_id, m.is_new) == (0, False) and fe.last_scores.candidates.tolist() == [0, 1]
+    fe.pose_prior = lambda n: (np.ones(n, dtype=bool), np.array([0.0, 0.0, 0.1]))
+    assert sums[2] + 0.1 > sums[0] and fe.match(q).view_id == 0  # the pose cost flips a near tie
+    assert fe.scores(*fe.parse(q)).best == 2  # scores() never applies the prior
+    fe.pose_prior = lambda n: (np.zeros(n, dtype=bool), np.zeros(n))
+    assert fe.match(q).is_new and len(fe) == 4  # nothing consistent: a new region
+
+
+@pytest.mark.parametrize("prior", [
+    lambda n: (np.ones(n + 1, dtype=bool), np.zeros(n + 1)),
+    lambda n: (np.ones(n), np.zeros(n)),
+    lambda n: (np.ones(n, dtype=bool), np.full(n, -1.0)),
+    lambda n: (np.ones(n, dtype=bool), np.full(n, math.nan)),
+])
+def test_a_malformed_pose_prior_raises_and_stores_nothing(prior):
+    fe = stored_three(pfh_threshold=2.0, sda_threshold=2.0)
+    fe.pose_prior = prior
+    before = (fe.pfh.tobytes(), len(fe))
+    with pytest.raises((InvalidInputError, ShapeError)):
+        fe.match(region(0.5 * (F[0] + F[1]), [1.0, 0.2]))
+    assert (fe.pfh.tobytes(), len(fe)) == before

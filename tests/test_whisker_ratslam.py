@@ -18,11 +18,17 @@ PLACES = 12
 STEP_M = 0.1
 
 
-def places(seed=0):
-    """One distinct (pfh, sda) region per place around a loop, plus whisk noise."""
+def places(seed=0, aliased=False):
+    """One distinct (pfh, sda) region per place around a loop, plus whisk noise.
+
+    ``aliased``: the places of the second half repeat those of the first (a symmetric object:
+    place k and k + PLACES/2 are opposite on the circle, 180 deg and 2 r apart, and feel the same).
+    """
     rng = np.random.default_rng(seed)
     pfh = rng.dirichlet(np.full(81, 0.3), PLACES)
     sda = rng.normal(0, 1, (PLACES, 18))
+    if aliased:
+        pfh[PLACES // 2:], sda[PLACES // 2:] = pfh[: PLACES // 2], sda[: PLACES // 2]
     return pfh, sda
 
 
@@ -31,9 +37,9 @@ def observe(pfh, sda, k, rng, noise=0.02):
     return (f / f.sum(), sda[k] + rng.normal(0, noise, 18))
 
 
-def loop_run(slam, laps=4, seed=1, bias=(1.06, 1.04)):
+def loop_run(slam, laps=4, seed=1, bias=(1.06, 1.04), aliased=False):
     """A planar circle of PLACES whisks (body x forward, yaw turning), odometry over-reading by ``bias``."""
-    pfh, sda = places()
+    pfh, sda = places(aliased=aliased)
     rng = np.random.default_rng(seed)
     v, w = np.array([STEP_M, 0, 0]), np.array([0, 0, 2 * math.pi / PLACES])
     p, q = [np.zeros(3)], [Rotation.identity()]
@@ -126,11 +132,12 @@ def test_save_resume_equals_uninterrupted(tmp_path):
 
 
 @pytest.mark.slow
-def test_numpy_and_numba_give_the_same_experiences_and_links():
+@pytest.mark.parametrize("preset", ["thesis", "mapping"])
+def test_numpy_and_numba_give_the_same_experiences_and_links(preset):
     runs = []
     for backend in ("numpy", "numba"):
-        slam = WhiskerRatSLAM(backend=backend, cell_size_m=STEP_M)
-        states, _, _ = loop_run(slam, laps=9)  # 108 whisks
+        slam = WhiskerRatSLAM(getattr(WhiskerRatSLAMConfig, preset)(backend=backend, cell_size_m=STEP_M))
+        states, _, _ = loop_run(slam, laps=9, aliased=preset == "mapping")  # 108 whisks
         runs.append(([s.exp_id for s in states], slam.object_map.links[0]))
     assert runs[0][0] == runs[1][0]
     assert np.array_equal(runs[0][1], runs[1][1])
@@ -212,3 +219,110 @@ def test_library_joins_models_and_relocalises_to_the_right_object():
     assert len(hits) >= PLACES // 2 and all(hits)
     with pytest.raises(InvalidInputError):
         WhiskerRatSLAM.library([a], ["a", "b"])
+
+
+# ------------------------------------------------------------------ pose-consistent matching
+def test_pose_prior_rejects_aliased_places_the_thesis_model_relocalises_to():
+    """Opposite places of a symmetric loop feel the same: Eq 5.5 alone re-localises half a turn away."""
+    errors = {}
+    for preset in ("thesis", "mapping"):
+        slam = WhiskerRatSLAM(getattr(WhiskerRatSLAMConfig, preset)(backend="numba", cell_size_m=STEP_M))
+        states, tp, tq = loop_run(slam, aliased=True)
+        reloc = np.array([s.relocalised for s in states])
+        assert reloc[PLACES:].sum() >= PLACES  # both re-localise on the later laps
+        errors[preset] = relocalisation_errors(np.array([s.exp_id for s in states]), reloc, tp, tq).position_m
+    diameter = STEP_M / math.sin(math.pi / PLACES)  # 2 r of the 12-gon with 0.1-m sides: 0.386 m
+    assert np.isclose(errors["thesis"].max(), diameter, atol=1e-9)
+    assert errors["mapping"].max() < 1e-9  # every re-localisation is the exact revisit
+
+
+def test_object_map_pose_queries_by_hand():
+    om = WhiskerRatSLAM(backend="numpy").object_map
+    p = om.predicted_pose(SpatialOdometry([0.1, 0, 0], [0, 0, math.pi / 2], 1.0))  # empty map: from the identity
+    np.testing.assert_allclose(p, [0.1, 0, 0, 0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)], atol=1e-12)
+    slam = WhiskerRatSLAM(backend="numpy", cell_size_m=STEP_M)
+    pfh, sda = places()
+    slam.step(SpatialOdometry([0, 0, 0], [0, 0, 0], 1.0), (pfh[0], sda[0]))  # experience 0 at the identity
+    om = slam.object_map
+    acc = om.accumulator
+    p = om.predicted_pose(SpatialOdometry([0.1, 0, 0], [0, 0, math.pi / 2], 1.0))
+    assert om.accumulator == acc  # the map is unchanged
+    np.testing.assert_allclose(p[:3], [0.1, 0, 0], atol=1e-12)
+    dp, dr = om.pose_distances([0.3, 0.4, 0, 0, 0, math.sin(math.pi / 6), math.cos(math.pi / 6)])
+    np.testing.assert_allclose(dp, [0.5])
+    np.testing.assert_allclose(dr, [math.pi / 3])
+
+
+def test_creation_iterations_and_last_relocalisation_follow_the_run_and_survive_save_load(tmp_path):
+    slam = WhiskerRatSLAM(backend="numba", cell_size_m=STEP_M)
+    states, _, _ = loop_run(slam, laps=2)
+    exp_ids = [s.exp_id for s in states]
+    first = {e: exp_ids.index(e) for e in set(exp_ids)}
+    om = slam.object_map
+    assert om.creation_iterations.tolist() == [first[e] for e in range(om.n_experiences)]
+    reloc = [k for k, s in enumerate(states) if s.relocalised]
+    assert reloc and om.last_relocalisation == reloc[-1] and om.n_recorded == len(states)
+    slam.save(tmp_path / "m.npz")
+    back = WhiskerRatSLAM.load(tmp_path / "m.npz").object_map
+    assert back.creation_iterations.tolist() == om.creation_iterations.tolist()
+    assert back.last_relocalisation == om.last_relocalisation
+
+
+def test_save_resume_with_the_pose_prior_equals_uninterrupted(tmp_path):
+    cfg = WhiskerRatSLAMConfig.mapping(backend="numpy", cell_size_m=STEP_M)
+    full = WhiskerRatSLAM(cfg)
+    all_states, _, _ = loop_run(full, laps=2, aliased=True)
+    pfh, sda = places(aliased=True)
+    rng = np.random.default_rng(1)
+    v, w = np.array([STEP_M, 0, 0]) * 1.06, np.array([0, 0, 2 * math.pi / PLACES]) * 1.04
+    obs = [observe(pfh, sda, k % PLACES, rng) for k in range(2 * PLACES)]
+    first = WhiskerRatSLAM(cfg)
+    half = PLACES + 3
+    for k in range(half):
+        first.step(SpatialOdometry(v, w, 1.0), obs[k])
+    first.save(tmp_path / "w.npz")
+    resumed = WhiskerRatSLAM.load(tmp_path / "w.npz")
+    assert resumed.config == cfg
+    rest = [resumed.step(SpatialOdometry(v, w, 1.0), obs[k]) for k in range(half, 2 * PLACES)]
+    assert [(s.exp_id, s.view_id, s.relocalised) for s in rest] == [(s.exp_id, s.view_id, s.relocalised) for s in all_states[half:]]
+    assert resumed.object_map.poses.tobytes() == full.object_map.poses.tobytes()
+
+
+def test_the_library_has_no_pose_prior():
+    m = WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(backend="numpy", cell_size_m=STEP_M))
+    pfh, sda = places()
+    m.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.5], 1.0), (pfh[0], sda[0]))
+    lib_model, _ = WhiskerRatSLAM.library([m], ["a"])
+    assert not lib_model.config.pose_prior and lib_model.frontend.pose_prior is None
+    assert WhiskerRatSLAMConfig.thesis() == WhiskerRatSLAMConfig() and not WhiskerRatSLAMConfig().pose_prior
+
+
+_BAD_POSE_CONFIG = [
+    {"pose_gate_m": 0.3}, {"pose_gate_deg": 60.0}, {"pose_gate_m": 0.0, "pose_gate_deg": 60.0},
+    {"pose_gate_m": 0.3, "pose_gate_deg": 200.0}, {"pose_gate_m": math.nan, "pose_gate_deg": 60.0},
+    {"pose_gate_m": True, "pose_gate_deg": 60.0}, {"pose_gate_growth_m": 0.04, "pose_gate_growth_deg": 12.0},
+    {"pose_gate_m": 0.3, "pose_gate_deg": 60.0, "pose_gate_growth_m": 0.04},
+    {"pose_weight": -1.0}, {"pose_weight": math.inf}, {"pose_weight": "2"},
+]
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.sampled_from(_BAD_POSE_CONFIG))
+def test_bad_pose_prior_config_is_named(kw):
+    with pytest.raises(ConfigError, match="pose_"):
+        WhiskerRatSLAMConfig(**kw)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["nan", "short", "non_unit", "text", "inf"]))
+def test_bad_pose_queries_raise_typed_errors(kind):
+    slam = WhiskerRatSLAM(backend="numpy", cell_size_m=STEP_M)
+    pfh, sda = places()
+    slam.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.5], 1.0), (pfh[0], sda[0]))
+    om = slam.object_map
+    pose = {"nan": [math.nan, 0, 0, 0, 0, 0, 1], "short": [0, 0, 0, 0, 0, 1], "non_unit": [0, 0, 0, 0, 0, 0, 2],
+            "text": ["a"] * 7, "inf": [0, 0, math.inf, 0, 0, 0, 1]}[kind]
+    with pytest.raises((InvalidInputError, ShapeError)):
+        om.pose_distances(pose)
+    with pytest.raises((InvalidInputError, ShapeError)):
+        om.predicted_pose(pose[:3], [0, 0, 0], 1.0) if kind in ("nan", "text", "inf") else om.predicted_pose(pose)

@@ -22,11 +22,20 @@ were calibrated on the simulator (see :class:`WhiskFrontEndConfig`).
 
 A whisk with fewer than 3 contacts has no PFH and is not an observation; the model
 runs odometry only for it (the front end is not called).
+
+Pose prior (optional, :attr:`WhiskFrontEnd.pose_prior`): a callable the model sets that
+returns, for the stored regions, which are consistent with the current pose estimate and
+a non-negative pose cost for each. :meth:`WhiskFrontEnd.match` then keeps only the
+consistent candidates and picks the smallest ``chi2 + NMSE + cost`` - the RatSLAM
+principle that a place is recognised from the view *and* the pose belief together
+(:class:`cansim.whisker_ratslam.WhiskerRatSLAMConfig`, ``pose_gate_m``). Without a
+prior (default) the match is Eq 5.5's. :meth:`WhiskFrontEnd.scores` never applies it.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,7 +46,7 @@ from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_rows, nmse_rows
 from whisker_io.validation import config_field
 
-__all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "FEATURES"]
+__all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
 
 FEATURES = ("pfh", "sda", "both")
 
@@ -95,9 +104,9 @@ class RegionScores:
     nmse : ndarray (m,)
         SDA NMSE to each stored region (zeros when SDA is not used).
     candidates : ndarray (k,) int64
-        Regions under both thresholds.
+        Regions under both thresholds (and consistent with the pose prior, when one is set).
     best : int or None
-        The match (smallest ``chi2 + nmse`` among the candidates).
+        The match (smallest ``chi2 + nmse`` among the candidates, plus the pose cost with a prior).
     """
 
     chi2: np.ndarray
@@ -126,12 +135,19 @@ def _grow(arr: np.ndarray, needed: int) -> np.ndarray:
     return new
 
 
+PosePrior = Callable[[int], tuple[np.ndarray, np.ndarray]]
+"""``prior(n_regions) -> (consistent (n,) bool, cost (n,) float >= 0)``: see the module docstring."""
+
+
 class WhiskFrontEnd:
     """Stored regions and Eq 5.5 matching (see the module docstring).
 
     Parameters
     ----------
     config : WhiskFrontEndConfig, optional
+    pose_prior : callable, optional
+        ``prior(n_regions) -> (consistent, cost)``, consulted by :meth:`match` (module
+        docstring); also settable as the attribute :attr:`pose_prior`.
 
     Notes
     -----
@@ -141,8 +157,9 @@ class WhiskFrontEnd:
     ``(pfh, sda, sda_mask)`` tuple.
     """
 
-    def __init__(self, config: WhiskFrontEndConfig | None = None) -> None:
+    def __init__(self, config: WhiskFrontEndConfig | None = None, pose_prior: PosePrior | None = None) -> None:
         self.config = config if config is not None else WhiskFrontEndConfig()
+        self.pose_prior: PosePrior | None = pose_prior
         c = self.config
         self._n = 0
         self._pfh = np.zeros((16, c.n_bins))
@@ -239,6 +256,8 @@ class WhiskFrontEnd:
         """
         f, s, m = self.parse(observation)
         sc = self.scores(f, s, m)
+        if self.pose_prior is not None and sc.candidates.size:
+            sc = self._with_prior(sc)
         self.last_scores = sc
         if sc.best is None:
             rid = self._n
@@ -255,6 +274,19 @@ class WhiskFrontEnd:
             self._mask[rid] |= m
             self._count[rid] = k + 1
         return ViewMatch(rid, False, float(sc.chi2[rid] + sc.nmse[rid]), None)
+
+    def _with_prior(self, sc: RegionScores) -> RegionScores:
+        """Keep the pose-consistent candidates; the match minimises ``chi2 + NMSE + cost``."""
+        n = self._n
+        consistent, cost = self.pose_prior(n)  # type: ignore[misc]
+        consistent, cost = np.asarray(consistent), np.asarray(cost, dtype=np.float64)
+        if consistent.shape != (n,) or consistent.dtype != bool or cost.shape != (n,):
+            raise ShapeError(f"a pose prior returns ({n},) booleans and ({n},) costs, got {consistent.shape} {consistent.dtype} and {cost.shape}")
+        cand = sc.candidates[consistent[sc.candidates]]
+        if cand.size and not (np.isfinite(cost[cand]).all() and cost[cand].min() >= 0):
+            raise InvalidInputError("a pose prior's costs must be finite and >= 0 for consistent regions")
+        best = int(cand[np.argmin((sc.chi2 + sc.nmse + cost)[cand])]) if cand.size else None
+        return RegionScores(sc.chi2, sc.nmse, cand, best)
 
     def extend(self, other: "WhiskFrontEnd") -> int:
         """Append ``other``'s stored regions after this front end's (an object library, Fig 5.16).
