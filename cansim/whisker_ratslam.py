@@ -174,18 +174,16 @@ class WhiskerRatSLAMConfig:
         if not isinstance(self.attractor, AttractorParams) or not isinstance(self.frontend, WhiskFrontEndConfig):
             raise ConfigError("attractor must be an AttractorParams and frontend a WhiskFrontEndConfig")
         self.map_config()
-        # pose-consistent matching (module docstring)
+        # pose-consistent matching (module docstring): each gate is a (metres, degrees) pair, both set or both None
         for pair in (("pose_gate_m", "pose_gate_deg"), ("pose_gate_growth_m", "pose_gate_growth_deg")):
-            g = [getattr(self, name) for name in pair]
-            if (g[0] is None) != (g[1] is None) or not all(
-                v is None or (not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and v > 0) for v in g
-            ) or (g[1] is not None and g[1] > 180):
-                raise ConfigError(f"{pair[0]} and {pair[1]} are both None or both > 0 (degrees <= 180), got {tuple(g)!r}")
+            for name, top in zip(pair, (None, 180.0)):
+                config_field(getattr(self, name), name, float, above=0, maximum=top, optional=True)
+            if (getattr(self, pair[0]) is None) != (getattr(self, pair[1]) is None):
+                raise ConfigError(f"{pair[0]} and {pair[1]} are both None or both set, got "
+                                  f"{(getattr(self, pair[0]), getattr(self, pair[1]))!r}")
         if self.pose_gate_growth_m is not None and self.pose_gate_m is None:
             raise ConfigError("pose_gate_growth_m needs pose_gate_m (the largest gate)")
-        w = self.pose_weight
-        if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
-            raise ConfigError(f"pose_weight must be a finite number >= 0, got {w!r}")
+        config_field(self.pose_weight, "pose_weight", float, minimum=0)
 
     @classmethod
     def thesis(cls, **overrides: Any) -> "WhiskerRatSLAMConfig":
