@@ -91,14 +91,10 @@ def open_platform(
 def session_failure(exc: HardwareError, whisks_done: int) -> tuple[int, str]:
     """The exit status and one-line message of a hardware session that ended on ``exc``.
 
-    ====================================  ======================  ==============================
-     error                                 status                  message
-    ====================================  ======================  ==============================
-     :class:`MissingDependencyError`        :data:`EXIT_NO_EXTRA`    which extra to install
-     :class:`RobotUnreachableError`         :data:`EXIT_NO_ROBOT`    the address tried
-     :class:`ArrayNotFoundError`            :data:`EXIT_NO_ARRAY`    the USB ids
-     any other :class:`HardwareError`       :data:`EXIT_STOPPED`     whisks kept, then the fault
-    ====================================  ======================  ==============================
+    * :class:`MissingDependencyError` -> :data:`EXIT_NO_EXTRA`, the message says which extra to install;
+    * :class:`RobotUnreachableError` -> :data:`EXIT_NO_ROBOT`, with the address tried;
+    * :class:`ArrayNotFoundError` -> :data:`EXIT_NO_ARRAY`, with the USB ids;
+    * any other :class:`HardwareError` -> :data:`EXIT_STOPPED`: the whisks kept, then the fault.
 
     Parameters
     ----------
