@@ -237,7 +237,9 @@ class PlanarMotion(MotionModel):
         inv_th = 1.0 / axes[2].step
 
         def compute(v, w, dt):
-            cond = (v * dt) * directions if v != 0.0 else None
+            # a huge v * dt overflows to inf (inf * 0 = nan): the caller's shift check refuses it
+            with np.errstate(over="ignore", invalid="ignore"):
+                cond = (v * dt) * directions if v != 0.0 else None
             rot = w * dt * inv_th
             uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
             return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
