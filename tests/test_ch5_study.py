@@ -8,6 +8,7 @@ localisation against the step size (Fig 5.15).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from cansim.whisker_ratslam import WhiskerRatSLAM
 from maps.object_library import append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import ConfigError, InvalidInputError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 import ch5_study  # noqa: E402
@@ -120,6 +121,39 @@ def test_with_explored_validates(two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM]
             lib.with_explored(n)  # type: ignore[arg-type]
 
 
+@settings(max_examples=60, deadline=None)
+@given(label=st.one_of(
+    st.tuples(st.sampled_from(("pfh", "sda", "both", "PFH", "")), st.sampled_from(("update", "no-update", "off")),
+              st.sampled_from(("tip", "svr", "truth"))).map("/".join),
+    st.text(max_size=12),
+))
+def test_id_config_label_parses_or_exits(label: str) -> None:
+    parts = label.split("/")
+    ok = (len(parts) == 3 and parts[0] in ("pfh", "sda", "both") and parts[1] in ("update", "no-update")
+          and parts[2] in ("tip", "svr"))
+    if ok:
+        c = ch5_study._config(label)
+        assert (c.features, c.feature_update, c.contact_model) == (parts[0], parts[1] == "update", parts[2])
+        assert c.label == label
+    else:
+        with pytest.raises(SystemExit, match="--id-config"):
+            ch5_study._config(label)
+
+
+def test_settings_refuse_an_uncalibrated_contact_model() -> None:
+    s = ch5_study.Settings(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    assert s.thresholds_for("tip") == (0.9, 0.3)
+    with pytest.raises(ConfigError, match="svr"):
+        s.thresholds_for("svr")
+    cfg = ch5_study._slam_config(ch5_study.Config("both", False, "tip"), s, 0.05)
+    assert (cfg.frontend.pfh_threshold, cfg.frontend.sda_threshold) == (0.9, 0.3)
+    assert cfg.pose_prior  # the study's default matching: WhiskerRatSLAMConfig.mapping
+    thesis = ch5_study._slam_config(ch5_study.Config("both", False, "tip"), dataclasses.replace(s, matching="thesis"), 0.05)
+    assert not thesis.pose_prior
+    with pytest.raises(ConfigError, match="matching"):
+        dataclasses.replace(s, matching="pose")
+
+
 # ----------------------------------------------------------------- the --quick study
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
@@ -136,14 +170,18 @@ def _rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 def test_quick_writes_the_outputs(quick: Path) -> None:
     cols, loc = _rows(quick / "ch5_localisation.csv")
-    assert set(["object", "features", "feature_update", "contact_model", "position_error_m", "rotation_error_deg",
-                "step_translation_m", "step_rotation_deg"]) <= set(cols)
+    assert {"object", "features", "feature_update", "contact_model", "position_error_m", "rotation_error_deg",
+            "step_translation_m", "step_rotation_deg"} <= set(cols)
     assert loc and {r["object"] for r in loc} == {"mug", "box", "plane"}
     cols, ids = _rows(quick / "ch5_identification.csv")
-    assert set(["presented", "trajectory", "map_identity", "max_confidence", "final_ic", "threshold", "rc_decision",
-                "ic_decision"]) <= set(cols)
+    assert {"presented", "trajectory", "map_identity", "max_confidence", "final_ic", "threshold", "rc_decision",
+            "ic_decision"} <= set(cols)
     assert {r["trajectory"] for r in ids} == {"A", "B"}
     assert "skull" in {r["presented"] for r in ids} and "skull" not in {r["map_identity"] for r in ids}
+    assert {r["matching"] for r in loc} == {"mapping", "thesis"}  # the study's matching and the comparison
+    cols, cal = _rows(quick / "ch5_calibration.csv")
+    assert {"contact_model", "noise_scale", "quantile", "n_pairs", "pfh_threshold", "sda_threshold"} <= set(cols)
+    assert [r["contact_model"] for r in cal] == ["tip"]
     for name in ("fig5_14b_dead_reckoning.png", "fig5_15_localisation.png", "fig5_16_history.png", "fig5_17_confidence.png",
                  "ch5_summary.txt"):
         assert (quick / name).stat().st_size > 0
@@ -174,17 +212,31 @@ def test_trajectory_b_gives_lower_confidence_than_a(quick: Path) -> None:
     assert mean["B"] < mean["A"], mean
 
 
+@pytest.fixture(scope="module")
+def svr_settings(tmp_path_factory: pytest.TempPathFactory) -> ch5_study.Settings:
+    """The study's reduced localisation settings: 2 loops, SVR thresholds calibrated as the study does."""
+    model = ch5_study._ensure_radial_model(None, tmp_path_factory.mktemp("ch5_radial"))
+    cal = ch5_study.calibrate(ch5_study.DEFAULT_NOISE_SCALE, 0.75, 0, "svr", model)
+    assert cal["contact_model"] == "svr" and cal["n_pairs"] > 0
+    return ch5_study.Settings(2, ch5_study.DEFAULT_NOISE_SCALE, {"svr": (cal["pfh_threshold"], cal["sda_threshold"])},
+                              model, 0)
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "measured (seed 0, 2 loops of A, noise scale 0.3, calibrated T_pfh 0.98 / T_sda 0.27, quick Ch.4 svr9): "
-    "both + SVR median re-localisation error Box 0.46 m / 90 deg (step 0.012 m / 3.0 deg), "
-    "Mug 0.52 m / 117 deg (step 0.065 m / 11.7 deg); with tip contacts the Mug is at 0 m, the Box still 0.64 m / 155 deg"))
-def test_both_features_svr_localise_below_the_step_on_box_and_mug(tmp_path: Path) -> None:
-    model = ch5_study._ensure_radial_model(None, tmp_path)
-    cal = ch5_study.calibrate(ch5_study.DEFAULT_NOISE_SCALE, 0.75, 0)
-    s = ch5_study.Settings(2, ch5_study.DEFAULT_NOISE_SCALE, cal["pfh_threshold"], cal["sda_threshold"], model, 0, 1)
-    for name in ("box", "mug"):
-        b = ch5_study.build_job((name, ch5_study.BEST, s, None))
-        assert len(b["position_m"]) > 0
-        assert np.median(b["position_m"]) < b["step_m"], name
-        assert np.median(b["rotation_deg"]) < b["step_deg"], name
+@pytest.mark.parametrize("name", [
+    "mug",
+    pytest.param("box", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured (2 loops of A, noise scale 0.3, pose-consistent matching, SVR thresholds calibrated on the Mug "
+        "T_pfh 1.2 / T_sda 0.0034, quick Ch.4 svr9): both + SVR median re-localisation error 0 m / 0 deg on seeds 0 "
+        "and 1 but 0.030 m (one whisk, = the 0.030 m step) on seed 2, where only 5 re-localisations happen: the "
+        "signal path detects fewer than 3 contacts on ~40 of the 88 whisks of a loop (the corners), the dead "
+        "reckoning through them leaves the loop-1 regions outside the pose gate, and along a flat face the "
+        "neighbouring whisk's region has the same PFH; the Mug is at 0 m on all three seeds"))),
+])
+def test_both_features_svr_localise_below_the_step(svr_settings: ch5_study.Settings, name: str) -> None:
+    for seed in (0, 1, 2):
+        b = ch5_study.build_job((name, ch5_study.BEST, dataclasses.replace(svr_settings, seed=seed), None))
+        assert b["matching"] == "mapping"
+        assert len(b["position_m"]) > 0, (name, seed)
+        assert np.median(b["position_m"]) < b["step_m"], (name, seed, np.median(b["position_m"]), b["step_m"])
+        assert np.median(b["rotation_deg"]) < b["step_deg"], (name, seed, np.median(b["rotation_deg"]), b["step_deg"])
