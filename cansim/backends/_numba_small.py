@@ -18,8 +18,11 @@ The arithmetic is the numpy reference's (:mod:`cansim.backends.numpy_backend`):
 float64 sums tap after tap in the reference's order, the fractional roll as
 ``(1 - f) * a[p - lo] + f * a[p - lo - 1]`` (plus exact zeros), and rounding to the
 storage dtype where the reference stores (after injection, after the dynamics, after
-the conditional shift, after the uniform shift); the activity equals the generic
-numba pipeline's bit for bit.
+the conditional shift, after the uniform shift; done as the values are stored, not in
+passes of their own); the activity equals the generic numba pipeline's bit for bit. A
+heading-conditional pass weights each line by its condition; the weights repeat along
+the lines with a short period and come in runs (:func:`condition_runs`), so they are
+filled run by run.
 
 The generated functions are compiled on first use in a process and kept for its life
 (numba cannot cache functions built from source text on disk): about 4 s for the
