@@ -332,21 +332,17 @@ class WhiskerRatSLAM(SlamLoop):
         if self._predicted is None:  # matching outside step(): no pose belief to consult
             return np.ones(n_regions, dtype=bool), np.zeros(n_regions)
         gate_m, gate_rad = float(cfg.pose_gate_m), math.radians(float(cfg.pose_gate_deg))  # type: ignore[arg-type]
+        n = om.n_experiences
         if cfg.pose_gate_growth_m is not None:
             now = om.n_recorded
             whisks = np.minimum(now - om.creation_iterations, now - om.last_relocalisation)
             root = np.sqrt(whisks.astype(np.float64))
-            gate_m = np.minimum(gate_m, cfg.pose_gate_growth_m * root)
-            gate_rad = np.minimum(gate_rad, math.radians(float(cfg.pose_gate_growth_deg)) * root)  # type: ignore[arg-type]
-        dp, dr = om.pose_distances(self._predicted)
-        ok = (dp <= gate_m) & (dr <= gate_rad)
-        cost = cfg.pose_weight * (dp / gate_m + dr / gate_rad)
-        consistent = np.zeros(n_regions, dtype=bool)
-        best = np.full(n_regions, np.inf)
-        views = om.view_ids[ok]
-        consistent[views] = True
-        np.minimum.at(best, views, cost[ok])
-        return consistent, np.where(consistent, best, 0.0)
+            gates_m = np.minimum(gate_m, cfg.pose_gate_growth_m * root)
+            gates_rad = np.minimum(gate_rad, math.radians(float(cfg.pose_gate_growth_deg)) * root)  # type: ignore[arg-type]
+        else:
+            gates_m, gates_rad = np.full(n, gate_m), np.full(n, gate_rad)
+        consistent, cost = om.gated_views(self._predicted, gates_m, gates_rad, n_regions)
+        return consistent, cfg.pose_weight * cost  # the weight >= 0 commutes with the minimum
 
     @classmethod
     def library(

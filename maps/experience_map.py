@@ -101,6 +101,7 @@ __all__ = [
 ]
 
 FORMAT_VERSION = 2
+_FEW_IDS = 3  # _delta_pc computes this many distances or fewer without numpy (faster for a handful)
 Geometry = Union[SE2Geometry, SE3Geometry]
 _GEOMETRIES = {"se2": SE2Geometry, "se3": SE3Geometry}
 
@@ -358,6 +359,16 @@ class ExperienceMap:
             if c >= n:
                 c = c - n
             corr[ax] = c
+        if len(ids) <= _FEW_IDS:  # the usual one or few: the same operations on Python floats (same bits)
+            out = []
+            for row in self._a.pc[ids].tolist():
+                total = 0.0  # + the first square: exact
+                for c, v, n in zip(corr, row, shape):
+                    e = abs(c - v)
+                    e = min(e, n - e)
+                    total += e * e
+                out.append(math.sqrt(total))
+            return np.array(out)
         d = np.abs(np.array(corr) - self._a.pc[ids])
         d = np.minimum(d, np.array(shape, dtype=np.float64) - d)  # wrapped, Eq 2.22
         d *= d
@@ -379,7 +390,7 @@ class ExperienceMap:
         off = None
         if offset_cells is not None:
             off = np.array(offset_cells, dtype=np.float64).reshape(-1)
-            if off.shape != (nd,) or not np.isfinite(off).all():
+            if off.shape != (nd,) or not all(math.isfinite(v) for v in off.tolist()):
                 raise InvalidInputError(f"offset_cells must be {nd} finite values (cells), got {offset_cells!r}")
         return best, int(view_id), off
 

@@ -11,14 +11,17 @@ search read. The history is saved with the map; the iteration at which each expe
 was created (its first entry in the history, :attr:`ObjectMap.creation_iterations`) is
 derived from it.
 
-Two queries serve the model's pose-consistent region matching (WhiskerRatSLAM's pose
+Three queries serve the model's pose-consistent region matching (WhiskerRatSLAM's pose
 gate): :meth:`ObjectMap.predicted_pose` (the dead-reckoned pose after one more
-odometry sample, the map unchanged) and :meth:`ObjectMap.pose_distances` (position and
-rotation distance of every experience to a pose, Sec 5.2.2.1's error measures).
+odometry sample, the map unchanged), :meth:`ObjectMap.pose_distances` (position and
+rotation distance of every experience to a pose, Sec 5.2.2.1's error measures) and
+:meth:`ObjectMap.gated_views` (the views with an experience inside a per-experience gate
+around a pose, and their smallest normalised distance).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -147,18 +150,78 @@ class ObjectMap(ExperienceMap):
         ShapeError, InvalidInputError
             Not 7 finite numbers, or a quaternion that is not unit length.
         """
+        from maps._se3_numba import pose_distances_se3
+
+        p = self._checked_pose(pose)
+        n = self.n_experiences
+        dist, angle = np.empty(n), np.empty(n)
+        pose_distances_se3(self._a.pose, n, p, dist, angle)
+        return dist, angle
+
+    @staticmethod
+    def _checked_pose(pose: Any) -> np.ndarray:
+        """A pose argument as a contiguous float64 (7,) array with a unit quaternion, else the typed error."""
         try:
-            p = np.asarray(pose, dtype=np.float64)
+            p = np.ascontiguousarray(pose, dtype=np.float64)
         except (TypeError, ValueError):
             raise InvalidInputError(f"pose must be 7 numbers (x, y, z, qx, qy, qz, qw), got {pose!r}") from None
         if p.shape != (7,):
             raise ShapeError(f"pose must be (x, y, z, qx, qy, qz, qw), 7 numbers; got shape {p.shape}")
-        if not np.isfinite(p).all() or abs(float(np.linalg.norm(p[3:])) - 1.0) > 1e-6:
+        vals = p.tolist()
+        if not all(math.isfinite(v) for v in vals) or abs(math.sqrt(sum(v * v for v in vals[3:])) - 1.0) > 1e-6:
             raise InvalidInputError("pose must be finite with a unit quaternion (scalar-last)")
-        poses = self._a.pose[: self.n_experiences]
-        d = poses[:, :3] - p[:3]
-        dot = np.minimum(np.abs(poses[:, 3:] @ p[3:]), 1.0)
-        return np.sqrt(np.einsum("ij,ij->i", d, d)), 2.0 * np.arccos(dot)
+        return p
+
+    def gated_views(self, pose: Any, gate_m: np.ndarray, gate_rad: np.ndarray, n_views: int) -> tuple[np.ndarray, np.ndarray]:
+        """Views with an experience inside its gate around ``pose``, and their smallest normalised distance.
+
+        Parameters
+        ----------
+        pose : array_like (7,)
+            As :meth:`pose_distances`.
+        gate_m, gate_rad : ndarray (n_experiences,)
+            Position (m) and rotation (rad) gate of each experience.
+        n_views : int
+            Number of views (local-view ids are below it).
+
+        Returns
+        -------
+        (consistent, cost) : ndarray (n_views,) bool and float64
+            ``consistent[v]``: some experience ``e`` of view ``v`` has ``d_e <= gate_m[e]`` and
+            ``angle_e <= gate_rad[e]`` (the distances of :meth:`pose_distances`); ``cost[v]``:
+            the smallest ``d_e / gate_m[e] + angle_e / gate_rad[e]`` among them, 0 where not
+            consistent. One compiled pass (:func:`maps._se3_numba.gate_views_se3`); the angle is
+            computed only for experiences inside the position gate.
+
+        Raises
+        ------
+        ShapeError, InvalidInputError
+            A bad pose, gates that are not (n_experiences,) arrays of numbers >= 0, a bad
+            ``n_views`` or a view id >= ``n_views``.
+        """
+        from maps._se3_numba import gate_views_se3
+
+        p = self._checked_pose(pose)
+        n = self.n_experiences
+        try:
+            gm = np.ascontiguousarray(gate_m, dtype=np.float64)
+            gr = np.ascontiguousarray(gate_rad, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError("gate_m and gate_rad must be arrays of numbers (m, rad)") from None
+        if gm.shape != (n,) or gr.shape != (n,):
+            raise ShapeError(f"gate_m and gate_rad must be ({n},) arrays (one gate per experience), got {gm.shape} and {gr.shape}")
+        if isinstance(n_views, (bool, np.bool_)) or not isinstance(n_views, (int, np.integer)) or n_views < 0:
+            raise InvalidInputError(f"n_views must be an integer >= 0, got {n_views!r}")
+        nv = int(n_views)
+        consistent = np.zeros(nv, dtype=bool)
+        best = np.full(nv, np.inf)
+        status = gate_views_se3(self._a.pose, n, p, gm, gr, self._a.vt, consistent, best)
+        if status == 1:
+            raise InvalidInputError("gates must be >= 0 (m, rad), not NaN")
+        if status == 2:
+            raise InvalidInputError(f"the map holds view {int(self._a.vt[:n].max())}, beyond n_views={nv}")
+        best[~consistent] = 0.0
+        return consistent, best
 
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The map's arrays plus ``history``."""

@@ -93,6 +93,39 @@ def test_relax_kernel_equals_the_scipy_reference():
     assert max(_same_rotation(got[i, 3:], expected[i, 3:]) for i in range(n)) < 1e-10
 
 
+def _random_graph(seed, n=12, m=40):
+    """Random poses and links (repeated and reversed pairs included) for the kernel-vs-scipy checks."""
+    rng = np.random.default_rng(seed)
+    poses = np.hstack([rng.normal(size=(n, 3)), Rotation.random(n, random_state=seed).as_quat()])
+    ends = rng.integers(0, n, (m, 2))
+    ends[:, 1] = np.where(ends[:, 0] == ends[:, 1], (ends[:, 1] + 1) % n, ends[:, 1])
+    links = np.hstack([rng.normal(size=(m, 3)), Rotation.random(m, random_state=seed + 100).as_quat(), np.ones((m, 1))])
+    return poses, ends.astype(np.int64), links, rng.permutation(m).astype(np.int64)
+
+
+@pytest.mark.parametrize("c", [0.5, 0.3, 0.85])  # 0.5 takes the midpoint form, the others the slerp
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_relax_kernel_equals_the_scipy_reference_to_1e_12(c, seed):
+    poses, ends, links, order = _random_graph(seed)
+    expected = _reference_relax(poses, ends, links, c, list(order) * 5)
+    got = poses.copy()
+    SE3Geometry().relax(order, ends, links, got, c, 5 * len(order), 0)
+    np.testing.assert_allclose(got[:, :3], expected[:, :3], rtol=0, atol=1e-12)
+    assert max(_same_rotation(got[i, 3:], expected[i, 3:]) for i in range(len(poses))) < 1e-12
+    np.testing.assert_allclose(np.linalg.norm(got[:, 3:], axis=1), 1.0, rtol=0, atol=1e-15)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-10, 10), min_size=3, max_size=3), st.lists(st.floats(-10, 10), min_size=3, max_size=3),
+       st.integers(0, 2**31 - 1))
+def test_new_pose_equals_the_scipy_composition(p, d, seed):
+    qe, q = Rotation.random(2, random_state=seed)
+    got = SE3Geometry().new_pose(np.array([*p, *qe.as_quat()]), [*d, *q.as_quat()])
+    np.testing.assert_allclose(got[:3], np.array(p) + qe.apply(np.array(d)), rtol=0, atol=1e-12)
+    assert (Rotation.from_quat(got[3:]).inv() * qe * q).magnitude() < 1e-12
+    assert abs(math.sqrt(sum(v * v for v in got[3:])) - 1.0) < 1e-15
+
+
 def test_one_link_at_half_correction_closes_its_residual():
     poses = np.array([[0, 0, 0, 0, 0, 0, 1], [1, 1, 0, *Rotation.from_rotvec([0, 0, 0.4]).as_quat()]], dtype=float)
     links = np.array([[1, 0, 0, 0, 0, 0, 1, 1.0]])
@@ -212,3 +245,69 @@ def test_object_map_resets_the_accumulator_at_the_first_experience():
     om.update((2,) * 6, 1, 0)
     np.testing.assert_allclose(om.poses[1, :3], [0.3, 0, 0], atol=1e-12)
     np.testing.assert_allclose(om.links[1][0, :3], [0.1, 0, 0], atol=1e-12)
+
+
+def _wandering_object_map(seed, n_steps=60, n_views=9):
+    """An object map from random whisks over a few views (new experiences, links and re-localisations)."""
+    from maps.object_map import ObjectMap
+
+    rng = np.random.default_rng(seed)
+    om = ObjectMap()
+    for _ in range(n_steps):
+        om.on_odo(rng.normal(0, 0.05, 3), rng.normal(0, 0.4, 3), 1.0)
+        om.update(tuple(rng.uniform(0, 5, 6)), int(rng.integers(0, n_views)), 0)
+        om.record()
+    return om
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gated_views_equal_the_gate_written_with_numpy(seed):
+    om = _wandering_object_map(seed)
+    rng = np.random.default_rng(seed + 10)
+    n = om.n_experiences
+    pose = np.array([*rng.normal(0, 0.05, 3), *Rotation.random(random_state=seed).as_quat()])
+    gate_m, gate_rad = rng.uniform(0.01, 0.3, n), rng.uniform(0.1, 3.0, n)
+    consistent, cost = om.gated_views(pose, gate_m, gate_rad, 12)
+    poses, views = om.poses, om.view_ids
+    dp = np.linalg.norm(poses[:, :3] - pose[:3], axis=1)
+    dr = 2 * np.arccos(np.minimum(np.abs(poses[:, 3:] @ pose[3:]), 1.0))
+    np.testing.assert_allclose(om.pose_distances(pose), (dp, dr), rtol=0, atol=1e-12)
+    ok = (dp <= gate_m) & (dr <= gate_rad)
+    want_c = np.zeros(12, dtype=bool)
+    want_c[views[ok]] = True
+    want = np.full(12, np.inf)
+    np.minimum.at(want, views[ok], (dp / gate_m + dr / gate_rad)[ok])
+    assert 0 < ok.sum() < n  # the gates keep some experiences and drop others
+    np.testing.assert_array_equal(consistent, want_c)
+    np.testing.assert_allclose(cost, np.where(want_c, want, 0.0), rtol=1e-12, atol=0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["pose_nan", "pose_short", "pose_non_unit", "gate_short", "gate_2d", "gate_text", "gate_nan",
+                        "gate_negative", "few_views", "views_negative", "views_text"]))
+def test_gated_views_rejects_bad_input(kind):
+    om = _wandering_object_map(0, n_steps=12)
+    n = om.n_experiences
+    pose, gm, gr, nv = [0, 0, 0, 0, 0, 0, 1.0], np.full(n, 0.1), np.full(n, 0.5), 9
+    if kind == "pose_nan":
+        pose = [math.nan, 0, 0, 0, 0, 0, 1.0]
+    elif kind == "pose_short":
+        pose = pose[:6]
+    elif kind == "pose_non_unit":
+        pose = [0, 0, 0, 0, 0, 0, 2.0]
+    elif kind == "gate_short":
+        gm = gm[:-1]
+    elif kind == "gate_2d":
+        gr = np.full((n, 2), 0.5)
+    elif kind == "gate_text":
+        gm = ["a"] * n
+    elif kind == "gate_nan":
+        gr = np.full(n, math.nan)
+    elif kind == "gate_negative":
+        gm = np.full(n, -0.1)
+    elif kind == "few_views":
+        nv = int(om.view_ids.max())
+    else:
+        nv = -1 if kind == "views_negative" else "9"
+    with pytest.raises((InvalidInputError, ShapeError)):
+        om.gated_views(pose, gm, gr, nv)

@@ -421,6 +421,24 @@ def test_small_grid_path_applies_only_to_fully_covered_hypercubes():
     assert not applies((5,), [k5], [k5])
 
 
+@pytest.mark.parametrize("shape, shift_axes", [((5,) * 6, (0, 1, 2)), ((5,) * 6, (1, 4)), ((4,) * 4, (0, 2)),
+                                               ((3,) * 5, (2,)), ((4,) * 3, (0, 1, 2))])
+def test_condition_runs_describe_the_condition_lines(shape, shift_axes):
+    """Pass k's condition index of line r repeats with period ``runs[k, 0]`` and is constant over
+    aligned runs of ``runs[k, 1]`` lines (the small-grid step builds its per-line weights from that)."""
+    from cansim.backends._numba_small import condition_lines, condition_runs
+
+    lines, runs = condition_lines(shape, shift_axes), condition_runs(shape, shift_axes)
+    rest = int(np.prod(shape)) // shape[0]
+    for k in shift_axes:
+        period, run = (int(v) for v in runs[k])
+        g = lines[k, :rest]
+        assert rest % period == 0 and period % run == 0
+        np.testing.assert_array_equal(g, np.tile(g[:period], rest // period))
+        np.testing.assert_array_equal(g[:period], np.repeat(g[:period:run], run))
+        assert len(np.unique(g[:period])) == int(np.prod([n for ax, n in enumerate(shape) if ax not in shift_axes]))
+
+
 def test_small_grid_with_different_kernel_widths_per_axis():
     shape = (4, 4, 4)
     rng = np.random.default_rng(15)

@@ -140,3 +140,50 @@ def test_a_malformed_pose_prior_raises_and_stores_nothing(prior):
     with pytest.raises((InvalidInputError, ShapeError)):
         fe.match(region(0.5 * (F[0] + F[1]), [1.0, 0.2]))
     assert (fe.pfh.tobytes(), len(fe)) == before
+
+
+def _chi2_loop(q, v):
+    """Eq 2.45 for one stored histogram, bin after bin in Python floats (bins with a zero sum skipped)."""
+    acc = 0.0
+    for a, b in zip(q.tolist(), v.tolist()):
+        if a + b > 0:
+            acc += (a - b) * (a - b) / (a + b)
+    return acc
+
+
+def _nmse_loop(x, y, valid):
+    """Eq 5.3 for one stored SDA over the valid whiskers, on the pair scaled by its largest magnitude."""
+    pairs = [(a, b) for a, b, ok in zip(x.tolist(), y.tolist(), valid) if ok]
+    if not pairs:
+        return math.inf
+    scale = max(max(abs(a), abs(b)) for a, b in pairs)
+    if scale == 0.0:
+        return 0.0
+    err = power = 0.0
+    for a, b in pairs:
+        xs, d = a / scale, a / scale - b / scale
+        err += d * d
+        power += xs * xs
+    err, power = err / len(pairs), power / len(pairs)
+    return err / power if power > 0 else (0.0 if err == 0.0 else math.inf)
+
+
+@pytest.mark.parametrize("use_sda_mask", [False, True])
+def test_scores_against_many_regions_equal_the_per_region_formulas_bit_for_bit(use_sda_mask):
+    rng = np.random.default_rng(7)
+    fe = WhiskFrontEnd(WhiskFrontEndConfig(n_bins=9, n_whiskers=5, pfh_threshold=1e-12, sda_threshold=1e-12,
+                                           use_sda_mask=use_sda_mask))
+    stored = []
+    for k in range(70):  # more than the initial capacity: the stored columns grow
+        f = rng.dirichlet(np.full(9, 0.3)) * (rng.random(9) > 0.3)
+        f = f / f.sum() if f.sum() > 0 else np.eye(9)[k % 9]
+        s = rng.normal(0, 10.0 ** rng.integers(-2, 3), 5) * (rng.random(5) > 0.2)
+        m = rng.random(5) > 0.3
+        assert fe.match((f, s, m)).is_new
+        stored.append((f, s, m))
+    q, x, mx = stored[3][0] * 0.5 + stored[4][0] * 0.5, rng.normal(0, 1, 5), rng.random(5) > 0.2
+    sc = fe.scores(q, x, mx)
+    np.testing.assert_array_equal(sc.chi2, [_chi2_loop(q, f) for f, _, _ in stored])
+    want = [_nmse_loop(x, s, (mx & m) if use_sda_mask else [True] * 5) for _, s, m in stored]
+    np.testing.assert_array_equal(sc.nmse, want)
+    assert fe.pfh.shape == (70, 9) and np.array_equal(fe.pfh[5], stored[5][0]) and np.array_equal(fe.sda[6], stored[6][1])

@@ -18,8 +18,11 @@ The arithmetic is the numpy reference's (:mod:`cansim.backends.numpy_backend`):
 float64 sums tap after tap in the reference's order, the fractional roll as
 ``(1 - f) * a[p - lo] + f * a[p - lo - 1]`` (plus exact zeros), and rounding to the
 storage dtype where the reference stores (after injection, after the dynamics, after
-the conditional shift, after the uniform shift); the activity equals the generic
-numba pipeline's bit for bit.
+the conditional shift, after the uniform shift; done as the values are stored, not in
+passes of their own); the activity equals the generic numba pipeline's bit for bit. A
+heading-conditional pass weights each line by its condition; the weights repeat along
+the lines with a short period and come in runs (:func:`condition_runs`), so they are
+filled run by run.
 
 The generated functions are compiled on first use in a process and kept for its life
 (numba cannot cache functions built from source text on disk): about 4 s for the
@@ -37,7 +40,7 @@ from numba import njit
 
 from cansim.backends import _numba_kernels as _k
 
-__all__ = ["MAX_AXIS", "MAX_TAPS", "applies", "small_step", "small_run", "plan_cycles", "condition_lines"]
+__all__ = ["MAX_AXIS", "MAX_TAPS", "applies", "small_step", "small_run", "plan_cycles", "condition_lines", "condition_runs"]
 
 #: longest axis (cells) of a grid taking this path; passes are unrolled over it
 MAX_AXIS = 8
@@ -82,6 +85,27 @@ def condition_lines(shape: tuple[int, ...], shift_axes: tuple[int, ...]) -> np.n
             if ax in cstride:
                 g += row * cstride[ax]
         res[k, : g.shape[0]] = g
+    return res
+
+
+def condition_runs(shape: tuple[int, ...], shift_axes: tuple[int, ...]) -> np.ndarray:
+    """Structure of :func:`condition_lines`, shape ``(ndim, 2)``: ``[k] = (period, run)``.
+
+    At pass k the condition index of line r depends only on ``r mod period`` (the lines
+    over the axes from the first non-shifted one on, in the pass's order) and is the same
+    over aligned runs of ``run`` lines (the axes after the last non-shifted one), so the
+    per-line weights of a conditional pass are ``period`` columns built from
+    ``period / run`` runs instead of one column per line.
+    """
+    d = len(shape)
+    res = np.ones((d, 2), np.int64)
+    for k in range(d):
+        order = [(k + 1 + t) % d for t in range(d - 1)]
+        cond = [i for i, ax in enumerate(order) if ax not in shift_axes]
+        if cond:
+            sizes = [shape[ax] for ax in order]
+            res[k, 0] = int(np.prod(sizes[cond[0]:]))
+            res[k, 1] = int(np.prod(sizes[cond[-1] + 1:]))
     return res
 
 
@@ -158,35 +182,55 @@ def _conv_src(n: int, nt: int) -> str:
 
 
 def _lines_src(n: int) -> str:
-    """Rotating fractional roll with per-line weights ``wl[s, r]`` for a roll by s cells.
+    """Rotating fractional roll with per-line weights ``wl[s, r mod period]`` for a roll by s cells.
 
     The fractional roll of line r by ``lo + f`` (Fig 5.11) has weights ``1 - f`` at
     ``s = lo`` and ``f`` at ``s = lo + 1`` (mod n) and zero elsewhere; the sum runs over
     every s, so a line gets its own two products (in either order: the sum of two
-    numbers does not depend on it) plus exact zeros.
+    numbers does not depend on it) plus exact zeros. The weights repeat with the
+    ``period`` of :func:`condition_runs`; ``r32`` rounds the result to float32 as it is
+    stored (the reference's store after the conditional shift).
     """
-    return _pass_src(f"def lines_{n}(src, dst, rest, wl):", [f"    v{s} = wl[{s}]" for s in range(n)], n,
-                     lambda p, s: f"v{s}[r] * x{(p - s) % n}", n)
+    L = [f"def lines_{n}(src, dst, rest, wl, period, r32):"] + [f"    v{s} = wl[{s}]" for s in range(n)]
+    L += ["    for o in range(rest // period):", "        b = o * period"]
+    # slices, not offset indices: numba then drops its negative-index checks and the loops vectorise
+    L += [f"        s{q} = src[{q} * rest + b:{q} * rest + b + period]" for q in range(n)]
+    L += [f"        d = dst[{n} * b:{n} * (b + period)]"]
+    for rounded in (True, False):  # one loop each: a test per line would stop the loop vectorising
+        L += ["        if r32:" if rounded else "        else:", "            for j in range(period):"]
+        L += [f"                x{q} = s{q}[j]" for q in range(n)]
+        for p in range(n):
+            y = " + ".join(f"v{s}[j] * x{(p - s) % n}" for s in range(n))
+            L.append(f"                d[{n} * j + {p}] = " + (f"np.float64(np.float32({y}))" if rounded else y))
+    return "\n".join(L)
 
 
 def _marginals_src(shape: tuple[int, ...]) -> str:
-    """Copy the float64 result to ``out`` and sum it over all axes but one, for every axis."""
+    """Copy the float64 result to ``out`` and sum it over all axes but one, for every axis
+    (``r32``: the result rounded to float32 first, the reference's store after the shifts)."""
     d = len(shape)
     size = int(np.prod(shape))
-    L = ["def marginals(cur, out, prof, tmp):"]
+    L = ["def marginals(cur, out, prof, tmp, r32):"]
     src, m = "cur", size
     for k in range(d - 1, -1, -1):
         n = shape[k]
         dst = "tmp[:%d]" % (m // n) if k % 2 else "tmp[%d:%d]" % (size, size + m // n)
         L += [f"    p{q} = 0.0" for q in range(n)]
         L.append(f"    nxt{k} = {dst}")
-        L.append(f"    for r in range({m // n}):")
-        for q in range(n):
-            L.append(f"        x{q} = np.float64({src}[{n} * r + {q}])")
-            if k == d - 1:
-                L.append(f"        out[{n} * r + {q}] = x{q}")
-            L.append(f"        p{q} += x{q}")
-        L.append(f"        nxt{k}[r] = " + " + ".join(f"x{q}" for q in range(n)))
+        # the first level reads the result (rounded or not: one loop each, so that it vectorises)
+        for rounded in ((True, False) if k == d - 1 else (None,)):
+            ind = "    "
+            if rounded is not None:
+                L.append("    if r32:" if rounded else "    else:")
+                ind = "        "
+            L.append(f"{ind}for r in range({m // n}):")
+            for q in range(n):
+                x = f"np.float64({src}[{n} * r + {q}])"
+                L.append(f"{ind}    x{q} = " + (f"np.float64(np.float32({x}))" if rounded else x))
+                if k == d - 1:
+                    L.append(f"{ind}    out[{n} * r + {q}] = x{q}")
+                L.append(f"{ind}    p{q} += x{q}")
+            L.append(f"{ind}    nxt{k}[r] = " + " + ".join(f"x{q}" for q in range(n)))
         L += [f"    prof[{k}, {q}] = p{q}" for q in range(n)]
         src, m = f"nxt{k}", m // n
     return "\n".join(L)
@@ -217,11 +261,10 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
     rest = size // n
     c = n // 2  # centre of the n-tap table of a uniform roll
     L = [
-        "def cycle(src, dst, kinds, cond_tab, colmap, glines, uni, round_after, to32):",
+        "def cycle(src, dst, kinds, cond_tab, colmap, glines, lmeta, uni, round_after, to32):",
         "    ng = cond_tab.shape[0]",
         f"    gw = np.empty((ng, {n}), np.float64)",
         f"    wl = np.empty(({n}, {rest}), np.float64)",
-        "    wf = wl.reshape(-1)",
         f"    taps = np.zeros({n}, np.float64)",
         f"    for k in range({d}):",
         "        if kinds[k] == 2:",
@@ -233,10 +276,16 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
         "                gw[g, lo] = 1.0 - f",
         f"                gw[g, (lo + 1) % {n}] = f",
         "            gl = glines[k]",
-        f"            for r in range({rest}):",
-        "                g = gl[r]",
-    ] + [f"                wf[{q * rest} + r] = gw[g, {q}]" for q in range(n)] + [
-        f"            lines_{n}(src, dst, {rest}, wl)",
+        "            period = lmeta[k, 0]",
+        "            run = lmeta[k, 1]",
+        "            for j0 in range(0, period, run):",
+        "                g = gl[j0]",
+        f"                for q in range({n}):",
+        "                    val = gw[g, q]",
+        "                    row = wl[q]",
+        "                    for j in range(j0, j0 + run):",
+        "                        row[j] = val",
+        f"            lines_{n}(src, dst, {rest}, wl, period, to32 and round_after == k)",
         "        elif kinds[k] == 1:",
         f"            lo, f = split_shift(uni[k], {n})",
         "            taps[:] = 0.0",
@@ -245,24 +294,24 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
         f"            conv_{n}_{n}(src, dst, {rest}, taps)",
         "        else:",
         f"            copy_{n}(src, dst, {rest})",
-        "        if round_after == k and to32:",
-        "            round32(dst)",
         "        src, dst = dst, src",
-        "    if to32:",
-        "        round32(src)",
+        f"    return {d % 2 == 1}  # True: the result is in dst (an odd number of passes)",
         "",
-        "def step(a, out, ws, fi, vals, exc, inh, phi, ncycles, kinds1, kinds2, cond_tab, colmap, glines, uni,",
-        "         round_after, window, decoded, to32):",
+        "def step(a, out, ws, fi, vals, exc, inh, phi, has_cond, cond_tab, colmap, glines, lmeta, shift_axes, uni,",
+        "         window, decoded, to32):",
+        f"    kinds1 = np.zeros({d}, np.int64)",
+        f"    kinds2 = np.zeros({d}, np.int64)",
+        "    ncycles, round_after = plan_cycles(cond_tab, has_cond, shift_axes, uni, kinds1, kinds2)",
         f"    x = ws[:{size}]",
         f"    y = ws[{size}:{2 * size}]",
         f"    z = ws[{2 * size}:{3 * size}]",
         f"    for i in range({size}):",
         "        x[i] = a[i]",
-        "    if fi.shape[0] > 0:",
+        "    for t in range(fi.shape[0]):",
+        "        x[fi[t]] += vals[t]",
+        "    if to32:  # the other cells hold float32 values already",
         "        for t in range(fi.shape[0]):",
-        "            x[fi[t]] += vals[t]",
-        "        if to32:",
-        "            round32(x)",
+        "            x[fi[t]] = np.float64(np.float32(x[fi[t]]))",
         "    src = x",
         "    dst = y",
         f"    widths = ew",
@@ -288,30 +337,32 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
         f"            src = {f2}",
         f"            dst = {f1}",
     ]
-    # a cycle of d rotating passes ends in its first buffer when d is even
-    mid = e if d % 2 == 0 else "z"
-    other = "z" if mid == e else e
-    two = mid if d % 2 == 0 else other
     L += [
         f"    total = global_inhibit({e}, {t}, {e}, {size}, phi)",
         "    if not (total > 0.0 and total < np.inf):",
         "        return False",
-        f"    for i in range({size}):",
-        f"        {e}[i] = {e}[i] / total",
         "    if to32:",
-        f"        round32({e})",
+        f"        for i in range({size}):",
+        f"            {e}[i] = np.float64(np.float32({e}[i] / total))",
+        "    else:",
+        f"        for i in range({size}):",
+        f"            {e}[i] = {e}[i] / total",
         f"    cur = {e}",
-        "    no_round = np.int64(-1)",
         "    if ncycles == 2:",
-        f"        cycle({e}, z, kinds1, cond_tab, colmap, glines, uni, no_round, to32)",
-        f"        cycle({mid}, {other}, kinds2, cond_tab, colmap, glines, uni, no_round, to32)",
-        f"        cur = {two}",
+        f"        cur, other = {e}, z",
+        "        if cycle(cur, other, kinds1, cond_tab, colmap, glines, lmeta, uni, np.int64(-1), to32):",
+        f"            cur, other = z, {e}",
+        "        if to32:",
+        "            round32(cur)",
+        "        if cycle(cur, other, kinds2, cond_tab, colmap, glines, lmeta, uni, np.int64(-1), to32):",
+        "            cur = other",
         "    elif ncycles == 1:",
-        f"        cycle({e}, z, kinds1, cond_tab, colmap, glines, uni, round_after, to32)",
-        f"        cur = {mid}",
+        f"        if cycle({e}, z, kinds1, cond_tab, colmap, glines, lmeta, uni, round_after, to32):",
+        "            cur = z",
+        "    # the last float32 store of the shifts happens as the result is copied out",
         f"    if 2 * window + 1 >= {n}:  # the window covers the grid: marginal sums",
         f"        prof = np.zeros(({d}, {n}), np.float64)",
-        f"        marginals(cur, out, prof, np.empty({2 * size}, np.float64))",
+        f"        marginals(cur, out, prof, np.empty({2 * size}, np.float64), to32)",
         f"        for k in range({d}):",
         f"            decoded[k] = circular_mean_index(prof[k], {n})",
         "        return True",
@@ -326,22 +377,18 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
     return "\n".join(L)
 
 
-#: T steps in one call: the step of this shape after :func:`plan_cycles`, ping-ponging two buffers
-#: (see :mod:`cansim.backends._numba_run`); returns -1, or the first step that collapsed
+#: T steps in one call: the step of this shape, ping-ponging two buffers (see
+#: :mod:`cansim.backends._numba_run`); returns -1, or the first step that collapsed
 _RUN_SRC = """
 def run(a, buf0, buf1, hist, record, ws, inj_off, inj_idx, inj_val, exc, inh, phi, has_cond, cond_tabs,
-        colmap, glines, shift_axes, unis, window, decoded, to32):
-    d = unis.shape[1]
-    kinds = np.zeros(d, np.int64)
-    kinds2 = np.zeros(d, np.int64)
+        colmap, glines, lmeta, shift_axes, unis, window, decoded, to32):
     src = a
     for t in range(decoded.shape[0]):
         dst = buf0 if t % 2 == 0 else buf1
-        ncycles, round_after = plan_cycles(cond_tabs[t], has_cond[t], shift_axes, unis[t], kinds, kinds2)
         lo = inj_off[t]
         hi = inj_off[t + 1]
-        if not step(src, dst, ws, inj_idx[lo:hi], inj_val[lo:hi], exc, inh, phi, ncycles, kinds, kinds2,
-                    cond_tabs[t], colmap, glines, unis[t], round_after, window, decoded[t], to32):
+        if not step(src, dst, ws, inj_idx[lo:hi], inj_val[lo:hi], exc, inh, phi, has_cond[t], cond_tabs[t],
+                    colmap, glines, lmeta, shift_axes, unis[t], window, decoded[t], to32):
             return t
         if record:
             hist[t, :] = dst
@@ -389,11 +436,12 @@ def _compiled(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
 def small_step(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) -> Callable:
     """The step for a grid shape and per-axis excitation/inhibition widths (generated once per process).
 
-    Call as ``step(a, out, ws, fi, vals, exc, inh, phi, ncycles, kinds1, kinds2, cond_tab, colmap,
-    glines, uni, round_after, window, decoded, to32)`` with flat C-order ``a``/``out`` (storage
-    dtype), a float64 workspace ``ws`` of >= 3 grid sizes, packed (ndim, width) tap arrays, the
-    shift cycles planned by :meth:`cansim.backends.numba_backend.NumbaBackend._small_step`
-    (``kinds`` per axis: 0 none, 1 uniform, 2 conditional) and :func:`condition_lines`. Returns
+    Call as ``step(a, out, ws, fi, vals, exc, inh, phi, has_cond, cond_tab, colmap, glines,
+    lmeta, shift_axes, uni, window, decoded, to32)`` with flat C-order ``a``/``out`` (storage
+    dtype), a float64 workspace ``ws`` of >= 3 grid sizes, packed (ndim, width) tap arrays,
+    the conditional shift table (read when ``has_cond``) with its axes, their columns
+    (``colmap``), :func:`condition_lines` and :func:`condition_runs`, and the uniform shift
+    per axis (zeros: none). The step plans its shift cycles with :func:`plan_cycles`. Returns
     False, with ``out`` untouched, when the dynamics collapse.
     """
     return _compiled(shape, ew, iw)["step"]
@@ -403,11 +451,10 @@ def small_run(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
     """T steps of :func:`small_step` in one compiled call (generated once per process with it).
 
     Call as ``run(a, buf0, buf1, hist, record, ws, inj_off, inj_idx, inj_val, exc, inh, phi,
-    has_cond, cond_tabs, colmap, glines, shift_axes, unis, window, decoded, to32)``: per-step
-    inputs have a leading step axis (injections in CSR form, ``cond_tabs`` (T, n_conditions,
-    k) used where ``has_cond``, ``unis`` (T, ndim) with zeros for no shift), the plan of each
-    step comes from :func:`plan_cycles`, and the activity ping-pongs between ``buf0`` and
-    ``buf1`` (``hist[t]`` gets step t's result when ``record``). Returns -1, or the first step
-    whose dynamics collapsed.
+    has_cond, cond_tabs, colmap, glines, lmeta, shift_axes, unis, window, decoded, to32)``:
+    per-step inputs have a leading step axis (injections in CSR form, ``cond_tabs`` (T,
+    n_conditions, k) used where ``has_cond``, ``unis`` (T, ndim) with zeros for no shift), and
+    the activity ping-pongs between ``buf0`` and ``buf1`` (``hist[t]`` gets step t's result
+    when ``record``). Returns -1, or the first step whose dynamics collapsed.
     """
     return _compiled(shape, ew, iw)["run"]

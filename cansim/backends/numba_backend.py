@@ -251,17 +251,12 @@ class NumbaBackend(Backend):
             if small is not None:
                 from cansim.backends._numba_small import small_run
 
-                colmap = np.zeros(d, dtype=np.int64)
-                axes_arr, glines = _NO_INDEX, _NO_LINES
-                if inputs.shift_axes is not None:
-                    axes_arr = np.asarray(inputs.shift_axes, dtype=np.int64)
-                    colmap[axes_arr] = np.arange(len(axes_arr))
-                    glines = self._small_lines(a.shape, inputs.shift_axes)
+                colmap, axes_arr, glines, lmeta = self._small_lines(a.shape, inputs.shift_axes)
                 ew = tuple(len(t) for t in exc)
                 iw = tuple(len(t) for t in inh)
                 status = small_run(a.shape, ew, iw)(
                     flat, bufs[0], bufs[1], hist, bool(record_activity), ws, off, idx, val, small[1], small[2],
-                    float(phi), has_cond, ctabs, colmap, glines, axes_arr, uni, int(window), decoded,
+                    float(phi), has_cond, ctabs, colmap, glines, lmeta, axes_arr, uni, int(window), decoded,
                     a.dtype.itemsize == 4)
             else:
                 excp, exc_w, inhp, inh_w = self._packed_taps(exc, inh)
@@ -301,46 +296,42 @@ class NumbaBackend(Backend):
         return plan if plan[0] is not None else None
 
     def _small_lines(self, shape, shift_axes):
-        """Condition index of every line of every rotating pass (cached per shape and shifted axes)."""
-        key = ("lines", shape, tuple(shift_axes))
-        lines = self._small_cache.get(key)
-        if lines is None:
-            from cansim.backends._numba_small import condition_lines
+        """(colmap, shift axes, condition lines, condition runs) of the small-grid kernel, cached per
+        shape and shifted axes (None: no conditional shift)."""
+        key = ("lines", shape, None if shift_axes is None else tuple(shift_axes))
+        tables = self._small_cache.get(key)
+        if tables is None:
+            from cansim.backends._numba_small import condition_lines, condition_runs
 
-            lines = condition_lines(shape, tuple(shift_axes))
-            self._small_cache[key] = lines
-        return lines
+            d = len(shape)
+            colmap = np.zeros(d, dtype=np.int64)
+            if shift_axes is None:
+                tables = (colmap, _NO_INDEX, _NO_LINES, np.ones((d, 2), dtype=np.int64))
+            else:
+                axes = np.asarray(shift_axes, dtype=np.int64)
+                colmap[axes] = np.arange(len(axes))
+                tables = (colmap, axes, condition_lines(shape, tuple(shift_axes)), condition_runs(shape, tuple(shift_axes)))
+            self._small_cache[key] = tables
+        return tables
 
     def _small_step(self, a, plan, flat_index, values, phi, shift_axes, cond_shifts, uniform_shifts, window, out):
-        """Small full grids: one generated kernel (see :mod:`cansim.backends._numba_small`).
-
-        Plans the shift cycles as the generic pipeline does: one rotating cycle with the
-        conditional shift on its axes and the uniform shift on later axes (rounded after the
-        last conditional axis), or, when the uniform shift touches an earlier or a shifted
-        axis, a conditional cycle and then a uniform one, as the reference orders them.
-        """
-        from cansim.backends._numba_small import plan_cycles
-
+        """Small full grids: one generated kernel (see :mod:`cansim.backends._numba_small`), which
+        plans the shift cycles as the generic pipeline does (:func:`cansim.backends._numba_small.plan_cycles`)."""
         fn, excp, inhp = plan[0], plan[1], plan[2]
         d = a.ndim
-        kinds = np.zeros(d, dtype=np.int64)
-        kinds2 = np.zeros(d, dtype=np.int64)
-        colmap = np.zeros(d, dtype=np.int64)
-        ctab, glines, axes_arr = _NO_COND, _NO_LINES, _NO_INDEX
+        ctab = _NO_COND
         if cond_shifts is not None:
             ctab = np.ascontiguousarray(cond_shifts, dtype=np.float64).reshape(-1, len(shift_axes))
-            axes_arr = np.asarray(shift_axes, dtype=np.int64)
-            colmap[axes_arr] = np.arange(len(shift_axes))
-            glines = self._small_lines(a.shape, shift_axes)
-        uni = np.zeros(d, dtype=np.float64)
-        if uniform_shifts is not None:
-            uni[:] = uniform_shifts
-        ncycles, round_after = plan_cycles(ctab, cond_shifts is not None, axes_arr, uni, kinds, kinds2)
+        colmap, axes_arr, glines, lmeta = self._small_lines(a.shape, None if cond_shifts is None else shift_axes)
+        if uniform_shifts is None:
+            uni = np.zeros(d, dtype=np.float64)
+        else:
+            uni = np.ascontiguousarray(uniform_shifts, dtype=np.float64).reshape(d)
         fi, vals = _injection_arrays(flat_index, values)
         dst = out if out is not None and out.flags.c_contiguous else np.empty_like(a)
         decoded = np.empty(d, dtype=np.float64)
         ok = fn(a.reshape(-1), dst.reshape(-1), self._workspace(a.size), fi, vals, excp, inhp, float(phi),
-                ncycles, kinds, kinds2, ctab, colmap, glines, uni, int(round_after), int(window), decoded,
+                cond_shifts is not None, ctab, colmap, glines, lmeta, axes_arr, uni, int(window), decoded,
                 a.dtype.itemsize == 4)
         if not ok:
             return None, None

@@ -40,10 +40,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
-from whisker_io.features._distances_numba import chi2_rows, nmse_rows
+from whisker_io.features._distances_numba import chi2_columns, nmse_columns
 from whisker_io.validation import config_field
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
@@ -115,24 +116,56 @@ class RegionScores:
     best: int | None
 
 
-def _vector(value: Any, n: int, name: str) -> np.ndarray:
+def _vector(value: Any, n: int, name: str, bounded: Callable[[np.ndarray], bool], problem: str) -> np.ndarray:
+    """``value`` as a new float64 (n,) array; ``bounded(arr)`` False (it must be False for non-finite
+    entries) raises: "must be finite" when an entry is not, else ``problem``."""
     try:
         arr = np.array(value, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
         raise InvalidInputError(f"{name} must be {n} real numbers, got {type(value).__name__}") from None
     if arr.shape != (n,):
         raise ShapeError(f"{name} must have {n} entries, got {arr.size}")
-    if not np.isfinite(arr).all():
-        raise InvalidInputError(f"{name} must be finite")
+    if not bounded(arr):  # one test for the usual, valid case
+        if not np.isfinite(arr).all():
+            raise InvalidInputError(f"{name} must be finite")
+        raise InvalidInputError(problem)
     return arr
 
 
+def _histogram(f: np.ndarray) -> bool:
+    return bool(f.min() >= 0 and 0.999 < f.sum() < 1.001)  # False for NaN and infinities
+
+
+def _slopes(s: np.ndarray) -> bool:
+    return bool(np.abs(s).max(initial=0.0) <= 1e6)  # False for NaN and infinities
+
+
 def _grow(arr: np.ndarray, needed: int) -> np.ndarray:
-    if needed <= arr.shape[0]:
+    """``arr`` with room for ``needed`` regions along its last axis (one column per region)."""
+    have = arr.shape[-1]
+    if needed <= have:
         return arr
-    new = np.zeros((max(needed, 2 * arr.shape[0], 16),) + arr.shape[1:], dtype=arr.dtype)
-    new[: arr.shape[0]] = arr
+    new = np.zeros(arr.shape[:-1] + (max(needed, 2 * have, 16),), dtype=arr.dtype)
+    new[..., :have] = arr
     return new
+
+
+@njit(cache=True)
+def _candidates(chi2: np.ndarray, nmse: np.ndarray, t_pfh: float, t_sda: float) -> tuple[np.ndarray, int]:  # pragma: no cover
+    """Eq 5.5's candidates (``chi2 < t_pfh`` and ``nmse < t_sda``) in order, and the first one with the
+    smallest ``chi2 + nmse`` (-1 when there is none), in one compiled pass."""
+    cand = np.empty(chi2.shape[0], np.int64)
+    k = 0
+    best = -1
+    low = math.inf
+    for r in range(chi2.shape[0]):
+        if chi2[r] < t_pfh and nmse[r] < t_sda:
+            cand[k] = r
+            k += 1
+            total = chi2[r] + nmse[r]
+            if best < 0 or total < low:
+                best, low = r, total
+    return cand[:k].copy(), best
 
 
 PosePrior = Callable[[int], tuple[np.ndarray, np.ndarray]]
@@ -162,18 +195,13 @@ class WhiskFrontEnd:
         self.pose_prior: PosePrior | None = pose_prior
         c = self.config
         self._n = 0
-        self._pfh = np.zeros((16, c.n_bins))
-        self._sda = np.zeros((16, c.n_whiskers))
-        self._mask = np.ones((16, c.n_whiskers), dtype=bool)
+        # stored regions column-wise, one column per region: the distance kernels run
+        # along contiguous rows (whisker_io.features._distances_numba)
+        self._pfh = np.zeros((c.n_bins, 16))
+        self._sda = np.zeros((c.n_whiskers, 16))
+        self._mask = np.ones((c.n_whiskers, 16), dtype=bool)
         self._count = np.zeros(16, dtype=np.int64)
-        self._all = np.ones(c.n_whiskers, dtype=bool)
-        self._all_mask = np.ones((16, c.n_whiskers), dtype=bool)
         self.last_scores: RegionScores | None = None
-
-    def _all_rows(self, n: int) -> np.ndarray:
-        if self._all_mask.shape[0] < n:
-            self._all_mask = np.ones((2 * n, self.config.n_whiskers), dtype=bool)
-        return self._all_mask[:n]
 
     def __len__(self) -> int:
         return self._n
@@ -181,12 +209,12 @@ class WhiskFrontEnd:
     @property
     def pfh(self) -> np.ndarray:
         """Stored histograms, (n_regions, n_bins) (a copy)."""
-        return self._pfh[: self._n].copy()
+        return self._pfh[:, : self._n].T.copy()
 
     @property
     def sda(self) -> np.ndarray:
         """Stored SDAs, (n_regions, n_whiskers) (a copy)."""
-        return self._sda[: self._n].copy()
+        return self._sda[:, : self._n].T.copy()
 
     # ------------------------------------------------------------- input
     def parse(self, observation: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -204,42 +232,30 @@ class WhiskFrontEnd:
             raise InvalidInputError(
                 f"a whisk observation has pfh and sda (e.g. whisker_io.features.region.RegionFeatures), got {type(observation).__name__}"
             )
-        f = _vector(pfh, c.n_bins, "pfh")
-        if f.min() < 0 or not 0.999 < f.sum() < 1.001:
-            raise InvalidInputError("pfh must be a normalised histogram (entries >= 0 summing to 1)")
-        s = _vector(sda, c.n_whiskers, "sda")
-        if np.abs(s).max(initial=0.0) > 1e6:
-            raise InvalidInputError("sda slopes beyond 1e6 are not physical; check the gradient fit")
+        f = _vector(pfh, c.n_bins, "pfh", _histogram, "pfh must be a normalised histogram (entries >= 0 summing to 1)")
+        s = _vector(sda, c.n_whiskers, "sda", _slopes, "sda slopes beyond 1e6 are not physical; check the gradient fit")
         if mask is None:
-            m = np.ones(c.n_whiskers, dtype=bool)
-        else:
-            m = np.asarray(mask)
-            if m.shape != (c.n_whiskers,) or m.dtype != bool:
-                raise ShapeError(f"sda_mask must be {c.n_whiskers} booleans, got {m.shape} {m.dtype}")
+            return f, s, np.ones(c.n_whiskers, dtype=bool)
+        m = np.asarray(mask)
+        if m.shape != (c.n_whiskers,) or m.dtype != bool:
+            raise ShapeError(f"sda_mask must be {c.n_whiskers} booleans, got {m.shape} {m.dtype}")
         return f, s, m.copy()
 
     # ------------------------------------------------------------ matching
     def scores(self, pfh: np.ndarray, sda: np.ndarray, mask: np.ndarray) -> RegionScores:
         """Eq 5.5 of a parsed observation against every stored region (no state change)."""
         c, n = self.config, self._n
-        zero = np.zeros(n)
         if n == 0:
+            zero = np.zeros(0)
             return RegionScores(zero, zero, np.zeros(0, dtype=np.int64), None)
-        ok = np.ones(n, dtype=bool)
-        chi2 = e = zero
+        use_pfh, use_sda = c.features in ("pfh", "both"), c.features in ("sda", "both")
+        zero = None if use_pfh and use_sda else np.zeros(n)
         # the parsed observation and the stored regions are validated: call the compiled
         # kernels behind whisker_io's chi_squared (Eq 2.45) and nmse (Eq 5.3) directly
-        if c.features in ("pfh", "both"):
-            chi2 = chi2_rows(pfh, self._pfh[:n])
-            ok &= chi2 < c.pfh_threshold
-        if c.features in ("sda", "both"):
-            mx = mask if c.use_sda_mask else self._all
-            my = self._mask[:n] if c.use_sda_mask else self._all_rows(n)
-            e = nmse_rows(sda, self._sda[:n], mx, my)
-            ok &= e < c.sda_threshold
-        cand = np.flatnonzero(ok)
-        best = int(cand[np.argmin((chi2 + e)[cand])]) if cand.size else None
-        return RegionScores(chi2, e, cand, best)
+        chi2 = chi2_columns(pfh, self._pfh, n) if use_pfh else zero
+        e = nmse_columns(sda, self._sda, mask, self._mask, n, c.use_sda_mask) if use_sda else zero
+        cand, best = _candidates(chi2, e, c.pfh_threshold if use_pfh else math.inf, c.sda_threshold if use_sda else math.inf)
+        return RegionScores(chi2, e, cand, None if best < 0 else int(best))
 
     def match(self, observation: Any) -> ViewMatch:
         """Match a whisk: the best stored region, or a new one (validates first).
@@ -263,15 +279,15 @@ class WhiskFrontEnd:
             rid = self._n
             self._pfh, self._sda = _grow(self._pfh, rid + 1), _grow(self._sda, rid + 1)
             self._mask, self._count = _grow(self._mask, rid + 1), _grow(self._count, rid + 1)
-            self._pfh[rid], self._sda[rid], self._mask[rid], self._count[rid] = f, s, m, 1
+            self._pfh[:, rid], self._sda[:, rid], self._mask[:, rid], self._count[rid] = f, s, m, 1
             self._n = rid + 1
             return ViewMatch(rid, True, math.inf, None)
         rid = sc.best
         if self.config.feature_update:
             k = self._count[rid]
-            self._pfh[rid] = (self._pfh[rid] * k + f) / (k + 1)
-            self._sda[rid] = (self._sda[rid] * k + s) / (k + 1)
-            self._mask[rid] |= m
+            self._pfh[:, rid] = (self._pfh[:, rid] * k + f) / (k + 1)
+            self._sda[:, rid] = (self._sda[:, rid] * k + s) / (k + 1)
+            self._mask[:, rid] |= m
             self._count[rid] = k + 1
         return ViewMatch(rid, False, float(sc.chi2[rid] + sc.nmse[rid]), None)
 
@@ -285,7 +301,7 @@ class WhiskFrontEnd:
         cand = sc.candidates[consistent[sc.candidates]]
         if cand.size and not (np.isfinite(cost[cand]).all() and cost[cand].min() >= 0):
             raise InvalidInputError("a pose prior's costs must be finite and >= 0 for consistent regions")
-        best = int(cand[np.argmin((sc.chi2 + sc.nmse + cost)[cand])]) if cand.size else None
+        best = int(cand[np.argmin(sc.chi2[cand] + sc.nmse[cand] + cost[cand])]) if cand.size else None
         return RegionScores(sc.chi2, sc.nmse, cand, best)
 
     def extend(self, other: "WhiskFrontEnd") -> int:
@@ -304,8 +320,8 @@ class WhiskFrontEnd:
         n = offset + m
         self._pfh, self._sda = _grow(self._pfh, n), _grow(self._sda, n)
         self._mask, self._count = _grow(self._mask, n), _grow(self._count, n)
-        self._pfh[offset:n], self._sda[offset:n] = other._pfh[:m], other._sda[:m]
-        self._mask[offset:n], self._count[offset:n] = other._mask[:m], other._count[:m]
+        self._pfh[:, offset:n], self._sda[:, offset:n] = other._pfh[:, :m], other._sda[:, :m]
+        self._mask[:, offset:n], self._count[offset:n] = other._mask[:, :m], other._count[:m]
         self._n = n
         return offset
 
@@ -314,8 +330,8 @@ class WhiskFrontEnd:
         """State as named arrays (bit exact)."""
         n = self._n
         return {
-            f"{prefix}pfh": self._pfh[:n].copy(), f"{prefix}sda": self._sda[:n].copy(),
-            f"{prefix}sda_mask": self._mask[:n].copy(), f"{prefix}count": self._count[:n].copy(),
+            f"{prefix}pfh": self._pfh[:, :n].T.copy(), f"{prefix}sda": self._sda[:, :n].T.copy(),
+            f"{prefix}sda_mask": self._mask[:, :n].T.copy(), f"{prefix}count": self._count[:n].copy(),
         }
 
     def from_arrays(self, arrays: dict[str, np.ndarray], prefix: str) -> None:
@@ -335,7 +351,7 @@ class WhiskFrontEnd:
         if any(a.shape[0] != n for a in got.values()) or (n and got["count"].min() < 1):
             raise CorruptFileError("stored-region arrays disagree in length or hold a count < 1", field=prefix + "count")
         self._n = n
-        self._pfh = _grow(got["pfh"].astype(np.float64), n)
-        self._sda = _grow(got["sda"].astype(np.float64), n)
-        self._mask = _grow(got["sda_mask"].astype(bool), n)
+        self._pfh = _grow(np.ascontiguousarray(got["pfh"].T, dtype=np.float64), n)
+        self._sda = _grow(np.ascontiguousarray(got["sda"].T, dtype=np.float64), n)
+        self._mask = _grow(np.ascontiguousarray(got["sda_mask"].T, dtype=bool), n)
         self._count = _grow(got["count"].astype(np.int64), n)
