@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError, CansimError
-from whisker_io.array.geometry import WhiskerArray, WhiskerModule, radial_base_rotation
+from whisker_io.array.geometry import WhiskerArray, WhiskerModule
 from whisker_io.array.kinematics import (
     contact_points,
     shaft_directions,

@@ -484,7 +484,6 @@ def test_a_box_of_the_grid_decodes_and_bounds_like_the_grid(shape, window):
     the box found from it equals the one found from the grid."""
     from cansim.backends import _numba_kernels as k
 
-    rng = np.random.default_rng(len(shape) + window)
     n = np.array(shape, np.int64)
     a = _packets(shape, [tuple(x - 1 for x in shape), tuple(x // 3 for x in shape)], np.float32, half=1)
     grid = a.reshape(-1)

@@ -20,7 +20,6 @@ from cansim.population import Population
 from cansim.posecell_network import PosecellNetwork
 from cansim.ratslam import RatSLAM, RatSLAMConfig
 from maps.experience_map import ExperienceMap, MapConfig
-from maps.se2 import SE2Geometry
 
 TRACE = Path(__file__).parent / "data" / "openratslam_cpp_trace.csv"
 

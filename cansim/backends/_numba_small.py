@@ -314,7 +314,7 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
         "            x[fi[t]] = np.float64(np.float32(x[fi[t]]))",
         "    src = x",
         "    dst = y",
-        f"    widths = ew",
+        "    widths = ew",
         f"    for k in range({d}):",
     ]
     L += _width_call(n, ew, "        ", f"src, dst, {rest}", "exc[k]")
@@ -325,7 +325,7 @@ def _step_src(n: int, d: int, ew: tuple[int, ...], iw: tuple[int, ...]) -> str:
     L += [
         f"    src = {e}",
         f"    dst = {f1}",
-        f"    widths = iw",
+        "    widths = iw",
         f"    for k in range({d}):",
     ]
     L += _width_call(n, iw, "        ", f"src, dst, {rest}", "inh[k]")
