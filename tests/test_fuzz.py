@@ -54,6 +54,7 @@ def _compiled_kernels():
         pop.inject([3] * pop.ndim, 0.1)
         pop.step(velocity=0.3, omega=0.1 if pop.ndim > 1 else None, dt=1.0)
         pop.shift([0.5] * pop.ndim)
+    PosecellNetwork(9, 12, 0.5).step(0.2, 0.1, 1.0)  # the C++-parity engine's own kernels
     yield
 
 
