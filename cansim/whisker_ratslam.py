@@ -355,7 +355,9 @@ class WhiskerRatSLAM(SlamLoop):
         no link between objects). The pose cells start from the initial packet and every
         region's decay at the floor, as for an array brought to an unknown object, so the
         model has no pose prior: the configuration's pose-consistent matching is switched
-        off (the maps are in other frames than the exploration).
+        off (the maps are in other frames than the exploration). The appended map runs
+        with the exploring configuration's map parameters (:meth:`WhiskerRatSLAMConfig.map_config`,
+        e.g. its ``match_distance_cells``); the grid must be the maps'.
 
         Parameters
         ----------
@@ -381,6 +383,10 @@ class WhiskerRatSLAM(SlamLoop):
             offsets.append(model.frontend.extend(m.frontend))
             model.local_view.extend_stored(m.local_view)
         lib = append_object_maps([m.object_map for m in models], names, offsets)
+        if tuple(lib.object_map.config.pc_shape) != model.config.shape:
+            raise InvalidInputError(f"the maps' pose-cell grid {lib.object_map.config.pc_shape} is not the exploring "
+                                    f"configuration's {model.config.shape}; use one grid")
+        lib.object_map.config = model.config.map_config()  # a new map: the exploring model's parameters
         model.experience_map = lib.object_map
         return model, lib
 

@@ -184,3 +184,55 @@ def test_empty_known_and_short_trajectory_are_typed():
         Explorer([], None, None, None, DefaultSearch((0, 0, 0), 0.3))
     with pytest.raises(CansimError):
         build_object_model("x", [], None, None)
+
+
+def test_exploring_model_has_no_pose_belief_and_relocalises_at_any_packet_distance(world):
+    from cansim.explore.explorer import any_distance_cells
+
+    known, _ = world
+    k = known[0]
+    assert any_distance_cells((5,) * 6) == pytest.approx(math.sqrt(6 * 2.5**2) + 1.0)  # above every wrapped 6-D distance
+    m = k.exploring_model()
+    assert not m.config.pose_prior and m.object_map.config.match_distance_cells == pytest.approx(any_distance_cells((5,) * 6))
+    assert m.object_map.n_experiences == k.n_built and m.n_views == k.n_built_regions
+    np.testing.assert_array_equal(m.object_map.history, k.model.object_map.history)
+    assert k.model.object_map.config.match_distance_cells == 1.0  # the mapped model is not touched
+    # whisking a stored region again re-localises to an experience holding it, wherever the packet is
+    om, fe = m.object_map, m.frontend
+    vids = om.view_ids[: k.n_built]
+    regions = [int(r) for r in np.unique(vids)][1:9][::-1]  # distinct, none the loop's initial view 0
+    from maps.odometry import SpatialOdometry
+
+    for r in regions:
+        st = m.step(SpatialOdometry(np.array([0.05, 0, 0]), np.zeros(3), 1.0), (fe.pfh[r], fe.sda[r]))
+        assert st.view_id == r and st.relocalised and vids[st.exp_id] == r
+
+
+def test_build_object_model_rejects_a_bad_adjustment_count(world):
+    known, _ = world
+    for bad in (-1, 1.5, True, "3"):
+        with pytest.raises(CansimError):
+            build_object_model("x", known[0].poses[:3], lambda p: None, _odometry(0), adjustments_per_pose=bad)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 12), min_size=1, max_size=6), st.integers(0, 2**31))
+def test_any_distance_exceeds_every_wrapped_distance(shape, seed):
+    from cansim.explore.explorer import any_distance_cells
+
+    rng = np.random.default_rng(seed)
+    n = np.array(shape, float)
+    a, b = rng.uniform(0, n, (200, len(shape))), rng.uniform(0, n, (200, len(shape)))
+    d = np.abs(a - b)
+    d = np.minimum(d, n - d)  # wrapped per axis, as the experience map measures (Eq 2.22)
+    assert np.sqrt((d**2).sum(axis=1)).max() < any_distance_cells(shape)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(st.just([]), st.lists(st.one_of(st.integers(-3, 0), st.floats(allow_nan=True).filter(lambda x: not (math.isfinite(x) and x > 0 and x == int(x))),
+                                                     st.text(max_size=2), st.booleans()), min_size=1, max_size=3)))
+def test_any_distance_bad_shapes_typed(shape):
+    from cansim.explore.explorer import any_distance_cells
+
+    with pytest.raises(CansimError):
+        any_distance_cells(shape)

@@ -149,9 +149,87 @@ def test_switching_rules():
 @given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.none()))
 def test_bad_constructor_input_typed(x):
     for make in (lambda: FollowExperienceHistory(step_m=x), lambda: LeastSimilarRegion(step_m=x),
-                 lambda: DefaultSearch([0, 0, x], 0.2), lambda: DefaultSearch([0, 0, 0], x)):
+                 # reach_m None is valid (one step): None stands for a negative reach here
+                 lambda: FollowExperienceHistory(reach_m=-1.0 if x is None else x),
+                 lambda: LeastSimilarRegion(reach_m=-1.0 if x is None else x),
+                 lambda: DefaultSearch([0, 0, x], 0.2), lambda: DefaultSearch([0, 0, 0], x),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2])):
         try:
             make()
         except CansimError:
             continue
         assert isinstance(x, float) and math.isfinite(x)
+
+
+def test_ellipsoid_faces_and_the_mapping_tour():
+    import trimesh
+
+    c, axes = np.array([0.0, 0.0, 0.2]), np.array([0.17, 0.17, 0.3])
+    # a sphere's semi-axes give the sphere's faces
+    np.testing.assert_allclose(DefaultSearch(c, 0.3, semi_axes_m=(0.3, 0.3, 0.3)).directions, DefaultSearch(c, 0.3).directions)
+    e = DefaultSearch(c, 0.3, semi_axes_m=axes, seed=2)
+    ico = trimesh.creation.icosphere(subdivisions=1)
+    ico.apply_transform(np.diag([*axes, 1.0]))  # trimesh's own scaling: face centroids of the ellipsoid mesh
+    cent = ico.triangles_center
+    np.testing.assert_allclose(e.directions, cent / np.linalg.norm(cent, axis=1, keepdims=True), atol=1e-12)
+    for f in (0, 17, 55):  # without a mesh the whisker bases sit on the ellipsoid, the array facing the centre
+        p = e.face_pose(f)
+        y = p.rotation.as_matrix()[:, 1]
+        np.testing.assert_allclose(y, -e.directions[f], atol=1e-12)
+        bases = p.position_m + 0.2019 * y
+        assert np.sum(((bases - c) / axes) ** 2) == pytest.approx(1.0)
+    n = len(e.directions)
+    tour = DefaultSearch(c, 0.3, semi_axes_m=axes, seed=2).tour(2)
+    key = [tuple(np.round(p.position_m, 9)) for p in tour]
+    assert len(tour) == 2 * n - 1  # the loops share the face where the first ends
+    assert len(set(key[:n])) == n and set(key[n - 1:]) == set(key[:n])  # each loop visits every face once
+    assert tour[0] == e.face_pose(e.next_face())  # the seed's start face first
+    high = DefaultSearch(c, 0.3, semi_axes_m=axes, seed=2).tour(1, accept=lambda p: p.position_m[2] > 0.2)
+    assert 0 < len(high) < n and all(p.position_m[2] > 0.2 for p in high)
+    for bad in (0, 1.5, True, "2"):
+        with pytest.raises(CansimError):
+            e.tour(bad)
+    with pytest.raises(CansimError):
+        DefaultSearch(c, 0.3, semi_axes_m=(0.1, 0.0, 0.2))
+
+
+def test_feh_plays_the_history_on_from_a_reached_target():
+    # history 0, 0, 1, 2, 1, 0; the array stands at experience 1 (the map's current experience)
+    m = _map([(0, 0, 0), (0.1, 0, 0.1), (0.2, 0, 0)], [0, 1, 2], [(0, 1, 0.1, 0), (1, 2, 0.1, 0)], [0, 0, 1, 2, 1, 0], 1)
+    objs = [ObjectView(m, None, 3, 3, 6)]
+    feh = FollowExperienceHistory()
+    assert feh.following(m.history, 1) == (1, 2) and feh.following(m.history, 3) == (1, 4) and feh.following(m.history, 5) is None
+    goal = feh.propose(SearchContext(Pose([1.0, 1.0, 0.3]), objs, np.array([1.0]), object(), relocalised=[(0, 0)]))
+    # target 1 (after the first visit of 0) is where the array is: reached, so the next in the history, 2,
+    # lying (+0.1, 0, -0.1) from experience 1: flattened to +x, 3 cm
+    assert feh.target == (0, 2)
+    np.testing.assert_allclose(goal.position_m, [1.03, 1.0, 0.3], atol=1e-12)
+    # at the end of the history there is nothing to follow
+    m.current_id = 0
+    feh2 = FollowExperienceHistory()
+    feh2.target, feh2._index = (0, 0), 5
+    assert feh2.propose(SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0]), object())) is None and feh2.target is None
+
+
+def test_lsr_follows_the_dijkstra_path_experience_by_experience():
+    # a chain 0 - 1 - 2 along map x; region 2 (experience 2) is the least similar
+    m = _map([(0, 0, 0), (0.1, 0, 0), (0.2, 0, 0)], [0, 1, 2], [(0, 1, 0.1, 0.0), (1, 2, 0.1, 0.0)], [0, 1, 2], 0)
+    objs = [ObjectView(m, _FrontEnd([0.1, 0.5, 1.9], [0, 0, 0]), 3, 3, 3, last_relocalised=0)]
+    lsr = LeastSimilarRegion()
+    goal = lsr.propose(SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0]), object()))
+    assert lsr.target == (0, 2) and lsr.path == [1, 2]
+    np.testing.assert_allclose(goal.position_m, [0.03, 0, 0.3], atol=1e-12)  # toward experience 1 first
+    m.current_id = 1  # the array is at experience 1: reached, on to 2 (0.1 m further along x)
+    goal = lsr.propose(SearchContext(Pose([0.1, 0, 0.3]), objs, np.array([1.0]), object()))
+    assert lsr.path == [2] and lsr.target == (0, 2)
+    np.testing.assert_allclose(goal.position_m, [0.13, 0, 0.3], atol=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.one_of(st.integers(-3, 0), st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.none(), st.booleans()))
+def test_tour_bad_loop_counts_typed(n):
+    d = DefaultSearch([0, 0, 0.2], 0.3, seed=1)
+    before = (d.current, d.visited.copy())
+    with pytest.raises(CansimError):
+        d.tour(n)
+    assert d.current == before[0] and (d.visited == before[1]).all()  # nothing advanced

@@ -1,6 +1,7 @@
 """WhiskerRatSLAM (Ch.5, Alg 2) on synthetic regions: 6-D path integration, loop closure, persistence, backends, bad input."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -326,3 +327,20 @@ def test_bad_pose_queries_raise_typed_errors(kind):
         om.pose_distances(pose)
     with pytest.raises((InvalidInputError, ShapeError)):
         om.predicted_pose(pose[:3], [0, 0, 0], 1.0) if kind in ("nan", "text", "inf") else om.predicted_pose(pose)
+
+
+def test_library_map_takes_the_exploring_configuration():
+    """The appended map runs with the exploring model's map parameters (its match distance), the grid checked."""
+    m = WhiskerRatSLAM(backend="numpy", cell_size_m=STEP_M)
+    pfh, sda = places(5)
+    rng = np.random.default_rng(5)
+    for k in range(PLACES):
+        m.step(SpatialOdometry(np.array([STEP_M, 0, 0]), np.array([0, 0, 2 * math.pi / PLACES]), 1.0), observe(pfh, sda, k, rng))
+    assert m.object_map.config.match_distance_cells == 1.0
+    wide = replace(m.config, match_distance_cells=7.0)
+    lib_model, lib = WhiskerRatSLAM.library([m], ["a"], wide)
+    assert lib_model.object_map.config.match_distance_cells == 7.0 and lib_model.object_map.config == wide.map_config()
+    assert lib.object_map.n_experiences == m.object_map.n_experiences
+    assert m.object_map.config.match_distance_cells == 1.0  # the source map is not touched
+    with pytest.raises(InvalidInputError, match="grid"):
+        WhiskerRatSLAM.library([m], ["a"], replace(m.config, grid_cells=7))

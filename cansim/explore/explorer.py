@@ -9,8 +9,8 @@ One iteration = one whisk:
    :class:`~whisker_io.sim.whisk_chain.RecordedChain`);
 2. odometry from the previous pose (``odometry(prev, now) -> (v, omega, dt)``: Eq 6.4-6.11
    noise in simulation, exact on the arm) into one WhiskerRatSLAM per known object,
-   each holding that object's map (the object maps are not linked; decision: one model
-   per map instead of one appended history, so the maps do not share a pose-cell packet);
+   each holding that object's map (:meth:`KnownObject.exploring_model`; the object maps
+   are not linked);
 3. a re-localisation of model ``k`` to an experience of its built map is an impulse into
    ``k``'s leaky integrator (:class:`maps.recognition.LeakyIntegrator`); the integrated
    confidence (IC) decides the identity;
@@ -27,8 +27,30 @@ The run stops when an IC reaches ``stop_threshold``, after ``max_iterations`` or
 code over recorded ``(pose, features)`` cycles (:func:`whisker_io.hw.recorder.replay_session`
 with a ``RecordedChain``).
 
-Object maps (:func:`build_object_model`): two loops over the ellipsoid fitted to the object
-(:func:`whisker_io.sim.trajectories.object_trajectory`), the SPC at every pose.
+Object maps (:func:`build_object_model`): two loops over the faces of the ellipsoid fitted
+to the object (:meth:`cansim.explore.search.DefaultSearch.tour`), the SPC at every face
+until its conditions are met (at most 10 adjustments), pose-consistent matching (one
+object mapped in one frame, :meth:`cansim.whisker_ratslam.WhiskerRatSLAMConfig.mapping`).
+
+Decisions for recognition (the thesis is silent; measured in
+``examples/ch6_active_exploration.py``, whose docstring gives the figures):
+
+* **One model per map**, not one model holding the appended history (Fig 5.16,
+  :meth:`WhiskerRatSLAM.library` of all maps, one region match per whisk across every
+  object): each map keeps its own current experience, the frame through which FEH and
+  LSR carry their targets into the world. In a trial both gave the correct identity
+  first at IC 300 in 7 of 8 runs (default search, noise 0.3, seeds 0-3, 1000 whisks;
+  the final exploring copy below then gave 8 of 8).
+* **The exploring copy** (:meth:`KnownObject.exploring_model`): the array meets an
+  object in an unknown frame, so the copy has no pose prior and its pose cells start
+  at the initial packet (:meth:`WhiskerRatSLAM.library` of the map alone), and a
+  whisk that matches a stored region (Eq 5.5) re-localises to that region's experience
+  nearest the packet whatever the pose-cell distance (``match_distance_cells`` =
+  :func:`any_distance_cells`). With the map's 1-cell rule the packet is rarely within a
+  cell of the stored location (the pose cells do not hold a pose consistent with the
+  map's frame, :mod:`cansim.whisker_ratslam`): of 186 matches to the right object's
+  stored regions 27 re-localised, the rest made new experiences (11 matches to the other
+  object's; 400 whisks, seeds 0-1), and no IC reached 100 in 1000 whisks (8 runs).
 """
 
 from __future__ import annotations
@@ -38,7 +60,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -47,13 +69,13 @@ from cansim.explore.placement import PlacementParams, place
 from cansim.explore.search import (
     STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
 )
-from cansim.whisker_ratslam import WhiskerRatSLAM
+from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
 from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
 from whisker_io.errors import SafetyViolationError
 from whisker_io.pose import Pose
 
-__all__ = ["KnownObject", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
+__all__ = ["KnownObject", "any_distance_cells", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -93,6 +115,37 @@ class KnownObject:
                 self._snapshot = {k: z[k] for k in z.files}
         return WhiskerRatSLAM.from_arrays(self._snapshot)  # type: ignore[return-value]
 
+    def exploring_model(self) -> WhiskerRatSLAM:
+        """The model that recognises this object while an unknown object is explored (module docstring).
+
+        :meth:`WhiskerRatSLAM.library` of a :meth:`fresh_model` alone: the pose cells at
+        the initial packet, every region's decay at the floor, no pose prior (the array
+        is brought to an object in an unknown frame), and the map re-localising to the
+        matched region's experience nearest the packet at any pose-cell distance
+        (``match_distance_cells`` beyond the grid's largest wrapped distance,
+        :func:`any_distance_cells`). Experience and region ids are the map's own.
+        """
+        m = self.fresh_model()
+        cfg = replace(m.config, match_distance_cells=any_distance_cells(m.config.shape))
+        return WhiskerRatSLAM.library([m], [self.name], cfg)[0]
+
+
+def any_distance_cells(shape: Sequence[int]) -> float:
+    """A match distance (cells) above every wrapped distance on a grid of ``shape``: ``|shape / 2| + 1``.
+
+    Raises
+    ------
+    InvalidInputError
+        ``shape`` is not a non-empty sequence of positive integers.
+    """
+    try:
+        dims = [int(n) for n in shape if not isinstance(n, bool) and int(n) == n and n > 0]
+    except (TypeError, ValueError):
+        dims = []
+    if not dims or len(dims) != len(shape):
+        raise InvalidInputError(f"shape must be positive integers (cells per axis), got {shape!r}")
+    return float(math.hypot(*(n / 2.0 for n in dims))) + 1.0
+
 
 def build_object_model(
     name: str,
@@ -101,16 +154,19 @@ def build_object_model(
     odometry: Odometry,
     *,
     placement: PlacementParams | None = PlacementParams(roll_rad=math.pi / 2),
-    adjustments_per_pose: int = 1,
+    adjustments_per_pose: int = 10,
     model: WhiskerRatSLAM | None = None,
 ) -> KnownObject:
-    """Map an object along ``trajectory`` (two loops over its fitted ellipsoid), with the SPC.
+    """Map an object along ``trajectory`` (two loops over the faces of its fitted ellipsoid), with the SPC.
+
+    Every whisk (the face poses and the SPC's adjustments) is one WhiskerRatSLAM step.
 
     Parameters
     ----------
     name : str
     trajectory : sequence of Pose
-        Whisk poses (world), e.g. ``object_trajectory(mesh, "A", n_loops=2)``.
+        Whisk poses (world): the thesis' mapping run (Sec 6.1.3.1) is
+        ``DefaultSearch(c, r, mesh=mesh, semi_axes_m=fit_surface(mesh).semi_axes_m).tour(2)``.
     sensor : callable
         ``sensor(pose) -> RegionFeatures``.
     odometry : callable
@@ -118,13 +174,19 @@ def build_object_model(
     placement : PlacementParams or None
         SPC parameters (None: SPC off).
     adjustments_per_pose : int
-        SPC corrections (extra whisks) at each pose.
+        SPC corrections (extra whisks) at each pose, until its goal is the current pose
+        (the SPC's conditions are met) or this many were made (default 10: the physical
+        runs' limit, Sec 6.1.4; in simulation the array "moved on to the closest
+        unvisited face" once the conditions were met, Sec 6.1.3.1).
     model : WhiskerRatSLAM, optional
-        Default ``WhiskerRatSLAM(cell_size_m=0.03)``.
+        Default ``WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))``: one object
+        mapped in one frame (pose-consistent matching, see :mod:`cansim.whisker_ratslam`).
     """
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
-    slam = model if model is not None else WhiskerRatSLAM(cell_size_m=0.03)
+    if isinstance(adjustments_per_pose, bool) or not isinstance(adjustments_per_pose, (int, np.integer)) or adjustments_per_pose < 0:
+        raise ConfigError(f"adjustments_per_pose must be an integer >= 0, got {adjustments_per_pose!r}")
+    slam = model if model is not None else WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
     prev: Pose | None = None
     visited: list[Pose] = []
 
@@ -236,7 +298,8 @@ class Explorer:
     Parameters
     ----------
     known : sequence of KnownObject
-        Mapped objects; each model is copied (:meth:`KnownObject.fresh_model`), so one set of maps serves many runs.
+        Mapped objects; each is recognised by its own copy (:meth:`KnownObject.exploring_model`),
+        so one set of maps serves many runs.
     sensor : callable
         ``sensor(pose) -> RegionFeatures`` (contact points in the end-effector frame).
     arm : whisker_io.hw.arm.Arm
@@ -284,7 +347,7 @@ class Explorer:
             raise ConfigError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
         if not (stop_threshold > 0 and time_limit_s > 0):
             raise ConfigError("stop_threshold and time_limit_s must be > 0")
-        self.models = [k.fresh_model() for k in known]
+        self.models = [k.exploring_model() for k in known]
         self.views = [ObjectView(m.object_map, m.frontend, k.n_built, k.n_built_regions, k.n_history)
                       for m, k in zip(self.models, known)]
         self.sensor, self.arm, self.odometry = sensor, arm, odometry
