@@ -143,6 +143,15 @@ def _parse_value(key: str, value: str, kind: str, lineno: int) -> Any:
         raise ConfigError(f"line {lineno}: {key}={value!r} is malformed (expected {expected})") from None
 
 
+def _by_part(values: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """OpenRatSLAM ``{key: value}`` -> ``{"": fields, "attractor": ..., "frontend": ...}`` by the key table."""
+    parts: dict[str, dict[str, Any]] = {"": {}, "attractor": {}, "frontend": {}}
+    for key, value in values.items():
+        part, _, name = OPENRATSLAM_KEYS[key].field.rpartition(".")
+        parts[part][name] = value
+    return parts
+
+
 def _read(text: str) -> dict[str, tuple[Any, int]]:
     """``{key: (value, line)}`` of the known keys; unknown keys warned about."""
     values: dict[str, tuple[Any, int]] = {}
@@ -180,10 +189,7 @@ def read_openratslam_text(text: str, **overrides: Any) -> RatSLAMConfig:
     """
     RatSLAMConfig.check_names(overrides)
     values = _read(text)
-    parts: dict[str, dict[str, Any]] = {"": {}, "attractor": {}, "frontend": {}}
-    for key, (value, _) in values.items():
-        part, _, name = OPENRATSLAM_KEYS[key].field.rpartition(".")
-        parts[part][name] = value
+    parts = _by_part({key: value for key, (value, _) in values.items()})
     try:  # the file's values first, so that an error is the file's
         cfg = RatSLAMConfig(
             **parts[""],
@@ -225,15 +231,9 @@ def config_from_flat_dict(d: dict[str, Any]) -> RatSLAMConfig:
     """
     from cansim.frontends.tactile import TactileTemplateConfig
 
-    parts: dict[str, dict[str, Any]] = {"": {}, "attractor": {}, "frontend": {}}
-    for key, value in d.items():
-        if key in OPENRATSLAM_KEYS:
-            part, _, name = OPENRATSLAM_KEYS[key].field.rpartition(".")
-            if OPENRATSLAM_KEYS[key].kind == "edge" and value == -1:
-                value = None
-            parts[part][name] = value
-        else:
-            parts[""][key] = value
+    legacy = {k: None if OPENRATSLAM_KEYS[k].kind == "edge" and v == -1 else v for k, v in d.items() if k in OPENRATSLAM_KEYS}
+    parts = _by_part(legacy)
+    parts[""].update({k: v for k, v in d.items() if k not in OPENRATSLAM_KEYS})
     kind = parts[""].pop("frontend", "ids")
     if kind == "visual":
         frontend: Any = VisualTemplateConfig(**parts["frontend"])
