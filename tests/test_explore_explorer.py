@@ -33,7 +33,7 @@ def test_bad_traces(bad):
 
 
 # ------------------------------------------------------------------ the loop (SimArm, Box)
-from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis import example, given, settings, strategies as st  # noqa: E402
 
 from cansim.explore.explorer import Explorer, build_object_model  # noqa: E402
 from cansim.explore.placement import PlacementParams  # noqa: E402
@@ -229,6 +229,8 @@ def test_any_distance_exceeds_every_wrapped_distance(shape, seed):
 
 
 @settings(max_examples=25, deadline=None)
+@example([math.inf])
+@example([2.0, -math.inf, 5])
 @given(st.one_of(st.just([]), st.lists(st.one_of(st.integers(-3, 0), st.floats(allow_nan=True).filter(lambda x: not (math.isfinite(x) and x > 0 and x == int(x))),
                                                      st.text(max_size=2), st.booleans()), min_size=1, max_size=3)))
 def test_any_distance_bad_shapes_typed(shape):

@@ -139,8 +139,8 @@ def any_distance_cells(shape: Sequence[int]) -> float:
         ``shape`` is not a non-empty sequence of positive integers.
     """
     try:
-        dims = [int(n) for n in shape if not isinstance(n, bool) and int(n) == n and n > 0]
-    except (TypeError, ValueError):
+        dims = [int(n) for n in shape if not isinstance(n, bool) and math.isfinite(n) and int(n) == n and n > 0]
+    except (TypeError, ValueError, OverflowError):
         dims = []
     if not dims or len(dims) != len(shape):
         raise InvalidInputError(f"shape must be positive integers (cells per axis), got {shape!r}")
