@@ -11,6 +11,14 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 from cansim.backends import available_backends, get_backend  # noqa: E402
 from cansim.errors import BackendUnavailableError  # noqa: E402
 
+from hypothesis import settings  # noqa: E402
+
+#: Hypothesis profiles. "default" draws new examples on every run, so local runs keep
+#: searching for bad inputs; "ci" (``.ci/run`` sets ``CANSIM_HYPOTHESIS_PROFILE=ci``) draws
+#: the same examples on every machine, so a landing is judged on what was run before it.
+settings.register_profile("ci", derandomize=True, print_blob=True)
+settings.load_profile(os.environ.get("CANSIM_HYPOTHESIS_PROFILE", "default"))
+
 pytest_plugins = ["cansim.testing.plugin"]  # candidate / reference fixtures of the conformance suite
 
 
