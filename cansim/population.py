@@ -13,7 +13,7 @@ from cansim.backends import Backend, get_backend
 from cansim.backends.base import RunInputs
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
 from cansim.path_integration import (
     MotionModel,
     MotionShifts,
@@ -356,15 +356,16 @@ class Population:
         self._commit(self._backend.shift_conditional(self._a, ax, sh, out=self._spare))
 
     def _check_conditional(self, shift_axes, shifts) -> tuple[tuple[int, ...], np.ndarray]:
-        ax = tuple(int(a) for a in shift_axes)
+        try:
+            if isinstance(shift_axes, (str, bytes)):
+                raise TypeError
+            ax = tuple(whole_number(a, "shift_axes") for a in shift_axes)
+        except TypeError:
+            raise InvalidInputError(f"shift_axes must be a sequence of axis indices, got {shift_axes!r}") from None
         if not ax or list(ax) != sorted(set(ax)) or ax[0] < 0 or ax[-1] >= self.ndim:
             raise InvalidInputError(f"shift_axes must be distinct ascending axes in [0, {self.ndim}), got {ax}")
         cond_shape = tuple(n for i, n in enumerate(self.shape) if i not in ax)
-        sh = np.ascontiguousarray(shifts, dtype=np.float64)
-        if sh.shape != cond_shape + (len(ax),):
-            raise ShapeError(f"shifts must have shape {cond_shape + (len(ax),)}, got {sh.shape}")
-        if not np.all(np.isfinite(sh)):
-            raise InvalidInputError("shifts must be finite")
+        sh = np.ascontiguousarray(finite_array(shifts, cond_shape + (len(ax),), "shifts"))
         _check_shift(sh, "conditional")
         return ax, sh
 

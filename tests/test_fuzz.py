@@ -19,7 +19,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from cansim import Axis, CansimError, Population, RatSLAM, RatSLAMConfig
@@ -124,9 +124,54 @@ def test_population_inject_and_shift(backend, index, energy):
 
 @settings(**SETTINGS)
 @given(weird_scalars, weird_scalars)
+@example(10**400, 1.0)  # 2 pi / size: OverflowError
+@example(3, "a")  # Axis(): math.isfinite("a") was a TypeError
+@example(3, 10**400)
 def test_axis_constructors(size, step):
-    for make in (lambda: Axis.angle("a", size), lambda: Axis.linear("x", size, step)):
+    for make in (lambda: Axis.angle("a", size), lambda: Axis.linear("x", size, step), lambda: Axis("a", size, step)):
         guarded(lambda: 0, make)
+
+
+def _small(x):
+    """``x`` with ints above 64 replaced by 9: a grid that large is valid but does not fit in memory."""
+    return 9 if isinstance(x, int) and not isinstance(x, bool) and x > 64 else x
+
+
+#: constructors of the engine's parts, each taking the fuzzed value for one argument, and the kind it accepts
+CONSTRUCTORS = {
+    **{f"LocalViewParams.{name}": ((lambda name: lambda x: LocalViewParams(**{name: x}))(name), kind)
+       for name, kind in (("inject_energy", float), ("active_decay", float), ("decay_restore", float), ("decay_floor", float),
+                          ("recent_exclusion", int), ("learning_rate", float), ("inject_gain", float),
+                          ("trace_decay", float), ("min_weight", float), ("cpp_unsigned_recent", bool))},
+    "PosecellNetwork.dim_xy": (lambda x: PosecellNetwork(_small(x), 12, 0.1), int),
+    "PosecellNetwork.dim_th": (lambda x: PosecellNetwork(9, _small(x), 0.1), int),
+    "PosecellNetwork.cell_size": (lambda x: PosecellNetwork(9, 12, x), float),
+    "PosecellNetwork.decode_window": (lambda x: PosecellNetwork(9, 12, 0.1, decode_window=_small(x)), int),
+}
+
+
+@settings(**{**SETTINGS, "max_examples": max(1, N // 2)})
+@given(st.sampled_from(sorted(CONSTRUCTORS)), weird_scalars)
+@example("LocalViewParams.recent_exclusion", math.inf)  # int(inf): OverflowError
+@example("LocalViewParams.recent_exclusion", 2.5)  # silently truncated to 2
+@example("LocalViewParams.inject_energy", "a")  # math.isfinite("a"): TypeError
+@example("LocalViewParams.active_decay", 10**400)  # OverflowError
+@example("PosecellNetwork.decode_window", math.inf)  # int(inf): OverflowError
+@example("PosecellNetwork.dim_xy", "a")  # ValueError
+@example("PosecellNetwork.cell_size", "a")  # TypeError
+def test_part_constructors_refuse_bad_numbers_with_typed_errors(name, x):
+    make, kind = CONSTRUCTORS[name]
+    if guarded(lambda: 0, lambda: make(x)) is None:
+        return
+    if name == "LocalViewParams.decay_floor" and x is None:  # None: no floor
+        return
+    # accepted: a value of the argument's kind (no bool for a number, no 2.5 for a count, no NaN/inf, no text)
+    if kind is bool:
+        assert isinstance(x, bool)
+    elif kind is int:
+        assert isinstance(x, int) and not isinstance(x, bool)
+    else:
+        assert isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 # ------------------------------------------------------------------ models
