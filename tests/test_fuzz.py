@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 import zipfile
 
 import numpy as np
@@ -22,7 +23,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from cansim import Axis, CansimError, Population, RatSLAM, RatSLAMConfig
+from cansim import AttractorParams, Axis, CansimError, Population, RatSLAM, RatSLAMConfig
 from cansim.frontends.ids import IdsFrontEnd
 from cansim.frontends.tactile import TactileTemplates
 from cansim.frontends.whisk import WhiskFrontEnd
@@ -137,12 +138,22 @@ def _small(x):
     return 9 if isinstance(x, int) and not isinstance(x, bool) and x > 64 else x
 
 
+def _stepped(params):
+    """The activity of a 12-cell ring of ``params`` after one step (NaN if the kernels are NaN)."""
+    pop = Population((Axis.angle("a", 12),), params, backend="numpy")
+    pop.step(velocity=0.1, dt=1.0)
+    return pop.activity
+
+
 #: constructors of the engine's parts, each taking the fuzzed value for one argument, and the kind it accepts
 CONSTRUCTORS = {
     **{f"LocalViewParams.{name}": ((lambda name: lambda x: LocalViewParams(**{name: x}))(name), kind)
        for name, kind in (("inject_energy", float), ("active_decay", float), ("decay_restore", float), ("decay_floor", float),
                           ("recent_exclusion", int), ("learning_rate", float), ("inject_gain", float),
                           ("trace_decay", float), ("min_weight", float), ("cpp_unsigned_recent", bool))},
+    **{f"AttractorParams.{name}": ((lambda name: lambda x: _stepped(AttractorParams(**{name: x})))(name), kind)
+       for name, kind in (("exc_width", "whole"), ("inh_width", "whole"), ("exc_sigma", float), ("inh_sigma", float),
+                          ("global_inhibition", float))},
     "PosecellNetwork.dim_xy": (lambda x: PosecellNetwork(_small(x), 12, 0.1), int),
     "PosecellNetwork.dim_th": (lambda x: PosecellNetwork(9, _small(x), 0.1), int),
     "PosecellNetwork.cell_size": (lambda x: PosecellNetwork(9, 12, x), float),
@@ -156,13 +167,21 @@ CONSTRUCTORS = {
 @example("LocalViewParams.recent_exclusion", 2.5)  # silently truncated to 2
 @example("LocalViewParams.inject_energy", "a")  # math.isfinite("a"): TypeError
 @example("LocalViewParams.active_decay", 10**400)  # OverflowError
+@example("AttractorParams.exc_width", math.inf)  # int(inf): OverflowError
+@example("AttractorParams.exc_width", 7.5)  # silently truncated to 7
+@example("AttractorParams.exc_width", 10**17 + 1)  # 1e17 taps: MemoryError
+@example("AttractorParams.inh_sigma", 10**400)  # OverflowError
+@example("AttractorParams.exc_sigma", 1e-300)  # sigma^2 underflows: a NaN kernel (RuntimeWarning), NaN activity
+@example("AttractorParams.global_inhibition", "a")  # math.isfinite("a"): TypeError
 @example("PosecellNetwork.decode_window", math.inf)  # int(inf): OverflowError
 @example("PosecellNetwork.dim_xy", "a")  # ValueError
 @example("PosecellNetwork.cell_size", "a")  # TypeError
 def test_part_constructors_refuse_bad_numbers_with_typed_errors(name, x):
     make, kind = CONSTRUCTORS[name]
-    if guarded(lambda: 0, lambda: make(x)) is None:
-        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # numpy's overflow/invalid warnings flag a NaN in the making
+        if guarded(lambda: 0, lambda: make(x)) is None:
+            return
     if name == "LocalViewParams.decay_floor" and x is None:  # None: no floor
         return
     # accepted: a value of the argument's kind (no bool for a number, no 2.5 for a count, no NaN/inf, no text)
@@ -170,6 +189,8 @@ def test_part_constructors_refuse_bad_numbers_with_typed_errors(name, x):
         assert isinstance(x, bool)
     elif kind is int:
         assert isinstance(x, int) and not isinstance(x, bool)
+    elif kind == "whole":  # a count: 7 or 7.0
+        assert not isinstance(x, bool) and (isinstance(x, int) or (isinstance(x, float) and x.is_integer()))
     else:
         assert isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
