@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 
 from cansim import AttractorParams, Axis, CansimError, Population, RatSLAM, RatSLAMConfig
 from cansim.frontends.ids import IdsFrontEnd
+from cansim.frontends.panoramic import HeadingOffset
 from cansim.frontends.tactile import TactileTemplates
 from cansim.frontends.whisk import WhiskFrontEnd
 from cansim.local_view import LocalViewCells, LocalViewParams
@@ -154,6 +155,11 @@ CONSTRUCTORS = {
     **{f"AttractorParams.{name}": ((lambda name: lambda x: _stepped(AttractorParams(**{name: x})))(name), kind)
        for name, kind in (("exc_width", "whole"), ("inh_width", "whole"), ("exc_sigma", float), ("inh_sigma", float),
                           ("global_inhibition", float))},
+    "IdsFrontEnd.ndim": (lambda x: IdsFrontEnd(x), int),
+    "IdsFrontEnd.heading_axis": (lambda x: IdsFrontEnd(3, heading_axis=x), int),
+    "IdsFrontEnd.heading_cells": (lambda x: IdsFrontEnd(3, 2, x), int),
+    "HeadingOffset.heading_cells": (lambda x: HeadingOffset(TactileTemplates(), 3, 2, x), int),
+    "HeadingOffset.heading_axis": (lambda x: HeadingOffset(TactileTemplates(), 3, x, 36), int),
     "PosecellNetwork.dim_xy": (lambda x: PosecellNetwork(_small(x), 12, 0.1), int),
     "PosecellNetwork.dim_th": (lambda x: PosecellNetwork(9, _small(x), 0.1), int),
     "PosecellNetwork.cell_size": (lambda x: PosecellNetwork(9, 12, x), float),
@@ -173,6 +179,10 @@ CONSTRUCTORS = {
 @example("AttractorParams.inh_sigma", 10**400)  # OverflowError
 @example("AttractorParams.exc_sigma", 1e-300)  # sigma^2 underflows: a NaN kernel (RuntimeWarning), NaN activity
 @example("AttractorParams.global_inhibition", "a")  # math.isfinite("a"): TypeError
+@example("IdsFrontEnd.ndim", math.inf)  # int(inf): OverflowError
+@example("IdsFrontEnd.heading_cells", "a")  # int("a"): ValueError
+@example("IdsFrontEnd.heading_axis", "a")  # accepted, failed later
+@example("HeadingOffset.heading_cells", 2.5)  # silently truncated
 @example("PosecellNetwork.decode_window", math.inf)  # int(inf): OverflowError
 @example("PosecellNetwork.dim_xy", "a")  # ValueError
 @example("PosecellNetwork.cell_size", "a")  # TypeError
@@ -182,7 +192,7 @@ def test_part_constructors_refuse_bad_numbers_with_typed_errors(name, x):
         warnings.simplefilter("error", RuntimeWarning)  # numpy's overflow/invalid warnings flag a NaN in the making
         if guarded(lambda: 0, lambda: make(x)) is None:
             return
-    if name == "LocalViewParams.decay_floor" and x is None:  # None: no floor
+    if name in ("LocalViewParams.decay_floor", "IdsFrontEnd.heading_axis") and x is None:  # None: no floor, no heading
         return
     # accepted: a value of the argument's kind (no bool for a number, no 2.5 for a count, no NaN/inf, no text)
     if kind is bool:
