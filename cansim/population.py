@@ -258,16 +258,7 @@ class Population:
 
     # ---------------------------------------------------------------- resetting
     def _check_index(self, index: IndexLike) -> tuple[int, ...]:
-        try:
-            arr = np.asarray(index)
-            ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
-        except (TypeError, ValueError):
-            ok = False
-        if not ok or arr.dtype.kind == "b":
-            raise InvalidInputError(f"index must be whole cell numbers, one per axis, got {index!r}")
-        if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
-            raise InvalidInputError(f"index {index!r} is out of any grid's range")
-        idx = tuple(int(i) for i in arr.ravel())
+        idx = tuple(whole_cells(index, "index (one whole cell number per axis)").ravel().tolist())
         if len(idx) != self.ndim:
             raise ShapeError(f"index must have {self.ndim} entries (one per axis), got {len(idx)}")
         return tuple(i % n for i, n in zip(idx, self.shape))
@@ -730,6 +721,27 @@ class Population:
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
 
 
+def whole_cells(value: object, what: str) -> np.ndarray:
+    """``value`` as an int64 array of whole cell numbers (an integral float counts), within +-2**62.
+
+    Raises
+    ------
+    InvalidInputError
+        Not numbers (text, ragged lists, bools), NaN/inf, a fraction such as 2.7 (never
+        truncated) or a number out of any grid's range; the message names ``what``.
+    """
+    try:
+        arr = np.asarray(value)
+        ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{what} must be whole cell numbers, got {value!r}")
+    if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
+        raise InvalidInputError(f"{what} {value!r} is out of any grid's range")
+    return arr.astype(np.int64)
+
+
 def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     """Validate an injection pair: 1-D int64 flat indices in ``[0, size)`` and float64 energies >= 0.
 
@@ -742,8 +754,13 @@ def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> 
     InvalidInputError
         An index lies outside the grid or an energy is negative, NaN or infinite.
     """
-    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else np.asarray(flat_index, dtype=np.int64)
-    vals = values if isinstance(values, np.ndarray) and values.dtype == np.float64 else np.asarray(values, dtype=np.float64)
+    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else whole_cells(flat_index, "flat_index")
+    if not (isinstance(values, np.ndarray) and values.dtype == np.float64):
+        try:
+            values = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise InvalidInputError(f"injected values must be numbers, got {values!r}") from None
+    vals = values
     fi, vals = fi.ravel(), vals.ravel()
     if fi.shape != vals.shape:
         raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
