@@ -153,12 +153,16 @@ def test_import_refuses_foreign_or_edited_graphs():
 @example(key="grid_shape", bad=[math.inf])  # int(inf): OverflowError
 @example(key="exc_width", bad=math.inf)  # int(round(inf)): OverflowError
 @example(key="dt_s", bad=10**400)  # float(10**400): OverflowError
+@example(key="lead_table", bad=[])
 def test_import_rejects_malformed_metadata_with_config_error(key, bad):
     pop = SpikingPopulation((Axis.angle("h", 6),), SpikingParams())
     g = to_nir(pop)
     g.metadata["cansim"][key] = bad
     if key == "seed" and bad == 10**400:  # any integer >= 0 is a seed
         assert from_nir(g, backend="numpy").seed == bad
+        return
+    if key == "lead_table" and bad == []:  # no table: the default
+        assert from_nir(g, backend="numpy").params.lead_table == ()
         return
     with pytest.raises(ConfigError):
         from_nir(g, backend="numpy")
