@@ -24,8 +24,9 @@ NORMALISATIONS = ("sum", "pdf", "none")
 #: smallest kernel sigma, cells: below ~1e-154 the sigma^2 of the Gaussian underflows to 0 and the
 #: centre tap is 0/0 = NaN (any sigma far below 1 cell is a one-tap kernel anyway)
 MIN_SIGMA_CELLS = 1e-150
-#: most taps of a 1-D kernel (a wider one is a mistyped width: 1e17 taps would not fit in memory)
-MAX_KERNEL_TAPS = 1_000_001
+#: most taps of a 1-D kernel (a wider one is a mistyped width: 1e17 taps would not fit in memory, and a
+#: 376,717-tap kernel made one step of a 12-cell ring take 16 s)
+MAX_KERNEL_TAPS = 10_001
 
 
 def gaussian_kernel_1d(width: int, sigma: float, *, normalise: str = "sum") -> np.ndarray:

@@ -176,6 +176,7 @@ CONSTRUCTORS = {
 @example("AttractorParams.exc_width", math.inf)  # int(inf): OverflowError
 @example("AttractorParams.exc_width", 7.5)  # silently truncated to 7
 @example("AttractorParams.exc_width", 10**17 + 1)  # 1e17 taps: MemoryError
+@example("AttractorParams.inh_width", 376717)  # a 16-s step (--hypothesis-seed=110, 4x examples)
 @example("AttractorParams.inh_sigma", 10**400)  # OverflowError
 @example("AttractorParams.exc_sigma", 1e-300)  # sigma^2 underflows: a NaN kernel (RuntimeWarning), NaN activity
 @example("AttractorParams.global_inhibition", "a")  # math.isfinite("a"): TypeError
