@@ -36,11 +36,10 @@ class Axis:
     angular: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.size, (int,)) or isinstance(self.size, bool) or self.size < 1:
-            raise InvalidInputError(
-                f"axis {self.name!r}: size must be a positive integer, got {self.size!r}"
-            )
-        if not (math.isfinite(self.step) and self.step > 0):
+        if not isinstance(self.size, (int,)):
+            raise InvalidInputError(f"axis {self.name!r}: size must be a positive integer, got {self.size!r}")
+        _cells(self.name, self.size)
+        if not finite_scalar(self.step, f"axis {self.name!r} step") > 0:
             raise InvalidInputError(
                 f"axis {self.name!r}: step must be a finite positive number "
                 f"(metres or radians per cell), got {self.step!r}"
@@ -66,4 +65,5 @@ class Axis:
 def _cells(name: str, size: object) -> int:
     if isinstance(size, (bool, np.bool_)) or not isinstance(size, (int, np.integer)) or size < 1:
         raise InvalidInputError(f"axis {name!r}: size must be a positive integer, got {size!r}")
+    finite_scalar(size, f"axis {name!r} size")  # the step 2 pi / size and the decoders need it as a float
     return int(size)

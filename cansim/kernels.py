@@ -14,11 +14,19 @@ from typing import Sequence
 import numpy as np
 
 from cansim.errors import InvalidInputError
+from whisker_io.validation import finite_scalar, whole_number
 
 __all__ = ["gaussian_kernel_1d", "SeparableKernel"]
 
 
 NORMALISATIONS = ("sum", "pdf", "none")
+
+#: smallest kernel sigma, cells: below ~1e-154 the sigma^2 of the Gaussian underflows to 0 and the
+#: centre tap is 0/0 = NaN (any sigma far below 1 cell is a one-tap kernel anyway)
+MIN_SIGMA_CELLS = 1e-150
+#: most taps of a 1-D kernel (a wider one is a mistyped width: 1e17 taps would not fit in memory, and a
+#: 376,717-tap kernel made one step of a 12-cell ring take 16 s)
+MAX_KERNEL_TAPS = 10_001
 
 
 def gaussian_kernel_1d(width: int, sigma: float, *, normalise: str = "sum") -> np.ndarray:
@@ -42,10 +50,10 @@ def gaussian_kernel_1d(width: int, sigma: float, *, normalise: str = "sum") -> n
     numpy.ndarray
         Shape ``(width,)``, float64; index ``width//2`` is the centre.
     """
-    if not isinstance(width, (int, np.integer)) or width < 1 or width % 2 == 0:
-        raise InvalidInputError(f"kernel width must be a positive odd integer, got {width!r}")
-    if not (math.isfinite(sigma) and sigma > 0):
-        raise InvalidInputError(f"kernel sigma must be finite and > 0 cells, got {sigma!r}")
+    if not isinstance(width, (int, np.integer)) or width < 1 or width % 2 == 0 or width > MAX_KERNEL_TAPS:
+        raise InvalidInputError(f"kernel width must be a positive odd integer <= {MAX_KERNEL_TAPS}, got {width!r}")
+    if not finite_scalar(sigma, "kernel sigma") >= MIN_SIGMA_CELLS:
+        raise InvalidInputError(f"kernel sigma must be finite and >= {MIN_SIGMA_CELLS:g} cells, got {sigma!r}")
     if normalise not in NORMALISATIONS:
         raise InvalidInputError(f"kernel normalisation must be one of {NORMALISATIONS}, got {normalise!r}")
     d = np.arange(width, dtype=np.float64) - width // 2
@@ -88,7 +96,7 @@ class SeparableKernel:
                 f"got {len(widths)} widths and {len(sigmas)} sigmas"
             )
         taps = tuple(
-            gaussian_kernel_1d(int(w), float(s), normalise=normalise)
+            gaussian_kernel_1d(whole_number(w, "kernel width"), finite_scalar(s, "kernel sigma"), normalise=normalise)
             for w, s in zip(widths, sigmas)
         )
         for t in taps:

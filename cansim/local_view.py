@@ -37,8 +37,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
-from whisker_io.validation import finite_vector
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
+from whisker_io.validation import config_field, finite_array, finite_vector
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -144,21 +144,22 @@ class LocalViewParams:
             raise InvalidInputError(f"mode must be 'stored' or 'learnt', got {self.mode!r}")
         if self.rounding not in ("truncate", "round"):
             raise InvalidInputError(f"rounding must be 'truncate' or 'round', got {self.rounding!r}")
-        if self.decay_floor is not None and not (math.isfinite(self.decay_floor) and self.decay_floor >= 0):
-            raise InvalidInputError(f"decay_floor must be None or finite and >= 0, got {self.decay_floor!r}")
+        config_field(self.decay_floor, "decay_floor", float, minimum=0, optional=True)
         for name in ("inject_energy", "active_decay", "decay_restore", "learning_rate", "inject_gain"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise InvalidInputError(f"{name} must be finite and >= 0, got {v!r}")
-        if not (0.0 <= self.min_weight < 1.0):
-            raise InvalidInputError(f"min_weight must lie in [0, 1), got {self.min_weight!r}")
-        if not (0.0 <= self.trace_decay < 1.0):
-            raise InvalidInputError(f"trace_decay must lie in [0, 1), got {self.trace_decay!r}")
-        if int(self.recent_exclusion) < 0:
-            raise InvalidInputError(f"recent_exclusion must be >= 0, got {self.recent_exclusion!r}")
+            config_field(getattr(self, name), name, float, minimum=0)
+        for name in ("min_weight", "trace_decay"):
+            v = config_field(getattr(self, name), name, float, minimum=0)
+            if not v < 1.0:
+                raise ConfigError(f"{name} must lie in [0, 1), got {v!r}")
+        config_field(self.recent_exclusion, "recent_exclusion", int, minimum=0)
+        for name in ("rise_on_every_match", "decay_per_iteration", "cpp_unsigned_recent", "cpp_cells"):
+            config_field(getattr(self, name), name, bool)
         if self.cpp_cells and (self.mode != "stored" or self.rounding != "truncate"):
             raise InvalidInputError("cpp_cells reproduces OpenRatSLAM's stored-mode truncation; use mode='stored', rounding='truncate'")
 
+
+#: largest learnt weight the float32 rows hold
+_WEIGHT_MAX = float(np.finfo(np.float32).max)
 
 Injection = tuple[np.ndarray, np.ndarray]
 _EMPTY: Injection = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
@@ -422,17 +423,26 @@ class LocalViewCells:
         pose_activity : ndarray, shape ``pose_shape``
             The pose-cell activity P (sparse after global inhibition; only its non-zero
             cells are stored).
+
+        Raises
+        ------
+        ShapeError, InvalidInputError
+            ``pose_activity`` of another shape, not numbers, NaN/inf or negative, or a weight
+            beyond the float32 range of the stored rows; nothing changed.
         """
-        P = np.asarray(pose_activity)
-        if P.shape != self._shape:
-            raise ShapeError(f"pose_activity must have shape {self._shape}, got {P.shape}")
-        flatP = P.ravel()
-        if not np.all(np.isfinite(flatP)) or np.any(flatP < 0):
+        flatP = finite_array(pose_activity, self._shape, "pose_activity").ravel()
+        if np.any(flatP < 0):
             raise InvalidInputError("pose_activity must be finite and >= 0")
         cut = self._params.min_weight * float(flatP.max(initial=0.0))
         nz = np.flatnonzero(flatP > cut)
         vals = flatP[nz].astype(np.float64)
         lam = self._params.learning_rate
+        biggest = lam * float(self._v.max(initial=0.0)) * float(vals.max(initial=0.0))
+        if not biggest <= _WEIGHT_MAX:  # the rows store float32 weights (validate before any row changes)
+            raise InvalidInputError(
+                f"a learnt weight of {biggest:g} (learning_rate x view activity x pose activity) exceeds the float32 "
+                f"range of the stored weights ({_WEIGHT_MAX:g}); lower learning_rate or normalise pose_activity"
+            )
         for i in np.flatnonzero(self._v > 0):
             self._rows[i] = _max_merge(self._rows[i], (nz, lam * self._v[i] * vals))
 

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import math
+import numbers
 from dataclasses import dataclass
 from typing import Sequence, Union
 
 from cansim.errors import InvalidInputError
 from cansim.kernels import NORMALISATIONS, SeparableKernel
+from whisker_io.validation import finite_scalar, whole_number
 
 __all__ = ["AttractorParams"]
 
@@ -15,9 +16,12 @@ PerAxis = Union[int, float, Sequence[float]]
 
 
 def _per_axis(value: PerAxis, ndim: int, name: str) -> tuple[float, ...]:
-    if isinstance(value, (int, float)):
+    if isinstance(value, (numbers.Real, str, bytes)) or value is None:  # one value for every axis (checked later)
         return (value,) * ndim
-    vals = tuple(value)
+    try:
+        vals = tuple(value)
+    except TypeError:
+        raise InvalidInputError(f"{name}: expected a number or one number per axis, got {value!r}") from None
     if len(vals) != ndim:
         raise InvalidInputError(f"{name}: expected a scalar or {ndim} values (one per axis), got {len(vals)}")
     return vals
@@ -59,16 +63,17 @@ class AttractorParams:
     def __post_init__(self) -> None:
         if self.kernel_normalisation not in NORMALISATIONS:
             raise InvalidInputError(f"kernel_normalisation must be one of {NORMALISATIONS}, got {self.kernel_normalisation!r}")
-        if not (math.isfinite(self.global_inhibition) and self.global_inhibition >= 0):
+        if not finite_scalar(self.global_inhibition, "global_inhibition") >= 0:
             raise InvalidInputError(
                 f"global_inhibition must be finite and >= 0, got {self.global_inhibition!r}"
             )
 
     def kernels(self, ndim: int) -> tuple[SeparableKernel, SeparableKernel]:
         """The (excitation, inhibition) separable kernels for an ``ndim``-axis grid."""
-        ew = [int(w) for w in _per_axis(self.exc_width, ndim, "exc_width")]
+        ndim = whole_number(ndim, "ndim", minimum=1)
+        ew = _per_axis(self.exc_width, ndim, "exc_width")
         es = _per_axis(self.exc_sigma, ndim, "exc_sigma")
-        iw = [int(w) for w in _per_axis(self.inh_width, ndim, "inh_width")]
+        iw = _per_axis(self.inh_width, ndim, "inh_width")
         is_ = _per_axis(self.inh_sigma, ndim, "inh_sigma")
         return (
             SeparableKernel.gaussian(ew, es, normalise=self.kernel_normalisation),

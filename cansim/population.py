@@ -13,7 +13,7 @@ from cansim.backends import Backend, get_backend
 from cansim.backends.base import RunInputs
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
 from cansim.path_integration import (
     MotionModel,
     MotionShifts,
@@ -258,16 +258,7 @@ class Population:
 
     # ---------------------------------------------------------------- resetting
     def _check_index(self, index: IndexLike) -> tuple[int, ...]:
-        try:
-            arr = np.asarray(index)
-            ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
-        except (TypeError, ValueError):
-            ok = False
-        if not ok or arr.dtype.kind == "b":
-            raise InvalidInputError(f"index must be whole cell numbers, one per axis, got {index!r}")
-        if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
-            raise InvalidInputError(f"index {index!r} is out of any grid's range")
-        idx = tuple(int(i) for i in arr.ravel())
+        idx = tuple(whole_cells(index, "index (one whole cell number per axis)").ravel().tolist())
         if len(idx) != self.ndim:
             raise ShapeError(f"index must have {self.ndim} entries (one per axis), got {len(idx)}")
         return tuple(i % n for i, n in zip(idx, self.shape))
@@ -356,15 +347,16 @@ class Population:
         self._commit(self._backend.shift_conditional(self._a, ax, sh, out=self._spare))
 
     def _check_conditional(self, shift_axes, shifts) -> tuple[tuple[int, ...], np.ndarray]:
-        ax = tuple(int(a) for a in shift_axes)
+        try:
+            if isinstance(shift_axes, (str, bytes)):
+                raise TypeError
+            ax = tuple(whole_number(a, "shift_axes") for a in shift_axes)
+        except TypeError:
+            raise InvalidInputError(f"shift_axes must be a sequence of axis indices, got {shift_axes!r}") from None
         if not ax or list(ax) != sorted(set(ax)) or ax[0] < 0 or ax[-1] >= self.ndim:
             raise InvalidInputError(f"shift_axes must be distinct ascending axes in [0, {self.ndim}), got {ax}")
         cond_shape = tuple(n for i, n in enumerate(self.shape) if i not in ax)
-        sh = np.ascontiguousarray(shifts, dtype=np.float64)
-        if sh.shape != cond_shape + (len(ax),):
-            raise ShapeError(f"shifts must have shape {cond_shape + (len(ax),)}, got {sh.shape}")
-        if not np.all(np.isfinite(sh)):
-            raise InvalidInputError("shifts must be finite")
+        sh = np.ascontiguousarray(finite_array(shifts, cond_shape + (len(ax),), "shifts"))
         _check_shift(sh, "conditional")
         return ax, sh
 
@@ -729,6 +721,27 @@ class Population:
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
 
 
+def whole_cells(value: object, what: str) -> np.ndarray:
+    """``value`` as an int64 array of whole cell numbers (an integral float counts), within +-2**62.
+
+    Raises
+    ------
+    InvalidInputError
+        Not numbers (text, ragged lists, bools), NaN/inf, a fraction such as 2.7 (never
+        truncated) or a number out of any grid's range; the message names ``what``.
+    """
+    try:
+        arr = np.asarray(value)
+        ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{what} must be whole cell numbers, got {value!r}")
+    if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
+        raise InvalidInputError(f"{what} {value!r} is out of any grid's range")
+    return arr.astype(np.int64)
+
+
 def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     """Validate an injection pair: 1-D int64 flat indices in ``[0, size)`` and float64 energies >= 0.
 
@@ -741,8 +754,13 @@ def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> 
     InvalidInputError
         An index lies outside the grid or an energy is negative, NaN or infinite.
     """
-    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else np.asarray(flat_index, dtype=np.int64)
-    vals = values if isinstance(values, np.ndarray) and values.dtype == np.float64 else np.asarray(values, dtype=np.float64)
+    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else whole_cells(flat_index, "flat_index")
+    if not (isinstance(values, np.ndarray) and values.dtype == np.float64):
+        try:
+            values = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise InvalidInputError(f"injected values must be numbers, got {values!r}") from None
+    vals = values
     fi, vals = fi.ravel(), vals.ravel()
     if fi.shape != vals.shape:
         raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")

@@ -46,6 +46,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
+from whisker_io.validation import config_field
 from cansim.population import checked_injection
 from maps.odometry import MAX_STEP_M, MAX_TURN_RAD
 
@@ -125,6 +126,10 @@ class PosecellNetwork:
 
         w_e_dim, w_i_dim = scalar("exc_width"), scalar("inh_width")
         w_e_var, w_i_var = scalar("exc_sigma"), scalar("inh_sigma")
+        for name, v in (("dim_xy (xy_cells)", dim_xy), ("dim_th (heading_cells)", dim_th)):
+            config_field(v, name, int, minimum=1)
+        config_field(decode_window, "decode_window", int, minimum=0)
+        config_field(cell_size, "cell_size (cell_size_m)", float, above=0, hint="give metres per cell")
         global_inhib, cells_to_avg = float(params.global_inhibition), int(decode_window)
         if params.kernel_normalisation != "sum":
             raise ConfigError("kernel_normalisation must be 'sum' in the OpenRatSLAM engine (the C++ kernels sum to 1)")
@@ -140,8 +145,6 @@ class PosecellNetwork:
                 f"dim_xy and dim_th (xy_cells, heading_cells) must be >= {half_max} (the widest kernel half-width / "
                 f"find_best window), got {dim_xy} and {dim_th}"
             )
-        if not (math.isfinite(cell_size) and cell_size > 0):
-            raise ConfigError(f"cell_size (cell_size_m) must be > 0 m, got {cell_size!r}")
         self._nxy, self._nth = int(dim_xy), int(dim_th)
         self._cell = float(cell_size)
         self._gi = float(global_inhib)

@@ -24,6 +24,7 @@ import numpy as np
 
 from maps.odometry import PlanarOdometry
 from whisker_io.angles import TWO_PI, wrap_scalar
+from whisker_io.validation import config_field
 
 __all__ = ["SE2Geometry", "clip_rad_180", "signed_delta_rad"]
 
@@ -71,9 +72,9 @@ class SE2Geometry:
     link_fields = ("d_m", "heading_rad", "facing_rad")
 
     def __init__(self, initial_heading_deg: float = 90.0, heading_axis: int | None = 2, heading_cells: int = 36) -> None:
-        self.initial_heading_deg = float(initial_heading_deg)
-        self.heading_axis = heading_axis
-        self.heading_cells = int(heading_cells)
+        self.initial_heading_deg = float(config_field(initial_heading_deg, "initial_heading_deg", float))
+        self.heading_axis = config_field(heading_axis, "heading_axis", int, minimum=0, optional=True)
+        self.heading_cells = int(config_field(heading_cells, "heading_cells", int, minimum=1))
 
     def params(self) -> dict[str, Any]:
         """Constructor arguments (saved with the map)."""

@@ -1,10 +1,13 @@
 """Tests of maps.experience_map (OpenRatSLAM experience map, Eq 2.23-2.25)."""
 
+import json
 import math
 
 import networkx as nx
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
 from maps.experience_map import Action, ExperienceMap, MapConfig
@@ -187,6 +190,47 @@ def test_corrupt_map_files_raise_typed_error_naming_field(tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"not a zip file at all")
     with pytest.raises(CorruptFileError):
         ExperienceMap.load(tmp_path / "junk.npz")
+
+
+def _count(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _number(v) -> bool:
+    return (isinstance(v, float) and math.isfinite(v)) or (_count(v) and abs(v) < 1e308)
+
+
+#: which values each configuration entry accepts (independent of the library's validators)
+_ACCEPTS = {
+    "heading_cells": lambda v: _count(v) and v >= 1,
+    "heading_axis": lambda v: _count(v) and v >= 0,
+    "initial_heading_deg": _number,
+    "correction": lambda v: _number(v) and 0 < v <= 1,
+    "relax_passes": lambda v: _count(v) and v >= 0,
+    "match_distance_cells": lambda v: _number(v) and v >= 0,
+    "relax_budget": lambda v: _count(v) and v >= 1,
+}
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["geometry_params.heading_cells", "geometry_params.initial_heading_deg", "geometry_params.heading_axis",
+                        "map.correction", "map.relax_passes", "map.match_distance_cells", "map.relax_budget"]),
+       st.sampled_from([math.inf, -math.inf, math.nan, "a", [], {}, 2.5, -1, 10**400]))
+@example("geometry_params.heading_cells", math.inf)  # int(inf): OverflowError instead of CorruptFileError
+@example("geometry_params.initial_heading_deg", 10**400)  # float(10**400): OverflowError
+@example("geometry_params.heading_cells", "36")  # int("36") was accepted
+def test_a_bad_number_in_the_saved_configuration_is_a_corrupt_file(where, value):
+    """JSON reads Infinity, NaN, 1e400 and any int: each bad one must be a CorruptFileError naming the config."""
+    arrays = square_map().to_arrays()
+    spec = json.loads(str(arrays["config"]))
+    part, key = where.split(".")
+    spec[part][key] = value
+    arrays["config"] = np.array(json.dumps(spec))
+    if _ACCEPTS[key](value):
+        ExperienceMap.from_arrays(arrays)
+        return
+    with pytest.raises(CorruptFileError, match="config"):
+        ExperienceMap.from_arrays(arrays)
 
 
 def test_bad_odometry_leaves_state_unchanged():

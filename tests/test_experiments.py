@@ -8,6 +8,7 @@ Eq 2.18's weights without traces, or the absence of any input.
 from __future__ import annotations
 
 import importlib
+import warnings
 import tomllib
 from pathlib import Path
 
@@ -168,7 +169,8 @@ def test_sweep_specs_name_real_parameters_and_metrics():
 
 # ------------------------------------------------------------------------ bad input
 BAD_VALUES = st.one_of(st.none(), st.text(max_size=3), st.just(float("nan")), st.just(float("inf")),
-                       st.just([1, 2]), st.just(-10**9), st.just(10**12))
+                       st.just([1, 2]), st.just(-10**9), st.just(10**12), st.just(10**400), st.just(1e300),
+                       st.just(1e-300))
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -182,6 +184,22 @@ def test_bad_parameters_raise_typed_errors(module, data):
         assert str(exc)
     else:  # a value that is valid after all (e.g. a huge kernel sigma): finite metrics, never NaN
         assert all(np.isfinite(v) for v in result.values() if isinstance(v, float))
+
+
+@pytest.mark.parametrize("module, key, value", [
+    (bump, "exc_sigma_cells", 10**400),  # float(10**400): OverflowError
+    (lv_interference, "learning_rate", 1e300),  # float32 weights overflowed to inf
+    (lv_interference, "learning_rate", 1e-300),  # float32 totals: 0/0 warnings
+])
+def test_huge_and_tiny_numbers_are_typed_errors_or_finite_results(module, key, value):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        try:
+            result = module.run({key: value}, 0)
+        except CansimError as exc:
+            assert str(exc)
+        else:
+            assert all(np.isfinite(v) for v in result.values() if isinstance(v, float))
 
 
 @settings(max_examples=20, deadline=None)

@@ -179,6 +179,30 @@ def test_explorer_bad_arguments_are_typed(world, max_iterations, strategy):
         Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy=strategy, max_iterations=max_iterations)
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from(["max_adjustments", "max_replans", "stop_threshold", "time_limit_s"]),
+       st.one_of(st.integers(-3, 0), st.floats(allow_nan=True), st.text(max_size=3), st.booleans(), st.none()))
+@example("max_adjustments", math.inf)  # was an OverflowError
+@example("max_replans", "a")  # was a ValueError
+@example("stop_threshold", 10**400)  # was an OverflowError
+def test_explorer_bad_limits_are_typed(world, name, value):
+    known, _ = world
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        valid = False
+    elif name in ("max_adjustments", "max_replans"):
+        valid = isinstance(value, int) and value >= 0
+    elif isinstance(value, int):  # the drawn ints are <= 0; 10**400 is not a float
+        valid = False
+    else:  # a positive number; math.inf is no limit
+        valid = value > 0
+    make = lambda: Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), **{name: value})  # noqa: E731
+    if valid:
+        assert getattr(make(), name) == value
+    else:
+        with pytest.raises(CansimError):
+            make()
+
+
 def test_empty_known_and_short_trajectory_are_typed():
     with pytest.raises(CansimError):
         Explorer([], None, None, None, DefaultSearch((0, 0, 0), 0.3))

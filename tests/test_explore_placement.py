@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -174,6 +174,8 @@ def test_reference_point_tilted_wall_turns_where_the_origin_would_not():
 
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=2)), min_size=0, max_size=4))
+@example([0.0, 0.0, "0"])  # np.asarray(dtype=float) parsed the text "0" as a number (--hypothesis-seed=109, 4x examples)
+@example([0.0, 0.0, 10**400])  # an int too large for a float
 def test_bad_reference_point_is_a_config_error(values):
     ok = len(values) == 3 and all(isinstance(v, float) and math.isfinite(v) and abs(v) <= 10 for v in values)
     if ok:
@@ -181,6 +183,11 @@ def test_bad_reference_point_is_a_config_error(values):
     else:
         with pytest.raises(ConfigError):
             PlacementParams(reference_point_m=tuple(values))
+    # the up direction: any 3 finite numbers, not all zero
+    up_ok = len(values) == 3 and all(isinstance(v, float) and math.isfinite(v) for v in values) and any(values)
+    if not up_ok:
+        with pytest.raises(ConfigError):
+            PlacementParams(up=tuple(values))
 
 
 # ------------------------------------------------------- cone calibrated on the array (decision)

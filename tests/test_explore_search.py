@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import networkx as nx
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from cansim.errors import CansimError, ConfigError
 from cansim.explore.search import (
@@ -147,18 +147,28 @@ def test_switching_rules():
 
 @settings(max_examples=40, deadline=None)
 @given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.none()))
+@example(1e300)  # a huge semi-axis overflowed the norms: NaN/inf face directions and distances, no error
+@example(10**400)  # an int too large for a float: OverflowError
+@example(math.inf)  # subdivisions: OverflowError
 def test_bad_constructor_input_typed(x):
     for make in (lambda: FollowExperienceHistory(step_m=x), lambda: LeastSimilarRegion(step_m=x),
-                 # reach_m None is valid (one step): None stands for a negative reach here
+                 # reach_m / seed None is valid (one step / a fresh seed), so is a huge int seed:
+                 # a negative value stands for them here
                  lambda: FollowExperienceHistory(reach_m=-1.0 if x is None else x),
                  lambda: LeastSimilarRegion(reach_m=-1.0 if x is None else x),
                  lambda: DefaultSearch([0, 0, x], 0.2), lambda: DefaultSearch([0, 0, 0], x),
-                 lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2])):
+                 lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2]),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, clearance_m=x),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, subdivisions=x),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, seed=-1 if x is None or isinstance(x, int) else x)):
         try:
-            make()
+            made = make()
         except CansimError:
             continue
         assert isinstance(x, float) and math.isfinite(x)
+        if isinstance(made, DefaultSearch):  # every face has a finite pose
+            assert np.isfinite(made.directions).all() and np.isfinite(made.distance_m).all()
+            assert np.isfinite(made.face_pose(0).position_m).all()
 
 
 def test_ellipsoid_faces_and_the_mapping_tour():

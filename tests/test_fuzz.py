@@ -15,15 +15,17 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 import zipfile
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from cansim import Axis, CansimError, Population, RatSLAM, RatSLAMConfig
+from cansim import AttractorParams, Axis, CansimError, Population, RatSLAM, RatSLAMConfig
 from cansim.frontends.ids import IdsFrontEnd
+from cansim.frontends.panoramic import HeadingOffset
 from cansim.frontends.tactile import TactileTemplates
 from cansim.frontends.whisk import WhiskFrontEnd
 from cansim.local_view import LocalViewCells, LocalViewParams
@@ -124,9 +126,84 @@ def test_population_inject_and_shift(backend, index, energy):
 
 @settings(**SETTINGS)
 @given(weird_scalars, weird_scalars)
+@example(10**400, 1.0)  # 2 pi / size: OverflowError
+@example(3, "a")  # Axis(): math.isfinite("a") was a TypeError
+@example(3, 10**400)
 def test_axis_constructors(size, step):
-    for make in (lambda: Axis.angle("a", size), lambda: Axis.linear("x", size, step)):
+    for make in (lambda: Axis.angle("a", size), lambda: Axis.linear("x", size, step), lambda: Axis("a", size, step)):
         guarded(lambda: 0, make)
+
+
+def _small(x):
+    """``x`` with ints above 64 replaced by 9: a grid that large is valid but does not fit in memory."""
+    return 9 if isinstance(x, int) and not isinstance(x, bool) and x > 64 else x
+
+
+def _stepped(params):
+    """The activity of a 12-cell ring of ``params`` after one step (NaN if the kernels are NaN)."""
+    pop = Population((Axis.angle("a", 12),), params, backend="numpy")
+    pop.step(velocity=0.1, dt=1.0)
+    return pop.activity
+
+
+#: constructors of the engine's parts, each taking the fuzzed value for one argument, and the kind it accepts
+CONSTRUCTORS = {
+    **{f"LocalViewParams.{name}": ((lambda name: lambda x: LocalViewParams(**{name: x}))(name), kind)
+       for name, kind in (("inject_energy", float), ("active_decay", float), ("decay_restore", float), ("decay_floor", float),
+                          ("recent_exclusion", int), ("learning_rate", float), ("inject_gain", float),
+                          ("trace_decay", float), ("min_weight", float), ("cpp_unsigned_recent", bool))},
+    **{f"AttractorParams.{name}": ((lambda name: lambda x: _stepped(AttractorParams(**{name: x})))(name), kind)
+       for name, kind in (("exc_width", "whole"), ("inh_width", "whole"), ("exc_sigma", float), ("inh_sigma", float),
+                          ("global_inhibition", float))},
+    "IdsFrontEnd.ndim": (lambda x: IdsFrontEnd(x), int),
+    "IdsFrontEnd.heading_axis": (lambda x: IdsFrontEnd(3, heading_axis=x), int),
+    "IdsFrontEnd.heading_cells": (lambda x: IdsFrontEnd(3, 2, x), int),
+    "HeadingOffset.heading_cells": (lambda x: HeadingOffset(TactileTemplates(), 3, 2, x), int),
+    "HeadingOffset.heading_axis": (lambda x: HeadingOffset(TactileTemplates(), 3, x, 36), int),
+    "PosecellNetwork.dim_xy": (lambda x: PosecellNetwork(_small(x), 12, 0.1), int),
+    "PosecellNetwork.dim_th": (lambda x: PosecellNetwork(9, _small(x), 0.1), int),
+    "PosecellNetwork.cell_size": (lambda x: PosecellNetwork(9, 12, x), float),
+    "PosecellNetwork.decode_window": (lambda x: PosecellNetwork(9, 12, 0.1, decode_window=_small(x)), int),
+}
+
+
+@settings(**{**SETTINGS, "max_examples": max(1, N // 2)})
+@given(st.sampled_from(sorted(CONSTRUCTORS)), weird_scalars)
+@example("LocalViewParams.recent_exclusion", math.inf)  # int(inf): OverflowError
+@example("LocalViewParams.recent_exclusion", 2.5)  # silently truncated to 2
+@example("LocalViewParams.inject_energy", "a")  # math.isfinite("a"): TypeError
+@example("LocalViewParams.active_decay", 10**400)  # OverflowError
+@example("AttractorParams.exc_width", math.inf)  # int(inf): OverflowError
+@example("AttractorParams.exc_width", 7.5)  # silently truncated to 7
+@example("AttractorParams.exc_width", 10**17 + 1)  # 1e17 taps: MemoryError
+@example("AttractorParams.inh_width", 376717)  # a 16-s step (--hypothesis-seed=110, 4x examples)
+@example("AttractorParams.inh_sigma", 10**400)  # OverflowError
+@example("AttractorParams.exc_sigma", 1e-300)  # sigma^2 underflows: a NaN kernel (RuntimeWarning), NaN activity
+@example("AttractorParams.global_inhibition", "a")  # math.isfinite("a"): TypeError
+@example("IdsFrontEnd.ndim", math.inf)  # int(inf): OverflowError
+@example("IdsFrontEnd.heading_cells", "a")  # int("a"): ValueError
+@example("IdsFrontEnd.heading_axis", "a")  # accepted, failed later
+@example("HeadingOffset.heading_cells", 2.5)  # silently truncated
+@example("PosecellNetwork.decode_window", math.inf)  # int(inf): OverflowError
+@example("PosecellNetwork.dim_xy", "a")  # ValueError
+@example("PosecellNetwork.cell_size", "a")  # TypeError
+def test_part_constructors_refuse_bad_numbers_with_typed_errors(name, x):
+    make, kind = CONSTRUCTORS[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # numpy's overflow/invalid warnings flag a NaN in the making
+        if guarded(lambda: 0, lambda: make(x)) is None:
+            return
+    if name in ("LocalViewParams.decay_floor", "IdsFrontEnd.heading_axis") and x is None:  # None: no floor, no heading
+        return
+    # accepted: a value of the argument's kind (no bool for a number, no 2.5 for a count, no NaN/inf, no text)
+    if kind is bool:
+        assert isinstance(x, bool)
+    elif kind is int:
+        assert isinstance(x, int) and not isinstance(x, bool)
+    elif kind == "whole":  # a count: 7 or 7.0
+        assert not isinstance(x, bool) and (isinstance(x, int) or (isinstance(x, float) and x.is_integer()))
+    else:
+        assert isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 # ------------------------------------------------------------------ models

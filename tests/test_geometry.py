@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -72,6 +74,13 @@ def test_duplicate_modules_raise_typed_error(arr):
         ({"base_position_m": [0.0, 0.1]}, "base_position_m"),
         ({"base_rotation": np.diag([1.0, 1.0, -1.0])}, "proper rotation"),
         ({"base_position_m": [0.0, 0.2, 0.0]}, "array axis"),
+        # were OverflowError / ValueError (CI-style fuzzing): an int too large for a float, text, inf
+        ({"length_m": 10**400}, "length_m"),
+        ({"length_m": "0.1"}, "length_m"),
+        ({"row": math.inf}, "row"),
+        ({"row": "1"}, "row"),
+        ({"base_position_m": ["a", 0.2, 0.0]}, "base_position_m"),
+        ({"base_rotation": [["a"] * 3] * 3}, "base_rotation"),
     ],
 )
 def test_bad_module_definitions(kwargs, msg):

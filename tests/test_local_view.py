@@ -116,6 +116,20 @@ def test_learnt_view_re_anchors_a_blank_network(preset, centre):
     assert np.all(np.abs(err) < 0.5)
 
 
+@pytest.mark.parametrize("rate, activity", [(1e300, [0.2, 0.0, 0.6, 0.0]), (1.0, [1e39, 0.0, 0.0, 0.0]),
+                                            (1.0, ["a", 0.0, 0.0, 0.0]), (1.0, [math.nan, 0.0, 0.0, 0.0])])
+def test_a_weight_beyond_float32_or_a_bad_activity_is_refused_unchanged(rate, activity):
+    # 1e300 x 0.6 used to be cast to float32 inf (an overflow warning, inf injections later)
+    lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=rate))
+    lv.observe(0, [0.0])
+    lv.learn(np.array([1e-290, 0.0, 0.0, 0.0]))  # a weight of 1e10 at most
+    before = lv.weights.toarray()
+    with pytest.raises(InvalidInputError):
+        lv.learn(np.array(activity, dtype=object))
+    np.testing.assert_array_equal(lv.weights.toarray(), before)
+    assert np.isfinite(before).all()
+
+
 def test_learning_is_elementwise_max_and_injection_averages_active_views():
     lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=0.5, inject_gain=1.0, trace_decay=0.5))
     lv.observe(0, [0.0])

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 nir = pytest.importorskip("nir")
@@ -141,6 +141,31 @@ def test_import_refuses_foreign_or_edited_graphs():
         from_nir(truncated)
     with pytest.raises(ConfigError):
         from_nir({"nodes": {}})
+
+
+@settings(max_examples=30, **HSET)
+@given(
+    key=st.sampled_from(["grid_shape", "axis_steps", "exc_width", "exc_sigma", "inh_width", "global_inhibition", "v_rest",
+                         "refractory_s", "noise_sigma", "recurrent_weight", "global_weight", "velocity_lead_s", "dt_s",
+                         "seed", "lead_table"]),
+    bad=st.sampled_from([math.nan, math.inf, -math.inf, "a", None, [], 10**400, [math.inf]]),
+)
+@example(key="grid_shape", bad=[math.inf])  # int(inf): OverflowError
+@example(key="exc_width", bad=math.inf)  # int(round(inf)): OverflowError
+@example(key="dt_s", bad=10**400)  # float(10**400): OverflowError
+@example(key="lead_table", bad=[])
+def test_import_rejects_malformed_metadata_with_config_error(key, bad):
+    pop = SpikingPopulation((Axis.angle("h", 6),), SpikingParams())
+    g = to_nir(pop)
+    g.metadata["cansim"][key] = bad
+    if key == "seed" and bad == 10**400:  # any integer >= 0 is a seed
+        assert from_nir(g, backend="numpy").seed == bad
+        return
+    if key == "lead_table" and bad == []:  # no table: the default
+        assert from_nir(g, backend="numpy").params.lead_table == ()
+        return
+    with pytest.raises(ConfigError):
+        from_nir(g, backend="numpy")
 
 
 @settings(max_examples=20, **HSET)

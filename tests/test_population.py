@@ -246,6 +246,21 @@ def _bad_calls(pop):
         lambda: pop.inject([1, 2, 3], -1.0),
         lambda: pop.step(injection=(np.array([10**9]), np.array([1.0]))),
         lambda: pop.shift_conditional((0, 1), np.zeros((5, 2))),
+        # axes that are not whole numbers, shifts that are not numbers (were OverflowError/ValueError/TypeError)
+        lambda: pop.shift_conditional((math.inf,), np.zeros(pop.shape[1:] + (1,))),
+        lambda: pop.shift_conditional((0.5,), np.zeros(pop.shape[1:] + (1,))),
+        lambda: pop.shift_conditional(("a",), np.zeros(pop.shape[1:] + (1,))),
+        lambda: pop.shift_conditional(None, np.zeros(pop.shape[1:] + (1,))),
+        lambda: pop.shift_conditional((0,), np.full(pop.shape[1:] + (1,), "a")),
+        lambda: pop.shift_conditional((0,), [[1.0], [1.0, 2.0]]),
+        # flat indices cast with dtype=int64: NaN/inf/1e30 raised ValueError/OverflowError, 2.7 was truncated to 2
+        lambda: pop.inject_flat([math.nan], [0.1]),
+        lambda: pop.inject_flat([math.inf], [0.1]),
+        lambda: pop.inject_flat([1e30], [0.1]),
+        lambda: pop.inject_flat([2.7], [0.1]),
+        lambda: pop.inject_flat(["a"], [0.1]),
+        lambda: pop.inject_flat([1], ["a"]),
+        lambda: pop.step(injection=([2.5], [0.1])),
     ]
 
 

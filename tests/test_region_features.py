@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.distance import pdist
@@ -190,6 +190,7 @@ def test_region_features_constructor_checks_its_invariants():
 # ------------------------------------------------------------- properties
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, N), st.integers(0, 2**32 - 1))
+@example(k=3, seed=2507)  # three contacts all farther apart than radius_m: no pair, an all-zero PFH
 def test_random_whisks_give_consistent_features(k, seed):
     rng = np.random.default_rng(seed)
     pts = rng.uniform(-0.15, 0.15, (k, 3)) + [0.0, 0.25, 0.0]
@@ -199,7 +200,9 @@ def test_random_whisks_give_consistent_features(k, seed):
     f = region_features(pts, slopes, mask)
     assert f.is_observation == (k >= 3) and f.n_contacts == k
     assert f.pfh.min() >= 0.0
-    assert (f.pfh.sum() == pytest.approx(1.0)) if k >= 3 else not f.pfh.any()
+    # the histogram is over the pairs within radius_m (Eq 2.44); with none it is all zero
+    paired = k >= 3 and bool(np.any(pdist(pts) <= PFHParams().radius_m))
+    assert (f.pfh.sum() == pytest.approx(1.0)) if paired else not f.pfh.any()
     np.testing.assert_array_equal(f.sda[mask], slopes[mask])
     assert not f.sda[~mask].any()
     # invariant under a rotation about the end-effector origin (Eq 2.40-2.43), up to the

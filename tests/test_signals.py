@@ -248,3 +248,7 @@ def test_rod_contact_refuses_a_push_that_never_ends():
         simulate_rod_contact(0.05, 0.1, speed_m_s=1e-320)
     with pytest.raises(InvalidInputError):
         simulate_rod_contact(0.05, 0.1, speed_m_s="fast")
+    # a huge lead or tail: int(round(lead_s * fs)) of inf was an OverflowError before the length check
+    for kw in ({"lead_s": 1e308}, {"tail_s": 1e308}, {"lead_s": 1e6}):
+        with pytest.raises(InvalidInputError, match="lead_s"):
+            simulate_rod_contact(0.05, 0.1, 0.1, **kw)

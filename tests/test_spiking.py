@@ -9,13 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from cansim.axes import Axis
 from cansim.errors import CansimError, ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
 from cansim.population import Population
+from cansim.spiking.neurons import MAX_REFRACTORY_STEPS
 from cansim.spiking import (
     HD_RING_ATTRACTOR,
     NeuronParams,
@@ -304,9 +305,11 @@ def test_dt_larger_than_refractory_period_is_config_error():
                            "v_reset", "v_threshold", "bias_current", "noise_sigma"]),
     value=st.one_of(st.just(math.nan), st.just(math.inf), st.just(-math.inf), st.floats(-1e6, 0.0)),
 )
+@example(field="tau_mem_s", value=10**400)  # was an OverflowError
+@example(field="v_rest", value="0.5")  # a string was parsed as a number
 def test_neuron_params_reject_bad_values_with_typed_errors(field, value):
     positive = {"tau_mem_s", "tau_syn_s", "refractory_s", "resistance", "poisson_gain_hz"}
-    if not math.isfinite(value):
+    if not isinstance(value, float) or not math.isfinite(value):
         ok = False
     elif field in positive:
         ok = value > 0
@@ -329,8 +332,10 @@ def test_neuron_params_reject_bad_values_with_typed_errors(field, value):
     w=st.floats(allow_nan=True, allow_infinity=True),
     seed=st.one_of(st.integers(-5, -1), st.just(1.5), st.just(True)),
 )
+@example(dt=1e-320, w=0.0, seed=-1)  # refractory_s / dt_s overflowed: OverflowError
 def test_population_constructor_rejects_bad_arguments(dt, w, seed):
-    if not (math.isfinite(dt) and 0 < dt <= 0.002):
+    refractory_s = NeuronParams().refractory_s
+    if not (math.isfinite(dt) and 0 < dt <= 0.002 and refractory_s / dt <= MAX_REFRACTORY_STEPS):
         with pytest.raises(ConfigError):
             SpikingPopulation(RING, SpikingParams(), dt_s=dt)
     if not (math.isfinite(w) and w >= 0):
@@ -478,14 +483,21 @@ def test_kernel_and_correspondence_reject_bad_values(shift, weight):
 
 
 @settings(max_examples=10, **HSET)
-@given(axis=st.integers(-3, 5), duration=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(0.05)))
-def test_measure_packet_speed_rejects_bad_arguments(axis, duration):
+@given(axis=st.integers(-3, 5), duration=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(0.05)),
+       name=st.sampled_from(["duration_s", "settle_s", "bin_s"]))
+@example(axis=0, duration=1e308, name="bin_s")  # bin_s / dt_s overflowed: OverflowError
+@example(axis=0, duration=1e308, name="settle_s")
+@example(axis=0, duration="1", name="duration_s")  # was a TypeError
+def test_measure_packet_speed_rejects_bad_arguments(axis, duration, name):
     from cansim.spiking import measure_packet_speed
+    from cansim.spiking.calibration import MAX_MEASURE_STEPS
 
     pop = SpikingPopulation(RING, SpikingParams(attractor=HD_RING_ATTRACTOR))
     if axis != 0:
         with pytest.raises(InvalidInputError):
             measure_packet_speed(pop, [0.1], axis)
-    if not (math.isfinite(duration) and duration >= 0.3):
+    # the duration must cover three default bins of 0.1 s; no time may span more than MAX_MEASURE_STEPS steps
+    low = 0.3 if name == "duration_s" else 0.0
+    if not (isinstance(duration, float) and math.isfinite(duration) and low <= duration <= MAX_MEASURE_STEPS * pop.dt_s):
         with pytest.raises(InvalidInputError):
-            measure_packet_speed(pop, [0.1], 0, duration_s=duration)
+            measure_packet_speed(pop, [0.1], 0, **{name: duration})

@@ -188,3 +188,11 @@ def test_tactile_compiled_scan_equals_eq_3_1_reference():
         m = probe_tt.match(probe)
         assert m.template_id == int(np.argmin(ref))
         assert m.error == pytest.approx(float(ref.min()), rel=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(math.inf, 80), ("a", 80), (60.5, 80), (0, 80), "ab", 5])
+def test_a_bad_image_shape_is_a_typed_error(shape):
+    # int(inf) / int("a") were OverflowError / ValueError, 60.5 was truncated to 60
+    with pytest.raises(InvalidInputError):
+        VisualTemplates(image_shape=shape)
+    assert VisualTemplates(image_shape=(60.0, 80)).image_shape == (60, 80)  # an integral float is a count

@@ -94,7 +94,7 @@ def run(params: dict, seed: int) -> dict:
         places[i] = pop.decode()[0]
         lv.observe(i, places[i])
         lv.learn(pop.activity)
-    weights = lv.weights.toarray()
+    weights = lv.weights.toarray().astype(np.float64)  # float32 would round the 1e-300 guard below to 0 (0/0 warnings)
     cells = np.arange(n)
     far = circular_distance_cells(cells[None, :], places[:, None], n) > p["tolerance_cells"]
     totals = weights.sum(axis=1)

@@ -15,6 +15,7 @@ from numbers import Integral, Real
 from typing import Any, Optional, Sequence
 
 from cansim.errors import ConfigError, InvalidInputError
+from whisker_io.validation import finite_scalar
 
 __all__ = ["resolve", "require"]
 
@@ -70,9 +71,7 @@ def resolve(params: Any, defaults: Mapping[str, Any], *, name: str,
         elif isinstance(default, float):
             if isinstance(value, bool) or not isinstance(value, Real):
                 raise InvalidInputError(f"{name}: {key} must be a number, got {value!r}")
-            value = float(value)
-            if not math.isfinite(value):
-                raise InvalidInputError(f"{name}: {key} must be finite, got {value!r}")
+            value = finite_scalar(value, f"{name}: {key}")  # NaN, inf and ints too large for a float
         elif isinstance(default, str):
             if not isinstance(value, str):
                 raise InvalidInputError(f"{name}: {key} must be a string, got {value!r}")

@@ -74,6 +74,7 @@ from maps.odometry import SpatialOdometry
 from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
 from whisker_io.errors import SafetyViolationError
 from whisker_io.pose import Pose
+from whisker_io.validation import config_field
 
 __all__ = ["KnownObject", "any_distance_cells", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
 
@@ -343,10 +344,12 @@ class Explorer:
             raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
         if not known:
             raise InvalidInputError("the explorer needs at least one known object")
-        if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
-            raise ConfigError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
-        if not (stop_threshold > 0 and time_limit_s > 0):
-            raise ConfigError("stop_threshold and time_limit_s must be > 0")
+        config_field(max_iterations, "max_iterations", int, minimum=1)
+        for name, v in (("max_adjustments", max_adjustments), ("max_replans", max_replans)):
+            config_field(v, name, int, minimum=0)
+        for name, v in (("stop_threshold", stop_threshold), ("time_limit_s", time_limit_s)):
+            if v != math.inf:  # inf: no such limit
+                config_field(v, name, float, above=0, hint="or math.inf for no limit")
         self.models = [k.exploring_model() for k in known]
         self.views = [ObjectView(m.object_map, m.frontend, k.n_built, k.n_built_regions, k.n_history)
                       for m, k in zip(self.models, known)]

@@ -64,6 +64,7 @@ from scipy.spatial.transform import Rotation
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.sim.trajectories import facing_pose
+from whisker_io.validation import finite_vector
 
 __all__ = ["DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place", "ring_half_angle_rad"]
 
@@ -131,16 +132,19 @@ class PlacementParams:
         m = self.max_rotation_step_rad
         if m is not None and (isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 < m < math.inf):
             raise ConfigError(f"max_rotation_step_rad must be a positive number or None, got {m!r}")
-        g = np.asarray(self.up, dtype=float)
-        if g.shape != (3,) or not np.isfinite(g).all() or not np.linalg.norm(g) > 0:
+        try:  # the shared validator: text such as "0" is not a number here
+            g = finite_vector(self.up, 3, "up")
+        except InvalidInputError:
+            g = np.zeros(3)
+        if not np.linalg.norm(g) > 0:
             raise ConfigError(f"up must be 3 finite numbers, not all zero, got {self.up!r}")
         r = self.reference_point_m
         if r is not None:
             try:
-                ra = np.asarray(r, dtype=float)
-            except (TypeError, ValueError):
+                ra = finite_vector(r, 3, "reference_point_m")
+            except InvalidInputError:
                 raise ConfigError(f"reference_point_m must be 3 finite numbers (m) or None, got {r!r}") from None
-            if ra.shape != (3,) or not np.isfinite(ra).all() or np.abs(ra).max() > _MAX_CONTACT_DISTANCE_M:
+            if np.abs(ra).max() > _MAX_CONTACT_DISTANCE_M:
                 raise ConfigError(f"reference_point_m must be 3 finite numbers within {_MAX_CONTACT_DISTANCE_M} m, got {r!r}")
             object.__setattr__(self, "reference_point_m", tuple(float(x) for x in ra))
 

@@ -47,7 +47,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from cansim.errors import ConfigError, InvalidInputError
 from cansim.explore.placement import maintain_yaw
 from whisker_io.pose import Pose
-from whisker_io.validation import finite_vector
+from whisker_io.validation import config_field, finite_vector
 
 __all__ = [
     "STRATEGIES",
@@ -64,6 +64,14 @@ __all__ = [
 ]
 
 STRATEGIES = ("default", "feh", "lsr")
+
+#: largest length :class:`DefaultSearch` takes (radius, standoff, clearance, semi-axes), m: the
+#: search surrounds an object within an arm's reach; lengths near 1e154 m overflow the norms
+MAX_SEARCH_M = 1.0e3
+#: smallest ellipsoid semi-axis, m (the face directions divide by the semi-axes)
+MIN_SEMI_AXIS_M = 1.0e-6
+#: most icosphere subdivisions of :class:`DefaultSearch` (20 * 4**6 = 81,920 faces)
+MAX_SUBDIVISIONS = 6
 
 
 @dataclass
@@ -173,6 +181,13 @@ class DefaultSearch:
         An ellipsoid mesh instead of the sphere: the icosphere's vertices scaled by these
         semi-axes (world x, y, z, m); a face's direction is from the centre through its
         centroid and, without ``mesh``, the bases sit on the ellipsoid along it.
+
+    Raises
+    ------
+    InvalidInputError, ConfigError
+        A length outside (0, :data:`MAX_SEARCH_M`] m (a semi-axis below
+        :data:`MIN_SEMI_AXIS_M`), ``subdivisions`` not an integer in
+        [0, :data:`MAX_SUBDIVISIONS`], a ``seed`` that is not an integer >= 0 (or None).
     """
 
     name = "default"
@@ -182,11 +197,17 @@ class DefaultSearch:
                  clearance_m: float = 0.015, semi_axes_m: ArrayLike | None = None) -> None:
         c = finite_vector(centre_m, 3, "centre_m")  # the one validator: rejects strings, NaN, wrong shapes
         for name, v in (("radius_m", radius_m), ("standoff_m", standoff_m)):
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidInputError(f"{name} must be a positive number of metres, got {v!r}")
+            config_field(v, name, float, above=0, maximum=MAX_SEARCH_M, hint="give metres")
+        config_field(clearance_m, "clearance_m", float, minimum=0, maximum=MAX_SEARCH_M, hint="give metres")
         axes = None if semi_axes_m is None else finite_vector(semi_axes_m, 3, "semi_axes_m")
-        if axes is not None and not np.all(axes > 0):
-            raise InvalidInputError(f"semi_axes_m must be 3 positive numbers of metres, got {semi_axes_m!r}")
+        if axes is not None and not np.all((axes >= MIN_SEMI_AXIS_M) & (axes <= MAX_SEARCH_M)):
+            raise InvalidInputError(
+                f"semi_axes_m must be 3 numbers of metres in [{MIN_SEMI_AXIS_M:g}, {MAX_SEARCH_M:g}], got {semi_axes_m!r}"
+            )
+        config_field(subdivisions, "subdivisions", int, minimum=0, maximum=MAX_SUBDIVISIONS,
+                     hint=f"an icosphere of {MAX_SUBDIVISIONS} subdivisions has {20 * 4 ** MAX_SUBDIVISIONS} faces")
+        config_field(seed, "seed", int, minimum=0, optional=True)
+        config_field(roll_rad, "roll_rad", float)
         sphere = trimesh.creation.icosphere(subdivisions=int(subdivisions))
         d = sphere.triangles_center if axes is None else (sphere.vertices * axes)[sphere.faces].mean(axis=1)
         self.directions = d / np.linalg.norm(d, axis=1, keepdims=True)
@@ -260,8 +281,7 @@ def _step_and_reach(step_m: float, reach_m: float | None) -> tuple[float, float]
     """Validated ``(step_m, reach_m)`` of a stepping strategy (``reach_m`` None: one step)."""
     reach = step_m if reach_m is None else reach_m
     for name, v in (("step_m", step_m), ("reach_m", reach)):
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise InvalidInputError(f"{name} must be a positive number of metres, got {v!r}")
+        config_field(v, name, float, above=0, hint="give metres")
     return float(step_m), float(reach)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from cansim.errors import CorruptFileError, InvalidInputError
 from cansim.frontends.store import ViewMatch
+from whisker_io.validation import config_field
 
 __all__ = ["IdsFrontEnd"]
 
@@ -36,9 +37,9 @@ class IdsFrontEnd:
     """
 
     def __init__(self, ndim: int, heading_axis: int | None = None, heading_cells: int = 36) -> None:
-        self.ndim = int(ndim)
-        self.heading_axis = heading_axis
-        self.heading_cells = int(heading_cells)
+        self.ndim = int(config_field(ndim, "ndim", int, minimum=1))
+        self.heading_axis = config_field(heading_axis, "heading_axis", int, minimum=0, maximum=self.ndim - 1, optional=True)
+        self.heading_cells = int(config_field(heading_cells, "heading_cells", int, minimum=1))
         self._ids: dict[int, int] = {}
 
     def __len__(self) -> int:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from cansim.frontends.store import ViewMatch
+from whisker_io.validation import config_field
 
 __all__ = ["HeadingOffset"]
 
@@ -36,7 +37,9 @@ class HeadingOffset:
 
     def __init__(self, templates: Any, ndim: int, heading_axis: int, heading_cells: int) -> None:
         self.templates = templates
-        self.ndim, self.heading_axis, self.heading_cells = int(ndim), int(heading_axis), int(heading_cells)
+        self.ndim = int(config_field(ndim, "ndim", int, minimum=1))
+        self.heading_axis = int(config_field(heading_axis, "heading_axis", int, minimum=0, maximum=self.ndim - 1))
+        self.heading_cells = int(config_field(heading_cells, "heading_cells", int, minimum=1))
 
     def __len__(self) -> int:
         return len(self.templates)

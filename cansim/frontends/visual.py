@@ -36,7 +36,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, whole_number
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
@@ -151,8 +151,14 @@ class VisualTemplates:
         self.image_shape: tuple[int, ...] | None = None
         self._last_view = np.zeros((c.template_height_blocks, c.template_width_blocks))
         if image_shape is not None:
-            self._check_geometry(tuple(int(s) for s in image_shape))
-            self.image_shape = tuple(int(s) for s in image_shape)
+            try:
+                if isinstance(image_shape, (str, bytes)):
+                    raise TypeError
+                shape = tuple(whole_number(s, "image_shape entries", minimum=1) for s in image_shape)
+            except TypeError:
+                raise InvalidInputError(f"image_shape must be a tuple of pixel counts, got {image_shape!r}") from None
+            self._check_geometry(shape)
+            self.image_shape = shape
 
     def __len__(self) -> int:
         return len(self.store)

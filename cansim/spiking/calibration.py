@@ -9,7 +9,6 @@ the lead (seconds) of each speed is rescaled by ``commanded / measured``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from typing import Sequence
 
@@ -19,8 +18,13 @@ from cansim.axes import Axis
 from cansim.decoding import population_vector_window
 from cansim.errors import InvalidInputError
 from cansim.spiking.population import SpikingParams, SpikingPopulation
+from whisker_io.validation import finite_scalar
 
-__all__ = ["measure_packet_speed", "calibrate_velocity_lead"]
+__all__ = ["measure_packet_speed", "calibrate_velocity_lead", "MAX_MEASURE_STEPS"]
+
+#: most simulation steps one of ``duration_s``, ``settle_s``, ``bin_s`` may span (1e7 steps of
+#: 1 ms are almost 3 hours of simulated time; more is a mistyped argument, not a measurement)
+MAX_MEASURE_STEPS = 1e7
 
 
 def measure_packet_speed(
@@ -43,8 +47,12 @@ def measure_packet_speed(
     if not (0 <= axis < pop.ndim):
         raise InvalidInputError(f"axis must lie in [0, {pop.ndim}), got {axis}")
     for name, val in (("duration_s", duration_s), ("settle_s", settle_s), ("bin_s", bin_s)):
-        if not (math.isfinite(val) and val >= 0):
+        if not finite_scalar(val, name) >= 0:
             raise InvalidInputError(f"{name} must be finite and >= 0, got {val!r}")
+        if not val / pop.dt_s <= MAX_MEASURE_STEPS:  # a huge finite time would run (and allocate) for ever
+            raise InvalidInputError(
+                f"{name} = {val!r} s is more than {MAX_MEASURE_STEPS:g} steps of dt_s = {pop.dt_s} s; measure a shorter run"
+            )
     n_bin = max(1, int(round(bin_s / pop.dt_s)))
     n_bins = int(duration_s / (n_bin * pop.dt_s))
     if n_bins < 3:

@@ -21,6 +21,11 @@ import math
 from dataclasses import dataclass
 
 from cansim.errors import ConfigError, InvalidInputError
+from whisker_io.validation import config_field
+
+#: most steps of ``dt_s`` one refractory period may span (a 1 ms period at 1 ps steps): a smaller step
+#: is a mistyped unit, and a step of ~1e-320 s would overflow the count
+MAX_REFRACTORY_STEPS = 1e9
 
 __all__ = ["NeuronParams", "analytic_lif_rate_hz", "NEURON_MODELS"]
 
@@ -36,13 +41,7 @@ def _positive(name: str, value: float) -> float:
 
 
 def _finite(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"{name} must be finite, got {value!r}")
-    return v
+    return float(config_field(value, name, float))
 
 
 @dataclass(frozen=True)
@@ -115,7 +114,13 @@ class NeuronParams:
                 f"dt_s = {dt} s is larger than the refractory period {self.refractory_s} s; "
                 "use a smaller step or a longer refractory period"
             )
-        return max(1, int(round(self.refractory_s / dt)))
+        steps = self.refractory_s / dt
+        if not steps <= MAX_REFRACTORY_STEPS:  # a tiny dt: the count overflows, or the run never ends
+            raise ConfigError(
+                f"dt_s = {dt!r} s gives {steps:g} steps per refractory period (more than {MAX_REFRACTORY_STEPS:g}); "
+                "use a larger step"
+            )
+        return max(1, int(round(steps)))
 
 
 def analytic_lif_rate_hz(params: NeuronParams, current: float) -> float:

@@ -240,7 +240,7 @@ def from_nir(graph: Any, *, dt_s: Optional[float] = None, seed: Optional[int] = 
         )
     except KeyError as exc:
         raise ConfigError(f"metadata['cansim'] lacks the entry {exc.args[0]!r}; re-export with cansim.spiking.to_nir") from None
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: int(inf), float(10**400)
         if isinstance(exc, ConfigError):
             raise
         raise ConfigError(f"malformed metadata['cansim']: {exc}") from None

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import finite_scalar
+from whisker_io.validation import config_field, finite_array, finite_scalar, finite_vector
 
 __all__ = [
     "COLUMNS",
@@ -141,30 +141,28 @@ class WhiskerModule:
     base_rotation: NDArray[np.float64] | Rotation | None = None
 
     def __post_init__(self) -> None:
-        pos = np.array(self.base_position_m, dtype=float)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+        try:
+            pos = finite_vector(self.base_position_m, 3, "base_position_m")
+        except InvalidInputError:
             raise ConfigError(
                 f"module {self.name!r}: base_position_m must be 3 finite numbers (metres), "
                 f"got {self.base_position_m!r}"
-            )
-        length = float(self.length_m)
-        if not np.isfinite(length) or length <= 0.0:
-            raise ConfigError(
-                f"module {self.name!r}: length_m must be a positive finite number of metres, "
-                f"got {self.length_m!r}"
-            )
+            ) from None
+        config_field(self.row, f"module {self.name!r}: row", int, hint="rows are numbered 1, 2, ... from rostral")
+        length = float(config_field(self.length_m, f"module {self.name!r}: length_m", float, above=0, hint="give metres"))
         rot = self.base_rotation
         if rot is None:
             mat = radial_base_rotation(pos)
         elif isinstance(rot, Rotation):
             mat = rot.as_matrix()
         else:
-            mat = np.array(rot, dtype=float)
-            if mat.shape != (3, 3) or not np.all(np.isfinite(mat)):
+            try:
+                mat = finite_array(rot, (3, 3), "base_rotation")
+            except InvalidInputError:
                 raise ConfigError(
-                    f"module {self.name!r}: base_rotation must be a 3x3 matrix or a "
-                    f"scipy Rotation, got shape {mat.shape}"
-                )
+                    f"module {self.name!r}: base_rotation must be a 3x3 matrix of finite numbers or a "
+                    f"scipy Rotation, got {rot!r}"
+                ) from None
             if (
                 not np.allclose(mat.T @ mat, np.eye(3), atol=1e-6)
                 or np.linalg.det(mat) < 0.0

@@ -607,12 +607,12 @@ def simulate_rod_contact(
     t_brake = brake_at / v
     t_top = t_brake + v / acc
     fs = p.sample_rate_hz
-    onset = int(round(lead_s * fs))
     duration_s = lead_s + 2.0 * t_top + tail_s
-    if not duration_s * fs <= _MAX_ROD_SAMPLES:
+    if not duration_s * fs <= _MAX_ROD_SAMPLES:  # before any int(): lead_s = 1e308 s is inf samples
         raise InvalidInputError(
             f"the rod push would last {duration_s:.3g} s ({duration_s * fs:.3g} samples, more than "
             f"{_MAX_ROD_SAMPLES:.0e}); raise speed_m_s or deceleration_m_s2, or shorten lead_s/tail_s")
+    onset = int(round(lead_s * fs))
     half = max(1, int(math.ceil(t_top * fs)))
     T = onset + 2 * half + int(round(tail_s * fs)) + 1
     k = np.arange(T) - onset
