@@ -179,7 +179,9 @@ def test_bad_constructor_input_typed(x):
                  lambda: FollowExperienceHistory(reach_m=-1.0 if x is None else x),
                  lambda: LeastSimilarRegion(reach_m=-1.0 if x is None else x),
                  lambda: DefaultSearch([0, 0, x], 0.2), lambda: DefaultSearch([0, 0, 0], x),
-                 lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2])):
+                 lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2]),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, footprint_m=[[0.0, x, 0.0]]),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, clearance_m=x)):
         try:
             make()
         except CansimError:
