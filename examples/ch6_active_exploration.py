@@ -15,14 +15,21 @@ Steps:
    over the faces of the ellipsoid fitted to each object
    (:meth:`cansim.explore.search.DefaultSearch.tour` with the semi-axes of
    :func:`whisker_io.sim.trajectories.fit_surface`), closest unvisited face next, the
-   seed's start face; at each face the surface placement controller (SPC) adjusts until
-   its conditions are met, at most 10 times; Eq 6.4-6.11 odometry noise; the model is
+   seed's start face; at each face the array comes in until its nearest whisker base is
+   15 mm before the object (``footprint_m``: no base inside it), then the surface
+   placement controller (SPC) adjusts until its conditions are met, at most 10 times; Eq 6.4-6.11 odometry noise; the model is
    WhiskerRatSLAM with pose-consistent matching (one object mapped in one frame,
    :meth:`cansim.whisker_ratslam.WhiskerRatSLAMConfig.mapping`;
    :func:`cansim.explore.explorer.build_object_model`).
 3. **Exploration runs** (:class:`cansim.explore.explorer.Explorer`): every seed x
    strategy (default, FEH, LSR) x presented object (Box, Box-Stack; the unknown object is
    not named), SPC on; and SPC on vs off with the default search, Box-Stack presented.
+   The default search knows only the box every known object fits in
+   (:func:`believed_volume`, the same for Box and Box-Stack): the faces of a sphere
+   around it, the array coming in along each face direction until its nearest whisker
+   base is 15 mm before that box. FEH and LSR step along the surface
+   (``along_surface``, :mod:`cansim.explore.search`); whisks with a whisker base inside
+   the presented object are counted against its mesh (``whisks_base_inside``).
    Each known object is recognised by its own copy of its model, without pose prior and
    re-localising at any pose-cell distance (:meth:`cansim.explore.explorer.KnownObject.exploring_model`).
    The arm is a :class:`whisker_io.hw.arm.SimArm`: every command passes its safety
@@ -37,14 +44,15 @@ threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_
 ``ch6_summary.txt`` (each thesis finding, the measured figure, reproduced or not).
 
 Settings (this project's choices where the thesis is silent): contact estimate
-``tip`` (the sweep-only chain; the hardware path uses an SVR model); the SPC defaults of
+``tip`` (``--contact-model``; the hardware path uses an SVR model); the SPC defaults of
 :class:`cansim.explore.placement.PlacementParams` (cone half-angle 24 deg, the array's
 innermost contact ring, see :mod:`cansim.explore.placement`) with the trajectories' roll of 90 deg;
 10 SPC adjustments per region; leaky integrator impulse 1, decay 0.75 per whisk.
 
 Decisions for recognition (measured with fixed seeds: the default search, SPC on, seeds
 0-3, each seed its own maps, 1000 whisks, both objects presented: 8 runs; "correct
-first" counts runs whose correct IC reached the threshold before the other's)
+first" counts runs whose correct IC reached the threshold before the other's; measured
+with the earlier oracle placement, see "Decisions for the SPC study")
 -----------------------------------------------------------------------------------------
 * **Contact noise 0.3** of Sec 6.1.3.1.2 (``--noise-scale``, :data:`DEFAULT_NOISE_SCALE`),
   as ``examples/ch5_study.py`` and ``examples/whisker_ratslam_object.py``. At the full
@@ -74,23 +82,98 @@ first" counts runs whose correct IC reached the threshold before the other's)
   unknown object's frame, see :mod:`cansim.whisker_ratslam`): 84 re-localisations in
   8000 whisks, no IC reached 100.
 
+Decisions for the SPC study (thesis Fig 6.6; default search, Box-Stack presented, SPC on
+vs off, mean raw confidence of the correct identity; measured with this module's
+:func:`prepare` and :func:`run_one`, map seed 0, seeds 0-5, 600 whisks, ``tip``
+contacts unless said; "k/n" counts the seeds where SPC on is the higher)
+-----------------------------------------------------------------------------------------
+* **No oracle placement.** The first version placed the array by casting one ray from
+  each sphere face toward the centre against the *presented* object's mesh, the front
+  bases 15 mm before the hit: the explorer knew the unknown object's surface, which
+  is the SPC's job done for it, and SPC on lowered the confidence (0.46 against 0.86,
+  0/6). The one ray also put whisker bases (5-8 cm off the axis) inside the object in
+  77-80 % of the whisks, and the maps, built the same way, had a base inside in 119 of
+  187 (Box) and 180 of 235 (Box-Stack) whisks: the simulated sweep starts those
+  whiskers inside the solid, which no arm can do.
+* **The literal sphere does not reach.** With the bases on the sphere through the
+  bounding-box corners (r = 0.225 m, up to 12.5 cm of air before a Box side) no whisker
+  touches: the thesis array reaches at most 8.3 cm beyond its front bases along its
+  axis (the 160-mm whiskers splay out), so every whisk has 0 contacts and the SPC,
+  which needs mu = 3, never acts (confidence 0, on and off). At r = 0.18 m 67-79 % of
+  the whisks have fewer than 3 contacts (confidence 0); at r = 0.15 m the sphere cuts
+  the box's top and corners (a base inside in 227 of 600 whisks, SPC on).
+* **Adopted: sphere faces around the believed box, footprint kept clear.** The
+  explorer knows the box the unknown object fits in (:func:`believed_volume`; the same
+  for both objects, so it tells nothing of the identity) and, at each face, comes in
+  until its nearest whisker base is 15 mm before that box
+  (:class:`~cansim.explore.search.DefaultSearch` ``mesh`` = the box,
+  ``footprint_m`` = the 18 bases); the maps keep the bases 15 mm clear of the mapped
+  object likewise. The Box-Stack's upper boxes (0.15 and 0.10 m wide, turned) stand
+  back from that box, so the array starts out of reach there and the SPC brings it in,
+  the situation Fig 6.2 describes. SPC on 1.011 vs off 0.879 (4/6; ``truth``
+  contacts 1.187 vs 1.060, 6/6); with map seed 1, seeds 0-9, 1000 whisks: 0.847 vs
+  0.666, 10/10, Mann-Whitney one-sided p = 9e-5 (``truth``: 1.003 vs 0.743, 10/10);
+  map seed 0, 400 whisks, seeds 0-9: 1.023 vs 0.921, 6/10, p = 0.052; map seed 1,
+  400 whisks: 10/10.
+  The SPC keeps the whiskers on the surface (Fig 6.2): whisks without contact (no
+  region observed) 111-132 of 400 with SPC on against 191-201 with it off, 10 of 10
+  seeds (the same with either map seed: the placements do not depend on the maps).
+  Bases inside the object: SPC off 0 (the placement guarantees it for the box, which
+  contains the object), SPC on 15 of 4000 whisks (the SPC's translation, Alg 7, knows
+  no mesh; ``truth`` contacts 7 of 10000).
+* **Other settings measured** (not adopted): the footprint against the presented
+  object's own mesh (clear of it, but an oracle again) 1.596 vs 1.872, 0/6 (``truth``
+  1.804 vs 1.856, 1/6); the believed box with 3 cm clearance 0.547 vs 0.552, 3/6
+  (61-77 % of the whisks with fewer than 3 contacts); object-placement uncertainty
+  (``--object-offset-m 0.025 --object-yaw-deg 7``: the presented object moved by a
+  seeded N(0, 2.5 cm) x/y offset and N(0, 7 deg) yaw) with the believed box 0.406 vs
+  0.266, 4/6 (``truth`` 0.569 vs 0.380, 5/6), but the object then comes toward the
+  array by more than the clearance and a base is inside it in 78-116 of 600 whisks;
+  with the believed object's nominal mesh instead of the box 0.517 vs 0.557, 2/6.
+  With the Box presented the believed box *is* the Box's surface (an oracle for it):
+  SPC on 1.058 vs off 1.187, 0/4 seeds.
+* **Contact estimate** stays ``tip`` (the Ch.5 decisions were measured with it);
+  ``--contact-model truth`` is the thesis' simulated ground truth plus noise (Sec
+  6.1.3.1.2) and shows the same SPC effect, but tells the Box from the Box-Stack less
+  well with the Box presented (correct 0.675 vs incorrect 0.430, against 1.058 vs 0.497
+  with ``tip``; default search, SPC on, seeds 0-3, 600 whisks).
+* The SPC defaults (cone 24 deg, band 0.21-0.26 m, 2 steps) are unchanged: with an
+  honest placement SPC on wins with them.
+
+Decisions for FEH and LSR (seeds 0-2, 600 whisks, SPC on, map seed 0, both objects)
+-----------------------------------------------------------------------------------
+* **Steps along the surface** (``along_surface``, the default of
+  :class:`~cansim.explore.search.FollowExperienceHistory` and
+  :class:`~cansim.explore.search.LeastSimilarRegion`): a step has no part along the
+  array's axis, so the strategies move the array across the surface and the SPC alone
+  sets its distance. FEH's horizontal step toward a target above or across the object
+  (the next mapped face may be on the top, or round a corner) otherwise drives the
+  array into the object: a base inside in 850 (Box) and 691 (Box-Stack) of 1800 FEH
+  whisks, LSR 1075 and 592; re-localisation in 7.1 / 12.3 % (FEH) and 4.5 / 15.1 %
+  (LSR) of the whisks; correct first at IC 300 in FEH 0/3, 1/3 and LSR 0/3, 2/3.
+  Along the surface: inside 38 / 258 (FEH) and 166 / 137 (LSR) of 1800,
+  re-localisation 15.8 / 18.9 % and 14.4 / 22.1 %, correct first at IC 300 in FEH
+  3/3, 3/3 and LSR 2/3, 3/3. This was the cause of the earlier version's 3 %
+  re-localisation rate of FEH and LSR (there, 287 of 400 FEH whisks on the Box, seed 0,
+  had a base inside).
+
 Results of the full run (``--seeds 10``, 1000 whisks, the 10 seeds' runs on one set of
-maps, seed 0; 314 s on 2 shared cores; ``ch6_summary.txt``). Correct identity first at
-IC 100 / 300: default 20/20 / 20/20, FEH 17/20 / 0/20, LSR 18/20 / 0/20; no incorrect
-identity reached any threshold first; IC 600 and 900 are never reached in 1000 whisks.
-Median IM / SRT at IC 100: default 784 / 216, FEH 432 / 568, LSR 370 / 630 whisks; at
-300 the default's 340 / 660 (FEH and LSR censored). FEH and LSR re-localise in about
-3 % of their whisks against 9-10 % for the default search (with 3000 whisks, seeds 0-1,
-4 runs each: correct first at IC 300 in FEH 2/4, LSR 3/4). With impulse 1 and decay
-0.75 a re-localisation adds about 4 to the IC, so IC 300 takes some 75 of them. Not
-reproduced: LSR best (the default search is), IC 300 best (100 is, by correct-first
-count), and SPC on raising the correct confidence - it *lowers* it (0.45 against 0.82
-with SPC off, Box-Stack, 10 of 10 seeds): only the default search's face approach
-reproduces a mapped placement (24 % of those whisks re-localise, 4.7 % of the SPC's
-adjusted whisks, 1-3 % of FEH's and LSR's 3-cm steps, Box, seed 0; the SPC's 24-deg
-cone and 5-cm band leave the settled placement
-dependent on where it started), and in simulation the arm moves exactly, so the SPC's
-correction of drift (Fig 6.2) has nothing to correct.
+maps, seed 0; 608 s on 2 cores shared with other jobs; ``ch6_summary.txt``). SPC on vs
+off (Fig 6.6): median correct confidence 0.941 vs 0.852, Mann-Whitney one-sided
+p = 0.023, REPRODUCED (mean 0.915 vs 0.851; higher with SPC in 6 of 10 seeds;
+incorrect 0.244 vs 0.272, so the thesis' "incorrect raised less" holds too). Correct
+identity first at IC 100 / 300 / 600 / 900: default 20 / 20 / 20 / 15 of 20, FEH
+19 / 19 / 17 / 2, LSR 19 / 20 / 12 / 3; the wrong identity first in 3 runs (Box presented,
+FEH seeds 7 and 8, LSR seed 4). IC 300 is the best threshold by correct-first count
+(59 of 60), REPRODUCED. Median IM / SRT at IC 300: default 608 / 265, FEH 484 / 450,
+LSR 500 / 450 whisks (Kruskal-Wallis p(IM) = 0.38, p(SRT) = 2.4e-5); at IC 100 LSR has the
+highest median IM (216, FEH 183, default 150) but the default search the lowest SRT
+(84, FEH 127, LSR 143). Not reproduced: LSR best at IC 300 (the default search is).
+With impulse 1 and decay 0.75 a re-localisation adds about 4 to the IC, so IC 300
+takes some 75 of them. Whisks with a whisker base inside the presented object: SPC
+off 0 of 10000; SPC on 3011 of 60000 (default search 35 of 20000, FEH 904, LSR 2072 of
+20000 each): the SPC's moves and FEH's and LSR's steps know no mesh, and on the
+Box-Stack's steps and corners a move along the surface still meets it.
 """
 
 from __future__ import annotations
@@ -117,7 +200,7 @@ STRATEGY_NAMES = ("default", "feh", "lsr")
 THRESHOLDS = (100.0, 300.0, 600.0, 900.0)
 COLUMNS = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
            "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands",
-           "commands_outside_envelope", "stop_reason")
+           "commands_outside_envelope", "whisks_base_inside", "whisks_without_contact", "stop_reason")
 #: Workspace of the simulated arm (object on a table at z = 0, centred at the origin), m.
 WORKSPACE_MIN = (-0.75, -0.75, 0.02)
 WORKSPACE_MAX = (0.75, 0.75, 1.0)
@@ -125,6 +208,8 @@ WORKSPACE_MAX = (0.75, 0.75, 1.0)
 DEFAULT_NOISE_SCALE = 0.3
 #: SPC adjustments per region, mapping and exploring (the physical runs' limit, Sec 6.1.4).
 MAX_ADJUSTMENTS = 10
+#: Contact estimate of the simulated chain (module docstring, "Decisions for the SPC").
+DEFAULT_CONTACT_MODEL = "tip"
 
 
 @dataclass(frozen=True)
@@ -135,6 +220,7 @@ class Setup:
     pfh_threshold: float
     sda_threshold: float
     noise_scale: float
+    contact_model: str = DEFAULT_CONTACT_MODEL
 
 
 def envelope() -> Any:
@@ -144,13 +230,59 @@ def envelope() -> Any:
     return SafetyEnvelope(workspace_min=WORKSPACE_MIN, workspace_max=WORKSPACE_MAX, max_tool_tilt=math.pi)
 
 
-def chain_for(name: str, noise_scale: float) -> Any:
-    """The simulated whisk chain on object ``name`` (sweep-only, tip contact, Sec 6.1.3.1.2 noise)."""
+def chain_for(name: str, noise_scale: float, contact_model: str = DEFAULT_CONTACT_MODEL, mesh: Any = None) -> Any:
+    """The simulated whisk chain on object ``name`` (or on ``mesh``; sweep-only, Sec 6.1.3.1.2 noise)."""
     from whisker_io.sim.objects import make_object
     from whisker_io.sim.sweep import ContactNoise
     from whisker_io.sim.whisk_chain import WhiskChain
 
-    return WhiskChain(make_object(name), contact_model="tip", contact_noise=ContactNoise().scaled(noise_scale))
+    return WhiskChain(make_object(name) if mesh is None else mesh, contact_model=contact_model,
+                      contact_noise=ContactNoise().scaled(noise_scale))
+
+
+def array_bases_m() -> np.ndarray:
+    """The thesis array's whisker bases in the end-effector frame, (18, 3) m: the default search's footprint."""
+    from whisker_io.array.geometry import WhiskerArray
+
+    return np.asarray(WhiskerArray.thesis().positions_m, dtype=float)
+
+
+def believed_volume() -> Any:
+    """What the explorer knows of the unknown object: the bounding box every known object fits in (a trimesh box).
+
+    Box and Box-Stack share their bounding box, so it says nothing of the identity.
+    """
+    import trimesh
+
+    from whisker_io.sim.objects import make_object
+
+    b = np.array([make_object(n).bounds for n in OBJECTS])
+    return trimesh.creation.box(bounds=np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)]))
+
+
+def presented_mesh(name: str, seed: int, offset_m: float = 0.0, yaw_deg: float = 0.0) -> Any:
+    """The presented object, moved on the table by a seeded N(0, offset_m) x/y offset and N(0, yaw_deg) yaw."""
+    from scipy.spatial.transform import Rotation
+
+    from whisker_io.sim.objects import make_object
+
+    mesh = make_object(name)
+    if offset_m > 0 or yaw_deg > 0:
+        rng = np.random.default_rng(derive_seed(seed, "placement", name))
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("z", rng.normal(0.0, math.radians(yaw_deg))).as_matrix()
+        T[:2, 3] = rng.normal(0.0, offset_m, 2)
+        mesh.apply_transform(T)
+    return mesh
+
+
+def bases_inside(mesh: Any, poses: Sequence[Any]) -> np.ndarray:
+    """Per pose, whether a whisker base of the array there lies inside ``mesh`` (an impossible placement), (n,) bool."""
+    b = array_bases_m()
+    if not len(poses):
+        return np.zeros(0, dtype=bool)
+    pts = np.concatenate([p.apply(b) for p in poses])
+    return mesh.contains(pts).reshape(len(poses), len(b)).any(axis=1)
 
 
 def spc_params() -> Any:
@@ -172,6 +304,8 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
     """The faces of the ellipsoid fitted to ``name``, ``n_loops`` times, closest unvisited first (step 2).
 
     The seed picks the start face; faces the arm's envelope refuses (under the table) are skipped.
+    At each face the array comes in until its nearest whisker base is 15 mm before the
+    (known, mapped) object: no base inside it.
     """
     from cansim.explore.search import DefaultSearch
     from whisker_io.sim.objects import make_object
@@ -180,11 +314,12 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
     mesh = make_object(name)
     surface = fit_surface(mesh, "ellipsoid")
     search = DefaultSearch(surface.centre_m, float(np.max(surface.semi_axes_m)), mesh=mesh, seed=derive_seed(seed, "tour", name),
-                           semi_axes_m=surface.semi_axes_m)
+                           semi_axes_m=surface.semi_axes_m, footprint_m=array_bases_m())
     return search.tour(n_loops, accept=_inside)
 
 
-def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 2) -> Setup:
+def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 2,
+            contact_model: str = DEFAULT_CONTACT_MODEL) -> Setup:
     """Thresholds (step 1) and the object maps of Box and Box-Stack (step 2)."""
     from cansim.explore.explorer import build_object_model
     from whisker_io.features.match_thresholds import calibrate_match_thresholds
@@ -192,25 +327,29 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
     from whisker_io.sim.odometry_noise import noisy_odometry
     from whisker_io.sim.trajectories import object_trajectory
 
-    mug, cal_rng = chain_for("mug", noise_scale), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
+    mug, cal_rng = chain_for("mug", noise_scale, contact_model), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
     cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
     known = []
     for name in OBJECTS:
         rng = np.random.default_rng(derive_seed(seed, "map", name))
-        chain = chain_for(name, noise_scale)
+        chain = chain_for(name, noise_scale, contact_model)
         known.append(build_object_model(
             name, mapping_tour(name, seed, n_loops), lambda p, c=chain, r=rng: c.features(p, r),
             lambda a, b, r=rng: noisy_odometry(a, b, r), placement=spc_params(), adjustments_per_pose=MAX_ADJUSTMENTS,
             model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
-    return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale)
+    return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model)
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
-                 arm: Any = None, stop_threshold: float = math.inf) -> tuple[Any, Any, list[tuple[Any, Any]]]:
+                 arm: Any = None, stop_threshold: float = math.inf, mesh: Any = None) -> tuple[Any, Any, list[tuple[Any, Any]]]:
     """An Explorer on the simulated ``presented`` object; returns (explorer, arm, recorded cycles).
 
-    The sensor appends every ``(pose, features)`` it produces to the returned list (a
-    recorded session for :meth:`Explorer.replay`); the odometry noise has its own
+    The default search visits the faces of a sphere around the :func:`believed_volume`
+    (not the presented object's surface), each array placement coming in until its
+    nearest whisker base is 15 mm before that box. ``mesh`` is the presented object as
+    it stands (default :func:`whisker_io.sim.objects.make_object`; :func:`presented_mesh`
+    moves it). The sensor appends every ``(pose, features)`` it produces to the returned
+    list (a recorded session for :meth:`Explorer.replay`); the odometry noise has its own
     generator seeded from ``seed``, so a replay with :func:`replay_odometry` sees the same noise.
     """
     from cansim.explore.explorer import Explorer
@@ -218,10 +357,12 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     from whisker_io.hw.arm import SimArm
     from whisker_io.sim.objects import make_object
 
-    mesh = make_object(presented)
-    chain = chain_for(presented, setup.noise_scale)
+    mesh = make_object(presented) if mesh is None else mesh
+    chain = chain_for(presented, setup.noise_scale, setup.contact_model, mesh)
     sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", presented, strategy, spc))
-    search = DefaultSearch(mesh.bounds.mean(axis=0), float(np.linalg.norm(mesh.extents)) / 2, mesh=mesh, seed=seed)
+    box = believed_volume()
+    search = DefaultSearch(box.bounds.mean(axis=0), float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
+                           footprint_m=array_bases_m())
     if arm is None:
         arm = SimArm(search.face_pose(search.current) if _inside(search.face_pose(search.current)) else None, envelope())
     cycles: list[tuple[Any, Any]] = []
@@ -264,12 +405,16 @@ def outside_envelope(arm: Any) -> int:
     return n
 
 
-def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int) -> dict[str, Any]:
-    """One exploration run and its traces."""
-    ex, arm, _ = explorer_for(setup, presented, strategy, spc, seed, max_iterations)
+def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
+            offset_m: float = 0.0, yaw_deg: float = 0.0) -> dict[str, Any]:
+    """One exploration run and its traces (the object moved by :func:`presented_mesh`)."""
+    mesh = presented_mesh(presented, seed, offset_m, yaw_deg)
+    ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh)
     res = ex.run()
     return {"seed": seed, "presented": presented, "strategy": strategy, "spc": "on" if spc else "off", "result": res,
-            "correct": OBJECTS.index(presented), "outside": outside_envelope(arm)}
+            "correct": OBJECTS.index(presented), "outside": outside_envelope(arm),
+            "inside": int(bases_inside(mesh, res.poses).sum()),
+            "no_contact": sum(not getattr(f, "is_observation", False) for _, f in cycles)}
 
 
 def run_rows(run: dict[str, Any]) -> list[dict[str, Any]]:
@@ -287,7 +432,8 @@ def run_rows(run: dict[str, Any]) -> list[dict[str, Any]]:
             "mean_correct_confidence": float(c[:, k].mean()) if len(c) else 0.0,
             "mean_incorrect_confidence": float(c[:, others].mean()) if len(c) and others else 0.0,
             "iterations": len(c), "refused_commands": res.refused_commands,
-            "commands_outside_envelope": run["outside"], "stop_reason": res.stop_reason,
+            "commands_outside_envelope": run["outside"], "whisks_base_inside": run["inside"],
+            "whisks_without_contact": run["no_contact"], "stop_reason": res.stop_reason,
         })
     return rows
 
@@ -374,7 +520,9 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
 
     lines = [(f"Thesis Ch.6 active exploration ({'quick' if args.quick else 'full'} run, seeds {args.seeds}, "
               f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)"),
-             f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}",
+             f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
+             f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
+             f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg",
              "maps: " + ", ".join(f"{k.name} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -439,6 +587,12 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                  f"vs {np.mean(off) if off else math.nan:.3f} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
                  f"{min(len(on), len(off))} seeds); mean incorrect {np.mean(on_i) if on_i else math.nan:.3f} vs "
                  f"{np.mean(off_i) if off_i else math.nan:.3f}")
+    nc_on = [x["whisks_without_contact"] / x["iterations"] for x in spc_rows if x["spc"] == "on"]
+    nc_off = [x["whisks_without_contact"] / x["iterations"] for x in spc_rows if x["spc"] == "off"]
+    if nc_on and nc_off:
+        lines.append(f"Whisks without contact (no region observed; Fig 6.2: the SPC keeps the whiskers on the surface), "
+                     f"same runs: SPC on {np.mean(nc_on):.0%} vs off {np.mean(nc_off):.0%} "
+                     f"(fewer with SPC in {sum(a < b for a, b in zip(nc_on, nc_off))} of {min(len(nc_on), len(nc_off))} seeds)")
     seq = spc_sequences(runs)
     if seq:
         lines.append(f"SPC adjustments per region (runs with SPC on): {len(seq)} regions, median {np.median(seq):.0f}, "
@@ -450,6 +604,11 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     lines.append(f"Runs: {len(first)} ({reasons}); at IC 300, {censored} strategy runs never crossed (IM/SRT censored at the run's end).")
     lines.append(f"Safety: refused commands (re-planned) {sum(x['refused_commands'] for x in first)}; "
                  f"commands that reached the arm outside the envelope {sum(x['commands_outside_envelope'] for x in first)}.")
+    distinct = [x for x in first if x.get("study") == "strategy" or x["spc"] == "off"]  # each run once
+    ins = {s: sum(x["whisks_base_inside"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
+    tot = {s: sum(x["iterations"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
+    lines.append(f"Whisks with a whisker base inside the presented object (impossible placements, checked against its mesh): "
+                 f"SPC on {ins['on']} of {tot['on']}, SPC off {ins['off']} of {tot['off']}.")
     return "\n".join(lines) + "\n"
 
 
@@ -462,11 +621,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="base seed")
     ap.add_argument("--noise-scale", type=float, default=DEFAULT_NOISE_SCALE,
                     help=f"contact-noise scale (1: Sec 6.1.3.1.2; default {DEFAULT_NOISE_SCALE})")
+    ap.add_argument("--contact-model", choices=("truth", "tip"), default=DEFAULT_CONTACT_MODEL,
+                    help=f"contact estimate of the simulated whisks (default {DEFAULT_CONTACT_MODEL})")
+    ap.add_argument("--object-offset-m", type=float, default=0.0,
+                    help="s.d. of the presented object's seeded x/y offset from where the explorer believes it, m (default 0)")
+    ap.add_argument("--object-yaw-deg", type=float, default=0.0,
+                    help="s.d. of the presented object's seeded yaw, deg (default 0)")
     args = ap.parse_args(list(argv) if argv is not None else None)
     args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 10)
     args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
-    if args.seeds < 1 or args.iterations < 2 or not (math.isfinite(args.noise_scale) and args.noise_scale >= 0):
-        print("ch6_active_exploration: --seeds >= 1, --iterations >= 2 and a finite --noise-scale >= 0 are needed", file=sys.stderr)
+    finite = all(math.isfinite(v) and v >= 0 for v in (args.noise_scale, args.object_offset_m, args.object_yaw_deg))
+    if args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45:
+        print("ch6_active_exploration: --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, --object-offset-m in "
+              "[0, 0.1] and --object-yaw-deg in [0, 45] are needed", file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
     logging.getLogger("cansim.explore.explorer").setLevel(logging.ERROR)  # refusals are counted in the CSV
@@ -474,7 +641,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from tqdm import tqdm
 
     t0 = time.monotonic()
-    setup = prepare(args.seed, args.noise_scale)
+    setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model)
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in OBJECTS]
     jobs += [("spc", "box_stack", "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []
@@ -482,7 +649,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
             r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
         else:
-            r = run_one(setup, p, s, spc, seed, args.iterations)
+            r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg)
         (runs if study == "strategy" else spc_runs).append(r)
         for row in run_rows(r):
             row["study"] = study

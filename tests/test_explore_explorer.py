@@ -203,6 +203,26 @@ def test_explorer_bad_limits_are_typed(world, name, value):
             make()
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(st.integers(), st.text(max_size=3), st.lists(st.integers(), max_size=2),
+                 st.dictionaries(st.sampled_from(["along_surface", "step_m", "bogus"]),
+                                 st.one_of(st.none(), st.text(max_size=2), st.floats(max_value=0.0), st.just(float("nan"))),
+                                 min_size=1)),
+       st.sampled_from(["feh", "lsr"]))
+def test_explorer_bad_strategy_options_are_typed(world, options, strategy):
+    known, _ = world
+    with pytest.raises(CansimError):
+        Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy=strategy, strategy_options=options)
+
+
+def test_strategy_options_reach_the_strategy(world):
+    known, _ = world
+    ex = Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy="feh",
+                  strategy_options={"along_surface": False, "step_m": 0.05})
+    assert ex.strategy.along_surface is False and ex.strategy.step_m == 0.05
+    assert Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy="lsr").strategy.along_surface is True
+
+
 def test_empty_known_and_short_trajectory_are_typed():
     with pytest.raises(CansimError):
         Explorer([], None, None, None, DefaultSearch((0, 0, 0), 0.3))

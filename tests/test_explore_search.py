@@ -72,7 +72,7 @@ def test_lsr_picks_least_similar_region_of_pair_of_maps():
     assert rows[0, :2].tolist() == [1, 2]
     # chi2 ties (1.2) broken by NMSE descending: object 1 region 1 (0.9) before object 0 region 0 (0.5)
     assert rows[1, :2].tolist() == [1, 1] and rows[2, :2].tolist() == [0, 0]
-    lsr = LeastSimilarRegion(step_m=0.03)
+    lsr = LeastSimilarRegion(step_m=0.03, along_surface=False)
     # region 2 lives at experiences 2 and 3; n_l = {0: 2, 1: 2, 2: 1, 3: 1}
     # path 0-1-2: (0.1 + 1/2) + (0.1 + 1/1) = 1.7; path 0-3: 0.1 + 1/1 = 1.1, the cheaper
     assert lsr.choose_target(ctx) == (1, 3)
@@ -83,6 +83,32 @@ def test_lsr_picks_least_similar_region_of_pair_of_maps():
     # only objects with non-zero confidence are candidates
     ctx0 = SearchContext(Pose([0, 0, 0.3]), objs, np.array([0.5, 0.0]), observation=object())
     assert lsr.choose_target(ctx0)[0] == 0
+
+
+def test_steps_along_the_surface_never_approach_it():
+    # the array at the origin facing world +y (its axis); a target 0.1 m ahead and 0.1 m to the side (x), 0.1 m up
+    m = _map([(0, 0, 0), (0.1, 0.1, 0.1)], [0, 1], [(0, 1, 0.1, 0.0)], [0, 1, 1], 0)
+    objs = [ObjectView(m, _FrontEnd([1.0, 1.9], [0.0, 0.0]), 2, 2, 3, last_relocalised=0)]
+    ctx = SearchContext(Pose([0, 0, 0.3]), objs, np.array([1.0]), observation=object(), relocalised=[(0, 0)])
+    # FEH: flattened to the horizontal, without the part along y: 3 cm along x only
+    np.testing.assert_allclose(FollowExperienceHistory().propose(ctx).position_m, [0.03, 0.0, 0.3], atol=1e-12)
+    # without along_surface the horizontal step heads for the target, toward the surface too: 3 cm along (1, 1, 0)
+    np.testing.assert_allclose(FollowExperienceHistory(along_surface=False).propose(ctx).position_m,
+                               [0.03 / math.sqrt(2), 0.03 / math.sqrt(2), 0.3], atol=1e-12)
+    # LSR: 3-D, without the part along y: 3 cm along (1, 0, 1)
+    lsr = LeastSimilarRegion()
+    assert lsr.choose_target(ctx) == (0, 1)
+    np.testing.assert_allclose(lsr.propose(ctx).position_m, [0.03 / math.sqrt(2), 0.0, 0.3 + 0.03 / math.sqrt(2)], atol=1e-12)
+    # a target straight ahead is reached at once (nothing to do along the surface): FEH plays on, to the history's end
+    ahead = _map([(0, 0, 0), (0.0, 0.1, 0.0)], [0, 1], [(0, 1, 0.1, 0.0)], [0, 1], 0)
+    ctx2 = SearchContext(Pose([0, 0, 0.3]), [ObjectView(ahead, None, 2, 2, 2)], np.array([1.0]), observation=object(),
+                         relocalised=[(0, 0)])
+    assert FollowExperienceHistory().propose(ctx2) is None
+    for bad in (1, "yes", None):
+        with pytest.raises(CansimError):
+            FollowExperienceHistory(along_surface=bad)
+        with pytest.raises(CansimError):
+            LeastSimilarRegion(along_surface=bad)
 
 
 def test_lsr_retargets_when_leader_changes():
@@ -160,7 +186,8 @@ def test_bad_constructor_input_typed(x):
                  lambda: DefaultSearch([0, 0, 0], 0.2, semi_axes_m=[0.1, x, 0.2]),
                  lambda: DefaultSearch([0, 0, 0], 0.2, clearance_m=x),
                  lambda: DefaultSearch([0, 0, 0], 0.2, subdivisions=x),
-                 lambda: DefaultSearch([0, 0, 0], 0.2, seed=-1 if x is None or isinstance(x, int) else x)):
+                 lambda: DefaultSearch([0, 0, 0], 0.2, seed=-1 if x is None or isinstance(x, int) else x),
+                 lambda: DefaultSearch([0, 0, 0], 0.2, footprint_m=[[0.0, x, 0.0]])):
         try:
             made = make()
         except CansimError:
@@ -201,6 +228,40 @@ def test_ellipsoid_faces_and_the_mapping_tour():
             e.tour(bad)
     with pytest.raises(CansimError):
         DefaultSearch(c, 0.3, semi_axes_m=(0.1, 0.0, 0.2))
+
+
+def test_footprint_keeps_every_point_clear_of_the_believed_volume():
+    import trimesh
+
+    box = trimesh.creation.box(bounds=[[-0.1, -0.1, 0.0], [0.1, 0.1, 0.35]])
+    c = np.array([0.0, 0.0, 0.175])
+    # two points 5 cm either side of the array's axis, one 4 cm back from the bases' plane (y = 0.2019)
+    foot = np.array([[0.05, 0.2019, 0.0], [-0.05, 0.1619, 0.0]])
+    plain = DefaultSearch(c, 0.225, mesh=box, seed=0)
+    fp = DefaultSearch(c, 0.225, mesh=box, seed=0, footprint_m=foot, clearance_m=0.02)
+    for f in range(len(fp.directions)):
+        p = fp.face_pose(f)
+        pts = p.apply(foot)
+        assert not box.contains(pts).any()
+        y = p.rotation.as_matrix()[:, 1]
+        # the ray along y from each point: the nearest hit is exactly the clearance ahead (when one hits)
+        locs, rays, _ = box.ray.intersects_location(pts, np.repeat(y[None], 2, axis=0), multiple_hits=False)
+        if len(locs):
+            assert min(np.linalg.norm(locs - pts[rays], axis=1)) == pytest.approx(0.02, abs=1e-9)
+    # a face straight along +x of the box's centre, by hand: the face plane x = 0.1, the axis point 2 cm before it
+    u = np.array([1.0, 0.0, 0.0])
+    one = DefaultSearch(c, 0.225, mesh=box, clearance_m=0.02, footprint_m=[[0.0, 0.2019, 0.0]])
+    one.directions = u[None]
+    one.distance_m = np.array([0.225])
+    one._clear(box, np.array([[0.0, 0.2019, 0.0]]), 0.02)
+    assert one.distance_m[0] == pytest.approx(0.1 + 0.02)
+    # the default footprint is the single axis point: the central ray, as without footprint_m
+    np.testing.assert_allclose(plain.distance_m, DefaultSearch(c, 0.225, mesh=box, seed=0, footprint_m=[[0, 0.2019, 0]]).distance_m)
+    for bad in ([[0.0, 0.2]], [[np.nan, 0, 0]], np.zeros((0, 3)), "x"):
+        with pytest.raises(CansimError):
+            DefaultSearch(c, 0.225, mesh=box, footprint_m=bad)
+    with pytest.raises(CansimError):
+        DefaultSearch(c, 0.225, clearance_m=float("nan"))
 
 
 def test_feh_plays_the_history_on_from_a_reached_target():

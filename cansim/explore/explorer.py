@@ -167,7 +167,8 @@ def build_object_model(
     name : str
     trajectory : sequence of Pose
         Whisk poses (world): the thesis' mapping run (Sec 6.1.3.1) is
-        ``DefaultSearch(c, r, mesh=mesh, semi_axes_m=fit_surface(mesh).semi_axes_m).tour(2)``.
+        ``DefaultSearch(c, r, mesh=mesh, semi_axes_m=fit_surface(mesh).semi_axes_m,
+        footprint_m=array.positions_m).tour(2)`` (every whisker base 15 mm or more before the object).
     sensor : callable
         ``sensor(pose) -> RegionFeatures``.
     odometry : callable
@@ -321,6 +322,10 @@ class Explorer:
         SPC corrections per region before the strategy moves on (10, the physical runs).
     max_replans : int
         Re-plans after refused commands per iteration.
+    strategy_options : mapping, optional
+        Keyword arguments of the FEH or LSR strategy
+        (:class:`cansim.explore.search.FollowExperienceHistory`,
+        :class:`cansim.explore.search.LeastSimilarRegion`), e.g. ``{"along_surface": True}``.
     """
 
     def __init__(
@@ -339,6 +344,7 @@ class Explorer:
         time_limit_s: float = math.inf,
         max_adjustments: int = 10,
         max_replans: int = 3,
+        strategy_options: dict[str, object] | None = None,
     ) -> None:
         if strategy not in STRATEGIES:
             raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
@@ -356,7 +362,12 @@ class Explorer:
         self.sensor, self.arm, self.odometry = sensor, arm, odometry
         self.default = default_search
         self.strategy_name = strategy
-        self.strategy = make_strategy(strategy)
+        if strategy_options is not None and not isinstance(strategy_options, dict):
+            raise ConfigError(f"strategy_options must be a dict of keyword arguments, got {type(strategy_options).__name__}")
+        try:
+            self.strategy = make_strategy(strategy, **(strategy_options or {}) if strategy != "default" else {})
+        except TypeError as exc:
+            raise ConfigError(f"bad strategy_options for {strategy!r}: {exc}") from None
         self.placement, self.integrator = placement, integrator
         self.stop_threshold, self.max_iterations, self.time_limit_s = float(stop_threshold), int(max_iterations), float(time_limit_s)
         self.max_adjustments, self.max_replans = int(max_adjustments), int(max_replans)

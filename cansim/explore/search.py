@@ -9,7 +9,10 @@ Every strategy proposes the next end-effector goal (world frame) from a
   with its whisker bases on the sphere. With ``semi_axes_m`` the mesh is the icosphere
   scaled to an ellipsoid (the one fitted to the object,
   :func:`whisker_io.sim.trajectories.fit_surface`): the faces over which the object
-  maps are built (Sec 6.1.3.1), :meth:`DefaultSearch.tour`.
+  maps are built (Sec 6.1.3.1), :meth:`DefaultSearch.tour`. With ``mesh`` (the volume
+  the object is believed to occupy, e.g. its bounding box) the array comes in along
+  each face direction until the nearest point of its ``footprint_m`` (the whisker
+  bases) is ``clearance_m`` before that volume, so no base is put inside it.
 * :class:`FollowExperienceHistory` (FEH) - after a re-localisation to experience ``e``
   of object ``k``'s map, target the experience that followed ``e`` in the map's stored
   (mapping) history; map poses (relaxed) are carried into the world through the
@@ -17,7 +20,10 @@ Every strategy proposes the next end-effector goal (world frame) from a
   the motion is flattened to the world horizontal plane and taken in 3-cm steps. A
   target reached (horizontally within one step) hands on to the experience that
   followed it in the history, so the array plays the mapping run back until the next
-  re-localisation re-anchors it.
+  re-localisation re-anchors it. With ``along_surface`` (default) the step has no
+  part along the array's axis (its horizontal projection): the array moves across
+  the surface and the SPC alone sets its distance; otherwise a horizontal step toward
+  a target above or round the object drives the array into it.
 * :class:`LeastSimilarRegion` (LSR) - the Eq 6.1-6.2 similarity of the current region
   against the regions of every candidate object (non-zero confidence): rows
   ``(chi2, NMSE)`` sorted lexicographically (chi2, then NMSE) in descending order, the
@@ -26,7 +32,8 @@ Every strategy proposes the next end-effector goal (world frame) from a
   from the experience of that map most recently re-localised to (the nearest by map
   pose when none). The object maps are not linked to each other. The array follows that
   path experience by experience (3-cm steps toward the next one not yet reached, within
-  one step), i.e. along the map round the object, and re-targets at its end.
+  one step), i.e. along the map round the object, and re-targets at its end; with
+  ``along_surface`` (default) a step has no part along the array's axis, as FEH's.
 
 Switching (:func:`active_strategy`): the default search while every confidence is zero
 or contact is lost; the chosen strategy once a confidence rises; LSR re-targets when
@@ -47,7 +54,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from cansim.errors import ConfigError, InvalidInputError
 from cansim.explore.placement import maintain_yaw
 from whisker_io.pose import Pose
-from whisker_io.validation import config_field, finite_vector
+from whisker_io.validation import config_field, finite_array, finite_vector
 
 __all__ = [
     "STRATEGIES",
@@ -138,11 +145,31 @@ def _world_of(ctx: SearchContext, k: int, exp: int) -> Pose:
     return ctx.pose @ cur.inverse() @ _map_pose(om, exp)
 
 
-def _step_towards(pose: Pose, target: Pose, step_m: float, flat: bool) -> Pose:
+def _offset(pose: Pose, target: Pose, flat: bool, along_surface: bool) -> np.ndarray:
+    """The motion from ``pose`` to ``target`` a stepping strategy makes (m, world, (3,)).
+
+    ``flat``: the world horizontal part. ``along_surface``: without the part along the
+    array's axis y (its horizontal projection when ``flat``), i.e. no motion toward or
+    away from the surface; the SPC (Alg 7) sets that distance.
+    """
     d = target.position_m - pose.position_m
+    if along_surface:
+        y = pose.rotation.as_matrix()[:, 1].copy()
+        if flat:
+            y[2] = 0.0
+        ny = float(np.linalg.norm(y))
+        if ny > 1e-9:
+            y = y / ny
+            d = d - (d @ y) * y
     if flat:
         d = d.copy()
         d[2] = 0.0
+    return d
+
+
+def _step_towards(pose: Pose, target: Pose, step_m: float, flat: bool, along_surface: bool = False) -> Pose:
+    d = _offset(pose, target, flat, along_surface)
+    if flat:
         n = float(np.linalg.norm(d))
         return pose if n < 1e-12 else Pose.from_rotation(pose.position_m + d * min(1.0, step_m / n), pose.rotation)
     n = float(np.linalg.norm(d))
@@ -171,12 +198,20 @@ class DefaultSearch:
     roll_rad : float
         Roll about y after Alg 8 (the trajectories' pi/2).
     mesh : trimesh.Trimesh, optional
-        In simulation: the ray from the face toward the centre is cast against the mesh
-        and the whisker bases are put ``clearance_m`` in front of the hit (a sphere
-        through the bounding-box corners leaves up to 12 cm of air before a Box face,
-        beyond the 60-160 mm whiskers). Without it the bases sit on the sphere.
+        The volume the object is believed to occupy (e.g. its bounding box): the array
+        comes in along the face direction until a point of ``footprint_m`` is
+        ``clearance_m`` in front of the mesh (a sphere through the bounding-box corners
+        leaves up to 12 cm of air before a Box face, beyond the reach of the 60-160 mm
+        whiskers). Without it the bases sit on the sphere.
     clearance_m : float
-        Gap in front of the hit, m.
+        Gap in front of the mesh, m.
+    footprint_m : array_like (k, 3), optional
+        Points of the array (end-effector frame, m; e.g. the whisker bases,
+        :attr:`whisker_io.array.geometry.WhiskerArray.positions_m`) that must all stay
+        ``clearance_m`` in front of ``mesh``: a ray along the array's y-axis from each is
+        cast and the nearest hit sets the distance, so no base is put inside the mesh.
+        Default the single point ``(0, standoff_m, 0)`` (the ray from the face toward
+        the centre).
     semi_axes_m : array_like (3,), optional
         An ellipsoid mesh instead of the sphere: the icosphere's vertices scaled by these
         semi-axes (world x, y, z, m); a face's direction is from the centre through its
@@ -194,7 +229,8 @@ class DefaultSearch:
 
     def __init__(self, centre_m: ArrayLike, radius_m: float, standoff_m: float = 0.2019, *, seed: int = 0,
                  subdivisions: int = 1, roll_rad: float = math.pi / 2, mesh: trimesh.Trimesh | None = None,
-                 clearance_m: float = 0.015, semi_axes_m: ArrayLike | None = None) -> None:
+                 clearance_m: float = 0.015, semi_axes_m: ArrayLike | None = None,
+                 footprint_m: ArrayLike | None = None) -> None:
         c = finite_vector(centre_m, 3, "centre_m")  # the one validator: rejects strings, NaN, wrong shapes
         for name, v in (("radius_m", radius_m), ("standoff_m", standoff_m)):
             config_field(v, name, float, above=0, maximum=MAX_SEARCH_M, hint="give metres")
@@ -219,17 +255,41 @@ class DefaultSearch:
             self.distance_m = np.full(len(self.directions), self.radius_m)
         else:  # the ellipsoid's radius along each direction u: 1 / |u / a|
             self.distance_m = 1.0 / np.linalg.norm(self.directions / axes, axis=1)
+        if footprint_m is None:
+            foot = np.array([[0.0, self.standoff_m, 0.0]])
+        else:
+            foot = finite_array(footprint_m, (None, 3), "footprint_m (k points of the end-effector frame, m)")
+            if len(foot) < 1 or np.abs(foot).max() > MAX_SEARCH_M:
+                raise InvalidInputError(f"footprint_m must hold 1 or more points within {MAX_SEARCH_M:g} m, got shape {foot.shape}")
         if mesh is not None:
-            origins = c + 2.0 * self.radius_m * self.directions
-            locs, rays, _ = mesh.ray.intersects_location(origins, -self.directions, multiple_hits=False)
-            for loc, r in zip(locs, rays):
-                self.distance_m[r] = min(self.distance_m[r], float((loc - c) @ self.directions[r]) + float(clearance_m))
+            self._clear(mesh, foot, float(clearance_m))
+
+    def _clear(self, mesh: trimesh.Trimesh, foot: np.ndarray, clearance_m: float) -> None:
+        """Bring each face's array in until a footprint point is ``clearance_m`` before ``mesh``."""
+        far = 2.0 * self.radius_m
+        k = len(foot)
+        origins, dirs = [], []
+        for f, u in enumerate(self.directions):
+            p = self._pose_at(f, far)
+            origins.append(p.apply(foot))
+            dirs.append(np.repeat(-u[None], k, axis=0))
+        o, d = np.concatenate(origins), np.concatenate(dirs)
+        locs, rays, _ = mesh.ray.intersects_location(o, d, multiple_hits=False)
+        advance = np.full(len(self.directions), np.inf)
+        for loc, r in zip(locs, rays):
+            f = int(r) // k
+            advance[f] = min(advance[f], float(np.linalg.norm(loc - o[r])))
+        hit = np.isfinite(advance)
+        self.distance_m[hit] = far - advance[hit] + clearance_m
+
+    def _pose_at(self, face: int, distance_m: float) -> Pose:
+        u = self.directions[face]
+        rot = maintain_yaw(-u) * Rotation.from_rotvec([0.0, self.roll_rad, 0.0])
+        return Pose.from_rotation(self.centre_m + (distance_m + self.standoff_m) * u, rot)
 
     def face_pose(self, face: int) -> Pose:
         """End-effector pose facing the centre from face ``face``."""
-        u = self.directions[face]
-        rot = maintain_yaw(-u) * Rotation.from_rotvec([0.0, self.roll_rad, 0.0])
-        return Pose.from_rotation(self.centre_m + (self.distance_m[face] + self.standoff_m) * u, rot)
+        return self._pose_at(face, float(self.distance_m[face]))
 
     def next_face(self) -> int:
         """Mark the current face visited and return the closest unvisited one (all visited: start over)."""
@@ -277,6 +337,12 @@ class DefaultSearch:
         return [p for p in poses if accept is None or accept(p)]
 
 
+def _flag(v: object, name: str) -> bool:
+    if not isinstance(v, (bool, np.bool_)):
+        raise InvalidInputError(f"{name} must be True or False, got {v!r}")
+    return bool(v)
+
+
 def _step_and_reach(step_m: float, reach_m: float | None) -> tuple[float, float]:
     """Validated ``(step_m, reach_m)`` of a stepping strategy (``reach_m`` None: one step)."""
     reach = step_m if reach_m is None else reach_m
@@ -299,12 +365,18 @@ class FollowExperienceHistory:
         that followed the reached one in the stored history. Without this the array
         stands at a reached target, whisking the same place, until a re-localisation
         (measured on the Box: 52 of 122 proposals within 5 mm of one target).
+    along_surface : bool
+        Drop the part of each step (and of the distance to a target) along the array's
+        axis, projected on the horizontal (default True; module docstring). Without it
+        the array met the mapped object with a whisker base inside it in 39-47 % of the
+        FEH whisks (Box and Box-Stack, ``examples/ch6_active_exploration.py``).
     """
 
     name = "feh"
 
-    def __init__(self, step_m: float = 0.03, reach_m: float | None = None) -> None:
+    def __init__(self, step_m: float = 0.03, reach_m: float | None = None, along_surface: bool = True) -> None:
         self.step_m, self.reach_m = _step_and_reach(step_m, reach_m)
+        self.along_surface = _flag(along_surface, "along_surface")
         self.target: tuple[int, int] | None = None
         self._index: int | None = None  # history index of the target's visit being played back
 
@@ -338,8 +410,7 @@ class FollowExperienceHistory:
             return None
         k, e = self.target
         goal = _world_of(ctx, k, e)
-        d = goal.position_m[:2] - ctx.pose.position_m[:2]
-        if float(np.linalg.norm(d)) < self.reach_m:  # reached: play the history on
+        if float(np.linalg.norm(_offset(ctx.pose, goal, True, self.along_surface))) < self.reach_m:  # reached: play on
             h = ctx.objects[k].object_map.history[: ctx.objects[k].n_history]  # type: ignore[attr-defined]
             nxt = self.following(h, int(self._index)) if self._index is not None else None
             if nxt is None:
@@ -347,7 +418,7 @@ class FollowExperienceHistory:
                 return None
             self.target, self._index = (k, nxt[0]), nxt[1]
             goal = _world_of(ctx, k, nxt[0])
-        return _step_towards(ctx.pose, goal, self.step_m, flat=True)
+        return _step_towards(ctx.pose, goal, self.step_m, flat=True, along_surface=self.along_surface)
 
     def refused(self) -> None:
         """Drop the target after a refused command."""
@@ -411,12 +482,16 @@ class LeastSimilarRegion:
         which runs through the object: measured on the Box, straight-line targets lay
         0.4-0.6 m away, on the far side, and none was reached in 300 whisks, the SPC
         holding the array against the near face.
+    along_surface : bool
+        Drop the part of each step (and of the distance to an experience) along the
+        array's axis (default True; as :class:`FollowExperienceHistory`).
     """
 
     name = "lsr"
 
-    def __init__(self, step_m: float = 0.03, reach_m: float | None = None) -> None:
+    def __init__(self, step_m: float = 0.03, reach_m: float | None = None, along_surface: bool = True) -> None:
         self.step_m, self.reach_m = _step_and_reach(step_m, reach_m)
+        self.along_surface = _flag(along_surface, "along_surface")
         self.target: tuple[int, int] | None = None
         self.path: list[int] = []  # experiences still to visit on the way to the target (target last)
         self.leader: int | None = None
@@ -453,7 +528,8 @@ class LeastSimilarRegion:
         leader = int(np.argmax(ctx.confidence)) if np.any(ctx.confidence > 0) else None
         if self.target is not None:
             k = self.target[0]
-            while self.path and float(np.linalg.norm(_world_of(ctx, k, self.path[0]).position_m - ctx.pose.position_m)) < self.reach_m:
+            while self.path and float(np.linalg.norm(
+                    _offset(ctx.pose, _world_of(ctx, k, self.path[0]), False, self.along_surface))) < self.reach_m:
                 self.path.pop(0)
         if self.target is None or not self.path or leader != self.leader:
             new = self.choose_target(ctx)
@@ -464,7 +540,8 @@ class LeastSimilarRegion:
             return None
         if not self.path:
             self.path = [self.target[1]]
-        return _step_towards(ctx.pose, _world_of(ctx, self.target[0], self.path[0]), self.step_m, flat=False)
+        return _step_towards(ctx.pose, _world_of(ctx, self.target[0], self.path[0]), self.step_m, flat=False,
+                             along_surface=self.along_surface)
 
     def refused(self) -> None:
         """Drop the target after a refused command."""
