@@ -76,10 +76,14 @@ first" counts runs whose correct IC reached the threshold before the other's)
 
 Results of the full run (``--seeds 10``, 1000 whisks, the 10 seeds' runs on one set of
 maps, seed 0; 314 s on 2 shared cores; ``ch6_summary.txt``). Correct identity first at
-IC 100 / 300: default 20/20 / 20/20, FEH 17/20 / 0/20, LSR 18/20 / 0/20; no incorrect
+IC 100 / 300: default 20/20 / 20/20, FEH 18/20 / 0/20, LSR 19/20 / 0/20; no incorrect
 identity reached any threshold first; IC 600 and 900 are never reached in 1000 whisks.
-Median IM / SRT at IC 100: default 784 / 216, FEH 432 / 568, LSR 370 / 630 whisks; at
-300 the default's 340 / 660 (FEH and LSR censored). FEH and LSR re-localise in about
+Median IM / SRT at IC 100: default 784 / 216, FEH 351 / 650, LSR 389 / 612 whisks; at
+300 the default's 331 / 669 (FEH and LSR censored). (These figures and the SPC
+confidences below are re-measured with the mapping pose gate counted from each
+experience's creation, :mod:`cansim.whisker_ratslam`; with the earlier count from the
+last re-localisation FEH / LSR were 17/20 / 18/20 at IC 100, IM / SRT 432 / 568 and
+370 / 630, the default's at 300 340 / 660; the rest of this paragraph is from then.) FEH and LSR re-localise in about
 3 % of their whisks against 9-10 % for the default search (with 3000 whisks, seeds 0-1,
 4 runs each: correct first at IC 300 in FEH 2/4, LSR 3/4). With impulse 1 and decay
 0.75 a re-localisation adds about 4 to the IC, so IC 300 takes some 75 of them. Not
