@@ -223,16 +223,7 @@ def svr_settings(tmp_path_factory: pytest.TempPathFactory) -> ch5_study.Settings
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [
-    "mug",
-    pytest.param("box", marks=pytest.mark.xfail(strict=True, reason=(
-        "measured (2 loops of A, noise scale 0.3, pose-consistent matching, SVR thresholds calibrated on the Mug "
-        "T_pfh 1.2 / T_sda 0.0034, quick Ch.4 svr9): both + SVR median re-localisation error 0 m / 0 deg on seeds 0 "
-        "and 1 but 0.030 m (one whisk, = the 0.030 m step) on seed 2, where only 5 re-localisations happen: the "
-        "signal path detects fewer than 3 contacts on ~40 of the 88 whisks of a loop (the corners), the dead "
-        "reckoning through them leaves the loop-1 regions outside the pose gate, and along a flat face the "
-        "neighbouring whisk's region has the same PFH; the Mug is at 0 m on all three seeds"))),
-])
+@pytest.mark.parametrize("name", ["mug", "box"])
 def test_both_features_svr_localise_below_the_step(svr_settings: ch5_study.Settings, name: str) -> None:
     for seed in (0, 1, 2):
         b = ch5_study.build_job((name, ch5_study.BEST, dataclasses.replace(svr_settings, seed=seed), None))

@@ -16,6 +16,7 @@ from scipy.spatial.distance import pdist
 from scipy.spatial.transform import Rotation
 
 from whisker_io.array.geometry import WhiskerArray
+from whisker_io.contact.detection import DetectionParams
 from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
 from whisker_io.pose import Pose
 from whisker_io.radial.features import RadialDataset
@@ -24,6 +25,7 @@ from whisker_io.radial.persistence import save_model
 from whisker_io.records.recording import RecordingWriter
 from whisker_io.records.whisk_record import WhiskRecord
 from whisker_io.sim.objects import make_object
+from whisker_io.sim.signals import SignalParams
 from whisker_io.sim.sweep import ContactNoise
 from whisker_io.sim.trajectories import object_trajectory
 from whisker_io.hw.recorder import Recorder, replay_session
@@ -95,23 +97,48 @@ def test_tip_model_puts_contacts_at_the_tips():
                                atol=1e-12)
 
 
+def _wall_peak_counts() -> np.ndarray:
+    """Hand-computed y-deflection peak of each wall contact (whisker_io.sim.signals): a tip
+    contact (a = L) turned on to full protraction, D = G k(L) (theta_max - theta_c) with
+    k(L) = 3 E I_b (1/L - 1/L'), clipped at the ADC limit; pure y since n_x = 0."""
+    p = SignalParams()
+    L = ARRAY.lengths_m
+    k = 3.0 * p.youngs_modulus_pa * math.pi * p.base_radius_m**4 / 4.0 * (1.0 / L - (p.base_radius_m - p.tip_radius_m) / (p.base_radius_m * L))
+    return np.minimum(p.adc_max_counts / p.full_scale_moment_nm * k * (ARRAY.protraction_rad - _wall_contact_angles()),
+                      p.adc_max_counts)
+
+
 def test_flat_wall_signal_path_by_hand():
     """Signal path, same wall: the detected onset angles are the sweep's contact angles (to
     the detector's few samples of a 1-Hz whisk), so the tip contacts sit on the wall. The wall's
     normal lies along the array axis, perpendicular to every whisk axis z (the sensor x-axis):
     n_x = 0, the deflection is pure y (see whisker_io.sim.signals) and no x-y gradient exists,
-    so the SDA is all masked. Long tip contacts stay below the 500-count prominence: only the
-    60- and 100-mm whiskers are detected."""
-    cw = WhiskChain(_wall(), signals=True, contact_model="tip", contact_noise=None).whisk(
-        Pose.identity(), np.random.default_rng(0))
+    so the SDA is all masked. The detector's thresholds are calibrated to the simulated sensor,
+    20 x the 4-count noise std (about 80 counts): every tip contact (hand-computed peaks 425-1279
+    counts) is detected."""
+    chain = WhiskChain(_wall(), signals=True, contact_model="tip", contact_noise=None)
+    assert chain.contact_threshold_counts == pytest.approx(20 * SignalParams().noise_std_counts, rel=0.05)
+    cw = chain.whisk(Pose.identity(), np.random.default_rng(0))
     f = cw.features
     detected = np.array([d is not None for d in cw.detections])
-    rows = np.array([m.row for m in ARRAY.modules])
-    assert detected[rows < 3].all()
-    assert f.n_contacts == detected.sum() and not f.sda_mask.any() and not f.sda.any()
-    onset = np.array([d.contact_angle_rad for d in cw.detections if d is not None])
-    np.testing.assert_allclose(onset, _wall_contact_angles()[detected], atol=math.radians(1.0))
+    assert _wall_peak_counts().min() > 4 * chain.contact_threshold_counts and detected.all()
+    assert f.n_contacts == 18 and not f.sda_mask.any() and not f.sda.any()
+    onset = np.array([d.contact_angle_rad for d in cw.detections])
+    np.testing.assert_allclose(onset, _wall_contact_angles(), atol=math.radians(1.0))
     np.testing.assert_allclose(f.contact_points_m[:, 1], Y0, atol=2e-3)
+
+
+def test_thesis_500_count_detection_misses_the_soft_tip_contacts():
+    """With the thesis' 500-count prominence (DetectionParams(), the real sensor's) a whisker is
+    detected exactly when its hand-computed peak exceeds 500 counts: the 160-mm tips (425
+    counts) are missed, the 60- and 100-mm ones (1279, 654) found."""
+    cw = WhiskChain(_wall(), signals=True, contact_model="tip", contact_noise=None,
+                    detection_params=DetectionParams()).whisk(Pose.identity(), np.random.default_rng(0))
+    detected = np.array([d is not None for d in cw.detections])
+    peak = _wall_peak_counts()
+    assert np.all(np.abs(peak - 500.0) > 50.0)  # no whisker near the threshold
+    np.testing.assert_array_equal(detected, peak > 500.0)
+    assert not detected.all() and detected.any()
 
 
 # ------------------------------------------------------------- noise
@@ -167,13 +194,14 @@ def test_recorded_session_replays_to_the_same_features(tmp_path, mug, mug_poses)
             cw = chain.whisk(pose, rng)
             cw.write(writer, time_s=float(i))
             direct.append(cw)
-    replayed = replay_session(tmp_path, RecordedChain())  # the hardware recorder's replay
+    # the hardware recorder's replay, with the detector the simulated sensor was calibrated for
+    replayed = replay_session(tmp_path, RecordedChain(detection_params=chain.detection_params))
     assert len(replayed) == len(direct)
     assert sum(cw.features.is_observation for cw in direct) >= 2  # the check is not vacuous
     for cw, (pose, feats) in zip(direct, replayed):
         assert pose == cw.pose
         assert feats == cw.features
-        assert feats == RecordedChain().features(cw.records)
+        assert feats == RecordedChain(detection_params=chain.detection_params).features(cw.records)
 
 
 def test_live_recorder_pipeline_gives_the_direct_features(tmp_path, mug, mug_poses):
@@ -182,7 +210,7 @@ def test_live_recorder_pipeline_gives_the_direct_features(tmp_path, mug, mug_pos
     rng = np.random.default_rng(2)
     from whisker_io.hw.arm import ArmState
 
-    with Recorder(tmp_path, pipeline=RecordedChain()) as rec:
+    with Recorder(tmp_path, pipeline=RecordedChain(detection_params=chain.detection_params)) as rec:
         direct = []
         for i, pose in enumerate(mug_poses[5:8]):
             cw = chain.whisk(pose, rng)
@@ -215,10 +243,11 @@ def test_svr_model_from_a_skops_file(tmp_path, mug, mug_poses, svr_file):
     for f in direct:  # estimates clipped to the shaft: every point within its whisker's reach
         r = np.linalg.norm(f.contact_points_m[:, None, :] - ARRAY.positions_m[None], axis=2)
         assert np.all(r.min(axis=1) <= ARRAY.lengths_m.max() + 1e-9)
-    replayed = [feats for _, feats in replay_session(tmp_path, RecordedChain(contact_model="svr",
-                                                                             radial_model=svr_file))]
+    det = chain.detection_params
+    replayed = [feats for _, feats in replay_session(tmp_path, RecordedChain(contact_model="svr", radial_model=svr_file,
+                                                                             detection_params=det))]
     assert replayed == direct
-    tip = [feats for _, feats in replay_session(tmp_path, RecordedChain())]
+    tip = [feats for _, feats in replay_session(tmp_path, RecordedChain(detection_params=det))]
     assert any(a != b for a, b in zip(tip, direct) if a.n_contacts)  # the model changes the points
 
 

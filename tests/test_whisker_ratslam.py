@@ -203,7 +203,7 @@ def test_library_joins_models_and_relocalises_to_the_right_object():
             m.step(SpatialOdometry(v, w, 1.0), observe(pfh, sda, k, rng))
         return m, pfh, sda
 
-    (a, pa, sa), (b, pb, sb) = model_for(3), model_for(4)
+    (a, _pa, _sa), (b, pb, sb) = model_for(3), model_for(4)
     lib_model, lib = WhiskerRatSLAM.library([a, b], ["a", "b"])
     assert lib_model.n_views == a.n_views + b.n_views
     assert lib_model.object_map.n_experiences == a.object_map.n_experiences + b.object_map.n_experiences

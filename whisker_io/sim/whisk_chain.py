@@ -10,7 +10,31 @@ recorded whisks; every step is an existing function of :mod:`whisker_io`:
 2. **Contact**: the sweep's first contacts (sweep path) or contact detection on
    the y-deflection (:func:`~whisker_io.contact.detection.detect_contacts`,
    Sec 5.1.1.1.1; signal and recorded paths); the contact angle is the sweep's,
-   or the angle at the detected onset.
+   or the angle at the detected onset. Decision (simulated signal path): the
+   detector's prominence and confirmation thresholds are calibrated to the
+   simulated sensor as Sec 3.2.2 calibrates the contact threshold, 20 x the
+   standard deviation of the y-deflection over one free-whisking cycle
+   (:func:`~whisker_io.array.control.contact_threshold_from_noise`; 80 counts for
+   the default 4-count noise), not the thesis' 500 counts. Those 500 counts are a
+   threshold on the thesis' sensor, whose gain the simulator does not know (its
+   full-scale moment is an assumption, :class:`~whisker_io.sim.signals.SignalParams`);
+   on the simulated sensor they are 125 noise sigmas and reject every contact
+   whose base moment stays small: a tip contact on a 160-mm whisker peaks at
+   ~450 counts even 30 deg before full protraction. Measured on one loop of
+   trajectory A per object (``examples/ch5_study.py``'s steps, noise-free contacts,
+   seed 0), contacts detected of the sweep's and whisks with fewer than 3 contacts
+   (no observation), 500 counts -> calibrated 80 counts (sweep-only path):
+   Box 510 -> 680 of 720, 40 -> 12 of 88 whisks (4); Mug 107 -> 178 of 224, 15 -> 5
+   of 37 (4); Barrel 81 -> 183 of 220, 10 -> 0 of 31 (0); Blob 33 -> 93 of 114,
+   32 -> 19 of 37 (16); Plane 142 -> 188 of 208, 40 -> 28 of 66 (24); Kettle
+   79 -> 162 of 193, 26 -> 7 of 42 (6) (``WhiskChain(mesh, signals=True,
+   contact_model="tip", contact_noise=None)`` with and without
+   ``detection_params=DetectionParams()``). No detection without a sweep contact
+   occurred at either threshold. The recorded path (:class:`RecordedChain`, real
+   sensors) keeps the thesis' values; a session recorded from the simulated signal
+   path replays to the same features with
+   ``RecordedChain(detection_params=chain.detection_params)``.
+
 3. **Radial distance** along the shaft (``contact_model``):
 
    * ``"truth"`` - the simulator's exact radial distance (the "simulated ground
@@ -53,14 +77,14 @@ same features.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
-from whisker_io.array.control import WhiskController
+from whisker_io.array.control import OpenLoop, WhiskController, contact_threshold_from_noise
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rotate_shaft
 from whisker_io.contact.detection import DetectedContact, DetectionParams, detect_contacts
@@ -73,7 +97,7 @@ from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.radial.pipeline import RadialPredictor, RadialSource, estimate_radial_distance, resolve_radial_model
 from whisker_io.records.recording import RecordingWriter, ReplayedCycle
 from whisker_io.records.whisk_record import PoseEntry, WhiskRecord
-from whisker_io.sim.signals import SignalParams
+from whisker_io.sim.signals import SignalParams, simulate_whisk_cycle
 from whisker_io.sim.simulator import ArraySimulator
 from whisker_io.sim.sweep import ContactNoise, MeshTarget, SweepContact, SweepParams, perturb_contacts, sweep_array
 
@@ -121,6 +145,16 @@ def _check_noise(noise: object) -> ContactNoise | None:
     if noise is not None and not isinstance(noise, ContactNoise):
         raise InvalidInputError(f"contact_noise must be a ContactNoise or None, got {type(noise).__name__}")
     return noise
+
+
+def _calibrated_threshold(simulator: ArraySimulator) -> float:
+    """20 x the y-deflection noise std over one free-whisking cycle of ``simulator``'s sensor
+    and whisk pattern (Sec 3.2.2's calibration; module docstring, item 2), counts. The cycle
+    draws from its own fixed generator, so the simulator's noise stream is unchanged."""
+    sp = simulator.signal_params
+    free, _ = simulate_whisk_cycle([None] * len(simulator.array), OpenLoop(simulator.controller.pattern), sp,
+                                   seed=np.random.default_rng(0), modules=simulator.array.names)
+    return contact_threshold_from_noise(np.stack([r.y_counts for r in free]))
 
 
 class _Kinematics:
@@ -263,7 +297,15 @@ class WhiskChain:
     controller : WhiskController, optional
         Whisking controller (signal path; default 1-Hz open loop over the full range).
     detection_params : DetectionParams, optional
-        Contact detection (signal path; thesis defaults).
+        Contact detection (signal path). Default: the thesis' pipeline with the
+        prominence and confirmation thresholds calibrated to the simulated sensor
+        (module docstring, item 2; :attr:`contact_threshold_counts`).
+
+    Attributes
+    ----------
+    contact_threshold_counts : float or None
+        The calibrated threshold (20 x the free-whisking noise std), counts, on the
+        signal path; None on the sweep path.
 
     Raises
     ------
@@ -315,9 +357,16 @@ class WhiskChain:
         for name, value, kind in (("pfh_params", pfh_params, PFHParams), ("sweep_params", sweep_params, SweepParams)):
             if not isinstance(value, kind):
                 raise InvalidInputError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+        if detection_params is not None and not isinstance(detection_params, DetectionParams):
+            raise InvalidInputError(f"detection_params must be a DetectionParams, got {type(detection_params).__name__}")
+        self._simulator = (ArraySimulator(arr, controller, signal_params, sweep_params, seed=0)
+                           if signals else None)
+        self.contact_threshold_counts: float | None = None
         det = DetectionParams() if detection_params is None else detection_params
-        if not isinstance(det, DetectionParams):
-            raise InvalidInputError(f"detection_params must be a DetectionParams, got {type(det).__name__}")
+        if self._simulator is not None and detection_params is None:
+            self.contact_threshold_counts = _calibrated_threshold(self._simulator)
+            det = replace(det, min_prominence_counts=self.contact_threshold_counts,
+                          confirm_threshold_counts=self.contact_threshold_counts)
         self.target = target
         self.array = arr
         self.signals = signals
@@ -327,8 +376,6 @@ class WhiskChain:
         self.sweep_params = sweep_params
         self.detection_params = det
         self._kin = _Kinematics(arr)
-        self._simulator = (ArraySimulator(arr, controller, signal_params, sweep_params, seed=0)
-                           if signals else None)
 
     def whisk(self, pose: PoseLike, rng: np.random.Generator) -> ChainWhisk:
         """Whisk once at ``pose`` and return the features with everything that led to them.
