@@ -3,16 +3,15 @@
 The reduced run (seed 0, 400 whisks a run) asserts the recognition outcomes that held in
 every run of the full experiment (10 seeds, 1000 whisks): the correct identity's mean
 confidence is the higher (80 of 80 runs), and the default search recognises both
-objects first at every threshold it reaches (its correct IC reached 100 within 60-101
-whisks there, 20 of 20). FEH and LSR had the wrong identity first in 3 of 120
-(run, threshold <= 300) cases of the full run (the Box presented, seeds 4, 7 and 8),
-so "every crossing is the correct identity's" is asserted for the default search only.
-The SPC keeps the whiskers on the surface (Fig 6.2): fewer
-whisks without contact with the SPC on than off, in the default-search runs on the
-Box-Stack (111-132 against 191-201 of 400 whisks, 10 of 10 seeds). Not asserted: SPC on
-raising the correct confidence. In the full run it does as a group (median 0.941 vs 0.852,
-Mann-Whitney one-sided p = 0.023) but only in 6 of 10 seeds (10 of 10 with map seed 1),
-so one seed of a reduced run cannot show it (see the example's docstring).
+objects first at every threshold it reaches (20 of 20 at IC 100 and 300). FEH and LSR
+had the wrong identity first in 1 of 120 (run, threshold <= 300) cases of the full run
+(LSR, the Box presented, seed 4, IC 100), so "every crossing is the correct identity's"
+is asserted for the default search only. The SPC keeps the whiskers on the surface
+(Fig 6.2): fewer whisks without contact with the SPC on than off, in the default-search
+runs on the Box-Stack (31 % against 49 % in the full run, 10 of 10 seeds). Not asserted
+here: SPC on raising the correct confidence. In the full run it does as a group (median
+0.938 vs 0.826, Mann-Whitney one-sided p = 0.016) but only in 6 of 10 seeds, so one seed
+of a reduced run cannot show it (see the example's docstring).
 """
 
 from __future__ import annotations
