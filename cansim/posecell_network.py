@@ -48,7 +48,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivi
 from cansim.params import AttractorParams
 from whisker_io.validation import config_field
 from cansim.population import checked_injection
-from maps.odometry import MAX_STEP_M, MAX_TURN_RAD
+from whisker_io.validation import MAX_STEP_M, MAX_TURN_RAD
 
 __all__ = ["PosecellNetwork"]
 

@@ -22,14 +22,10 @@ from typing import Sequence, Union
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import MAX_STEP_M, MAX_TURN_RAD, finite_scalar, finite_vector
 
 __all__ = ["PlanarOdometry", "SpatialOdometry", "Odometry", "MAX_STEP_M", "MAX_TURN_RAD"]
 
-#: Largest accepted translation per odometry sample (m); larger ones are corrupt data.
-MAX_STEP_M = 1.0e4
-#: Largest accepted rotation per odometry sample (rad).
-MAX_TURN_RAD = 1.0e4
 
 
 def _dt(value: object) -> float:

@@ -26,6 +26,13 @@ def test_maps_does_not_import_the_can_engine():
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
+def test_the_attractor_engine_does_not_import_the_map_package():
+    # the attractor stage comes before the map stage: its modules load no ``maps``
+    code = ("import sys, cansim.population, cansim.posecell_network, cansim.local_view, cansim.path_integration; "
+            "bad = [m for m in sys.modules if m == 'maps' or m.startswith('maps.')]; assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
 def test_every_error_derives_from_the_one_root():
     import cansim.errors
     import whisker_io.errors

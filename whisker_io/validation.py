@@ -30,7 +30,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "MAX_STEP_M", "MAX_TURN_RAD"]
+
+#: Largest accepted translation of one odometry sample or between two successive poses (m);
+#: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
+#: (:mod:`maps.odometry`), the parity engine and the simulated odometry noise.
+MAX_STEP_M = 1.0e4
+#: Largest accepted rotation of one odometry sample (rad).
+MAX_TURN_RAD = 1.0e4
 
 
 def _holds_text(value: list | tuple) -> bool:

@@ -56,7 +56,7 @@ from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import MAX_STEP_M, finite_scalar, finite_vector
 
 __all__ = [
     "MAX_SPEED_DRAWS",
@@ -70,8 +70,6 @@ __all__ = [
 
 #: Draws of the angular speed before :func:`noisy_odometry` falls back to the mean (guard ``omega <= 0``).
 MAX_SPEED_DRAWS: int = 64
-#: Largest displacement between two successive whisk poses, m; a longer step is corrupt data.
-MAX_STEP_M: float = 1.0e4
 
 _ZERO_DISPLACEMENT_M = 1e-12
 
