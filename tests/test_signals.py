@@ -6,15 +6,18 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from whisker_io.array.control import RCP, OpenLoop, RetractAtMax, WhiskPattern, contact_threshold_from_noise
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import CansimError, InvalidInputError
 from whisker_io.sim.signals import (
     SignalParams,
     WhiskContact,
     bending_stiffness,
     deflection_counts,
+    free_whisking_threshold_counts,
     radial_distance_from_stiffness,
     simulate_rod_contact,
     simulate_whisk_cycle,
@@ -161,6 +164,24 @@ def test_contact_threshold_is_twenty_sigma_of_free_whisking():
     recs, _ = simulate_whisk_cycle([None] * 4, seed=5)
     thr = contact_threshold_from_noise(np.concatenate([r.y_counts for r in recs]))
     assert thr == pytest.approx(20 * SignalParams().noise_std_counts, rel=0.05)
+
+
+@pytest.mark.parametrize("noise", [2.0, 4.0, 10.0])
+def test_free_whisking_threshold_follows_the_sensor_noise(noise):
+    # free whisking deflects nothing: the y signal is the sensor noise alone, so 20 sigma
+    p = SignalParams(noise_std_counts=noise, quantize=False)
+    thr = free_whisking_threshold_counts(WhiskPattern(), p, [f"W{i}" for i in range(18)], np.random.default_rng(1))
+    assert thr == pytest.approx(20 * noise, rel=0.05)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.sampled_from(["modules", "pattern", "params"]),
+       st.one_of(st.none(), st.just([]), st.just(""), st.integers(), st.text(max_size=3), st.floats(allow_nan=True)))
+def test_free_whisking_threshold_bad_input_is_typed(which, bad):
+    args = {"pattern": WhiskPattern(), "params": SignalParams(), "modules": ["W0", "W1"]}
+    args[which] = bad
+    with pytest.raises(CansimError):
+        free_whisking_threshold_counts(args["pattern"], args["params"], args["modules"], np.random.default_rng(0))
 
 
 def test_rod_mode_peak_and_period_depend_on_speed_and_distance():

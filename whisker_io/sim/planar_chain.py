@@ -60,14 +60,14 @@ import trimesh
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from whisker_io.array.control import RCP, OpenLoop, WhiskController, WhiskPattern, contact_threshold_from_noise
+from whisker_io.array.control import RCP, OpenLoop, WhiskController, WhiskPattern
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.contact.contact_angle import ContactAngleParams
 from whisker_io.errors import InvalidInputError
 from whisker_io.features.tactile_image import TactileImageParams
 from whisker_io.features.whisk_tactile_image import CH3_IMAGE_PARAMS, tactile_image_from_records
 from whisker_io.pose import Pose
-from whisker_io.sim.signals import SignalParams, simulate_whisk_cycle
+from whisker_io.sim.signals import SignalParams, free_whisking_threshold_counts
 from whisker_io.sim.simulator import ArraySimulator, ArrayWhisk
 from whisker_io.sim.sweep import MeshTarget, SweepParams
 from whisker_io.validation import finite_array, finite_scalar
@@ -219,8 +219,7 @@ class PlanarChain:
         sp = SignalParams() if signal_params is None else signal_params
         rng = np.random.default_rng(seed)
         pattern = WhiskPattern(retraction_rad=arr.retraction_rad, protraction_rad=arr.protraction_rad, sample_rate_hz=sp.sample_rate_hz)
-        free, _ = simulate_whisk_cycle([None] * len(arr), OpenLoop(pattern), sp, seed=rng, modules=arr.names)
-        self.contact_threshold_counts = contact_threshold_from_noise(np.stack([r.y_counts for r in free]))
+        self.contact_threshold_counts = free_whisking_threshold_counts(pattern, sp, arr.names, rng)
         controller: WhiskController
         if isinstance(control, str):
             if control == "open_loop":

@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern
+from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern, contact_threshold_from_noise
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.validation import finite_array, finite_scalar, finite_vector
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
@@ -86,6 +86,7 @@ __all__ = [
     "deflection_counts",
     "add_sensor_noise",
     "simulate_whisk_cycle",
+    "free_whisking_threshold_counts",
     "simulate_rod_contact",
 ]
 
@@ -531,6 +532,45 @@ def simulate_whisk_cycle(
         for i in range(n)
     ]
     return records, _truths(angles, y0, contacts, p.sample_rate_hz)
+
+
+
+def free_whisking_threshold_counts(
+    pattern: WhiskPattern,
+    params: SignalParams,
+    modules: Sequence[str],
+    rng: np.random.Generator,
+) -> float:
+    """The Sec 3.2.2 contact threshold of a simulated sensor, counts.
+
+    20 x the standard deviation of the y-deflection over one free-whisking (no contact)
+    open-loop cycle of ``pattern`` on every whisker of ``modules``
+    (:func:`~whisker_io.array.control.contact_threshold_from_noise`).
+
+    Parameters
+    ----------
+    pattern : WhiskPattern
+        The whisk pattern (its sampling rate must equal ``params.sample_rate_hz``).
+    params : SignalParams
+        The simulated sensor.
+    modules : sequence of str
+        One name per whisker.
+    rng : numpy Generator
+        Draws the cycle's sensor noise (advanced by the draw).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a WhiskPattern / SignalParams, no whisker names, or inputs
+        :func:`simulate_whisk_cycle` refuses.
+    """
+    if not isinstance(pattern, WhiskPattern) or not isinstance(params, SignalParams):
+        raise InvalidInputError(f"give a WhiskPattern and SignalParams, got {type(pattern).__name__} and {type(params).__name__}")
+    if isinstance(modules, str) or not isinstance(modules, Sequence) or len(modules) == 0 \
+            or not all(isinstance(m, str) for m in modules):
+        raise InvalidInputError(f"modules must name one or more whiskers (a sequence of str), got {modules!r}")
+    free, _ = simulate_whisk_cycle([None] * len(modules), OpenLoop(pattern), params, seed=rng, modules=modules)
+    return contact_threshold_from_noise(np.stack([r.y_counts for r in free]))
 
 
 def simulate_rod_contact(

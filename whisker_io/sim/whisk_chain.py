@@ -84,7 +84,7 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
-from whisker_io.array.control import OpenLoop, WhiskController, contact_threshold_from_noise
+from whisker_io.array.control import WhiskController
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rotate_shaft
 from whisker_io.contact.detection import DetectedContact, DetectionParams, detect_contacts
@@ -97,7 +97,7 @@ from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.radial.pipeline import RadialPredictor, RadialSource, estimate_radial_distance, resolve_radial_model
 from whisker_io.records.recording import RecordingWriter, ReplayedCycle
 from whisker_io.records.whisk_record import PoseEntry, WhiskRecord
-from whisker_io.sim.signals import SignalParams, simulate_whisk_cycle
+from whisker_io.sim.signals import SignalParams, free_whisking_threshold_counts
 from whisker_io.sim.simulator import ArraySimulator
 from whisker_io.sim.sweep import ContactNoise, MeshTarget, SweepContact, SweepParams, perturb_contacts, sweep_array
 
@@ -151,10 +151,8 @@ def _calibrated_threshold(simulator: ArraySimulator) -> float:
     """20 x the y-deflection noise std over one free-whisking cycle of ``simulator``'s sensor
     and whisk pattern (Sec 3.2.2's calibration; module docstring, item 2), counts. The cycle
     draws from its own fixed generator, so the simulator's noise stream is unchanged."""
-    sp = simulator.signal_params
-    free, _ = simulate_whisk_cycle([None] * len(simulator.array), OpenLoop(simulator.controller.pattern), sp,
-                                   seed=np.random.default_rng(0), modules=simulator.array.names)
-    return contact_threshold_from_noise(np.stack([r.y_counts for r in free]))
+    return free_whisking_threshold_counts(simulator.controller.pattern, simulator.signal_params, simulator.array.names,
+                                          np.random.default_rng(0))
 
 
 class _Kinematics:
