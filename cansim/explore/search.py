@@ -337,12 +337,6 @@ class DefaultSearch:
         return [p for p in poses if accept is None or accept(p)]
 
 
-def _flag(v: object, name: str) -> bool:
-    if not isinstance(v, (bool, np.bool_)):
-        raise InvalidInputError(f"{name} must be True or False, got {v!r}")
-    return bool(v)
-
-
 def _step_and_reach(step_m: float, reach_m: float | None) -> tuple[float, float]:
     """Validated ``(step_m, reach_m)`` of a stepping strategy (``reach_m`` None: one step)."""
     reach = step_m if reach_m is None else reach_m
@@ -376,7 +370,7 @@ class FollowExperienceHistory:
 
     def __init__(self, step_m: float = 0.03, reach_m: float | None = None, along_surface: bool = True) -> None:
         self.step_m, self.reach_m = _step_and_reach(step_m, reach_m)
-        self.along_surface = _flag(along_surface, "along_surface")
+        self.along_surface = bool(config_field(along_surface, "along_surface", bool))
         self.target: tuple[int, int] | None = None
         self._index: int | None = None  # history index of the target's visit being played back
 
@@ -491,7 +485,7 @@ class LeastSimilarRegion:
 
     def __init__(self, step_m: float = 0.03, reach_m: float | None = None, along_surface: bool = True) -> None:
         self.step_m, self.reach_m = _step_and_reach(step_m, reach_m)
-        self.along_surface = _flag(along_surface, "along_surface")
+        self.along_surface = bool(config_field(along_surface, "along_surface", bool))
         self.target: tuple[int, int] | None = None
         self.path: list[int] = []  # experiences still to visit on the way to the target (target last)
         self.leader: int | None = None
