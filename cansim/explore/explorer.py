@@ -186,8 +186,7 @@ def build_object_model(
     """
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
-    if isinstance(adjustments_per_pose, bool) or not isinstance(adjustments_per_pose, (int, np.integer)) or adjustments_per_pose < 0:
-        raise ConfigError(f"adjustments_per_pose must be an integer >= 0, got {adjustments_per_pose!r}")
+    config_field(adjustments_per_pose, "adjustments_per_pose", int, minimum=0)
     slam = model if model is not None else WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
     prev: Pose | None = None
     visited: list[Pose] = []
