@@ -12,7 +12,7 @@ import pytest
 
 from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
 from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
-from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run
 from maps.experience_map import ExperienceMap, MapConfig
 from maps.se2 import SE2Geometry

@@ -6,7 +6,7 @@ Run: ``python -m pytest bench/test_bench_whisker_ratslam.py --benchmark-only``.
 import numpy as np
 import pytest
 
-from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
 
 

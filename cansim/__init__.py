@@ -1,13 +1,20 @@
 """cansim: continuous-attractor networks, RatSLAM and WhiskerRatSLAM.
 
-Importing cansim does no work beyond binding names; backends are imported, and
-numba/OpenCL kernels compiled, on first use.
+Importing cansim does no work beyond binding names: every public name below is loaded
+from its module on first access (so ``import cansim.frontends.whisk`` does not load the
+engine), backends are imported, and numba/OpenCL kernels compiled, on first use.
+
+The package is laid out by stage, in data-flow order (``CONTRIBUTING.md``): front ends
+(:mod:`cansim.frontends`) -> the attractor engine (this package's top level: axes,
+params, kernels, backends, :mod:`cansim.population`, path integration, decoding, local
+view cells, :mod:`cansim.spiking`) -> maps (the ``maps`` package) -> models
+(:mod:`cansim.models`: the SLAM loop, RatSLAM, WhiskerRatSLAM, the exact OpenRatSLAM
+engine) -> explorer (:mod:`cansim.explore`) -> studies (:mod:`cansim.studies`) -> tools
+(:mod:`cansim.tools`: command line, sweeps, bag replay, benchmark).
 """
 
 from __future__ import annotations
 
-from cansim.axes import Axis
-from cansim.backends import available_backends, get_backend, registered_backends
 from cansim.errors import (
     BackendUnavailableError,
     CansimError,
@@ -18,25 +25,29 @@ from cansim.errors import (
     UnknownBackendError,
     ZeroActivityError,
 )
-from cansim.params import AttractorParams
-from cansim.local_view import LocalViewCells, LocalViewParams
-from cansim.population import Population
 from whisker_io._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
-# Heavier model-level names are loaded on first access (networkx, scipy, numba kernels).
 _LAZY = {
-    "RatSLAM": "cansim.ratslam",
-    "RatSLAMConfig": "cansim.ratslam_config",
-    "WhiskerRatSLAM": "cansim.whisker_ratslam",
-    "WhiskerRatSLAMConfig": "cansim.whisker_ratslam",
-    "SlamLoop": "cansim.slam_loop",
-    "SlamState": "cansim.slam_loop",
-    "SlamLog": "cansim.slam_loop",
+    "Axis": "cansim.axes",
+    "AttractorParams": "cansim.params",
+    "Population": "cansim.population",
+    "LocalViewCells": "cansim.local_view",
+    "LocalViewParams": "cansim.local_view",
+    "available_backends": "cansim.backends",
+    "get_backend": "cansim.backends",
+    "registered_backends": "cansim.backends",
+    "RatSLAM": "cansim.models.ratslam",
+    "RatSLAMConfig": "cansim.models.ratslam_config",
+    "WhiskerRatSLAM": "cansim.models.whisker_ratslam",
+    "WhiskerRatSLAMConfig": "cansim.models.whisker_ratslam",
+    "SlamLoop": "cansim.models.slam_loop",
+    "SlamState": "cansim.models.slam_loop",
+    "SlamLog": "cansim.models.slam_loop",
     "PlanarOdometry": "maps.odometry",
     "SpatialOdometry": "maps.odometry",
-    "PosecellNetwork": "cansim.posecell_network",
+    "PosecellNetwork": "cansim.models.posecell_network",
     "SpikingPopulation": "cansim.spiking",
     "SpikingParams": "cansim.spiking",
     "NeuronParams": "cansim.spiking",

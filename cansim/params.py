@@ -47,7 +47,7 @@ class AttractorParams:
         phi of Alg 5 (``pc_global_inhib``, default 2e-5): ``A <- max(A - phi, 0)``.
 
     The OpenRatSLAM names are for translating its config files; cansim's API uses these
-    fields (:mod:`cansim.openratslam_config` maps the keys).
+    fields (:mod:`cansim.models.openratslam_config` maps the keys).
     kernel_normalisation : {"sum", "pdf", "none"}
         ``"sum"`` (default, OpenRatSLAM): each kernel sums to 1; ``"pdf"``: the sampled
         normal density as Eq 5.10 is printed (the thesis' 6-D preset); ``"none"``: peak 1.

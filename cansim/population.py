@@ -429,7 +429,7 @@ class Population:
         """:meth:`step` for odometry validated already: the fields of a :class:`maps.odometry.PlanarOdometry`
         or :class:`maps.odometry.SpatialOdometry` (finite floats or float64 (3,) arrays, ``dt >= 0``).
 
-        The loop that built the odometry object (:class:`cansim.slam_loop.SlamLoop`) calls
+        The loop that built the odometry object (:class:`cansim.models.slam_loop.SlamLoop`) calls
         this, so one step's odometry is checked once. The values are not checked again; the
         shifts they make are (:data:`MAX_SHIFT_CELLS` depends on this grid's cell sizes),
         and so is the injection. Same result as :meth:`step`, bit for bit.

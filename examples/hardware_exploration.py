@@ -70,7 +70,7 @@ def exact_odometry() -> Callable[[Any, Any], tuple[np.ndarray, np.ndarray, float
 def load_known(specs: Sequence[str]) -> list[Any]:
     """``NAME=PATH`` -> :class:`~cansim.explore.explorer.KnownObject` (a saved WhiskerRatSLAM)."""
     from cansim.explore.explorer import KnownObject
-    from cansim.whisker_ratslam import WhiskerRatSLAM
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
 
     known = []
     for spec in specs:

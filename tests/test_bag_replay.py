@@ -19,10 +19,10 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
-from cansim.bag_replay import decode_image, default_topics, replay, topic_root, write_outputs
+from cansim.tools.bag_replay import decode_image, default_topics, replay, topic_root, write_outputs
 from cansim.errors import CorruptFileError, InvalidInputError
 from cansim.frontends.visual import VisualTemplateConfig
-from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
 
 ROUTE = LoopRoute(step_m=0.1)

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from cansim.errors import CansimError, InvalidInputError, ShapeError
 from cansim.frontends.tactile import TactileTemplateConfig
-from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import make_run
 from maps.metrics import absolute_trajectory_error, experience_metric
 from maps.plot_maps import plot_experience_ids
@@ -37,17 +37,12 @@ from whisker_io.sim.ch3_scene import MazeRoute, ch3_terrain
 from whisker_io.sim.planar_chain import PlanarChain, WhiskSchedule
 from whisker_io.sim.signals import SignalParams, WhiskContact, simulate_whisk_cycle
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ch3_maze.py"
 ARRAY = WhiskerArray.thesis()
 HYP = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
 def _load_study():
-    spec = importlib.util.spec_from_file_location("ch3_maze_study", EXAMPLE)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return importlib.import_module("cansim.studies.ch3_maze")
 
 
 @pytest.fixture(scope="module")

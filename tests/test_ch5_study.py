@@ -1,4 +1,4 @@
-"""The Ch.5 study (examples/ch5_study.py) and the appended object maps (maps.object_library).
+"""The Ch.5 study (cansim.studies.ch5_object_maps) and the appended object maps (maps.object_library).
 
 End-to-end outcomes on the study's --quick run (fixed seed): recognition by leaky
 integration of re-localisations over appended object maps (Fig 5.16-5.17) and 6-D
@@ -17,14 +17,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim.whisker_ratslam import WhiskerRatSLAM
+from cansim.models.whisker_ratslam import WhiskerRatSLAM
 from maps.object_library import append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
 from whisker_io.errors import ConfigError, InvalidInputError
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-import ch5_study  # noqa: E402
+from cansim.studies import ch5_object_maps as ch5_study
 
 
 def _region(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""examples/ch6_active_exploration.py: a reduced run end to end (columns, domains, safety, recognition, figures, summary).
+"""cansim.studies.ch6_active_exploration: a reduced run end to end (columns, domains, safety, recognition, figures, summary).
 
 The reduced run (seed 0, 400 whisks a run) asserts the recognition outcomes that held in
 every run of the full experiment (10 seeds, 1000 whisks): the correct identity's mean
@@ -26,8 +26,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-import ch6_active_exploration as ch6  # noqa: E402
+from cansim.studies import ch6_active_exploration as ch6
 
 N = 400  # whisks per run of the reduced run
 REQUIRED = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim import cli
+from cansim.tools import cli
 from cansim.backends import registered_backends
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -86,7 +86,7 @@ def test_a_sweep_with_failing_cells_exits_4_after_recording_every_row(tmp_path, 
 
 
 def test_interrupt_exits_130_and_says_how_to_resume(tmp_path, capsys, monkeypatch):
-    from cansim import sweep
+    from cansim.tools import sweep
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
@@ -106,8 +106,8 @@ def test_a_missing_extra_exits_6_naming_it(tmp_path, capsys, monkeypatch):
     assert 'pip install "cansim[bags]"' in _one_line_error(capsys.readouterr().err, "replay")
 
 
-def test_demo_writes_the_readme_outputs(tmp_path, capsys):
-    assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+def test_demo_ratslam_writes_its_outputs(tmp_path, capsys):
+    assert cli.main(["demo", "ratslam", "--out", str(tmp_path)]) == 0
     metrics = json.loads((tmp_path / "ratslam_metrics.json").read_text())
     assert metrics["ate_map"] < metrics["ate_dead_reckoning"]  # the map beats dead reckoning, as the README says
     for name in ("ratslam_map.png", "ratslam_experience_ids.png", "ratslam_experience_ids_kidnapped.png"):
@@ -115,28 +115,30 @@ def test_demo_writes_the_readme_outputs(tmp_path, capsys):
     assert "ARR" in capsys.readouterr().out
 
 
-def test_studies_not_built_yet_exit_5_and_start_working_when_their_script_lands(tmp_path, capsys, monkeypatch):
-    for chapter in ("ch3", "ch5", "ch6"):
-        if (ROOT / "examples" / cli.STUDIES[chapter]).exists():
-            continue  # built since: nothing to check here
-        assert cli.main(["study", chapter]) == 5
-        assert "not built yet" in _one_line_error(capsys.readouterr().err, "study")
-    fake = tmp_path / "examples"
-    fake.mkdir()
-    (fake / "ch3_maze.py").write_text(
-        "import json, sys\nfrom pathlib import Path\n"
-        "def main(argv=None):\n"
-        "    out = Path(argv[argv.index('--out') + 1])\n"
-        "    (out / 'argv.json').write_text(json.dumps(argv))\n"
-        "    return 0\n")
-    monkeypatch.setenv("CANSIM_EXAMPLES", str(fake))
-    assert cli.main(["study", "ch3", "--quick", "--out", str(tmp_path)]) == 0
-    assert json.loads((tmp_path / "argv.json").read_text()) == ["--quick", "--out", str(tmp_path)]
-    assert cli.main(["study", "ch5"]) == 5  # still not in the fake folder
-    assert "built studies: ch3" in _one_line_error(capsys.readouterr().err, "study")
-    monkeypatch.setenv("CANSIM_EXAMPLES", str(tmp_path / "nowhere"))
-    assert cli.main(["demo"]) == 5
-    assert "examples folder" in _one_line_error(capsys.readouterr().err, "demo")
+def test_study_and_demo_options_reach_the_module(tmp_path, capsys, monkeypatch):
+    """Options after the chapter (or the demo's name) are passed on to the module's main(argv)."""
+    seen = {}
+
+    def fake_main(argv):
+        seen["argv"] = argv
+        return 0
+
+    import cansim.studies.ch3_maze as ch3
+    import cansim.studies.whisker_ratslam_demo as demo
+
+    monkeypatch.setattr(ch3, "main", fake_main)
+    assert cli.main(["study", "ch3", "--quick", "--out", str(tmp_path), "--repetitions", "2"]) == 0
+    assert seen["argv"] == ["--quick", "--out", str(tmp_path), "--repetitions", "2"]
+    monkeypatch.setattr(demo, "main", fake_main)
+    assert cli.main(["demo", "--out", str(tmp_path), "--object", "box", "--quick"]) == 0
+    assert seen["argv"] == ["--seed", "0", "--out", str(tmp_path), "--object", "box", "--quick"]
+
+
+def test_unknown_options_of_other_commands_are_usage_errors(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["backends", "--object", "box"])
+    assert exc.value.code == 2
+    assert "unrecognized arguments: --object box" in capsys.readouterr().err
 
 
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
@@ -222,7 +224,7 @@ def test_readme_lists_every_command_and_exit_code():
 @given(names=st.lists(st.text("abcdefxyz0123456789_^", min_size=1, max_size=8), min_size=1, max_size=3),
        which=st.sampled_from(["backends", "workloads"]))
 def test_bench_refuses_unknown_names_before_timing_anything(names, which):
-    from cansim.benchmark import WORKLOADS, run_suite
+    from cansim.tools.benchmark import WORKLOADS, run_suite
     from cansim.errors import InvalidInputError
 
     known = set(registered_backends()) if which == "backends" else {*WORKLOADS, "61x61x36", "10^6"}

@@ -48,7 +48,7 @@ WORKSPACE = dict(workspace_min=(-0.75, -0.75, 0.15), workspace_max=(0.75, 0.75, 
 
 def _model():
     from cansim.frontends.whisk import WhiskFrontEndConfig
-    from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 
     fe = WhiskFrontEndConfig(features="both", pfh_threshold=PFH_T, sda_threshold=SDA_T, feature_update=False)
     return WhiskerRatSLAM(WhiskerRatSLAMConfig(cell_size_m=0.03, frontend=fe))

@@ -29,8 +29,8 @@ from cansim.frontends.panoramic import HeadingOffset
 from cansim.frontends.tactile import TactileTemplates
 from cansim.frontends.whisk import WhiskFrontEnd
 from cansim.local_view import LocalViewCells, LocalViewParams
-from cansim.posecell_network import PosecellNetwork
-from cansim.whisker_ratslam import WhiskerRatSLAM
+from cansim.models.posecell_network import PosecellNetwork
+from cansim.models.whisker_ratslam import WhiskerRatSLAM
 from maps.experience_map import ExperienceMap
 from maps.odometry import PlanarOdometry, SpatialOdometry
 from whisker_io.features.pfh import chi_squared

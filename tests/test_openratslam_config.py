@@ -1,4 +1,4 @@
-"""The OpenRatSLAM config adapter (cansim.openratslam_config) and RatSLAMConfig's one-name-per-concept fields.
+"""The OpenRatSLAM config adapter (cansim.models.openratslam_config) and RatSLAMConfig's one-name-per-concept fields.
 
 Expected values are written by hand from the key table (the module docstring and
 docs/concepts/ratslam.rst), never computed by the adapter.
@@ -19,14 +19,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import cansim.openratslam_config as adapter
+import cansim.models.openratslam_config as adapter
 from cansim import RatSLAM, RatSLAMConfig
 from cansim.errors import ConfigError
 from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.visual import VisualTemplateConfig
 from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.params import AttractorParams
-from cansim.whisker_ratslam import WhiskerRatSLAMConfig
+from cansim.models.whisker_ratslam import WhiskerRatSLAMConfig
 from maps.experience_map import MapConfig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -345,23 +345,23 @@ def test_openratslam_key_names_appear_in_code_only_in_the_adapter():
 # ------------------------------------------------- saves of the flat config (cansim 0.x)
 def test_flat_dict_of_earlier_versions_maps_onto_the_fields():
     from cansim.frontends.tactile import TactileTemplateConfig
-    from cansim.openratslam_config import config_from_flat_dict
+    from cansim.models.openratslam_config import config_from_flat_dict
 
     cfg = config_from_flat_dict({
         "pc_dim_xy": 11, "pc_dim_th": 12, "pc_w_e_dim": 5, "pc_w_e_var": 1.5, "pc_cell_x_size": 0.02,
         "pc_vt_inject_energy": 0.2, "exp_loops": 7, "exp_initial_em_deg": 180.0, "vt_match_threshold": 15.0,
         "image_crop_x_max": -1, "frontend": "tactile", "relax_budget": 300, "lv_mode": "stored",
-    })
+    }, RatSLAMConfig)
     assert (cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m) == (11, 12, 0.02)
     assert (cfg.attractor.exc_width, cfg.attractor.exc_sigma) == (5, 1.5)
     assert (cfg.inject_energy, cfg.relax_passes, cfg.initial_heading_deg, cfg.relax_budget) == (0.2, 7, 180.0, 300)
     assert cfg.frontend == TactileTemplateConfig(match_threshold=15.0)
-    visual = config_from_flat_dict({"pc_dim_xy": 9, "frontend": "visual", "image_crop_x_max": -1, "template_x_size": 80})
+    visual = config_from_flat_dict({"pc_dim_xy": 9, "frontend": "visual", "image_crop_x_max": -1, "template_x_size": 80}, RatSLAMConfig)
     assert visual.frontend.crop_x_max_px is None and visual.frontend.template_width_blocks == 80
     with pytest.raises(ConfigError, match="frontend"):
-        config_from_flat_dict({"pc_dim_xy": 9, "frontend": "sonar"})
+        config_from_flat_dict({"pc_dim_xy": 9, "frontend": "sonar"}, RatSLAMConfig)
     with pytest.raises(ConfigError, match="not_a_key"):
-        config_from_flat_dict({"pc_dim_xy": 9, "not_a_key": 1})
+        config_from_flat_dict({"pc_dim_xy": 9, "not_a_key": 1}, RatSLAMConfig)
 
 
 def test_a_model_saved_by_an_earlier_version_loads_and_continues_as_it_would_have():

@@ -1,4 +1,4 @@
-"""cansim.posecell_network: OpenRatSLAM's pose cells with the C++ arithmetic.
+"""cansim.models.posecell_network: OpenRatSLAM's pose cells with the C++ arithmetic.
 
 The reference is ``tests/data/openratslam_cpp_trace.csv``: 300 steps of the C++
 core (pose cells + experience map) on odometry with backward motion,
@@ -17,8 +17,8 @@ from cansim.params import AttractorParams
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.population import Population
-from cansim.posecell_network import PosecellNetwork
-from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.posecell_network import PosecellNetwork
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from maps.experience_map import ExperienceMap, MapConfig
 
 TRACE = Path(__file__).parent / "data" / "openratslam_cpp_trace.csv"
@@ -86,7 +86,7 @@ def test_agrees_with_the_population_engine_without_views():
 
 def test_one_cell_translation_along_the_cpp_frame():
     # dir 0 moves +y, dir pi moves -y; a whole cell moves the mass exactly, and v = 0 is the identity
-    from cansim import _posecell_kernels as k
+    from cansim.models import _posecell_kernels as k
 
     pc = PosecellNetwork()
     rot, cs, sn = pc._layer_tables[0.0]
@@ -106,7 +106,7 @@ def test_translation_conserves_mass_except_the_cpp_corner_leak():
     # Away from row 0 / column 0 of the turned layer the four weights sum to 1. The C++ folds
     # the overflow column back only from row 1 on (and the overflow row from column 1 on), so a
     # cell in row 0 moving along +x loses its share w_se = v sin(a) (1 - v cos(a)) - kept here.
-    from cansim import _posecell_kernels as k
+    from cansim.models import _posecell_kernels as k
 
     pc = PosecellNetwork(dim_xy=9, dim_th=36)
     rot, cs, sn = pc._layer_tables[0.0]

@@ -1,4 +1,4 @@
-"""Issue acceptance for thesis Ch.4 on the full-size study (examples/radial_distance_study.py).
+"""Issue acceptance for thesis Ch.4 on the full-size study (cansim.studies.ch4_radial_distance).
 
 The reduced sets of ``test_radial_acceptance.py`` are too small to rank the 12 models
 reliably (poly5 ties svr9 there); this runs the whole study once (~3 min on 2 cores)
@@ -18,14 +18,11 @@ import pytest
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")]
 
-STUDY = Path(__file__).resolve().parents[1] / "examples" / "radial_distance_study.py"
 
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    spec = importlib.util.spec_from_file_location("radial_distance_study", STUDY)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = importlib.import_module("cansim.studies.ch4_radial_distance")
     out = tmp_path_factory.mktemp("radial_study")
     res = mod.run(out, quick=False, seed=0)
     return out, {s.model: s for s in res["scores"]}

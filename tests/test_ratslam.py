@@ -1,4 +1,4 @@
-"""Tests of cansim.ratslam: the RatSLAM model, its OpenRatSLAM parity preset, config files,
+"""Tests of cansim.models.ratslam: the RatSLAM model, its OpenRatSLAM parity preset, config files,
 save/resume, bad input, and the synthetic end-to-end acceptance (map vs dead reckoning, kidnapping)."""
 
 import math
@@ -10,7 +10,7 @@ import pytest
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.visual import VisualTemplateConfig
-from cansim.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
 from whisker_io.errors import CorruptFileError
 from maps.experience_map import Action

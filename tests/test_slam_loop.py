@@ -12,8 +12,8 @@ from cansim import Population
 from cansim.errors import InvalidInputError
 from cansim.frontends.ids import IdsFrontEnd
 from cansim.local_view import LocalViewCells, LocalViewParams
-from cansim.ratslam import RatSLAM, RatSLAMConfig
-from cansim.slam_loop import SlamLoop
+from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+from cansim.models.slam_loop import SlamLoop
 from cansim.testing.worlds import LoopRoute, make_run
 from maps.experience_map import ExperienceMap, MapConfig
 from maps.metrics import absolute_trajectory_error
@@ -28,7 +28,7 @@ def test_maps_does_not_import_the_can_engine():
 
 def test_the_attractor_engine_does_not_import_the_map_package():
     # the attractor stage comes before the map stage: its modules load no ``maps``
-    code = ("import sys, cansim.population, cansim.posecell_network, cansim.local_view, cansim.path_integration; "
+    code = ("import sys, cansim.population, cansim.models.posecell_network, cansim.local_view, cansim.path_integration; "
             "bad = [m for m in sys.modules if m == 'maps' or m.startswith('maps.')]; assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
 
@@ -138,7 +138,7 @@ def test_a_loop_step_validates_its_odometry_once(validated_names, model):
     (maps.odometry); the population's motion model trusts them (Population._step_validated),
     for the RatSLAM and WhiskerRatSLAM wiring as for a bare loop; with the same result
     as the public, checking ``step``. The public ``step`` still checks them itself."""
-    from cansim.whisker_ratslam import WhiskerRatSLAM
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
 
     once = ["odometry v", "odometry omega", "odometry dt"]
     if model == "ratslam":
@@ -165,7 +165,7 @@ def test_the_parity_engine_takes_the_trusted_path_with_the_public_result(monkeyp
     ``step``; the loop, whose odometry is validated already, calls the trusted path."""
     import copy
 
-    from cansim.posecell_network import PosecellNetwork
+    from cansim.models.posecell_network import PosecellNetwork
 
     loop = RatSLAM(RatSLAMConfig.openratslam(cell_size_m=0.25, frontend="ids"))
     twin = copy.deepcopy(loop.pose_cells)

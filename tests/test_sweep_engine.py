@@ -1,4 +1,4 @@
-"""Sweeps on Dask (cansim.sweep): real worker processes, resume, errors, a killed worker,
+"""Sweeps on Dask (cansim.tools.sweep): real worker processes, resume, errors, a killed worker,
 a separate ``dask scheduler`` + ``dask worker``, and the spec parser.
 
 (``tests/test_sweep.py`` is whisker_io's rigid-whisker sweep; this file is the sweep engine.)
@@ -24,7 +24,7 @@ pytest.importorskip("pyarrow")
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cansim import sweep
+from cansim.tools import sweep
 from cansim.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]

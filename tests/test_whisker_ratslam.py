@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from cansim import Population
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
-from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.localisation import map_pose_errors, relocalisation_errors
 from maps.odometry import SpatialOdometry
 

@@ -30,7 +30,7 @@ with a ``RecordedChain``).
 Object maps (:func:`build_object_model`): two loops over the faces of the ellipsoid fitted
 to the object (:meth:`cansim.explore.search.DefaultSearch.tour`), the SPC at every face
 until its conditions are met (at most 10 adjustments), pose-consistent matching (one
-object mapped in one frame, :meth:`cansim.whisker_ratslam.WhiskerRatSLAMConfig.mapping`).
+object mapped in one frame, :meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping`).
 
 Decisions for recognition (the thesis is silent; measured in
 ``examples/ch6_active_exploration.py``, whose docstring gives the figures):
@@ -48,7 +48,7 @@ Decisions for recognition (the thesis is silent; measured in
   nearest the packet whatever the pose-cell distance (``match_distance_cells`` =
   :func:`any_distance_cells`). With the map's 1-cell rule the packet is rarely within a
   cell of the stored location (the pose cells do not hold a pose consistent with the
-  map's frame, :mod:`cansim.whisker_ratslam`): of 186 matches to the right object's
+  map's frame, :mod:`cansim.models.whisker_ratslam`): of 186 matches to the right object's
   stored regions 27 re-localised, the rest made new experiences (11 matches to the other
   object's; 400 whisks, seeds 0-1), and no IC reached 100 in 1000 whisks (8 runs).
 """
@@ -69,7 +69,7 @@ from cansim.explore.placement import PlacementParams, place
 from cansim.explore.search import (
     STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
 )
-from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
 from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
 from whisker_io.errors import SafetyViolationError
@@ -182,7 +182,7 @@ def build_object_model(
         unvisited face" once the conditions were met, Sec 6.1.3.1).
     model : WhiskerRatSLAM, optional
         Default ``WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))``: one object
-        mapped in one frame (pose-consistent matching, see :mod:`cansim.whisker_ratslam`).
+        mapped in one frame (pose-consistent matching, see :mod:`cansim.models.whisker_ratslam`).
     """
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import CorruptFileError, InvalidInputError
+from whisker_io.errors import CorruptFileError, InvalidInputError
 from cansim.frontends.store import ViewMatch
 from whisker_io.validation import config_field
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cansim.errors import CorruptFileError
+from whisker_io.errors import CorruptFileError
 
 __all__ = ["TemplateMatch", "TemplateStore", "ViewMatch"]
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import InvalidInputError, ShapeError
+from whisker_io.errors import InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
 from whisker_io.validation import config_field
 

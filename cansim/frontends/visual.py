@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
 from whisker_io.validation import config_field, whole_number
 
@@ -47,7 +47,7 @@ class VisualTemplateConfig:
 
     A *block* is one element of the template: the mean of a rectangle of pixels
     (step 1 of the module docstring). OpenRatSLAM's key is given in brackets;
-    :mod:`cansim.openratslam_config` maps its config files onto these fields.
+    :mod:`cansim.models.openratslam_config` maps its config files onto these fields.
 
     Parameters
     ----------

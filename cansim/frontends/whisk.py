@@ -28,7 +28,7 @@ returns, for the stored regions, which are consistent with the current pose esti
 a non-negative pose cost for each. :meth:`WhiskFrontEnd.match` then keeps only the
 consistent candidates and picks the smallest ``chi2 + NMSE + cost`` - the RatSLAM
 principle that a place is recognised from the view *and* the pose belief together
-(:class:`cansim.whisker_ratslam.WhiskerRatSLAMConfig`, ``pose_gate_m``). Without a
+(:class:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig`, ``pose_gate_m``). Without a
 prior (default) the match is Eq 5.5's. :meth:`WhiskFrontEnd.scores` never applies it.
 """
 
@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from cansim.errors import CorruptFileError, InvalidInputError, ShapeError
+from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_columns, nmse_columns
 from whisker_io.validation import config_field

@@ -21,41 +21,17 @@ it is imported lazily, so this package imports without it.
 
 from __future__ import annotations
 
-import importlib
-from types import ModuleType
+from whisker_io._lazy import lazy_exports
 
-from whisker_io.errors import MissingDependencyError
+_EXPORTS: dict[str, str] = {
+    "MissingDependencyError": "whisker_io.errors",
+    "require": "whisker_io.hw.optional",
+    "SafetyEnvelope": "whisker_io.hw.safety",
+    **{name: "whisker_io.hw.arm" for name in ("Arm", "ArmState", "SimArm", "URArm", "probe_rtde")},
+    **{name: "whisker_io.hw.usb_array" for name in ("Array", "FrameLayout", "SimArray", "USBArray", "USBCounters")},
+    **{name: "whisker_io.hw.recorder" for name in ("Recorder", "explore", "raster_poses", "replay_session")},
+}
 
+__all__ = sorted(_EXPORTS)
 
-def require(module: str, what: str) -> ModuleType:
-    """Import an optional hardware module or raise :class:`MissingDependencyError`.
-
-    Parameters
-    ----------
-    module : str
-        Module name, e.g. ``"rtde_receive"``.
-    what : str
-        What needs it, for the message (e.g. ``"URArm"``).
-    """
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise MissingDependencyError(
-            f"{what} needs the Python module {module!r}, which is not installed; "
-            "install the hardware extra: pip install cansim[hw]") from exc
-
-
-# Defined above before the submodules import it (they do ``from whisker_io.hw import ...``).
-from whisker_io.hw.safety import SafetyEnvelope  # noqa: E402
-from whisker_io.hw.arm import Arm, ArmState, SimArm, URArm, probe_rtde  # noqa: E402
-from whisker_io.hw.usb_array import (  # noqa: E402
-    Array, FrameLayout, SimArray, USBArray, USBCounters)
-from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_session  # noqa: E402
-
-__all__ = [
-    "MissingDependencyError", "require",
-    "SafetyEnvelope",
-    "Arm", "ArmState", "SimArm", "URArm", "probe_rtde",
-    "Array", "FrameLayout", "SimArray", "USBArray", "USBCounters",
-    "Recorder", "explore", "raster_poses", "replay_session",
-]
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)

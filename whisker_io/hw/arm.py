@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from whisker_io.errors import (CommandFailedError, ConnectionFailedError, HardwareError, InvalidInputError,
                                SafetyViolationError)
-from whisker_io.hw import require
+from whisker_io.hw.optional import require
 from whisker_io.pose import Pose, PoseLike
 from whisker_io.hw.safety import SafetyEnvelope
 

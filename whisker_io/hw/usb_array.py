@@ -69,7 +69,7 @@ import numpy as np
 from whisker_io.errors import (ConnectionFailedError, CRCMismatchError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, SequenceGapError, ShortFrameError, USBFrameError)
 from whisker_io.array.control import WhiskPattern
-from whisker_io.hw import require
+from whisker_io.hw.optional import require
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 __all__ = [
