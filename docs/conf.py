@@ -102,9 +102,18 @@ class _TolerateInFlux(logging.Filter):
 _FOREIGN = ("sklearn.", "numpy.", "scipy.", "networkx.", "matplotlib.", "trimesh.")
 
 
+def _moved_modules() -> set[str]:
+    from cansim._moved import MOVED
+
+    return set(MOVED)
+
+
 def _skip_foreign_member(app, what, name, obj, skip, options):
     """Skip members whose code belongs to another library (e.g. the ``set_*_request``
-    methods scikit-learn attaches to every estimator): their docstrings are not ours."""
+    methods scikit-learn attaches to every estimator): their docstrings are not ours.
+    Skip the deprecated stubs of moved modules too (documented at their new place)."""
+    if what == "module" and (name in _moved_modules() or f"cansim.{name}" in _moved_modules()):
+        return True
     module = getattr(obj, "__module__", None) or ""
     if module.startswith(_FOREIGN):
         return True

@@ -112,15 +112,17 @@ def run(duration_s: float = 60.0, seed: int = 0, quick: bool = False, progress: 
 
 
 def plot(res: dict, path: Path) -> None:
-    """Spike raster with true and decoded headings; heading errors below."""
+    """Spike raster (top), true and decoded headings (middle), heading errors (bottom)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     t = res["time_s"]
-    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax0.scatter(res["spike_time_s"], res["spike_cell"], s=0.3, c="0.55", marker=".", lw=0, label="spikes (cell = deg)")
+    fig, (ax_r, ax0, ax1) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True, gridspec_kw={"height_ratios": [2, 2, 1]})
+    ax_r.scatter(res["spike_time_s"], res["spike_cell"], s=0.6, c="k", marker=".", lw=0)
+    ax_r.set_ylim(0, 360)
+    ax_r.set_ylabel("cell (= preferred heading, deg)")
     ax0.plot(t, res["true_deg"], ".", ms=2.0, color="tab:green", label="true heading")
     ax0.plot(t, res["rate_deg"], ".", ms=1.6, color="tab:orange", label="rate ring (decoded)")
     ax0.plot(t, res["spiking_deg"], ".", ms=1.6, color="tab:blue", label="spiking ring (decoded, 50 ms window)")
@@ -128,8 +130,8 @@ def plot(res: dict, path: Path) -> None:
     ax0.set_ylabel("heading (deg)")
     ax0.legend(loc="upper right", markerscale=5, fontsize=8)
     m = res["metrics"]
-    ax0.set_title(
-        f"360-neuron spiking HD ring vs rate ring: RMS {m['rms_vs_true_deg']:.1f} deg vs true, "
+    ax_r.set_title(
+        f"spike raster (one dot per spike); 360-neuron spiking HD ring vs rate ring: RMS {m['rms_vs_true_deg']:.1f} deg vs true, "
         f"{m['rms_vs_rate_deg']:.1f} deg vs rate"
     )
     ax1.plot(t, wrap_deg(res["spiking_deg"] - res["true_deg"]), color="tab:blue", lw=1, label="spiking - true")
@@ -163,11 +165,10 @@ def main(argv: list[str] | None = None) -> int:
     nir.write(args.out / "spiking_ring.nir", to_nir(res["population"]))
     (args.out / "spiking_ring_metrics.json").write_text(json.dumps(res["metrics"], indent=2) + "\n")
     m = res["metrics"]
-    log.info(
-        "spiking ring: RMS %.2f deg vs true, %.2f deg vs rate ring (rate ring %.2f deg vs true); %d spikes, %.1f Hz mean",
-        m["rms_vs_true_deg"], m["rms_vs_rate_deg"], m["rate_rms_vs_true_deg"], m["n_spikes"], m["mean_rate_hz"],
-    )
-    log.info("wrote %s", ", ".join(str(args.out / f) for f in ("spiking_ring.png", "spiking_ring.nir", "spiking_ring_metrics.json")))
+    print(f"The spiking ring tracked the heading with an RMS error of {m['rms_vs_true_deg']:.2f} deg "
+          f"({m['rms_vs_rate_deg']:.2f} deg from the rate ring, which is {m['rate_rms_vs_true_deg']:.2f} deg from the truth); "
+          f"{m['n_spikes']} spikes, {m['mean_rate_hz']:.1f} Hz mean rate.")
+    print("Wrote " + ", ".join(str(args.out / f) for f in ("spiking_ring.png", "spiking_ring.nir", "spiking_ring_metrics.json")) + ".")
     return 0
 
 

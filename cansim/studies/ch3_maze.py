@@ -305,14 +305,21 @@ def figure_performance(rows: list[dict[str, Any]], path: Path) -> None:
             vals = [[r["map_error_m"] / r["dr_error_m"] if key == "error_ratio" else r[key] for r in rows
                      if r["control"] == control and r["contact_angle"] == m and not r["kidnapped"]] for m in CONTACT_ANGLES]
             mean = [float(np.nanmean(v)) if v and not np.all(np.isnan(v)) else math.nan for v in vals]
-            sd = [float(np.nanstd(v)) if len(v) > 1 and not np.all(np.isnan(v)) else 0.0 for v in vals]
-            ax.bar(x + (c - 0.5) * width, mean, width, yerr=sd, capsize=3, label=control.replace("_", " "))
+            n_reps = max((len(v) for v in vals), default=0)
+            # error bars only where there are repetitions to spread (one repetition: no bar, not a zero-width one)
+            sd = [float(np.nanstd(v)) if len(v) > 1 and not np.all(np.isnan(v)) else math.nan for v in vals]
+            ax.bar(x + (c - 0.5) * width, mean, width, yerr=sd if n_reps > 1 else None, capsize=3,
+                   label=control.replace("_", " "))
         ax.set_xticks(x, [m.replace("_", " ") for m in CONTACT_ANGLES])
         ax.set_title(title, fontsize="small")
         ax.set_xlabel("contact-angle strategy")
     axes[-1].axhline(1.0, color="0.5", lw=0.8, ls="--")
     axes[0].legend(fontsize="small")
-    fig.suptitle("RatSLAM performance per whisker control and contact-angle strategy (normal runs; bars: sd over repetitions)")
+    n_reps = max((sum(1 for r in rows if r["control"] == c and r["contact_angle"] == m and not r["kidnapped"])
+                  for c in CONTROLS for m in CONTACT_ANGLES), default=0)
+    spread = "error bars: sd over repetitions" if n_reps > 1 else "one repetition: no error bars"
+    fig.suptitle(f"RatSLAM performance per whisker control and contact-angle strategy (normal runs, {n_reps} "
+                 f"repetition{'s' if n_reps != 1 else ''}; {spread})")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -519,6 +519,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
     ax.boxplot(data, tick_labels=objs)
+    ax.set_xlabel("object")
     ax.set_ylabel("dead-reckoning displacement error (m)")
     ax.set_title("Fig 5.14b: integrated odometry vs truth, one loop of A")
     fig.tight_layout()
@@ -536,10 +537,16 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             if sb:
                 m = _median(sb[0][key])
                 ax.plot(i + 1, m, marker="*", ms=14, color="gold", mec="k")
-                ax.annotate(f"({m:.3g})", (i + 1, m), textcoords="offset points", xytext=(6, 6), fontsize=7)
+                ax.annotate(f"median {m:.3g} {unit}", (i + 1, m), textcoords="offset points", xytext=(6, 6), fontsize=7)
+        ax.set_xlabel("object")
         ax.set_ylabel(f"re-localisation error ({unit})")
-    axes[0].set_title("Fig 5.15: position (dashed: step size)")
-    axes[1].set_title(f"rotation (star: {star.label})")
+    from matplotlib.lines import Line2D
+
+    legend = [Line2D([], [], color="tab:red", ls="--", label="step between whisks"),
+              Line2D([], [], marker="*", ms=12, color="gold", mec="k", ls="", label=f"median of {star.label}")]
+    axes[0].legend(handles=legend, fontsize=7, loc="upper left")
+    axes[0].set_title("Fig 5.15: position error per object (boxes: all configurations)")
+    axes[1].set_title("Fig 5.15: rotation error per object")
     fig.tight_layout()
     fig.savefig(out / "fig5_15_localisation.png", dpi=110)
     plt.close(fig)
@@ -595,7 +602,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             ax.set_xlabel("map identity")
             ax.set_title(f"Fig 5.17: max confidence, trajectory {fam}")
         axes[0].set_ylabel("presented object")
-        fig.colorbar(im, ax=axes, shrink=0.8)
+        fig.colorbar(im, ax=axes, shrink=0.8, label="max raw confidence c_k over the run")
         fig.savefig(out / "fig5_17_confidence.png", dpi=110)
         plt.close(fig)
 

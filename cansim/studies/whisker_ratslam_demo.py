@@ -78,6 +78,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import logging
 import sys
 import time
@@ -164,6 +165,9 @@ def run(
     dr_p = np.array([np.linalg.norm(d.position_m - t.position_m) for d, t in zip(rel_dead, rel_true)])
     dr_r = rotation_error_rad(np.array([d.quaternion_xyzw for d in rel_dead]), np.array([t.quaternion_xyzw for t in rel_true]))
     half = len(poses) // loops * (loops - 1)
+    om = slam.object_map.poses
+    # the map's estimate of the arm's position: its current experience (none before the first one, id -1)
+    map_err = np.array([np.linalg.norm(om[e, :3] - t.position_m) if e >= 0 else np.nan for e, t in zip(exp_ids, rel_true)])
     metrics = {
         "object": object_name,
         "matching": "thesis" if thesis_matching else "pose-consistent",
@@ -175,6 +179,8 @@ def run(
         "map_median_rotation_error_deg": a.median_rotation_deg,
         "dr_median_position_error_m": float(np.median(dr_p)),
         "dr_median_rotation_error_deg": float(np.degrees(np.median(dr_r))),
+        "map_estimate_median_position_error_m": float(np.nanmedian(map_err[half:])) if np.isfinite(map_err[half:]).any() else math.nan,
+        "dr_last_loop_median_position_error_m": float(np.median(dr_p[half:])),
         "step_translation_m": float(np.median(st)),
         "step_rotation_deg": float(np.degrees(np.median(sr))),
         "relocalisations": int(reloc.sum()),
@@ -186,7 +192,40 @@ def run(
         "whisks_per_s": (len(poses) - 1) / (t0 + elapsed - t_first) if len(poses) > 1 else 0.0,
         "first_whisk_s": t_first - t0,
     }
-    return {"metrics": metrics, "mesh": mesh, "poses": poses, "dead": dead, "slam": slam, "exp_ids": exp_ids, "reloc": reloc}
+    return {"metrics": metrics, "mesh": mesh, "poses": poses, "dead": dead, "slam": slam, "exp_ids": exp_ids, "reloc": reloc,
+            "dr_error_m": dr_p, "map_error_m": map_err, "loop_starts": [len(poses) // loops * k for k in range(loops)]}
+
+
+def _m(value: float, digits: int = 3) -> str:
+    return "undefined" if not np.isfinite(value) else f"{value:.{digits}f}"
+
+
+def summary(metrics: dict, out: Path, files: list[Path]) -> str:
+    """A few sentences a person reads: what ran, the map against dead reckoning and the step, where the files are."""
+    m = metrics
+    lines = [
+        f"WhiskerRatSLAM whisked the {m['object']} {m['whisks']} times ({m['whisks_per_s']:.0f} whisks/s after the first); "
+        f"{m['observations']} whisks touched it. The object map has {m['experiences']} experiences; "
+        f"the pose cells re-localised {m['relocalisations']} times ({m['relocalisations_second_loop']} in the last loop).",
+    ]
+    if m["relocalisations"]:
+        lines.append(f"Re-localisations land a median {_m(m['median_position_error_m'])} m / "
+                     f"{_m(m['median_rotation_error_deg'], 1)} deg from where their experience was made "
+                     f"(the step between whisks is {m['step_translation_m']:.3f} m / {m['step_rotation_deg']:.1f} deg).")
+    else:
+        lines.append("No re-localisation happened, so the re-localisation errors are undefined (null in the JSON).")
+    lines.append(f"In the last loop the map's estimate of the arm's position (its current experience) is a median "
+                 f"{m['map_estimate_median_position_error_m']:.3f} m from the truth, dead reckoning's "
+                 f"{m['dr_last_loop_median_position_error_m']:.3f} m (over the whole run dead reckoning drifts a median "
+                 f"{m['dr_median_position_error_m']:.3f} m / {m['dr_median_rotation_error_deg']:.1f} deg; the experiences "
+                 f"lie a median {_m(m['map_median_position_error_m'])} m from the truth).")
+    better = m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"]
+    lines.append("=> the map beats dead reckoning." if better else "=> the map does NOT beat dead reckoning on this run.")
+    if m["whisks"] and m["observations"] < 0.5 * m["whisks"]:
+        lines.append(f"Warning: only {m['observations']} of {m['whisks']} whisks touched the object: the trajectory "
+                     "does not reach its surface well (is the mesh in metres, z up, about 0.35 m across?).")
+    lines.append(f"Wrote {', '.join(f.name for f in files)} in {out.resolve()}.")
+    return "\n".join(lines)
 
 
 def figures(result: dict, out: Path) -> list[Path]:
@@ -217,14 +256,21 @@ def figures(result: dict, out: Path) -> list[Path]:
     p1 = out / "whisker_ratslam_map.png"
     fig.savefig(p1, dpi=120)
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(8, 3.5))
+    fig, (ax_err, ax) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     it = np.arange(len(result["exp_ids"]))
+    ax_err.plot(it, result["dr_error_m"], "-", color="tab:red", lw=1.0, label="dead reckoning")
+    ax_err.plot(it, result["map_error_m"], "-", color="tab:blue", lw=1.0, label="map (current experience)")
+    ax_err.set_ylabel("position error (m)")
+    ax_err.set_title("Error of the pose estimate vs whisk: the map against dead reckoning")
     ax.plot(it, result["exp_ids"], ".", ms=3, color="0.3", label="current experience")
     r = np.flatnonzero(result["reloc"])
     ax.plot(r, result["exp_ids"][r], "o", mfc="none", color="tab:orange", label="re-localisation")
+    for a in (ax_err, ax):
+        for k, start in enumerate(result["loop_starts"][1:], 2):
+            a.axvline(start, color="0.5", ls=":", lw=1.0, label=f"loop {k} starts" if k == 2 else None)
     ax.set_xlabel("whisk (iteration)"), ax.set_ylabel("experience id")
     ax.set_title("Experience history")
-    ax.legend(fontsize=8)
+    ax_err.legend(fontsize=8), ax.legend(fontsize=8)
     fig.tight_layout()
     p2 = out / "whisker_ratslam_experiences.png"
     fig.savefig(p2, dpi=120)
@@ -252,13 +298,13 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--contact-noise must lie in [0, 1]")
     result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
                  progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching)
-    figures(result, args.out)
+    files = figures(result, args.out)
     m = result["metrics"]
     # NaN (no re-localisation happened) is not JSON: write null
     clean = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in m.items()}
-    (args.out / "whisker_ratslam_metrics.json").write_text(json.dumps(clean, indent=2))
-    for k, v in m.items():
-        print(f"{k:34s} {v:.4g}" if isinstance(v, float) else f"{k:34s} {v}")
+    files.append(args.out / "whisker_ratslam_metrics.json")
+    files[-1].write_text(json.dumps(clean, indent=2))
+    print(summary(m, args.out, files))
     return 0
 
 

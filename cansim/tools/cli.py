@@ -90,8 +90,10 @@ def _run_main(module: ModuleType, argv: list[str]) -> int:
 
 # ------------------------------------------------------------------ commands
 def _cmd_demo(args: argparse.Namespace) -> int:
-    module = importlib.import_module(DEMOS[args.which])
-    return _run_main(module, ["--seed", str(args.seed), "--out", str(args.out), *args.options])
+    options = list(args.options)
+    which = options.pop(0) if options and options[0] in DEMOS else next(iter(DEMOS))
+    module = importlib.import_module(DEMOS[which])
+    return _run_main(module, ["--seed", str(args.seed), "--out", str(args.out), *options])
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
@@ -201,9 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logging")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    def add(name: str, help_: str, description: str) -> argparse.ArgumentParser:
+    def add(name: str, help_: str, description: str, usage: str | None = None) -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help_, description=textwrap.fill(description, 88), epilog=_epilog(),
-                              formatter_class=_Formatter)
+                              formatter_class=_Formatter, usage=usage)
 
     p = add("demo", "the main demo: WhiskerRatSLAM maps a mug (or 'demo ratslam': RatSLAM, 3-DoF)",
             "'cansim demo' (= 'cansim demo whisker'): the README's main demo - the simulated 18-whisker array explores "
@@ -212,8 +214,8 @@ def build_parser() -> argparse.ArgumentParser:
             "whisker_ratslam_map.png, whisker_ratslam_experiences.png and whisker_ratslam_metrics.json. "
             "'cansim demo ratslam': RatSLAM (3-DoF) on a synthetic 5-loop route with the thesis' Ch.3 odometry noise; "
             "writes ratslam_map.png, ratslam_experience_ids*.png and ratslam_metrics.json. Options after these are "
-            "passed to the demo ('python -m cansim.studies.whisker_ratslam_demo --help' lists them).")
-    p.add_argument("which", nargs="?", choices=list(DEMOS), default="whisker", help="which demo (default: whisker)")
+            "passed to the demo ('python -m cansim.studies.whisker_ratslam_demo --help' lists them).",
+            usage="cansim demo [-h] [--out DIR] [--seed SEED] [whisker|ratslam] [demo options]")
     p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")
     p.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
     p.set_defaults(func=_cmd_demo)
@@ -237,7 +239,8 @@ def build_parser() -> argparse.ArgumentParser:
             "Run one of the thesis' studies (modules of cansim.studies): "
             + "; ".join(f"{c} = {_STUDY_TITLES[c]}, {m}" for c, m in STUDIES.items())
             + ". Options after the chapter go to the study (e.g. 'cansim study ch5 --quick --objects mug box'; "
-            "'python -m cansim.studies.ch5_object_maps --help' lists them).")
+            "'python -m cansim.studies.ch5_object_maps --help' lists them).",
+            usage="cansim study [-h] [--quick] [--out DIR] {ch3,ch4,ch5,ch6} [study options]")
     p.add_argument("chapter", choices=list(STUDIES), help="the chapter's study")
     p.add_argument("--quick", action="store_true", help="the study's quick mode (its headline result, in minutes)")
     p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")

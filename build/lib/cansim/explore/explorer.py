@@ -1,0 +1,474 @@
+"""The active-exploration loop (thesis Ch.6, Sec 6.1): whisk, recognise, search, place, move.
+
+One iteration = one whisk:
+
+1. read the end-effector pose from the :class:`~whisker_io.hw.arm.Arm` (a
+   :class:`~whisker_io.hw.arm.SimArm` in simulation, a :class:`~whisker_io.hw.arm.URArm`
+   on hardware) and whisk there (a ``sensor(pose) -> RegionFeatures`` callable: the
+   simulated :class:`~whisker_io.sim.whisk_chain.WhiskChain` or the USB array through
+   :class:`~whisker_io.sim.whisk_chain.RecordedChain`);
+2. odometry from the previous pose (``odometry(prev, now) -> (v, omega, dt)``: Eq 6.4-6.11
+   noise in simulation, exact on the arm) into one WhiskerRatSLAM per known object,
+   each holding that object's map (:meth:`KnownObject.exploring_model`; the object maps
+   are not linked);
+3. a re-localisation of model ``k`` to an experience of its built map is an impulse into
+   ``k``'s leaky integrator (:class:`maps.recognition.LeakyIntegrator`); the integrated
+   confidence (IC) decides the identity;
+4. the goal: the surface placement controller's correction while it has one (at most
+   ``max_adjustments`` per region), else the active strategy's proposal
+   (:func:`cansim.explore.search.active_strategy`);
+5. ``arm.move_linear(goal)``: every command passes the arm's
+   :class:`~whisker_io.hw.safety.SafetyEnvelope`; a refused command is logged and counted,
+   the strategy drops its target and the explorer re-plans with the default search (at
+   most ``max_replans`` times per iteration), never bypassing the envelope.
+
+The run stops when an IC reaches ``stop_threshold``, after ``max_iterations`` or after
+``time_limit_s`` of wall-clock time. :meth:`Explorer.replay` runs steps 2-3 of the same
+code over recorded ``(pose, features)`` cycles (:func:`whisker_io.hw.recorder.replay_session`
+with a ``RecordedChain``).
+
+Object maps (:func:`build_object_model`): two loops over the faces of the ellipsoid fitted
+to the object (:meth:`cansim.explore.search.DefaultSearch.tour`), the SPC at every face
+until its conditions are met (at most 10 adjustments), pose-consistent matching (one
+object mapped in one frame, :meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping`).
+
+Decisions for recognition (the thesis is silent; measured in
+``examples/ch6_active_exploration.py``, whose docstring gives the figures):
+
+* **One model per map**, not one model holding the appended history (Fig 5.16,
+  :meth:`WhiskerRatSLAM.library` of all maps, one region match per whisk across every
+  object): each map keeps its own current experience, the frame through which FEH and
+  LSR carry their targets into the world. In a trial both gave the correct identity
+  first at IC 300 in 7 of 8 runs (default search, noise 0.3, seeds 0-3, 1000 whisks;
+  the final exploring copy below then gave 8 of 8).
+* **The exploring copy** (:meth:`KnownObject.exploring_model`): the array meets an
+  object in an unknown frame, so the copy has no pose prior and its pose cells start
+  at the initial packet (:meth:`WhiskerRatSLAM.library` of the map alone), and a
+  whisk that matches a stored region (Eq 5.5) re-localises to that region's experience
+  nearest the packet whatever the pose-cell distance (``match_distance_cells`` =
+  :func:`any_distance_cells`). With the map's 1-cell rule the packet is rarely within a
+  cell of the stored location (the pose cells do not hold a pose consistent with the
+  map's frame, :mod:`cansim.models.whisker_ratslam`): of 186 matches to the right object's
+  stored regions 27 re-localised, the rest made new experiences (11 matches to the other
+  object's; 400 whisks, seeds 0-1), and no IC reached 100 in 1000 whisks (8 runs).
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from cansim.errors import ConfigError, InvalidInputError
+from cansim.explore.placement import PlacementParams, place
+from cansim.explore.search import (
+    STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
+)
+from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from maps.odometry import SpatialOdometry
+from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
+from whisker_io.errors import SafetyViolationError
+from whisker_io.pose import Pose
+from whisker_io.validation import config_field
+
+__all__ = ["KnownObject", "any_distance_cells", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
+
+_LOG = logging.getLogger(__name__)
+
+Sensor = Callable[[Pose], object]
+Odometry = Callable[[Pose, Pose], tuple[np.ndarray, np.ndarray, float]]
+
+
+@dataclass
+class KnownObject:
+    """A mapped object: its model after mapping and the sizes of what mapping stored.
+
+    Attributes
+    ----------
+    name : str
+    model : WhiskerRatSLAM
+    n_built, n_built_regions, n_history : int
+        Experiences, regions and history length after mapping.
+    poses : list of Pose
+        The true whisk poses of the mapping run (world).
+    """
+
+    name: str
+    model: WhiskerRatSLAM
+    n_built: int
+    n_built_regions: int
+    n_history: int
+    poses: list[Pose] = field(default_factory=list)
+    _snapshot: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+    def fresh_model(self) -> WhiskerRatSLAM:
+        """An independent copy of the model as mapping left it (through its ``.npz`` save format)."""
+        if self._snapshot is None:
+            buf = io.BytesIO()
+            self.model.save(buf)  # type: ignore[arg-type]
+            buf.seek(0)
+            with np.load(buf, allow_pickle=False) as z:
+                self._snapshot = {k: z[k] for k in z.files}
+        return WhiskerRatSLAM.from_arrays(self._snapshot)  # type: ignore[return-value]
+
+    def exploring_model(self) -> WhiskerRatSLAM:
+        """The model that recognises this object while an unknown object is explored (module docstring).
+
+        :meth:`WhiskerRatSLAM.library` of a :meth:`fresh_model` alone: the pose cells at
+        the initial packet, every region's decay at the floor, no pose prior (the array
+        is brought to an object in an unknown frame), and the map re-localising to the
+        matched region's experience nearest the packet at any pose-cell distance
+        (``match_distance_cells`` beyond the grid's largest wrapped distance,
+        :func:`any_distance_cells`). Experience and region ids are the map's own.
+        """
+        m = self.fresh_model()
+        cfg = replace(m.config, match_distance_cells=any_distance_cells(m.config.shape))
+        return WhiskerRatSLAM.library([m], [self.name], cfg)[0]
+
+
+def any_distance_cells(shape: Sequence[int]) -> float:
+    """A match distance (cells) above every wrapped distance on a grid of ``shape``: ``|shape / 2| + 1``.
+
+    Raises
+    ------
+    InvalidInputError
+        ``shape`` is not a non-empty sequence of positive integers.
+    """
+    try:
+        dims = [int(n) for n in shape if not isinstance(n, bool) and math.isfinite(n) and int(n) == n and n > 0]
+    except (TypeError, ValueError, OverflowError):
+        dims = []
+    if not dims or len(dims) != len(shape):
+        raise InvalidInputError(f"shape must be positive integers (cells per axis), got {shape!r}")
+    return float(math.hypot(*(n / 2.0 for n in dims))) + 1.0
+
+
+def build_object_model(
+    name: str,
+    trajectory: Sequence[Pose],
+    sensor: Sensor,
+    odometry: Odometry,
+    *,
+    placement: PlacementParams | None = PlacementParams(roll_rad=math.pi / 2),
+    adjustments_per_pose: int = 10,
+    model: WhiskerRatSLAM | None = None,
+) -> KnownObject:
+    """Map an object along ``trajectory`` (two loops over the faces of its fitted ellipsoid), with the SPC.
+
+    Every whisk (the face poses and the SPC's adjustments) is one WhiskerRatSLAM step.
+
+    Parameters
+    ----------
+    name : str
+    trajectory : sequence of Pose
+        Whisk poses (world): the thesis' mapping run (Sec 6.1.3.1) is
+        ``DefaultSearch(c, r, mesh=mesh, semi_axes_m=fit_surface(mesh).semi_axes_m,
+        footprint_m=array.positions_m).tour(2)`` (every whisker base 15 mm or more before the object).
+    sensor : callable
+        ``sensor(pose) -> RegionFeatures``.
+    odometry : callable
+        ``odometry(prev, now) -> (v, omega, dt)`` in the end-effector frame.
+    placement : PlacementParams or None
+        SPC parameters (None: SPC off).
+    adjustments_per_pose : int
+        SPC corrections (extra whisks) at each pose, until its goal is the current pose
+        (the SPC's conditions are met) or this many were made (default 10: the physical
+        runs' limit, Sec 6.1.4; in simulation the array "moved on to the closest
+        unvisited face" once the conditions were met, Sec 6.1.3.1).
+    model : WhiskerRatSLAM, optional
+        Default ``WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))``: one object
+        mapped in one frame (pose-consistent matching, see :mod:`cansim.models.whisker_ratslam`).
+    """
+    if len(trajectory) < 2:
+        raise InvalidInputError("a mapping trajectory needs at least 2 poses")
+    config_field(adjustments_per_pose, "adjustments_per_pose", int, minimum=0)
+    slam = model if model is not None else WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
+    prev: Pose | None = None
+    visited: list[Pose] = []
+
+    def whisk(pose: Pose) -> object:
+        nonlocal prev
+        obs = sensor(pose)
+        odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0) if prev is None else SpatialOdometry(*odometry(prev, pose))
+        slam.step(odo, obs)
+        prev = pose
+        visited.append(pose)
+        return obs
+
+    for pose in trajectory:
+        obs = whisk(pose)
+        for _ in range(adjustments_per_pose if placement is not None else 0):
+            if not getattr(obs, "is_observation", False):
+                break
+            goal = place(pose, obs.contact_points_m, placement)  # type: ignore[attr-defined]
+            if goal == pose:
+                break
+            pose = goal
+            obs = whisk(pose)
+    om = slam.object_map
+    return KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited)
+
+
+@dataclass(frozen=True)
+class ICMetrics:
+    """Ch.6 metrics of one IC trace at one threshold (Sec 6.2).
+
+    Attributes
+    ----------
+    identity : int or None
+        First object whose IC reached the threshold (ties: the larger IC, then the lower index).
+    im : float
+        Identity Margin ``t(first incorrect IC >= thr) - t(correct IC >= thr)``, censored
+        at the run's end (``n dt``) for a crossing that never happened.
+    srt : float
+        Successful Recognition Time ``t(correct IC >= thr)``, censored likewise.
+    correct_first : bool
+        The correct identity crossed, and before every other.
+    """
+
+    identity: int | None
+    im: float
+    srt: float
+    correct_first: bool
+
+
+def ic_metrics(ic: np.ndarray, correct: int, threshold: float, dt: float = 1.0) -> ICMetrics:
+    """IM, SRT and the decision from an IC trace (n, n_objects); see :class:`ICMetrics`."""
+    a = np.asarray(ic, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] < 1:
+        raise InvalidInputError(f"ic must be (n, n_objects), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise InvalidInputError("ic must be finite")
+    if isinstance(correct, bool) or not isinstance(correct, (int, np.integer)) or not 0 <= correct < a.shape[1]:
+        raise InvalidInputError(f"correct must be an object index in [0, {a.shape[1]}), got {correct!r}")
+    if not (math.isfinite(threshold) and threshold > 0 and math.isfinite(dt) and dt > 0):
+        raise InvalidInputError(f"threshold and dt must be finite and > 0, got {threshold!r}, {dt!r}")
+    n = len(a)
+    times = [first_crossing(a[:, k], threshold) for k in range(a.shape[1])]
+    end = n * dt
+    t_ok = times[correct]
+    bad = [t for k, t in enumerate(times) if k != correct and t is not None]
+    t_bad = min(bad) if bad else None
+    srt = end if t_ok is None else t_ok * dt
+    im = (end if t_bad is None else t_bad * dt) - srt
+    hits = [(t, -a[t, k], k) for k, t in enumerate(times) if t is not None]
+    identity = min(hits)[2] if hits else None
+    return ICMetrics(identity, float(im), float(srt), bool(t_ok is not None and (t_bad is None or t_ok < t_bad)))
+
+
+@dataclass
+class ExplorationResult:
+    """One exploration run.
+
+    Attributes
+    ----------
+    confidence, ic : ndarray (n, n_objects)
+        Raw and integrated confidence per iteration.
+    impulses : ndarray (n, n_objects) bool
+        Re-localisations to each object's built map.
+    poses : list of Pose
+        End-effector pose of every whisk.
+    strategies : list of str
+        The source of each goal (``spc``, ``default``, ``feh``, ``lsr``, ``none``).
+    refused_commands : int
+    stop_reason : str
+        ``threshold``, ``iterations`` or ``time``.
+    """
+
+    confidence: np.ndarray
+    ic: np.ndarray
+    impulses: np.ndarray
+    poses: list[Pose]
+    strategies: list[str]
+    refused_commands: int
+    stop_reason: str
+
+    def metrics(self, correct: int, threshold: float, dt: float = 1.0) -> ICMetrics:
+        """:func:`ic_metrics` of this run."""
+        return ic_metrics(self.ic, correct, threshold, dt)
+
+
+class Explorer:
+    """Active exploration (see the module docstring).
+
+    Parameters
+    ----------
+    known : sequence of KnownObject
+        Mapped objects; each is recognised by its own copy (:meth:`KnownObject.exploring_model`),
+        so one set of maps serves many runs.
+    sensor : callable
+        ``sensor(pose) -> RegionFeatures`` (contact points in the end-effector frame).
+    arm : whisker_io.hw.arm.Arm
+        Moves pass its safety envelope.
+    odometry : callable
+        ``odometry(prev, now) -> (v, omega, dt)``.
+    default_search : DefaultSearch
+    strategy : {"default", "feh", "lsr"}
+    placement : PlacementParams or None
+        SPC (None: off).
+    integrator : LeakyIntegrator
+    stop_threshold : float
+        Stop when an IC reaches it (inf: never).
+    max_iterations : int
+    time_limit_s : float
+        Wall-clock limit (inf: none).
+    max_adjustments : int
+        SPC corrections per region before the strategy moves on (10, the physical runs).
+    max_replans : int
+        Re-plans after refused commands per iteration.
+    strategy_options : mapping, optional
+        Keyword arguments of the FEH or LSR strategy
+        (:class:`cansim.explore.search.FollowExperienceHistory`,
+        :class:`cansim.explore.search.LeastSimilarRegion`), e.g. ``{"along_surface": True}``.
+    """
+
+    def __init__(
+        self,
+        known: Sequence[KnownObject],
+        sensor: Sensor,
+        arm: object,
+        odometry: Odometry,
+        default_search: DefaultSearch,
+        *,
+        strategy: str = "default",
+        placement: PlacementParams | None = PlacementParams(roll_rad=math.pi / 2),
+        integrator: LeakyIntegrator = LeakyIntegrator(),
+        stop_threshold: float = 300.0,
+        max_iterations: int = 1000,
+        time_limit_s: float = math.inf,
+        max_adjustments: int = 10,
+        max_replans: int = 3,
+        strategy_options: dict[str, object] | None = None,
+    ) -> None:
+        if strategy not in STRATEGIES:
+            raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
+        if not known:
+            raise InvalidInputError("the explorer needs at least one known object")
+        config_field(max_iterations, "max_iterations", int, minimum=1)
+        for name, v in (("max_adjustments", max_adjustments), ("max_replans", max_replans)):
+            config_field(v, name, int, minimum=0)
+        for name, v in (("stop_threshold", stop_threshold), ("time_limit_s", time_limit_s)):
+            if v != math.inf:  # inf: no such limit
+                config_field(v, name, float, above=0, hint="or math.inf for no limit")
+        self.models = [k.exploring_model() for k in known]
+        self.views = [ObjectView(m.object_map, m.frontend, k.n_built, k.n_built_regions, k.n_history)
+                      for m, k in zip(self.models, known)]
+        self.sensor, self.arm, self.odometry = sensor, arm, odometry
+        self.default = default_search
+        self.strategy_name = strategy
+        if strategy_options is not None and not isinstance(strategy_options, dict):
+            raise ConfigError(f"strategy_options must be a dict of keyword arguments, got {type(strategy_options).__name__}")
+        try:
+            self.strategy = make_strategy(strategy, **(strategy_options or {}) if strategy != "default" else {})
+        except TypeError as exc:
+            raise ConfigError(f"bad strategy_options for {strategy!r}: {exc}") from None
+        self.placement, self.integrator = placement, integrator
+        self.stop_threshold, self.max_iterations, self.time_limit_s = float(stop_threshold), int(max_iterations), float(time_limit_s)
+        self.max_adjustments, self.max_replans = int(max_adjustments), int(max_replans)
+        n = len(self.models)
+        self._level = np.zeros(n)
+        self._ic = np.zeros(n)
+        self._prev: Pose | None = None
+        self.refused_commands = 0
+        self._c: list[np.ndarray] = []
+        self._icl: list[np.ndarray] = []
+        self._imp: list[np.ndarray] = []
+        self._poses: list[Pose] = []
+        self._strats: list[str] = []
+        self._adjust = 0
+
+    # ------------------------------------------------------------ perception
+    def observe(self, pose: Pose, observation: object) -> list[tuple[int, int]]:
+        """Steps 2-3 of one iteration (also the replay path): returns the re-localisations."""
+        if self._prev is None:
+            odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
+        else:
+            odo = SpatialOdometry(*self.odometry(self._prev, pose))
+        reloc: list[tuple[int, int]] = []
+        imp = np.zeros(len(self.models), dtype=bool)
+        for k, (m, v) in enumerate(zip(self.models, self.views)):
+            st = m.step(odo, observation)
+            if st.relocalised and 0 <= st.exp_id < v.n_built:
+                reloc.append((k, int(st.exp_id)))
+                v.last_relocalised = int(st.exp_id)
+                imp[k] = True
+        self._level = leaky_step(self._level, imp, self.integrator)
+        self._ic = self._ic + self._level * self.integrator.dt
+        self._c.append(self._level.copy())
+        self._icl.append(self._ic.copy())
+        self._imp.append(imp)
+        self._poses.append(pose)
+        self._prev = pose
+        return reloc
+
+    # -------------------------------------------------------------- planning
+    def _plan(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
+        contact = bool(getattr(obs, "is_observation", False))
+        if self.placement is not None and contact and self._adjust < self.max_adjustments:
+            goal = place(pose, obs.contact_points_m, self.placement)  # type: ignore[attr-defined]
+            if goal != pose:
+                self._adjust += 1
+                return goal, "spc"
+        self._adjust = 0
+        active = active_strategy(self.strategy_name, self._level, contact)
+        if active != "default" and self.strategy is not None:
+            ctx = SearchContext(pose, self.views, self._level.copy(), obs if contact else None, reloc)
+            goal = self.strategy.propose(ctx)
+            if goal is not None:
+                return goal, active
+        return self.default.propose(), "default"
+
+    def _move(self, goal: Pose, source: str) -> str:
+        for attempt in range(self.max_replans + 1):
+            try:
+                self.arm.move_linear(goal)  # type: ignore[attr-defined]
+                return source
+            except SafetyViolationError as exc:
+                self.refused_commands += 1
+                _LOG.warning("arm command refused by the safety envelope (%s): %s; re-planning", source, exc)
+                if source == "default":
+                    self.default.refused()
+                elif source in ("feh", "lsr") and self.strategy is not None:
+                    self.strategy.refused()
+                self._adjust = self.max_adjustments if source == "spc" else self._adjust
+                goal, source = self.default.propose(), "default"
+        return "none"
+
+    # ------------------------------------------------------------------ runs
+    def run(self) -> ExplorationResult:
+        """Explore until the stop threshold, the iteration limit or the time limit."""
+        t0 = time.monotonic()
+        reason = "iterations"
+        for _ in range(self.max_iterations):
+            pose = self.arm.pose()  # type: ignore[attr-defined]
+            obs = self.sensor(pose)
+            reloc = self.observe(pose, obs)
+            if self._ic.max() >= self.stop_threshold:
+                self._strats.append("none")
+                reason = "threshold"
+                break
+            goal, source = self._plan(pose, obs, reloc)
+            self._strats.append(self._move(goal, source))
+            if time.monotonic() - t0 > self.time_limit_s:
+                reason = "time"
+                break
+        return self.result(reason)
+
+    def replay(self, cycles: Sequence[tuple[Pose, object]]) -> ExplorationResult:
+        """Perception and recognition over recorded ``(pose, features)`` cycles (no arm)."""
+        for pose, obs in cycles:
+            self.observe(pose, obs)
+            self._strats.append("none")
+        return self.result("iterations")
+
+    def result(self, reason: str) -> ExplorationResult:
+        """The traces so far."""
+        n = len(self.models)
+        stack = (lambda xs, dt: np.array(xs, dtype=dt).reshape(-1, n))
+        return ExplorationResult(stack(self._c, float), stack(self._icl, float), stack(self._imp, bool),
+                                 list(self._poses), list(self._strats), self.refused_commands, reason)

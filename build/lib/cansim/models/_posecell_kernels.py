@@ -1,0 +1,215 @@
+"""Numba kernels of :class:`cansim.models.posecell_network.PosecellNetwork` (imported on first use).
+
+Every loop runs in OpenRatSLAM's order and every expression keeps its C++
+association, so the floating-point results are those of the C++ core bit for
+bit (numba emits plain IEEE multiplies and adds: no fused multiply-add without
+``fastmath``). Arrays are in the C++ layout ``[th, y, x]``. Transcendental
+functions are evaluated by the caller with Python's :mod:`math` (the C
+library), never here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+    """``out`` = every non-zero cell's energy spread by the ``dim``^3 weights ``w`` (``excite``/``inhibit`` helpers).
+
+    Sources are visited x outermost, theta innermost and each source's targets in
+    (theta, y, x) kernel order, so every target accumulates in the C++ order.
+    """
+    nth, nxy = p.shape[0], p.shape[1]
+    o = out.reshape(-1)
+    o[:] = 0.0
+    plane = nxy * nxy
+    z_off = wrap_th * plane  # flat offsets of the wrapped target planes / rows
+    y_off = wrap_xy * nxy
+    for i in range(nxy):
+        for j in range(nxy):
+            for k in range(nth):
+                v = p[k, j, i]
+                if v != 0.0:
+                    n = 0
+                    x0 = wrap_xy[i]  # first target column; the row is contiguous unless it wraps
+                    straight = x0 + dim <= nxy
+                    for zl in range(k, k + dim):
+                        zo = z_off[zl]
+                        for yl in range(j, j + dim):
+                            base = zo + y_off[yl]
+                            if straight:
+                                row = base + x0
+                                for d in range(dim):
+                                    o[row + d] += v * w[n + d]
+                            else:
+                                for xl in range(i, i + dim):
+                                    o[base + wrap_xy[xl]] += v * w[n + xl - i]
+                            n += dim
+
+
+@njit(cache=True)
+def dynamics(
+    p: np.ndarray,
+    tmp: np.ndarray,
+    w_exc: np.ndarray,
+    e_dim: int,
+    e_wrap_xy: np.ndarray,
+    e_wrap_th: np.ndarray,
+    w_inh: np.ndarray,
+    i_dim: int,
+    i_wrap_xy: np.ndarray,
+    i_wrap_th: np.ndarray,
+    global_inhib: float,
+) -> float:
+    """Excite, inhibit, global inhibition and normalisation of ``p`` in place; returns the pre-normalisation total.
+
+    When the total is not positive ``p`` is left un-normalised (the caller restores its copy).
+    """
+    _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
+    p[:] = tmp
+    _spread(p, w_inh, i_dim, i_wrap_xy, i_wrap_th, tmp)
+    flat, ftmp = p.reshape(-1), tmp.reshape(-1)
+    for q in range(flat.size):
+        flat[q] -= ftmp[q]
+    for q in range(flat.size):
+        if flat[q] >= global_inhib:
+            flat[q] = flat[q] - global_inhib
+        else:
+            flat[q] = 0.0
+    total = 0.0
+    for q in range(flat.size):
+        total += flat[q]
+    if total > 0.0:
+        for q in range(flat.size):
+            flat[q] /= total
+    return total
+
+
+@njit(cache=True)
+def _rotate(src: np.ndarray, rot: int, dst: np.ndarray) -> None:
+    """``dst`` = ``src`` turned by ``rot`` quarter turns as C++ ``rot90_square`` (``rot`` in 0..3)."""
+    n = src.shape[0]
+    if rot == 0:
+        dst[:, :] = src
+    elif rot == 1:
+        for r in range(n):
+            for c in range(n):
+                dst[r, c] = src[n - 1 - c, r]
+    elif rot == 2:
+        for r in range(n):
+            for c in range(n):
+                dst[r, c] = src[n - 1 - r, n - 1 - c]
+    else:
+        for r in range(n):
+            for c in range(n):
+                dst[r, c] = src[c, n - 1 - r]
+
+
+@njit(cache=True)
+def translate(p: np.ndarray, rot: np.ndarray, cos90: np.ndarray, sin90: np.ndarray, vtrans: float) -> None:
+    """Translational path integration of every theta layer by ``vtrans`` cells (<= 1) along its direction.
+
+    Each layer is turned by ``rot[k]`` quarter turns, shifted towards +x/+y by the
+    four bilinear weights of the residual angle (``cos90``/``sin90`` of it), the
+    overflow row/column wrapped to the opposite edge, and turned back.
+    """
+    nth, n = p.shape[0], p.shape[1]
+    d = n + 2
+    a = np.zeros((d, d))
+    b = np.empty((d, d))
+    lay = np.empty((n, n))
+    for k in range(nth):
+        c, s = cos90[k], sin90[k]
+        w_sw = vtrans * vtrans * c * s
+        w_se = vtrans * s * (1.0 - vtrans * c)
+        w_nw = vtrans * c * (1.0 - vtrans * s)
+        w_ne = 1.0 - w_sw - w_se - w_nw
+        _rotate(p[k], rot[k], lay)
+        a[:] = 0.0
+        for j in range(n):
+            for i in range(n):
+                a[j + 1, i + 1] = lay[j, i]
+        for j in range(d):
+            jm = j - 1 if j > 0 else d - 1
+            for i in range(d):
+                im = i - 1 if i > 0 else d - 1
+                b[j, i] = a[j, i] * w_ne + a[j, im] * w_se + a[jm, i] * w_nw
+        for j in range(d):
+            jm = j - 1 if j > 0 else d - 1
+            for i in range(d):
+                im = i - 1 if i > 0 else d - 1
+                b[j, i] += a[jm, im] * w_sw
+        for j in range(n):
+            for i in range(n):
+                lay[j, i] = b[j + 1, i + 1]
+        for i in range(1, n):
+            lay[0, i] += b[n + 1, i + 1]
+        for j in range(1, n):
+            lay[j, 0] += b[j + 1, n + 1]
+        lay[0, 0] += b[n + 1, n + 1]
+        _rotate(lay, (4 - rot[k]) % 4, p[k])
+
+
+@njit(cache=True)
+def rotate_theta(p: np.ndarray, tmp: np.ndarray, shift1: int, shift2: int, weight: float) -> None:
+    """Rotational path integration: ``p[k] = p[k - shift1] (1 - weight) + p[k - shift2] weight`` (shifts <= 0)."""
+    nth = p.shape[0]
+    tmp[:] = p
+    keep = 1.0 - weight
+    for k in range(nth):
+        a = tmp[(k - shift1) % nth]
+        b = tmp[(k - shift2) % nth]
+        out = p[k]
+        for j in range(p.shape[1]):
+            for i in range(p.shape[2]):
+                out[j, i] = a[j, i] * keep + b[j, i] * weight
+
+
+@njit(cache=True)
+def best_sums(
+    p: np.ndarray,
+    half: int,
+    wrap_xy: np.ndarray,
+    wrap_th: np.ndarray,
+    sin_xy: np.ndarray,
+    cos_xy: np.ndarray,
+    sin_th: np.ndarray,
+    cos_th: np.ndarray,
+) -> tuple[float, float, float, float, float, float]:
+    """``find_best`` up to the ``atan2``: the six sine/cosine sums of the +-``half`` box around the maximum."""
+    nth, n = p.shape[0], p.shape[1]
+    mx = 0.0
+    x = y = th = 0
+    for k in range(nth):
+        for j in range(n):
+            for i in range(n):
+                if p[k, j, i] > mx:
+                    mx = p[k, j, i]
+                    x, y, th = i, j, k
+    xs = np.zeros(n)
+    ys = np.zeros(n)
+    zs = np.zeros(nth)
+    width = 2 * half + 1
+    for k in range(th, th + width):
+        kw = wrap_th[k]
+        for j in range(y, y + width):
+            jw = wrap_xy[j]
+            for i in range(x, x + width):
+                iw = wrap_xy[i]
+                v = p[kw, jw, iw]
+                zs[kw] += v
+                ys[jw] += v
+                xs[iw] += v
+    sx1 = sx2 = sy1 = sy2 = 0.0
+    for i in range(n):
+        sx1 += sin_xy[i] * xs[i]
+        sx2 += cos_xy[i] * xs[i]
+        sy1 += sin_xy[i] * ys[i]
+        sy2 += cos_xy[i] * ys[i]
+    st1 = st2 = 0.0
+    for i in range(nth):
+        st1 += sin_th[i] * zs[i]
+        st2 += cos_th[i] * zs[i]
+    return sx1, sx2, sy1, sy2, st1, st2

@@ -1,0 +1,256 @@
+"""The adapter for OpenRatSLAM's config files: its flat key names -> :class:`~cansim.models.ratslam_config.RatSLAMConfig`.
+
+OpenRatSLAM's ``config_*.txt.in`` files are ``key=value`` lines under ``[section]``
+headers; ``#`` and ``;`` start comment lines. This module is the one place that knows
+those key names: :data:`OPENRATSLAM_KEYS` maps each onto one field of
+:class:`~cansim.models.ratslam_config.RatSLAMConfig`, of its ``attractor``
+(:class:`~cansim.params.AttractorParams`) or of its ``frontend``
+(:class:`~cansim.frontends.visual.VisualTemplateConfig`; an OpenRatSLAM front end is a
+camera). :meth:`RatSLAMConfig.from_file <cansim.models.ratslam_config.RatSLAMConfig.from_file>`
+and ``from_text`` delegate here.
+
+==================================  ====================================  =======
+OpenRatSLAM key                     cansim field                          default
+==================================  ====================================  =======
+``pc_dim_xy``                       ``xy_cells``                          21
+``pc_dim_th``                       ``heading_cells``                     36
+``pc_cell_x_size``                  ``cell_size_m``                       1.0
+``pc_w_e_dim``                      ``attractor.exc_width``               7
+``pc_w_e_var``                      ``attractor.exc_sigma``               1
+``pc_w_i_dim``                      ``attractor.inh_width``               5
+``pc_w_i_var``                      ``attractor.inh_sigma``               2
+``pc_global_inhib``                 ``attractor.global_inhibition``       2e-5
+``pc_cells_to_avg``                 ``decode_window``                     3
+``pc_vt_inject_energy``             ``inject_energy``                     0.15
+``vt_active_decay``                 ``active_decay``                      1.0
+``pc_vt_restore``                   ``decay_restore``                     0.05
+``exp_delta_pc_threshold``          ``match_distance_cells``              2.0
+``exp_correction``                  ``correction``                        0.5
+``exp_loops``                       ``relax_passes``                      10
+``exp_initial_em_deg``              ``initial_heading_deg``               90
+``template_x_size``                 ``frontend.template_width_blocks``    60
+``template_y_size``                 ``frontend.template_height_blocks``   10
+``image_crop_x_min``                ``frontend.crop_x_min_px``            0
+``image_crop_x_max``                ``frontend.crop_x_max_px``            edge
+``image_crop_y_min``                ``frontend.crop_y_min_px``            0
+``image_crop_y_max``                ``frontend.crop_y_max_px``            edge
+``vt_shift_match``                  ``frontend.shift_match_blocks``       25
+``vt_step_match``                   ``frontend.step_match_blocks``        5
+``vt_match_threshold``              ``frontend.match_threshold``          0.03
+``vt_normalisation``                ``frontend.normalisation_mean``       0
+``vt_patch_normalise``              ``frontend.patch_half_width_blocks``  0
+``vt_min_patch_normalisation_std``  ``frontend.min_patch_std``            0
+``vt_panoramic``                    ``frontend.panoramic``                0
+==================================  ====================================  =======
+
+Values: integers may be written ``7`` or ``7.0``; booleans ``1/0``, ``true/false``,
+``yes/no``, ``on/off``; a crop maximum of ``-1`` (OpenRatSLAM: the image edge) is
+``None``. A key not in the table (ROS topics, drawing, visual odometry...) is ignored
+with a ``UserWarning``; a malformed value, or one the config refuses (an even kernel
+width, a negative size), raises :class:`~cansim.errors.ConfigError` naming the key and
+its line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from cansim.errors import ConfigError, InvalidInputError
+from cansim.frontends.visual import VisualTemplateConfig
+
+if TYPE_CHECKING:  # the config class is passed in: ratslam_config imports this module, not the reverse
+    from cansim.models.ratslam_config import RatSLAMConfig
+
+__all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed"]
+
+
+class _Key(NamedTuple):
+    field: str  # "name", "attractor.name" or "frontend.name"
+    kind: str  # "int", "float", "bool" or "edge" (an int, -1 = the image edge = None)
+
+
+OPENRATSLAM_KEYS: dict[str, _Key] = {
+    "pc_dim_xy": _Key("xy_cells", "int"),
+    "pc_dim_th": _Key("heading_cells", "int"),
+    "pc_cell_x_size": _Key("cell_size_m", "float"),
+    "pc_w_e_dim": _Key("attractor.exc_width", "int"),
+    "pc_w_e_var": _Key("attractor.exc_sigma", "float"),
+    "pc_w_i_dim": _Key("attractor.inh_width", "int"),
+    "pc_w_i_var": _Key("attractor.inh_sigma", "float"),
+    "pc_global_inhib": _Key("attractor.global_inhibition", "float"),
+    "pc_cells_to_avg": _Key("decode_window", "int"),
+    "pc_vt_inject_energy": _Key("inject_energy", "float"),
+    "vt_active_decay": _Key("active_decay", "float"),
+    "pc_vt_restore": _Key("decay_restore", "float"),
+    "exp_delta_pc_threshold": _Key("match_distance_cells", "float"),
+    "exp_correction": _Key("correction", "float"),
+    "exp_loops": _Key("relax_passes", "int"),
+    "exp_initial_em_deg": _Key("initial_heading_deg", "float"),
+    "template_x_size": _Key("frontend.template_width_blocks", "int"),
+    "template_y_size": _Key("frontend.template_height_blocks", "int"),
+    "image_crop_x_min": _Key("frontend.crop_x_min_px", "int"),
+    "image_crop_x_max": _Key("frontend.crop_x_max_px", "edge"),
+    "image_crop_y_min": _Key("frontend.crop_y_min_px", "int"),
+    "image_crop_y_max": _Key("frontend.crop_y_max_px", "edge"),
+    "vt_shift_match": _Key("frontend.shift_match_blocks", "int"),
+    "vt_step_match": _Key("frontend.step_match_blocks", "int"),
+    "vt_match_threshold": _Key("frontend.match_threshold", "float"),
+    "vt_normalisation": _Key("frontend.normalisation_mean", "float"),
+    "vt_patch_normalise": _Key("frontend.patch_half_width_blocks", "int"),
+    "vt_min_patch_normalisation_std": _Key("frontend.min_patch_std", "float"),
+    "vt_panoramic": _Key("frontend.panoramic", "bool"),
+}
+"""OpenRatSLAM key -> (cansim field, value kind); the table of the module docstring."""
+
+_PARTS = {"attractor": "AttractorParams", "frontend": "VisualTemplateConfig"}
+
+
+def renamed(name: str) -> str | None:
+    """How to pass OpenRatSLAM's ``name`` to :class:`RatSLAMConfig` (``"xy_cells=..."``), or None if it is not one of its keys."""
+    key = OPENRATSLAM_KEYS.get(name)
+    if key is None:
+        return None
+    part, _, sub = key.field.rpartition(".")
+    if not part:
+        return f"{sub}=..."
+    extra = " (or a TactileTemplateConfig)" if name == "vt_match_threshold" else ""
+    return f"{part}={_PARTS[part]}({sub}=...){extra}"
+
+
+def _parse_value(key: str, value: str, kind: str, lineno: int) -> Any:
+    try:
+        if kind in ("int", "edge"):
+            f = float(value)
+            if not f.is_integer():
+                raise ValueError
+            n = int(f)
+            return None if kind == "edge" and n == -1 else n
+        if kind == "float":
+            f = float(value)
+            if not math.isfinite(f):
+                raise ValueError
+            return f
+        low = value.lower()
+        if low in ("1", "true", "yes", "on"):
+            return True
+        if low in ("0", "false", "no", "off"):
+            return False
+        raise ValueError
+    except (ValueError, OverflowError):
+        expected = {"int": "an integer", "edge": "an integer (-1 = the image edge)", "float": "a finite number", "bool": "0 or 1"}[kind]
+        raise ConfigError(f"line {lineno}: {key}={value!r} is malformed (expected {expected})") from None
+
+
+def _by_part(values: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """OpenRatSLAM ``{key: value}`` -> ``{"": fields, "attractor": ..., "frontend": ...}`` by the key table."""
+    parts: dict[str, dict[str, Any]] = {"": {}, "attractor": {}, "frontend": {}}
+    for key, value in values.items():
+        part, _, name = OPENRATSLAM_KEYS[key].field.rpartition(".")
+        parts[part][name] = value
+    return parts
+
+
+def _read(text: str) -> dict[str, tuple[Any, int]]:
+    """``{key: (value, line)}`` of the known keys; unknown keys warned about."""
+    values: dict[str, tuple[Any, int]] = {}
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith(("#", ";", "[")):
+            continue
+        if "=" not in line:
+            raise ConfigError(f"line {lineno}: {line!r} is not 'key=value'")
+        key, value = (s.strip() for s in line.split("=", 1))
+        if key not in OPENRATSLAM_KEYS:
+            warnings.warn(f"OpenRatSLAM config key {key!r} (line {lineno}) is not used by cansim; ignored", UserWarning, stacklevel=4)
+            continue
+        values[key] = (_parse_value(key, value, OPENRATSLAM_KEYS[key].kind, lineno), lineno)
+    return values
+
+
+def read_openratslam_text(text: str, config_cls: type[RatSLAMConfig], **overrides: Any) -> RatSLAMConfig:
+    """A :class:`RatSLAMConfig` from the text of an OpenRatSLAM config file.
+
+    Parameters
+    ----------
+    text : str
+        The file's text (see the module docstring).
+    config_cls : type
+        :class:`RatSLAMConfig` (or a subclass): the class to build.
+    **overrides
+        RatSLAMConfig fields (cansim names) that replace the file's, e.g.
+        ``frontend="ids"`` or ``backend="numpy"``.
+
+    Raises
+    ------
+    ConfigError
+        A line that is not ``key=value``, a malformed value, or a value the config
+        refuses (the message names the key and its line); an override that is not a
+        field.
+    """
+    config_cls.check_names(overrides)
+    values = _read(text)
+    parts = _by_part({key: value for key, (value, _) in values.items()})
+    try:  # the file's values first, so that an error is the file's
+        cfg = config_cls(
+            **parts[""],
+            attractor=replace(config_cls().attractor, **parts["attractor"]),
+            frontend=VisualTemplateConfig(**parts["frontend"]),
+        )
+    except InvalidInputError as exc:  # ConfigError, or AttractorParams' own checks
+        culprits = [f"{k} (line {line})" for k, (_, line) in values.items() if OPENRATSLAM_KEYS[k].field.split(".")[-1] in str(exc)]
+        raise ConfigError(f"OpenRatSLAM config key {', '.join(culprits) or '(a combination of keys)'}: {exc}") from None
+    return replace(cfg, **overrides) if overrides else cfg
+
+
+def read_openratslam_file(path: str | os.PathLike[str], config_cls: type[RatSLAMConfig], **overrides: Any) -> RatSLAMConfig:
+    """:func:`read_openratslam_text` of a file (UTF-8)."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such OpenRatSLAM config file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read it as a text config file ({exc})") from None
+    return read_openratslam_text(text, config_cls, **overrides)
+
+
+def config_from_flat_dict(d: dict[str, Any], config_cls: type[RatSLAMConfig]) -> RatSLAMConfig:
+    """A :class:`RatSLAMConfig` from the flat description that cansim 0.x saved before the
+    configs had one name per concept (OpenRatSLAM's keys plus ``frontend="ids" | "visual" |
+    "tactile"`` and the library settings), so that models saved then still load.
+
+    Parameters
+    ----------
+    d : dict
+        The saved ``config`` mapping (already parsed from JSON).
+    config_cls : type
+        :class:`RatSLAMConfig` (or a subclass): the class to build.
+
+    Raises
+    ------
+    ConfigError
+        A key that is neither an OpenRatSLAM key nor a field, or a value the config refuses.
+    """
+    from cansim.frontends.tactile import TactileTemplateConfig
+
+    legacy = {k: None if OPENRATSLAM_KEYS[k].kind == "edge" and v == -1 else v for k, v in d.items() if k in OPENRATSLAM_KEYS}
+    parts = _by_part(legacy)
+    parts[""].update({k: v for k, v in d.items() if k not in OPENRATSLAM_KEYS})
+    kind = parts[""].pop("frontend", "ids")
+    if kind == "visual":
+        frontend: Any = VisualTemplateConfig(**parts["frontend"])
+    elif kind == "tactile":
+        frontend = TactileTemplateConfig(**{k: v for k, v in parts["frontend"].items() if k == "match_threshold"})
+    elif kind == "ids":
+        frontend = "ids"
+    else:
+        raise ConfigError(f"saved config: frontend must be 'ids', 'visual' or 'tactile', got {kind!r}")
+    config_cls.check_names(parts[""])
+    try:
+        return config_cls(**parts[""], attractor=replace(config_cls().attractor, **parts["attractor"]), frontend=frontend)
+    except (InvalidInputError, TypeError) as exc:
+        raise ConfigError(f"saved config: {exc}") from None

@@ -1,0 +1,170 @@
+"""RatSLAM (3-DoF): a composition of pose cells, local-view cells, a front end and an SE(2) experience map.
+
+The loop itself (order of the calls, save / resume) is :class:`cansim.models.slam_loop.SlamLoop`;
+this module only wires the parts from a :class:`~cansim.models.ratslam_config.RatSLAMConfig`
+(OpenRatSLAM's config files are read by :mod:`cansim.models.openratslam_config`):
+
+1. front end, selected by ``frontend`` - precomputed view ids ("ids",
+   :class:`~cansim.frontends.ids.IdsFrontEnd`), camera images (a ``VisualTemplateConfig``,
+   :class:`~cansim.frontends.visual.VisualTemplates`) or the 3 x 6 tactile image of thesis
+   Ch.3 (a ``TactileTemplateConfig``, :class:`~cansim.frontends.tactile.TactileTemplates`);
+2. local-view cells - OpenRatSLAM's stored location (``PosecellNetwork::on_view_template``:
+   C++ truncation, no injection for the 10 most recent templates - with fewer than 10
+   every revisit injects, as C++'s unsigned arithmetic does - and the decay rules) or
+   explicit learnt LV->PC weights (Eq 2.17/2.18), ``lv_mode``;
+3. pose cells - :class:`cansim.population.Population` (any backend and dtype) or, in the
+   parity preset, :class:`cansim.models.posecell_network.PosecellNetwork`;
+4. map - :class:`maps.experience_map.ExperienceMap` with :class:`maps.se2.SE2Geometry`.
+
+Parity preset (:meth:`RatSLAMConfig.openratslam`): the C++ pose-cell engine (the C++
+arithmetic in the C++ order, float64), the C++ frame (theta index 0 moves the packet
+along +y), C++ view-cell arithmetic (raw stored coordinates, theta wrapped once,
+truncation, out-of-grid cells skipped), OpenRatSLAM's unbounded relaxation and
+never-reset link timer, and translation limited to one cell per step - the C++
+four-weight shift is only valid up to one cell, so larger steps raise
+:class:`InvalidInputError` (reduce the speed or raise ``cell_size_m``). Fed the same
+odometry and view ids (with panoramic ``relative_rad``) as OpenRatSLAM's C++ core driven
+the way its ROS nodes drive it, every step's decoded (x, y, theta), experience id, action
+and the final map are bit-identical (``tests/data/openratslam_cpp_trace.csv``). Remaining
+differences, all outside the core: OpenRatSLAM's ROS nodes drop the first odometry
+message (it has no previous time stamp) while every step's ``dt`` is used here - skip
+your first sample to match; the C++ constructor never initialises ``vt_delta_pc_th``,
+which ``get_action`` reads when a view among the 10 most recent is revisited before any
+view has injected - cansim starts it at 0, what a fresh heap holds; the C++ bugs of the
+visual front end are listed (and emulable) in :mod:`cansim.frontends.visual`. With
+``pose_cells="population"`` the same model runs on cansim's generic engine and agrees
+to ~1e-15 cells per step until a truncated coordinate falls the other way.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cansim.errors import ConfigError, InvalidInputError
+from cansim.frontends.ids import IdsFrontEnd
+from cansim.frontends.panoramic import HeadingOffset
+from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
+from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
+from cansim.local_view import LocalViewCells
+from cansim.population import Population
+from cansim.models.posecell_network import PosecellNetwork
+from cansim.models.ratslam_config import RatSLAMConfig
+from cansim.models.slam_loop import SlamLog, SlamLoop, SlamState, configured
+from maps.experience_map import ExperienceMap
+from maps.odometry import PlanarOdometry
+
+__all__ = ["RatSLAM", "RatSLAMConfig"]
+
+
+class RatSLAM(SlamLoop):
+    """RatSLAM with OpenRatSLAM semantics (see the module docstring).
+
+    Parameters
+    ----------
+    config : RatSLAMConfig, optional
+        Parameters; keyword arguments (its field names) override it
+        (``RatSLAM(xy_cells=30, relax_passes=3)``). OpenRatSLAM's key names raise
+        :class:`ConfigError` naming the field; read OpenRatSLAM files with
+        :meth:`RatSLAMConfig.from_file`.
+
+    Examples
+    --------
+    >>> slam = RatSLAM(cell_size_m=0.1)
+    >>> s = slam.step(0.05, 0.0, 1.0, 0)      # 5 cm/s for 1 s, view id 0
+    >>> s.exp_id
+    0
+    """
+
+    def __init__(self, config: RatSLAMConfig | None = None, **params: Any) -> None:
+        RatSLAMConfig.check_names(params)
+        cfg = self.config = configured(RatSLAMConfig, config, params, "RatSLAM")
+        pose_cells: Population | PosecellNetwork
+        if cfg.pose_cells == "openratslam":
+            pose_cells = PosecellNetwork(
+                cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, params=cfg.attractor, decode_window=cfg.decode_window,
+            )
+        else:
+            pose_cells = Population.openratslam(
+                cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, frame=cfg.frame, params=cfg.attractor,
+                dtype=np.dtype(cfg.dtype), backend=cfg.backend, decode_window=cfg.decode_window,
+            )
+        frontend: Any
+        if isinstance(cfg.frontend, VisualTemplateConfig):
+            frontend = HeadingOffset(VisualTemplates(cfg.frontend), 3, 2, cfg.heading_cells)
+        elif isinstance(cfg.frontend, TactileTemplateConfig):
+            frontend = HeadingOffset(TactileTemplates(cfg.frontend), 3, 2, cfg.heading_cells)
+        else:
+            frontend = IdsFrontEnd(3, heading_axis=2, heading_cells=cfg.heading_cells)
+        super().__init__(
+            pose_cells,
+            LocalViewCells(pose_cells.shape, cfg.local_view_params()),
+            frontend,
+            ExperienceMap(cfg.map_config(), cfg.map_geometry()),
+            PlanarOdometry,
+            check_odometry=self._check_strict if cfg.strict_translation else None,
+        )
+
+    def _check_strict(self, odo: PlanarOdometry) -> None:
+        step_m = abs(odo.v * odo.dt)
+        if step_m > self.config.cell_size_m * (1 + 1e-12):
+            raise InvalidInputError(
+                f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
+                "OpenRatSLAM's path integration is valid for at most one cell per step - "
+                "raise cell_size_m or split the step"
+            )
+
+    def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> SlamState:  # type: ignore[override]
+        """Run one RatSLAM iteration: the view (if an observation is given), then the odometry.
+
+        Parameters
+        ----------
+        vtrans : float
+            Forward speed, m/s.
+        vrot : float
+            Yaw rate, rad/s (counter-clockwise positive).
+        dt : float
+            Duration of the odometry sample, s.
+        observation : int, tuple, ndarray or None
+            ``frontend="ids"``: a view id (any non-negative integer; first-seen order
+            numbers the views) or a ``(view_id, relative_rad)`` pair - the rotation (rad)
+            of a panoramic match, OpenRatSLAM's ``ViewTemplate`` message; a
+            ``VisualTemplateConfig`` front end: a uint8 image; a ``TactileTemplateConfig``:
+            a 3 x 6 tactile image; None: odometry only.
+
+        Returns
+        -------
+        SlamState
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            Bad odometry (NaN, negative dt, > 1 cell/step in strict mode) or a bad
+            observation; the model is unchanged.
+        """
+        return super().step(vtrans, vrot, dt, observation)
+
+    def run(self, vtrans: Any, vrot: Any, dt: Any, observations: Any, *, progress: bool = False) -> SlamLog:  # type: ignore[override]
+        """:meth:`step` for every row: ``vtrans``, ``vrot`` (n,) m/s and rad/s, ``dt`` s (scalar or (n,))."""
+        n = len(vtrans)
+        if len(vrot) != n or len(observations) != n:
+            raise InvalidInputError(f"vtrans, vrot and observations must have the same length, got {n}, {len(vrot)}, {len(observations)}")
+        dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+        odometry = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
+        return super().run(odometry, observations, progress=progress)
+
+    # ------------------------------------------------------- save / resume
+    def describe(self) -> dict[str, Any]:
+        """The configuration, for :meth:`save`."""
+        return {"model": "RatSLAM", "config": self.config.to_dict()}
+
+    @classmethod
+    def from_description(cls, description: dict[str, Any]) -> "RatSLAM":
+        """An empty model from :meth:`describe` output."""
+        if description.get("model") != "RatSLAM":
+            raise ValueError(f"the file holds a {description.get('model')!r} model, not RatSLAM")
+        try:
+            return cls(RatSLAMConfig.from_dict(description["config"]))
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from exc

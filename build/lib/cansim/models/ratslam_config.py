@@ -1,0 +1,300 @@
+"""RatSLAM's parameters: one name per concept, shared with WhiskerRatSLAM.
+
+:class:`RatSLAMConfig` holds the 3-DoF model's parameters under the names the rest of
+cansim uses (``cell_size_m``, ``attractor``, ``inject_energy``,
+``match_distance_cells``, ``relax_passes``, ``frontend``...) and builds the parts'
+own parameters from them: :class:`cansim.params.AttractorParams` (a field),
+:class:`cansim.local_view.LocalViewParams`, :class:`maps.experience_map.MapConfig`
+and :class:`maps.se2.SE2Geometry`.
+
+OpenRatSLAM's ``config_*.txt.in`` files are read by :meth:`RatSLAMConfig.from_file`,
+which delegates to the adapter :mod:`cansim.models.openratslam_config`; that module holds
+the one table from OpenRatSLAM's flat key names to these fields. Passing an
+OpenRatSLAM name as a keyword raises :class:`~cansim.errors.ConfigError` naming the
+field to use.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any, Union
+
+from cansim.errors import ConfigError
+from cansim.frontends.tactile import TactileTemplateConfig
+from cansim.frontends.visual import VisualTemplateConfig
+from cansim.local_view import LocalViewParams
+from cansim.models.openratslam_config import (
+    OPENRATSLAM_KEYS,
+    config_from_flat_dict,
+    read_openratslam_file,
+    read_openratslam_text,
+    renamed,
+)
+from cansim.params import AttractorParams
+from maps.experience_map import MapConfig
+from maps.se2 import SE2Geometry
+from whisker_io.validation import config_field
+
+__all__ = ["RatSLAMConfig", "FrontEndConfig"]
+
+FrontEndConfig = Union[str, VisualTemplateConfig, TactileTemplateConfig]
+"""What :attr:`RatSLAMConfig.frontend` holds: ``"ids"`` or a front-end config."""
+
+_FRONTEND_KINDS: dict[str, type] = {"visual": VisualTemplateConfig, "tactile": TactileTemplateConfig}
+
+
+def _per_axis(value: Any) -> tuple[Any, ...]:
+    return tuple(value) if isinstance(value, (list, tuple)) else (value,)
+
+
+@dataclass(frozen=True)
+class RatSLAMConfig:
+    """All RatSLAM parameters (defaults: OpenRatSLAM's).
+
+    OpenRatSLAM's key for a field is given in brackets, for translating its config
+    files by hand (:meth:`from_file` does it; see :mod:`cansim.models.openratslam_config`).
+
+    Parameters
+    ----------
+    xy_cells : int
+        Pose cells on each of the x and y axes (21) [``pc_dim_xy``].
+    heading_cells : int
+        Pose cells on the heading axis (36, 10 deg each) [``pc_dim_th``].
+    cell_size_m : float
+        Metres per translational pose cell (1.0; thesis Table 3.1: 0.015) [``pc_cell_x_size``].
+    attractor : AttractorParams
+        Kernels and global inhibition (Alg 3-5): OpenRatSLAM's 7-tap sigma-1
+        excitation, 5-tap sigma-2 inhibition, phi 2e-5. Widths odd, sigmas > 0 cells
+        [``pc_w_e_dim``, ``pc_w_e_var``, ``pc_w_i_dim``, ``pc_w_i_var``, ``pc_global_inhib``].
+    decode_window : int
+        Half-width (cells) of the population-vector box around the maximum (3) [``pc_cells_to_avg``].
+    lv_mode : {"stored", "learnt"}
+        How views feed the pose cells: OpenRatSLAM's stored location (Eq 5.8, default)
+        or explicit learnt LV->PC weights (Eq 2.17/2.18, ``inject_energy`` as the gain).
+    inject_energy : float
+        Energy a view injects at its stored cell (0.15) [``pc_vt_inject_energy``].
+    active_decay, decay_restore : float
+        A view's decay rise per match (1.0) and fall per iteration (0.05)
+        [``vt_active_decay``, ``pc_vt_restore``].
+    match_distance_cells : float
+        Wrapped pose-cell distance (cells, Eq 2.22) above which a new experience is
+        made (2; thesis Table 3.1: 1) [``exp_delta_pc_threshold``].
+    correction : float
+        Relaxation rate alpha of Eq 2.25, in (0, 1] (0.5) [``exp_correction``].
+    relax_passes : int
+        Relaxation passes over all links per action (10) [``exp_loops``].
+    relax_budget : int or None
+        Single-link relaxation updates per step (2,000; None = OpenRatSLAM's
+        unbounded O(links) relaxation; see :mod:`maps.experience_map`).
+    initial_heading_deg : float
+        Facing (deg) of the map's dead reckoning before the first experience (90;
+        thesis Table 3.1: 180) [``exp_initial_em_deg``].
+    link_time_since_start : bool
+        OpenRatSLAM never resets its link timer, so every link's ``delta_time_s`` is
+        the time since the first odometry; True reproduces that, False (default)
+        stores the time since the link's source experience.
+    frontend : "ids", VisualTemplateConfig or TactileTemplateConfig
+        The front end, selected by the type: ``"ids"`` (precomputed view ids,
+        default), a :class:`~cansim.frontends.visual.VisualTemplateConfig` (camera
+        images) or a :class:`~cansim.frontends.tactile.TactileTemplateConfig` (the
+        3 x 6 tactile image of Ch.3, Eq 3.1).
+    frame : {"standard", "openratslam"}
+        Pose-cell frame (``"openratslam"``: theta index 0 moves the packet along +y).
+    dtype : {"float64", "float32"}
+    backend : str
+        CAN backend name (numba by default).
+    strict_translation : bool
+        Raise when a step moves the packet more than one cell.
+    pose_cells : {"population", "openratslam"}
+        The pose-cell engine: cansim's :class:`~cansim.population.Population` (any
+        backend and dtype) or :class:`~cansim.models.posecell_network.PosecellNetwork` (the
+        C++ core's arithmetic bit for bit, float64, numba).
+
+    Raises
+    ------
+    ConfigError
+        A field of the wrong type or out of range, an unknown field, or an OpenRatSLAM
+        key name (the message names the field to use; :meth:`from_file` reads
+        OpenRatSLAM files).
+    """
+
+    xy_cells: int = 21
+    heading_cells: int = 36
+    cell_size_m: float = 1.0
+    attractor: AttractorParams = field(default_factory=AttractorParams)
+    decode_window: int = 3
+    lv_mode: str = "stored"
+    inject_energy: float = 0.15
+    active_decay: float = 1.0
+    decay_restore: float = 0.05
+    match_distance_cells: float = 2.0
+    correction: float = 0.5
+    relax_passes: int = 10
+    relax_budget: int | None = 2_000
+    initial_heading_deg: float = 90.0
+    link_time_since_start: bool = False
+    frontend: FrontEndConfig = "ids"
+    frame: str = "standard"
+    dtype: str = "float64"
+    backend: str = "numba"
+    strict_translation: bool = False
+    pose_cells: str = "population"
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> "RatSLAMConfig":
+        # a dataclass __init__ would raise TypeError for a foreign keyword; refuse it by name
+        if kwargs:
+            cls.check_names(kwargs)
+        return super().__new__(cls)
+
+    @classmethod
+    def check_names(cls, names: Any) -> None:
+        """Raise :class:`ConfigError` unless every name is a field (OpenRatSLAM names get the field to use)."""
+        unknown = [n for n in names if n not in {f.name for f in fields(cls)}]
+        for name in unknown:
+            new = renamed(name)
+            if new is not None:
+                raise ConfigError(f"{name} is OpenRatSLAM's name: use {new}; RatSLAMConfig.from_file reads OpenRatSLAM files")
+        if unknown:
+            raise ConfigError(f"unknown RatSLAMConfig field(s) {sorted(unknown)}; the fields are {[f.name for f in fields(cls)]}")
+
+    def __post_init__(self) -> None:
+        config_field(self.xy_cells, "xy_cells", int, minimum=1)
+        config_field(self.heading_cells, "heading_cells", int, minimum=1)
+        config_field(self.cell_size_m, "cell_size_m", float, above=0)
+        config_field(self.decode_window, "decode_window", int, minimum=0)
+        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
+            config_field(getattr(self, name), name, float, minimum=0)
+        config_field(self.initial_heading_deg, "initial_heading_deg", float)
+        for name in ("link_time_since_start", "strict_translation"):
+            config_field(getattr(self, name), name, bool)
+        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
+        config_field(self.frame, "frame", str, choices=("standard", "openratslam"))
+        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
+        config_field(self.backend, "backend", str)
+        config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam"))
+        self._check_attractor()
+        fe = self.frontend
+        if not ((isinstance(fe, str) and fe == "ids") or isinstance(fe, (VisualTemplateConfig, TactileTemplateConfig))):
+            raise ConfigError(
+                f"frontend must be 'ids', a VisualTemplateConfig (camera images) or a TactileTemplateConfig "
+                f"(Ch.3 tactile images), got {self.frontend!r}; e.g. frontend=VisualTemplateConfig(match_threshold=0.05)"
+            )
+        if self.lv_mode == "learnt" and self.pose_cells == "openratslam":
+            raise ConfigError("lv_mode='learnt' needs pose_cells='population' (the C++ engine is the stored-location model)")
+        if self.pose_cells == "openratslam" and (self.frame != "openratslam" or self.dtype != "float64"):
+            raise ConfigError("pose_cells='openratslam' is the C++ engine: it needs frame='openratslam' and dtype='float64'")
+        self.map_config()  # correction, relax_passes, relax_budget
+        self.map_geometry()
+
+    def _check_attractor(self) -> None:
+        a = self.attractor
+        if not isinstance(a, AttractorParams):
+            raise ConfigError(f"attractor must be an AttractorParams (cansim.params), got {a!r}")
+        for name in ("exc_width", "inh_width", "exc_sigma", "inh_sigma"):
+            values = _per_axis(getattr(a, name))
+            if len(values) not in (1, 3):
+                raise ConfigError(f"attractor.{name} must be one value or 3 (x, y, heading), got {getattr(a, name)!r}")
+            for v in values:
+                if name.endswith("width"):
+                    config_field(v, f"attractor.{name}", int, minimum=1, odd=True, hint="a kernel is centred on a cell")
+                else:
+                    config_field(v, f"attractor.{name}", float, above=0, hint="a standard deviation in cells")
+        config_field(a.global_inhibition, "attractor.global_inhibition", float, minimum=0)
+
+    # ------------------------------------------------------------- presets
+    @classmethod
+    def openratslam(cls, **overrides: Any) -> "RatSLAMConfig":
+        """OpenRatSLAM parity: the C++ pose-cell engine and frame, unbounded relaxation, <= 1 cell per step, C++ link times."""
+        params: dict[str, Any] = {
+            "frame": "openratslam", "dtype": "float64", "relax_budget": None, "strict_translation": True,
+            "pose_cells": "openratslam", "link_time_since_start": True,
+        }
+        params.update(overrides)
+        return cls(**params)
+
+    @classmethod
+    def thesis_ch3(cls, **overrides: Any) -> "RatSLAMConfig":
+        """Table 3.1 of the thesis (whisker-array RatSLAM) with the tactile front end.
+
+        Table 3.1's template (6 x 3, no shift, step 1) is the tactile image itself
+        (:data:`cansim.frontends.tactile.TACTILE_SHAPE`, compared without shifts). The
+        two tuned values - the Eq 3.1 match threshold and the injected energy - are not
+        printed in the thesis; pass them as overrides, e.g.
+        ``thesis_ch3(frontend=TactileTemplateConfig(match_threshold=5.0), inject_energy=0.05)``.
+        """
+        params: dict[str, Any] = {
+            "active_decay": 1.0, "xy_cells": 30, "cell_size_m": 0.015, "match_distance_cells": 1.0,
+            "relax_passes": 10, "initial_heading_deg": 180.0, "frontend": TactileTemplateConfig(match_threshold=20.0),
+        }
+        params.update(overrides)
+        return cls(**params)
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str], **overrides: Any) -> "RatSLAMConfig":
+        """Read an OpenRatSLAM ``config_*.txt.in`` file (``key=value`` lines, ``[section]`` headers).
+
+        The keys are mapped onto the fields by :mod:`cansim.models.openratslam_config` (its
+        docstring has the table); the front end is a
+        :class:`~cansim.frontends.visual.VisualTemplateConfig` (OpenRatSLAM's is a
+        camera). Unknown keys (ROS topics, drawing, visual odometry...) are ignored
+        with a ``UserWarning``; a known key with a malformed or out-of-range value
+        raises :class:`ConfigError` naming the key and its line. ``overrides`` (field
+        names, e.g. ``frontend="ids"``) replace whole fields and win over the file.
+        """
+        return read_openratslam_file(path, cls, **overrides)
+
+    @classmethod
+    def from_text(cls, text: str, **overrides: Any) -> "RatSLAMConfig":
+        """As :meth:`from_file`, from the file's text."""
+        return read_openratslam_text(text, cls, **overrides)
+
+    # ---------------------------------------------------------- save / load
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (for saved models); the front end as ``"ids"`` or ``{"kind": ..., fields}``."""
+        out = asdict(self)
+        if not isinstance(self.frontend, str):
+            kind = next(k for k, t in _FRONTEND_KINDS.items() if isinstance(self.frontend, t))
+            out["frontend"] = {"kind": kind, **asdict(self.frontend)}
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RatSLAMConfig":
+        """Inverse of :meth:`to_dict`; also reads the flat form saved by earlier versions
+        (:func:`cansim.models.openratslam_config.config_from_flat_dict`)."""
+        if isinstance(d, dict) and any(k in OPENRATSLAM_KEYS for k in d):
+            return config_from_flat_dict(d, cls)
+        try:
+            d = dict(d)
+            if isinstance(d.get("attractor"), dict):
+                d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
+            fe = d.get("frontend")
+            if isinstance(fe, dict):
+                fe = dict(fe)
+                d["frontend"] = _FRONTEND_KINDS[fe.pop("kind")](**fe)
+            return cls(**d)
+        except (KeyError, TypeError) as exc:
+            raise ConfigError(f"not a RatSLAMConfig description ({exc!r})") from None
+
+    # --------------------------------------------------------- sub-configs
+    def map_config(self) -> MapConfig:
+        """The experience map's core parameters."""
+        return MapConfig(
+            correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
+            pc_shape=(self.xy_cells, self.xy_cells, self.heading_cells), offset_axes=(2,), relax_budget=self.relax_budget,
+            link_time_since_start=self.link_time_since_start,
+        )
+
+    def map_geometry(self) -> SE2Geometry:
+        """The experience map's SE(2) geometry (initial heading, panoramic theta axis)."""
+        return SE2Geometry(initial_heading_deg=self.initial_heading_deg, heading_axis=2, heading_cells=self.heading_cells)
+
+    def local_view_params(self) -> LocalViewParams:
+        """The local-view cells' parameters: OpenRatSLAM's stored location, or learnt LV->PC weights (``lv_mode``)."""
+        if self.lv_mode == "learnt":
+            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
+        return LocalViewParams(
+            mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay,
+            decay_restore=self.decay_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
+            cpp_cells=self.pose_cells == "openratslam",
+        )

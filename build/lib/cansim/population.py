@@ -1,0 +1,779 @@
+"""N-dimensional periodic continuous-attractor population (the CAN model page of the docs-1.2, 1.4, 1.6)."""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Optional, Sequence, Union
+
+import numpy as np
+
+from cansim.axes import Axis
+from cansim.backends import Backend, get_backend
+from cansim.backends.base import RunInputs
+from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
+from cansim.params import AttractorParams
+from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
+from cansim.path_integration import (
+    MotionModel,
+    MotionShifts,
+    PlanarMotion,
+    SixDofMotion,
+    UniformMotion,
+)
+
+__all__ = ["Population"]
+
+log = logging.getLogger(__name__)
+
+IndexLike = Union[Sequence[int], np.ndarray]
+
+#: Largest shift (cells, per axis and step) the kernels represent exactly (integer parts are
+#: 32-bit on OpenCL); a larger one comes from corrupt odometry and is refused.
+MAX_SHIFT_CELLS = 2.0**30
+#: Largest energy one injection may add to a cell; the activity is normalised to sum 1,
+#: so anything near this is corrupt input (and could overflow float32).
+MAX_INJECTION = 1.0e6
+
+
+def _check_shift(shifts: Optional[np.ndarray], what: str) -> None:
+    """Refuse a shift the kernels cannot represent (see :data:`MAX_SHIFT_CELLS`)."""
+    if shifts is None:
+        return
+    biggest = float(np.abs(shifts).max(initial=0.0))
+    if not biggest < MAX_SHIFT_CELLS:
+        raise InvalidInputError(
+            f"the {what} shift is {biggest!r} cells in one step, too large to represent; "
+            "check velocity * dt against the cell size (or split the step)"
+        )
+
+
+class Population:
+    """A grid of rate cells with periodic boundaries on every axis, activity ``A >= 0``.
+
+    One class serves as head-direction ring (1-D), RatSLAM pose cells (3-D), the
+    6-D WhiskerRatSLAM grid and any other N. All state is on the instance.
+
+    Parameters
+    ----------
+    axes : sequence of Axis
+        Name, size and physical step of every axis (C order of the activity array).
+    params : AttractorParams
+        Excitation / inhibition kernels and global inhibition.
+    dtype : numpy dtype
+        ``np.float32`` (default) or ``np.float64``.
+    backend : str or Backend
+        ``"numba"`` (default, the fast CPU path), ``"numpy"`` (the reference, slow) or
+        ``"opencl"``; see :func:`cansim.available_backends`.
+    motion : MotionModel or None
+        How odometry becomes shifts in :meth:`integrate` / :meth:`step`;
+        default :class:`UniformMotion`.
+    decode_window : int
+        Half-width of the population-vector box (OpenRatSLAM ``pc_cells_to_avg``, 3).
+
+    Notes
+    -----
+    A new population holds one active cell (activity 1) at the centre
+    ``size // 2`` of every axis.
+    """
+
+    def __init__(
+        self,
+        axes: Sequence[Axis],
+        params: AttractorParams = AttractorParams(),
+        *,
+        dtype: np.dtype | type = np.float32,
+        backend: str | Backend = "numba",
+        motion: Optional[MotionModel] = None,
+        decode_window: int = 3,
+    ) -> None:
+        axes = tuple(axes)
+        if not axes:
+            raise ShapeError("a population needs at least one axis; the grid would be empty")
+        if any(not isinstance(a, Axis) for a in axes):
+            raise InvalidInputError("axes must be cansim.Axis instances")
+        names = [a.name for a in axes]
+        if len(set(names)) != len(names):
+            raise InvalidInputError(f"axis names must be unique, got {names}")
+        dt = np.dtype(dtype)
+        if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+            raise InvalidInputError(f"dtype must be float32 or float64, got {dt}")
+        if not isinstance(decode_window, (int, np.integer)) or decode_window < 0:
+            raise InvalidInputError(f"decode_window must be an integer >= 0, got {decode_window!r}")
+        self._axes = axes
+        self._size = int(np.prod([a.size for a in axes]))
+        self._params = params
+        self._dtype = dt
+        self._motion = motion if motion is not None else UniformMotion()
+        self._motion.check_axes(axes)
+        self._motion_shifts, self._motion_trusted = self._motion.bind_checked_and_trusted(axes)
+        exc, inh = params.kernels(len(axes))
+        self._exc = exc.taps
+        self._inh = inh.taps
+        self._phi = float(params.global_inhibition)
+        self._window = int(decode_window)
+        self._backend = get_backend(backend)
+        self._a = np.zeros(self.shape, dtype=dt)
+        self._spare = np.zeros(self.shape, dtype=dt)
+        self.reset_cell([a.size // 2 for a in axes])
+        self._last_decoded: Optional[np.ndarray] = None
+
+    # ------------------------------------------------------------------ presets
+    @classmethod
+    def openratslam(
+        cls,
+        dim_xy: int = 21,
+        dim_th: int = 36,
+        cell_size: float = 1.0,
+        *,
+        frame: str = "standard",
+        params: Optional[AttractorParams] = None,
+        **kwargs,
+    ) -> "Population":
+        """OpenRatSLAM pose cells: axes (x', y', theta'), default 21 x 21 x 36.
+
+        Parameters follow OpenRatSLAM's config: ``pc_dim_xy``, ``pc_dim_th``,
+        ``pc_cell_x_size`` (metres per cell); kernels 7-wide sigma 1 excitation,
+        5-wide sigma 2 inhibition, phi 2e-5. Starts with one cell at
+        ``(dim_xy//2, dim_xy//2, dim_th//2)`` (C++: (10, 10, 18)).
+        ``frame="openratslam"`` moves theta index 0 along +y' as the C++ does.
+        """
+        axes = (
+            Axis.linear("x", dim_xy, cell_size),
+            Axis.linear("y", dim_xy, cell_size),
+            Axis.angle("theta", dim_th),
+        )
+        return cls(axes, params or AttractorParams(), motion=PlanarMotion(frame), **kwargs)
+
+    @classmethod
+    def head_direction(cls, n: int = 360, *, params: Optional[AttractorParams] = None, **kwargs) -> "Population":
+        """A 1-D head-direction ring of ``n`` cells (step ``2*pi/n`` rad).
+
+        Default kernels are OpenRatSLAM's theta-axis kernels (excitation 7 taps sigma 1,
+        inhibition 5 taps sigma 2, phi 2e-5); :meth:`integrate` takes the angular
+        velocity in rad/s as ``velocity``.
+        """
+        return cls((Axis.angle("heading", n),), params or AttractorParams(), **kwargs)
+
+    @classmethod
+    def whisker6d(
+        cls,
+        n: int = 5,
+        cell_size: float = 0.02,
+        *,
+        n_angle: Optional[int] = None,
+        params: Optional[AttractorParams] = None,
+        **kwargs,
+    ) -> "Population":
+        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``n`` cells per axis.
+
+        Kernels per Eq 5.10: width 5 on every axis, excitation variance 1 (sigma 1),
+        inhibition variance 2 (sigma sqrt 2), normalised as the printed normal density
+        (``kernel_normalisation="pdf"``: over the 5^6 window the excitation sums to 0.9464,
+        the inhibition to 0.6430; the thesis tuned its packet with these; the printed
+        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5. ``cell_size`` is metres per
+        translational cell (the thesis does not give it; 0.02 m is this library's
+        default), angular steps are ``2*pi/n_angle`` (``n_angle`` defaults to ``n``).
+        """
+        na = n if n_angle is None else n_angle
+        axes = (
+            Axis.linear("x", n, cell_size),
+            Axis.linear("y", n, cell_size),
+            Axis.linear("z", n, cell_size),
+            Axis.angle("roll", na),
+            Axis.angle("pitch", na),
+            Axis.angle("yaw", na),
+        )
+        p = params or AttractorParams(
+            exc_width=5, exc_sigma=1.0, inh_width=5, inh_sigma=math.sqrt(2.0), kernel_normalisation="pdf"
+        )
+        return cls(axes, p, motion=SixDofMotion(), **kwargs)
+
+    # --------------------------------------------------------------- properties
+    @property
+    def axes(self) -> tuple[Axis, ...]:
+        """The axes, in the order of the activity array's dimensions."""
+        return self._axes
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Grid shape (cells per axis)."""
+        return tuple(a.size for a in self._axes)
+
+    @property
+    def ndim(self) -> int:
+        """Number of axes."""
+        return len(self._axes)
+
+    @property
+    def size(self) -> int:
+        """Total number of cells."""
+        return self._size
+
+    @property
+    def dtype(self) -> np.dtype:
+        """Storage dtype of the activity."""
+        return self._dtype
+
+    @property
+    def params(self) -> AttractorParams:
+        """The attractor parameters."""
+        return self._params
+
+    @property
+    def motion(self) -> MotionModel:
+        """The motion model used by :meth:`integrate` and :meth:`step`."""
+        return self._motion
+
+    @property
+    def backend(self) -> str:
+        """Name of the backend in use."""
+        return self._backend.name
+
+    def set_backend(self, backend: str | Backend) -> None:
+        """Switch backend; the activity is kept."""
+        self._backend = get_backend(backend)
+
+    @property
+    def activity(self) -> np.ndarray:
+        """A copy of the activity grid, shape :attr:`shape`."""
+        return self._a.copy()
+
+    @activity.setter
+    def activity(self, value: np.ndarray) -> None:
+        arr = np.asarray(value)
+        if arr.shape != self.shape:
+            raise ShapeError(f"activity must have shape {self.shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError("activity must be finite (no NaN/inf)")
+        if np.any(arr < 0):
+            raise InvalidInputError("activity must be >= 0")
+        self._a = arr.astype(self._dtype, copy=True, order="C")
+        self._last_decoded = None
+
+    @property
+    def total(self) -> float:
+        """Sum of all activity."""
+        return float(self._a.sum(dtype=np.float64))
+
+    # ---------------------------------------------------------------- resetting
+    def _check_index(self, index: IndexLike) -> tuple[int, ...]:
+        idx = tuple(whole_cells(index, "index (one whole cell number per axis)").ravel().tolist())
+        if len(idx) != self.ndim:
+            raise ShapeError(f"index must have {self.ndim} entries (one per axis), got {len(idx)}")
+        return tuple(i % n for i, n in zip(idx, self.shape))
+
+    def reset_cell(self, index: IndexLike) -> None:
+        """Silence all cells and set the cell at ``index`` (wrapped) to 1."""
+        idx = self._check_index(index)
+        a = np.zeros(self.shape, dtype=self._dtype)
+        a[idx] = 1.0
+        self._a = a
+        self._last_decoded = None
+
+    def reset_gaussian(self, center: Sequence[float], sigma: float | Sequence[float] = 1.0) -> None:
+        """Set a periodic Gaussian packet at fractional cell ``center``, normalised to sum 1.
+
+        Parameters
+        ----------
+        center : sequence of float, one per axis, in cells.
+        sigma : float or sequence of float, standard deviation in cells (> 0).
+        """
+        c = finite_vector(center, self.ndim, "center")
+        s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (self.ndim,))
+        if not np.all(np.isfinite(s)) or np.any(s <= 0):
+            raise InvalidInputError(f"sigma must be finite and > 0 cells, got {sigma!r}")
+        a = np.ones((), dtype=np.float64)
+        for ax, n in enumerate(self.shape):
+            d = (np.arange(n) - c[ax] + n / 2.0) % n - n / 2.0  # wrapped distance, Eq 2.22
+            a = np.multiply.outer(a, np.exp(-(d * d) / (2.0 * s[ax] ** 2)))
+        self._a = (a / a.sum()).astype(self._dtype)
+        self._last_decoded = None
+
+    # ----------------------------------------------------------------- dynamics
+    def _commit(self, new: np.ndarray) -> None:
+        if new is self._spare:
+            self._spare = self._a
+        self._a = new
+        self._last_decoded = None
+
+    def inject(self, index: IndexLike, energy: float) -> None:
+        """Add ``energy`` (>= 0) to one cell (wrapped index)."""
+        idx = self._check_index(index)
+        e = finite_scalar(energy, "energy")
+        if not 0 <= e <= MAX_INJECTION:
+            raise InvalidInputError(f"energy must be finite and in [0, {MAX_INJECTION:g}], got {energy!r}")
+        flat = np.array([np.ravel_multi_index(idx, self.shape)], dtype=np.int64)
+        self._commit(self._backend.inject(self._a, flat, np.array([e]), out=self._spare))
+
+    def inject_flat(self, flat_index: np.ndarray, values: np.ndarray) -> None:
+        """Scatter-add ``values`` (>= 0) at flat C-order indices (e.g. from learnt LV weights)."""
+        fi, vals = checked_injection(flat_index, values, self._size)
+        if len(fi):
+            self._commit(self._backend.inject(self._a, fi, vals, out=self._spare))
+
+    def dynamics(self) -> None:
+        """Local excitation, local inhibition, global inhibition, normalisation (Alg 3-5, OpenRatSLAM's step order 2-5).
+
+        Raises
+        ------
+        ZeroActivityError
+            Every cell would be silent; the activity is left as it was.
+        """
+        new = self._backend.dynamics(self._a, self._exc, self._inh, self._phi, out=self._spare)
+        if new is None:
+            raise ZeroActivityError(
+                "all activity fell below the global inhibition threshold; state left unchanged "
+                "(re-seed with reset_cell/reset_gaussian or inject energy)"
+            )
+        self._commit(new)
+
+    def shift(self, cells: Sequence[float]) -> None:
+        """Shift the whole grid by a real number of cells per axis (any magnitude)."""
+        s = finite_vector(cells, self.ndim, "shift")
+        _check_shift(s, "uniform")
+        self._commit(self._backend.shift(self._a, s, out=self._spare))
+
+    def shift_conditional(self, shift_axes: Sequence[int], shifts: np.ndarray) -> None:
+        """Shift every slice along ``shift_axes`` by its own vector (see ``Backend.shift_conditional``).
+
+        Parameters
+        ----------
+        shift_axes : sequence of int
+            Translated axes, ascending.
+        shifts : ndarray, shape ``cond_shape + (len(shift_axes),)``, cells
+        """
+        ax, sh = self._check_conditional(shift_axes, shifts)
+        self._commit(self._backend.shift_conditional(self._a, ax, sh, out=self._spare))
+
+    def _check_conditional(self, shift_axes, shifts) -> tuple[tuple[int, ...], np.ndarray]:
+        try:
+            if isinstance(shift_axes, (str, bytes)):
+                raise TypeError
+            ax = tuple(whole_number(a, "shift_axes") for a in shift_axes)
+        except TypeError:
+            raise InvalidInputError(f"shift_axes must be a sequence of axis indices, got {shift_axes!r}") from None
+        if not ax or list(ax) != sorted(set(ax)) or ax[0] < 0 or ax[-1] >= self.ndim:
+            raise InvalidInputError(f"shift_axes must be distinct ascending axes in [0, {self.ndim}), got {ax}")
+        cond_shape = tuple(n for i, n in enumerate(self.shape) if i not in ax)
+        sh = np.ascontiguousarray(finite_array(shifts, cond_shape + (len(ax),), "shifts"))
+        _check_shift(sh, "conditional")
+        return ax, sh
+
+    def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
+        """Path integration only (Fig 5.7-5.11) with the population's motion model.
+
+        Parameters
+        ----------
+        velocity : float or ndarray
+            PlanarMotion: forward speed vtrans (m/s). SixDofMotion: (3,) m/s in the
+            end-effector frame. UniformMotion: one velocity per axis (units/s).
+        omega : float or ndarray
+            PlanarMotion: vrot (rad/s). SixDofMotion: (3,) rotation vector rate (rad/s).
+        dt : float
+            Seconds, >= 0.
+        """
+        ms = self._motion_shifts(velocity, omega, dt)
+        _check_shift(ms.cond_shifts, "translation")
+        _check_shift(ms.uniform, "uniform")
+        cur = self._a
+        if ms.cond_shifts is not None:
+            cur = self._backend.shift_conditional(cur, ms.shift_axes, ms.cond_shifts)
+        if ms.uniform is not None:
+            cur = self._backend.shift(cur, ms.uniform)
+        if cur is not self._a:
+            self._commit(cur)
+
+    def decode(self) -> np.ndarray:
+        """Population-vector estimate, fractional cell index per axis, shape (ndim,) (Eq 5.11-5.12)."""
+        if self._last_decoded is None:
+            self._last_decoded = self._backend.decode(self._a, self._window)
+        return self._last_decoded.copy()
+
+    def decode_physical(self) -> np.ndarray:
+        """:meth:`decode` times each axis' step: metres for linear axes, radians for angular."""
+        return self.decode() * np.array([a.step for a in self._axes])
+
+    def step(
+        self,
+        velocity=None,
+        omega=None,
+        dt: float = 1.0,
+        *,
+        injection: Optional[tuple[np.ndarray, np.ndarray]] = None,
+    ) -> np.ndarray:
+        """One iteration: injection, dynamics, path integration, decoding (Alg 3-5, OpenRatSLAM's step order).
+
+        Parameters
+        ----------
+        velocity, omega, dt
+            As :meth:`integrate`.
+        injection : (flat_index, values) or None
+            Energy scatter-added before the dynamics (e.g. ``LocalViewCells.injection``).
+
+        Returns
+        -------
+        ndarray, shape (ndim,)
+            The decoded fractional cell index per axis.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            Bad odometry or injection; nothing changed.
+        ZeroActivityError
+            The dynamics collapsed; nothing changed.
+        """
+        return self._step_shifts(self._motion_shifts(velocity, omega, dt), injection)
+
+    def _step_validated(self, velocity, omega, dt: float, *, injection=None) -> np.ndarray:
+        """:meth:`step` for odometry validated already: the fields of a :class:`maps.odometry.PlanarOdometry`
+        or :class:`maps.odometry.SpatialOdometry` (finite floats or float64 (3,) arrays, ``dt >= 0``).
+
+        The loop that built the odometry object (:class:`cansim.models.slam_loop.SlamLoop`) calls
+        this, so one step's odometry is checked once. The values are not checked again; the
+        shifts they make are (:data:`MAX_SHIFT_CELLS` depends on this grid's cell sizes),
+        and so is the injection. Same result as :meth:`step`, bit for bit.
+        """
+        return self._step_shifts(self._motion_trusted(velocity, omega, dt), injection)
+
+    def _step_shifts(self, ms: MotionShifts, injection) -> np.ndarray:
+        """The step from its shifts on: the checks of what the kernels can represent, then the backend."""
+        _check_shift(ms.cond_shifts, "translation")
+        _check_shift(ms.uniform, "uniform")
+        fi = vals = None
+        if injection is not None:
+            fi, vals = checked_injection(*injection, self._size)
+        new, decoded = self._backend.step(
+            self._a,
+            flat_index=fi,
+            values=vals,
+            exc=self._exc,
+            inh=self._inh,
+            phi=self._phi,
+            shift_axes=ms.shift_axes,
+            cond_shifts=ms.cond_shifts,
+            uniform_shifts=ms.uniform,
+            window=self._window,
+            out=self._spare,
+        )
+        if new is None:
+            raise ZeroActivityError(
+                "all activity fell below the global inhibition threshold; state left unchanged "
+                "(re-seed with reset_cell/reset_gaussian or inject energy)"
+            )
+        self._commit(new)
+        self._last_decoded = decoded
+        return decoded.copy()
+
+    def run(
+        self,
+        velocity=None,
+        omega=None,
+        dt: float | np.ndarray = 1.0,
+        injections: Optional[Sequence[Optional[tuple[np.ndarray, np.ndarray]]]] = None,
+        *,
+        n_steps: Optional[int] = None,
+        record_activity: bool = False,
+    ) -> Union[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """T iterations of :meth:`step` in one backend call (thesis Alg 3-5, Fig 5.11, Eq 5.11-5.12).
+
+        The result equals T calls ``step(velocity[t], omega[t], dt[t], injection=injections[t])``
+        bit for bit on every backend; the numba backend runs the whole loop in one compiled
+        call, the opencl backend enqueues every step on the device and reads back once, and
+        any other backend loops over its ``step`` (:meth:`cansim.backends.Backend.run`).
+
+        Parameters
+        ----------
+        velocity : None or array_like, shape (T,) or (T, k)
+            Per-step ``velocity`` of :meth:`step` (row t is step t's; converted to float64).
+            UniformMotion: (T,) on a ring, (T, ndim) otherwise (units/s per axis);
+            PlanarMotion: (T,) forward speed, m/s; SixDofMotion: (T, 3), m/s. None: no motion.
+        omega : None or array_like, shape (T,) or (T, k)
+            Per-step ``omega``: PlanarMotion (T,) rad/s, SixDofMotion (T, 3) rad/s.
+        dt : float or array_like, shape (T,)
+            Seconds per step (>= 0), one for all steps or one per step.
+        injections : None or sequence of length T
+            Entry t is None (no injection) or a ``(flat_index, values)`` pair injected before
+            step t's dynamics, as ``step(injection=...)``; e.g. ``LocalViewCells.injection``.
+        n_steps : int or None
+            T; needed only when no other argument has a step axis (pure dynamics).
+        record_activity : bool
+            Also return the activity after every step.
+
+        Returns
+        -------
+        decoded : ndarray, shape (T, ndim)
+            The decoded fractional cell index per axis after every step.
+        activity : ndarray, shape (T,) + shape, only when ``record_activity``
+            The activity after every step, in the population's dtype.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            A bad per-step input (non-finite, negative dt, wrong shape, lengths that differ,
+            a bad injection), named with its step; checked for every step before the first
+            one runs, so nothing changes.
+        ZeroActivityError
+            The dynamics collapsed at some step; the state is left as it was before the run
+            (no step of it is kept).
+        """
+        T = self._run_length(velocity, omega, dt, injections, n_steps)
+        dts = self._run_dt(dt, T)
+        shift_axes, cond, has_cond, uni, has_uni = self._run_shifts(velocity, omega, dts, T)
+        offsets, index, values = self._run_injections(injections, T)
+        inputs = RunInputs(T, offsets, index, values, shift_axes, cond, has_cond, uni, has_uni)
+        res = self._backend.run(self._a, inputs, exc=self._exc, inh=self._inh, phi=self._phi,
+                                window=self._window, record_activity=bool(record_activity))
+        if res.collapsed_at is not None:
+            raise ZeroActivityError(
+                f"all activity fell below the global inhibition threshold at step {res.collapsed_at} of the run; "
+                "state left as before the run (re-seed with reset_cell/reset_gaussian, inject energy, "
+                "or lower the global inhibition)"
+            )
+        new = res.activity
+        if new is self._a:
+            new = new.copy()
+        self._a = np.ascontiguousarray(new, dtype=self._dtype)
+        self._last_decoded = res.decoded[-1].copy()
+        if record_activity:
+            return res.decoded, res.history
+        return res.decoded
+
+    # ---------------------------------------------------------- run: inputs
+    @staticmethod
+    def _run_array(x, name: str) -> np.ndarray:
+        try:
+            arr = np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"{name} must be an array of real numbers with one row per step") from None
+        if arr.ndim not in (1, 2):
+            raise ShapeError(f"{name} must have shape (T,) or (T, k), one row per step; got {arr.shape}")
+        return arr
+
+    def _run_length(self, velocity, omega, dt, injections, n_steps) -> int:
+        lengths = {}
+        for name, x in (("velocity", velocity), ("omega", omega)):
+            if x is not None:
+                lengths[name] = len(self._run_array(x, name))
+        if np.ndim(dt) != 0:
+            lengths["dt"] = len(np.atleast_1d(np.asarray(dt, dtype=object)))
+        if injections is not None:
+            try:
+                lengths["injections"] = len(injections)
+            except TypeError:
+                raise InvalidInputError("injections must be a sequence with one entry (or None) per step") from None
+        if n_steps is not None:
+            if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
+                raise InvalidInputError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+            lengths["n_steps"] = int(n_steps)
+        if not lengths:
+            raise InvalidInputError("run needs per-step inputs or n_steps to know how many steps to run")
+        if len(set(lengths.values())) != 1:
+            raise ShapeError(f"per-step inputs must all have T rows, got {lengths}")
+        T = next(iter(lengths.values()))
+        if T < 1:
+            raise InvalidInputError(f"run needs at least one step, got T = {T} ({lengths})")
+        return T
+
+    @staticmethod
+    def _run_dt(dt, T: int) -> np.ndarray:
+        try:
+            arr = np.asarray(dt, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"dt must be a number or one number per step (seconds), got {dt!r}") from None
+        if arr.ndim > 1:
+            raise ShapeError(f"dt must be a scalar or have shape (T,), got {arr.shape}")
+        arr = np.broadcast_to(arr, (T,))
+        bad = np.flatnonzero(~(np.isfinite(arr) & (arr >= 0)))
+        if len(bad):
+            raise InvalidInputError(f"dt must be finite and >= 0 seconds; step {bad[0]} has {arr[bad[0]]!r}")
+        return arr
+
+    def _run_shifts(self, velocity, omega, dts: np.ndarray, T: int):
+        """Per-step shifts in cells: (shift_axes, cond (T, ...) or None, has_cond, uniform (T, ndim) or None, has_uniform).
+
+        The built-in UniformMotion and PlanarMotion are evaluated for all steps at once with
+        the same floating-point operations as their per-step function (whose tables it
+        reads by calling it with unit inputs); any other model is called once per step.
+        """
+        v = None if velocity is None else self._run_array(velocity, "velocity")
+        w = None if omega is None else self._run_array(omega, "omega")
+        model = type(self._motion)
+        if model is UniformMotion and w is None and (v is None or v.ndim == 2 or self.ndim == 1):
+            return self._run_uniform(v, dts, T)
+        if model is PlanarMotion and (v is None or v.ndim == 1) and (w is None or w.ndim == 1):
+            return self._run_planar(v, w, dts, T)
+        return self._run_per_step(v, w, dts, T)
+
+    def _run_finite(self, x: np.ndarray, name: str) -> None:
+        bad = ~np.isfinite(x)
+        if bad.any():
+            t = int(np.argwhere(bad)[0][0])
+            raise InvalidInputError(f"{name} must be finite; step {t} has {x[t].tolist()!r} (check the odometry source)")
+
+    def _run_checked_shifts(self, shifts: Optional[np.ndarray], mask: np.ndarray, what: str) -> None:
+        # a shift the kernels cannot represent (their integer parts are 32-bit on opencl)
+        if shifts is None:
+            return
+        s = np.abs(shifts.reshape(len(shifts), -1)).max(axis=1)
+        bad = np.flatnonzero(mask & ~(s < MAX_SHIFT_CELLS))
+        if len(bad):
+            raise InvalidInputError(
+                f"the {what} shift of step {bad[0]} is {s[bad[0]]!r} cells, too large to represent; "
+                "check velocity * dt against the cell size"
+            )
+
+    def _run_uniform(self, v, dts, T):
+        uni = has = None
+        if v is not None:
+            self._run_finite(v, "velocity")
+            if v.ndim == 1:  # ring: step() gets a float and computes velocity * dt * (1 / step)
+                inv0 = self._motion_shifts(1.0, None, 1.0).uniform[0]
+                uni = ((v * dts) * inv0)[:, None]
+            else:  # step() gets a vector and computes velocity * (dt * (1 / step))
+                if v.shape[1] != self.ndim:
+                    raise ShapeError(f"velocity must have shape (T, {self.ndim}), one value per axis; got {v.shape}")
+                inv = self._motion_shifts(np.ones(self.ndim), None, 1.0).uniform
+                uni = v * (dts[:, None] * inv)
+            has = np.ones(T, dtype=bool)
+            self._run_checked_shifts(uni, has, "uniform")
+        return None, None, np.zeros(T, dtype=bool), uni, (has if has is not None else np.zeros(T, dtype=bool))
+
+    def _run_planar(self, v, w, dts, T):
+        cond = uni = None
+        has_cond = np.zeros(T, dtype=bool)
+        has_uni = np.zeros(T, dtype=bool)
+        if v is not None:
+            self._run_finite(v, "velocity (vtrans)")
+            directions = self._motion_shifts(1.0, None, 1.0).cond_shifts  # (1 * 1) * directions
+            cond = (v * dts)[:, None, None] * directions
+            has_cond = v != 0.0
+            self._run_checked_shifts(cond, has_cond, "translation")
+        if w is not None:
+            self._run_finite(w, "omega (vrot)")
+            inv_th = self._motion_shifts(None, 1.0, 1.0).uniform[2]
+            rot = (w * dts) * inv_th
+            uni = np.zeros((T, 3))
+            uni[:, 2] = rot
+            has_uni = rot != 0.0
+            self._run_checked_shifts(uni, has_uni, "rotation")
+        return ((0, 1) if has_cond.any() else None), (cond if has_cond.any() else None), has_cond, \
+            (uni if has_uni.any() else None), has_uni
+
+    def _run_per_step(self, v, w, dts, T):
+        steps: list[MotionShifts] = []
+        for t in range(T):
+            try:
+                steps.append(self._motion_shifts(None if v is None else v[t], None if w is None else w[t], float(dts[t])))
+            except (InvalidInputError, ShapeError) as exc:
+                raise type(exc)(f"step {t}: {exc}") from None
+        has_cond = np.array([ms.cond_shifts is not None for ms in steps])
+        has_uni = np.array([ms.uniform is not None for ms in steps])
+        axes = {ms.shift_axes for ms in steps if ms.cond_shifts is not None}
+        if len(axes) > 1:
+            raise InvalidInputError(f"the motion model translated different axes at different steps ({sorted(axes)}); "
+                                    "run() needs one layout: call step() per step instead")
+        shift_axes = axes.pop() if axes else None
+        cond = uni = None
+        if has_cond.any():
+            proto = next(ms.cond_shifts for ms in steps if ms.cond_shifts is not None)
+            cond = np.zeros((T,) + proto.shape)
+            for t, ms in enumerate(steps):
+                if ms.cond_shifts is not None:
+                    cond[t] = ms.cond_shifts
+            self._run_checked_shifts(cond, has_cond, "conditional")
+        if has_uni.any():
+            uni = np.zeros((T, self.ndim))
+            for t, ms in enumerate(steps):
+                if ms.uniform is not None:
+                    uni[t] = ms.uniform
+            self._run_checked_shifts(uni, has_uni, "uniform")
+        return shift_axes, cond, has_cond, uni, has_uni
+
+    def _run_injections(self, injections, T: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        offsets = np.zeros(T + 1, dtype=np.int64)
+        if injections is None:
+            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
+        idx, vals = [], []
+        for t, inj in enumerate(injections):
+            n = 0
+            if inj is not None:
+                try:
+                    fi, vv = inj
+                except (TypeError, ValueError):
+                    raise InvalidInputError(f"injections[{t}] must be None or a (flat_index, values) pair") from None
+                try:
+                    fi, vv = checked_injection(fi, vv, self._size)
+                except (InvalidInputError, ShapeError) as exc:
+                    raise type(exc)(f"injections[{t}]: {exc}") from None
+                except (TypeError, ValueError):
+                    raise InvalidInputError(f"injections[{t}] must hold integer indices and real values") from None
+                idx.append(fi)
+                vals.append(vv)
+                n = len(fi)
+            offsets[t + 1] = offsets[t] + n
+        if not idx:
+            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
+        return offsets, np.ascontiguousarray(np.concatenate(idx)), np.ascontiguousarray(np.concatenate(vals))
+
+    def __repr__(self) -> str:
+        ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
+        return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
+
+
+def whole_cells(value: object, what: str) -> np.ndarray:
+    """``value`` as an int64 array of whole cell numbers (an integral float counts), within +-2**62.
+
+    Raises
+    ------
+    InvalidInputError
+        Not numbers (text, ragged lists, bools), NaN/inf, a fraction such as 2.7 (never
+        truncated) or a number out of any grid's range; the message names ``what``.
+    """
+    try:
+        arr = np.asarray(value)
+        ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{what} must be whole cell numbers, got {value!r}")
+    if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
+        raise InvalidInputError(f"{what} {value!r} is out of any grid's range")
+    return arr.astype(np.int64)
+
+
+def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Validate an injection pair: 1-D int64 flat indices in ``[0, size)`` and float64 energies >= 0.
+
+    Returns the pair as contiguous int64 / float64 arrays (no copy when they already are).
+
+    Raises
+    ------
+    ShapeError
+        The two arrays differ in length.
+    InvalidInputError
+        An index lies outside the grid or an energy is negative, NaN or infinite.
+    """
+    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else whole_cells(flat_index, "flat_index")
+    if not (isinstance(values, np.ndarray) and values.dtype == np.float64):
+        try:
+            values = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise InvalidInputError(f"injected values must be numbers, got {values!r}") from None
+    vals = values
+    fi, vals = fi.ravel(), vals.ravel()
+    if fi.shape != vals.shape:
+        raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
+    n = len(fi)
+    if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
+        fl, vl = fi.tolist(), vals.tolist()
+        if n and (min(fl) < 0 or max(fl) >= size):
+            raise InvalidInputError(f"flat indices must lie in [0, {size})")
+        if not all(0.0 <= x <= MAX_INJECTION for x in vl):  # also False for NaN
+            raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
+        return fi, vals
+    if fi.min() < 0 or fi.max() >= size:
+        raise InvalidInputError(f"flat indices must lie in [0, {size})")
+    if not np.isfinite(vals).all() or vals.min() < 0 or vals.max() > MAX_INJECTION:
+        raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
+    return fi, vals

@@ -1,0 +1,35 @@
+"""Spiking continuous-attractor populations (LIF / Poisson) on the rate model's connectivity.
+
+See :mod:`cansim.spiking.population` for the model, :mod:`cansim.spiking.correspondence`
+for what corresponds to what between the rate and the spiking population, and
+:mod:`cansim.spiking.nir_io` for export to / import from NIR.
+"""
+
+from __future__ import annotations
+
+from cansim.spiking.connectivity import RecurrentKernel, composite_kernel
+from cansim.spiking.neurons import NeuronParams, analytic_lif_rate_hz
+from cansim.spiking.population import SPIKING_BACKENDS, SpikingParams, SpikingPopulation
+from cansim.spiking.decoding import SpikeCountDecoder
+from cansim.spiking.calibration import calibrate_velocity_lead, measure_packet_speed
+from cansim.spiking.correspondence import HD_RING_ATTRACTOR, spiking_from_rate, spiking_params_from_rate
+from cansim.spiking.nir_io import NIR_FORMAT, from_nir, to_nir
+
+__all__ = [
+    "NeuronParams",
+    "analytic_lif_rate_hz",
+    "RecurrentKernel",
+    "composite_kernel",
+    "SpikingParams",
+    "SpikingPopulation",
+    "SPIKING_BACKENDS",
+    "SpikeCountDecoder",
+    "calibrate_velocity_lead",
+    "measure_packet_speed",
+    "HD_RING_ATTRACTOR",
+    "spiking_from_rate",
+    "spiking_params_from_rate",
+    "to_nir",
+    "from_nir",
+    "NIR_FORMAT",
+]

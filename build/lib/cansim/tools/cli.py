@@ -1,0 +1,344 @@
+"""The ``cansim`` command line (also ``python -m cansim``).
+
+Subcommands: ``demo``, ``sweep``, ``study``, ``replay``, ``backends``, ``bench``; each
+has ``--help``. Exit codes are :data:`EXIT_CODES` (also in ``cansim --help``): bad
+input and failures print one line ``cansim <command>: error: ...`` on stderr, with no
+traceback unless ``--debug`` is given.
+
+The demos and the thesis studies are modules of :mod:`cansim.studies` (installed with
+the package, no checkout needed), run through their ``main(argv)``; options after the
+study's name (``cansim study ch5 --quick --objects mug box``) go to the study itself.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import textwrap
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+__all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
+
+EXIT_OK = 0
+EXIT_INTERNAL = 1
+EXIT_USAGE = 2
+EXIT_BAD_INPUT = 3
+EXIT_FAILED = 4
+EXIT_NOT_BUILT = 5
+EXIT_MISSING_EXTRA = 6
+EXIT_INTERRUPTED = 130
+
+#: exit code -> meaning
+EXIT_CODES = {
+    EXIT_OK: "success",
+    EXIT_INTERNAL: "internal error (a bug: the traceback is printed; please report it)",
+    EXIT_USAGE: "usage error (unknown command or option, missing argument)",
+    EXIT_BAD_INPUT: "bad input: a malformed spec, config or bag, a missing file, a value out of range",
+    EXIT_FAILED: "runtime failure: the run could not finish, or some sweep tasks failed",
+    EXIT_NOT_BUILT: "not available here: the study is not built yet",
+    EXIT_MISSING_EXTRA: "an optional dependency is missing (the message names the pip extra)",
+    EXIT_INTERRUPTED: "interrupted (Ctrl-C); a sweep resumes when run again",
+}
+
+#: study -> module of :mod:`cansim.studies` (each has ``main(argv)``)
+STUDIES = {
+    "ch3": "cansim.studies.ch3_maze",
+    "ch4": "cansim.studies.ch4_radial_distance",
+    "ch5": "cansim.studies.ch5_object_maps",
+    "ch6": "cansim.studies.ch6_active_exploration",
+}
+#: demo -> module of :mod:`cansim.studies`; the first is ``cansim demo`` without a name
+DEMOS = {
+    "whisker": "cansim.studies.whisker_ratslam_demo",
+    "ratslam": "cansim.studies.ratslam_demo",
+}
+_STUDY_TITLES = {
+    "ch3": "RatSLAM navigation with a whisker-sensor array",
+    "ch4": "object shape reconstruction: radial distance to contact",
+    "ch5": "WhiskerRatSLAM: 6-D localisation and object recognition",
+    "ch6": "active whisker-array exploration for fast shape recognition",
+}
+
+log = logging.getLogger("cansim.tools.cli")
+
+
+class CommandError(Exception):
+    """A failure the command reports in one line with its exit code."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+def _run_main(module: ModuleType, argv: list[str]) -> int:
+    try:
+        code = module.main(argv)
+    except SystemExit as exc:  # an example's own argparse or sys.exit
+        code = exc.code
+    if code is None:
+        return EXIT_OK
+    if isinstance(code, int):
+        return code
+    raise CommandError(str(code), EXIT_FAILED)
+
+
+# ------------------------------------------------------------------ commands
+def _cmd_demo(args: argparse.Namespace) -> int:
+    module = importlib.import_module(DEMOS[args.which])
+    return _run_main(module, ["--seed", str(args.seed), "--out", str(args.out), *args.options])
+
+
+def _cmd_study(args: argparse.Namespace) -> int:
+    module = importlib.import_module(STUDIES[args.chapter])
+    argv = (["--quick"] if args.quick else []) + ["--out", str(args.out), *args.options]
+    return _run_main(module, argv)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from cansim.tools import sweep
+
+    spec = sweep.load_spec(args.spec)
+    out = args.out if args.out is not None else Path.cwd() / spec.name
+    result = sweep.run(
+        spec, out=out, progress=not args.no_progress, scheduler=args.scheduler, workers=args.workers,
+        retry_errors=args.retry_errors,
+    )
+    total = result.table.num_rows
+    print(f"{spec.n_tasks} tasks ({spec.n_cells} cells): ran {result.ran}, already done {result.skipped}, "
+          f"failed now {result.failed}; {total} rows in {result.path}")
+    errors = result.n_errors
+    if errors:
+        raise CommandError(
+            f"{errors} task(s) ended with an error (see the 'error' column of {result.path}); "
+            "fix the cause and re-run with --retry-errors",
+            EXIT_FAILED,
+        )
+    return EXIT_OK
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from cansim.tools.bag_replay import replay, write_outputs
+
+    bag = Path(args.bag)
+    out = args.out if args.out is not None else Path.cwd() / f"{bag.stem or bag.name}_replay"
+    result = replay(
+        bag, args.config, odometry_topic=args.odom_topic, image_topic=args.image_topic, stamps=args.stamps,
+        progress=not args.no_progress,
+    )
+    files = write_outputs(result, out, title=f"Experience map - {bag.name}")
+    em = result.slam.experience_map
+    print(f"{result.n_odometry} odometry messages ({result.topics.odometry}), {result.n_images} images "
+          f"({result.topics.image}): {result.slam.n_views} view templates, {em.n_experiences} experiences, "
+          f"{em.n_links} links")
+    for name, path in files.items():
+        print(f"  {name:10s} {path}")
+    return EXIT_OK
+
+
+def _cmd_backends(args: argparse.Namespace) -> int:
+    from cansim.backends import backend_status
+
+    status = backend_status(refresh=args.refresh)
+    width = max(len("backend"), *(len(n) for n in status))
+    print(f"{'backend':{width}s}  usable  why")
+    for name, (ok, reason) in status.items():
+        print(f"{name:{width}s}  {'yes' if ok else 'no':6s}  {reason}")
+    return EXIT_OK
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from cansim.tools.benchmark import format_tables, run_suite
+
+    def split(text: str | None) -> list[str] | None:
+        return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+
+    def say(line: str) -> None:
+        if not args.no_progress:
+            print(f"  timing {line}", file=sys.stderr, flush=True)
+
+    report = run_suite(quick=args.quick, backends=split(args.backends), workloads=split(args.workloads),
+                       max_threads=args.max_threads, progress=say)
+    m = report.machine
+    print(f"{m['cpu']}, {m['usable_cpus']} usable CPU(s), load {m['load_average']}; cansim {m['cansim']}, "
+          f"numpy {m['numpy']}, numba {m.get('numba')}, Python {m['python']} ({'quick' if report.quick else 'full'} run)")
+    print(format_tables(report))
+    for name, info in report.backends.items():
+        if not info["usable"]:
+            print(f"not timed: {name} - {info['reason']}")
+    path = report.to_json(args.out)
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------ parser
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    pass
+
+
+def _epilog() -> str:
+    codes = "\n".join(f"  {code:3d}  {text}" for code, text in EXIT_CODES.items())
+    return f"exit codes:\n{codes}\n\nRun 'cansim COMMAND --help' for a command's options."
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``cansim`` (all subcommands)."""
+    parser = argparse.ArgumentParser(
+        prog="cansim",
+        description=textwrap.fill("cansim: continuous-attractor networks, RatSLAM and WhiskerRatSLAM - demos, thesis "
+                                  "studies, parameter sweeps on Dask, ROS bag replay and the benchmark suite.", 88),
+        epilog=_epilog(),
+        formatter_class=_Formatter,
+    )
+    from cansim import __version__
+
+    parser.add_argument("--version", action="version", version=f"cansim {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logging")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name: str, help_: str, description: str) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=help_, description=textwrap.fill(description, 88), epilog=_epilog(),
+                              formatter_class=_Formatter)
+
+    p = add("demo", "the main demo: WhiskerRatSLAM maps a mug (or 'demo ratslam': RatSLAM, 3-DoF)",
+            "'cansim demo' (= 'cansim demo whisker'): the README's main demo - the simulated 18-whisker array explores "
+            "an object (a mug by default; --object NAME or a mesh file) for two loops through the whole chain and "
+            "WhiskerRatSLAM maps it; prints the map's error beside dead reckoning's and the step, writes "
+            "whisker_ratslam_map.png, whisker_ratslam_experiences.png and whisker_ratslam_metrics.json. "
+            "'cansim demo ratslam': RatSLAM (3-DoF) on a synthetic 5-loop route with the thesis' Ch.3 odometry noise; "
+            "writes ratslam_map.png, ratslam_experience_ids*.png and ratslam_metrics.json. Options after these are "
+            "passed to the demo ('python -m cansim.studies.whisker_ratslam_demo --help' lists them).")
+    p.add_argument("which", nargs="?", choices=list(DEMOS), default="whisker", help="which demo (default: whisker)")
+    p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
+    p.set_defaults(func=_cmd_demo)
+
+    p = add("sweep", "run a parameter sweep (TOML spec) on Dask",
+            "Run every cell x seed of a sweep spec on dask.distributed - a local cluster of worker processes by "
+            "default, or an existing cluster with --scheduler - writing each finished task to OUT/parts/ at once and "
+            "OUT/results.parquet at the end. Run the same command again to resume: tasks already recorded are "
+            "skipped. Spec keys: see the cansim.tools.sweep documentation.")
+    p.add_argument("spec", type=Path, metavar="FILE.toml", help="sweep spec file (TOML)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="output folder (default: ./<spec name>)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="address of a running Dask scheduler (overrides the spec's 'scheduler')")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="worker processes of the local cluster (default: the usable CPUs)")
+    p.add_argument("--retry-errors", action="store_true", help="run tasks recorded with an error again")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_sweep)
+
+    p = add("study", "run a thesis study (ch3, ch4, ch5, ch6)",
+            "Run one of the thesis' studies (modules of cansim.studies): "
+            + "; ".join(f"{c} = {_STUDY_TITLES[c]}, {m}" for c, m in STUDIES.items())
+            + ". Options after the chapter go to the study (e.g. 'cansim study ch5 --quick --objects mug box'; "
+            "'python -m cansim.studies.ch5_object_maps --help' lists them).")
+    p.add_argument("chapter", choices=list(STUDIES), help="the chapter's study")
+    p.add_argument("--quick", action="store_true", help="the study's quick mode (its headline result, in minutes)")
+    p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")
+    p.set_defaults(func=_cmd_study)
+
+    p = add("replay", "replay a ROS1/ROS2 bag into RatSLAM (no ROS needed)",
+            "Replay a ROS1 .bag (or a folder of them) or a ROS2 bag folder (sqlite3 or mcap) into RatSLAM: odometry "
+            "(nav_msgs/Odometry, TwistStamped or Twist) and camera images (sensor_msgs/Image or CompressedImage) "
+            "on OpenRatSLAM's topics <topic_root>/odom and <topic_root>/camera/image[/compressed]. Writes "
+            "experience_map.npz, trajectory.csv and experience_map.png.")
+    p.add_argument("bag", metavar="BAG_OR_DIR", help="a .bag file, a folder of .bag files, or a ROS2 bag folder")
+    p.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="OpenRatSLAM config file (config_*.txt[.in]); its [general] topic_root names the topics")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="output folder (default: ./<bag name>_replay)")
+    p.add_argument("--odom-topic", default=None, help="odometry topic (default <topic_root>/odom)")
+    p.add_argument("--image-topic", default=None, help="image topic (default <topic_root>/camera/image[/compressed])")
+    p.add_argument("--stamps", choices=("header", "log"), default="header",
+                   help="time odometry by header stamps (OpenRatSLAM, default) or by the bag's record times")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_replay)
+
+    p = add("backends", "which CAN backends run here, and why not",
+            "List every registered backend (numpy, numba, opencl): usable here or why not, and what to install.")
+    p.add_argument("--refresh", action="store_true", help="probe again instead of using this process' cached answer")
+    p.set_defaults(func=_cmd_backends)
+
+    p = add("bench", "time the standard workloads on every backend",
+            "The benchmark suite: a Population step on a 360 ring, 21x21x36 and 5^6 grids and a RatSLAM iteration on "
+            "every usable backend (median and minimum per call), numba's scaling over 1..N threads for the large "
+            "grids, and a JSON with the machine's description to compare machines.")
+    p.add_argument("--quick", action="store_true", help="few short rounds (seconds); threads 1 and N only")
+    p.add_argument("--out", type=Path, default=Path("cansim_bench.json"), metavar="FILE.json",
+                   help="JSON output (default ./cansim_bench.json)")
+    p.add_argument("--backends", default=None, help="comma-separated backends (default: every usable one)")
+    p.add_argument("--workloads", default=None, help="comma-separated workloads (default: all of the mode)")
+    p.add_argument("--max-threads", type=_positive_int, default=None, metavar="N",
+                   help="largest thread count of the scaling runs (default: numba's maximum)")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=_cmd_bench)
+    return parser
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+# ------------------------------------------------------------------ main
+def _classify(exc: BaseException) -> tuple[int, str]:
+    from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
+
+    if isinstance(exc, CommandError):
+        return exc.code, str(exc)
+    if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
+        return EXIT_BAD_INPUT, str(exc)
+    if isinstance(exc, ImportError) and "pip install" in str(exc):
+        return EXIT_MISSING_EXTRA, str(exc)
+    if isinstance(exc, FileNotFoundError):
+        return EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"
+    if isinstance(exc, (CansimError, OSError, RuntimeError)):
+        return EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    return EXIT_INTERNAL, f"{type(exc).__name__}: {exc}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``cansim`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
+
+    Usage errors raise ``SystemExit(2)`` (argparse).
+    """
+    parser = build_parser()
+    args, extra = parser.parse_known_args(None if argv is None else list(argv))
+    if extra and args.command not in ("demo", "study"):
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.options = extra  # a demo's or study's own options, passed to its main(argv)
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING, format="cansim: %(levelname)s: %(message)s")
+    command = args.command
+
+    def one_line_warning(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
+        print(f"cansim {command}: warning: {message}", file=sys.stderr)
+
+    func: Callable[[argparse.Namespace], int] = args.func
+    with warnings.catch_warnings():
+        if not args.debug:
+            warnings.showwarning = one_line_warning
+        try:
+            return func(args)
+        except KeyboardInterrupt:
+            print(f"cansim {command}: interrupted" + ("; run the same command again to resume" if command == "sweep" else ""),
+                  file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except Exception as exc:
+            code, message = _classify(exc)
+            if args.debug or code == EXIT_INTERNAL:
+                import traceback
+
+                traceback.print_exc()
+            print(f"cansim {command}: error: {' '.join(message.split())}", file=sys.stderr)
+            return code

@@ -1,0 +1,179 @@
+"""The one error tree of the whole distribution (``whisker_io``, ``maps``, ``cansim``).
+
+Every error raised on purpose derives from :class:`CansimError`, so robot code can
+catch one base class for everything. It is defined here, in the lowest package of the
+data flow (sensor -> front end -> attractor -> map -> model), so that ``whisker_io``
+and ``maps`` need nothing of the CAN engine; ``cansim.errors`` re-exports it as
+``cansim.CansimError``.
+
+One class per concept:
+
+* :class:`InvalidInputError` (a ``ValueError``) - a value outside its domain (NaN/inf,
+  negative dt, unknown name); :class:`ShapeError` for a wrong shape;
+  :class:`ConfigError` for a malformed parameter or configuration entry (the
+  message names the key).
+* :class:`CorruptFileError` (a ``ValueError``) - a saved or recorded file that cannot
+  be read back: a saved model, map or whisk recording; ``path``, ``field`` and
+  ``line`` say where.
+* :class:`HardwareError` (a ``RuntimeError``) and its subclasses - faults reported by
+  the arm and array drivers; :class:`SafetyViolationError` for a refused command.
+
+Each message says what went wrong and what to do about it; the object that raised
+keeps the state it had before the call.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = [
+    "CansimError",
+    "InvalidInputError",
+    "ShapeError",
+    "ConfigError",
+    "CorruptFileError",
+    "HardwareError",
+    "MissingDependencyError",
+    "ConnectionFailedError",
+    "RobotUnreachableError",
+    "ArrayNotFoundError",
+    "CommandFailedError",
+    "StaleStateError",
+    "SafetyViolationError",
+    "USBFrameError",
+    "ShortFrameError",
+    "CRCMismatchError",
+    "SequenceGapError",
+    "DeviceRemovedError",
+    "DeviceTimeoutError",
+]
+
+
+class CansimError(Exception):
+    """Base class of every error raised on purpose by cansim, whisker_io and maps."""
+
+
+class InvalidInputError(CansimError, ValueError):
+    """A value is out of its domain (NaN/inf, negative dt, unknown id or name...).
+
+    The message names the argument and the expected form.
+    """
+
+
+class ShapeError(InvalidInputError):
+    """An array has the wrong shape or number of dimensions."""
+
+
+class ConfigError(InvalidInputError):
+    """A parameter or configuration entry is unknown or malformed; the message names the key."""
+
+
+class CorruptFileError(CansimError, ValueError):
+    """A saved or recorded file is unreadable, truncated, or has a malformed field.
+
+    Parameters
+    ----------
+    problem : str
+        What is wrong.
+    path : str or os.PathLike, optional
+        The file.
+    field : str, optional
+        The offending entry of the file (an ``.npz`` member, a JSON key, a column).
+    line : int, optional
+        1-based line number in a text file.
+
+    Attributes
+    ----------
+    path : str or None
+    field : str or None
+    line : int or None
+    """
+
+    def __init__(
+        self,
+        problem: str,
+        *,
+        path: str | os.PathLike[str] | None = None,
+        field: str | None = None,
+        line: int | None = None,
+    ) -> None:
+        self.path = None if path is None else os.fspath(path)
+        self.field = field
+        self.line = line
+        where = []
+        if self.path is not None:
+            where.append(self.path)
+        if line is not None:
+            where.append(f"line {line}")
+        if field is not None:
+            where.append(f"field {field!r}")
+        message = ": ".join(where + [problem])
+        if field is not None:
+            message += "; the file is corrupt or was not written by this library - re-save it or restore a backup"
+        super().__init__(message)
+
+
+class HardwareError(CansimError, RuntimeError):
+    """Base class of faults reported by a hardware driver (arm or array)."""
+
+
+class MissingDependencyError(HardwareError, ImportError):
+    """An optional hardware dependency (ur-rtde, pyusb) is not installed.
+
+    Install the ``hw`` extra: ``pip install cansim[hw]``.
+    """
+
+
+class ConnectionFailedError(HardwareError):
+    """The driver could not connect to (or lost) the device; check cabling/IP."""
+
+
+class RobotUnreachableError(ConnectionFailedError):
+    """:func:`whisker_io.hw.platform.open_platform` could not reach the arm; check its IP and network."""
+
+
+class ArrayNotFoundError(ConnectionFailedError):
+    """:func:`whisker_io.hw.platform.open_platform` found no whisker array on USB; check the cable and ids."""
+
+
+class CommandFailedError(HardwareError):
+    """The controller refused or failed to execute a command that passed the
+    safety envelope (ur-rtde returned False, or the robot is not in remote
+    control). Check the teach pendant for a protective stop."""
+
+
+class StaleStateError(HardwareError):
+    """The last state received from the device is older than allowed."""
+
+
+class SafetyViolationError(HardwareError, ValueError):
+    """A command was refused because it leaves the safety envelope (workspace
+    box, speed limit, deflection overload). Nothing was sent to the device."""
+
+
+class USBFrameError(HardwareError):
+    """A USB packet from the array did not match the expected frame layout."""
+
+
+class ShortFrameError(USBFrameError):
+    """A USB frame was shorter than its header or its declared sample count."""
+
+
+class CRCMismatchError(USBFrameError):
+    """A USB frame's CRC-32 does not match its bytes (corrupted transfer)."""
+
+
+class SequenceGapError(USBFrameError):
+    """Frames were lost: the sequence number jumped (``lost`` frames)."""
+
+    def __init__(self, message: str, lost: int) -> None:
+        super().__init__(message)
+        self.lost = lost
+
+
+class DeviceRemovedError(HardwareError):
+    """The USB device disappeared while in use."""
+
+
+class DeviceTimeoutError(HardwareError):
+    """The device did not answer within the configured timeout."""

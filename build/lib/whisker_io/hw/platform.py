@@ -1,0 +1,112 @@
+"""The real platform in one block: the UR arm and the USB whisker array, connected in order.
+
+:func:`open_platform` connects the arm (through its safety envelope), then the array,
+and closes both on leaving the block (the array first). A failure to connect names the
+device: :class:`~whisker_io.errors.RobotUnreachableError` or
+:class:`~whisker_io.errors.ArrayNotFoundError` (both
+:class:`~whisker_io.errors.ConnectionFailedError`), and a missing ``hw`` extra is
+:class:`~whisker_io.errors.MissingDependencyError`, so a script can tell its user
+which cable or package to check::
+
+    with open_platform("192.168.1.10", SafetyEnvelope()) as (arm, array):
+        with array.whisking(mode="retract_on_max", rcp_threshold_counts=2000.0):
+            ...
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Any, Callable, Iterator, NamedTuple, Optional
+
+from whisker_io.errors import (ArrayNotFoundError, ConnectionFailedError, HardwareError, MissingDependencyError,
+                               RobotUnreachableError)
+from whisker_io.hw.arm import URArm
+from whisker_io.hw.safety import SafetyEnvelope
+from whisker_io.hw.usb_array import FrameLayout, USBArray
+
+__all__ = ["EXIT_NO_ARRAY", "EXIT_NO_EXTRA", "EXIT_NO_ROBOT", "EXIT_STOPPED", "Platform", "open_platform", "session_failure"]
+
+#: Exit statuses of the hardware scripts (``examples/hardware_*.py``) for a hardware fault.
+EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = 3, 4, 5, 6
+
+
+class Platform(NamedTuple):
+    """The connected devices."""
+
+    arm: URArm
+    array: USBArray
+
+
+@contextlib.contextmanager
+def open_platform(
+    robot_ip: str,
+    envelope: SafetyEnvelope,
+    layout: Optional[FrameLayout] = None,
+    *,
+    control_factory: Optional[Callable[[str], Any]] = None,
+    usb_backend: Any = None,
+) -> Iterator[Platform]:
+    """Connect the arm, then the whisker array; close both when the block ends.
+
+    Parameters
+    ----------
+    robot_ip : str
+        The arm controller's address.
+    envelope : SafetyEnvelope
+        Checked on every arm command (:class:`whisker_io.hw.safety.SafetyEnvelope`).
+    layout : FrameLayout, optional
+        USB ids and frame format of the array (default :class:`FrameLayout()`).
+    control_factory, usb_backend : optional
+        Test doubles: an RTDE control factory for :class:`~whisker_io.hw.arm.URArm`
+        and a pyusb backend for :class:`~whisker_io.hw.usb_array.USBArray`
+        (:mod:`whisker_io.testing`).
+
+    Yields
+    ------
+    Platform
+        ``(arm, array)``.
+
+    Raises
+    ------
+    MissingDependencyError
+        The ``hw`` extra is not installed.
+    RobotUnreachableError
+        No arm answered at ``robot_ip`` (nothing is left open).
+    ArrayNotFoundError
+        No array with the layout's ids on USB (the arm is closed again).
+    """
+    try:
+        arm = URArm(robot_ip, envelope, control_factory=control_factory)
+    except ConnectionFailedError as exc:
+        raise RobotUnreachableError(f"no robot reachable at {robot_ip}: {exc}") from exc
+    with arm:
+        try:
+            array = USBArray(layout, backend=usb_backend)
+        except ConnectionFailedError as exc:
+            raise ArrayNotFoundError(f"no whisker array found: {exc}") from exc
+        with array:
+            yield Platform(arm, array)
+
+
+def session_failure(exc: HardwareError, whisks_done: int) -> tuple[int, str]:
+    """The exit status and one-line message of a hardware session that ended on ``exc``.
+
+    * :class:`MissingDependencyError` -> :data:`EXIT_NO_EXTRA`, the message says which extra to install;
+    * :class:`RobotUnreachableError` -> :data:`EXIT_NO_ROBOT`, with the address tried;
+    * :class:`ArrayNotFoundError` -> :data:`EXIT_NO_ARRAY`, with the USB ids;
+    * any other :class:`HardwareError` -> :data:`EXIT_STOPPED`: the whisks kept, then the fault.
+
+    Parameters
+    ----------
+    exc : HardwareError
+        What ended the session.
+    whisks_done : int
+        Whisks recorded before it (they are on disk).
+    """
+    if isinstance(exc, MissingDependencyError):
+        return EXIT_NO_EXTRA, str(exc)
+    if isinstance(exc, RobotUnreachableError):
+        return EXIT_NO_ROBOT, str(exc)
+    if isinstance(exc, ArrayNotFoundError):
+        return EXIT_NO_ARRAY, str(exc)
+    return EXIT_STOPPED, f"stopped after {whisks_done} whisks ({type(exc).__name__}): {exc}"

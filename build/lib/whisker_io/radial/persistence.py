@@ -1,0 +1,192 @@
+"""Save and load fitted radial-distance models without arbitrary pickle execution.
+
+Models are written with :mod:`skops.io` (a zip of JSON schema + numpy arrays).
+Loading first lists the file's types with :func:`skops.io.get_untrusted_types`
+(which executes nothing) and refuses the file unless every type outside skops'
+own defaults (numpy, scipy, scikit-learn) is in :data:`TRUSTED_TYPES` — the
+estimator classes of :mod:`whisker_io.radial.models`. The file also holds:
+
+* ``features``: the model's input features, and ``input_features``: the column
+  order of the feature matrix it expects (:data:`FEATURE_NAMES`);
+* ``units``: unit of every input feature and of the prediction (m);
+* ``versions``: numpy, scipy, scikit-learn, skops and whisker_io at save time;
+* ``training_hash``: SHA-256 fingerprint of the training set
+  (:meth:`RadialDataset.fingerprint`), hyper-parameters and CV error.
+
+A file written by another format version, scikit-learn major.minor or numpy
+major version is refused with :class:`ModelVersionError` (scikit-learn does not
+promise that fitted estimators survive version changes); a file whose features
+differ from the ones the caller expects with :class:`FeatureMismatchError`.
+Retraining with :func:`whisker_io.radial.models.train_models` fixes both.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import zipfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import skops.io as sio
+
+from whisker_io.radial.errors import FeatureMismatchError, CorruptFileError, ModelVersionError
+from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS
+from whisker_io.radial.models import TrainedModel, model_features
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "TRUSTED_TYPES", "library_versions", "save_model", "load_model"]
+
+#: Identifier stored in every model file.
+FORMAT = "whisker_io.radial.model"
+#: Version of the file layout; bumped when the metadata changes incompatibly.
+FORMAT_VERSION = 1
+#: Types (besides skops' numpy/scipy/scikit-learn defaults) allowed in a model file.
+TRUSTED_TYPES: tuple[str, ...] = (
+    "whisker_io.radial.models.SelectFeatures",
+    "whisker_io.radial.models.TipAssumption",
+    "whisker_io.radial.models.UniformRandom",
+)
+
+_PACKAGES = ("numpy", "scipy", "scikit-learn", "skops", "cansim")
+
+
+def library_versions() -> dict[str, str]:
+    """Installed versions of the libraries a saved model depends on."""
+    out = {}
+    for pkg in _PACKAGES:
+        try:
+            out[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:  # pragma: no cover - editable installs
+            out[pkg] = "unknown"
+    return out
+
+
+def _major_minor(v: str, n: int) -> tuple[str, ...]:
+    return tuple(v.split(".")[:n])
+
+
+def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
+    """Write a fitted model and its metadata to ``path`` (skops format, ``.skops``).
+
+    Parameters
+    ----------
+    model : TrainedModel
+        From :func:`~whisker_io.radial.models.fit_model` / ``train_models``.
+    path : path-like
+        Destination; written to a temporary name and renamed, so a crash never
+        leaves a half-written model under ``path``.
+
+    Returns
+    -------
+    Path
+    """
+    feats = model_features(model.estimator)
+    meta = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "label": model.label,
+        "family": model.family,
+        "features": list(feats),
+        "input_features": list(FEATURE_NAMES),
+        "units": {**{f: FEATURE_UNITS[f] for f in FEATURE_NAMES}, "prediction": "m"},
+        "versions": library_versions(),
+        "training_hash": model.training_hash,
+        "best_params": {k: repr(v) for k, v in model.best_params.items()},
+        "cv_rmse_m": float(model.cv_rmse_m),
+        "fit_seconds": float(model.fit_seconds),
+    }
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    sio.dump({"meta": meta, "estimator": model.estimator}, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def load_model(
+    path: str | os.PathLike[str], expected_features: Sequence[str] | None = None
+) -> TrainedModel:
+    """Load a model written by :func:`save_model`, refusing anything unexpected.
+
+    Parameters
+    ----------
+    path : path-like
+    expected_features : sequence of str, optional
+        The features the caller will supply the model with; if given and the
+        model was trained on others, the file is refused.
+
+    Returns
+    -------
+    TrainedModel
+        ``best_params`` are the saved ``repr`` strings.
+
+    Raises
+    ------
+    CorruptFileError
+        Missing/corrupt file, not a radial model, or untrusted types inside.
+    ModelVersionError
+        Other format version, scikit-learn major.minor or numpy major version.
+    FeatureMismatchError
+        The model's features differ from ``expected_features``, or the file's
+        feature-matrix layout differs from :data:`FEATURE_NAMES`.
+    """
+    path = Path(path)
+    try:
+        untrusted = sio.get_untrusted_types(file=path)
+    except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+        raise CorruptFileError(f"{path}: not a readable skops model file ({exc})") from exc
+    extra = sorted(set(untrusted) - set(TRUSTED_TYPES))
+    if extra:
+        raise CorruptFileError(
+            f"{path}: refusing to load types outside the trusted list: {extra}; "
+            "only whisker_io.radial models and numpy/scipy/scikit-learn types are accepted"
+        )
+    try:
+        obj: Any = sio.load(path, trusted=list(untrusted))
+    except Exception as exc:  # skops raises a variety of errors on malformed content
+        raise CorruptFileError(f"{path}: could not load model ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(obj, dict) or not isinstance(obj.get("meta"), dict) or "estimator" not in obj:
+        raise CorruptFileError(f"{path}: not a {FORMAT} file (no meta/estimator entries)")
+    meta = obj["meta"]
+    if meta.get("format") != FORMAT:
+        raise CorruptFileError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise ModelVersionError(
+            f"{path}: file format version {meta.get('format_version')!r}, this library reads "
+            f"version {FORMAT_VERSION}; retrain and save the model again"
+        )
+    saved = dict(meta.get("versions", {}))
+    now = library_versions()
+    for pkg, n in (("scikit-learn", 2), ("numpy", 1)):
+        if _major_minor(str(saved.get(pkg, "?")), n) != _major_minor(now[pkg], n):
+            raise ModelVersionError(
+                f"{path}: saved with {pkg} {saved.get(pkg)!r}, installed is {now[pkg]}; "
+                f"fitted estimators are not portable across {pkg} versions - retrain the model "
+                "(examples/radial_distance_study.py) or install the saving version"
+            )
+    if list(meta.get("input_features", [])) != list(FEATURE_NAMES):
+        raise FeatureMismatchError(
+            f"{path}: model expects feature columns {meta.get('input_features')}, "
+            f"this library provides {list(FEATURE_NAMES)}"
+        )
+    feats = tuple(meta.get("features", ()))
+    est = obj["estimator"]
+    if model_features(est) != feats:
+        raise CorruptFileError(f"{path}: stored feature list {feats} disagrees with the estimator")
+    if expected_features is not None and tuple(expected_features) != feats:
+        raise FeatureMismatchError(
+            f"{path}: model {meta.get('label')!r} was trained on features {list(feats)}, "
+            f"expected {list(expected_features)}; load the model for those features or retrain"
+        )
+    return TrainedModel(
+        label=str(meta.get("label", "")),
+        family=str(meta.get("family", "")),
+        features=feats,
+        estimator=est,
+        best_params=dict(meta.get("best_params", {})),
+        cv_rmse_m=float(meta.get("cv_rmse_m", np.nan)),
+        fit_seconds=float(meta.get("fit_seconds", 0.0)),
+        training_hash=str(meta.get("training_hash", "")),
+    )
+

@@ -1,0 +1,588 @@
+"""Whisk recordings on disk: per-whisk CSV files and the arm pose log (Sec 3.1.3).
+
+The thesis logs "a series of .csv files, with each file capturing the data from a
+single whisk cycle", four columns "angular sensor data, deflection in the
+x-direction and deflection in the y-direction" and a spare placeholder column,
+plus the end-effector pose (time, position, quaternion, name of the latest whisk
+file). This module fixes that format precisely so the simulator, the hardware
+recorder and the contact pipeline read and write the same files.
+
+File format (decisions, where the thesis is silent)
+----------------------------------------------------
+Whisk file, one per whisk cycle per module, named ``whisk_{cycle:06d}_{module}.csv``
+(e.g. ``whisk_000012_C2.csv``). UTF-8 text, ``,`` separated, ``\\n`` line ends,
+one header line followed by one line per 2 kHz sample::
+
+    angle_rad,x_deflection_counts,y_deflection_counts,spare
+    -0.87266462599716477,3,-2,0
+    ...
+
+* ``angle_rad``: whisk angle theta in **radians** (Fig 2.15: -50 deg full
+  retraction, +50 deg full protraction). Radians, not degrees, so that a value
+  written with 17 significant digits reads back bit-identical and replay gives
+  exactly the in-memory contacts.
+* ``x_deflection_counts``, ``y_deflection_counts``: Hall-sensor deflection in
+  ADC counts (the unit of the 500-count prominence of Sec 5.1.1.1.1); stored as
+  floats, integral for real hardware.
+* ``spare``: placeholder column (zeros unless a recorder fills it).
+
+A file whose header names ``angle_deg`` instead of ``angle_rad`` is also read
+(the angle is converted to radians). A file without a header line is read as the
+canonical units. Values are written with ``%.17g``.
+
+Pose log, one per session, ``pose_log.csv``, one header line and one line per
+whisk cycle::
+
+    time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file
+    12.5,0.4,0.1,0.3,0,0,0,1,whisk_000012
+
+* ``time_s``: seconds (any epoch), non-decreasing down the file.
+* ``x_m, y_m, z_m``: end-effector position in the arm base frame, metres.
+* ``qx, qy, qz, qw``: end-effector orientation, unit quaternion, **scalar last**
+  (the order of ``geometry_msgs/Quaternion`` and of
+  ``scipy.spatial.transform.Rotation.as_quat``). The line is read into a
+  :class:`~whisker_io.pose.Pose`, so the package's one quaternion rule applies:
+  a norm within 1e-3 of 1 is normalised, anything else is a corrupt line; the
+  sign is made canonical (``qw >= 0``, the same rotation).
+* ``whisk_file``: the stem of the cycle's whisk files; the cycle's module files
+  are ``{whisk_file}_{module}.csv`` in the same directory.
+
+Crash safety: every whisk file is written to a temporary name in the same
+directory, flushed, fsynced and renamed (``os.replace``), so it is complete or
+absent. The pose-log line of a cycle is appended (and fsynced) only after all of
+the cycle's whisk files are on disk. A final pose-log line without its newline (a
+write torn by a crash) is ignored with a warning; every other malformed line is
+an error naming the file and the 1-based line number.
+
+Example
+-------
+>>> import numpy as np, tempfile
+>>> from whisker_io.pose import Pose
+>>> from whisker_io.records.whisk_record import WhiskRecord
+>>> from whisker_io.records.recording import RecordingWriter, replay
+>>> rec = WhiskRecord("A1", np.zeros(4), np.zeros(4), np.ones(4), cycle=0)
+>>> with tempfile.TemporaryDirectory() as d:
+...     with RecordingWriter(d) as w:
+...         _ = w.write_cycle([rec], time_s=0.0, pose=Pose([0, 0, 0], [0, 0, 0, 1]))
+...     cycles = list(replay(d))
+>>> cycles[0].records["A1"].y_counts.tolist()
+[1.0, 1.0, 1.0, 1.0]
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+
+from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.pose import PoseLike
+from whisker_io.records.whisk_record import MODULE_NAME_RE, SAMPLE_RATE_HZ, PoseEntry, WhiskRecord
+
+__all__ = [
+    "WHISK_HEADER",
+    "POSE_LOG_HEADER",
+    "POSE_LOG_NAME",
+    "ReplayedCycle",
+    "whisk_file_stem",
+    "whisk_file_name",
+    "write_whisk_csv",
+    "read_whisk_csv",
+    "PoseLogWriter",
+    "read_pose_log",
+    "RecordingWriter",
+    "replay",
+]
+
+log = logging.getLogger(__name__)
+
+#: Header line of a whisk CSV (canonical units).
+WHISK_HEADER: tuple[str, ...] = ("angle_rad", "x_deflection_counts", "y_deflection_counts", "spare")
+_WHISK_HEADER_DEG: tuple[str, ...] = ("angle_deg",) + WHISK_HEADER[1:]
+#: Header line of the pose log.
+POSE_LOG_HEADER: tuple[str, ...] = ("time_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw", "whisk_file")
+#: File name of the pose log inside a session directory.
+POSE_LOG_NAME: str = "pose_log.csv"
+
+_FILE_RE = re.compile(r"^whisk_(\d+)_([A-Za-z0-9]+)\.csv$")
+
+
+@dataclass(frozen=True, eq=False)
+class ReplayedCycle:
+    """One whisk cycle read back from a session: its pose and its module records.
+
+    Attributes
+    ----------
+    entry : PoseEntry
+        The pose-log line of the cycle (time, pose, whisk-file stem).
+    records : Mapping[str, WhiskRecord]
+        Module name -> record, in module-name order.
+    """
+
+    entry: PoseEntry
+    records: Mapping[str, WhiskRecord]
+
+
+def whisk_file_stem(cycle: int) -> str:
+    """Stem shared by the whisk files of one cycle, e.g. ``whisk_000012``."""
+    if not (isinstance(cycle, (int, np.integer)) and cycle >= 0):
+        raise InvalidInputError(f"cycle must be an integer >= 0, got {cycle!r}")
+    return f"whisk_{int(cycle):06d}"
+
+
+def whisk_file_name(cycle: int, module: str) -> str:
+    """File name of one module's whisk CSV, e.g. ``whisk_000012_C2.csv``."""
+    if not isinstance(module, str) or not MODULE_NAME_RE.match(module):
+        raise InvalidInputError(f"module name {module!r} must be letters and digits, e.g. 'C2'")
+    return f"{whisk_file_stem(cycle)}_{module}.csv"
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` so that the file is complete or absent."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        dfd = os.open(directory, os.O_RDONLY)
+    except OSError:  # pragma: no cover - platforms without directory fds
+        return
+    try:
+        os.fsync(dfd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(dfd)
+
+
+def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
+    """Write one whisk record atomically (temporary file, fsync, rename).
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file, or a directory, in which case the file is named
+        :func:`whisk_file_name` ``(record.cycle, record.module)``.
+    record : WhiskRecord
+        The samples.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
+    if not isinstance(record, WhiskRecord):
+        raise InvalidInputError(f"record must be a WhiskRecord, got {type(record).__name__}")
+    p = Path(path)
+    if p.is_dir():
+        p = p / whisk_file_name(record.cycle, record.module)
+    if not p.parent.is_dir():
+        raise InvalidInputError(f"directory {p.parent} does not exist; create it before writing whisks")
+    cols = record.as_columns()
+    body = "\n".join(",".join(format(v, ".17g") for v in row) for row in cols.tolist())
+    _atomic_write_text(p, ",".join(WHISK_HEADER) + "\n" + body + "\n")
+    return p
+
+
+def _read_lines(path: Path, what: str) -> list[str]:
+    """The file's lines split on ``\\n`` (the last one empty when the file ends with a newline)."""
+    try:
+        return path.read_text(encoding="utf-8").split("\n")
+    except FileNotFoundError:
+        raise CorruptFileError(f"{path}: {what} not found") from None
+    except UnicodeDecodeError as exc:
+        raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
+
+
+def _parse_float(token: str, path: Path, lineno: int, column: str) -> float:
+    try:
+        value = float(token)
+    except ValueError:
+        raise CorruptFileError(
+            f"{path}: line {lineno}: column '{column}' is not a number ({token.strip()!r}); "
+            "the file is corrupt or not a whisk CSV"
+        ) from None
+    if not math.isfinite(value):
+        raise CorruptFileError(
+            f"{path}: line {lineno}: column '{column}' holds {token.strip()!r} (NaN/inf sample); "
+            "repair or drop this whisk file"
+        )
+    return value
+
+
+def read_whisk_csv(
+    path: str | os.PathLike[str],
+    module: str | None = None,
+    cycle: int | None = None,
+    sample_rate_hz: float = SAMPLE_RATE_HZ,
+) -> WhiskRecord:
+    """Read one whisk CSV into a :class:`WhiskRecord`.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    module, cycle : optional
+        Module name and cycle index; taken from a ``whisk_{cycle}_{module}.csv``
+        file name when not given.
+    sample_rate_hz : float, default 2000
+        Sampling rate, Hz (not stored in the file).
+
+    Raises
+    ------
+    CorruptFileError
+        Missing file, unknown header, a line without exactly 4 columns, a
+        non-numeric or NaN/inf value, or no samples; the message names the file
+        and the 1-based line.
+    """
+    p = Path(path)
+    if module is None or cycle is None:
+        m = _FILE_RE.match(p.name)
+        if m is None:
+            raise CorruptFileError(
+                f"{p}: cannot tell module and cycle from the file name; name it "
+                "whisk_{cycle:06d}_{module}.csv or pass module= and cycle="
+            )
+        cycle = int(m.group(1)) if cycle is None else cycle
+        module = m.group(2) if module is None else module
+    lines = _read_lines(p, "whisk file")
+    if lines and lines[-1] == "":
+        lines.pop()
+    first_data = 0
+    scale = 1.0
+    if lines:
+        head = tuple(t.strip() for t in lines[0].split(","))
+        if head == WHISK_HEADER:
+            first_data = 1
+        elif head == _WHISK_HEADER_DEG:
+            first_data, scale = 1, math.pi / 180.0
+        elif head and head[0] and not _looks_numeric(head[0]):
+            raise CorruptFileError(
+                f"{p}: line 1: unexpected header {lines[0]!r}; expected {','.join(WHISK_HEADER)!r}"
+            )
+    rows = lines[first_data:]
+    if not rows:
+        raise CorruptFileError(f"{p}: line {first_data + 1}: no samples in whisk file")
+    try:  # fast path; the slow path below locates the first bad line
+        data = np.array([r.split(",") for r in rows], dtype=np.float64)
+        ok = data.ndim == 2 and data.shape[1] == 4 and bool(np.all(np.isfinite(data)))
+    except ValueError:
+        ok = False
+    if not ok:
+        data = np.empty((len(rows), 4))
+        for i, row in enumerate(rows):
+            lineno = i + first_data + 1
+            tokens = row.split(",")
+            if len(tokens) != 4:
+                raise CorruptFileError(
+                    f"{p}: line {lineno}: expected 4 columns ({','.join(WHISK_HEADER)}), "
+                    f"found {len(tokens)}"
+                )
+            for j, tok in enumerate(tokens):
+                data[i, j] = _parse_float(tok, p, lineno, WHISK_HEADER[j])
+    return WhiskRecord(
+        module=module,
+        angle_rad=data[:, 0] * scale if scale != 1.0 else data[:, 0],
+        x_counts=data[:, 1],
+        y_counts=data[:, 2],
+        sample_rate_hz=sample_rate_hz,
+        cycle=cycle,
+        spare=data[:, 3],
+    )
+
+
+def _looks_numeric(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _pose_line(entry: PoseEntry) -> str:
+    vals = [entry.time_s, *entry.pose.position_m.tolist(), *entry.pose.quaternion_xyzw.tolist()]
+    return ",".join(format(v, ".17g") for v in vals) + "," + entry.whisk_file + "\n"
+
+
+class PoseLogWriter:
+    """Appends pose-log lines, each flushed and fsynced before :meth:`append` returns.
+
+    Parameters
+    ----------
+    path : path-like
+        The pose log. A missing or empty file gets the header; an existing one is
+        checked and appended to (resuming a session), and its last time stamp
+        is the lower bound for the next line.
+
+    Raises
+    ------
+    CorruptFileError
+        If an existing log is malformed.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self._last_time = -math.inf
+        if self.path.exists() and self.path.stat().st_size > 0:
+            entries = read_pose_log(self.path)
+            if entries:
+                self._last_time = entries[-1].time_s
+            needs_header = False
+        else:
+            needs_header = True
+        self._fh = open(self.path, "a", encoding="utf-8", newline="\n")
+        if needs_header:
+            self._write(",".join(POSE_LOG_HEADER) + "\n")
+            _fsync_dir(self.path.parent)
+
+    def _write(self, text: str) -> None:
+        self._fh.write(text)
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+
+    def append(
+        self,
+        time_s: float,
+        pose: PoseLike,
+        whisk_file: str,
+    ) -> PoseEntry:
+        """Validate and append one line.
+
+        Parameters
+        ----------
+        time_s : float
+            Time stamp, s.
+        pose : PoseLike
+            End-effector pose (see :func:`whisker_io.pose.as_pose`).
+        whisk_file : str
+            Stem of the cycle's whisk files.
+
+        Raises
+        ------
+        InvalidInputError
+            Bad pose values, or ``time_s`` earlier than the previous line (the
+            log must be in time order). Nothing is written then.
+        """
+        if self._fh.closed:
+            raise InvalidInputError(f"pose log {self.path} is closed; open a new PoseLogWriter")
+        entry = PoseEntry(time_s, pose, whisk_file)
+        self.check_time(entry.time_s)
+        self._write(_pose_line(entry))
+        self._last_time = entry.time_s
+        return entry
+
+    def check_time(self, time_s: float) -> None:
+        """Raise :class:`InvalidInputError` if ``time_s`` is earlier than the last line's time."""
+        if time_s < self._last_time:
+            raise InvalidInputError(
+                f"pose time {time_s!r} s is earlier than the previous line's {self._last_time!r} s; "
+                "the pose log must be in time order"
+            )
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        if not self._fh.closed:
+            self._fh.close()
+
+    def __enter__(self) -> PoseLogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
+    """Read and validate a pose log.
+
+    Returns
+    -------
+    list of PoseEntry
+        In file order.
+
+    Raises
+    ------
+    CorruptFileError
+        Missing file, wrong header, a line without 9 columns, a non-numeric or
+        non-finite value, a non-unit quaternion, or a time stamp earlier than
+        the line before (out of time order); the message names the file and the
+        1-based line. A final line without a newline (a write torn by a crash) is
+        ignored with a warning.
+    """
+    p = Path(path)
+    lines = _read_lines(p, "pose log")
+    tail = lines.pop()  # "" when the file ends with a newline
+    if tail:
+        log.warning("%s: ignoring torn final line %d (no newline): %r", p, len(lines) + 1, tail)
+    if not lines:
+        raise CorruptFileError(f"{p}: line 1: empty pose log; expected header {','.join(POSE_LOG_HEADER)!r}")
+    if tuple(t.strip() for t in lines[0].split(",")) != POSE_LOG_HEADER:
+        raise CorruptFileError(
+            f"{p}: line 1: unexpected header {lines[0]!r}; expected {','.join(POSE_LOG_HEADER)!r}"
+        )
+    entries: list[PoseEntry] = []
+    for i, line in enumerate(lines[1:], start=2):
+        tokens = line.split(",")
+        if len(tokens) != len(POSE_LOG_HEADER):
+            raise CorruptFileError(
+                f"{p}: line {i}: expected {len(POSE_LOG_HEADER)} columns ({','.join(POSE_LOG_HEADER)}), "
+                f"found {len(tokens)}"
+            )
+        vals = [_parse_float(tok, p, i, POSE_LOG_HEADER[j]) for j, tok in enumerate(tokens[:8])]
+        try:
+            entry = PoseEntry(vals[0], (vals[1:4], vals[4:8]), tokens[8].strip())
+        except InvalidInputError as exc:
+            raise CorruptFileError(f"{p}: line {i}: {exc}") from None
+        if entries and entry.time_s < entries[-1].time_s:
+            raise CorruptFileError(
+                f"{p}: line {i}: time {entry.time_s!r} s is earlier than line {i - 1}'s "
+                f"{entries[-1].time_s!r} s; the pose log is out of time order"
+            )
+        entries.append(entry)
+    return entries
+
+
+class RecordingWriter:
+    """Writes a session: per-module whisk CSVs, then the cycle's pose-log line.
+
+    Parameters
+    ----------
+    directory : path-like
+        Session directory (created if missing). The pose log is
+        ``directory / "pose_log.csv"``.
+
+    Examples
+    --------
+    >>> with RecordingWriter(tmpdir) as w:                       # doctest: +SKIP
+    ...     w.write_cycle(records, time_s=t, pose=pose)
+    """
+
+    def __init__(self, directory: str | os.PathLike[str]) -> None:
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._pose_log = PoseLogWriter(self.directory / POSE_LOG_NAME)
+
+    def write_cycle(
+        self,
+        records: Iterable[WhiskRecord],
+        time_s: float,
+        pose: PoseLike,
+    ) -> PoseEntry:
+        """Write all module records of one cycle, then append its pose line.
+
+        Parameters
+        ----------
+        records : iterable of WhiskRecord
+            The cycle's module records.
+        time_s : float
+            Time stamp of the pose line, s.
+        pose : PoseLike
+            End-effector pose at the end of the cycle (see :func:`whisker_io.pose.as_pose`).
+
+        All records must share one cycle index and have distinct modules. The
+        pose is validated before any file is written, so a bad pose or an
+        out-of-order time leaves the directory unchanged.
+
+        Returns
+        -------
+        PoseEntry
+            The appended pose-log line.
+        """
+        recs = list(records)
+        if not recs:
+            raise InvalidInputError("write_cycle needs at least one WhiskRecord")
+        if not all(isinstance(r, WhiskRecord) for r in recs):
+            raise InvalidInputError("records must all be WhiskRecord instances")
+        cycles = {r.cycle for r in recs}
+        if len(cycles) != 1:
+            raise InvalidInputError(f"records of one cycle must share a cycle index, got {sorted(cycles)}")
+        modules = [r.module for r in recs]
+        if len(set(modules)) != len(modules):
+            raise InvalidInputError(f"duplicate modules in one cycle: {sorted(modules)}")
+        stem = whisk_file_stem(recs[0].cycle)
+        entry = PoseEntry(time_s, pose, stem)
+        self._pose_log.check_time(entry.time_s)
+        for r in recs:
+            write_whisk_csv(self.directory / whisk_file_name(r.cycle, r.module), r)
+        return self._pose_log.append(entry.time_s, entry.pose, stem)
+
+    def close(self) -> None:
+        """Close the pose log (idempotent)."""
+        self._pose_log.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def replay(
+    directory: str | os.PathLike[str],
+    sample_rate_hz: float = SAMPLE_RATE_HZ,
+    modules: Sequence[str] | None = None,
+) -> Iterator[ReplayedCycle]:
+    """Iterate a recorded session's whisk cycles in pose-log order.
+
+    Parameters
+    ----------
+    directory : path-like
+        Session directory holding ``pose_log.csv`` and the whisk files.
+    sample_rate_hz : float, default 2000
+        Sampling rate of the whisk files, Hz.
+    modules : sequence of str, optional
+        Only these modules (each must be present in every cycle).
+
+    Yields
+    ------
+    ReplayedCycle
+        Pose and module records of each cycle.
+
+    Raises
+    ------
+    CorruptFileError
+        A malformed pose log or whisk file (naming file and line), or a pose
+        line whose cycle has no whisk files / lacks a requested module.
+    """
+    d = Path(directory)
+    pose_path = d / POSE_LOG_NAME
+    entries = read_pose_log(pose_path)
+    for lineno, entry in enumerate(entries, start=2):
+        files = sorted(d.glob(f"{entry.whisk_file}_*.csv"))
+        by_module: dict[str, Path] = {}
+        for f in files:
+            module = f.name[len(entry.whisk_file) + 1 : -len(".csv")]
+            if MODULE_NAME_RE.match(module):
+                by_module[module] = f
+        wanted = sorted(by_module) if modules is None else list(modules)
+        missing = [m for m in wanted if m not in by_module]
+        if not wanted or missing:
+            names = [f"{entry.whisk_file}_{m}.csv" for m in missing] or [f"{entry.whisk_file}_*.csv"]
+            raise CorruptFileError(f"{pose_path}: line {lineno}: whisk file(s) {', '.join(names)} missing in {d}")
+        m = _FILE_RE.match(by_module[wanted[0]].name)
+        cycle = int(m.group(1)) if m else 0
+        records = {
+            mod: read_whisk_csv(by_module[mod], module=mod, cycle=cycle, sample_rate_hz=sample_rate_hz)
+            for mod in wanted
+        }
+        yield ReplayedCycle(entry=entry, records=MappingProxyType(records))

@@ -1,0 +1,439 @@
+"""Arm trajectories around an object: loops of whisk poses with the array facing the surface.
+
+The thesis explores each object along loops that visit its surface region by
+region: in Ch.5 trajectory "A" builds the object maps and a different, novel
+trajectory "B" gathers the validation data (Sec 5.2.1, Fig 5.14); in Ch.6 the
+visited regions are the faces of an ellipsoid fitted around the object, or of a
+sphere (Sec 6.1.3.1, 6.1.3.2), over two loops. The step between whisks is about
+11 cm and 12 deg, 3 cm and 3 deg for the Box (Sec 5.2.2.1).
+
+Construction (decisions)
+------------------------
+1. **Fitted surface** (:func:`fit_surface`): the axis-aligned bounding box of the
+   mesh (centre ``c``, half-extents ``h``; the objects of
+   :mod:`whisker_io.sim.objects` stand upright) gives the ellipsoid with
+   semi-axes ``sqrt(3) h``, the smallest one of that shape through the box's
+   corners, or the sphere of radius ``|h|`` through them. Either encloses the
+   object, so every point on it is outside the mesh.
+2. **Loop** (:class:`LoopShape`): a closed curve on the fitted surface, azimuth
+   once around the vertical axis while the elevation oscillates,
+   ``el(s) = offset + amplitude sin(waves 2 pi s + phase)``. Family "A" and family
+   "B" (:data:`TRAJECTORY_FAMILIES`) differ in start azimuth, direction, number of
+   waves, phase and amplitude, so B passes the object's regions at other
+   latitudes, in the other order and from other viewpoints.
+3. **Facing the surface**: for a point ``P`` of the loop the surface point ``S``
+   is the point of the mesh nearest to ``P``; the array axis (+y of the
+   end-effector frame, rostral, see :mod:`whisker_io.array.geometry`) points from
+   ``P`` toward ``S``, which is along the surface normal at ``S`` wherever the
+   surface is smooth. These directions are averaged over ``smoothing_deg`` of the
+   loop, so the array turns gradually round edges and where ``S`` jumps (to a
+   handle), and the faced point is where the averaged axis from ``P`` meets the
+   mesh. The end-effector origin is placed at ``faced point - standoff y``,
+   ``standoff = clearance_m +`` the most rostral whisker base's distance along
+   the axis (0.2019 m for the thesis array), so the whisker bases stay
+   ``clearance_m`` in front of the surface and the 60-160 mm whiskers reach it
+   while protracting. If a whisker base would still be inside or behind the
+   object (a concave region, a handle) the pose backs off along the axis in
+   5-mm steps until the segments from the origin to every base are free.
+4. **Roll about the axis**: the "maintain yaw" rule of Alg 8 (the frame's z-axis
+   is the world up direction made perpendicular to the axis, ``x = y x z``; when
+   the axis is vertical the previous z is kept), then a fixed roll about the
+   axis, ``roll_deg`` (default 90 deg: E's x-axis points down). The six columns
+   of Fig 2.15 sit about 50-60 deg apart around the axis; rolled by 90 deg,
+   columns A, B and E lie near the vertical plane and reach the surface of the
+   upright, vertically curved objects (Mug, Barrel: 8-9 contacts at mid-height
+   against 5 with ``roll_deg = 0``, where only C and D do). The roll is the same
+   for every pose, so the yaw stays consistent along the loop.
+5. **Steps**: the loop is sampled densely (``samples_per_loop`` poses built as
+   above, more where the array turns by over 2 deg between them, e.g. round an
+   edge, up to 4096) and the whisk poses are placed at equal increments of the step cost
+   ``max(translation / step_m, rotation / step_deg)`` along the closed loop,
+   interpolated between the dense poses (position linearly, orientation by
+   slerp) and rounded up to a whole number of steps. Both measures of a step are
+   then at most their bound (the cost of a chord never exceeds the cost along
+   the path) and one of them about equal to it; a pose that has to back off
+   (item 3) can exceed it by the back-off. Where the nearest surface point
+   jumps (from a handle to the body) the interpolated poses bridge the jump.
+   The loop is then repeated ``n_loops`` times (revisits).
+
+All poses are :class:`~whisker_io.pose.Pose` s of the end-effector frame in the
+mesh's (world) frame, metres.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import trimesh
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from whisker_io.array.geometry import WhiskerArray
+from whisker_io.errors import ConfigError, InvalidInputError
+from whisker_io.pose import Pose
+from whisker_io.sim.sweep import MeshTarget
+from whisker_io.validation import finite_scalar, finite_vector, whole_number
+
+__all__ = [
+    "FittedSurface",
+    "LoopShape",
+    "TRAJECTORY_FAMILIES",
+    "fit_surface",
+    "facing_pose",
+    "step_sizes",
+    "object_trajectory",
+]
+
+logger = logging.getLogger(__name__)
+
+_BACKOFF_STEP_M = 0.005
+_MAX_DENSE_TURN_RAD = math.radians(2.0)  # finer dense sampling where the array turns faster
+_MAX_DENSE = 4096
+_MAX_BACKOFF_STEPS = 40
+
+
+@dataclass(frozen=True, eq=False)
+class FittedSurface:
+    """An axis-aligned ellipsoid (or sphere) around an object.
+
+    Attributes
+    ----------
+    centre_m : ndarray (3,)
+        Centre, m.
+    semi_axes_m : ndarray (3,)
+        Semi-axes along world x, y, z, m (all equal for a sphere).
+    """
+
+    centre_m: NDArray[np.float64]
+    semi_axes_m: NDArray[np.float64]
+
+    def point(self, azimuth_rad: ArrayLike, elevation_rad: ArrayLike) -> NDArray[np.float64]:
+        """Points of the surface at azimuth (about +z from +x) and elevation, shape (..., 3), m."""
+        az = np.asarray(azimuth_rad, dtype=float)
+        el = np.asarray(elevation_rad, dtype=float)
+        unit = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+        return self.centre_m + unit * self.semi_axes_m
+
+
+def fit_surface(mesh: trimesh.Trimesh, shape: Literal["ellipsoid", "sphere"] = "ellipsoid") -> FittedSurface:
+    """The ellipsoid (semi-axes ``sqrt(3) h``) or sphere (radius ``|h|``) through the corners of
+    the mesh's bounding box (centre ``c``, half-extents ``h``); see the module docstring.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a non-empty ``trimesh.Trimesh``, a flat or non-finite bounding box, or
+        an unknown shape.
+    """
+    _check_mesh(mesh)
+    lo, hi = np.asarray(mesh.bounds, dtype=float)
+    h = 0.5 * (hi - lo)
+    if not (np.all(np.isfinite(h)) and np.all(h > 0)):
+        raise InvalidInputError(f"the mesh's bounding box {mesh.bounds.tolist()} is flat or not finite")
+    if shape == "ellipsoid":
+        axes = math.sqrt(3.0) * h
+    elif shape == "sphere":
+        axes = np.full(3, float(np.linalg.norm(h)))
+    else:
+        raise InvalidInputError(f"unknown fitted shape {shape!r}; use 'ellipsoid' or 'sphere'")
+    centre = 0.5 * (hi + lo)
+    centre.setflags(write=False)
+    axes.setflags(write=False)
+    return FittedSurface(centre, axes)
+
+
+@dataclass(frozen=True)
+class LoopShape:
+    """One closed loop on a fitted surface (see the module docstring, item 2).
+
+    Attributes
+    ----------
+    azimuth_start_deg : float
+        Azimuth of the first pose, degrees (about +z, from +x).
+    direction : int
+        +1 counter-clockwise seen from above, -1 clockwise.
+    elevation_amplitude_deg : float
+        Amplitude of the elevation oscillation, degrees (0 for a ring of latitude).
+    elevation_waves : int
+        Oscillations per loop (>= 0).
+    elevation_phase_deg : float
+        Phase of the oscillation, degrees.
+    elevation_offset_deg : float
+        Mean elevation, degrees; ``|offset| + amplitude`` must stay below 80 deg.
+    """
+
+    azimuth_start_deg: float = 0.0
+    direction: int = 1
+    elevation_amplitude_deg: float = 25.0
+    elevation_waves: int = 2
+    elevation_phase_deg: float = 0.0
+    elevation_offset_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("azimuth_start_deg", "elevation_amplitude_deg", "elevation_phase_deg", "elevation_offset_deg"):
+            finite_scalar(getattr(self, name), name)
+        if self.direction not in (1, -1) or isinstance(self.direction, bool):
+            raise ConfigError(f"direction must be +1 or -1, got {self.direction!r}")
+        whole_number(self.elevation_waves, "elevation_waves", minimum=0)
+        if not (self.elevation_amplitude_deg >= 0
+                and abs(self.elevation_offset_deg) + self.elevation_amplitude_deg < 80.0):
+            raise ConfigError(
+                "elevation_amplitude_deg must be >= 0 and |elevation_offset_deg| + amplitude < 80 deg "
+                "(near the poles the loop degenerates)")
+
+    def angles(self, s: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Azimuth and elevation (rad) at loop parameter ``s`` in [0, 1)."""
+        az = math.radians(self.azimuth_start_deg) + self.direction * 2.0 * math.pi * s
+        el = math.radians(self.elevation_offset_deg) + math.radians(self.elevation_amplitude_deg) * np.sin(
+            2.0 * math.pi * self.elevation_waves * s + math.radians(self.elevation_phase_deg))
+        return az, el
+
+
+TRAJECTORY_FAMILIES: dict[str, LoopShape] = {
+    "A": LoopShape(azimuth_start_deg=0.0, direction=1, elevation_amplitude_deg=25.0,
+                   elevation_waves=2, elevation_phase_deg=0.0),
+    "B": LoopShape(azimuth_start_deg=35.0, direction=-1, elevation_amplitude_deg=18.0,
+                   elevation_waves=3, elevation_phase_deg=90.0, elevation_offset_deg=5.0),
+}
+"""The two Ch.5 families: "A" builds the object maps, "B" is the novel validation trajectory."""
+
+
+def _check_mesh(mesh: object) -> None:
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InvalidInputError(f"mesh must be a non-empty trimesh.Trimesh, got {type(mesh).__name__}")
+
+
+def _frames(y_axes: NDArray[np.float64], up: NDArray[np.float64],
+            previous_z: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """Rotations (n, 3, 3) with columns (x, y, z): y given (unit), z = up made perpendicular
+    to y, x = y x z (Alg 8); where y is vertical the previous row's z (or ``previous_z``) is kept."""
+    z = up - (y_axes @ up)[:, None] * y_axes
+    norm = np.linalg.norm(z, axis=1)
+    for i in np.flatnonzero(norm < 1e-6):  # axis vertical: keep the previous roll
+        prev = z[i - 1] if i > 0 else (previous_z if previous_z is not None else np.array([1.0, 0.0, 0.0]))
+        z[i] = prev - (prev @ y_axes[i]) * y_axes[i]
+        norm[i] = np.linalg.norm(z[i])
+    z = z / norm[:, None]
+    return np.stack([np.cross(y_axes, z), y_axes, z], axis=2)
+
+
+def facing_pose(
+    surface_point_m: ArrayLike,
+    axis: ArrayLike,
+    standoff_m: float,
+    previous_z: ArrayLike | None = None,
+    up: ArrayLike = (0.0, 0.0, 1.0),
+) -> Pose:
+    """The end-effector pose whose array axis (+y) points along ``axis`` at ``surface_point_m``.
+
+    Parameters
+    ----------
+    surface_point_m : array_like (3,)
+        The surface point the array faces, m.
+    axis : array_like (3,)
+        Direction of the array axis (toward the surface); normalised here.
+    standoff_m : float
+        Distance from the end-effector origin to the surface point along the axis, m.
+    previous_z : array_like (3,), optional
+        The previous pose's z-axis, kept when ``axis`` is vertical.
+    up : array_like (3,)
+        World up direction (Alg 8's ``g``).
+
+    Returns
+    -------
+    Pose
+        Origin ``surface_point - standoff axis``, z-axis as close to ``up`` as the
+        axis allows, ``x = y x z``.
+    """
+    s = finite_vector(surface_point_m, 3, "surface_point_m")
+    y = finite_vector(axis, 3, "axis")
+    n = float(np.linalg.norm(y))
+    if not n > 0:
+        raise InvalidInputError("axis must be a non-zero vector")
+    y = y / n
+    g = finite_vector(up, 3, "up")
+    g = g / np.linalg.norm(g)
+    pz = None if previous_z is None else finite_vector(previous_z, 3, "previous_z")
+    d = finite_scalar(standoff_m, "standoff_m")
+    R = _frames(y[None], g, pz)[0]
+    return Pose.from_rotation(s - d * y, Rotation.from_matrix(R))
+
+
+def _bases_blocked(
+    target: MeshTarget, origins: NDArray[np.float64], rotations: NDArray[np.float64], bases_e: NDArray[np.float64]
+) -> NDArray[np.bool_]:
+    """Per pose (n,): does a segment from the end-effector origin to a whisker base cross the mesh?"""
+    n, m = len(origins), len(bases_e)
+    seg = np.einsum("nij,mj->nmi", rotations, bases_e).reshape(-1, 3)
+    length = np.linalg.norm(seg, axis=1)
+    start = np.repeat(origins, m, axis=0)
+    dist, _, _ = target.first_hits(start, seg / length[:, None], length)
+    return np.isfinite(dist).reshape(n, m).any(axis=1)
+
+
+def _smoothed_axes(directions: NDArray[np.float64], window: int) -> NDArray[np.float64]:
+    """Unit directions averaged over a centred circular window of ``window`` dense samples."""
+    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    if window > 1:
+        n = len(d)
+        idx = (np.arange(n)[:, None] + np.arange(window) - window // 2) % n
+        d = d[idx].mean(axis=1)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    return d
+
+
+def step_sizes(poses: list[Pose]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Translation (m) and rotation (rad) of each step between successive poses, shape (n - 1,) each."""
+    if len(poses) < 2:
+        return np.zeros(0), np.zeros(0)
+    p = np.array([q.position_m for q in poses])
+    r = Rotation.from_quat(np.array([q.quaternion_xyzw for q in poses]))
+    return np.linalg.norm(p[1:] - p[:-1], axis=1), (r[:-1].inv() * r[1:]).magnitude()
+
+
+def object_trajectory(
+    mesh: trimesh.Trimesh,
+    family: str | LoopShape = "A",
+    n_loops: int = 2,
+    step_m: float = 0.11,
+    step_deg: float = 12.0,
+    shape: Literal["ellipsoid", "sphere"] = "ellipsoid",
+    clearance_m: float = 0.015,
+    array: WhiskerArray | None = None,
+    samples_per_loop: int = 240,
+    up: ArrayLike = (0.0, 0.0, 1.0),
+    roll_deg: float = 90.0,
+    smoothing_deg: float = 20.0,
+) -> list[Pose]:
+    """Whisk poses of ``n_loops`` loops around ``mesh`` (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The object, world frame, metres, standing along ``up``.
+    family : {"A", "B"} or LoopShape
+        Loop family (:data:`TRAJECTORY_FAMILIES`) or a custom loop.
+    n_loops : int, default 2
+        Times the loop is run (>= 1); every loop visits the same poses.
+    step_m, step_deg : float
+        Largest translation (m) and rotation (degrees) between whisks. Thesis:
+        0.11 m and 12 deg; the Box 0.03 m and 3 deg.
+    shape : {"ellipsoid", "sphere"}
+        Fitted surface that steers the loop (:func:`fit_surface`).
+    clearance_m : float, default 0.015
+        Gap between the surface and the most rostral whisker base along the axis, m.
+    array : WhiskerArray, optional
+        The array (default the thesis array); sets the standoff and the base check.
+    samples_per_loop : int, default 240
+        Dense poses per loop from which the whisk poses are picked (>= 16).
+    up : array_like (3,)
+        World up direction.
+    roll_deg : float, default 90
+        Rotation of the array about its own axis from the Alg 8 frame (z up), degrees
+        (module docstring, item 4).
+    smoothing_deg : float, default 20
+        Width of the loop window (degrees of the loop parameter, 0-180) over which
+        the facing directions are averaged (module docstring, item 3).
+
+    Returns
+    -------
+    list of Pose
+        ``n_loops * m`` poses, ``m >= 3`` per loop, in whisk order.
+
+    Raises
+    ------
+    InvalidInputError, ConfigError
+        A bad mesh, an unknown family or shape, non-positive steps, fewer than one
+        loop or non-finite parameters.
+    """
+    _check_mesh(mesh)
+    if isinstance(family, str):
+        try:
+            loop = TRAJECTORY_FAMILIES[family]
+        except KeyError:
+            raise ConfigError(f"unknown trajectory family {family!r}; use one of {sorted(TRAJECTORY_FAMILIES)} "
+                              "or a LoopShape") from None
+    elif isinstance(family, LoopShape):
+        loop = family
+    else:
+        raise ConfigError(f"family must be 'A', 'B' or a LoopShape, got {type(family).__name__}")
+    loops = whole_number(n_loops, "n_loops", minimum=1)
+    dense = whole_number(samples_per_loop, "samples_per_loop", minimum=16)
+    step_t = finite_scalar(step_m, "step_m")
+    step_r = math.radians(finite_scalar(step_deg, "step_deg"))
+    clearance = finite_scalar(clearance_m, "clearance_m")
+    if not (step_t > 0 and step_r > 0):
+        raise InvalidInputError(f"step_m and step_deg must be > 0, got {step_m!r} and {step_deg!r}")
+    if not 0 <= clearance <= 1.0:
+        raise InvalidInputError(f"clearance_m must be in [0, 1] m, got {clearance_m!r}")
+    g = finite_vector(up, 3, "up")
+    if not np.linalg.norm(g) > 0:
+        raise InvalidInputError("up must be a non-zero vector")
+    g = g / np.linalg.norm(g)
+    arr = WhiskerArray.thesis() if array is None else array
+    if not isinstance(arr, WhiskerArray):
+        raise InvalidInputError(f"array must be a WhiskerArray, got {type(arr).__name__}")
+    standoff = clearance + float(arr.positions_m[:, 1].max())
+    surface = fit_surface(mesh, shape)
+    target = MeshTarget(mesh)
+    smoothing = finite_scalar(smoothing_deg, "smoothing_deg")
+    if not 0 <= smoothing <= 180:
+        raise InvalidInputError(f"smoothing_deg must be in [0, 180], got {smoothing_deg!r}")
+    far = 2.0 * float(np.linalg.norm(surface.semi_axes_m))
+    roll = Rotation.from_rotvec([0.0, math.radians(finite_scalar(roll_deg, "roll_deg")), 0.0]).as_matrix()
+
+    def back_off(origin: NDArray[np.float64], R: NDArray[np.float64]) -> None:
+        """Move poses whose whisker bases are inside or behind the object back along the axis."""
+        pending = np.arange(len(origin))
+        for _ in range(_MAX_BACKOFF_STEPS):
+            pending = pending[_bases_blocked(target, origin[pending], R[pending], arr.positions_m)]
+            if not pending.size:
+                return
+            origin[pending] -= _BACKOFF_STEP_M * R[pending, :, 1]
+        logger.warning("%d poses still have whisker bases behind the surface after backing off %.0f mm",
+                       pending.size, 1e3 * _BACKOFF_STEP_M * _MAX_BACKOFF_STEPS)
+
+    def dense_loop(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        P = surface.point(*loop.angles(np.arange(n) / n))
+        S, _, _ = trimesh.proximity.closest_point(mesh, P)
+        S = np.asarray(S, dtype=float)
+        axes = _smoothed_axes(S - P, max(1, int(round(n * smoothing / 360.0))))
+        hit, _, H = target.first_hits(P, axes, np.full(n, far))
+        H = np.where(np.isfinite(hit)[:, None], H, S)  # a ray past a thin part: the nearest point
+        R = _frames(axes, g) @ roll
+        origin = H - standoff * axes
+        back_off(origin, R)
+        return origin, R
+
+    def turns(R: NDArray[np.float64]) -> Rotation:
+        rot = Rotation.from_matrix(R)
+        return rot.inv() * rot[np.roll(np.arange(len(R)), -1)]
+
+    origin, R = dense_loop(dense)
+    turn = turns(R)
+    widest = float(turn.magnitude().max())
+    if widest > _MAX_DENSE_TURN_RAD and dense < _MAX_DENSE:  # sharp turns (edges): sample them finer
+        dense = min(_MAX_DENSE, int(math.ceil(dense * widest / _MAX_DENSE_TURN_RAD)))
+        origin, R = dense_loop(dense)
+        turn = turns(R)
+
+    # the closed loop's step costs, then whisk poses at equal cost increments along it
+    nxt = np.roll(np.arange(dense), -1)
+    rot = Rotation.from_matrix(R)
+    cost = np.maximum(np.linalg.norm(origin[nxt] - origin, axis=1) / step_t, turn.magnitude() / step_r)
+    cum = np.concatenate([[0.0], np.cumsum(cost)])  # cum[j] at dense pose j, cum[-1] back at pose 0
+    n_steps = max(3, int(math.ceil(cum[-1] - 1e-9)))
+    targets = cum[-1] * np.arange(n_steps) / n_steps
+    seg = np.clip(np.searchsorted(cum, targets, side="right") - 1, 0, dense - 1)
+    frac = np.where(cost[seg] > 0, (targets - cum[seg]) / np.where(cost[seg] > 0, cost[seg], 1.0), 0.0)
+    frac = np.clip(frac, 0.0, 1.0)
+    pos = origin[seg] + frac[:, None] * (origin[nxt[seg]] - origin[seg])
+    rots = (rot[seg] * Rotation.from_rotvec(frac[:, None] * turn[seg].as_rotvec())).as_matrix()  # slerp
+    back_off(pos, rots)
+    quats = Rotation.from_matrix(rots).as_quat()
+    one_loop = [Pose(pos[i], quats[i]) for i in range(n_steps)]
+    return one_loop * loops

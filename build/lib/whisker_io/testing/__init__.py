@@ -1,0 +1,10 @@
+"""Test doubles of the hardware, for tests and examples (not needed to use the library).
+
+* :mod:`whisker_io.testing.fake_rtde_server` - a local RTDE server that the real
+  ur-rtde client connects to, standing in for a UR controller;
+* :mod:`whisker_io.testing.fake_usb_backend` - a pyusb-shaped backend the
+  unmodified :class:`~whisker_io.hw.usb_array.USBArray` reads frames from.
+
+They live in this explicit subpackage so that the drivers in :mod:`whisker_io.hw`
+contain only code that talks to real devices.
+"""

@@ -1,0 +1,308 @@
+"""The one set of finite-value validators of the distribution.
+
+Every public entry point that takes numbers checks them here before it touches
+any state, so bad input (NaN, inf, a string, a wrong shape) raises the project's
+typed error with a message naming the argument, never a NaN result later:
+
+* :func:`finite_scalar` - one finite real number -> ``float``;
+* :func:`finite_vector` - a 1-D array of finite reals, optionally of length n;
+* :func:`finite_array` - an array of finite reals of a given shape;
+* :func:`whole_number` - an integer count (an integral float is accepted);
+* :func:`config_field` - one field of a configuration dataclass (its kind, range,
+  oddness or allowed names), raising :class:`~whisker_io.errors.ConfigError`.
+
+Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
+shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
+configuration field raises its subclass :class:`~whisker_io.errors.ConfigError`.
+Strings, bytes and booleans are not numbers here (``float("1")`` would accept a
+string, ``True`` would pass as 1).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
+
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "MAX_STEP_M", "MAX_TURN_RAD"]
+
+#: Largest accepted translation of one odometry sample or between two successive poses (m);
+#: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
+#: (:mod:`maps.odometry`), the parity engine and the simulated odometry noise.
+MAX_STEP_M = 1.0e4
+#: Largest accepted rotation of one odometry sample (rad).
+MAX_TURN_RAD = 1.0e4
+
+
+def _holds_text(value: list | tuple) -> bool:
+    """True when a (nested) list or tuple holds a string, bytes or a bool anywhere."""
+    return any(
+        isinstance(x, (str, bytes, bool, np.bool_, np.str_)) or (isinstance(x, (list, tuple)) and _holds_text(x))
+        for x in value
+    )
+
+
+def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
+    try:
+        if np.iscomplexobj(value):
+            raise TypeError("complex")
+        if isinstance(value, (list, tuple)) and _holds_text(value):  # np.array would parse "0" as 0.0
+            raise TypeError("text")
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}") from None
+    if arr.dtype != np.float64:  # pragma: no cover - np.array(dtype=float) guarantees it
+        raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
+    return arr
+
+
+def _check_finite(arr: NDArray[np.float64], name: str) -> None:
+    if np.isfinite(arr).all():  # fast path: the error details below only when needed
+        return
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        where = tuple(int(i) for i in np.unravel_index(int(bad[0]), arr.shape)) if arr.ndim > 1 else int(bad[0])
+        raise InvalidInputError(
+            f"{name} holds NaN/inf at index {where} ({bad.size} non-finite values); "
+            "give finite numbers (mask or drop missing samples first)"
+        )
+
+
+def finite_scalar(value: object, name: str) -> float:
+    """Return ``value`` as a finite ``float``.
+
+    Parameters
+    ----------
+    value : real number or 0-d array
+        The value to check.
+    name : str
+        Argument name for the error message.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a real number (a string, a bool, None, a complex number) or NaN/inf.
+    ShapeError
+        An array with one or more dimensions.
+    """
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        try:
+            out = float(value)
+        except OverflowError:
+            raise InvalidInputError(f"{name} must be finite, got an integer too large for a float") from None
+    else:
+        arr = _as_float_array(value, name)
+        if arr.ndim != 0:
+            raise ShapeError(f"{name} must be a single number, got an array of shape {arr.shape}")
+        out = float(arr)
+    if out != out or out in (float("inf"), float("-inf")):
+        raise InvalidInputError(f"{name} must be finite, got {out!r}")
+    return out
+
+
+def finite_array(value: ArrayLike, shape: Sequence[int | None] | None, name: str) -> NDArray[np.float64]:
+    """Return ``value`` as a new float64 array of finite values.
+
+    Parameters
+    ----------
+    value : array_like
+        The values to check.
+    shape : sequence of int or None, optional
+        Required shape; ``None`` in a position accepts any length there, a
+        ``None`` shape accepts any shape.
+    name : str
+        Argument name for the error message.
+
+    Returns
+    -------
+    ndarray of float64
+        A fresh (writable) copy.
+
+    Raises
+    ------
+    ShapeError
+        The shape differs from ``shape``.
+    InvalidInputError
+        Non-numeric or NaN/inf entries (the message gives the first bad index).
+    """
+    arr = _as_float_array(value, name)
+    if shape is not None:
+        want = tuple(shape)
+        if arr.ndim != len(want) or any(w is not None and w != s for w, s in zip(want, arr.shape)):
+            shown = "(" + ", ".join("n" if w is None else str(w) for w in want) + ("," if len(want) == 1 else "") + ")"
+            raise ShapeError(f"{name} must have shape {shown}, got {arr.shape}")
+    _check_finite(arr, name)
+    return arr
+
+
+def finite_vector(value: ArrayLike, n: int | None, name: str) -> NDArray[np.float64]:
+    """Return ``value`` as a new 1-D float64 array of finite values.
+
+    Parameters
+    ----------
+    value : array_like, shape (n,)
+        The vector; a plain number is accepted when ``n == 1``.
+    n : int or None
+        Required length; ``None`` accepts any length.
+    name : str
+        Argument name for the error message.
+
+    Raises
+    ------
+    ShapeError
+        Not 1-D, or not of length ``n``.
+    InvalidInputError
+        Non-numeric or NaN/inf entries.
+
+    Examples
+    --------
+    >>> finite_vector([1, 2, 3], 3, "position_m").tolist()
+    [1.0, 2.0, 3.0]
+    """
+    arr = _as_float_array(value, name)
+    if arr.ndim == 0 and n == 1:
+        arr = arr.reshape(1)
+    return finite_array(arr, (n,), name)
+
+
+def whole_number(value: object, name: str, minimum: int | None = None) -> int:
+    """Return ``value`` as an ``int`` (a count: samples, bins, neighbours).
+
+    Parameters
+    ----------
+    value : int, numpy integer, or an integral float
+        The count.
+    name : str
+        Argument name for the error message.
+    minimum : int, optional
+        Smallest value allowed.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a finite whole number (a bool, a string, 2.5, NaN), or below ``minimum``.
+    """
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        out = int(value)
+    else:
+        x = finite_scalar(value, name)
+        if not x.is_integer():
+            raise InvalidInputError(f"{name} must be a whole number, got {value!r}")
+        out = int(x)
+    if minimum is not None and out < minimum:
+        raise InvalidInputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return out
+
+
+_KIND_NAMES = {int: "an integer", float: "a finite number", bool: "a boolean (True or False)", str: "a name"}
+
+
+def _is_kind(value: object, kind: type) -> bool:
+    if kind is bool:
+        return isinstance(value, (bool, np.bool_))
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if kind is int:
+        return isinstance(value, (int, np.integer))
+    if kind is float:
+        if not isinstance(value, numbers.Real):
+            return False
+        try:
+            return math.isfinite(float(value))
+        except OverflowError:  # an int too large for a float
+            return False
+    return isinstance(value, str)
+
+
+def config_field(
+    value: Any,
+    name: str,
+    kind: type,
+    *,
+    minimum: float | None = None,
+    above: float | None = None,
+    maximum: float | None = None,
+    odd: bool = False,
+    choices: Sequence[str] | None = None,
+    optional: bool = False,
+    hint: str = "",
+) -> Any:
+    """Check one field of a configuration and return it unchanged.
+
+    The one validator of the configuration dataclasses (``MapConfig``,
+    ``RatSLAMConfig``, ``WhiskerRatSLAMConfig``, the front-end configs): each
+    ``__post_init__`` lists its fields here with the kind and range, so every
+    bad value is refused before any part is built, with a message naming the
+    field, the allowed values and the value given.
+
+    Parameters
+    ----------
+    value : object
+        The field's value.
+    name : str
+        The field's name (for the message).
+    kind : {int, float, bool, str}
+        ``int``: an integer (``numpy`` integers too; not a bool, not 2.0);
+        ``float``: a finite real number (ints accepted; not a bool, NaN or inf);
+        ``bool``: ``True``/``False``; ``str``: a string (one of ``choices`` if given).
+    minimum, above, maximum : float, optional
+        ``value >= minimum``, ``value > above``, ``value <= maximum`` (numbers only).
+    odd : bool
+        An odd integer (a kernel width centred on a cell).
+    choices : sequence of str, optional
+        The allowed names of a ``str`` field.
+    optional : bool
+        ``None`` is allowed too.
+    hint : str
+        Appended to the message: what to do.
+
+    Returns
+    -------
+    object
+        ``value``.
+
+    Raises
+    ------
+    ConfigError
+        The value is of another kind, out of range, even where odd is needed, or not
+        one of ``choices``.
+
+    Examples
+    --------
+    >>> config_field(7, "exc_width", int, minimum=1, odd=True)
+    7
+    >>> config_field(4, "exc_width", int, minimum=1, odd=True)
+    Traceback (most recent call last):
+    ...
+    whisker_io.errors.ConfigError: exc_width must be an odd integer >= 1, got 4
+    """
+    if optional and value is None:
+        return value
+    ok = _is_kind(value, kind)
+    if ok and kind in (int, float):
+        ok = not (
+            (minimum is not None and value < minimum)
+            or (above is not None and value <= above)
+            or (maximum is not None and value > maximum)
+            or (odd and value % 2 == 0)
+        )
+    if ok and choices is not None:
+        ok = value in tuple(choices)
+    if ok:
+        return value
+    if choices is not None:
+        want = "one of " + ", ".join(repr(c) for c in choices)
+    else:
+        bounds = [f"{op} {bound:g}" for op, bound in ((">=", minimum), (">", above), ("<=", maximum)) if bound is not None]
+        want = ("an odd integer" if odd else _KIND_NAMES[kind]) + (" " + " and ".join(bounds) if bounds else "")
+    if optional:
+        want += " or None"
+    raise ConfigError(f"{name} must be {want}, got {value!r}" + (f"; {hint}" if hint else ""))
