@@ -57,13 +57,12 @@ import math
 import os
 import warnings
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 from cansim.errors import ConfigError, InvalidInputError
 from cansim.frontends.visual import VisualTemplateConfig
 
-if TYPE_CHECKING:  # the config class is passed in: ratslam_config imports this module, not the reverse
-    from cansim.models.ratslam_config import RatSLAMConfig
+# The config class is passed in (``config_cls``): ratslam_config imports this module, not the reverse.
 
 __all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed"]
 
@@ -171,7 +170,7 @@ def _read(text: str) -> dict[str, tuple[Any, int]]:
     return values
 
 
-def read_openratslam_text(text: str, config_cls: type[RatSLAMConfig], **overrides: Any) -> RatSLAMConfig:
+def read_openratslam_text(text: str, config_cls: type, **overrides: Any) -> Any:
     """A :class:`RatSLAMConfig` from the text of an OpenRatSLAM config file.
 
     Parameters
@@ -206,7 +205,7 @@ def read_openratslam_text(text: str, config_cls: type[RatSLAMConfig], **override
     return replace(cfg, **overrides) if overrides else cfg
 
 
-def read_openratslam_file(path: str | os.PathLike[str], config_cls: type[RatSLAMConfig], **overrides: Any) -> RatSLAMConfig:
+def read_openratslam_file(path: str | os.PathLike[str], config_cls: type, **overrides: Any) -> Any:
     """:func:`read_openratslam_text` of a file (UTF-8)."""
     try:
         with open(path, encoding="utf-8") as fh:
@@ -218,7 +217,7 @@ def read_openratslam_file(path: str | os.PathLike[str], config_cls: type[RatSLAM
     return read_openratslam_text(text, config_cls, **overrides)
 
 
-def config_from_flat_dict(d: dict[str, Any], config_cls: type[RatSLAMConfig]) -> RatSLAMConfig:
+def config_from_flat_dict(d: dict[str, Any], config_cls: type) -> Any:
     """A :class:`RatSLAMConfig` from the flat description that cansim 0.x saved before the
     configs had one name per concept (OpenRatSLAM's keys plus ``frontend="ids" | "visual" |
     "tactile"`` and the library settings), so that models saved then still load.
