@@ -5,13 +5,14 @@ Follow one whisk through the subpackages, in data-flow order:
 1. ``array`` - the 18-module array (``geometry``, Fig 2.15), where it is on the arm
    (``kinematics``, Eq 5.1-5.2) and how it whisks (``control``: open loop, RCP).
 2. ``sim`` - a simulated whisk: trimesh ``objects`` (the thesis objects and the
-   user's own meshes) and procedural ``shapes`` (the recognition library), the rigid ``sweep`` of every
-   whisker, the tapered-cantilever deflection ``signals`` and the ``simulator``
-   that ties them into one whisk per module; arm ``trajectories`` around an
-   object and the ``odometry_noise`` between whisks (Sec 6.1.3.1.1); the
-   ``whisk_chain`` from an arm pose (or a recorded session) to the region
-   features of Ch.5. (On the robot, ``hw`` delivers the same whisk: the UR arm and
-   USB array drivers, the safety envelope, the recorder.)
+   user's own meshes) and procedural ``shapes`` (the recognition library), the
+   rigid ``sweep`` of every whisker, the tapered-cantilever deflection
+   ``signals`` and the ``simulator`` that ties them into one whisk per module;
+   arm ``trajectories`` around an object and the ``odometry_noise`` between
+   whisks (Sec 6.1.3.1.1); the ``whisk_chain`` from an arm pose (or a recorded
+   session) to the region features of Ch.5. (On the robot, ``hw`` delivers the
+   same whisk: the UR arm and USB array drivers, the safety envelope, the
+   recorder.)
 3. ``records`` - the data types every stage exchanges (``whisk_record``:
    :class:`WhiskRecord`, :class:`PoseEntry`) and their files (``recording``:
    per-whisk CSVs and the pose log).

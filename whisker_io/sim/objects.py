@@ -279,6 +279,9 @@ arm's workspace (Sec 4.1) holds nothing larger."""
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
 """File endings :func:`load_object` reads (via trimesh)."""
 
+_MAX_COORDINATE = 1e9  # in any unit: beyond this the file is not a model (its extents would overflow)
+_MIN_SIZE = 1e-9  # in any unit: a smaller mesh is a point (scaling it would overflow)
+
 _TURN = np.pi / 2
 #: rotation taking each accepted up axis to +z: (angle rad, axis) applied about the origin
 _UP_ROTATIONS: dict[str, tuple[float, tuple[int, int, int]]] = {
@@ -441,8 +444,13 @@ def _checked_surface(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         )
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
         raise InvalidInputError(f"{where} has faces that name no vertex; repair or re-export the mesh")
-    if np.ptp(vertices, axis=0).max() == 0.0:
-        raise InvalidInputError(f"{where} is a single point (all vertices equal); give a mesh with a surface")
+    reach = float(np.abs(vertices).max())
+    if reach > _MAX_COORDINATE:
+        raise InvalidInputError(
+            f"{where} has coordinates up to {reach:.3g}, in no sensible unit; rescale or re-export the mesh"
+        )
+    if np.ptp(vertices, axis=0).max() < _MIN_SIZE:
+        raise InvalidInputError(f"{where} is a single point (all vertices within {_MIN_SIZE:g}); give a mesh with a surface")
     return trimesh.Trimesh(vertices, faces, process=False)
 
 

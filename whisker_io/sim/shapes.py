@@ -13,7 +13,7 @@ shapes, all generated here from trimesh primitives and a seed (no downloads):
 * ``bowl`` and ``vase`` - hollow solids of revolution, open at the top;
 * ``jug`` - a bellied hollow body with a C-shaped handle;
 * ``duck`` and ``bear`` - freeforms of joined ellipsoids;
-* ``bent_tube`` - a tube along a cubic Bezier curve;
+* ``bent_tube`` - a tube along a helical arc of 150-320 deg, turned at random;
 * ``stool`` - a seat on three or four splayed legs.
 
 The families ``mushroom``, ``bucket``, ``knot`` and ``snowman`` never enter a
@@ -262,13 +262,10 @@ def _bear(d: _Draw) -> trimesh.Trimesh:
 
 
 def _bent_tube(d: _Draw) -> trimesh.Trimesh:
-    if d.canonical:  # an arch standing on both feet
-        control = np.array([[-0.8, 0.0, 0.0], [-0.9, 0.3, 1.8], [0.9, -0.3, 1.8], [0.8, 0.0, 0.0]])
-    else:
-        control = np.column_stack([d(-1.0, 1.0, 4), d(-1.0, 1.0, 4), d(0.0, 2.0, 4)])
-    t = np.linspace(0.0, 1.0, 25)[:, None]
-    path = (1 - t) ** 3 * control[0] + 3 * (1 - t) ** 2 * t * control[1] + 3 * (1 - t) * t**2 * control[2] + t**3 * control[3]
-    return _tube(path, d(0.14, 0.22), sections=20)
+    span, rise = np.deg2rad(d(150.0, 320.0)), d(0.0, 1.2)
+    t = np.linspace(-span / 2, span / 2, 25)
+    arc = np.column_stack([np.sin(t), rise * t / span, np.cos(t)])  # an arc standing in the xz-plane, rising along y
+    return _tube(arc @ d.rotation(np.pi).T, d(0.14, 0.25), sections=20)
 
 
 def _stool(d: _Draw) -> trimesh.Trimesh:
