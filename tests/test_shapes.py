@@ -192,3 +192,8 @@ def test_library_names_fuzz(n, seed):
     except CansimError:
         return
     assert len(names) == n and len(set(names)) == n and all(is_shape_name(x) or x in OBJECT_NAMES for x in names)
+
+
+def test_library_and_novel_families_partition_the_families():
+    assert set(LIBRARY_FAMILIES) | set(NOVEL_FAMILIES) == set(SHAPE_FAMILIES)
+    assert len(LIBRARY_FAMILIES) + len(NOVEL_FAMILIES) == len(SHAPE_FAMILIES)

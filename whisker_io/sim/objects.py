@@ -260,7 +260,8 @@ def make_object(name: str) -> trimesh.Trimesh:
         factory = _REGISTRY[key]
     except KeyError:
         raise InvalidInputError(
-            f"unknown object {name!r}; choose one of {list(OBJECT_NAMES)}"
+            f"unknown object {name!r}; choose one of {list(OBJECT_NAMES)} "
+            "(resolve_object also takes procedural shapes and mesh files)"
         ) from None
     return factory()
 
@@ -274,7 +275,8 @@ MIN_EXTENT_M: float = 0.01
 
 MAX_EXTENT_M: float = 2.0
 """Largest accepted largest extent of an object after scaling (2 m), metres: the
-arm's workspace (Sec 4.1) holds nothing larger."""
+arms of the thesis reach 0.85 m (UR5) and 1.3 m (UR10, Ch.3) (Sec 2.2.1), so
+nothing larger can be explored around."""
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
 """File endings :func:`load_object` reads (via trimesh)."""
