@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 
 from whisker_io.errors import CansimError, CorruptFileError, InvalidInputError
 from whisker_io.sim.objects import (
@@ -351,3 +352,23 @@ def test_resolve_object_fuzz(spec):
     except CansimError:
         return
     assert isinstance(obj, LoadedObject) and len(obj.mesh.faces) > 0
+
+
+@pytest.mark.parametrize("fmt", ["obj", "stl"])
+def test_registered_object_comes_back_from_a_millimetre_y_up_file(tmp_path, fmt):
+    """The Kettle written as a CAD tool would (millimetres, y up) loads back onto itself,
+    up to the centring of its bounding box (its spout makes the box off-axis)."""
+    kettle = make_object("kettle")
+    x, y, z = kettle.vertices.T
+    file_mesh = trimesh.Trimesh(1000.0 * np.column_stack([x, z, -y]), kettle.faces, process=False)  # z up -> y up
+    path = tmp_path / f"kettle.{fmt}"
+    file_mesh.export(path)
+    obj = load_object(path, up_axis="y", scale_to_m=float(kettle.extents.max()))
+    lo, hi = kettle.bounds
+    shift = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    expected_centres = kettle.triangles_center - shift
+    assert len(obj.mesh.faces) == len(kettle.faces)
+    # every face where it was (STL keeps float32 millimetres: ~1e-7 m); matched both ways
+    tree_out, tree_expected = cKDTree(obj.mesh.triangles_center), cKDTree(expected_centres)
+    assert tree_out.query(expected_centres)[0].max() < 1e-6
+    assert tree_expected.query(obj.mesh.triangles_center)[0].max() < 1e-6

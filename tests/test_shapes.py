@@ -197,3 +197,19 @@ def test_library_names_fuzz(n, seed):
 def test_library_and_novel_families_partition_the_families():
     assert set(LIBRARY_FAMILIES) | set(NOVEL_FAMILIES) == set(SHAPE_FAMILIES)
     assert len(LIBRARY_FAMILIES) + len(NOVEL_FAMILIES) == len(SHAPE_FAMILIES)
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(-2, 30), families=st.lists(st.one_of(st.sampled_from(SHAPE_FAMILIES), st.text(max_size=6)), max_size=4))
+def test_novel_names_fuzz(n, families):
+    try:
+        names = novel_names(n, 0, families)
+    except CansimError:
+        assert n < 1 or not families or not set(families) <= set(SHAPE_FAMILIES)
+        return
+    assert len(set(names)) == n and all(is_shape_name(x) and "-h" in x for x in names)
+
+
+def test_novel_families_given_as_one_name_or_with_repeats():
+    assert novel_names(2, families="duck") == ["duck-h0", "duck-h1"]
+    assert novel_names(3, families=("duck", "jug", "duck")) == ["duck-h0", "jug-h0", "duck-h1"]

@@ -462,8 +462,8 @@ def novel_names(n: int, seed: int = 0, families: Sequence[str] = NOVEL_FAMILIES)
         How many, >= 1.
     seed : int
         Seed, >= 0 (round ``j`` uses held-out variant ``1000 * seed + j``).
-    families : sequence of str
-        Families to cycle over; default :data:`NOVEL_FAMILIES` (kinds of shape no
+    families : str or sequence of str
+        Families to cycle over (a repeat counts once); default :data:`NOVEL_FAMILIES` (kinds of shape no
         library has). Library families give harder novel objects: other members of a
         family the library knows.
 
@@ -474,7 +474,7 @@ def novel_names(n: int, seed: int = 0, families: Sequence[str] = NOVEL_FAMILIES)
     """
     n = whole_number(n, "n", minimum=1)
     seed = whole_number(seed, "seed", minimum=0)
-    families = tuple(families)
+    families = (families,) if isinstance(families, str) else tuple(dict.fromkeys(families))  # once each
     unknown = [f for f in families if f not in _FAMILIES]
     if not families or unknown:
         raise InvalidInputError(f"families must be some of {list(SHAPE_FAMILIES)}, got {list(families)}")
