@@ -554,10 +554,11 @@ def load_object(
         mesh.remove_unreferenced_vertices()
         notes.append(f"removed {int((~keep).sum())} zero-area faces")
     if mesh.is_watertight:
-        volume_before = mesh.volume
+        faces_before = mesh.faces.copy()
         mesh.fix_normals(multibody=True)
-        if volume_before < 0:
-            notes.append("turned the normals outward")
+        flipped = int((faces_before != mesh.faces).any(axis=1).sum())
+        if flipped:
+            notes.append(f"turned the normals of {flipped} faces outward")
     else:
         notes.append("not watertight (open or non-manifold edges): ray casting from outside works, volume is undefined")
 
