@@ -9,7 +9,7 @@ randomness): same names, same size class, recognisably the same kind of shape
 :mod:`whisker_io.sim.shapes`.
 
 Conventions of every object the simulator is given
----------------------------------------------------
+--------------------------------------------------
 * **metres**;
 * **z up**: the object's height runs along ``+z``;
 * **resting on z = 0**: the lowest vertex has ``z = 0``;
