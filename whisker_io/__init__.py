@@ -4,13 +4,15 @@ Follow one whisk through the subpackages, in data-flow order:
 
 1. ``array`` - the 18-module array (``geometry``, Fig 2.15), where it is on the arm
    (``kinematics``, Eq 5.1-5.2) and how it whisks (``control``: open loop, RCP).
-2. ``sim`` - a simulated whisk: trimesh ``objects``, the rigid ``sweep`` of every
-   whisker, the tapered-cantilever deflection ``signals`` and the ``simulator``
-   that ties them into one whisk per module; arm ``trajectories`` around an
-   object and the ``odometry_noise`` between whisks (Sec 6.1.3.1.1); the
-   ``whisk_chain`` from an arm pose (or a recorded session) to the region
-   features of Ch.5. (On the robot, ``hw`` delivers the same whisk: the UR arm and
-   USB array drivers, the safety envelope, the recorder.)
+2. ``sim`` - a simulated whisk: trimesh ``objects`` (the thesis objects and the
+   user's own meshes) and procedural ``shapes`` (the recognition library), the
+   rigid ``sweep`` of every whisker, the tapered-cantilever deflection
+   ``signals`` and the ``simulator`` that ties them into one whisk per module;
+   arm ``trajectories`` around an object and the ``odometry_noise`` between
+   whisks (Sec 6.1.3.1.1); the ``whisk_chain`` from an arm pose (or a recorded
+   session) to the region features of Ch.5. (On the robot, ``hw`` delivers the
+   same whisk: the UR arm and USB array drivers, the safety envelope, the
+   recorder.)
 3. ``records`` - the data types every stage exchanges (``whisk_record``:
    :class:`WhiskRecord`, :class:`PoseEntry`) and their files (``recording``:
    per-whisk CSVs and the pose log).
@@ -60,6 +62,14 @@ _EXPORTS: dict[str, str] = {
     "make_object": "whisker_io.sim.objects",
     "make_maze": "whisker_io.sim.objects",
     "OBJECT_NAMES": "whisker_io.sim.objects",
+    "LoadedObject": "whisker_io.sim.objects",
+    "load_object": "whisker_io.sim.objects",
+    "resolve_object": "whisker_io.sim.objects",
+    "make_shape": "whisker_io.sim.shapes",
+    "library_names": "whisker_io.sim.shapes",
+    "object_library": "whisker_io.sim.shapes",
+    "novel_names": "whisker_io.sim.shapes",
+    "novel_objects": "whisker_io.sim.shapes",
     "SignalParams": "whisker_io.sim.signals",
     "WhiskContact": "whisker_io.sim.signals",
     "simulate_whisk_cycle": "whisker_io.sim.signals",
