@@ -11,8 +11,6 @@ from __future__ import annotations
 import csv
 import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest

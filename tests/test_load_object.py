@@ -17,13 +17,13 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from whisker_io.errors import CansimError, CorruptFileError, InvalidInputError
+from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import (
     MESH_SUFFIXES,
     OBJECT_NAMES,
     LoadedObject,
     load_object,
     make_object,
-    resolve_object,
 )
 
 FORMATS = ("obj", "stl", "ply", "glb")

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from whisker_io.errors import CansimError, InvalidInputError
-from whisker_io.sim.objects import OBJECT_NAMES, make_object, resolve_object
+from whisker_io.sim.catalogue import resolve_object
+from whisker_io.sim.objects import OBJECT_NAMES, make_object
 from whisker_io.sim.shapes import (
     CORE_SHAPES,
     LIBRARY_FAMILIES,

@@ -9,6 +9,7 @@ studies are modules of the package, not scripts of the source tree.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -22,8 +23,12 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def wheel_site(tmp_path_factory) -> Path:
+    # build from a copy, so that setuptools' build/ folder is not left in the checkout
+    src = tmp_path_factory.mktemp("src") / "cansim"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+        ".venv", ".git", "build", "dist", "*.egg-info", ".hypothesis", "__pycache__", "_build", ".benchmarks", "out"))
     dist = tmp_path_factory.mktemp("dist")
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(ROOT)],
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(src)],
                    check=True, capture_output=True, text=True)
     wheels = list(dist.glob("cansim-*.whl"))
     assert len(wheels) == 1

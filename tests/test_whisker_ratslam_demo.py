@@ -5,7 +5,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
 
@@ -53,3 +52,35 @@ def test_the_thesis_matching_alone_relocalises_to_aliased_places_on_the_box():
     m = demo.run("box", loops=2, seed=0, progress=False, thesis_matching=True)["metrics"]
     assert m["relocalisations_second_loop"] > 0
     assert m["median_position_error_m"] > m["dr_median_position_error_m"] > 10 * m["step_translation_m"]
+
+
+def test_a_users_mesh_file_runs_through_the_demo_with_one_flag(tmp_path, capsys):
+    """A mesh in millimetres with y up (as CAD tools write it) runs like the registered object it is."""
+    from whisker_io.sim.objects import make_object
+
+    mug = make_object("mug")
+    mm_y_up = mug.copy()
+    mm_y_up.apply_transform([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])  # z up -> y up (a proper rotation)
+    mm_y_up.apply_scale(1000.0)
+    path = tmp_path / "my_mug.obj"
+    mm_y_up.export(path)
+    out = tmp_path / "out"
+    assert _load().main(["--quick", "--no-progress", "--out", str(out), "--object", str(path),
+                         "--scale-to-m", str(max(mug.extents)), "--up-axis", "y"]) == 0
+    m = json.loads((out / "whisker_ratslam_metrics.json").read_text())
+    assert m["object"] == "my_mug"
+    assert m["observations"] >= 0.8 * m["whisks"]  # the loaded mug is where the trajectory expects it
+    text = capsys.readouterr().out
+    assert "whisks touched it" in text and "Wrote whisker_ratslam_map.png" in text
+
+
+def test_an_unreachable_mesh_says_so_and_writes_null_not_nan(tmp_path, capsys):
+    """A flat torus the trajectory never touches: a clear warning, finite or null metrics, exit 0."""
+    out = tmp_path / "out"
+    assert _load().main(["--quick", "--no-progress", "--out", str(out), "--object", "torus_flat"]) == 0
+    raw = (out / "whisker_ratslam_metrics.json").read_text()
+    assert "NaN" not in raw
+    m = json.loads(raw)
+    assert m["observations"] < 0.5 * m["whisks"]
+    assert m["median_position_error_m"] is None and math.isfinite(m["dr_median_position_error_m"])
+    assert "Warning: only" in capsys.readouterr().out

@@ -64,7 +64,7 @@ _EXPORTS: dict[str, str] = {
     "OBJECT_NAMES": "whisker_io.sim.objects",
     "LoadedObject": "whisker_io.sim.objects",
     "load_object": "whisker_io.sim.objects",
-    "resolve_object": "whisker_io.sim.objects",
+    "resolve_object": "whisker_io.sim.catalogue",
     "make_shape": "whisker_io.sim.shapes",
     "library_names": "whisker_io.sim.shapes",
     "object_library": "whisker_io.sim.shapes",

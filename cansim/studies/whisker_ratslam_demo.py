@@ -90,13 +90,14 @@ from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.localisation import map_pose_errors, relocalisation_errors, rotation_error_rad, step_sizes
 from maps.odometry import SpatialOdometry
-from whisker_io.sim.objects import OBJECT_NAMES, make_object
+from whisker_io.sim.catalogue import resolve_object
+from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
 from whisker_io.sim.trajectories import object_trajectory
 from whisker_io.sim.sweep import ContactNoise
 from whisker_io.sim.whisk_chain import WhiskChain
 
-log = logging.getLogger("whisker_ratslam_object")
+log = logging.getLogger(__name__)
 
 
 #: Contact-position noise of the demo, fraction of the whisker length (module docstring).
@@ -107,17 +108,26 @@ DEFAULT_STEP_BOUNDS = (0.11, 12.0)
 
 
 def run(
-    object_name: str = "mug", loops: int = 2, seed: int = 0, backend: str = "numba", progress: bool = True,
+    object_name: str | Path = "mug", loops: int = 2, seed: int = 0, backend: str = "numba", progress: bool = True,
     contact_noise: float = DEFAULT_CONTACT_NOISE, thesis_matching: bool = False,
+    scale_to_m: float | None = None, up_axis: str = "z",
 ) -> dict:
     """Explore ``object_name`` for ``loops`` loops; return the run's arrays and metrics.
+
+    ``object_name`` is a registered object, a procedural shape's name or a mesh file
+    (OBJ, STL, PLY, GLB; :func:`whisker_io.sim.catalogue.resolve_object`, which applies
+    the conventions: metres, z up, resting on z = 0, centred; ``scale_to_m`` sets the
+    largest extent and ``up_axis`` names the file's up axis).
 
     ``contact_noise`` is the contact-position noise as a fraction of the whisker length
     (Sec 6.1.3.1.2: 0.25; the slope noise 0.33 and the 0.98 registration probability
     scale with it; 0 = noise-free contacts). ``thesis_matching`` runs the thesis' Eq 5.5
     matching without the pose prior (:meth:`WhiskerRatSLAMConfig.thesis`).
     """
-    mesh = make_object(object_name)
+    loaded = resolve_object(object_name, scale_to_m=scale_to_m, up_axis=up_axis)
+    mesh, object_name = loaded.mesh, loaded.name
+    for note in loaded.notes:
+        log.info("%s: %s", object_name, note)
     step_m, step_deg = STEP_BOUNDS.get(object_name, DEFAULT_STEP_BOUNDS)
     steps = dict(step_m=step_m, step_deg=step_deg)
     poses = object_trajectory(mesh, "A", n_loops=loops, **steps)
@@ -192,12 +202,21 @@ def run(
         "whisks_per_s": (len(poses) - 1) / (t0 + elapsed - t_first) if len(poses) > 1 else 0.0,
         "first_whisk_s": t_first - t0,
     }
+    if n_obs < 0.5 * len(poses):
+        log.warning(_contact_warning(metrics))
     return {"metrics": metrics, "mesh": mesh, "poses": poses, "dead": dead, "slam": slam, "exp_ids": exp_ids, "reloc": reloc,
             "dr_error_m": dr_p, "map_error_m": map_err, "loop_starts": [len(poses) // loops * k for k in range(loops)]}
 
 
 def _m(value: float, digits: int = 3) -> str:
     return "undefined" if not np.isfinite(value) else f"{value:.{digits}f}"
+
+
+def _contact_warning(m: dict) -> str:
+    return (f"only {m['observations']} of {m['whisks']} whisks touched the {m['object']}: the trajectory (an ellipsoid "
+            "fitted around the mesh) does not reach its surface well, so the map has little to work with and errors "
+            "that need re-localisations are undefined (null in the JSON); check that the mesh is in metres, z up and "
+            "about 0.35 m across (--scale-to-m, --up-axis)")
 
 
 def summary(metrics: dict, out: Path, files: list[Path]) -> str:
@@ -215,15 +234,14 @@ def summary(metrics: dict, out: Path, files: list[Path]) -> str:
     else:
         lines.append("No re-localisation happened, so the re-localisation errors are undefined (null in the JSON).")
     lines.append(f"In the last loop the map's estimate of the arm's position (its current experience) is a median "
-                 f"{m['map_estimate_median_position_error_m']:.3f} m from the truth, dead reckoning's "
+                 f"{_m(m['map_estimate_median_position_error_m'])} m from the truth, dead reckoning's "
                  f"{m['dr_last_loop_median_position_error_m']:.3f} m (over the whole run dead reckoning drifts a median "
                  f"{m['dr_median_position_error_m']:.3f} m / {m['dr_median_rotation_error_deg']:.1f} deg; the experiences "
                  f"lie a median {_m(m['map_median_position_error_m'])} m from the truth).")
-    better = m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"]
+    better = bool(m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"])
     lines.append("=> the map beats dead reckoning." if better else "=> the map does NOT beat dead reckoning on this run.")
     if m["whisks"] and m["observations"] < 0.5 * m["whisks"]:
-        lines.append(f"Warning: only {m['observations']} of {m['whisks']} whisks touched the object: the trajectory "
-                     "does not reach its surface well (is the mesh in metres, z up, about 0.35 m across?).")
+        lines.append(f"Warning: {_contact_warning(m)}")
     lines.append(f"Wrote {', '.join(f.name for f in files)} in {out.resolve()}.")
     return "\n".join(lines)
 
@@ -281,7 +299,13 @@ def figures(result: dict, out: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``[--object NAME] [--quick] [--out DIR] [--seed N] [--backend NAME] [--contact-noise F] [--thesis-matching]``."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--object", default="mug", choices=sorted(OBJECT_NAMES))
+    ap.add_argument("--object", default="mug", metavar="NAME_OR_MESH",
+                    help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape (e.g. duck, "
+                         "torus_flat-v3) or a mesh file (.obj .stl .ply .glb; metres and z up unless --scale-to-m / "
+                         "--up-axis say otherwise). Default: mug")
+    ap.add_argument("--scale-to-m", type=float, default=None, metavar="M",
+                    help="scale a mesh so that its largest extent is M metres (e.g. 0.35, the thesis objects' size)")
+    ap.add_argument("--up-axis", default="z", help="the mesh file's up axis (x, y, z, -x, -y, -z; default z)")
     ap.add_argument("--quick", action="store_true", help="one loop (< 30 s)")
     ap.add_argument("--out", type=Path, default=Path("."))
     ap.add_argument("--seed", type=int, default=0)
@@ -297,7 +321,8 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.contact_noise <= 1.0:
         ap.error("--contact-noise must lie in [0, 1]")
     result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
-                 progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching)
+                 progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching,
+                 scale_to_m=args.scale_to_m, up_axis=args.up_axis)
     files = figures(result, args.out)
     m = result["metrics"]
     # NaN (no re-localisation happened) is not JSON: write null

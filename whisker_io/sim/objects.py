@@ -29,12 +29,11 @@ made in a :class:`LoadedObject`: the rotation that takes the file's up axis to
 ``+z``, the scale (``scale_to_m`` sets the largest bounding-box extent), and the
 translation that rests it on ``z = 0`` centred on the z-axis. Its largest extent
 must end up between :data:`MIN_EXTENT_M` and :data:`MAX_EXTENT_M`.
-:func:`resolve_object` takes either a name (a registered object or a procedural
-shape) or a mesh file, so every runner accepts both.
+:func:`whisker_io.sim.catalogue.resolve_object` takes either a name (a registered
+object or a procedural shape) or a mesh file, so every runner accepts both.
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 from dataclasses import dataclass
@@ -47,10 +46,10 @@ from numpy.typing import NDArray
 from trimesh.creation import box as _box
 from trimesh.creation import cylinder as _cylinder
 from trimesh.creation import icosphere as _icosphere
-from trimesh.creation import revolve as _revolve
-from trimesh.transformations import rotation_matrix, translation_matrix
+from trimesh.transformations import rotation_matrix
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.sim.mesh_parts import joined, placed, revolved, tube
 from whisker_io.validation import finite_scalar
 
 __all__ = [
@@ -59,7 +58,6 @@ __all__ = [
     "make_object",
     "LoadedObject",
     "load_object",
-    "resolve_object",
     "MESH_SUFFIXES",
     "UP_AXES",
     "MIN_EXTENT_M",
@@ -77,57 +75,20 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-_SECTIONS = 64  # angular resolution of solids of revolution
-
-
-def _at(mesh: trimesh.Trimesh, xyz=(0.0, 0.0, 0.0), angle: float = 0.0, axis=(0, 0, 1)) -> trimesh.Trimesh:
-    """Rotate ``mesh`` by ``angle`` about ``axis`` (through the origin), then translate."""
-    mesh = mesh.copy()
-    if angle:
-        mesh.apply_transform(rotation_matrix(angle, axis))
-    mesh.apply_transform(translation_matrix(xyz))
-    return mesh
-
-
-def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
-    mesh = trimesh.util.concatenate(parts)
-    mesh.fix_normals(multibody=True)
-    return mesh
-
-
-def _revolved(profile_rz: NDArray[np.float64], sections: int = _SECTIONS) -> trimesh.Trimesh:
-    """Solid of revolution about z of a closed (r, z) profile running from the axis to the axis."""
-    mesh = _revolve(np.asarray(profile_rz, dtype=float), sections=sections)
-    mesh.fix_normals()
-    return mesh
-
-
-def _tube(path: NDArray[np.float64], radius: float, sections: int = 16) -> trimesh.Trimesh:
-    """A tube of circular section along a 3-D polyline: cylinders between the
-    vertices and spheres at the joints (overlapping closed parts)."""
-    path = np.asarray(path, dtype=float)
-    parts = [
-        _cylinder(radius=radius, segment=path[i : i + 2], sections=sections)
-        for i in range(len(path) - 1)
-    ]
-    parts += [_at(_icosphere(subdivisions=1, radius=radius), p) for p in path]
-    return _join(parts)
-
-
 def box() -> trimesh.Trimesh:
     """Box (Fig 6.5 b, Fig 5.13 C): 0.20 x 0.20 x 0.35 m."""
-    return _at(_box(extents=(0.20, 0.20, 0.35)), (0, 0, 0.175))
+    return placed(_box(extents=(0.20, 0.20, 0.35)), (0, 0, 0.175))
 
 
 def box_stack() -> trimesh.Trimesh:
     """Box-Stack (Fig 6.5 a): three boxes of decreasing size, each turned relative to
     the one below; same footprint and height as :func:`box`, ambiguous with it by design."""
     parts = [
-        _at(_box(extents=(0.20, 0.20, 0.15)), (0, 0, 0.075)),
-        _at(_box(extents=(0.15, 0.15, 0.12)), (0, 0, 0.21), angle=np.deg2rad(20.0)),
-        _at(_box(extents=(0.10, 0.10, 0.08)), (0, 0, 0.31), angle=np.deg2rad(-15.0)),
+        placed(_box(extents=(0.20, 0.20, 0.15)), (0, 0, 0.075)),
+        placed(_box(extents=(0.15, 0.15, 0.12)), (0, 0, 0.21), angle=np.deg2rad(20.0)),
+        placed(_box(extents=(0.10, 0.10, 0.08)), (0, 0, 0.31), angle=np.deg2rad(-15.0)),
     ]
-    return _join(parts)
+    return joined(parts)
 
 
 def barrel() -> trimesh.Trimesh:
@@ -135,7 +96,7 @@ def barrel() -> trimesh.Trimesh:
     z = np.linspace(0.0, 0.35, 25)
     r = 0.085 + 0.015 * np.sin(np.pi * z / 0.35)
     profile = np.vstack([[0.0, 0.0], np.column_stack([r, z]), [0.0, 0.35]])
-    return _revolved(profile)
+    return revolved(profile)
 
 
 def blob() -> trimesh.Trimesh:
@@ -160,14 +121,14 @@ def plane() -> trimesh.Trimesh:
     from trimesh.creation import capsule
 
     parts = [
-        _at(capsule(height=0.30, radius=0.025, count=(24, 24)), (0, 0, 0.175)),
-        _at(_box(extents=(0.20, 0.012, 0.07)), (0, 0, 0.20)),  # wings
-        _at(_box(extents=(0.09, 0.010, 0.04)), (0, 0, 0.045)),  # tail plane
-        _at(_box(extents=(0.010, 0.09, 0.05)), (0, 0.03, 0.05)),  # fin
-        _at(_cylinder(radius=0.018, height=0.05, sections=24), (0.06, 0.02, 0.20)),  # engine
-        _at(_cylinder(radius=0.018, height=0.05, sections=24), (-0.06, 0.02, 0.20)),  # engine
+        placed(capsule(height=0.30, radius=0.025, count=(24, 24)), (0, 0, 0.175)),
+        placed(_box(extents=(0.20, 0.012, 0.07)), (0, 0, 0.20)),  # wings
+        placed(_box(extents=(0.09, 0.010, 0.04)), (0, 0, 0.045)),  # tail plane
+        placed(_box(extents=(0.010, 0.09, 0.05)), (0, 0.03, 0.05)),  # fin
+        placed(_cylinder(radius=0.018, height=0.05, sections=24), (0.06, 0.02, 0.20)),  # engine
+        placed(_cylinder(radius=0.018, height=0.05, sections=24), (-0.06, 0.02, 0.20)),  # engine
     ]
-    return _join(parts)
+    return joined(parts)
 
 
 def mug() -> trimesh.Trimesh:
@@ -175,11 +136,11 @@ def mug() -> trimesh.Trimesh:
     with a C-shaped handle reaching to x = 0.115 m."""
     ro, ri, h, floor = 0.085, 0.077, 0.35, 0.012
     profile = np.array([[0.0, 0.0], [ro, 0.0], [ro, h], [ri, h], [ri, floor], [0.0, floor]])
-    body = _revolved(profile)
+    body = revolved(profile)
     t = np.linspace(-np.pi / 2, np.pi / 2, 17)
     path = np.column_stack([0.080 + 0.05 * np.cos(t), np.zeros_like(t), 0.20 + 0.08 * np.sin(t)])
-    handle = _tube(path, 0.010)
-    return _join([body, handle])
+    handle = tube(path, 0.010)
+    return joined([body, handle])
 
 
 def kettle() -> trimesh.Trimesh:
@@ -191,15 +152,15 @@ def kettle() -> trimesh.Trimesh:
     profile = np.vstack(
         [[0.0, 0.0], np.column_stack([r, z]), [0.045, 0.27], [0.02, 0.275], [0.0, 0.275]]
     )
-    body = _revolved(profile, sections=48)
-    knob = _at(_icosphere(subdivisions=2, radius=0.018), (0, 0, 0.285))
+    body = revolved(profile, sections=48)
+    knob = placed(_icosphere(subdivisions=2, radius=0.018), (0, 0, 0.285))
     t = np.linspace(0.0, np.pi, 13)
     arch = np.column_stack([-0.055 * np.cos(t), np.zeros_like(t), 0.25 + 0.08 * np.sin(t)])
-    handle = _tube(arch, 0.011, sections=12)
+    handle = tube(arch, 0.011, sections=12)
     spout = _cylinder(radius=0.016, height=0.11, sections=24)
-    spout = _at(spout, angle=np.deg2rad(50.0), axis=(0, 1, 0))
+    spout = placed(spout, angle=np.deg2rad(50.0), axis=(0, 1, 0))
     spout.apply_translation((0.115, 0.0, 0.17))
-    return _join([body, knob, handle, spout])
+    return joined([body, knob, handle, spout])
 
 
 def skull() -> trimesh.Trimesh:
@@ -215,13 +176,13 @@ def skull() -> trimesh.Trimesh:
     parts = [
         ellipsoid((0.10, 0.09, 0.11), (0.0, 0.0, 0.24), sub=4),  # cranium
         ellipsoid((0.07, 0.065, 0.08), (0.035, 0.0, 0.14)),  # face
-        _at(_box(extents=(0.03, 0.13, 0.025)), (0.075, 0.0, 0.20)),  # brow ridge
+        placed(_box(extents=(0.03, 0.13, 0.025)), (0.075, 0.0, 0.20)),  # brow ridge
         ellipsoid((0.03, 0.025, 0.02), (0.06, 0.06, 0.13)),  # cheekbone
         ellipsoid((0.03, 0.025, 0.02), (0.06, -0.06, 0.13)),  # cheekbone
         ellipsoid((0.06, 0.055, 0.045), (0.04, 0.0, 0.05)),  # jaw
-        _at(_cylinder(radius=0.03, height=0.06, sections=24), (-0.01, 0.0, 0.03)),  # neck stump
+        placed(_cylinder(radius=0.03, height=0.06, sections=24), (-0.01, 0.0, 0.03)),  # neck stump
     ]
-    mesh = _join(parts)
+    mesh = joined(parts)
     mesh.apply_translation((0.0, 0.0, -mesh.bounds[0, 2]))
     return mesh
 
@@ -580,52 +541,6 @@ def load_object(
     return result
 
 
-def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None, up_axis: str = "z") -> LoadedObject:
-    """The object a runner was asked for: a registered name, a procedural shape's name, or a mesh.
-
-    Parameters
-    ----------
-    spec : str, path-like or trimesh.Trimesh
-        One of :data:`OBJECT_NAMES` (the thesis objects, aliases as in
-        :func:`make_object`), a name of :func:`whisker_io.sim.shapes.make_shape`
-        (``"duck"``, ``"torus_flat-v3"``), a mesh file (:data:`MESH_SUFFIXES`) or a
-        mesh in memory.
-    scale_to_m, up_axis
-        As in :func:`load_object`. A named object is returned as built when both
-        are left at their defaults; otherwise it passes through :func:`load_object`.
-
-    Returns
-    -------
-    LoadedObject
-        For a name: the built mesh with an identity record (``source`` is
-        ``"registered object"`` or ``"procedural shape"``).
-
-    Raises
-    ------
-    InvalidInputError
-        A string that is neither a known name nor a mesh file; the message lists the
-        registered names and shape families. Errors of :func:`load_object` for files.
-    """
-    if isinstance(spec, str) and Path(spec).suffix.lower() not in MESH_SUFFIXES:
-        from whisker_io.sim import shapes  # shapes builds on this module's parts: import on use
-
-        key = spec.strip().lower().replace("-", "_").replace(" ", "_")
-        if key in _REGISTRY:
-            mesh, name, source = _REGISTRY[key](), key, "registered object"
-        elif shapes.is_shape_name(spec.strip()):
-            mesh, name, source = shapes.make_shape(spec.strip()), spec.strip(), "procedural shape"
-        else:
-            raise InvalidInputError(
-                f"{spec!r} is neither a registered object ({', '.join(OBJECT_NAMES)}), a procedural shape "
-                f"(families {', '.join(shapes.SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "
-                f"({', '.join(MESH_SUFFIXES)}); check the spelling or the path"
-            )
-        if scale_to_m is None and _up_axis_key(up_axis) == "+z":
-            return LoadedObject(mesh, name, source, "+z", np.eye(3), 1.0, np.zeros(3), mesh.extents)
-        return dataclasses.replace(load_object(mesh, scale_to_m=scale_to_m, up_axis=up_axis, name=name), source=source)
-    return load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis)
-
-
 MAZE_SIZE_M: tuple[float, float] = (1.35, 1.0)
 """Footprint of the Ch.3 maze, x by y, metres (Sec 3.1)."""
 
@@ -683,9 +598,9 @@ def make_maze(wall_thickness_m: float = 0.01, border_height_m: float = 0.15, flo
     for x0, y0, x1, y1, h in walls:
         ex = abs(x1 - x0) + t
         ey = abs(y1 - y0) + t
-        parts.append(_at(_box(extents=(ex, ey, h)), ((x0 + x1) / 2, (y0 + y1) / 2, h / 2)))
+        parts.append(placed(_box(extents=(ex, ey, h)), ((x0 + x1) / 2, (y0 + y1) / 2, h / 2)))
     for x, y, r, h in _MAZE_POSTS:
-        parts.append(_at(_cylinder(radius=r, height=h, sections=24), (x, y, h / 2)))
+        parts.append(placed(_cylinder(radius=r, height=h, sections=24), (x, y, h / 2)))
     if floor:
-        parts.append(_at(_box(extents=(W + t, D + t, 0.01)), (W / 2, D / 2, -0.005)))
-    return _join(parts)
+        parts.append(placed(_box(extents=(W + t, D + t, 0.01)), (W / 2, D / 2, -0.005)))
+    return joined(parts)

@@ -55,7 +55,8 @@ from trimesh.creation import icosphere as _icosphere
 from trimesh.creation import torus as _torus_mesh
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.sim.objects import OBJECT_NAMES, _join, _revolved, _tube, load_object, make_object
+from whisker_io.sim.mesh_parts import joined, revolved, tube
+from whisker_io.sim.objects import OBJECT_NAMES, load_object, make_object
 from whisker_io.validation import whole_number
 
 __all__ = [
@@ -146,7 +147,7 @@ def _hollow(z: NDArray[np.float64], r_outer: NDArray[np.float64], wall: float, f
             [0.0, z[inner][0]],
         ]
     )
-    return _revolved(profile)
+    return revolved(profile)
 
 
 # --------------------------------------------------------------------------- #
@@ -222,7 +223,7 @@ def _jug(d: _Draw) -> trimesh.Trimesh:
     zc, half = (lo + hi) / 2, (hi - lo) / 2
     attach = np.interp([lo, hi], z, r).min() - 0.02  # reach into the wall at both ends
     path = np.column_stack([attach + d(0.15, 0.25) * np.cos(t), np.zeros_like(t), zc + half * np.sin(t)])
-    return _join([body, _tube(path, d(0.03, 0.045))])
+    return joined([body, tube(path, d(0.03, 0.045))])
 
 
 def _duck(d: _Draw) -> trimesh.Trimesh:
@@ -237,7 +238,7 @@ def _duck(d: _Draw) -> trimesh.Trimesh:
         _ellipsoid((d(0.12, 0.18), 0.07, 0.03), head + (head_r + 0.05, 0.0, -0.04)),  # beak
         _ellipsoid((0.16, 0.12, 0.05), (-0.42, 0.0, 0.42), _pitch(-d(0.3, 0.8))),  # tail
     ]
-    return _join(parts)
+    return joined(parts)
 
 
 def _bear(d: _Draw) -> trimesh.Trimesh:
@@ -258,14 +259,14 @@ def _bear(d: _Draw) -> trimesh.Trimesh:
         rot = Rotation.from_euler("x", side * arm).as_matrix()
         shoulder = np.array([0.05, side * body[1] * 0.8, 1.5 * body[2]])
         parts.append(_ellipsoid((0.08, 0.08, 0.22), shoulder + rot @ (0.0, 0.0, -0.18), rot))
-    return _join(parts)
+    return joined(parts)
 
 
 def _bent_tube(d: _Draw) -> trimesh.Trimesh:
     span, rise = np.deg2rad(d(150.0, 320.0)), d(0.0, 1.2)
     t = np.linspace(-span / 2, span / 2, 25)
     arc = np.column_stack([np.sin(t), rise * t / span, np.cos(t)])  # an arc standing in the xz-plane, rising along y
-    return _tube(arc @ d.rotation(np.pi).T, d(0.14, 0.25), sections=20)
+    return tube(arc @ d.rotation(np.pi).T, d(0.14, 0.25), sections=20)
 
 
 def _stool(d: _Draw) -> trimesh.Trimesh:
@@ -278,7 +279,7 @@ def _stool(d: _Draw) -> trimesh.Trimesh:
         top = 0.75 * seat_r * np.array([np.cos(a), np.sin(a), 0.0]) + (0, 0, height)
         foot = (0.75 * seat_r + splay) * np.array([np.cos(a), np.sin(a), 0.0])
         parts.append(_cylinder(radius=d(0.04, 0.06), segment=np.array([foot, top]), sections=16))
-    return _join(parts)
+    return joined(parts)
 
 
 def _mushroom(d: _Draw) -> trimesh.Trimesh:
@@ -288,7 +289,7 @@ def _mushroom(d: _Draw) -> trimesh.Trimesh:
     a = np.linspace(0.0, np.pi / 2, 12)[1:]
     profile += [[cap_r * np.cos(x), stem_h - droop + (cap_h + droop) * np.sin(x)] for x in a]
     profile[-1][0] = 0.0
-    return _revolved(np.array(profile))
+    return revolved(np.array(profile))
 
 
 def _bucket(d: _Draw) -> trimesh.Trimesh:
@@ -297,7 +298,7 @@ def _bucket(d: _Draw) -> trimesh.Trimesh:
     body = _hollow(z, bottom + (top - bottom) * z, 0.02, 0.03)
     t = np.linspace(0.0, np.pi, 17)
     arch = np.column_stack([np.zeros_like(t), (top - 0.01) * np.cos(t), 1.0 + d(0.25, 0.4) * np.sin(t)])
-    return _join([body, _tube(arch, 0.025)])
+    return joined([body, tube(arch, 0.025)])
 
 
 def _knot(d: _Draw) -> trimesh.Trimesh:
@@ -307,7 +308,7 @@ def _knot(d: _Draw) -> trimesh.Trimesh:
     y = np.cos(t) - 2 * np.cos(2 * t)
     z = -np.sin(3 * t) * d(0.6, 1.2)
     path = np.column_stack([x, y, z]) @ (d.rotation(np.pi) @ _pitch(np.pi / 2)).T
-    return _tube(np.vstack([path, path[:1]]), tube_r, sections=16)
+    return tube(np.vstack([path, path[:1]]), tube_r, sections=16)
 
 
 def _snowman(d: _Draw) -> trimesh.Trimesh:
@@ -321,8 +322,8 @@ def _snowman(d: _Draw) -> trimesh.Trimesh:
     for side in (1.0, -1.0):
         lift = d(-0.3, 0.6)
         arm = np.array([[0.0, side * 0.8 * r[1], z[1]], [0.0, side * (r[1] + 0.35), z[1] + 0.35 * np.sin(lift) + 0.1]])
-        parts.append(_tube(arm, 0.025, sections=12))
-    return _join(parts)
+        parts.append(tube(arm, 0.025, sections=12))
+    return joined(parts)
 
 
 _FAMILIES: dict[str, Callable[[_Draw], trimesh.Trimesh]] = {
@@ -433,7 +434,7 @@ def library_names(n: int, seed: int = 0) -> list[str]:
     12, library variants cycle over :data:`LIBRARY_FAMILIES`; round ``j`` of
     library ``seed`` uses variant ``1000 * seed + j`` (``"superquadric-v0"``,
     ``"star_blob-v0"``...). Every name resolves with
-    :func:`whisker_io.sim.objects.resolve_object`.
+    :func:`whisker_io.sim.catalogue.resolve_object`.
 
     Parameters
     ----------

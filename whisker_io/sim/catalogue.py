@@ -1,0 +1,67 @@
+"""Every object a runner can be given, by one name: the thesis objects, the procedural shapes, a mesh file.
+
+:func:`resolve_object` is what the demo, the Ch.5 and Ch.6 studies, the recognition
+study and ``--object`` call: a registered name (:data:`whisker_io.sim.objects.OBJECT_NAMES`),
+a procedural shape's name (:func:`whisker_io.sim.shapes.make_shape`, e.g. ``"duck"``,
+``"torus_flat-v3"``), a mesh file or a ``trimesh`` mesh (:func:`whisker_io.sim.objects.load_object`,
+which states and applies the conventions: metres, z up, resting on z = 0, centred).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from whisker_io.errors import InvalidInputError
+from whisker_io.sim.objects import MESH_SUFFIXES, OBJECT_NAMES, LoadedObject, load_object, make_object
+from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
+
+__all__ = ["resolve_object"]
+
+
+def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None, up_axis: str = "z") -> LoadedObject:
+    """The object a runner was asked for: a registered name, a procedural shape's name, or a mesh.
+
+    Parameters
+    ----------
+    spec : str, path-like or trimesh.Trimesh
+        One of :data:`OBJECT_NAMES` (the thesis objects, aliases as in
+        :func:`make_object`), a name of :func:`whisker_io.sim.shapes.make_shape`
+        (``"duck"``, ``"torus_flat-v3"``), a mesh file (:data:`MESH_SUFFIXES`) or a
+        mesh in memory.
+    scale_to_m, up_axis
+        As in :func:`load_object`. A named object is returned as built when both
+        are left at their defaults; otherwise it passes through :func:`load_object`.
+
+    Returns
+    -------
+    LoadedObject
+        For a name: the built mesh with an identity record (``source`` is
+        ``"registered object"`` or ``"procedural shape"``).
+
+    Raises
+    ------
+    InvalidInputError
+        A string that is neither a known name nor a mesh file; the message lists the
+        registered names and shape families. Errors of :func:`load_object` for files.
+    """
+    if isinstance(spec, str) and Path(spec).suffix.lower() not in MESH_SUFFIXES:
+        key = spec.strip().lower().replace("-", "_").replace(" ", "_")
+        if key in OBJECT_NAMES:
+            mesh, name, source = make_object(key), key, "registered object"
+        elif is_shape_name(spec.strip()):
+            mesh, name, source = make_shape(spec.strip()), spec.strip(), "procedural shape"
+        else:
+            raise InvalidInputError(
+                f"{spec!r} is neither a registered object ({', '.join(OBJECT_NAMES)}), a procedural shape "
+                f"(families {', '.join(SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "
+                f"({', '.join(MESH_SUFFIXES)}); check the spelling or the path"
+            )
+        if scale_to_m is None and isinstance(up_axis, str) and up_axis.strip().lower() in ("z", "+z"):
+            return LoadedObject(mesh, name, source, "+z", np.eye(3), 1.0, np.zeros(3), mesh.extents)
+        return dataclasses.replace(load_object(mesh, scale_to_m=scale_to_m, up_axis=up_axis, name=name), source=source)
+    return load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis)
