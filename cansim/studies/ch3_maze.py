@@ -55,7 +55,7 @@ grid in ``ch3_calibration.csv``. The scored runs use seeds 1..R (R = 3 repetitio
 as in Sec 3.2.2; 1 in the quick mode) for both the sensor and the odometry noise.
 
 Outputs (in ``--out``, default the working folder)
--------------------------------------------------
+--------------------------------------------------
 * ``ch3_metrics.csv`` - one row per scored run, columns ``control, contact_angle,
   kidnapped, ARR, ARCR, EM, map_error_m, dr_error_m`` (``control`` in ``open_loop, rcp``;
   ``kidnapped`` ``true``/``false``); rows ordered by repetition, control, contact-angle

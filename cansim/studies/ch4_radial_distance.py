@@ -37,7 +37,7 @@ vibration or whisker-to-whisker variation of the real NanoCure whiskers).
 Observed on the full run (seed 0, 172 unseen-length validation contacts, 97 of
 them with d_gt <= 0.7 d_wl):
 
-* as in Fig 4.8-4.9, svr9 has the lowest median |Eq 4.1 error| (0.0049 of the
+* as in Fig 4.8-4.9, svr9 has the lowest median absolute Eq 4.1 error (0.0049 of the
   whisker length) and the lowest median point-to-mesh distance (0.24 mm),
   both KS p < 1e-8 against tip and random;
 * unlike the thesis, svr10 (no WL) is much worse than svr9 (0.040): with a

@@ -288,6 +288,7 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     reloc = np.zeros(n, dtype=bool)
     dr = np.empty((n, 3))
     dr_pose = poses[0]
+    n_observations = 0
     for k, pose in enumerate(poses):
         if k == 0:
             v, w, dt = np.zeros(3), np.zeros(3), 1.0
@@ -295,10 +296,12 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
             v, w, dt = noisy_odometry(poses[k - 1], pose, rng)
             dr_pose = integrate_odometry(dr_pose, v, w, dt)
         dr[k] = dr_pose.position_m
-        st = slam.step(SpatialOdometry(v, w, dt), chain.features(pose, rng))
+        features = chain.features(pose, rng)
+        n_observations += bool(features.is_observation)
+        st = slam.step(SpatialOdometry(v, w, dt), features)
         exp_ids[k], reloc[k] = st.exp_id, st.relocalised
     return {
-        "exp_ids": exp_ids, "relocalised": reloc, "dr_position_m": dr,
+        "exp_ids": exp_ids, "relocalised": reloc, "dr_position_m": dr, "n_observations": n_observations,
         "true_p": np.array([p.position_m for p in poses]), "true_q": np.array([p.quaternion_xyzw for p in poses]),
     }
 
@@ -307,11 +310,11 @@ def build_job(job: tuple[str, Config, Settings, str | None]) -> dict[str, Any]:
     """One localisation run: an object map from ``n_loops`` loops of trajectory A (optionally saved)."""
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
     from maps.localisation import relocalisation_errors, step_sizes
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.trajectories import object_trajectory
 
     name, cfg, s, save_to = job
-    mesh = make_object(name)
+    mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name)
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
@@ -368,11 +371,11 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Sett
         integrated_confidence,
         relocalisation_targets,
     )
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.trajectories import object_trajectory
 
     presented, family, paths, names, cfg, s = job
-    mesh = make_object(presented)
+    mesh = resolve_object(presented).mesh
     step_m, step_deg = step_of(presented)
     per_loop = len(object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg))
     n_loops = max(s.id_loops, math.ceil(s.id_whisks / per_loop))
@@ -514,7 +517,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    objs = [o for o in MAPPED if any(b["object"] == o for b in builds)]
+    objs = list(dict.fromkeys(b["object"] for b in builds))
     # Fig 5.14b: dead-reckoning displacement error over one loop of A
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
@@ -671,6 +674,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
     ``builds`` are the localisation runs of the study's matching (``s.matching``), whose
     maps identification uses; ``compare`` the same runs with the other matching.
     """
+    mapped = {b["object"] for b in builds}
     id_loops = sorted({r["n_loops"] for r in id_rows}) or [0]
     lines = [
         (f"Thesis Ch.5 study ({'--quick' if quick else 'full'}); seed {s.seed}; {s.n_loops} loops of A per map; "
@@ -714,7 +718,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
     if id_rows:
         def rows(fam: str, pred: Any) -> list[dict[str, Any]]:
             return [r for r in id_rows if r["trajectory"] == fam and pred(r)]
-        sk = rows("A", lambda r: r["presented"] == NOVEL) + rows("B", lambda r: r["presented"] == NOVEL)
+        sk = rows("A", lambda r: r["presented"] not in mapped) + rows("B", lambda r: r["presented"] not in mapped)
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
         lines.append(f"  4. Thesis: the Skull (novel) has very low confidence for every map. Measured: max confidence {sk_max:.2f} "
@@ -725,7 +729,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
                      f"A {mA:.3f}, B {mB:.3f}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
         for fam in "AB":
-            pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] != NOVEL)})
+            pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped)})
             top, ic_ok, ic_fired = [], 0, 0
             for p in pres:
                 rr = rows(fam, lambda r, p=p: r["presented"] == p)
@@ -756,7 +760,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="Mug, Box and Plane (+ Skull), two configurations, 2 loops (< 2 min)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
-    ap.add_argument("--objects", nargs="+", choices=MAPPED, help="mapped objects (default: all six; --quick: mug box plane)")
+    ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH",
+                    help=f"mapped objects: registered names ({', '.join(MAPPED)}), procedural shapes (e.g. duck) or mesh "
+                         "files in metres, z up (default: all six; --quick: mug box plane)")
+    ap.add_argument("--novel", default=NOVEL, metavar="NAME_OR_MESH",
+                    help=f"the object presented but not mapped (default {NOVEL})")
     ap.add_argument("--loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="least loops per identification run (default 1)")
     ap.add_argument("--id-whisks", type=int,
@@ -781,6 +789,10 @@ def main(argv: list[str] | None = None) -> int:
     out = a.out
     out.mkdir(parents=True, exist_ok=True)
     objects = a.objects or (("mug", "box", "plane") if a.quick else MAPPED)
+    from whisker_io.sim.catalogue import resolve_object
+
+    for spec in (*objects, a.novel):  # a bad name or mesh fails here, with the reason, before any work
+        resolve_object(spec)
     loops = a.loops or (2 if a.quick else 3)
     id_whisks = a.id_whisks if a.id_whisks is not None else (0 if a.quick else ID_WHISKS)
     contacts = a.contacts or CONTACTS
@@ -810,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     compare = [b for b in runs if b["matching"] != matching]
     _write_csv(out / "ch5_localisation.csv", localisation_rows(runs), LOC_COLUMNS)
     paths = [str(maps_dir / f"{o}.npz") for o in objects]
-    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, NOVEL)]
+    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, a.novel)]
     ids = _pool_map(identify_job, id_jobs, a.workers, "ch5 identification")
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", id_rows, ID_COLUMNS)

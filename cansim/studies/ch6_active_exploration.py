@@ -49,11 +49,13 @@ Settings (this project's choices where the thesis is silent): contact estimate
 innermost contact ring, see :mod:`cansim.explore.placement`) with the trajectories' roll of 90 deg;
 10 SPC adjustments per region; leaky integrator impulse 1, decay 0.75 per whisk.
 
-Decisions for recognition (measured with fixed seeds: the default search, SPC on, seeds
-0-3, each seed its own maps, 1000 whisks, both objects presented: 8 runs; "correct
-first" counts runs whose correct IC reached the threshold before the other's; measured
-with the earlier oracle placement, see "Decisions for the SPC study")
------------------------------------------------------------------------------------------
+Decisions for recognition
+-------------------------
+Measured with fixed seeds: the default search, SPC on, seeds 0-3, each seed its own
+maps, 1000 whisks, both objects presented: 8 runs; "correct first" counts runs whose
+correct IC reached the threshold before the other's; measured with the earlier oracle
+placement, see "Decisions for the SPC study".
+
 * **Contact noise 0.3** of Sec 6.1.3.1.2 (``--noise-scale``, :data:`DEFAULT_NOISE_SCALE`),
   as ``examples/ch5_study.py`` and ``examples/whisker_ratslam_object.py``. At the full
   noise (1.0) the calibrated thresholds (T_pfh 1.2, T_sda 1.29) pass most whisks of
@@ -82,11 +84,13 @@ with the earlier oracle placement, see "Decisions for the SPC study")
   unknown object's frame, see :mod:`cansim.models.whisker_ratslam`): 84 re-localisations in
   8000 whisks, no IC reached 100.
 
-Decisions for the SPC study (thesis Fig 6.6; default search, Box-Stack presented, SPC on
-vs off, mean raw confidence of the correct identity; measured with this module's
-:func:`prepare` and :func:`run_one`, map seed 0, seeds 0-5, 600 whisks, ``tip``
-contacts unless said; "k/n" counts the seeds where SPC on is the higher)
------------------------------------------------------------------------------------------
+Decisions for the SPC study
+---------------------------
+Thesis Fig 6.6; default search, Box-Stack presented, SPC on vs off, mean raw confidence
+of the correct identity; measured with this module's :func:`prepare` and
+:func:`run_one`, map seed 0, seeds 0-5, 600 whisks, ``tip`` contacts unless said; "k/n"
+counts the seeds where SPC on is the higher.
+
 * **No oracle placement.** The first version placed the array by casting one ray from
   each sphere face toward the centre against the *presented* object's mesh, the front
   bases 15 mm before the hit: the explorer knew the unknown object's surface, which
