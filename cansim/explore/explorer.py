@@ -359,6 +359,10 @@ class Explorer:
     ) -> None:
         if strategy not in STRATEGIES:
             raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
+        if contact_seeking is not None and not isinstance(contact_seeking, ContactSeekingParams):
+            raise ConfigError(f"contact_seeking must be a ContactSeekingParams or None, got {type(contact_seeking).__name__}")
+        if placement is not None and not isinstance(placement, PlacementParams):
+            raise ConfigError(f"placement must be a PlacementParams or None, got {type(placement).__name__}")
         if not known:
             raise InvalidInputError("the explorer needs at least one known object")
         config_field(max_iterations, "max_iterations", int, minimum=1)
@@ -379,10 +383,6 @@ class Explorer:
             self.strategy = make_strategy(strategy, **(strategy_options or {}) if strategy != "default" else {})
         except TypeError as exc:
             raise ConfigError(f"bad strategy_options for {strategy!r}: {exc}") from None
-        if contact_seeking is not None and not isinstance(contact_seeking, ContactSeekingParams):
-            raise ConfigError(f"contact_seeking must be a ContactSeekingParams or None, got {type(contact_seeking).__name__}")
-        if placement is not None and not isinstance(placement, PlacementParams):
-            raise ConfigError(f"placement must be a PlacementParams or None, got {type(placement).__name__}")
         self.placement, self.integrator = placement, integrator
         self.seeking = contact_seeking
         self._advance = 0.0
