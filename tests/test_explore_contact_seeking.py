@@ -40,10 +40,12 @@ def test_the_advance_stops_at_its_limit_and_at_the_search_centre():
     p = ContactSeekingParams(advance_step_m=0.04, max_advance_m=0.1)
     assert seek_contact(POSE, [], params=p, placement=SPC, advance_m=0.08) is None  # 0.12 > 0.1
     assert seek_contact(POSE, [], params=p, placement=SPC, advance_m=0.06).action == "advance"  # exactly 0.1
-    # the front (0.2019 m along y) is 0.5 - 0.2019 = 0.298 m from the origin: a step of 0.04 fits, ...
-    assert seek_contact(POSE, [], params=ContactSeekingParams(), placement=SPC, centre_m=[0, 0, 0.3]) is not None
-    # ... but not with the centre 0.03 m ahead of the front
-    assert seek_contact(POSE, [], params=ContactSeekingParams(), placement=SPC, centre_m=[-0.5 + 0.2019 + 0.03, 0, 0.3]) is None
+    # the front (0.2019 m along y) may go up to beyond_centre_m (0.1 m) past the centre:
+    p = ContactSeekingParams(advance_step_m=0.04, beyond_centre_m=0.1)
+    front_x = -0.5 + 0.2019
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x + 0.03, 0, 0.3]) is not None
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x - 0.05, 0, 0.3]) is not None  # 0.05 + 0.04 <= 0.1
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x - 0.07, 0, 0.3]) is None  # 0.07 + 0.04 > 0.1
 
 
 def test_a_pressed_whisk_backs_off_before_any_turn():
@@ -96,10 +98,8 @@ _BAD = st.one_of(st.just(math.nan), st.just(math.inf), st.just(-0.01), st.just("
 
 @settings(max_examples=40, deadline=None)
 @given(st.sampled_from(["advance_step_m", "max_advance_m", "front_m", "backoff_min_m", "hold_margin_m",
-                        "hold_max_turn_rad"]), _BAD)
+                        "hold_max_turn_rad", "beyond_centre_m"]), _BAD)
 def test_bad_parameters_are_typed(name, value):
-    if name in ("front_m", "hold_margin_m") and value == -0.01 or name == "hold_max_turn_rad" and value == -0.01:
-        value = -1.0
     with pytest.raises(ConfigError):
         ContactSeekingParams(**{name: value})
 
@@ -194,7 +194,7 @@ def peanut_runs():
 
 def test_freeform_shape_with_a_loose_believed_box_is_touched_by_default(peanut_runs):
     counts, res, _, _ = peanut_runs["default"]
-    # measured 0.64 on this held-out shape (80 whisks, seed 4); the thesis' placement 0.0-0.3
+    # measured 0.68 on this held-out shape (80 whisks, seed 4); the thesis' placement 0.0-0.3
     assert (counts >= 1).mean() >= 0.55
     assert {"advance", "spc"} <= set(res.strategies)  # it got there by advancing, then Alg 7 placed it
     thesis_counts, thesis_res, _, _ = peanut_runs["thesis"]
@@ -202,7 +202,7 @@ def test_freeform_shape_with_a_loose_believed_box_is_touched_by_default(peanut_r
     assert not {"advance", "back_off", "turn"} & set(thesis_res.strategies)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 22 target not reached on this held-out shape: 64 % of 80 whisks touch (target 70 %)")
+@pytest.mark.xfail(strict=True, reason="issue 22 target not reached on this held-out shape: 68 % of 80 whisks touch (target 70 %)")
 def test_freeform_shape_meets_the_issue_22_contact_target(peanut_runs):
     counts, _, _, _ = peanut_runs["default"]
     assert (counts >= 1).mean() >= 0.7  # issue 22: >= 70 % of the whisks touch a freeform object

@@ -335,7 +335,7 @@ class Explorer:
         place the default search's next face at the range where contact was last held.
         None: the thesis' behaviour (Alg 7 alone; the search's faces before its
         believed volume), which reaches no surface of an object that does not fill
-        that volume.
+        that volume. Contact seeking extends the SPC: with ``placement`` None it is off too.
     """
 
     def __init__(
@@ -431,7 +431,8 @@ class Explorer:
         """Contact seeking's goal (:func:`seek_contact`), or None; keeps the held range and the advance."""
         assert self.seeking is not None
         pts = np.asarray(getattr(obs, "contact_points_m", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
-        spc = self.placement if self.placement is not None else PlacementParams()
+        spc = self.placement
+        assert spc is not None
         centre = self.default.centre_m
         if len(pts):
             self._advance = 0.0
@@ -456,7 +457,7 @@ class Explorer:
         """The default search's next face, at the held range when contact was held nearby (contact seeking)."""
         goal = self.default.propose()
         self._advance = 0.0
-        if self.seeking is None or self._held is None:
+        if self.seeking is None or self.placement is None or self._held is None:
             return goal
         rng, u = self._held
         face_u = self.default.directions[self.default.current]
@@ -467,7 +468,7 @@ class Explorer:
 
     def _plan(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
         contact = bool(getattr(obs, "is_observation", False))
-        if self.seeking is not None:
+        if self.seeking is not None and self.placement is not None:
             sought = self._seek(pose, obs)
             if sought is not None:
                 return sought
