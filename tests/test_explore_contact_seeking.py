@@ -220,14 +220,17 @@ def test_every_command_of_the_run_passed_the_envelope(peanut_runs):
 def test_pressed_whisks_are_followed_by_a_move_away(peanut_runs):
     counts, res, _, _ = peanut_runs["default"]
     backs = [i for i, s in enumerate(res.strategies) if s == "back_off"]
+    assert backs  # the run pressed against the peanut at least once
     for i in backs:
         if i + 1 < len(res.poses):
             moved = res.poses[i + 1].position_m - res.poses[i].position_m
             assert moved @ _y(res.poses[i]) < 0  # away from the surface along the array's axis
 
 
-def test_explorer_rejects_a_bad_contact_seeking():
+@settings(max_examples=10, deadline=None)
+@given(st.sampled_from(["on", 1, True, 0.03, PlacementParams(), {"advance_step_m": 0.03}]))
+def test_explorer_rejects_a_bad_contact_seeking(value):
     from cansim.explore.explorer import Explorer
 
     with pytest.raises(ConfigError):
-        Explorer([object()], lambda p: None, object(), lambda a, b: None, object(), contact_seeking="on")  # type: ignore[arg-type]
+        Explorer([object()], lambda p: None, object(), lambda a, b: None, object(), contact_seeking=value)  # type: ignore[arg-type]

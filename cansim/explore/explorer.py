@@ -14,9 +14,13 @@ One iteration = one whisk:
 3. a re-localisation of model ``k`` to an experience of its built map is an impulse into
    ``k``'s leaky integrator (:class:`maps.recognition.LeakyIntegrator`); the integrated
    confidence (IC) decides the identity;
-4. the goal: the surface placement controller's correction while it has one (at most
-   ``max_adjustments`` per region), else the active strategy's proposal
-   (:func:`cansim.explore.search.active_strategy`);
+4. the goal: contact seeking's (:mod:`cansim.explore.contact_seeking`, default on: back
+   off when the contacts lie nearer than the SPC band, advance along the array's axis
+   after a whisk without contact, turn toward fewer than ``mu`` contacts), else the
+   surface placement controller's correction while it has one (at most
+   ``max_adjustments`` per region, back-offs and turns included), else the active
+   strategy's proposal (:func:`cansim.explore.search.active_strategy`); the default
+   search's next face comes in to the range where contact was last held;
 5. ``arm.move_linear(goal)``: every command passes the arm's
    :class:`~whisker_io.hw.safety.SafetyEnvelope`; a refused command is logged and counted,
    the strategy drops its target and the explorer re-plans with the default search (at
