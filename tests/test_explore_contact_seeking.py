@@ -74,6 +74,17 @@ def test_few_contacts_off_the_axis_turn_toward_them():
     assert math.acos(_y(s.goal) @ target) < math.acos(_y(POSE) @ target)
 
 
+def test_few_contacts_are_left_to_the_search_without_turn_few():
+    c = np.array([[0.2, 0.235, 0.0]])
+    assert seek_contact(POSE, c, params=ContactSeekingParams(turn_few=False), placement=SPC) is None
+
+
+@pytest.mark.parametrize("value", [1, 0, "yes", None, 1.0])
+def test_bad_turn_few_is_typed(value):
+    with pytest.raises(ConfigError):
+        ContactSeekingParams(turn_few=value)
+
+
 def test_held_face_pose_comes_in_along_the_face_direction_never_out():
     face = Pose.from_rotation([0.0, -0.6, 0.2], ROT)
     g = held_face_pose(face, [0.0, 0.0, 0.2], 0.2, 0.1, 0.015)
