@@ -95,8 +95,17 @@ own setting (the believed box is the Box's bounding box, the Box-Stack's too: th
 thesis placement is exact for the Box) contact seeking is not better: whisks with a
 region observed 86 % vs 89 % (Box) and 66 % vs 68 % (Box-Stack), with any contact 96
 vs 98 % and 95 vs 81 %, bases inside 32 and 19 of 300 against 0 (seeds 0-1, 150
-whisks); the Ch.6 quick run (seed 1, 300 whisks) gave the correct identity first at IC
-300 in 0/2 default-search runs against 2/2 with ``contact_seeking=None``.
+whisks). In the Ch.6 study's quick run (``examples/ch6_active_exploration.py --quick``,
+seeds 0-1, 300 whisks, the maps built as before) recognition is slower: the correct
+identity first at IC 300 in 0 of 4 default-search runs (FEH 0/4, LSR 1/4) against 4/4
+(0/4, 0/4) with ``contact_seeking=None``; at IC 100 4/4 for every strategy either way;
+with ``turn_few=False`` 1/4 at IC 300. On a freeform pair (the duck- and bear-like
+shapes, maps over their fitted ellipsoids as the study builds them, a believed box 1.5
+times the box holding both, 1000 whisks, seeds 0-3) the thesis behaviour touched in
+2-3 % of the whisks and never re-localised; with contact seeking 62-64 % (duck) and
+83-85 % (bear), every run reached IC 100 (correct first in 5 of 8: bear 4/4, duck
+1/4), none IC 300 (the present matcher gives the bear's map as many impulses as the
+duck's when the duck is presented).
 """
 
 from __future__ import annotations
