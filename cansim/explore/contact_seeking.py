@@ -81,7 +81,9 @@ from the median contact point (the ``tip`` estimate lies beyond the surface: Box
 believed volume: flat torus 0.71 -> 0.80); no blind advance after a back-off that lost
 the surface (without it the array oscillated into the surface: bases inside the duck in
 47 against 22 of 240 whisks). Not adopted: backing off only to the band's lower bound,
-a half-way return after a back-off that lost the surface, keeping the bases clear of
+a half-way return after a back-off that lost the surface, a 2-cm advance after a face
+placed at the held range (bases inside halved, whisks with contact fewer: duck 0.75 ->
+0.57, Mug 0.84 -> 0.73), keeping the bases clear of
 the contact points felt so far (the ``tip`` contacts of the splayed whiskers lie beside
 the bases and blocked every advance: Box 0.87 -> 0.57).
 
