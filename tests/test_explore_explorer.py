@@ -137,7 +137,7 @@ def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world,
     # every whisk happened where the arm was
     moved = [p for p, s in zip(res.poses[1:], res.strategies) if s != "none"]
     np.testing.assert_allclose([p.position_m for p in moved], [c.target.position_m for c in sent][: len(moved)], atol=1e-9)
-    assert set(res.strategies) <= {"spc", "default", "feh", "lsr", "none"}
+    assert set(res.strategies) <= {"spc", "default", "feh", "lsr", "none", "advance", "back_off", "turn"}
     # IC is the running sum of the raw confidence (dt = 1)
     np.testing.assert_allclose(res.ic, np.cumsum(res.confidence, axis=0))
 

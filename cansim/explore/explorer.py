@@ -14,9 +14,13 @@ One iteration = one whisk:
 3. a re-localisation of model ``k`` to an experience of its built map is an impulse into
    ``k``'s leaky integrator (:class:`maps.recognition.LeakyIntegrator`); the integrated
    confidence (IC) decides the identity;
-4. the goal: the surface placement controller's correction while it has one (at most
-   ``max_adjustments`` per region), else the active strategy's proposal
-   (:func:`cansim.explore.search.active_strategy`);
+4. the goal: contact seeking's (:mod:`cansim.explore.contact_seeking`, default on: back
+   off when the contacts lie nearer than the SPC band, advance along the array's axis
+   after a whisk without contact, turn toward fewer than ``mu`` contacts), else the
+   surface placement controller's correction while it has one (at most
+   ``max_adjustments`` per region, back-offs and turns included), else the active
+   strategy's proposal (:func:`cansim.explore.search.active_strategy`); the default
+   search's next face comes in to the range where contact was last held;
 5. ``arm.move_linear(goal)``: every command passes the arm's
    :class:`~whisker_io.hw.safety.SafetyEnvelope`; a refused command is logged and counted,
    the strategy drops its target and the explorer re-plans with the default search (at
@@ -65,6 +69,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError
+from cansim.explore.contact_seeking import ContactSeekingParams, contact_range_m, held_face_pose, seek_contact
 from cansim.explore.placement import PlacementParams, place
 from cansim.explore.search import (
     STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
@@ -274,7 +279,9 @@ class ExplorationResult:
     poses : list of Pose
         End-effector pose of every whisk.
     strategies : list of str
-        The source of each goal (``spc``, ``default``, ``feh``, ``lsr``, ``none``).
+        The source of each goal (``spc``, ``default``, ``feh``, ``lsr``, ``none``; with
+        contact seeking also ``advance``, ``back_off`` and ``turn``,
+        :func:`cansim.explore.contact_seeking.seek_contact`).
     refused_commands : int
     stop_reason : str
         ``threshold``, ``iterations`` or ``time``.
@@ -325,6 +332,14 @@ class Explorer:
         Keyword arguments of the FEH or LSR strategy
         (:class:`cansim.explore.search.FollowExperienceHistory`,
         :class:`cansim.explore.search.LeastSimilarRegion`), e.g. ``{"along_surface": True}``.
+    contact_seeking : ContactSeekingParams or None
+        Contact seeking (:mod:`cansim.explore.contact_seeking`, the default): back off
+        when the contacts lie nearer than the SPC band, advance along the array's axis
+        after a whisk without contact, turn toward fewer than ``mu`` contacts, and
+        place the default search's next face at the range where contact was last held.
+        None: the thesis' behaviour (Alg 7 alone; the search's faces before its
+        believed volume), which reaches no surface of an object that does not fill
+        that volume. Contact seeking extends the SPC: with ``placement`` None it is off too.
     """
 
     def __init__(
@@ -344,9 +359,14 @@ class Explorer:
         max_adjustments: int = 10,
         max_replans: int = 3,
         strategy_options: dict[str, object] | None = None,
+        contact_seeking: ContactSeekingParams | None = ContactSeekingParams(),
     ) -> None:
         if strategy not in STRATEGIES:
             raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
+        if contact_seeking is not None and not isinstance(contact_seeking, ContactSeekingParams):
+            raise ConfigError(f"contact_seeking must be a ContactSeekingParams or None, got {type(contact_seeking).__name__}")
+        if placement is not None and not isinstance(placement, PlacementParams):
+            raise ConfigError(f"placement must be a PlacementParams or None, got {type(placement).__name__}")
         if not known:
             raise InvalidInputError("the explorer needs at least one known object")
         config_field(max_iterations, "max_iterations", int, minimum=1)
@@ -368,6 +388,10 @@ class Explorer:
         except TypeError as exc:
             raise ConfigError(f"bad strategy_options for {strategy!r}: {exc}") from None
         self.placement, self.integrator = placement, integrator
+        self.seeking = contact_seeking
+        self._advance = 0.0
+        self._held: tuple[float, np.ndarray] | None = None  # (range, direction) of the last contact held
+        self._backed_off = False  # a back-off since the last move that was not contact seeking's
         self.stop_threshold, self.max_iterations, self.time_limit_s = float(stop_threshold), int(max_iterations), float(time_limit_s)
         self.max_adjustments, self.max_replans = int(max_adjustments), int(max_replans)
         n = len(self.models)
@@ -407,8 +431,51 @@ class Explorer:
         return reloc
 
     # -------------------------------------------------------------- planning
+    def _seek(self, pose: Pose, obs: object) -> tuple[Pose, str] | None:
+        """Contact seeking's goal (:func:`seek_contact`), or None; keeps the held range and the advance."""
+        assert self.seeking is not None
+        pts = np.asarray(getattr(obs, "contact_points_m", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
+        spc = self.placement
+        assert spc is not None
+        centre = self.default.centre_m
+        if len(pts):
+            self._advance = 0.0
+            if len(pts) >= spc.mu:
+                self._held = contact_range_m(pose, centre, self.seeking.front_m)
+            if self._adjust >= self.max_adjustments:
+                return None
+        if not len(pts) and self._backed_off:
+            return None  # backed off from a surface the whiskers then lost: no blind advance back into it
+        step = seek_contact(pose, pts, params=self.seeking, placement=spc, advance_m=self._advance, centre_m=centre)
+        if step is None:
+            if not len(pts):
+                self._held = None  # nothing at this range here: the next face starts before the believed volume
+            return None
+        if step.action == "advance":
+            self._advance = step.advance_m
+        else:
+            self._adjust += 1
+        return step.goal, step.action
+
+    def _default_goal(self) -> Pose:
+        """The default search's next face, at the held range when contact was held nearby (contact seeking)."""
+        goal = self.default.propose()
+        self._advance = 0.0
+        if self.seeking is None or self.placement is None or self._held is None:
+            return goal
+        rng, u = self._held
+        face_u = self.default.directions[self.default.current]
+        if math.acos(float(np.clip(face_u @ u, -1.0, 1.0))) > self.seeking.hold_max_turn_rad:
+            self._held = None
+            return goal
+        return held_face_pose(goal, self.default.centre_m, self.seeking.front_m, rng, self.seeking.hold_margin_m)
+
     def _plan(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
         contact = bool(getattr(obs, "is_observation", False))
+        if self.seeking is not None and self.placement is not None:
+            sought = self._seek(pose, obs)
+            if sought is not None:
+                return sought
         if self.placement is not None and contact and self._adjust < self.max_adjustments:
             goal = place(pose, obs.contact_points_m, self.placement)  # type: ignore[attr-defined]
             if goal != pose:
@@ -421,12 +488,16 @@ class Explorer:
             goal = self.strategy.propose(ctx)
             if goal is not None:
                 return goal, active
-        return self.default.propose(), "default"
+        return self._default_goal(), "default"
 
     def _move(self, goal: Pose, source: str) -> str:
         for attempt in range(self.max_replans + 1):
             try:
                 self.arm.move_linear(goal)  # type: ignore[attr-defined]
+                if source == "back_off":
+                    self._backed_off = True
+                elif source != "advance":
+                    self._backed_off = False
                 return source
             except SafetyViolationError as exc:
                 self.refused_commands += 1
@@ -435,8 +506,8 @@ class Explorer:
                     self.default.refused()
                 elif source in ("feh", "lsr") and self.strategy is not None:
                     self.strategy.refused()
-                self._adjust = self.max_adjustments if source == "spc" else self._adjust
-                goal, source = self.default.propose(), "default"
+                self._adjust = self.max_adjustments if source in ("spc", "back_off", "turn") else self._adjust
+                goal, source = self._default_goal(), "default"
         return "none"
 
     # ------------------------------------------------------------------ runs

@@ -1,0 +1,247 @@
+"""Contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off when pressed, hold the range."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.spatial.transform import Rotation
+
+from cansim.errors import CansimError, ConfigError, InvalidInputError
+from cansim.explore.contact_seeking import ContactSeekingParams, held_face_pose, seek_contact
+from cansim.explore.placement import PlacementParams
+from whisker_io.pose import Pose
+
+SPC = PlacementParams(roll_rad=math.pi / 2)
+#: A pose looking along world +x (its y-axis), 0.5 m from the origin.
+ROT = Rotation.from_matrix(np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
+POSE = Pose.from_rotation([-0.5, 0.0, 0.3], ROT)
+
+
+def _y(p):
+    return p.rotation.as_matrix()[:, 1]
+
+
+def test_the_test_pose_looks_along_x():
+    assert np.allclose(_y(POSE), [1.0, 0.0, 0.0])
+
+
+def test_no_contact_advances_one_step_along_the_axis_orientation_kept():
+    s = seek_contact(POSE, np.zeros((0, 3)), params=ContactSeekingParams(advance_step_m=0.04), placement=SPC)
+    assert s.action == "advance" and s.advance_m == pytest.approx(0.04)
+    assert np.allclose(s.goal.position_m, [-0.46, 0.0, 0.3])  # 4 cm along +x, by hand
+    assert np.allclose(s.goal.rotation.as_matrix(), POSE.rotation.as_matrix())
+    s2 = seek_contact(s.goal, np.zeros((0, 3)), params=ContactSeekingParams(advance_step_m=0.04), placement=SPC,
+                      advance_m=s.advance_m)
+    assert s2.advance_m == pytest.approx(0.08) and np.allclose(s2.goal.position_m, [-0.42, 0.0, 0.3])
+
+
+def test_the_advance_stops_at_its_limit_and_at_the_search_centre():
+    p = ContactSeekingParams(advance_step_m=0.04, max_advance_m=0.1)
+    assert seek_contact(POSE, [], params=p, placement=SPC, advance_m=0.08) is None  # 0.12 > 0.1
+    assert seek_contact(POSE, [], params=p, placement=SPC, advance_m=0.06).action == "advance"  # exactly 0.1
+    # the front (0.2019 m along y) may go up to beyond_centre_m (0.1 m) past the centre:
+    p = ContactSeekingParams(advance_step_m=0.04, beyond_centre_m=0.1)
+    front_x = -0.5 + 0.2019
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x + 0.03, 0, 0.3]) is not None
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x - 0.05, 0, 0.3]) is not None  # 0.05 + 0.04 <= 0.1
+    assert seek_contact(POSE, [], params=p, placement=SPC, centre_m=[front_x - 0.07, 0, 0.3]) is None  # 0.07 + 0.04 > 0.1
+
+
+def test_a_pressed_whisk_backs_off_before_any_turn():
+    # three contacts, all to one side (the median far outside the 24-deg cone: Alg 7 alone would turn),
+    # at 0.19 m along y: nearer than the band (0.21-0.26 m): the array backs off along -y first
+    c = np.array([[0.15, 0.19, 0.0], [0.16, 0.19, 0.01], [0.14, 0.19, -0.01]])
+    s = seek_contact(POSE, c, placement=SPC)
+    assert s.action == "back_off"
+    back = max(0.01, (0.235 - 0.19) / 2)  # band middle 0.235 m, two translation steps
+    assert np.allclose(s.goal.position_m, POSE.position_m - back * _y(POSE))
+    assert np.allclose(s.goal.rotation.as_matrix(), POSE.rotation.as_matrix())
+
+
+def test_contacts_in_the_band_are_left_to_alg7():
+    c = np.array([[0.0, 0.235, 0.1], [0.1, 0.235, -0.05], [-0.1, 0.235, -0.05]])
+    assert seek_contact(POSE, c, placement=SPC) is None
+
+
+def test_few_contacts_off_the_axis_turn_toward_them():
+    c = np.array([[0.2, 0.235, 0.0]])  # 40 deg off y toward the frame's x
+    s = seek_contact(POSE, c, placement=SPC)
+    assert s.action == "turn"
+    assert np.allclose(s.goal.position_m, POSE.position_m)  # Alg 7 turns about the end-effector origin
+    target = POSE.rotation.apply([0.2, 0.235, 0.0])
+    target /= np.linalg.norm(target)
+    assert math.acos(_y(s.goal) @ target) < math.acos(_y(POSE) @ target)
+
+
+def test_few_contacts_are_left_to_the_search_without_turn_few():
+    c = np.array([[0.2, 0.235, 0.0]])
+    assert seek_contact(POSE, c, params=ContactSeekingParams(turn_few=False), placement=SPC) is None
+
+
+@pytest.mark.parametrize("value", [1, 0, "yes", None, 1.0])
+def test_bad_turn_few_is_typed(value):
+    with pytest.raises(ConfigError):
+        ContactSeekingParams(turn_few=value)
+
+
+def test_held_face_pose_comes_in_along_the_face_direction_never_out():
+    face = Pose.from_rotation([0.0, -0.6, 0.2], ROT)
+    g = held_face_pose(face, [0.0, 0.0, 0.2], 0.2, 0.1, 0.015)
+    assert np.allclose(g.position_m, [0.0, -(0.1 + 0.015 + 0.2), 0.2])  # by hand
+    assert np.allclose(g.rotation.as_matrix(), face.rotation.as_matrix())
+    far = held_face_pose(face, [0.0, 0.0, 0.2], 0.2, 0.5, 0.015)  # held farther than the face: kept
+    assert far == face
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-math.pi, math.pi), st.floats(-1.4, 1.4), st.floats(0.005, 0.1))
+def test_every_advance_is_one_step_along_the_axis(yaw, pitch, step):
+    rot = Rotation.from_euler("zx", [yaw, pitch])
+    pose = Pose.from_rotation([0.1, -0.2, 0.4], rot)
+    s = seek_contact(pose, np.zeros((0, 3)), params=ContactSeekingParams(advance_step_m=step), placement=SPC)
+    assert s.action == "advance"
+    assert np.allclose(s.goal.position_m - pose.position_m, step * rot.as_matrix()[:, 1], atol=1e-12)
+
+
+_BAD = st.one_of(st.just(math.nan), st.just(math.inf), st.just(-0.01), st.just("0.03"), st.just(True), st.just(5.0))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["advance_step_m", "max_advance_m", "front_m", "backoff_min_m", "hold_margin_m",
+                        "hold_max_turn_rad", "beyond_centre_m"]), _BAD)
+def test_bad_parameters_are_typed(name, value):
+    with pytest.raises(ConfigError):
+        ContactSeekingParams(**{name: value})
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.one_of(st.just(math.nan), st.just(-1.0), st.just("0"), st.just(math.inf), st.just(None)))
+def test_bad_advance_is_typed(value):
+    with pytest.raises(InvalidInputError):
+        seek_contact(POSE, [], placement=SPC, advance_m=value)
+
+
+@pytest.mark.parametrize("contacts", [[[math.nan, 0.2, 0.0]], [[0.0, 20.0, 0.0]], [[0.1, 0.2]], "x"])
+def test_bad_contacts_are_typed(contacts):
+    with pytest.raises(CansimError):
+        seek_contact(POSE, contacts, placement=SPC)
+
+
+def test_bad_parameter_objects_are_typed():
+    with pytest.raises(InvalidInputError):
+        seek_contact(POSE, [], params=SPC)  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError):
+        seek_contact(POSE, [], placement=ContactSeekingParams())  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError):
+        held_face_pose(POSE, [0, 0, 0], 0.2, -0.1, 0.0)
+
+
+# ------------------------------------------------------------------ end to end
+def _peanut():
+    """A freeform shape that fills 40 % of its bounding box (two joined ellipsoids, 0.35 m long), on z = 0."""
+    import trimesh
+
+    parts = []
+    for c, r in (([-0.09, 0.0, 0.09], [0.085, 0.075, 0.09]), ([0.1, 0.0, 0.07], [0.075, 0.065, 0.07])):
+        m = trimesh.creation.icosphere(subdivisions=3)
+        m.vertices = m.vertices * r + c
+        parts.append(m)
+    return trimesh.util.concatenate(parts)
+
+
+def _run(mesh, seeking, n, seed=4):
+    import trimesh
+
+    from cansim.explore.explorer import Explorer, build_object_model
+    from cansim.frontends.whisk import WhiskFrontEndConfig
+    from cansim.explore.search import DefaultSearch
+    from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+    from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.hw.safety import SafetyEnvelope
+    from whisker_io.sim.odometry_noise import noisy_odometry
+    from whisker_io.sim.sweep import ContactNoise
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    rng = np.random.default_rng(seed)
+    chain = WhiskChain(mesh, contact_model="tip", contact_noise=ContactNoise().scaled(0.3))
+    fe = WhiskFrontEndConfig(features="both", pfh_threshold=1.2, sda_threshold=1.29, feature_update=False)
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.trajectories import object_trajectory
+
+    box_chain = WhiskChain(make_object("box"), contact_model="tip")  # a small map of another object: the run recognises nothing
+    few = object_trajectory(make_object("box"), "A", n_loops=1)[:8]
+    known = [build_object_model("box", few, lambda p: box_chain.features(p, rng), lambda a, b: noisy_odometry(a, b, rng),
+                                model=WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03, frontend=fe)))]
+    lo, hi = mesh.bounds
+    big = 1.5 * (hi - lo)  # the believed box: 1.5 times the object, on the table
+    c = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, big[2] / 2])
+    box = trimesh.creation.box(bounds=np.array([c - big / 2, c + big / 2]))
+    search = DefaultSearch(c, float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
+                           footprint_m=WhiskerArray.thesis().positions_m)
+    env = SafetyEnvelope(workspace_min=(-0.75, -0.75, 0.02), workspace_max=(0.75, 0.75, 1.0), max_tool_tilt=math.pi)
+    start = next(search.face_pose(f) for f in range(len(search.directions)) if search.face_pose(f).position_m[2] > 0.3)
+    arm = SimArm(start, env)
+    counts = []
+
+    def sensor(pose):
+        f = chain.features(pose, rng)
+        counts.append(f.n_contacts)
+        return f
+
+    kw = {} if seeking == "default" else {"contact_seeking": seeking}
+    ex = Explorer(known, sensor, arm, lambda a, b: noisy_odometry(a, b, rng), search, stop_threshold=math.inf,
+                  max_iterations=n, placement=PlacementParams(roll_rad=math.pi / 2), **kw)
+    res = ex.run()
+    return np.array(counts), res, arm, env
+
+
+@pytest.fixture(scope="module")
+def peanut_runs():
+    mesh = _peanut()
+    return {"default": _run(mesh, "default", 80), "thesis": _run(mesh, None, 40)}
+
+
+def test_freeform_shape_with_a_loose_believed_box_is_touched_by_default(peanut_runs):
+    counts, res, _, _ = peanut_runs["default"]
+    # measured 0.68 on this held-out shape (80 whisks, seed 4); the thesis' placement 0.0-0.3
+    assert (counts >= 1).mean() >= 0.55
+    assert {"advance", "spc"} <= set(res.strategies)  # it got there by advancing, then Alg 7 placed it
+    thesis_counts, thesis_res, _, _ = peanut_runs["thesis"]
+    assert (thesis_counts >= 1).mean() < 0.3  # the thesis' placement stands out of reach
+    assert not {"advance", "back_off", "turn"} & set(thesis_res.strategies)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 22 target not reached on this held-out shape: 68 % of 80 whisks touch (target 70 %)")
+def test_freeform_shape_meets_the_issue_22_contact_target(peanut_runs):
+    counts, _, _, _ = peanut_runs["default"]
+    assert (counts >= 1).mean() >= 0.7  # issue 22: >= 70 % of the whisks touch a freeform object
+
+
+def test_every_command_of_the_run_passed_the_envelope(peanut_runs):
+    for counts, res, arm, env in peanut_runs.values():
+        moves = [c for c in arm.received if c.kind == "moveL"]
+        assert moves
+        for c in moves:
+            env.check_pose(c.target)
+            assert c.speed <= env.max_tcp_speed and c.acceleration_or_dt <= env.max_tcp_acceleration
+
+
+def test_pressed_whisks_are_followed_by_a_move_away(peanut_runs):
+    counts, res, _, _ = peanut_runs["default"]
+    backs = [i for i, s in enumerate(res.strategies) if s == "back_off"]
+    assert backs  # the run pressed against the peanut at least once
+    for i in backs:
+        if i + 1 < len(res.poses):
+            moved = res.poses[i + 1].position_m - res.poses[i].position_m
+            assert moved @ _y(res.poses[i]) < 0  # away from the surface along the array's axis
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.sampled_from(["on", 1, True, 0.03, PlacementParams(), {"advance_step_m": 0.03}]))
+def test_explorer_rejects_a_bad_contact_seeking(value):
+    from cansim.explore.explorer import Explorer
+
+    with pytest.raises(ConfigError):
+        Explorer([object()], lambda p: None, object(), lambda a, b: None, object(), contact_seeking=value)  # type: ignore[arg-type]
