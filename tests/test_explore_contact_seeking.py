@@ -190,7 +190,7 @@ def _run(mesh, seeking, n, seed=4):
         counts.append(f.n_contacts)
         return f
 
-    kw = {} if seeking == "default" else {"contact_seeking": seeking}
+    kw = {"contact_seeking": ContactSeekingParams() if seeking == "default" else seeking}
     ex = Explorer(known, sensor, arm, lambda a, b: noisy_odometry(a, b, rng), search, stop_threshold=math.inf,
                   max_iterations=n, placement=PlacementParams(roll_rad=math.pi / 2), **kw)
     res = ex.run()

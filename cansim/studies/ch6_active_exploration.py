@@ -227,6 +227,8 @@ class Setup:
     sda_threshold: float
     noise_scale: float
     contact_model: str = DEFAULT_CONTACT_MODEL
+    #: contact seeking (:mod:`cansim.explore.contact_seeking`; off: the thesis' Alg 7-8, the study's figures)
+    contact_seeking: bool = False
 
 
 def envelope() -> Any:
@@ -378,8 +380,11 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
         cycles.append((pose, f))
         return f
 
+    from cansim.explore.contact_seeking import ContactSeekingParams
+
     ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
-                  placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations)
+                  placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
+                  contact_seeking=ContactSeekingParams() if setup.contact_seeking else None)
     return ex, arm, cycles
 
 

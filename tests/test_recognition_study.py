@@ -1,0 +1,79 @@
+"""The recognition benchmark (cansim.studies.recognition; issue 22 item 4) in the quick mode a user runs.
+
+One run of ``cansim study recognition --quick`` (12-object library, seed 0, presentations
+along trajectory A, trajectory B and viewpoints 5-10 cm / 5-15 deg from the mapping
+poses, three novel objects): the outputs, what holds today (the own map leads along the
+mapping path, novel objects get no decision, no wrong decision), and the issue's
+headline target, which the thesis matcher does not reach (strict xfail: it turns into a
+failure the day it is reached, so the marker is removed then).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import pytest
+
+from cansim.studies import recognition
+from cansim.tools import cli
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("recognition")
+    assert cli.main(["study", "recognition", "--quick", "--out", str(out), "--no-progress"]) == 0
+    with open(out / "recognition_runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return out, rows
+
+
+def test_outputs_and_columns(quick):
+    out, rows = quick
+    assert tuple(rows[0]) == recognition.COLUMNS
+    library = [r for r in rows if r["novel"] == "False"]
+    novel = [r for r in rows if r["novel"] == "True"]
+    assert len({r["presented"] for r in library}) == 12 and len({r["presented"] for r in novel}) == 3
+    assert {(r["presentation"], r["distance_bin"]) for r in rows} == {("A", ""), ("B", ""), ("viewpoints", "vp 5-10 cm")}
+    assert len(rows) == (12 + 3) * 3
+    for name in ("recognition_confusion.png", "recognition_accuracy_vs_distance.png",
+                 "recognition_accuracy_vs_library.png"):
+        assert (out / name).stat().st_size > 10_000
+    text = (out / "recognition_summary.txt").read_text()
+    assert "trajectory B" in text and "Fig 5.17" in text
+
+
+def test_viewpoints_lie_in_their_bin(quick):
+    _, rows = quick
+    vp = [r for r in rows if r["presentation"] == "viewpoints"]
+    assert all(0.05 <= float(r["median_distance_m"]) <= 0.10 for r in vp)
+    assert all(5.0 <= float(r["median_rotation_deg"]) <= 20.0 for r in vp)  # the turn, seen from the nearest pose
+    along_a = [r for r in rows if r["presentation"] == "A"]
+    assert all(float(r["median_distance_m"]) < 1e-9 for r in along_a)  # A retraces the mapping poses
+
+
+def test_along_the_mapping_path_the_own_map_leads_every_run(quick):
+    _, rows = quick
+    for r in rows:
+        if r["presentation"] == "A" and r["novel"] == "False":
+            assert float(r["final_ic_own"]) > float(r["final_ic_best_other"]), r["presented"]
+            assert r["decision"] in ("", r["presented"])
+
+
+def test_novel_objects_get_no_decision_and_no_decision_is_wrong(quick):
+    _, rows = quick
+    novel = [r for r in rows if r["novel"] == "True"]
+    assert sum(r["decision"] == "" for r in novel) >= math.ceil(0.95 * len(novel))
+    library = [r for r in rows if r["novel"] == "False"]
+    assert sum(r["decision"] not in ("", r["presented"]) for r in library) <= 0.05 * len(library)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match recognises visited poses, "
+                                       "not the surface (along B 0/12 correct decisions on main)")
+@pytest.mark.parametrize("presentation", ["B", "viewpoints"])
+def test_headline_identified_from_a_new_path(quick, presentation):
+    _, rows = quick
+    runs = [r for r in rows if r["presentation"] == presentation and r["novel"] == "False"]
+    assert sum(r["decision"] == r["presented"] for r in runs) >= 0.9 * len(runs)
