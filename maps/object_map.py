@@ -131,11 +131,15 @@ class ObjectMap(ExperienceMap):
         return self._contact_exp[: self._n_contacts].copy()
 
     def record_contacts(self, contact_points_m: Any) -> int:
-        """Keep a whisk's contact points with the current experience (what was felt from its pose).
+        """Keep a whisk's contact points with the current experience (what was felt, and from where).
 
-        Call after the whisk's iteration was processed (the current experience is then
-        the one the whisk was matched or added to; its pose is where the model believes
-        the whisk was made).
+        Call after the whisk's iteration was processed: the whisk was made at the
+        dead-reckoned pose (:meth:`dead_reckoned_pose`: the current experience's pose
+        composed with the odometry since it; the experience's own pose right after a
+        re-localisation or a new experience). The points are stored in the current
+        experience's frame, ``R_e^T (p + R x - p_e)`` for the dead-reckoned pose
+        ``(p, R)`` and the experience pose ``(p_e, R_e)``, so the map-frame surface
+        (:meth:`surface_points`) follows the experience when the map relaxes.
 
         Parameters
         ----------
@@ -165,6 +169,12 @@ class ObjectMap(ExperienceMap):
             self._contact_pts = np.concatenate([self._contact_pts[:n], np.zeros((grow - n, 3))])
             self._contact_exp = np.concatenate([self._contact_exp[:n], np.zeros(grow - n, dtype=np.int64)])
         cur = int(self.current_id)
+        if k:  # felt from the dead-reckoned pose (the current experience and the odometry since): into its frame
+            from scipy.spatial.transform import Rotation
+
+            dr = np.asarray(self.dead_reckoned_pose())
+            exp = self._a.pose[cur]
+            pts = Rotation.from_quat(exp[3:7]).inv().apply(dr[:3] + Rotation.from_quat(dr[3:7]).apply(pts) - exp[:3])
         self._contact_pts[n:n + k] = pts
         self._contact_exp[n:n + k] = cur
         self._n_contacts = n + k
