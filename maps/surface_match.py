@@ -48,13 +48,15 @@ noise, Eq 6.4-6.11 odometry noise; maps built with
 Mug, Blob, Box, Barrel, Plane, seed 0, 300 whisks):
 
 * **The stored surface is the bottleneck.** The maps' experience poses are 0.11-0.24 m
-  (median) and 11-23 deg from the truth (relative to the first experience): dead
+  and 11-37 deg (medians) from the truth (relative to the first experience): dead
   reckoning drifts about 4 deg per whisk and re-localisations on loops 2-3 close the
   loop but do not undo loop 1's distortion. Placed by them the stored contacts lie a
-  median 31-34 mm (Mug, Box) to 111 mm (Blob) from the mesh. Against these surfaces the
-  matcher does not identify: along B 1 of 5 correct IC decisions (threshold 300), along A
-  1 of 5; the own object's evidence (median 11-18 mm) is no lower than the best other
-  object's (7-13 mm), also with noise-free odometry for the presentation (own 9-12 mm).
+  median 31-34 mm (Mug, Box, Barrel), 67 mm (Plane) and 111 mm (Blob) from the mesh, and
+  a whisk's fan (0.3-0.45 m) spans contacts mapped several whisks (several degrees of
+  drift) apart. Against these surfaces the matcher does not identify: 300 whisks along
+  B, 1 of 5 correct IC decisions (threshold 300), along A 1 of 5; the own object's
+  evidence (median 11-18 mm) is no lower than the best other object's (7-13 mm), also
+  with noise-free odometry for the presentation (own 9-12 mm).
 * **On an accurate surface the matcher is better, not yet good enough.** With each
   library surface made of contacts placed at the true poses of 2 loops of A, the same
   presentation along B (3 loops, noisy dead reckoning tracked as above) scores the own
