@@ -28,9 +28,11 @@ identified. This module identifies the *surface* instead of the *view*:
 4. **Residual and evidence.** After registration each contact's residual is its
    point-to-plane distance to the nearest stored point, ``cap_m`` when no stored point
    lies within ``gate_m`` (a contact where object ``k`` has no surface), capped at
-   ``cap_m``; a whisk's score is the root mean square over its contacts, and the
-   evidence ``E_k`` the root mean square over the contacts of the last
-   ``window_whisks`` whisks with contacts.
+   ``cap_m``; a whisk's score adds to the sum of its squared residuals the change of the
+   correction it needed (its Mahalanobis norm under the prior, times
+   ``motion_weight * contact_sigma_m**2``: an object that fits only by moving far pays
+   for it), and the evidence ``E_k`` is the root mean square of these over the contacts
+   of the last ``window_whisks`` whisks with contacts.
 5. **Impulse.** Object ``k`` gets an impulse (into its leaky integrator,
    :func:`maps.recognition.leaky_step`, so the RC / IC decisions of Ch.5 / Ch.6 are
    unchanged) only when the window holds at least ``min_window_contacts`` contacts,
@@ -55,9 +57,8 @@ Mug, Blob, Box, Barrel, Plane, seed 0, 300 whisks):
   a whisk's fan (0.3-0.45 m) spans contacts mapped several whisks (several degrees of
   drift) apart. Against these surfaces the matcher does not identify: 300 whisks along
   B, 1 of 5 correct IC decisions (threshold 300) and 1 wrong (Plane as Barrel), along A
-  1 of 5; the own object's
-  evidence (median 11-18 mm) is no lower than the best other object's (7-13 mm), also
-  with noise-free odometry for the presentation (own 9-12 mm).
+  1 of 5; the own object's evidence (median 11-18 mm) is no lower than the best other
+  object's (7-13 mm), also with noise-free odometry for the presentation (own 9-12 mm).
 * **On an accurate surface the matcher is better, not yet good enough.** With each
   library surface made of contacts placed at the true poses of 2 loops of A, the same
   presentation along B (3 loops, noisy dead reckoning tracked as above) scores the own
