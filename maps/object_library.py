@@ -11,7 +11,9 @@ experience ``e`` is an impulse into the leaky integrator of object ``exp_object[
 Every map keeps its own pose frame (its first experience is at the identity) and its
 own pose-cell locations (the maps share one pose-cell grid, each with its stored cells).
 Local-view ids of map ``k`` are shifted by ``view_offsets[k]``, the number of regions
-stored before it, so the caller appends the regions in the same order.
+stored before it, so the caller appends the regions in the same order. The contact points
+each map keeps (:meth:`~maps.object_map.ObjectMap.record_contacts`) are appended with
+their experiences.
 """
 
 from __future__ import annotations
@@ -118,6 +120,8 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     out["state_i"] = np.array([last, last, 0], dtype=np.int64)
     hist = [np.where(p["history"] >= 0, p["history"] + s, -1) for p, s in zip(parts, start)]
     out["history"] = np.concatenate(hist).astype(np.int64)
+    out["contact_points_m"] = np.concatenate([p["contact_points_m"] for p in parts]).reshape(-1, 3)
+    out["contact_exp"] = np.concatenate([p["contact_exp"] + s for p, s in zip(parts, start)]).astype(np.int64)
     library = ObjectMap.from_arrays(out)
     exp_object = np.repeat(np.arange(len(maps), dtype=np.int64), n_exp)
     history_object = np.repeat(np.arange(len(maps), dtype=np.int64), [len(h) for h in hist])

@@ -11,6 +11,13 @@ search read. The history is saved with the map; the iteration at which each expe
 was created (its first entry in the history, :attr:`ObjectMap.creation_iterations`) is
 derived from it.
 
+What was felt is kept too (for identification from new viewpoints,
+:mod:`maps.surface_match`): :meth:`ObjectMap.record_contacts` attaches a whisk's contact
+points (end-effector frame, metres) to the current experience, as felt from that
+experience's pose. They are stored in that experience's frame, so the map-frame surface
+(:meth:`ObjectMap.surface_points`) follows the experience poses when the map relaxes,
+and are saved with the map and appended with it (:mod:`maps.object_library`).
+
 Three queries serve the model's pose-consistent region matching (WhiskerRatSLAM's pose
 gate): :meth:`ObjectMap.predicted_pose` (the dead-reckoned pose after one more
 odometry sample, the map unchanged), :meth:`ObjectMap.pose_distances` (position and
@@ -57,6 +64,9 @@ class ObjectMap(ExperienceMap):
         self._born = np.zeros(16, dtype=np.int64)  # history index at which each experience was created
         self._n_born = 0
         self._last_reloc = -1  # history index of the last re-localisation
+        self._contact_pts = np.zeros((64, 3))  # contact points in their experience's frame, m
+        self._contact_exp = np.zeros(64, dtype=np.int64)  # the experience each contact belongs to
+        self._n_contacts = 0
 
     @property
     def history(self) -> np.ndarray:
@@ -103,6 +113,87 @@ class ObjectMap(ExperienceMap):
             self._last_reloc = t
         self._history[t] = cur
         self._n_hist = t + 1
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of stored contact points (:meth:`record_contacts`)."""
+        return self._n_contacts
+
+    @property
+    def contact_points_m(self) -> np.ndarray:
+        """Stored contact points, each in the frame of its experience (the end-effector frame
+        at that experience's pose), (n_contacts, 3) m; a copy."""
+        return self._contact_pts[: self._n_contacts].copy()
+
+    @property
+    def contact_experiences(self) -> np.ndarray:
+        """Experience of each stored contact point, (n_contacts,) int64; a copy."""
+        return self._contact_exp[: self._n_contacts].copy()
+
+    def record_contacts(self, contact_points_m: Any) -> int:
+        """Keep a whisk's contact points with the current experience (what was felt, and from where).
+
+        Call after the whisk's iteration was processed: the whisk was made at the
+        dead-reckoned pose (:meth:`dead_reckoned_pose`: the current experience's pose
+        composed with the odometry since it; the experience's own pose right after a
+        re-localisation or a new experience). The points are stored in the current
+        experience's frame, ``R_e^T (p + R x - p_e)`` for the dead-reckoned pose
+        ``(p, R)`` and the experience pose ``(p_e, R_e)``, so the map-frame surface
+        (:meth:`surface_points`) follows the experience when the map relaxes.
+
+        Parameters
+        ----------
+        contact_points_m : array_like (k, 3)
+            The whisk's contact points in the end-effector frame, m (k may be 0).
+
+        Returns
+        -------
+        int
+            The experience the points were attached to.
+
+        Raises
+        ------
+        ShapeError
+            Not a (k, 3) array.
+        InvalidInputError
+            Non-finite points, or no experience yet (explore with an observation first).
+        """
+        from whisker_io.validation import finite_array
+
+        pts = finite_array(contact_points_m, (None, 3), "contact_points_m")
+        if self.n_experiences == 0:
+            raise InvalidInputError("the map has no experience to attach contact points to; step the model with an observation first")
+        k, n = len(pts), self._n_contacts
+        if n + k > len(self._contact_pts):
+            grow = max(n + k, 2 * len(self._contact_pts))
+            self._contact_pts = np.concatenate([self._contact_pts[:n], np.zeros((grow - n, 3))])
+            self._contact_exp = np.concatenate([self._contact_exp[:n], np.zeros(grow - n, dtype=np.int64)])
+        cur = int(self.current_id)
+        if k:  # felt from the dead-reckoned pose (the current experience and the odometry since): into its frame
+            from scipy.spatial.transform import Rotation
+
+            dr = np.asarray(self.dead_reckoned_pose())
+            exp = self._a.pose[cur]
+            pts = Rotation.from_quat(exp[3:7]).inv().apply(dr[:3] + Rotation.from_quat(dr[3:7]).apply(pts) - exp[:3])
+        self._contact_pts[n:n + k] = pts
+        self._contact_exp[n:n + k] = cur
+        self._n_contacts = n + k
+        return cur
+
+    def surface_points(self) -> np.ndarray:
+        """The stored contact points in the map frame, (n_contacts, 3) m.
+
+        Each point is placed by the current pose of its experience (``p_e + R(q_e) x``),
+        so the surface follows the map's relaxation.
+        """
+        from scipy.spatial.transform import Rotation
+
+        n = self._n_contacts
+        if n == 0:
+            return np.zeros((0, 3))
+        poses = self._a.pose[: self.n_experiences]
+        e = self._contact_exp[:n]
+        return poses[e, :3] + Rotation.from_quat(poses[e, 3:7]).apply(self._contact_pts[:n])
 
     def predicted_pose(self, *odometry: Any) -> np.ndarray:
         """The dead-reckoned pose after one more odometry sample; the map is unchanged.
@@ -227,6 +318,8 @@ class ObjectMap(ExperienceMap):
         """The map's arrays plus ``history``."""
         arrays = super().to_arrays(prefix)
         arrays[prefix + "history"] = self.history
+        arrays[prefix + "contact_points_m"] = self.contact_points_m
+        arrays[prefix + "contact_exp"] = self.contact_experiences
         return arrays
 
     @classmethod
@@ -248,4 +341,18 @@ class ObjectMap(ExperienceMap):
         t = np.arange(1, len(h))
         switch = (h[1:] >= 0) & (h[1:] != h[:-1]) & (born[np.maximum(h[1:], 0)] < t)
         om._last_reloc = int(t[switch][-1]) if switch.any() else -1
+        kp, ke = prefix + "contact_points_m", prefix + "contact_exp"
+        if (kp in arrays) != (ke in arrays):
+            raise CorruptFileError("missing (contact points and their experiences are saved together)",
+                                   field=ke if kp in arrays else kp)
+        if kp in arrays:  # maps saved before contacts were kept have neither: no stored surface
+            pts, ex = np.asarray(arrays[kp]), np.asarray(arrays[ke])
+            if pts.ndim != 2 or pts.shape[1] != 3 or pts.dtype.kind != "f" or not np.isfinite(pts).all():
+                raise CorruptFileError(f"expected finite (n, 3) floats, got {pts.dtype} {pts.shape}", field=kp)
+            if ex.shape != (len(pts),) or ex.dtype.kind != "i" or (len(ex) and (ex.min() < 0 or ex.max() >= om.n_experiences)):
+                raise CorruptFileError(f"expected {len(pts)} experience ids in [0, {om.n_experiences}), got {ex.dtype} {ex.shape}",
+                                       field=ke)
+            om._contact_pts = np.concatenate([pts.astype(np.float64), np.zeros((64, 3))])
+            om._contact_exp = np.concatenate([ex.astype(np.int64), np.zeros(64, dtype=np.int64)])
+            om._n_contacts = len(pts)
         return om

@@ -335,6 +335,9 @@ class WhiskerRatSLAM(SlamLoop):
         finally:
             self._predicted = None
         self.object_map.record()
+        points = getattr(observation, "contact_points_m", None)
+        if points is not None and self.object_map.n_experiences:  # what was felt, for maps.surface_match
+            self.object_map.record_contacts(points)
         return state
 
     def _region_prior(self, n_regions: int) -> tuple[np.ndarray, np.ndarray]:

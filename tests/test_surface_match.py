@@ -1,0 +1,266 @@
+"""Stored contacts of object maps and the surface matcher (maps.surface_match).
+
+Hand-computed residuals on tiny point sets, invariants of the matcher (an object's own
+surface scores it best and gives it the impulses; a copy moved beyond the gate gives none),
+the save / load round trip of the contacts an object map keeps, and typed errors for bad
+input (hypothesis).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cansim.whisker_ratslam import WhiskerRatSLAM
+from maps.object_library import append_object_maps
+from maps.object_map import ObjectMap
+from maps.odometry import SpatialOdometry
+from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher, calibrate_tolerance
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
+from whisker_io.features.region import region_features
+
+IDENTITY = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+
+
+def _plane(z: float, n: int = 11, half: float = 0.1) -> np.ndarray:
+    """A square grid of points on the plane at height z (m)."""
+    u = np.linspace(-half, half, n)
+    x, y = np.meshgrid(u, u)
+    return np.column_stack([x.ravel(), y.ravel(), np.full(x.size, z)])
+
+
+def _sphere(r: float, n: int = 400, seed: int = 0) -> np.ndarray:
+    d = np.random.default_rng(seed).normal(size=(n, 3))
+    return r * d / np.linalg.norm(d, axis=1)[:, None]
+
+
+# --------------------------------------------------------------------------- residuals by hand
+def test_point_to_plane_residuals_by_hand() -> None:
+    lib = SurfaceLibrary([_plane(0.0), _plane(0.010)], ["low", "high"])
+    cfg = SurfaceMatchConfig(gate_m=0.05, cap_m=0.03)
+    # two points 4 mm and 2 mm above the low plane: 4/2 mm from it, 6/8 mm from the high one
+    pts = np.array([[0.0, 0.0, 0.004], [0.05, 0.02, 0.002]])
+    r = lib.residuals(pts, cfg)
+    assert r[0] == pytest.approx(math.sqrt((0.004**2 + 0.002**2) / 2), abs=1e-9)
+    assert r[1] == pytest.approx(math.sqrt((0.006**2 + 0.008**2) / 2), abs=1e-9)
+
+
+def test_a_point_beyond_the_gate_counts_the_cap() -> None:
+    lib = SurfaceLibrary([_plane(0.0)], ["low"])
+    cfg = SurfaceMatchConfig(gate_m=0.05, cap_m=0.03)
+    pts = np.array([[0.0, 0.0, 0.003], [0.0, 0.0, 0.2]])  # the second is 0.2 m away: off the surface
+    assert lib.residuals(pts, cfg)[0] == pytest.approx(math.sqrt((0.003**2 + 0.03**2) / 2), abs=1e-9)
+
+
+def test_residuals_are_capped() -> None:
+    lib = SurfaceLibrary([_plane(0.0)], ["low"])
+    cfg = SurfaceMatchConfig(gate_m=0.08, cap_m=0.01)
+    assert lib.residuals(np.array([[0.0, 0.0, 0.04]]), cfg)[0] == pytest.approx(0.01)
+
+
+# --------------------------------------------------------------------------- matcher invariants
+def _matcher(surfaces: list[np.ndarray], **cfg: float) -> SurfaceMatcher:
+    lib = SurfaceLibrary(surfaces, [f"o{k}" for k in range(len(surfaces))])
+    return SurfaceMatcher(lib, IDENTITY, SurfaceMatchConfig(**cfg))
+
+
+def test_own_surface_points_score_that_object_best_and_get_the_impulses() -> None:
+    surfaces = [_sphere(0.10, seed=1), _sphere(0.14, seed=2), _plane(0.0, half=0.15)]
+    rng = np.random.default_rng(3)
+    for k in range(3):
+        m = _matcher(surfaces, min_window_contacts=12, tolerance_m=0.005, ratio=0.75)
+        got = np.zeros(3, dtype=int)
+        for _ in range(10):
+            whisk = surfaces[k][rng.choice(len(surfaces[k]), 6, replace=False)]
+            got += m.step(SpatialOdometry(np.zeros(3), np.zeros(3), 1.0), whisk)
+        assert int(np.argmin(m.evidence_m)) == k
+        assert m.evidence_m[k] < 1e-3
+        assert got[k] >= 8 and got.sum() == got[k]  # every impulse to the own object, from the 2nd whisk on
+
+
+def test_a_copy_moved_beyond_the_gate_gets_no_impulse() -> None:
+    surfaces = [_sphere(0.10, seed=1), _sphere(0.14, seed=2)]
+    m = _matcher(surfaces, gate_m=0.05, initial_sigma_m=0.01, tolerance_m=0.012)
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        whisk = surfaces[0][rng.choice(len(surfaces[0]), 6, replace=False)] + [0.6, 0.0, 0.0]
+        assert not m.step(SpatialOdometry(np.zeros(3), np.zeros(3), 1.0), whisk).any()
+    assert np.all(m.evidence_m > 0.012)
+
+
+def test_dead_reckoning_places_the_contacts() -> None:
+    """A whisk after a 5-cm step along x: contacts 5 cm back in its own frame lie on the plane's points."""
+    m = _matcher([_plane(0.0), _plane(0.02)], tolerance_m=0.002, min_window_contacts=3, initial_sigma_m=1e-5,
+                 initial_sigma_deg=1e-3, step_sigma_m=1e-5, step_sigma_deg=1e-3)  # no correction: dead reckoning alone
+    pts = _plane(0.0, n=3, half=0.05) - [0.05, 0.0, 0.0]
+    m.step(SpatialOdometry([0.05, 0.0, 0.0], np.zeros(3), 1.0), pts)
+    assert m.pose[:3].tolist() == pytest.approx([0.05, 0.0, 0.0])
+    assert m.last_scores_m[0] < 1e-6 and m.last_scores_m[1] == pytest.approx(0.02, abs=1e-3)
+
+
+def test_calibrate_tolerance_by_hand() -> None:
+    cal = calibrate_tolerance([0.001, 0.002, 0.003, 0.004, 0.005], [0.002, 0.01, 0.02, 0.03], quantile=0.5)
+    assert cal.tolerance_m == pytest.approx(0.003)
+    assert cal.different_below == pytest.approx(0.25)
+    assert (cal.n_same, cal.n_different) == (5, 4)
+
+
+# --------------------------------------------------------------------------- the contacts object maps keep
+def _observation(points: np.ndarray):  # noqa: ANN202
+    return region_features(points, np.zeros(18), np.zeros(18, dtype=bool))
+
+
+def _whisks() -> list[np.ndarray]:
+    rng = np.random.default_rng(0)
+    return [np.column_stack([rng.uniform(-0.1, 0.1, 5), rng.uniform(0.2, 0.3, 5), rng.uniform(-0.1, 0.1, 5)])
+            for _ in range(4)]
+
+
+def test_first_whisk_is_stored_as_felt_and_a_step_is_added() -> None:
+    slam = WhiskerRatSLAM(backend="numpy")
+    w = _whisks()
+    slam.step(SpatialOdometry(np.zeros(3), np.zeros(3), 1.0), _observation(w[0]))
+    om = slam.object_map
+    assert om.n_contacts == 5
+    np.testing.assert_allclose(om.surface_points(), w[0], atol=1e-12)  # the first experience is the identity
+    slam.step(SpatialOdometry([0.01, 0.0, 0.0], np.zeros(3), 1.0), _observation(w[0]))  # same region 1 cm on
+    assert om.n_experiences == 1 and om.contact_experiences.tolist() == [0] * 10  # ... the same experience
+    np.testing.assert_allclose(om.surface_points()[5:], w[0] + [0.01, 0.0, 0.0], atol=1e-12)  # felt 1 cm further
+
+
+def test_contacts_round_trip_through_save_and_load(tmp_path: Path) -> None:
+    slam = WhiskerRatSLAM(backend="numpy")
+    for k, w in enumerate(_whisks()):
+        slam.step(SpatialOdometry([0.12, 0.0, 0.0], [0.0, 0.0, 0.3], 1.0), _observation(w))
+    slam.save(tmp_path / "m.npz")
+    back = WhiskerRatSLAM.load(tmp_path / "m.npz").object_map
+    om = slam.object_map
+    assert om.n_contacts == 20
+    np.testing.assert_array_equal(back.contact_points_m, om.contact_points_m)
+    np.testing.assert_array_equal(back.contact_experiences, om.contact_experiences)
+    np.testing.assert_array_equal(back.surface_points(), om.surface_points())
+
+
+def test_appended_maps_keep_their_contacts() -> None:
+    a, b = WhiskerRatSLAM(backend="numpy"), WhiskerRatSLAM(backend="numpy")
+    for w in _whisks():
+        a.step(SpatialOdometry([0.12, 0.0, 0.0], [0.0, 0.0, 0.3], 1.0), _observation(w))
+    for w in _whisks()[:2]:
+        b.step(SpatialOdometry([0.12, 0.0, 0.0], [0.0, 0.0, 0.3], 1.0), _observation(w * 2))
+    lib = append_object_maps([a.object_map, b.object_map], ["a", "b"], [0, len(a.frontend)])
+    om = lib.object_map
+    assert om.n_contacts == a.object_map.n_contacts + b.object_map.n_contacts
+    np.testing.assert_array_equal(om.contact_experiences[:20], a.object_map.contact_experiences)
+    np.testing.assert_array_equal(om.contact_experiences[20:], b.object_map.contact_experiences + a.object_map.n_experiences)
+    np.testing.assert_allclose(om.surface_points()[:20], a.object_map.surface_points(), atol=1e-12)
+    np.testing.assert_allclose(om.surface_points()[20:], b.object_map.surface_points(), atol=1e-12)
+    sl = SurfaceLibrary.from_object_library(lib, [IDENTITY, IDENTITY])
+    assert sl.names == ("a", "b") and np.bincount(sl.point_object).tolist() == [20, 10]
+
+
+def test_a_saved_map_without_contacts_loads_with_none() -> None:
+    om = ObjectMap()
+    arrays = om.to_arrays()
+    del arrays["contact_points_m"], arrays["contact_exp"]
+    assert ObjectMap.from_arrays(arrays).n_contacts == 0
+
+
+# --------------------------------------------------------------------------- bad input
+_bad_points = st.one_of(
+    st.just(np.full((3, 3), np.nan)), st.just(np.zeros((3, 2))), st.just(np.zeros(3)), st.just("points"),
+    st.just(np.array([[0.0, 0.0, np.inf]])),
+)
+
+
+@settings(max_examples=25, deadline=None)
+@given(_bad_points)
+def test_bad_points_raise_typed_errors(points: object) -> None:
+    lib = SurfaceLibrary([_plane(0.0)], ["low"])
+    m = SurfaceMatcher(lib, IDENTITY)
+    with pytest.raises((InvalidInputError, ShapeError)):
+        m.step(None, points)
+    with pytest.raises((InvalidInputError, ShapeError)):
+        lib.residuals(points)
+    with pytest.raises((InvalidInputError, ShapeError)):
+        SurfaceLibrary([points], ["x"])
+    slam = WhiskerRatSLAM(backend="numpy")
+    slam.step(SpatialOdometry(np.zeros(3), np.zeros(3), 1.0), _observation(_whisks()[0]))
+    with pytest.raises((InvalidInputError, ShapeError)):
+        slam.object_map.record_contacts(points)
+    assert slam.object_map.n_contacts == 5  # unchanged
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(st.just([0.0] * 7), st.just([0.0] * 6), st.just([np.nan] * 7), st.just("pose")))
+def test_bad_start_pose_raises(pose: object) -> None:
+    with pytest.raises((InvalidInputError, ShapeError)):
+        SurfaceMatcher(SurfaceLibrary([_plane(0.0)], ["low"]), pose)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from(["gate_m", "cap_m", "contact_sigma_m", "tolerance_m", "ratio", "window_whisks"]),
+       st.one_of(st.just(0), st.just(-1.0), st.just(float("nan")), st.just("x"), st.just(True)))
+def test_bad_config_raises(field: str, value: object) -> None:
+    with pytest.raises(ConfigError):
+        SurfaceMatchConfig(**{field: value})
+
+
+def test_other_bad_inputs() -> None:
+    with pytest.raises(InvalidInputError):
+        SurfaceLibrary([], [])
+    with pytest.raises(InvalidInputError):
+        SurfaceLibrary([_plane(0.0), _plane(0.01)], ["x", "x"])
+    with pytest.raises(InvalidInputError):
+        SurfaceLibrary([np.zeros((2, 3))], ["two points"])
+    with pytest.raises(InvalidInputError):
+        SurfaceLibrary([_plane(0.0) * 1000.0], ["millimetres"])
+    with pytest.raises(InvalidInputError):
+        ObjectMap().record_contacts(np.zeros((1, 3)))  # no experience yet
+    with pytest.raises(InvalidInputError):
+        SurfaceMatcher(SurfaceLibrary([_plane(0.0)], ["low"]), IDENTITY).step("odometry", np.zeros((3, 3)))
+    for q in (0.0, 1.0, float("nan")):
+        with pytest.raises(InvalidInputError):
+            calibrate_tolerance([0.01], [0.02], q)
+    with pytest.raises(InvalidInputError):
+        calibrate_tolerance([], [0.02])
+
+
+# --------------------------------------------------------------------------- end to end on the simulator
+def test_presented_along_b_the_impulses_go_to_the_own_object_on_an_accurate_surface() -> None:
+    """Library surfaces of contacts placed at the true poses of 2 loops of trajectory A; each object
+    presented along 2 loops of B with Eq 6.4-6.11 odometry noise (the matcher only knows the start
+    pose). Over seeds 0-5 the own object got most impulses in 14 of 18 presentations, and all own
+    impulses outnumber all wrong ones 1.7 (seed 1) to 48 times per seed (maps.surface_match docstring, Status); a
+    matcher that cannot tell the surfaces apart gives about 1 own to 2 wrong. (With surfaces placed
+    by the object maps' experience poses even this fails: the docstring's Status.)"""
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.odometry_noise import noisy_odometry
+    from whisker_io.sim.sweep import ContactNoise
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    names = ("mug", "blob", "barrel")
+    meshes = [make_object(n) for n in names]
+    chains = [WhiskChain(m, contact_noise=ContactNoise().scaled(0.3)) for m in meshes]
+    rng = np.random.default_rng(1)  # the worst of seeds 0-5
+    surfaces = []
+    for mesh, chain in zip(meshes, chains):
+        poses = object_trajectory(mesh, "A", 2, step_m=0.11, step_deg=12.0)
+        surfaces.append(np.concatenate([p.apply(np.array(chain.features(p, rng).contact_points_m)) for p in poses]))
+    lib = SurfaceLibrary(surfaces, names)
+    own = wrong = 0
+    for k, (mesh, chain) in enumerate(zip(meshes, chains)):
+        poses = object_trajectory(mesh, "B", 2, step_m=0.11, step_deg=12.0)
+        m = SurfaceMatcher(lib, np.r_[poses[0].position_m, poses[0].quaternion_xyzw])
+        got = np.zeros(len(names), dtype=int)
+        for i, p in enumerate(poses):
+            odo = SpatialOdometry(*noisy_odometry(poses[i - 1], p, rng)) if i else None
+            got += m.step(odo, chain.features(p, rng).contact_points_m)
+        own += int(got[k])
+        wrong += int(got.sum() - got[k])
+    assert own >= 30 and own >= 1.5 * wrong, (own, wrong)
