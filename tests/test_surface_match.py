@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim.whisker_ratslam import WhiskerRatSLAM
+from cansim.models.whisker_ratslam import WhiskerRatSLAM
 from maps.object_library import append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
