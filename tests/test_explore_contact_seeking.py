@@ -156,7 +156,7 @@ def _run(mesh, seeking, n, seed=4):
     from cansim.explore.explorer import Explorer, build_object_model
     from cansim.frontends.whisk import WhiskFrontEndConfig
     from cansim.explore.search import DefaultSearch
-    from cansim.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
     from whisker_io.array.geometry import WhiskerArray
     from whisker_io.hw.arm import SimArm
     from whisker_io.hw.safety import SafetyEnvelope
