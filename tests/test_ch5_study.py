@@ -166,6 +166,7 @@ def _rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
         return list(r.fieldnames or []), list(r)
 
 
+@pytest.mark.slow
 def test_quick_writes_the_outputs(quick: Path) -> None:
     cols, loc = _rows(quick / "ch5_localisation.csv")
     assert {"object", "features", "feature_update", "contact_model", "position_error_m", "rotation_error_deg",
@@ -189,6 +190,7 @@ def _id(quick: Path) -> list[dict[str, str]]:
     return _rows(quick / "ch5_identification.csv")[1]
 
 
+@pytest.mark.slow
 def test_own_map_has_the_highest_ic_under_a(quick: Path) -> None:
     rows = [r for r in _id(quick) if r["trajectory"] == "A" and r["presented"] != "skull"]
     for p in {r["presented"] for r in rows}:
@@ -197,6 +199,7 @@ def test_own_map_has_the_highest_ic_under_a(quick: Path) -> None:
         assert win["map_identity"] == p, (p, [(r["map_identity"], r["final_ic"]) for r in mine])
 
 
+@pytest.mark.slow
 def test_novel_object_stays_below_the_threshold(quick: Path) -> None:
     rows = [r for r in _id(quick) if r["presented"] == "skull"]
     assert rows
@@ -204,6 +207,7 @@ def test_novel_object_stays_below_the_threshold(quick: Path) -> None:
         assert float(r["max_confidence"]) < float(r["threshold"]), r
 
 
+@pytest.mark.slow
 def test_trajectory_b_gives_lower_confidence_than_a(quick: Path) -> None:
     rows = [r for r in _id(quick) if r["presented"] == r["map_identity"]]
     mean = {f: np.mean([float(r["mean_confidence"]) for r in rows if r["trajectory"] == f]) for f in "AB"}

@@ -26,6 +26,8 @@ from hypothesis import strategies as st
 
 from cansim.studies import ch6_active_exploration as ch6
 
+pytestmark = pytest.mark.slow  # a long run: CI runs it after the fast loop (CONTRIBUTING.md)
+
 N = 400  # whisks per run of the reduced run
 REQUIRED = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
             "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands")

@@ -233,6 +233,7 @@ def check_commands(kind, start, cmd):
         assert oracle(got, start_vec) in ("safe", "border"), got
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind,examples", [("sim", 5000), ("ur", 5000)])
 def test_random_commands_refused_or_passed_unchanged(kind, examples):
     """10,000 random commands in all (5,000 per driver)."""

@@ -41,6 +41,7 @@ def test_readme_does_not_point_outside_the_repository():
     assert ".." + "/shared" not in text and "SPEC" not in text  # the repository stands on its own
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", range(len(BLOCKS)), ids=[f"block{i}" for i in range(len(BLOCKS))])
 def test_readme_block_runs(index, tmp_path):
     script = tmp_path / f"readme_block_{index}.py"

@@ -213,6 +213,7 @@ def calibrated_ring():
     return ring, spk
 
 
+@pytest.mark.slow
 def test_path_integration_60_s_tracks_truth_and_rate_ring(calibrated_ring):
     ring, spk = calibrated_ring
     dt = spk.dt_s

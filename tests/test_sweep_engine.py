@@ -140,6 +140,7 @@ def test_growing_a_grid_runs_only_the_new_cells_and_another_sweep_is_refused(tmp
         sweep.run(dict(SPEC, metrics=["value"]), client=threads_client, out=tmp_path, progress=False)
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:Port .* is already in use")  # the restarted worker's dashboard port
 def test_killing_a_worker_mid_sweep_still_ends_with_every_row(tmp_path):
     from distributed import Client, LocalCluster
@@ -167,6 +168,7 @@ def test_killing_a_worker_mid_sweep_still_ends_with_every_row(tmp_path):
     _check_rows(rows)
 
 
+@pytest.mark.slow
 def test_a_separate_dask_scheduler_and_worker_via_the_command_line(tmp_path):
     """``dask scheduler`` and ``dask worker`` started as their own processes; the sweep goes through --scheduler."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(TESTS), os.environ.get("PYTHONPATH", "")]))
