@@ -8,6 +8,7 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from cansim._renamed import renamed_keywords
 from cansim.axes import Axis
 from cansim.backends import Backend, get_backend
 from cansim.backends.base import RunInputs
@@ -34,6 +35,9 @@ MAX_SHIFT_CELLS = 2.0**30
 #: Largest energy one injection may add to a cell; the activity is normalised to sum 1,
 #: so anything near this is corrupt input (and could overflow float32).
 MAX_INJECTION = 1.0e6
+#: Default metres per translational cell of :meth:`Population.whisker6d`: the default of
+#: ``WhiskerRatSLAMConfig.cell_size_m`` (a test checks that the two agree).
+WHISKER6D_CELL_SIZE_M = 0.1
 
 
 def _check_shift(shifts: Optional[np.ndarray], what: str) -> None:
@@ -120,11 +124,12 @@ class Population:
 
     # ------------------------------------------------------------------ presets
     @classmethod
+    @renamed_keywords(dim_xy="xy_cells", dim_th="heading_cells", cell_size="cell_size_m")
     def openratslam(
         cls,
-        dim_xy: int = 21,
-        dim_th: int = 36,
-        cell_size: float = 1.0,
+        xy_cells: int = 21,
+        heading_cells: int = 36,
+        cell_size_m: float = 1.0,
         *,
         frame: str = "standard",
         params: Optional[AttractorParams] = None,
@@ -132,16 +137,20 @@ class Population:
     ) -> "Population":
         """OpenRatSLAM pose cells: axes (x', y', theta'), default 21 x 21 x 36.
 
-        Parameters follow OpenRatSLAM's config: ``pc_dim_xy``, ``pc_dim_th``,
-        ``pc_cell_x_size`` (metres per cell); kernels 7-wide sigma 1 excitation,
-        5-wide sigma 2 inhibition, phi 2e-5. Starts with one cell at
-        ``(dim_xy//2, dim_xy//2, dim_th//2)`` (C++: (10, 10, 18)).
+        The names and defaults are :class:`cansim.models.ratslam_config.RatSLAMConfig`'s
+        (OpenRatSLAM's ``pc_dim_xy``, ``pc_dim_th``, ``pc_cell_x_size``): ``xy_cells``
+        on each of x and y, ``heading_cells`` on theta, ``cell_size_m`` metres per
+        translational cell. Kernels 7-wide sigma 1 excitation, 5-wide sigma 2
+        inhibition, phi 2e-5. Starts with one cell at
+        ``(xy_cells//2, xy_cells//2, heading_cells//2)`` (C++: (10, 10, 18)).
         ``frame="openratslam"`` moves theta index 0 along +y' as the C++ does.
+        The 0.1 names ``dim_xy``, ``dim_th``, ``cell_size`` still work until 0.3
+        (DeprecationWarning).
         """
         axes = (
-            Axis.linear("x", dim_xy, cell_size),
-            Axis.linear("y", dim_xy, cell_size),
-            Axis.angle("theta", dim_th),
+            Axis.linear("x", xy_cells, cell_size_m),
+            Axis.linear("y", xy_cells, cell_size_m),
+            Axis.angle("theta", heading_cells),
         )
         return cls(axes, params or AttractorParams(), motion=PlanarMotion(frame), **kwargs)
 
@@ -156,30 +165,37 @@ class Population:
         return cls((Axis.angle("heading", n),), params or AttractorParams(), **kwargs)
 
     @classmethod
+    @renamed_keywords(n="grid_cells", n_angle="angle_cells", cell_size="cell_size_m")
     def whisker6d(
         cls,
-        n: int = 5,
-        cell_size: float = 0.02,
+        grid_cells: int = 5,
+        cell_size_m: float = WHISKER6D_CELL_SIZE_M,
         *,
-        n_angle: Optional[int] = None,
+        angle_cells: Optional[int] = None,
         params: Optional[AttractorParams] = None,
         **kwargs,
     ) -> "Population":
-        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``n`` cells per axis.
+        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``grid_cells`` per translational axis.
 
         Kernels per Eq 5.10: width 5 on every axis, excitation variance 1 (sigma 1),
         inhibition variance 2 (sigma sqrt 2), normalised as the printed normal density
         (``kernel_normalisation="pdf"``: over the 5^6 window the excitation sums to 0.9464,
         the inhibition to 0.6430; the thesis tuned its packet with these; the printed
-        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5. ``cell_size`` is metres per
-        translational cell (the thesis does not give it; 0.02 m is this library's
-        default), angular steps are ``2*pi/n_angle`` (``n_angle`` defaults to ``n``).
+        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5.
+
+        The names and defaults are
+        :class:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig`'s: ``grid_cells``
+        (5, the thesis'), ``cell_size_m`` metres per translational cell (the thesis does
+        not give it; 0.1 m, :data:`WHISKER6D_CELL_SIZE_M`, about the Ch.5 step between
+        whisks), ``angle_cells`` cells per angular axis, steps ``2*pi/angle_cells``
+        (None: ``grid_cells``). The 0.1 names ``n``, ``cell_size``, ``n_angle`` still
+        work until 0.3 (DeprecationWarning); 0.1's default cell size was 0.02 m.
         """
-        na = n if n_angle is None else n_angle
+        na = grid_cells if angle_cells is None else angle_cells
         axes = (
-            Axis.linear("x", n, cell_size),
-            Axis.linear("y", n, cell_size),
-            Axis.linear("z", n, cell_size),
+            Axis.linear("x", grid_cells, cell_size_m),
+            Axis.linear("y", grid_cells, cell_size_m),
+            Axis.linear("z", grid_cells, cell_size_m),
             Axis.angle("roll", na),
             Axis.angle("pitch", na),
             Axis.angle("yaw", na),

@@ -131,7 +131,7 @@ def test_a_weight_beyond_float32_or_a_bad_activity_is_refused_unchanged(rate, ac
 
 
 def test_learning_is_elementwise_max_and_injection_averages_active_views():
-    lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=0.5, inject_gain=1.0, trace_decay=0.5))
+    lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=0.5, inject_energy=1.0, trace_decay=0.5))
     lv.observe(0, [0.0])
     lv.learn(np.array([0.2, 0.0, 0.6, 0.0]))
     lv.learn(np.array([0.4, 0.0, 0.2, 0.0]))

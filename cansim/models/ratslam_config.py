@@ -292,7 +292,7 @@ class RatSLAMConfig:
     def local_view_params(self) -> LocalViewParams:
         """The local-view cells' parameters: OpenRatSLAM's stored location, or learnt LV->PC weights (``lv_mode``)."""
         if self.lv_mode == "learnt":
-            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
+            return LocalViewParams(mode="learnt", inject_energy=self.inject_energy, recent_exclusion=0)
         return LocalViewParams(
             mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay,
             decay_restore=self.decay_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",
