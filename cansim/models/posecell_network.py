@@ -48,7 +48,7 @@ from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
 from whisker_io.validation import config_field
-from cansim.population import checked_injection
+from cansim.grid_inputs import checked_injection
 from whisker_io.validation import MAX_STEP_M, MAX_TURN_RAD
 
 __all__ = ["PosecellNetwork"]
