@@ -486,7 +486,9 @@ class LocalViewCells:
         try:
             lv = cls(tuple(int(n) for n in state["shape"]), params)
             n = len(state["decay"])
-            lv._locations = [np.array(r, dtype=np.float64) for r in np.asarray(state["locations"]).reshape(n, -1)]
+            locations = np.asarray(state["locations"])
+            rows = locations.reshape(n, -1) if n else locations.reshape(0, 0)  # no view yet: reshape(0, -1) is ambiguous
+            lv._locations = [np.array(r, dtype=np.float64) for r in rows]
             dec = np.array(state["decay"], dtype=np.float64).ravel()
             lv._decay_buf = np.concatenate([dec, np.zeros(max(16, len(dec)))])
             lv._n = len(dec)
