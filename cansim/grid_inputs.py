@@ -25,7 +25,20 @@ MAX_INJECTION = 1.0e6
 
 
 def check_shift(shifts: Optional[np.ndarray], what: str) -> None:
-    """Refuse a shift the kernels cannot represent (see :data:`MAX_SHIFT_CELLS`)."""
+    """Refuse a shift the kernels cannot represent (see :data:`MAX_SHIFT_CELLS`).
+
+    Parameters
+    ----------
+    shifts : ndarray or None
+        Shifts in cells (any shape); None: nothing to check.
+    what : str
+        The kind of shift, for the message (``"uniform"``, ``"translation"``...).
+
+    Raises
+    ------
+    InvalidInputError
+        The largest absolute shift is not below :data:`MAX_SHIFT_CELLS` (or is NaN).
+    """
     if shifts is None:
         return
     biggest = float(np.abs(shifts).max(initial=0.0))
