@@ -25,8 +25,8 @@ GRIDS = {
     "ring360": (lambda b: Population.head_direction(360, backend=b), (np.array([0.3 * 2 * np.pi / 360]), None)),
     "21x21x36": (lambda b: Population.openratslam(21, 36, backend=b), (0.3, 0.2 * 2 * np.pi / 36)),
     "61x61x36": (lambda b: Population.openratslam(61, 36, backend=b), (0.3, 0.2 * 2 * np.pi / 36)),
-    "5^6": (lambda b: Population.whisker6d(5, backend=b), (np.array([0.003, 0.002, 0.001]), np.array([0.1, 0.05, 0.02]))),
-    "10^6": (lambda b: Population.whisker6d(10, backend=b), (np.array([0.003, 0.002, 0.001]), np.array([0.1, 0.05, 0.02]))),
+    "5^6": (lambda b: Population.whisker6d(5, 0.02, backend=b), (np.array([0.003, 0.002, 0.001]), np.array([0.1, 0.05, 0.02]))),
+    "10^6": (lambda b: Population.whisker6d(10, 0.02, backend=b), (np.array([0.003, 0.002, 0.001]), np.array([0.1, 0.05, 0.02]))),
 }
 
 

@@ -32,11 +32,13 @@ of earlier views) is public state (:attr:`activity`) so experiments can record i
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
 
+from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from whisker_io.validation import config_field, finite_array, finite_vector
 
@@ -68,6 +70,7 @@ def stored_injection_energy(decay: float, max_energy: float) -> float:
     return max(0.0, max_energy / 30.0 * (30.0 - math.exp(1.2 * decay)))
 
 
+@renamed_keywords(inject_gain="inject_energy")
 @dataclass(frozen=True)
 class LocalViewParams:
     """Parameters of the LV -> pose-cell connection.
@@ -77,8 +80,10 @@ class LocalViewParams:
     mode : {"stored", "learnt"}
         Injection model (see module docstring).
     inject_energy : float
-        zeta, maximum injected energy in stored mode (OpenRatSLAM ``pc_vt_inject_energy``,
-        default 0.15; Ch.5 uses 0.3).
+        The injected energy, as in the models' configs: in stored mode zeta, the maximum
+        energy of Eq 5.8 (OpenRatSLAM ``pc_vt_inject_energy``, default 0.15; Ch.5 uses
+        0.3); in learnt mode delta of Eq 2.17, the energy per unit of learnt weight
+        (0.1's ``inject_gain``, which still works until 0.3 with a DeprecationWarning).
     active_decay : float
         Decay increment on a match (OpenRatSLAM ``vt_active_decay``, 1.0).
     decay_restore : float
@@ -112,8 +117,6 @@ class LocalViewParams:
         ``inject``'s bounds check). Default False: locations wrap into ``[0, n)``.
     learning_rate : float
         lambda of Eq 2.18 (learnt mode).
-    inject_gain : float
-        delta of Eq 2.17 (learnt mode); the energy injected per unit of learnt weight.
     trace_decay : float
         In [0, 1): each view call multiplies V by this before the current view is set
         to 1 (0 = only the current view is active).
@@ -135,7 +138,6 @@ class LocalViewParams:
     rounding: str = "truncate"
     cpp_cells: bool = False
     learning_rate: float = 1.0
-    inject_gain: float = 0.15
     trace_decay: float = 0.0
     min_weight: float = 0.0
 
@@ -145,7 +147,7 @@ class LocalViewParams:
         if self.rounding not in ("truncate", "round"):
             raise InvalidInputError(f"rounding must be 'truncate' or 'round', got {self.rounding!r}")
         config_field(self.decay_floor, "decay_floor", float, minimum=0, optional=True)
-        for name in ("inject_energy", "active_decay", "decay_restore", "learning_rate", "inject_gain"):
+        for name in ("inject_energy", "active_decay", "decay_restore", "learning_rate"):
             config_field(getattr(self, name), name, float, minimum=0)
         for name in ("min_weight", "trace_decay"):
             v = config_field(getattr(self, name), name, float, minimum=0)
@@ -156,6 +158,13 @@ class LocalViewParams:
             config_field(getattr(self, name), name, bool)
         if self.cpp_cells and (self.mode != "stored" or self.rounding != "truncate"):
             raise InvalidInputError("cpp_cells reproduces OpenRatSLAM's stored-mode truncation; use mode='stored', rounding='truncate'")
+
+    @property
+    def inject_gain(self) -> float:
+        """Deprecated name of :attr:`inject_energy` (learnt mode's delta); goes in 0.3."""
+        warnings.warn("LocalViewParams.inject_gain is now inject_energy (renamed in cansim 0.2, the old name goes in 0.3)",
+                      DeprecationWarning, stacklevel=2)
+        return self.inject_energy
 
 
 #: largest learnt weight the float32 rows hold
@@ -406,11 +415,11 @@ class LocalViewCells:
         return np.array([(cx * ny + cy) * nth + ct], dtype=np.int64), np.array([energy])
 
     def injection(self) -> Injection:
-        """Learnt mode, Eq 2.17: ``(delta / eta_act) * sum_i beta_i V_i`` as (flat_index, values)."""
+        """Learnt mode, Eq 2.17: ``(delta / eta_act) * sum_i beta_i V_i`` as (flat_index, values), delta = ``inject_energy``."""
         active = np.flatnonzero(self._v > 0)
         if len(active) == 0:
             return _EMPTY
-        gain = self._params.inject_gain / len(active)
+        gain = self._params.inject_energy / len(active)
         idx = [self._rows[i][0] for i in active]
         val = [self._rows[i][1] * (gain * self._v[i]) for i in active]
         return np.concatenate(idx).astype(np.int64), np.concatenate(val).astype(np.float64)
@@ -477,7 +486,9 @@ class LocalViewCells:
         try:
             lv = cls(tuple(int(n) for n in state["shape"]), params)
             n = len(state["decay"])
-            lv._locations = [np.array(r, dtype=np.float64) for r in np.asarray(state["locations"]).reshape(n, -1)]
+            locations = np.asarray(state["locations"])
+            rows = locations.reshape(n, -1) if n else locations.reshape(0, 0)  # no view yet: reshape(0, -1) is ambiguous
+            lv._locations = [np.array(r, dtype=np.float64) for r in rows]
             dec = np.array(state["decay"], dtype=np.float64).ravel()
             lv._decay_buf = np.concatenate([dec, np.zeros(max(16, len(dec)))])
             lv._n = len(dec)

@@ -8,11 +8,13 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from cansim._renamed import renamed_keywords
 from cansim.axes import Axis
 from cansim.backends import Backend, get_backend
-from cansim.backends.base import RunInputs
 from cansim.errors import InvalidInputError, ShapeError, ZeroActivityError
+from cansim.grid_inputs import MAX_INJECTION, MAX_SHIFT_CELLS, check_shift, checked_injection, whole_cells  # noqa: F401 (0.1 paths)
 from cansim.params import AttractorParams
+from cansim.population_run import run_inputs
 from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
 from cansim.path_integration import (
     MotionModel,
@@ -28,24 +30,9 @@ log = logging.getLogger(__name__)
 
 IndexLike = Union[Sequence[int], np.ndarray]
 
-#: Largest shift (cells, per axis and step) the kernels represent exactly (integer parts are
-#: 32-bit on OpenCL); a larger one comes from corrupt odometry and is refused.
-MAX_SHIFT_CELLS = 2.0**30
-#: Largest energy one injection may add to a cell; the activity is normalised to sum 1,
-#: so anything near this is corrupt input (and could overflow float32).
-MAX_INJECTION = 1.0e6
-
-
-def _check_shift(shifts: Optional[np.ndarray], what: str) -> None:
-    """Refuse a shift the kernels cannot represent (see :data:`MAX_SHIFT_CELLS`)."""
-    if shifts is None:
-        return
-    biggest = float(np.abs(shifts).max(initial=0.0))
-    if not biggest < MAX_SHIFT_CELLS:
-        raise InvalidInputError(
-            f"the {what} shift is {biggest!r} cells in one step, too large to represent; "
-            "check velocity * dt against the cell size (or split the step)"
-        )
+#: Default metres per translational cell of :meth:`Population.whisker6d`: the default of
+#: ``WhiskerRatSLAMConfig.cell_size_m`` (a test checks that the two agree).
+WHISKER6D_CELL_SIZE_M = 0.1
 
 
 class Population:
@@ -120,11 +107,12 @@ class Population:
 
     # ------------------------------------------------------------------ presets
     @classmethod
+    @renamed_keywords(dim_xy="xy_cells", dim_th="heading_cells", cell_size="cell_size_m")
     def openratslam(
         cls,
-        dim_xy: int = 21,
-        dim_th: int = 36,
-        cell_size: float = 1.0,
+        xy_cells: int = 21,
+        heading_cells: int = 36,
+        cell_size_m: float = 1.0,
         *,
         frame: str = "standard",
         params: Optional[AttractorParams] = None,
@@ -132,16 +120,20 @@ class Population:
     ) -> "Population":
         """OpenRatSLAM pose cells: axes (x', y', theta'), default 21 x 21 x 36.
 
-        Parameters follow OpenRatSLAM's config: ``pc_dim_xy``, ``pc_dim_th``,
-        ``pc_cell_x_size`` (metres per cell); kernels 7-wide sigma 1 excitation,
-        5-wide sigma 2 inhibition, phi 2e-5. Starts with one cell at
-        ``(dim_xy//2, dim_xy//2, dim_th//2)`` (C++: (10, 10, 18)).
+        The names and defaults are :class:`cansim.models.ratslam_config.RatSLAMConfig`'s
+        (OpenRatSLAM's ``pc_dim_xy``, ``pc_dim_th``, ``pc_cell_x_size``): ``xy_cells``
+        on each of x and y, ``heading_cells`` on theta, ``cell_size_m`` metres per
+        translational cell. Kernels 7-wide sigma 1 excitation, 5-wide sigma 2
+        inhibition, phi 2e-5. Starts with one cell at
+        ``(xy_cells//2, xy_cells//2, heading_cells//2)`` (C++: (10, 10, 18)).
         ``frame="openratslam"`` moves theta index 0 along +y' as the C++ does.
+        The 0.1 names ``dim_xy``, ``dim_th``, ``cell_size`` still work until 0.3
+        (DeprecationWarning).
         """
         axes = (
-            Axis.linear("x", dim_xy, cell_size),
-            Axis.linear("y", dim_xy, cell_size),
-            Axis.angle("theta", dim_th),
+            Axis.linear("x", xy_cells, cell_size_m),
+            Axis.linear("y", xy_cells, cell_size_m),
+            Axis.angle("theta", heading_cells),
         )
         return cls(axes, params or AttractorParams(), motion=PlanarMotion(frame), **kwargs)
 
@@ -156,30 +148,37 @@ class Population:
         return cls((Axis.angle("heading", n),), params or AttractorParams(), **kwargs)
 
     @classmethod
+    @renamed_keywords(n="grid_cells", n_angle="angle_cells", cell_size="cell_size_m")
     def whisker6d(
         cls,
-        n: int = 5,
-        cell_size: float = 0.02,
+        grid_cells: int = 5,
+        cell_size_m: float = WHISKER6D_CELL_SIZE_M,
         *,
-        n_angle: Optional[int] = None,
+        angle_cells: Optional[int] = None,
         params: Optional[AttractorParams] = None,
         **kwargs,
     ) -> "Population":
-        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``n`` cells per axis.
+        """The thesis' 6-D pose cells (x, y, z, roll, pitch, yaw), ``grid_cells`` per translational axis.
 
         Kernels per Eq 5.10: width 5 on every axis, excitation variance 1 (sigma 1),
         inhibition variance 2 (sigma sqrt 2), normalised as the printed normal density
         (``kernel_normalisation="pdf"``: over the 5^6 window the excitation sums to 0.9464,
         the inhibition to 0.6430; the thesis tuned its packet with these; the printed
-        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5. ``cell_size`` is metres per
-        translational cell (the thesis does not give it; 0.02 m is this library's
-        default), angular steps are ``2*pi/n_angle`` (``n_angle`` defaults to ``n``).
+        ``(sigma^2)^6`` in the exponent is a typo for ``sigma^2``); phi 2e-5.
+
+        The names and defaults are
+        :class:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig`'s: ``grid_cells``
+        (5, the thesis'), ``cell_size_m`` metres per translational cell (the thesis does
+        not give it; 0.1 m, :data:`WHISKER6D_CELL_SIZE_M`, about the Ch.5 step between
+        whisks), ``angle_cells`` cells per angular axis, steps ``2*pi/angle_cells``
+        (None: ``grid_cells``). The 0.1 names ``n``, ``cell_size``, ``n_angle`` still
+        work until 0.3 (DeprecationWarning); 0.1's default cell size was 0.02 m.
         """
-        na = n if n_angle is None else n_angle
+        na = grid_cells if angle_cells is None else angle_cells
         axes = (
-            Axis.linear("x", n, cell_size),
-            Axis.linear("y", n, cell_size),
-            Axis.linear("z", n, cell_size),
+            Axis.linear("x", grid_cells, cell_size_m),
+            Axis.linear("y", grid_cells, cell_size_m),
+            Axis.linear("z", grid_cells, cell_size_m),
             Axis.angle("roll", na),
             Axis.angle("pitch", na),
             Axis.angle("yaw", na),
@@ -331,7 +330,7 @@ class Population:
     def shift(self, cells: Sequence[float]) -> None:
         """Shift the whole grid by a real number of cells per axis (any magnitude)."""
         s = finite_vector(cells, self.ndim, "shift")
-        _check_shift(s, "uniform")
+        check_shift(s, "uniform")
         self._commit(self._backend.shift(self._a, s, out=self._spare))
 
     def shift_conditional(self, shift_axes: Sequence[int], shifts: np.ndarray) -> None:
@@ -357,7 +356,7 @@ class Population:
             raise InvalidInputError(f"shift_axes must be distinct ascending axes in [0, {self.ndim}), got {ax}")
         cond_shape = tuple(n for i, n in enumerate(self.shape) if i not in ax)
         sh = np.ascontiguousarray(finite_array(shifts, cond_shape + (len(ax),), "shifts"))
-        _check_shift(sh, "conditional")
+        check_shift(sh, "conditional")
         return ax, sh
 
     def integrate(self, velocity=None, omega=None, dt: float = 1.0) -> None:
@@ -374,8 +373,8 @@ class Population:
             Seconds, >= 0.
         """
         ms = self._motion_shifts(velocity, omega, dt)
-        _check_shift(ms.cond_shifts, "translation")
-        _check_shift(ms.uniform, "uniform")
+        check_shift(ms.cond_shifts, "translation")
+        check_shift(ms.uniform, "uniform")
         cur = self._a
         if ms.cond_shifts is not None:
             cur = self._backend.shift_conditional(cur, ms.shift_axes, ms.cond_shifts)
@@ -431,15 +430,15 @@ class Population:
 
         The loop that built the odometry object (:class:`cansim.models.slam_loop.SlamLoop`) calls
         this, so one step's odometry is checked once. The values are not checked again; the
-        shifts they make are (:data:`MAX_SHIFT_CELLS` depends on this grid's cell sizes),
+        shifts they make are (:data:`cansim.grid_inputs.MAX_SHIFT_CELLS` depends on this grid's cell sizes),
         and so is the injection. Same result as :meth:`step`, bit for bit.
         """
         return self._step_shifts(self._motion_trusted(velocity, omega, dt), injection)
 
     def _step_shifts(self, ms: MotionShifts, injection) -> np.ndarray:
         """The step from its shifts on: the checks of what the kernels can represent, then the backend."""
-        _check_shift(ms.cond_shifts, "translation")
-        _check_shift(ms.uniform, "uniform")
+        check_shift(ms.cond_shifts, "translation")
+        check_shift(ms.uniform, "uniform")
         fi = vals = None
         if injection is not None:
             fi, vals = checked_injection(*injection, self._size)
@@ -481,6 +480,8 @@ class Population:
         bit for bit on every backend; the numba backend runs the whole loop in one compiled
         call, the opencl backend enqueues every step on the device and reads back once, and
         any other backend loops over its ``step`` (:meth:`cansim.backends.Backend.run`).
+        The per-step inputs are checked and turned into shifts and injections by
+        :func:`cansim.population_run.run_inputs`.
 
         Parameters
         ----------
@@ -517,11 +518,8 @@ class Population:
             The dynamics collapsed at some step; the state is left as it was before the run
             (no step of it is kept).
         """
-        T = self._run_length(velocity, omega, dt, injections, n_steps)
-        dts = self._run_dt(dt, T)
-        shift_axes, cond, has_cond, uni, has_uni = self._run_shifts(velocity, omega, dts, T)
-        offsets, index, values = self._run_injections(injections, T)
-        inputs = RunInputs(T, offsets, index, values, shift_axes, cond, has_cond, uni, has_uni)
+        inputs = run_inputs(self._motion, self._motion_shifts, self.ndim, self._size,
+                            velocity, omega, dt, injections, n_steps)  # cansim.population_run
         res = self._backend.run(self._a, inputs, exc=self._exc, inh=self._inh, phi=self._phi,
                                 window=self._window, record_activity=bool(record_activity))
         if res.collapsed_at is not None:
@@ -539,241 +537,6 @@ class Population:
             return res.decoded, res.history
         return res.decoded
 
-    # ---------------------------------------------------------- run: inputs
-    @staticmethod
-    def _run_array(x, name: str) -> np.ndarray:
-        try:
-            arr = np.asarray(x, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"{name} must be an array of real numbers with one row per step") from None
-        if arr.ndim not in (1, 2):
-            raise ShapeError(f"{name} must have shape (T,) or (T, k), one row per step; got {arr.shape}")
-        return arr
-
-    def _run_length(self, velocity, omega, dt, injections, n_steps) -> int:
-        lengths = {}
-        for name, x in (("velocity", velocity), ("omega", omega)):
-            if x is not None:
-                lengths[name] = len(self._run_array(x, name))
-        if np.ndim(dt) != 0:
-            lengths["dt"] = len(np.atleast_1d(np.asarray(dt, dtype=object)))
-        if injections is not None:
-            try:
-                lengths["injections"] = len(injections)
-            except TypeError:
-                raise InvalidInputError("injections must be a sequence with one entry (or None) per step") from None
-        if n_steps is not None:
-            if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
-                raise InvalidInputError(f"n_steps must be an integer >= 1, got {n_steps!r}")
-            lengths["n_steps"] = int(n_steps)
-        if not lengths:
-            raise InvalidInputError("run needs per-step inputs or n_steps to know how many steps to run")
-        if len(set(lengths.values())) != 1:
-            raise ShapeError(f"per-step inputs must all have T rows, got {lengths}")
-        T = next(iter(lengths.values()))
-        if T < 1:
-            raise InvalidInputError(f"run needs at least one step, got T = {T} ({lengths})")
-        return T
-
-    @staticmethod
-    def _run_dt(dt, T: int) -> np.ndarray:
-        try:
-            arr = np.asarray(dt, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"dt must be a number or one number per step (seconds), got {dt!r}") from None
-        if arr.ndim > 1:
-            raise ShapeError(f"dt must be a scalar or have shape (T,), got {arr.shape}")
-        arr = np.broadcast_to(arr, (T,))
-        bad = np.flatnonzero(~(np.isfinite(arr) & (arr >= 0)))
-        if len(bad):
-            raise InvalidInputError(f"dt must be finite and >= 0 seconds; step {bad[0]} has {arr[bad[0]]!r}")
-        return arr
-
-    def _run_shifts(self, velocity, omega, dts: np.ndarray, T: int):
-        """Per-step shifts in cells: (shift_axes, cond (T, ...) or None, has_cond, uniform (T, ndim) or None, has_uniform).
-
-        The built-in UniformMotion and PlanarMotion are evaluated for all steps at once with
-        the same floating-point operations as their per-step function (whose tables it
-        reads by calling it with unit inputs); any other model is called once per step.
-        """
-        v = None if velocity is None else self._run_array(velocity, "velocity")
-        w = None if omega is None else self._run_array(omega, "omega")
-        model = type(self._motion)
-        if model is UniformMotion and w is None and (v is None or v.ndim == 2 or self.ndim == 1):
-            return self._run_uniform(v, dts, T)
-        if model is PlanarMotion and (v is None or v.ndim == 1) and (w is None or w.ndim == 1):
-            return self._run_planar(v, w, dts, T)
-        return self._run_per_step(v, w, dts, T)
-
-    def _run_finite(self, x: np.ndarray, name: str) -> None:
-        bad = ~np.isfinite(x)
-        if bad.any():
-            t = int(np.argwhere(bad)[0][0])
-            raise InvalidInputError(f"{name} must be finite; step {t} has {x[t].tolist()!r} (check the odometry source)")
-
-    def _run_checked_shifts(self, shifts: Optional[np.ndarray], mask: np.ndarray, what: str) -> None:
-        # a shift the kernels cannot represent (their integer parts are 32-bit on opencl)
-        if shifts is None:
-            return
-        s = np.abs(shifts.reshape(len(shifts), -1)).max(axis=1)
-        bad = np.flatnonzero(mask & ~(s < MAX_SHIFT_CELLS))
-        if len(bad):
-            raise InvalidInputError(
-                f"the {what} shift of step {bad[0]} is {s[bad[0]]!r} cells, too large to represent; "
-                "check velocity * dt against the cell size"
-            )
-
-    def _run_uniform(self, v, dts, T):
-        uni = has = None
-        if v is not None:
-            self._run_finite(v, "velocity")
-            if v.ndim == 1:  # ring: step() gets a float and computes velocity * dt * (1 / step)
-                inv0 = self._motion_shifts(1.0, None, 1.0).uniform[0]
-                uni = ((v * dts) * inv0)[:, None]
-            else:  # step() gets a vector and computes velocity * (dt * (1 / step))
-                if v.shape[1] != self.ndim:
-                    raise ShapeError(f"velocity must have shape (T, {self.ndim}), one value per axis; got {v.shape}")
-                inv = self._motion_shifts(np.ones(self.ndim), None, 1.0).uniform
-                uni = v * (dts[:, None] * inv)
-            has = np.ones(T, dtype=bool)
-            self._run_checked_shifts(uni, has, "uniform")
-        return None, None, np.zeros(T, dtype=bool), uni, (has if has is not None else np.zeros(T, dtype=bool))
-
-    def _run_planar(self, v, w, dts, T):
-        cond = uni = None
-        has_cond = np.zeros(T, dtype=bool)
-        has_uni = np.zeros(T, dtype=bool)
-        if v is not None:
-            self._run_finite(v, "velocity (vtrans)")
-            directions = self._motion_shifts(1.0, None, 1.0).cond_shifts  # (1 * 1) * directions
-            cond = (v * dts)[:, None, None] * directions
-            has_cond = v != 0.0
-            self._run_checked_shifts(cond, has_cond, "translation")
-        if w is not None:
-            self._run_finite(w, "omega (vrot)")
-            inv_th = self._motion_shifts(None, 1.0, 1.0).uniform[2]
-            rot = (w * dts) * inv_th
-            uni = np.zeros((T, 3))
-            uni[:, 2] = rot
-            has_uni = rot != 0.0
-            self._run_checked_shifts(uni, has_uni, "rotation")
-        return ((0, 1) if has_cond.any() else None), (cond if has_cond.any() else None), has_cond, \
-            (uni if has_uni.any() else None), has_uni
-
-    def _run_per_step(self, v, w, dts, T):
-        steps: list[MotionShifts] = []
-        for t in range(T):
-            try:
-                steps.append(self._motion_shifts(None if v is None else v[t], None if w is None else w[t], float(dts[t])))
-            except (InvalidInputError, ShapeError) as exc:
-                raise type(exc)(f"step {t}: {exc}") from None
-        has_cond = np.array([ms.cond_shifts is not None for ms in steps])
-        has_uni = np.array([ms.uniform is not None for ms in steps])
-        axes = {ms.shift_axes for ms in steps if ms.cond_shifts is not None}
-        if len(axes) > 1:
-            raise InvalidInputError(f"the motion model translated different axes at different steps ({sorted(axes)}); "
-                                    "run() needs one layout: call step() per step instead")
-        shift_axes = axes.pop() if axes else None
-        cond = uni = None
-        if has_cond.any():
-            proto = next(ms.cond_shifts for ms in steps if ms.cond_shifts is not None)
-            cond = np.zeros((T,) + proto.shape)
-            for t, ms in enumerate(steps):
-                if ms.cond_shifts is not None:
-                    cond[t] = ms.cond_shifts
-            self._run_checked_shifts(cond, has_cond, "conditional")
-        if has_uni.any():
-            uni = np.zeros((T, self.ndim))
-            for t, ms in enumerate(steps):
-                if ms.uniform is not None:
-                    uni[t] = ms.uniform
-            self._run_checked_shifts(uni, has_uni, "uniform")
-        return shift_axes, cond, has_cond, uni, has_uni
-
-    def _run_injections(self, injections, T: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        offsets = np.zeros(T + 1, dtype=np.int64)
-        if injections is None:
-            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
-        idx, vals = [], []
-        for t, inj in enumerate(injections):
-            n = 0
-            if inj is not None:
-                try:
-                    fi, vv = inj
-                except (TypeError, ValueError):
-                    raise InvalidInputError(f"injections[{t}] must be None or a (flat_index, values) pair") from None
-                try:
-                    fi, vv = checked_injection(fi, vv, self._size)
-                except (InvalidInputError, ShapeError) as exc:
-                    raise type(exc)(f"injections[{t}]: {exc}") from None
-                except (TypeError, ValueError):
-                    raise InvalidInputError(f"injections[{t}] must hold integer indices and real values") from None
-                idx.append(fi)
-                vals.append(vv)
-                n = len(fi)
-            offsets[t + 1] = offsets[t] + n
-        if not idx:
-            return offsets, np.empty(0, dtype=np.int64), np.empty(0, dtype=np.float64)
-        return offsets, np.ascontiguousarray(np.concatenate(idx)), np.ascontiguousarray(np.concatenate(vals))
-
     def __repr__(self) -> str:
         ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
-
-
-def whole_cells(value: object, what: str) -> np.ndarray:
-    """``value`` as an int64 array of whole cell numbers (an integral float counts), within +-2**62.
-
-    Raises
-    ------
-    InvalidInputError
-        Not numbers (text, ragged lists, bools), NaN/inf, a fraction such as 2.7 (never
-        truncated) or a number out of any grid's range; the message names ``what``.
-    """
-    try:
-        arr = np.asarray(value)
-        ok = arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.isfinite(arr).all() and (arr == np.round(arr)).all())
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InvalidInputError(f"{what} must be whole cell numbers, got {value!r}")
-    if arr.size and np.abs(arr.astype(np.float64)).max() > 2**62:
-        raise InvalidInputError(f"{what} {value!r} is out of any grid's range")
-    return arr.astype(np.int64)
-
-
-def checked_injection(flat_index: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Validate an injection pair: 1-D int64 flat indices in ``[0, size)`` and float64 energies >= 0.
-
-    Returns the pair as contiguous int64 / float64 arrays (no copy when they already are).
-
-    Raises
-    ------
-    ShapeError
-        The two arrays differ in length.
-    InvalidInputError
-        An index lies outside the grid or an energy is negative, NaN or infinite.
-    """
-    fi = flat_index if isinstance(flat_index, np.ndarray) and flat_index.dtype == np.int64 else whole_cells(flat_index, "flat_index")
-    if not (isinstance(values, np.ndarray) and values.dtype == np.float64):
-        try:
-            values = np.asarray(values, dtype=np.float64)
-        except (TypeError, ValueError, OverflowError):
-            raise InvalidInputError(f"injected values must be numbers, got {values!r}") from None
-    vals = values
-    fi, vals = fi.ravel(), vals.ravel()
-    if fi.shape != vals.shape:
-        raise ShapeError(f"flat_index and values must have the same length, got {fi.shape} and {vals.shape}")
-    n = len(fi)
-    if n <= 8:  # the usual single-cell view injection: plain Python checks are faster
-        fl, vl = fi.tolist(), vals.tolist()
-        if n and (min(fl) < 0 or max(fl) >= size):
-            raise InvalidInputError(f"flat indices must lie in [0, {size})")
-        if not all(0.0 <= x <= MAX_INJECTION for x in vl):  # also False for NaN
-            raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
-        return fi, vals
-    if fi.min() < 0 or fi.max() >= size:
-        raise InvalidInputError(f"flat indices must lie in [0, {size})")
-    if not np.isfinite(vals).all() or vals.min() < 0 or vals.max() > MAX_INJECTION:
-        raise InvalidInputError(f"injected values must be finite and in [0, {MAX_INJECTION:g}]")
-    return fi, vals

@@ -42,7 +42,7 @@ def run(steps: int = 1200, seed: int = 0, backend: str = "numpy", dt: float = 0.
     rng = np.random.default_rng(seed)
     ring = Population.head_direction(360, backend=backend)
     ring.reset_cell([0])
-    views = LocalViewCells(ring.shape, LocalViewParams(mode="learnt", inject_gain=1.0))
+    views = LocalViewCells(ring.shape, LocalViewParams(mode="learnt", inject_energy=1.0))
     landmarks = np.arange(0, 360, 45)  # a landmark every 45 deg of true heading
     seen: dict[int, int] = {}
     omega_true = math.radians(40.0)  # rad/s: one lap in 9 s

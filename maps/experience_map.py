@@ -60,33 +60,38 @@ appears in both directions with ``weight = w_t + w_r + 1 / n_l`` (translation m,
 rotation rad, ``n_l`` the number of links of the edge's target), ready for
 ``networkx.dijkstra_path(map.graph, a, b)``.
 
-Saved file format (``.npz``, no pickle)
-----------------------------------------
-``format`` int64 (:data:`FORMAT_VERSION`); ``config`` JSON of :class:`MapConfig` plus the
-geometry's name and parameters; ``exp_pc`` float64 (n, ndim); ``exp_vt`` int64 (n,);
-``exp_pose`` float64 (n, pose width); ``link_ends`` int64 (m, 2); ``link_data`` float64
-(m, link width + 1: the geometry columns, then dt s); ``state_f`` float64 = the
-accumulator, the accumulated time (s) and the view offset (cells); ``state_i`` int64 (3,)
-= current id, previous id, relaxation cursor. Floats are raw IEEE-754 doubles: a round
-trip is bit identical and a resumed run equals an uninterrupted one.
+Persistence and export
+----------------------
+:meth:`ExperienceMap.save` / :meth:`~ExperienceMap.load` (``.npz``, no pickle; a round trip
+is bit identical and a resumed run equals an uninterrupted one),
+:meth:`~ExperienceMap.to_arrays` / :meth:`~ExperienceMap.from_arrays` (the same fields,
+prefixed, inside a saved SLAM model) and :meth:`~ExperienceMap.to_networkx` delegate to
+:mod:`maps.experience_map_io`, whose docstring gives the file format.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any, Sequence, Union
 
 import numpy as np
 
+from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module's name for it since 0.1)
+    FORMAT_VERSION,
+    MapArrays,
+    map_to_networkx,
+    read_map_body,
+    read_map_header,
+    write_map_arrays,
+)
 from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
-from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
+from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.validation import config_field
 
 __all__ = [
@@ -100,10 +105,8 @@ __all__ = [
     "signed_delta_rad",
 ]
 
-FORMAT_VERSION = 2
 _FEW_IDS = 3  # _delta_pc computes this many distances or fewer without numpy (faster for a handful)
 Geometry = Union[SE2Geometry, SE3Geometry]
-_GEOMETRIES = {"se2": SE2Geometry, "se3": SE3Geometry}
 
 
 class Action(IntEnum):
@@ -563,45 +566,32 @@ class ExperienceMap:
         return self._graph
 
     def to_networkx(self) -> Any:
-        """A snapshot :class:`networkx.DiGraph` with the current map poses.
+        """A snapshot :class:`networkx.DiGraph` with the current map poses (:func:`maps.experience_map_io.map_to_networkx`).
 
         Nodes: ``view_id``, ``pc_cells`` and the geometry's pose fields (SE(2): ``x_m``,
         ``y_m``, ``th_rad``); edges (from -> to, one per link): ``link_id``, the geometry's
         link fields (SE(2): ``d_m``, ``heading_rad``, ``facing_rad``) and ``dt_s``. Graph
         attribute ``current_id``.
         """
-        import networkx as nx
-
-        g = nx.DiGraph(current_id=int(self.current_id) if self._n_exp else -1)
-        geo, a = self.geometry, self._a
-        for i in range(self._n_exp):
-            attrs = dict(zip(geo.pose_fields, (float(v) for v in a.pose[i])))
-            g.add_node(i, view_id=int(a.vt[i]), pc_cells=tuple(float(v) for v in a.pc[i]), **attrs)
-        for k in range(self._n_link):
-            attrs = dict(zip(geo.link_fields + ("dt_s",), (float(v) for v in a.links[k])))
-            g.add_edge(int(a.ends[k, 0]), int(a.ends[k, 1]), link_id=k, **attrs)
-        return g
+        return map_to_networkx(self)
 
     # ----------------------------------------------------------- save / load
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
-        """The whole map as named arrays (the ``.npz`` fields of the module docstring, names prefixed)."""
+        """The whole map as named arrays (the ``.npz`` fields of :mod:`maps.experience_map_io`, names prefixed).
+
+        A subclass that saves more state extends this (``super().to_arrays(prefix)`` plus
+        its own prefixed fields) and :meth:`from_arrays`; :meth:`save` and :meth:`load` call both.
+        """
         a, n, m = self._a, self._n_exp, self._n_link
-        config = {"map": asdict(self.config), "geometry": self.geometry.name, "geometry_params": self.geometry.params()}
-        arrays = {
-            "format": np.int64(FORMAT_VERSION),
-            "config": np.array(json.dumps(config)),
-            "exp_pc": a.pc[:n].copy(),
-            "exp_vt": a.vt[:n].copy(),
-            "exp_pose": a.pose[:n].copy(),
-            "link_ends": a.ends[:m].copy(),
-            "link_data": a.links[:m].copy(),
-            "state_f": np.array([*self._acc, self.accum_time_s, *self._offset.tolist()]),
-            "state_i": np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
-        }
-        return {prefix + k: np.asarray(v) for k, v in arrays.items()}
+        saved = MapArrays(
+            self.config, self.geometry, a.pc[:n].copy(), a.vt[:n].copy(), a.pose[:n].copy(), a.ends[:m].copy(),
+            a.links[:m].copy(), np.array([*self._acc, self.accum_time_s, *self._offset.tolist()]),
+            np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
+        )
+        return write_map_arrays(saved, prefix)
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the map to ``path`` (``.npz``, format in the module docstring); bit-exact round trip."""
+        """Write the map to ``path`` (``.npz``, format in :mod:`maps.experience_map_io`); bit-exact round trip."""
         np.savez(path, **self.to_arrays())
 
     @classmethod
@@ -619,81 +609,40 @@ class ExperienceMap:
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ExperienceMap":
         """Rebuild a map from :meth:`to_arrays` output (e.g. an open ``.npz`` archive).
 
+        The map is built as ``cls(config, geometry)``, so a subclass's ``from_arrays`` can
+        call ``super().from_arrays(arrays, prefix)`` and restore its own fields on the result.
+
         Raises
         ------
         CorruptFileError
             A field is missing or has the wrong type, shape or value (named in the error).
         """
-
-        def fld(name: str, kind: str, shape: tuple[int | None, ...]) -> np.ndarray:
-            key = prefix + name
-            if key not in arrays:
-                raise CorruptFileError("missing", field=key)
-            try:
-                arr = np.asarray(arrays[key])
-            except Exception as exc:  # zip/CRC/header errors of a damaged member
-                raise CorruptFileError(f"unreadable ({exc})", field=key) from exc
-            if arr.dtype.kind != kind:
-                raise CorruptFileError(f"dtype {arr.dtype} where kind {kind!r} is required", field=key)
-            if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
-                raise CorruptFileError(f"shape {arr.shape} where {shape} is required (None = any)", field=key)
-            if kind == "f" and not np.all(np.isfinite(arr)):
-                raise CorruptFileError("holds NaN or infinite values", field=key)
-            return arr
-
-        version = int(fld("format", "i", ()))
-        if version != FORMAT_VERSION:
-            raise CorruptFileError(f"version {version}, this library reads version {FORMAT_VERSION}", field=prefix + "format")
-        try:
-            spec = json.loads(str(fld("config", "U", ())))
-            mc = dict(spec["map"])
-            for k in ("pc_shape", "offset_axes"):
-                mc[k] = tuple(mc[k])
-            config = MapConfig(**mc)
-            geometry = _GEOMETRIES[spec["geometry"]](**spec["geometry_params"])
-        except (json.JSONDecodeError, TypeError, KeyError, ValueError, ConfigError) as exc:
-            raise CorruptFileError(f"not a valid map configuration JSON ({exc})", field=prefix + "config") from exc
+        config, geometry = read_map_header(arrays, prefix, MapConfig)
         em = cls(config, geometry)
-        nd, g = len(config.pc_shape), geometry
-        exp_pc = fld("exp_pc", "f", (None, nd))
-        n = exp_pc.shape[0]
-        exp_vt = fld("exp_vt", "i", (n,))
-        exp_pose = fld("exp_pose", "f", (n, g.pose_width))
-        link_ends = fld("link_ends", "i", (None, 2))
-        m = link_ends.shape[0]
-        link_data = fld("link_data", "f", (m, g.link_width + 1))
-        state_f = fld("state_f", "f", (g.accum_width + 1 + nd,))
-        state_i = fld("state_i", "i", (3,))
-        problem = g.check_poses(exp_pose)
-        if problem:
-            raise CorruptFileError(problem, field=prefix + "exp_pose")
-        if np.any(exp_vt < 0):
-            raise CorruptFileError("negative view id", field=prefix + "exp_vt")
-        if m and (link_ends.min() < 0 or link_ends.max() >= n):
-            raise CorruptFileError(f"link end outside the {n} experiences", field=prefix + "link_ends")
-        if n and not (0 <= state_i[0] < n and 0 <= state_i[1] < n):
-            raise CorruptFileError(f"current/previous id {state_i[:2].tolist()} outside the {n} experiences", field=prefix + "state_i")
-        if state_i[2] < 0:
-            raise CorruptFileError("negative relaxation cursor", field=prefix + "state_i")
-        a = em._a
-        em._n_exp, em._n_link = n, m
-        a.pc, a.vt = _grow(np.array(exp_pc, dtype=np.float64), n), _grow(np.array(exp_vt, dtype=np.int64), n)
-        a.pose = _grow(np.array(exp_pose, dtype=np.float64), n)
-        a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(link_data, dtype=np.float64), m)
+        em._restore(read_map_body(arrays, prefix, config, geometry))
+        return em
+
+    def _restore(self, saved: MapArrays) -> None:
+        """Take the experiences, links and state of a validated :class:`~maps.experience_map_io.MapArrays`."""
+        exp_vt, link_ends = saved.exp_vt, saved.link_ends
+        n, m = len(exp_vt), len(link_ends)
+        a = self._a
+        self._n_exp, self._n_link = n, m
+        a.pc, a.vt = _grow(np.array(saved.exp_pc, dtype=np.float64), n), _grow(np.array(exp_vt, dtype=np.int64), n)
+        a.pose = _grow(np.array(saved.exp_pose, dtype=np.float64), n)
+        a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(saved.link_data, dtype=np.float64), m)
         for i, v in enumerate(exp_vt.tolist()):
-            em._vt_exps.setdefault(v, []).append(i)
-        for k, (f, t) in enumerate(link_ends.tolist()):
-            if t in em._out.get(f, ()) or f in em._out.get(t, ()):
-                raise CorruptFileError(f"duplicate link {f}->{t} at row {k}", field=prefix + "link_ends")
-            em._out.setdefault(f, set()).add(t)
+            self._vt_exps.setdefault(v, []).append(i)
+        for f, t in link_ends.tolist():  # no duplicates: read_map_body refused them
+            self._out.setdefault(f, set()).add(t)
             for e in (f, t):
-                em._n_links_of[e] = em._n_links_of.get(e, 0) + 1
+                self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)
         a.order = np.argsort(keys, kind="stable").astype(np.int64)
         a.order_key = keys[a.order]
-        w = g.accum_width
-        em._acc = [float(v) for v in state_f[:w]]
-        em.accum_time_s = float(state_f[w])
-        em._offset = np.array(state_f[w + 1:], dtype=np.float64)
-        em.current_id, em.prev_id, em._cursor = (int(v) for v in state_i)
-        return em
+        w = self.geometry.accum_width
+        state_f = saved.state_f
+        self._acc = [float(v) for v in state_f[:w]]
+        self.accum_time_s = float(state_f[w])
+        self._offset = np.array(state_f[w + 1:], dtype=np.float64)
+        self.current_id, self.prev_id, self._cursor = (int(v) for v in saved.state_i)

@@ -150,7 +150,7 @@ def _stepped(params):
 CONSTRUCTORS = {
     **{f"LocalViewParams.{name}": ((lambda name: lambda x: LocalViewParams(**{name: x}))(name), kind)
        for name, kind in (("inject_energy", float), ("active_decay", float), ("decay_restore", float), ("decay_floor", float),
-                          ("recent_exclusion", int), ("learning_rate", float), ("inject_gain", float),
+                          ("recent_exclusion", int), ("learning_rate", float),
                           ("trace_decay", float), ("min_weight", float), ("cpp_unsigned_recent", bool))},
     **{f"AttractorParams.{name}": ((lambda name: lambda x: _stepped(AttractorParams(**{name: x})))(name), kind)
        for name, kind in (("exc_width", "whole"), ("inh_width", "whole"), ("exc_sigma", float), ("inh_sigma", float),

@@ -131,7 +131,7 @@ def test_a_weight_beyond_float32_or_a_bad_activity_is_refused_unchanged(rate, ac
 
 
 def test_learning_is_elementwise_max_and_injection_averages_active_views():
-    lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=0.5, inject_gain=1.0, trace_decay=0.5))
+    lv = LocalViewCells((4,), LocalViewParams(mode="learnt", learning_rate=0.5, inject_energy=1.0, trace_decay=0.5))
     lv.observe(0, [0.0])
     lv.learn(np.array([0.2, 0.0, 0.6, 0.0]))
     lv.learn(np.array([0.4, 0.0, 0.2, 0.0]))
@@ -160,3 +160,12 @@ def test_thesis_decay_rule_by_hand():
     for _ in range(40):
         lv.restore_decay()
     assert lv.decay[0] == 0.0  # floored at 0
+
+
+@pytest.mark.parametrize("mode", ["stored", "learnt"])
+def test_cells_without_a_view_round_trip(mode):
+    """A model saved before its first view (e.g. whisks without contact) loads back empty."""
+    lv = LocalViewCells((5, 5, 5), LocalViewParams(mode=mode))
+    back = LocalViewCells.from_arrays(lv.to_arrays("lv_"), lv.params, prefix="lv_")
+    assert back.n_views == 0 and back.shape == (5, 5, 5)
+    assert back.observe(0, [1.0, 2.0, 3.0]) is not None and back.n_views == 1

@@ -73,7 +73,7 @@ def test_shift_conserves_activity_and_whole_periods_are_identity(backend, shape)
 
 def test_conditional_shift_conserves_activity(backend):
     rng = np.random.default_rng(2)
-    pop = Population.openratslam(dim_xy=11, dim_th=8, backend=backend, dtype=np.float64)
+    pop = Population.openratslam(xy_cells=11, heading_cells=8, backend=backend, dtype=np.float64)
     pop.activity = rng.random(pop.shape)
     total = pop.total
     pop.shift_conditional((0, 1), rng.uniform(-2.5, 2.5, (8, 2)))
@@ -159,7 +159,7 @@ def _tracked(pop, n_steps, axis, **kw):
 def test_planar_translation_moves_30_cells_in_100_steps(backend, heading_deg):
     # 72 theta layers (5 deg each) so every tested heading is a layer of the grid
     def fresh():
-        pop = Population.openratslam(dim_th=72, cell_size=0.1, backend=backend, dtype=np.float64)
+        pop = Population.openratslam(heading_cells=72, cell_size_m=0.1, backend=backend, dtype=np.float64)
         pop.reset_cell([10, 10, heading_deg // 5])
         return pop
 
@@ -195,7 +195,7 @@ def test_6d_translation_follows_the_voxel_orientation(backend, orientation):
     biased by the +-3 window on a smeared packet, must agree within 1 cell.
     """
     cell = 0.02
-    pop = Population.whisker6d(n=21, n_angle=5, cell_size=cell, backend=backend, dtype=np.float64)
+    pop = Population.whisker6d(grid_cells=21, angle_cells=5, cell_size_m=cell, backend=backend, dtype=np.float64)
     pop.reset_cell([10, 10, 10, *orientation])
     v = np.array([1.0, -1.0, 1.0]) / math.sqrt(3.0) * 0.3 * cell  # 0.3 cells/step in total
     means = np.array([10.0, 10.0, 10.0])
@@ -337,7 +337,7 @@ def test_import_does_no_work():
 def test_six_dof_conditional_translation_of_one_voxel_by_hand(backend, orientation, cells):
     """Independent expectation: hand-computed cos/sin of 72 deg and the trilinear split (Fig 5.7-5.11)."""
     cell = 0.02
-    pop = Population.whisker6d(n=21, n_angle=5, cell_size=cell, backend=backend, dtype=np.float64)
+    pop = Population.whisker6d(grid_cells=21, angle_cells=5, cell_size_m=cell, backend=backend, dtype=np.float64)
     pop.reset_cell([10, 10, 10, *orientation])
     pop.integrate(velocity=[cell, 0.0, 0.0], dt=1.0)  # one cell along body x
     a = pop.activity
@@ -374,7 +374,7 @@ def _motion_cases():
         "ring": (UniformMotion(), Population.head_direction(36).axes),
         "sheet": (UniformMotion(), (Axis.linear("x", 9, 0.5), Axis.linear("y", 7, 2.0))),
         "planar": (PlanarMotion("openratslam"), Population.openratslam(9, 12, 0.25).axes),
-        "6d": (SixDofMotion(), Population.whisker6d(5, 0.02, n_angle=6).axes),
+        "6d": (SixDofMotion(), Population.whisker6d(5, 0.02, angle_cells=6).axes),
     }
 
 

@@ -29,7 +29,7 @@ def _make(kind: str, backend, dtype=np.float32) -> Population:
     if kind == "6d":  # 5^6: the numba backend's small-grid kernel
         return Population.whisker6d(5, backend=backend, dtype=dtype)
     if kind == "6d-noncubic":  # the generic N-D pipeline
-        return Population.whisker6d(6, n_angle=5, backend=backend, dtype=dtype)
+        return Population.whisker6d(6, angle_cells=5, backend=backend, dtype=dtype)
     raise AssertionError(kind)
 
 

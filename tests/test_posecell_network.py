@@ -68,12 +68,12 @@ def test_a_lone_cell_decodes_just_below_its_index_as_in_cpp():
     best = pc.step(0.0, 0.0, 1.0)
     assert best[0] < 10.0 and int(best[0]) == 9 and best[0] == pytest.approx(10.0, abs=1e-12)
     vtrans, vrot, dt = steps[0][3:6]
-    assert tuple(PosecellNetwork(cell_size=0.25).step(vtrans, vrot, dt)) == steps[0][6]
+    assert tuple(PosecellNetwork(cell_size_m=0.25).step(vtrans, vrot, dt)) == steps[0][6]
 
 
 def test_agrees_with_the_population_engine_without_views():
     rng = np.random.default_rng(3)
-    cpp = PosecellNetwork(cell_size=0.5)
+    cpp = PosecellNetwork(cell_size_m=0.5)
     pop = Population.openratslam(21, 36, 0.5, frame="openratslam", dtype=np.float64, backend="numpy")
     dims = np.array([21.0, 21.0, 36.0])
     for _ in range(150):
@@ -108,7 +108,7 @@ def test_translation_conserves_mass_except_the_cpp_corner_leak():
     # cell in row 0 moving along +x loses its share w_se = v sin(a) (1 - v cos(a)) - kept here.
     from cansim.models import _posecell_kernels as k
 
-    pc = PosecellNetwork(dim_xy=9, dim_th=36)
+    pc = PosecellNetwork(xy_cells=9, heading_cells=36)
     rot, cs, sn = pc._layer_tables[0.0]
     layer, a, v = 4, math.radians(40.0), 0.7  # 40 deg: no quarter turn, residual angle 40 deg
     assert rot[layer] == 0
@@ -161,7 +161,7 @@ def test_injection_uses_x_y_theta_order():
 @pytest.mark.parametrize(
     "kwargs,match",
     [({"params": AttractorParams(exc_sigma=1.5)}, "exc_sigma"), ({"params": AttractorParams(inh_width=4)}, "inh_width"),
-     ({"dim_th": 2}, "heading_cells"), ({"cell_size": 0.0}, "cell_size_m"),
+     ({"heading_cells": 2}, "heading_cells"), ({"cell_size_m": 0.0}, "cell_size_m"),
      ({"params": AttractorParams(exc_width=(7, 7, 5))}, "exc_width")],
 )
 def test_bad_parameters_are_named(kwargs, match):

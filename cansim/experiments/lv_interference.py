@@ -14,10 +14,11 @@ their cross-talk pulls the recalled position away.
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
+from cansim._renamed import take_renamed
 from cansim.errors import ZeroActivityError
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import circular_distance_cells
@@ -30,7 +31,7 @@ DEFAULTS: dict = {
     "n_cells": 120,
     "n_views": 8,
     "trace_decay": 0.5,
-    "inject_gain": 0.3,
+    "inject_energy": 0.3,
     "learning_rate": 1.0,
     "settle_steps": 20,
     "recall_steps": 60,
@@ -41,12 +42,14 @@ DEFAULTS: dict = {
 
 
 def _check(params) -> dict:
+    if isinstance(params, Mapping) and "inject_gain" in params:  # 0.1's name, until 0.3
+        params = take_renamed(params, {"inject_gain": "inject_energy"}, "lv_interference", stacklevel=4)
     p = resolve(params, DEFAULTS, name="lv_interference")
     check_ring(p, "lv_interference")
     n = p["n_cells"]
     require(1 <= p["n_views"] <= 10 * n, f"lv_interference: n_views must lie in [1, 10 n_cells], got {p['n_views']}")
     require(0 <= p["trace_decay"] < 1, f"lv_interference: trace_decay must lie in [0, 1), got {p['trace_decay']}")
-    require(p["inject_gain"] >= 0 and p["learning_rate"] >= 0, "lv_interference: inject_gain and learning_rate must be >= 0")
+    require(p["inject_energy"] >= 0 and p["learning_rate"] >= 0, "lv_interference: inject_energy and learning_rate must be >= 0")
     require(0 <= p["settle_steps"] <= 10_000 and 1 <= p["recall_steps"] <= 100_000,
             "lv_interference: settle_steps must lie in [0, 1e4] and recall_steps in [1, 1e5]")
     require(0 < p["tolerance_cells"] <= n / 4, f"lv_interference: tolerance_cells must lie in (0, n_cells / 4], got {p['tolerance_cells']}")
@@ -66,9 +69,9 @@ def run(params: dict, seed: int) -> dict:
     ----------
     params : dict
         Any of :data:`DEFAULTS`: ``n_views``, ``trace_decay`` (V's decay per
-        observation), ``inject_gain`` (delta of Eq 2.17), ``learning_rate`` (lambda of
-        Eq 2.18), ``settle_steps``, ``recall_steps``, ``tolerance_cells``, ring and kernel
-        parameters, ``backend``.
+        observation), ``inject_energy`` (delta of Eq 2.17; 0.1's ``inject_gain`` still
+        works until 0.3), ``learning_rate`` (lambda of Eq 2.18), ``settle_steps``,
+        ``recall_steps``, ``tolerance_cells``, ring and kernel parameters, ``backend``.
     seed : int
         The route's positions and the recall start cells.
 
@@ -86,7 +89,7 @@ def run(params: dict, seed: int) -> dict:
     n, k = p["n_cells"], p["n_views"]
     pop = ring(p)
     lv = LocalViewCells(pop.shape, LocalViewParams(mode="learnt", trace_decay=p["trace_decay"],
-                                                   inject_gain=p["inject_gain"], learning_rate=p["learning_rate"]))
+                                                   inject_energy=p["inject_energy"], learning_rate=p["learning_rate"]))
     route = rng.integers(0, n, k)
     places = np.empty(k)
     for i, cell in enumerate(route):  # learning: the route, in order

@@ -44,10 +44,11 @@ from typing import Optional
 
 import numpy as np
 
+from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, InvalidInputError, ShapeError, ZeroActivityError
 from cansim.params import AttractorParams
 from whisker_io.validation import config_field
-from cansim.population import checked_injection
+from cansim.grid_inputs import checked_injection
 from whisker_io.validation import MAX_STEP_M, MAX_TURN_RAD
 
 __all__ = ["PosecellNetwork"]
@@ -79,11 +80,13 @@ class PosecellNetwork:
 
     Parameters
     ----------
-    dim_xy, dim_th : int
+    xy_cells, heading_cells : int
         Cells on the x and y axes (21) and on the heading axis (36): OpenRatSLAM's
-        ``pc_dim_xy`` and ``pc_dim_th``, ``RatSLAMConfig.xy_cells`` and ``heading_cells``.
-    cell_size : float
-        Metres per cell (> 0): ``pc_cell_x_size``, ``RatSLAMConfig.cell_size_m``.
+        ``pc_dim_xy`` and ``pc_dim_th``, under
+        :class:`~cansim.models.ratslam_config.RatSLAMConfig`'s names (0.1's ``dim_xy``
+        and ``dim_th`` still work until 0.3, with a DeprecationWarning).
+    cell_size_m : float
+        Metres per cell (> 0): ``pc_cell_x_size`` (0.1's ``cell_size``, likewise).
     params : AttractorParams
         Kernels and global inhibition, one scalar per field (the C++ grid is
         isotropic): ``exc_width`` / ``inh_width`` odd widths in cells (OpenRatSLAM
@@ -97,8 +100,8 @@ class PosecellNetwork:
 
     Notes
     -----
-    Starts like the C++: one cell of energy 1 at ``(dim_xy // 2, dim_xy // 2,
-    dim_th // 2)`` and the best estimate at those integer coordinates (not
+    Starts like the C++: one cell of energy 1 at ``(xy_cells // 2, xy_cells // 2,
+    heading_cells // 2)`` and the best estimate at those integer coordinates (not
     decoded). Float64 only; one process-wide numba compile (cached on disk).
 
     Examples
@@ -109,11 +112,12 @@ class PosecellNetwork:
     (9.999999999999998, 9)
     """
 
+    @renamed_keywords(dim_xy="xy_cells", dim_th="heading_cells", cell_size="cell_size_m")
     def __init__(
         self,
-        dim_xy: int = 21,
-        dim_th: int = 36,
-        cell_size: float = 1.0,
+        xy_cells: int = 21,
+        heading_cells: int = 36,
+        cell_size_m: float = 1.0,
         *,
         params: AttractorParams = AttractorParams(),
         decode_window: int = 3,
@@ -126,10 +130,10 @@ class PosecellNetwork:
 
         w_e_dim, w_i_dim = scalar("exc_width"), scalar("inh_width")
         w_e_var, w_i_var = scalar("exc_sigma"), scalar("inh_sigma")
-        for name, v in (("dim_xy (xy_cells)", dim_xy), ("dim_th (heading_cells)", dim_th)):
+        for name, v in (("xy_cells", xy_cells), ("heading_cells", heading_cells)):
             config_field(v, name, int, minimum=1)
         config_field(decode_window, "decode_window", int, minimum=0)
-        config_field(cell_size, "cell_size (cell_size_m)", float, above=0, hint="give metres per cell")
+        config_field(cell_size_m, "cell_size_m", float, above=0, hint="give metres per cell")
         global_inhib, cells_to_avg = float(params.global_inhibition), int(decode_window)
         if params.kernel_normalisation != "sum":
             raise ConfigError("kernel_normalisation must be 'sum' in the OpenRatSLAM engine (the C++ kernels sum to 1)")
@@ -140,13 +144,13 @@ class PosecellNetwork:
             if int(v) < 1 or int(v) % 2 == 0:
                 raise ConfigError(f"{name} must be a positive odd integer, got {v!r}")
         half_max = max(w_e_dim // 2, w_i_dim // 2, cells_to_avg)
-        if min(dim_xy, dim_th) < half_max:
+        if min(xy_cells, heading_cells) < half_max:
             raise ConfigError(
-                f"dim_xy and dim_th (xy_cells, heading_cells) must be >= {half_max} (the widest kernel half-width / "
-                f"find_best window), got {dim_xy} and {dim_th}"
+                f"xy_cells and heading_cells must be >= {half_max} (the widest kernel half-width / "
+                f"find_best window), got {xy_cells} and {heading_cells}"
             )
-        self._nxy, self._nth = int(dim_xy), int(dim_th)
-        self._cell = float(cell_size)
+        self._nxy, self._nth = int(xy_cells), int(heading_cells)
+        self._cell = float(cell_size_m)
         self._gi = float(global_inhib)
         self._half = int(cells_to_avg)
         self._e_dim, self._i_dim = int(w_e_dim), int(w_i_dim)
@@ -191,7 +195,7 @@ class PosecellNetwork:
     # ------------------------------------------------------------------ views
     @property
     def shape(self) -> tuple[int, int, int]:
-        """``(dim_xy, dim_xy, dim_th)``: cansim's (x, y, theta) axis order."""
+        """``(xy_cells, xy_cells, heading_cells)``: cansim's (x, y, theta) axis order."""
         return (self._nxy, self._nxy, self._nth)
 
     @property
@@ -261,7 +265,7 @@ class PosecellNetwork:
         vrot : float
             Yaw rate, rad/s.
         dt : float
-            Seconds; the step moves ``vtrans * dt / cell_size`` cells (<= 1 for
+            Seconds; the step moves ``vtrans * dt / cell_size_m`` cells (<= 1 for
             meaningful results, as in C++) and ``vrot * dt`` rad.
         injection : (flat_index, values), optional
             View energy added cell by cell, in order, before the dynamics
@@ -352,4 +356,4 @@ class PosecellNetwork:
         return value
 
     def __repr__(self) -> str:
-        return f"PosecellNetwork(x={self._nxy}, y={self._nxy}, theta={self._nth}, cell_size={self._cell} m)"
+        return f"PosecellNetwork(x={self._nxy}, y={self._nxy}, theta={self._nth}, cell_size_m={self._cell})"

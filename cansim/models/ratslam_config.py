@@ -17,7 +17,7 @@ field to use.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from typing import Any, Union
 
 from cansim.errors import ConfigError
@@ -31,6 +31,7 @@ from cansim.models.openratslam_config import (
     read_openratslam_text,
     renamed,
 )
+from cansim.models.slam_config import SlamConfig
 from cansim.params import AttractorParams
 from maps.experience_map import MapConfig
 from maps.se2 import SE2Geometry
@@ -49,8 +50,13 @@ def _per_axis(value: Any) -> tuple[Any, ...]:
 
 
 @dataclass(frozen=True)
-class RatSLAMConfig:
+class RatSLAMConfig(SlamConfig):
     """All RatSLAM parameters (defaults: OpenRatSLAM's).
+
+    The fields shared with WhiskerRatSLAM (``cell_size_m``, ``attractor``, ``lv_mode``,
+    ``inject_energy``, ``active_decay``, ``decay_restore``, ``match_distance_cells``,
+    ``correction``, ``relax_passes``, ``relax_budget``, ``backend``, ``dtype``) are
+    declared and checked once, in :class:`cansim.models.slam_config.SlamConfig`.
 
     OpenRatSLAM's key for a field is given in brackets, for translating its config
     files by hand (:meth:`from_file` does it; see :mod:`cansim.models.openratslam_config`).
@@ -119,25 +125,16 @@ class RatSLAMConfig:
         OpenRatSLAM files).
     """
 
+    # shared fields (SlamConfig), at SlamConfig's defaults: cell_size_m, attractor, lv_mode,
+    # inject_energy, active_decay, decay_restore, match_distance_cells, correction,
+    # relax_passes, relax_budget, backend, dtype
     xy_cells: int = 21
     heading_cells: int = 36
-    cell_size_m: float = 1.0
-    attractor: AttractorParams = field(default_factory=AttractorParams)
     decode_window: int = 3
-    lv_mode: str = "stored"
-    inject_energy: float = 0.15
-    active_decay: float = 1.0
-    decay_restore: float = 0.05
-    match_distance_cells: float = 2.0
-    correction: float = 0.5
-    relax_passes: int = 10
-    relax_budget: int | None = 2_000
     initial_heading_deg: float = 90.0
     link_time_since_start: bool = False
     frontend: FrontEndConfig = "ids"
     frame: str = "standard"
-    dtype: str = "float64"
-    backend: str = "numba"
     strict_translation: bool = False
     pose_cells: str = "population"
 
@@ -159,19 +156,14 @@ class RatSLAMConfig:
             raise ConfigError(f"unknown RatSLAMConfig field(s) {sorted(unknown)}; the fields are {[f.name for f in fields(cls)]}")
 
     def __post_init__(self) -> None:
+        self._check_shared()
         config_field(self.xy_cells, "xy_cells", int, minimum=1)
         config_field(self.heading_cells, "heading_cells", int, minimum=1)
-        config_field(self.cell_size_m, "cell_size_m", float, above=0)
         config_field(self.decode_window, "decode_window", int, minimum=0)
-        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
-            config_field(getattr(self, name), name, float, minimum=0)
         config_field(self.initial_heading_deg, "initial_heading_deg", float)
         for name in ("link_time_since_start", "strict_translation"):
             config_field(getattr(self, name), name, bool)
-        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
         config_field(self.frame, "frame", str, choices=("standard", "openratslam"))
-        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
-        config_field(self.backend, "backend", str)
         config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam"))
         self._check_attractor()
         fe = self.frontend
@@ -252,29 +244,28 @@ class RatSLAMConfig:
     # ---------------------------------------------------------- save / load
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form (for saved models); the front end as ``"ids"`` or ``{"kind": ..., fields}``."""
-        out = asdict(self)
+        out = super().to_dict()
         if not isinstance(self.frontend, str):
             kind = next(k for k, t in _FRONTEND_KINDS.items() if isinstance(self.frontend, t))
             out["frontend"] = {"kind": kind, **asdict(self.frontend)}
         return out
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "RatSLAMConfig":
-        """Inverse of :meth:`to_dict`; also reads the flat form saved by earlier versions
-        (:func:`cansim.models.openratslam_config.config_from_flat_dict`)."""
+    def from_dict(cls, d: Any) -> "RatSLAMConfig":
+        """Inverse of :meth:`to_dict` (:meth:`SlamConfig.from_dict`'s errors); also reads the flat
+        form saved by earlier versions (:func:`cansim.models.openratslam_config.config_from_flat_dict`)."""
         if isinstance(d, dict) and any(k in OPENRATSLAM_KEYS for k in d):
             return config_from_flat_dict(d, cls)
-        try:
-            d = dict(d)
-            if isinstance(d.get("attractor"), dict):
-                d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
-            fe = d.get("frontend")
-            if isinstance(fe, dict):
-                fe = dict(fe)
-                d["frontend"] = _FRONTEND_KINDS[fe.pop("kind")](**fe)
-            return cls(**d)
-        except (KeyError, TypeError) as exc:
-            raise ConfigError(f"not a RatSLAMConfig description ({exc!r})") from None
+        return super().from_dict(d)
+
+    @classmethod
+    def _fields_from_dict(cls, d: dict[str, Any]) -> dict[str, Any]:
+        d = super()._fields_from_dict(d)
+        fe = d.get("frontend")
+        if isinstance(fe, dict):
+            fe = dict(fe)
+            d["frontend"] = _FRONTEND_KINDS[fe.pop("kind")](**fe)
+        return d
 
     # --------------------------------------------------------- sub-configs
     def map_config(self) -> MapConfig:
@@ -292,7 +283,7 @@ class RatSLAMConfig:
     def local_view_params(self) -> LocalViewParams:
         """The local-view cells' parameters: OpenRatSLAM's stored location, or learnt LV->PC weights (``lv_mode``)."""
         if self.lv_mode == "learnt":
-            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
+            return LocalViewParams(mode="learnt", inject_energy=self.inject_energy, recent_exclusion=0)
         return LocalViewParams(
             mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay,
             decay_restore=self.decay_restore, recent_exclusion=10, cpp_unsigned_recent=True, rounding="truncate",

@@ -37,7 +37,8 @@ from cansim.spiking.neurons import NeuronParams
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 
-#: backends of the spiking population: numpy is the reference
+#: backends with a spiking implementation (numpy is the reference); the one list, read by
+#: SpikingPopulation and by the backend conformance suite (cansim.testing.conformance)
 SPIKING_BACKENDS = ("numpy", "numba")
 
 

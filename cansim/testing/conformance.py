@@ -207,16 +207,13 @@ def test_run_equals_repeated_steps(candidate, shape, dtype):
     np.testing.assert_array_equal(pops[0].activity, pops[1].activity)
 
 
-SPIKING_BACKENDS = ("numba",)  # backends with a spiking implementation besides the numpy reference
-
-
 @pytest.mark.parametrize("shape", [(36,), (7, 6), (5, 4, 3)])
 def test_spiking_population_spikes_identically(candidate, reference, shape):
     """A spiking population (LIF, seeded noise, path integration) emits the reference's spikes, step for step."""
     from cansim.axes import Axis
-    from cansim.spiking import NeuronParams, SpikingParams, SpikingPopulation
+    from cansim.spiking import SPIKING_BACKENDS, NeuronParams, SpikingParams, SpikingPopulation
 
-    if candidate.name not in SPIKING_BACKENDS:
+    if candidate.name not in SPIKING_BACKENDS:  # the backends with a spiking implementation (one list, cansim.spiking)
         pytest.skip(f"backend {candidate.name!r} has no spiking implementation")
     axes = tuple(Axis.angle(f"a{i}", n) for i, n in enumerate(shape))
     params = SpikingParams(neurons=NeuronParams(noise_sigma=0.3, bias_current=1.05), recurrent_weight=60.0, global_weight=0.5)

@@ -152,7 +152,7 @@ def _population(workload: str, backend: Any) -> tuple[Any, list[dict[str, Any]]]
         pop = Population.openratslam(int(workload.split("x")[0]), 36, backend=backend)
         v, w = 0.3, 0.2 * 2 * np.pi / 36
     elif workload in ("5^6", "10^6"):
-        pop = Population.whisker6d(int(workload.split("^")[0]), backend=backend)
+        pop = Population.whisker6d(int(workload.split("^")[0]), 0.02, backend=backend)  # 0.02 m cells: the workload as measured since 0.1
         v, w = np.array([0.003, 0.002, 0.001]), np.array([0.1, 0.05, 0.02])
     else:
         raise InvalidInputError(f"unknown workload {workload!r}; known: {', '.join([*WORKLOADS, *_FULL_ONLY])}")

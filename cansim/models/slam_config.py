@@ -1,0 +1,126 @@
+"""The parameters every SLAM model shares, declared and checked once.
+
+:class:`SlamConfig` is the frozen dataclass base of
+:class:`~cansim.models.ratslam_config.RatSLAMConfig` (3-DoF RatSLAM) and
+:class:`~cansim.models.whisker_ratslam.WhiskerRatSLAMConfig` (6-DoF WhiskerRatSLAM): the
+pose-cell grid's metres per cell and attractor, the local-view -> pose-cell connection
+(Eq 5.8-5.9 stored location or Eq 2.17/2.18 learnt weights), the experience rule and the
+relaxation of the map (Eq 2.22, Eq 2.25) and the engine (backend, dtype). A model's
+config redeclares a field only to give it the model's own default (e.g. ``inject_energy``
+0.15 in OpenRatSLAM, zeta = 0.3 in Ch.5), and adds its own fields (grid sizes, front end).
+
+:meth:`SlamConfig.from_dict` is the one reader of saved configs: anything but a mapping,
+an unknown field or a malformed nested part raises :class:`~cansim.errors.ConfigError`
+(``"not a <Config> description ..."``); out-of-range values raise the field's own
+:class:`~cansim.errors.ConfigError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any, TypeVar
+
+from cansim.errors import ConfigError
+from cansim.params import AttractorParams
+from whisker_io.validation import config_field
+
+__all__ = ["SlamConfig"]
+
+C = TypeVar("C", bound="SlamConfig")
+
+
+@dataclass(frozen=True)
+class SlamConfig:
+    """The fields RatSLAM and WhiskerRatSLAM share (defaults: OpenRatSLAM's; each model sets its own).
+
+    Parameters
+    ----------
+    cell_size_m : float
+        Metres per translational pose cell (> 0).
+    attractor : AttractorParams
+        Kernels and global inhibition of the pose cells (Alg 3-5, Eq 2.19 / Eq 5.10).
+    lv_mode : {"stored", "learnt"}
+        How views feed the pose cells: the stored location (Eq 5.8) or learnt LV->PC
+        weights (Eq 2.17/2.18, ``inject_energy`` as the gain delta).
+    inject_energy : float
+        Energy a view injects (>= 0): zeta of Eq 5.8 in stored mode, delta of Eq 2.17 in
+        learnt mode.
+    active_decay, decay_restore : float
+        A view's decay rise per match and fall per iteration (>= 0).
+    match_distance_cells : float
+        Wrapped pose-cell distance (cells, Eq 2.22) above which a new experience is made (>= 0).
+    correction : float
+        Relaxation rate alpha of Eq 2.25, in (0, 1].
+    relax_passes : int
+        Relaxation passes over all links per action.
+    relax_budget : int or None
+        Single-link relaxation updates per step (None: unbounded; see :mod:`maps.experience_map`).
+    backend : str
+        CAN backend name (numba by default).
+    dtype : {"float64", "float32"}
+        Pose-cell activity dtype.
+
+    Raises
+    ------
+    ConfigError
+        A field of the wrong type or out of range (the relaxation fields are checked by
+        the model's ``map_config()``, :class:`maps.experience_map.MapConfig`).
+    """
+
+    cell_size_m: float = 1.0
+    attractor: AttractorParams = field(default_factory=AttractorParams)
+    lv_mode: str = "stored"
+    inject_energy: float = 0.15
+    active_decay: float = 1.0
+    decay_restore: float = 0.05
+    match_distance_cells: float = 2.0
+    correction: float = 0.5
+    relax_passes: int = 10
+    relax_budget: int | None = 2_000
+    backend: str = "numba"
+    dtype: str = "float64"
+
+    def __post_init__(self) -> None:
+        self._check_shared()
+
+    def _check_shared(self) -> None:
+        """Check the shared fields (a model's ``__post_init__`` calls this, then checks its own)."""
+        config_field(self.cell_size_m, "cell_size_m", float, above=0)
+        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
+            config_field(getattr(self, name), name, float, minimum=0)
+        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
+        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
+        config_field(self.backend, "backend", str)
+        if not isinstance(self.attractor, AttractorParams):
+            raise ConfigError(f"attractor must be an AttractorParams (cansim.params), got {self.attractor!r}")
+
+    # ---------------------------------------------------------- save / load
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (for saved models): every field, nested configs as dicts."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls: type[C], d: Any) -> C:
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        ConfigError
+            ``d`` is not a mapping, names an unknown field, or a nested part (the
+            attractor, the front end) is malformed: ``"not a <Config> description ..."``;
+            or a value is out of range (the field's own message).
+        """
+        if not isinstance(d, Mapping):
+            raise ConfigError(f"not a {cls.__name__} description: expected a dict (to_dict's output), got {type(d).__name__}")
+        try:
+            return cls(**cls._fields_from_dict(dict(d)))
+        except (KeyError, TypeError) as exc:
+            raise ConfigError(f"not a {cls.__name__} description ({exc!r})") from None
+
+    @classmethod
+    def _fields_from_dict(cls, d: dict[str, Any]) -> dict[str, Any]:
+        """The constructor's keywords from a :meth:`to_dict` dict (nested parts rebuilt); a model extends it."""
+        if isinstance(d.get("attractor"), Mapping):
+            d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
+        return d
