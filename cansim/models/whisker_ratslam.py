@@ -86,7 +86,7 @@ explorer) matches an unknown object against maps in other frames;
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -96,6 +96,7 @@ from cansim.frontends.whisk import WhiskFrontEnd, WhiskFrontEndConfig
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
+from cansim.models.slam_config import SlamConfig
 from cansim.models.slam_loop import SlamLoop, SlamState, configured
 from maps.experience_map import MapConfig
 from maps.object_library import ObjectLibrary, append_object_maps
@@ -111,8 +112,12 @@ def _thesis_kernels() -> AttractorParams:
 
 
 @dataclass(frozen=True)
-class WhiskerRatSLAMConfig:
+class WhiskerRatSLAMConfig(SlamConfig):
     """Parameters of WhiskerRatSLAM (defaults: the thesis' Ch.5 model).
+
+    The fields shared with RatSLAM are declared and checked once, in
+    :class:`cansim.models.slam_config.SlamConfig`; four of them have this model's own
+    defaults here (``cell_size_m``, ``attractor``, ``inject_energy``, ``match_distance_cells``).
 
     Parameters
     ----------
@@ -153,21 +158,15 @@ class WhiskerRatSLAMConfig:
         Weight of the gate-normalised pose distance added to ``chi2 + NMSE`` (0: Eq 5.5).
     """
 
-    grid_cells: int = 5
-    angle_cells: int | None = None
+    # shared fields (SlamConfig) with this model's defaults; lv_mode, active_decay,
+    # decay_restore, correction, relax_passes, relax_budget, backend, dtype at SlamConfig's
     cell_size_m: float = 0.1
     attractor: AttractorParams = field(default_factory=_thesis_kernels)
-    lv_mode: str = "stored"
     inject_energy: float = 0.3
-    active_decay: float = 1.0
-    decay_restore: float = 0.05
     match_distance_cells: float = 1.0
-    correction: float = 0.5
-    relax_passes: int = 10
-    relax_budget: int | None = 2_000
+    grid_cells: int = 5
+    angle_cells: int | None = None
     frontend: WhiskFrontEndConfig = field(default_factory=WhiskFrontEndConfig)
-    backend: str = "numba"
-    dtype: str = "float64"
     pose_gate_m: float | None = None
     pose_gate_deg: float | None = None
     pose_gate_growth_m: float | None = None
@@ -175,15 +174,11 @@ class WhiskerRatSLAMConfig:
     pose_weight: float = 0.0
 
     def __post_init__(self) -> None:
+        self._check_shared()
         config_field(self.grid_cells, "grid_cells", int, minimum=3)
         config_field(self.angle_cells, "angle_cells", int, minimum=3, optional=True, hint="None uses grid_cells")
-        config_field(self.cell_size_m, "cell_size_m", float, above=0)
-        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
-            config_field(getattr(self, name), name, float, minimum=0)
-        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
-        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
-        if not isinstance(self.attractor, AttractorParams) or not isinstance(self.frontend, WhiskFrontEndConfig):
-            raise ConfigError("attractor must be an AttractorParams and frontend a WhiskFrontEndConfig")
+        if not isinstance(self.frontend, WhiskFrontEndConfig):
+            raise ConfigError(f"frontend must be a WhiskFrontEndConfig (cansim.frontends.whisk), got {self.frontend!r}")
         self.map_config()
         # pose-consistent matching (module docstring): each gate is a (metres, degrees) pair, both set or both None
         for pair in (("pose_gate_m", "pose_gate_deg"), ("pose_gate_growth_m", "pose_gate_growth_deg")):
@@ -236,23 +231,18 @@ class WhiskerRatSLAMConfig:
     def local_view_params(self) -> LocalViewParams:
         """The region -> pose-cell connection (the thesis' decay rule in stored mode)."""
         if self.lv_mode == "learnt":
-            return LocalViewParams(mode="learnt", inject_gain=self.inject_energy, recent_exclusion=0)
+            return LocalViewParams(mode="learnt", inject_energy=self.inject_energy, recent_exclusion=0)
         return LocalViewParams(
             mode="stored", inject_energy=self.inject_energy, active_decay=self.active_decay, decay_restore=self.decay_restore,
             decay_floor=0.0, rise_on_every_match=True, decay_per_iteration=True, recent_exclusion=0, rounding="round",
         )
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able form (for saved models)."""
-        return asdict(self)
-
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "WhiskerRatSLAMConfig":
-        """Inverse of :meth:`to_dict`."""
-        d = dict(d)
-        d["attractor"] = AttractorParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["attractor"].items()})
-        d["frontend"] = WhiskFrontEndConfig(**d["frontend"])
-        return cls(**d)
+    def _fields_from_dict(cls, d: dict[str, Any]) -> dict[str, Any]:
+        d = super()._fields_from_dict(d)
+        if isinstance(d.get("frontend"), dict):
+            d["frontend"] = WhiskFrontEndConfig(**d["frontend"])
+        return d
 
 
 def _positive_dt(odo: SpatialOdometry) -> None:
@@ -281,7 +271,7 @@ class WhiskerRatSLAM(SlamLoop):
         cfg = self.config = configured(WhiskerRatSLAMConfig, config, params, "WhiskerRatSLAM")
         na = cfg.grid_cells if cfg.angle_cells is None else cfg.angle_cells
         pose_cells = Population.whisker6d(
-            cfg.grid_cells, cfg.cell_size_m, n_angle=na, params=cfg.attractor, backend=cfg.backend, dtype=np.dtype(cfg.dtype)
+            cfg.grid_cells, cfg.cell_size_m, angle_cells=na, params=cfg.attractor, backend=cfg.backend, dtype=np.dtype(cfg.dtype)
         )
         super().__init__(
             pose_cells,
