@@ -37,7 +37,7 @@ from whisker_io.features.pfh import chi_squared
 from whisker_io.features.sda import nmse
 from whisker_io.pose import Pose
 
-pytestmark = pytest.mark.fuzz
+pytestmark = [pytest.mark.fuzz, pytest.mark.slow]  # long: CI runs it after the fast loop
 
 N = int(os.environ.get("CANSIM_FUZZ_EXAMPLES", "500"))
 SETTINGS = dict(max_examples=N, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
