@@ -113,7 +113,7 @@ def test_figures_and_summary(reduced):
 @settings(max_examples=10, deadline=None)
 @given(st.sampled_from([["--seeds", "0"], ["--iterations", "1"], ["--noise-scale", "nan"], ["--noise-scale", "-1"],
                         ["--object-offset-m", "nan"], ["--object-offset-m", "0.5"], ["--object-yaw-deg", "-1"],
-                        ["--object-yaw-deg", "inf"]]))
+                        ["--object-yaw-deg", "inf"], ["--believed-scale", "0.5"], ["--believed-scale", "nan"]]))
 def test_bad_arguments_exit_2(tmp_path_factory, args):
     assert ch6.main(["--quick", "--out", str(tmp_path_factory.mktemp("bad")), *args]) == 2
 
@@ -126,3 +126,32 @@ def test_the_spc_raises_the_correct_confidence_over_seeds():
         runs = [ch6.run_one(setup, "box_stack", "default", spc, seed, 300) for seed in range(6)]
         mean[spc] = sum(float(r["result"].confidence[:, r["correct"]].mean()) for r in runs) / len(runs)
     assert mean[True] > mean[False] > 0
+
+
+def test_users_mesh_files_run_through_the_explorer_with_one_flag(tmp_path):
+    """Two mesh files (millimetres, exported by a CAD tool) as the known pair: mapped, presented, recognised."""
+    from cansim.errors import InvalidInputError
+    from whisker_io.sim.objects import make_object
+
+    files = []
+    for name, suffix in (("box", ".obj"), ("box_stack", ".stl")):
+        mesh = make_object(name)
+        path = tmp_path / f"my_{name}{suffix}"
+        mesh.export(path)  # in metres, z up: the conventions, so no flag beyond --objects
+        files.append(str(path))
+    out = tmp_path / "out"
+    assert ch6.main(["--quick", "--seeds", "1", "--iterations", "60", "--out", str(out), "--objects", *files]) == 0
+    with open(out / "ch6_runs.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert {r["presented"] for r in rows} == set(files)
+    assert all(r["identity"] in ("", *files) for r in rows)
+    with pytest.raises(InvalidInputError, match="neither a registered object"):
+        ch6.main(["--quick", "--out", str(out), "--objects", "box", "teapot"])
+
+
+def test_the_believed_volume_comes_from_the_known_objects_and_scales_about_its_centre():
+    box = ch6.believed_volume(("box", "box_stack"))
+    big = ch6.believed_volume(("box", "box_stack"), 1.5)
+    assert big.bounds[0, 2] == pytest.approx(box.bounds[0, 2])  # still on the table
+    assert big.extents == pytest.approx(box.extents * 1.5)
+    assert big.bounds[:, :2].mean(axis=0) == pytest.approx(box.bounds[:, :2].mean(axis=0))

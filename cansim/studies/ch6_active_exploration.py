@@ -227,6 +227,10 @@ class Setup:
     sda_threshold: float
     noise_scale: float
     contact_model: str = DEFAULT_CONTACT_MODEL
+    #: the known objects (registered names, procedural shapes or mesh files), in map order
+    objects: tuple[str, ...] = OBJECTS
+    #: the believed volume's size against the known objects' bounding box (1: the box itself)
+    believed_scale: float = 1.0
     #: contact seeking (:mod:`cansim.explore.contact_seeking`; off: the thesis' Alg 7-8, the study's figures)
     contact_seeking: bool = False
 
@@ -240,11 +244,11 @@ def envelope() -> Any:
 
 def chain_for(name: str, noise_scale: float, contact_model: str = DEFAULT_CONTACT_MODEL, mesh: Any = None) -> Any:
     """The simulated whisk chain on object ``name`` (or on ``mesh``; sweep-only, Sec 6.1.3.1.2 noise)."""
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.sweep import ContactNoise
     from whisker_io.sim.whisk_chain import WhiskChain
 
-    return WhiskChain(make_object(name) if mesh is None else mesh, contact_model=contact_model,
+    return WhiskChain(resolve_object(name).mesh if mesh is None else mesh, contact_model=contact_model,
                       contact_noise=ContactNoise().scaled(noise_scale))
 
 
@@ -255,26 +259,33 @@ def array_bases_m() -> np.ndarray:
     return np.asarray(WhiskerArray.thesis().positions_m, dtype=float)
 
 
-def believed_volume() -> Any:
+def believed_volume(objects: Sequence[str] = OBJECTS, scale: float = 1.0) -> Any:
     """What the explorer knows of the unknown object: the bounding box every known object fits in (a trimesh box).
 
-    Box and Box-Stack share their bounding box, so it says nothing of the identity.
+    Computed from the known objects (the library), never from the presented one. Box and
+    Box-Stack share their bounding box, so it says nothing of the identity. ``scale``
+    (>= 1) enlarges the box about its centre in x and y and upward from the table, so it
+    still rests on z = 0 (1.5: a box 50 % larger than the objects', issue 22).
     """
     import trimesh
 
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
 
-    b = np.array([make_object(n).bounds for n in OBJECTS])
-    return trimesh.creation.box(bounds=np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)]))
+    b = np.array([resolve_object(n).mesh.bounds for n in objects])
+    lo, hi = b[:, 0].min(axis=0), b[:, 1].max(axis=0)
+    centre, half = (lo + hi) / 2, (hi - lo) / 2 * scale
+    lo2, hi2 = centre - half, centre + half
+    lo2[2], hi2[2] = lo[2], lo[2] + (hi[2] - lo[2]) * scale
+    return trimesh.creation.box(bounds=np.array([lo2, hi2]))
 
 
 def presented_mesh(name: str, seed: int, offset_m: float = 0.0, yaw_deg: float = 0.0) -> Any:
     """The presented object, moved on the table by a seeded N(0, offset_m) x/y offset and N(0, yaw_deg) yaw."""
     from scipy.spatial.transform import Rotation
 
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
 
-    mesh = make_object(name)
+    mesh = resolve_object(name).mesh
     if offset_m > 0 or yaw_deg > 0:
         rng = np.random.default_rng(derive_seed(seed, "placement", name))
         T = np.eye(4)
@@ -316,10 +327,10 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
     (known, mapped) object: no base inside it.
     """
     from cansim.explore.search import DefaultSearch
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.trajectories import fit_surface
 
-    mesh = make_object(name)
+    mesh = resolve_object(name).mesh
     surface = fit_surface(mesh, "ellipsoid")
     search = DefaultSearch(surface.centre_m, float(np.max(surface.semi_axes_m)), mesh=mesh, seed=derive_seed(seed, "tour", name),
                            semi_axes_m=surface.semi_axes_m, footprint_m=array_bases_m())
@@ -327,8 +338,9 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
 
 
 def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 2,
-            contact_model: str = DEFAULT_CONTACT_MODEL) -> Setup:
-    """Thresholds (step 1) and the object maps of Box and Box-Stack (step 2)."""
+            contact_model: str = DEFAULT_CONTACT_MODEL, objects: Sequence[str] = OBJECTS,
+            believed_scale: float = 1.0, contact_seeking: bool = False) -> Setup:
+    """Thresholds (step 1) and the object maps of the known objects (step 2; default Box and Box-Stack)."""
     from cansim.explore.explorer import build_object_model
     from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
@@ -338,14 +350,15 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
     mug, cal_rng = chain_for("mug", noise_scale, contact_model), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
     cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
     known = []
-    for name in OBJECTS:
+    for name in objects:
         rng = np.random.default_rng(derive_seed(seed, "map", name))
         chain = chain_for(name, noise_scale, contact_model)
         known.append(build_object_model(
             name, mapping_tour(name, seed, n_loops), lambda p, c=chain, r=rng: c.features(p, r),
             lambda a, b, r=rng: noisy_odometry(a, b, r), placement=spc_params(), adjustments_per_pose=MAX_ADJUSTMENTS,
             model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
-    return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model)
+    return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model, tuple(objects),
+                 float(believed_scale), bool(contact_seeking))
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
@@ -363,12 +376,12 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     from cansim.explore.explorer import Explorer
     from cansim.explore.search import DefaultSearch
     from whisker_io.hw.arm import SimArm
-    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.catalogue import resolve_object
 
-    mesh = make_object(presented) if mesh is None else mesh
+    mesh = resolve_object(presented).mesh if mesh is None else mesh
     chain = chain_for(presented, setup.noise_scale, setup.contact_model, mesh)
     sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", presented, strategy, spc))
-    box = believed_volume()
+    box = believed_volume(setup.objects, setup.believed_scale)
     search = DefaultSearch(box.bounds.mean(axis=0), float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
                            footprint_m=array_bases_m())
     if arm is None:
@@ -423,7 +436,7 @@ def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, m
     ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh)
     res = ex.run()
     return {"seed": seed, "presented": presented, "strategy": strategy, "spc": "on" if spc else "off", "result": res,
-            "correct": OBJECTS.index(presented), "outside": outside_envelope(arm),
+            "correct": setup.objects.index(presented), "objects": setup.objects, "outside": outside_envelope(arm),
             "inside": int(bases_inside(mesh, res.poses).sum()),
             "no_contact": sum(not getattr(f, "is_observation", False) for _, f in cycles)}
 
@@ -439,7 +452,7 @@ def run_rows(run: dict[str, Any]) -> list[dict[str, Any]]:
         rows.append({
             "seed": run["seed"], "presented": run["presented"], "strategy": run["strategy"], "spc": run["spc"],
             "threshold": thr, "im": m.im, "srt": m.srt,
-            "identity": "" if m.identity is None else OBJECTS[m.identity], "correct_first": m.correct_first,
+            "identity": "" if m.identity is None else run["objects"][m.identity], "correct_first": m.correct_first,
             "mean_correct_confidence": float(c[:, k].mean()) if len(c) else 0.0,
             "mean_incorrect_confidence": float(c[:, others].mean()) if len(c) and others else 0.0,
             "iterations": len(c), "refused_commands": res.refused_commands,
@@ -474,7 +487,7 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     r = runs[0]["result"] if runs else None
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     if r is not None:
-        for k, name in enumerate(OBJECTS):
+        for k, name in enumerate(runs[0]["objects"]):
             axes[0].plot(r.confidence[:, k], label=name)
             axes[1].plot(r.ic[:, k], label=name)
         for thr in THRESHOLDS:
@@ -590,13 +603,13 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      f"{s} {sum(x['correct_first'] for x in strat if x['strategy'] == s and x['threshold'] == t)}"
                      f"/{sum(1 for x in strat if x['strategy'] == s and x['threshold'] == t)}" for s in STRATEGY_NAMES)
                      for t in THRESHOLDS))
-    for p in OBJECTS:
+    for p in setup.objects:
         v = [x for x in strat if x["threshold"] == 300.0 and x["presented"] == p]
         ids = [x["identity"] or "none" for x in v]
-        lines.append(f"  {p} presented: identity first at IC 300 " + ", ".join(f"{k} {ids.count(k)}" for k in (*OBJECTS, "none"))
+        lines.append(f"  {p} presented: identity first at IC 300 " + ", ".join(f"{k} {ids.count(k)}" for k in (*setup.objects, "none"))
                      + f" of {len(v)}; mean confidence correct {np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan:.3f}"
                      f" vs incorrect {np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan:.3f}")
-    lines.append(f"SPC on vs off (default search, Box-Stack presented): mean correct confidence {np.mean(on) if on else math.nan:.3f} "
+    lines.append(f"SPC on vs off (default search, {setup.objects[-1]} presented): mean correct confidence {np.mean(on) if on else math.nan:.3f} "
                  f"vs {np.mean(off) if off else math.nan:.3f} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
                  f"{min(len(on), len(off))} seeds); mean incorrect {np.mean(on_i) if on_i else math.nan:.3f} vs "
                  f"{np.mean(off_i) if off_i else math.nan:.3f}")
@@ -640,13 +653,23 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="s.d. of the presented object's seeded x/y offset from where the explorer believes it, m (default 0)")
     ap.add_argument("--object-yaw-deg", type=float, default=0.0,
                     help="s.d. of the presented object's seeded yaw, deg (default 0)")
+    ap.add_argument("--objects", nargs=2, default=list(OBJECTS), metavar="NAME_OR_MESH",
+                    help="the two known objects (registered names, procedural shapes or mesh files in metres, z up); "
+                         "each is mapped and presented (default: box box_stack)")
+    ap.add_argument("--believed-scale", type=float, default=1.0,
+                    help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
+                         "larger, issue 22)")
+    ap.add_argument("--contact-seeking", action="store_true",
+                    help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn")
     args = ap.parse_args(list(argv) if argv is not None else None)
+    args.objects = tuple(args.objects)
     args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 10)
     args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
     finite = all(math.isfinite(v) and v >= 0 for v in (args.noise_scale, args.object_offset_m, args.object_yaw_deg))
+    finite = finite and math.isfinite(args.believed_scale) and 1.0 <= args.believed_scale <= 3.0
     if args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45:
         print("ch6_active_exploration: --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, --object-offset-m in "
-              "[0, 0.1] and --object-yaw-deg in [0, 45] are needed", file=sys.stderr)
+              "[0, 0.1], --object-yaw-deg in [0, 45] and --believed-scale in [1, 3] are needed", file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
     logging.getLogger("cansim.explore.explorer").setLevel(logging.ERROR)  # refusals are counted in the CSV
@@ -654,9 +677,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     from tqdm import tqdm
 
     t0 = time.monotonic()
-    setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model)
-    jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in OBJECTS]
-    jobs += [("spc", "box_stack", "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
+    from whisker_io.sim.catalogue import resolve_object
+
+    for spec in args.objects:  # a bad name or mesh fails here, with the reason, before any work
+        resolve_object(spec)
+    setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
+                    believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
+    jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
+    jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []
     for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr):
         if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
