@@ -18,11 +18,13 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     Raises
     ------
     CorruptFileError
-        The file is missing, empty, truncated, not an ``.npz`` archive, or a member is damaged.
+        The file is missing, empty, truncated, not an ``.npz`` archive (or one of a zip
+        version or compression this Python cannot read), or a member is damaged.
     """
     try:
         archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
+        # NotImplementedError: zipfile's answer to a zip version or compression it cannot read
         raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
     if not hasattr(archive, "files"):
         raise CorruptFileError("holds a single array, not an .npz archive", path=path)

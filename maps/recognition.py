@@ -178,15 +178,29 @@ def integrated_confidence(c: np.ndarray, params: LeakyIntegrator = LeakyIntegrat
     return np.cumsum(np.asarray(c, dtype=np.float64), axis=0) * params.dt
 
 
+def _checked_trace(trace: np.ndarray, threshold: float, ndim: int) -> np.ndarray:
+    try:
+        tr = np.asarray(trace, dtype=np.float64)
+        thr = float(threshold)
+    except (TypeError, ValueError):
+        raise InvalidInputError("trace must be an array of numbers and threshold a number") from None
+    shape = "(n,)" if ndim == 1 else "(n, n_objects)"
+    if tr.ndim != ndim:
+        raise ShapeError(f"trace must be {shape}, got shape {tr.shape}")
+    if np.isnan(tr).any() or np.isnan(thr):
+        raise InvalidInputError("trace and threshold must not be NaN")
+    return tr
+
+
 def first_crossing(trace: np.ndarray, threshold: float) -> int | None:
     """First index at which a 1-D trace reaches ``threshold`` (None if never)."""
-    hits = np.flatnonzero(np.asarray(trace) >= threshold)
+    hits = np.flatnonzero(_checked_trace(trace, threshold, 1) >= threshold)
     return int(hits[0]) if hits.size else None
 
 
 def decide(trace: np.ndarray, threshold: float) -> int | None:
     """The object whose trace (n, n_objects) reaches ``threshold`` first (ties: the larger value, then the lower index)."""
-    tr = np.asarray(trace)
+    tr = _checked_trace(trace, threshold, 2)
     times = [first_crossing(tr[:, k], threshold) for k in range(tr.shape[1])]
     hit = [(t, -tr[t, k], k) for k, t in enumerate(times) if t is not None]
     return min(hit)[2] if hit else None

@@ -72,6 +72,18 @@ def test_a_malformed_spec_exits_3_with_one_line_naming_the_key(tmp_path):
     assert proc.returncode == 3 and "no such sweep spec file" in _one_line_error(proc.stderr, "sweep")
 
 
+def test_a_huge_n_seeds_exits_3_at_once(tmp_path):
+    """n_seeds = 2**63 - 1 used to enumerate every seed before starting (issue 25): now a ConfigError up front."""
+    from cansim.tools.sweep import MAX_TASKS
+
+    spec = tmp_path / "huge.toml"
+    spec.write_text(f'experiment = "sweep_fixtures:fast"\nmetrics = ["value"]\nn_seeds = {2**63 - 1}\n[grid]\na = [1, 2]\n')
+    proc = cansim("sweep", str(spec), "--out", str(tmp_path / "out"))  # subprocess.run's own timeout bounds it
+    assert proc.returncode == 3
+    assert f"more than the limit {MAX_TASKS}" in _one_line_error(proc.stderr, "sweep")
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_sweep_with_failing_cells_exits_4_after_recording_every_row(tmp_path, capsys):
     spec = tmp_path / "flaky.toml"
     spec.write_text('experiment = "sweep_fixtures:flaky"\nmetrics = ["value"]\n[grid]\na = [1, 2]\nb = [0, 1]\n')

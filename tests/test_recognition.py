@@ -132,3 +132,13 @@ def test_leaky_step_bad_input_is_typed(level, impulses):
     else:
         with pytest.raises(CansimError):
             leaky_step(level, impulses)
+
+
+@settings(max_examples=60, deadline=None)
+@given(trace=st.one_of(st.just(np.array(0.0)), st.just(np.zeros(3)), st.just(np.zeros((2, 2, 2))),
+                       st.just(np.array([[np.nan, 1.0]])), st.just("abc"), st.just([[1, "x"]])),
+       threshold=st.one_of(st.just(0.0), st.just(math.nan), st.just("t")))
+def test_decide_refuses_what_is_not_an_n_by_objects_trace(trace, threshold):
+    """decide(np.array(0.), 0.0) raised IndexError (issue 25): a trace that is not (n, n_objects) is a typed error."""
+    with pytest.raises((ShapeError, InvalidInputError)):
+        decide(trace, threshold)

@@ -23,6 +23,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from whisker_io.errors import CansimError
+
 __all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
 
 EXIT_OK = 0
@@ -70,8 +72,8 @@ _STUDY_TITLES = {
 log = logging.getLogger("cansim.tools.cli")
 
 
-class CommandError(Exception):
-    """A failure the command reports in one line with its exit code."""
+class CommandError(CansimError):
+    """A failure the command reports in one line with its exit code (part of the one error tree)."""
 
     def __init__(self, message: str, code: int) -> None:
         super().__init__(message)

@@ -109,6 +109,8 @@ RESERVED_COLUMNS = (
     "seed", "status", "error", "wall_time_s", "task_id", "cell_id", "experiment", "hostname",
     "cansim_version", "numpy_version", "python_version", "finished_utc",
 )
+#: Most tasks (cells x seeds) one sweep may have; a spec over it is a ConfigError before any work.
+MAX_TASKS = 1_000_000
 _TOP_KEYS = ("experiment", "grid", "random", "fixed", "seeds", "n_seeds", "base_seed", "metrics", "scheduler",
              "name", "description")
 _DISTRIBUTIONS = {
@@ -370,6 +372,10 @@ def parse_spec(data: Mapping[str, Any]) -> SweepSpec:
     name = data.get("name", "sweep")
     if "name" in data and not re.match(r"^[\w.-]+$", name):
         raise ConfigError(f"name: use letters, digits, '_', '-' or '.', got {name!r}")
+    n_tasks = math.prod(len(v) for v in grid.values()) * n_samples * (len(seeds) if seeds is not None else n_seeds)
+    if n_tasks > MAX_TASKS:  # checked before anything is enumerated: a huge count fails at once
+        raise ConfigError(f"the sweep has {n_tasks} tasks (grid cells x samples x seeds), more than the limit "
+                          f"{MAX_TASKS}; lower n_seeds, random.n_samples or the grid")
     return SweepSpec(
         experiment=experiment, metrics=tuple(metrics), grid=grid, random=random, n_samples=n_samples, fixed=fixed,
         seeds=seeds, n_seeds=n_seeds, base_seed=base_seed, scheduler=scheduler, name=name,

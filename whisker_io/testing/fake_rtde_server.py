@@ -60,6 +60,8 @@ import threading
 import time
 from typing import Iterator
 
+from whisker_io.errors import CansimError
+
 __all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main", "FakeServerError",
            "fake_rtde_server", "FakeReceiveInterface", "FakeControlInterface"]
 
@@ -263,8 +265,8 @@ def _serve_client(conn: socket.socket, args: argparse.Namespace, state: _State,
             pass
 
 
-class FakeServerError(RuntimeError):
-    """The fake server could not start (e.g. the port is taken)."""
+class FakeServerError(CansimError, RuntimeError):
+    """The fake server could not start (e.g. the port is taken); part of the one error tree."""
 
 
 @contextlib.contextmanager

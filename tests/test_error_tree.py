@@ -1,0 +1,42 @@
+"""One error tree: every exception class the packages define derives from CansimError (issue 25)."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import pkgutil
+
+import pytest
+
+from cansim._moved import MOVED
+from whisker_io.errors import CansimError
+
+PACKAGES = ("whisker_io", "maps", "cansim")
+
+
+def _modules() -> list[str]:
+    names = []
+    for pkg in PACKAGES:
+        module = importlib.import_module(pkg)
+        names.append(pkg)
+        for info in pkgutil.walk_packages(module.__path__, prefix=f"{pkg}."):
+            if info.name.endswith("__main__") or info.name in MOVED:
+                continue
+            names.append(info.name)
+    return names
+
+
+def test_every_exception_class_is_in_the_tree():
+    outside = []
+    for name in _modules():
+        module = importlib.import_module(name)
+        for cls_name, cls in inspect.getmembers(module, inspect.isclass):
+            if cls.__module__ == name and issubclass(cls, BaseException) and not issubclass(cls, CansimError):
+                outside.append(f"{name}.{cls_name}")
+    assert outside == []
+
+
+@pytest.mark.parametrize("path", ["cansim.tools.cli.CommandError", "whisker_io.testing.fake_rtde_server.FakeServerError"])
+def test_the_two_that_were_outside(path):
+    module, name = path.rsplit(".", 1)
+    assert issubclass(getattr(importlib.import_module(module), name), CansimError)

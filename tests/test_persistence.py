@@ -1,0 +1,43 @@
+"""maps.persistence.read_npz: every unreadable archive is a CorruptFileError (issue 25)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maps.persistence import read_npz
+from whisker_io.errors import CorruptFileError
+
+
+def _patched(tmp_path, offset_in_record: int, value: bytes, signature: bytes = b"PK\x01\x02"):
+    path = tmp_path / "m.npz"
+    np.savez(path, a=np.arange(3))
+    raw = bytearray(path.read_bytes())
+    at = raw.index(signature) + offset_in_record
+    raw[at:at + len(value)] = value
+    path.write_bytes(bytes(raw))
+    return path
+
+
+def test_a_good_archive_reads_back(tmp_path):
+    path = tmp_path / "m.npz"
+    np.savez(path, a=np.arange(3), b=np.eye(2))
+    got = read_npz(path)
+    assert set(got) == {"a", "b"} and got["a"].tolist() == [0, 1, 2]
+
+
+def test_an_unsupported_zip_version_is_a_corrupt_file(tmp_path):
+    # central directory record: bytes 6-7 are "version needed to extract"; 9.9 is beyond any zipfile
+    path = _patched(tmp_path, 6, (99).to_bytes(2, "little"))
+    with pytest.raises(CorruptFileError, match="zip file version"):
+        read_npz(path)
+
+
+def test_an_unsupported_compression_method_is_a_corrupt_file(tmp_path):
+    # bytes 10-11 of the central directory record and 8-9 of the local header: the compression method
+    path = _patched(tmp_path, 10, (97).to_bytes(2, "little"))
+    raw = bytearray(path.read_bytes())
+    raw[8:10] = (97).to_bytes(2, "little")
+    path.write_bytes(bytes(raw))
+    with pytest.raises(CorruptFileError):
+        read_npz(path)
