@@ -174,8 +174,16 @@ def confidence_from_impulses(impulses: np.ndarray, params: LeakyIntegrator = Lea
 
 
 def integrated_confidence(c: np.ndarray, params: LeakyIntegrator = LeakyIntegrator()) -> np.ndarray:
-    """``IC[t] = sum_{s <= t} c[s] dt``, same shape as ``c``."""
-    return np.cumsum(np.asarray(c, dtype=np.float64), axis=0) * params.dt
+    """``IC[t] = sum_{s <= t} c[s] dt``, same shape as ``c`` (raw confidences: finite and >= 0)."""
+    try:
+        arr = np.asarray(c, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError("confidence must be an array of numbers") from None
+    if arr.ndim == 0:
+        raise ShapeError("confidence must be (n,) or (n, n_objects), got a scalar")
+    if not np.isfinite(arr).all() or (arr.size and arr.min() < 0):
+        raise InvalidInputError("confidence must be finite and >= 0 (raw confidences of the leaky integrators)")
+    return np.cumsum(arr, axis=0) * params.dt
 
 
 def _checked_trace(trace: np.ndarray, threshold: float, ndim: int) -> np.ndarray:

@@ -4,11 +4,12 @@ import math
 from types import SimpleNamespace
 
 import networkx as nx
+import trimesh
 import numpy as np
 import pytest
 from hypothesis import example, given, settings, strategies as st
 
-from cansim.errors import CansimError, ConfigError
+from cansim.errors import CansimError, ConfigError, InvalidInputError
 from cansim.explore.search import (
     DefaultSearch, FollowExperienceHistory, LeastSimilarRegion, ObjectView, SearchContext,
     active_strategy, cheapest_experience, make_strategy, similarity_rows,
@@ -304,3 +305,10 @@ def test_tour_bad_loop_counts_typed(n):
     with pytest.raises(CansimError):
         d.tour(n)
     assert d.current == before[0] and (d.visited == before[1]).all()  # nothing advanced
+
+
+@pytest.mark.parametrize("mesh", [3, "box", np.zeros((3, 3)), trimesh.Trimesh()])
+def test_a_mesh_that_is_not_a_mesh_is_a_typed_error(mesh):
+    """DefaultSearch(mesh=3) raised AttributeError (issue 25)."""
+    with pytest.raises(InvalidInputError, match="trimesh.Trimesh"):
+        DefaultSearch([0, 0, 0], 0.2, mesh=mesh)

@@ -142,3 +142,11 @@ def test_decide_refuses_what_is_not_an_n_by_objects_trace(trace, threshold):
     """decide(np.array(0.), 0.0) raised IndexError (issue 25): a trace that is not (n, n_objects) is a typed error."""
     with pytest.raises((ShapeError, InvalidInputError)):
         decide(trace, threshold)
+
+
+@pytest.mark.parametrize("c", [np.array([[1.0, -0.5]]), np.array([[np.nan, 1.0]]), np.array([np.inf]), np.array(2.0),
+                               [["a"]]])
+def test_integrated_confidence_refuses_negative_nan_or_shapeless_confidence(c):
+    """It accepted negative or NaN confidence (issue 25)."""
+    with pytest.raises((InvalidInputError, ShapeError)):
+        integrated_confidence(c)

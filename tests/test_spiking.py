@@ -502,3 +502,28 @@ def test_measure_packet_speed_rejects_bad_arguments(axis, duration, name):
     if not (isinstance(duration, float) and math.isfinite(duration) and low <= duration <= MAX_MEASURE_STEPS * pop.dt_s):
         with pytest.raises(InvalidInputError):
             measure_packet_speed(pop, [0.1], 0, **{name: duration})
+
+
+@pytest.mark.parametrize("kwargs", [{"sigma_cells": 1e-300}, {"sigma_cells": 0.0}, {"sigma_cells": 1e9},
+                                    {"current": 1 + 2j}, {"center": ["a"]}])
+def test_kick_refuses_what_would_make_nan_and_leaves_the_state(kwargs):
+    """kick(sigma_cells=1e-300) gave a NaN synaptic current (issue 25)."""
+    from cansim.errors import CansimError
+
+    sp = spiking_from_rate(Population.head_direction(36))
+    before = sp._i.copy()
+    with pytest.raises(CansimError):
+        sp.kick(**{"center": [10.0], **kwargs})
+    np.testing.assert_array_equal(sp._i, before)
+    sp.kick([10.0], sigma_cells=0.05)  # the narrowest accepted bump is finite
+    assert np.isfinite(sp._i).all() and sp._i.max() > 0
+
+
+@pytest.mark.parametrize("velocity", [1 + 2j, "fast", [np.nan], [1.0, 2.0]])
+def test_step_refuses_complex_text_nan_or_misshaped_velocity(velocity):
+    """step(velocity=1+2j) reached float() (issue 25)."""
+    from cansim.errors import CansimError
+
+    sp = spiking_from_rate(Population.head_direction(36))
+    with pytest.raises(CansimError):
+        sp.step(velocity=velocity)

@@ -244,6 +244,9 @@ class DefaultSearch:
                      hint=f"an icosphere of {MAX_SUBDIVISIONS} subdivisions has {20 * 4 ** MAX_SUBDIVISIONS} faces")
         config_field(seed, "seed", int, minimum=0, optional=True)
         config_field(roll_rad, "roll_rad", float)
+        if mesh is not None and not (isinstance(mesh, trimesh.Trimesh) and len(mesh.faces)):
+            raise InvalidInputError(f"mesh must be a trimesh.Trimesh with faces (the believed volume), or None; got "
+                                    f"{type(mesh).__name__}")
         sphere = trimesh.creation.icosphere(subdivisions=int(subdivisions))
         d = sphere.triangles_center if axes is None else (sphere.vertices * axes)[sphere.faces].mean(axis=1)
         self.directions = d / np.linalg.norm(d, axis=1, keepdims=True)

@@ -34,12 +34,17 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
+from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 
 #: backends with a spiking implementation (numpy is the reference); the one list, read by
 #: SpikingPopulation and by the backend conformance suite (cansim.testing.conformance)
 SPIKING_BACKENDS = ("numpy", "numba")
+
+
+#: Narrowest Gaussian of :meth:`SpikingPopulation.kick`, cells: a narrower one underflows (exp(-d^2 / 2 sigma^2) = 0/0).
+MIN_KICK_SIGMA_CELLS = 0.05
 
 
 @dataclass(frozen=True)
@@ -261,12 +266,12 @@ class SpikingPopulation:
 
         Used to seed a packet at a known place; it decays with ``tau_syn``.
         """
-        c = np.asarray(center, dtype=np.float64).reshape(-1)
-        if c.shape != (self.ndim,):
-            raise ShapeError(f"center must have {self.ndim} entries (one per axis), got {c.shape[0]}")
-        cur, sig = float(current), float(sigma_cells)
-        if not (np.isfinite(c).all() and math.isfinite(cur) and math.isfinite(sig) and sig > 0):
-            raise InvalidInputError("center, current and sigma_cells must be finite (sigma_cells > 0)")
+        c = finite_vector(center, self.ndim, "center (fractional cells, one per axis)")
+        cur = finite_scalar(current, "current")
+        sig = finite_scalar(sigma_cells, "sigma_cells")
+        if not MIN_KICK_SIGMA_CELLS <= sig <= max(self._shape):
+            raise InvalidInputError(f"sigma_cells must lie in [{MIN_KICK_SIGMA_CELLS:g}, {max(self._shape)}] cells "
+                                    f"(a narrower bump underflows to NaN, a wider one is flat), got {sig!r}")
         g = np.ones((), dtype=np.float64)
         for ax, n in enumerate(self._shape):
             d = (np.arange(n) - c[ax] + n / 2.0) % n - n / 2.0
@@ -277,12 +282,8 @@ class SpikingPopulation:
     def _check_velocity(self, velocity) -> Optional[np.ndarray]:
         if velocity is None:
             return None
-        vel = np.asarray(velocity, dtype=np.float64).reshape(-1) if not isinstance(velocity, (int, float)) else np.array([float(velocity)])
-        if vel.shape != (self.ndim,):
-            raise ShapeError(f"velocity must have {self.ndim} entries (one per axis, units/s), got {vel.shape[0]}")
-        if not np.isfinite(vel).all():
-            raise InvalidInputError(f"velocity must be finite, got {vel.tolist()}; check the odometry source")
-        return vel
+        # one per axis, units/s; complex numbers, text and NaN are typed errors (the shared validator)
+        return finite_vector(velocity, self.ndim, "velocity (one per axis, units/s; check the odometry source)")
 
     def _check_current(self, current) -> Optional[np.ndarray]:
         if current is None:
