@@ -258,3 +258,23 @@ def test_fake_server_waits_for_the_rtde_port_to_be_released():
     finally:
         release.cancel()
         holder.close()
+
+
+@pytest.mark.parametrize("z", [0.05, 0.07, 0.1])
+def test_simarm_interpolated_poses_keep_the_limits_their_ends_keep(z):
+    """Between two targets on the envelope's floor (z = 0.05) the simulated poses stayed at 0.049999... (issue 25)."""
+    arm = SimArm(down(0.31, -0.17, z), rate_limited=True, control_period=0.003)
+    for target in (down(0.43, 0.29, z), down(0.17, 0.07, z), down(0.41, -0.33, z)):
+        arm.move_linear(target, speed=0.07)
+    zs = np.array([p.position_m[2] for _, p in arm.trajectory])
+    assert len(zs) > 100 and np.all(zs == z)  # exactly: both ends are at z
+
+
+@pytest.mark.parametrize("speed", [5e-324, 1e-300, 1e-7])
+def test_a_denormal_or_glacial_speed_is_refused_not_overflowed(speed):
+    """A denormal speed reached int(ceil(inf)) in the simulated arm (OverflowError; issue 25)."""
+    arm = SimArm(down(0.4, 0.0, 0.4), rate_limited=True, control_period=0.01)
+    before = (arm.pose(), arm.time, len(arm.received))
+    with pytest.raises(SafetyViolationError, match="TCP speed"):
+        arm.move_linear(down(0.4, 0.05, 0.4), speed=speed)
+    assert (arm.pose(), arm.time, len(arm.received)) == before

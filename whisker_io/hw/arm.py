@@ -329,7 +329,10 @@ class SimArm(Arm):
             rots = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, target.rotation]))
             for k in range(1, n):
                 s = k / n
-                p = Pose.from_rotation((1 - s) * start.position_m + s * target.position_m, rots(s))
+                # a + s (b - a), kept inside the box the two ends span: every simulated pose
+                # satisfies each axis limit both ends satisfy (no 0.049999... under a 0.05 floor)
+                a, b = start.position_m, target.position_m
+                p = Pose.from_rotation(np.clip(a + s * (b - a), np.minimum(a, b), np.maximum(a, b)), rots(s))
                 self.trajectory.append((self.time + k * duration / n, p))
         self.time += duration if self.rate_limited else self.control_period
         self._pose = target

@@ -63,6 +63,11 @@ def _command_scalar(value, name: str) -> float:
         raise SafetyViolationError(f"refused: {exc}") from None
 
 
+#: Slowest speed a move command may ask for (m/s or rad/s): slower, a 1 m move would take
+#: more than 11 days and its duration overflows; a denormal speed is refused, not run.
+MIN_COMMAND_SPEED = 1e-6
+
+
 @dataclass(frozen=True)
 class SafetyEnvelope:
     """Limits every arm command must satisfy (all in SI units, base frame).
@@ -234,7 +239,7 @@ class SafetyEnvelope:
 
         Returns the target unchanged; raises :class:`SafetyViolationError`.
         """
-        self._check_range(speed, "TCP speed (m/s)", self.max_tcp_speed)
+        self._check_range(speed, "TCP speed (m/s)", self.max_tcp_speed, MIN_COMMAND_SPEED)
         self._check_range(acceleration, "TCP acceleration (m/s^2)", self.max_tcp_acceleration)
         pose = self.check_pose(target)
         if current is not None:
@@ -288,7 +293,7 @@ class SafetyEnvelope:
 
         Returns the joint target, shape (6,), unchanged.
         """
-        self._check_range(speed, "joint speed (rad/s)", self.max_joint_speed)
+        self._check_range(speed, "joint speed (rad/s)", self.max_joint_speed, MIN_COMMAND_SPEED)
         self._check_range(acceleration, "joint acceleration (rad/s^2)", self.max_joint_acceleration)
         try:
             q = np.array(q_target, dtype=float).reshape(-1)
