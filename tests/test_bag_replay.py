@@ -347,3 +347,20 @@ def test_a_damaged_bag_is_a_typed_error_never_a_crash(small_bags, tmp_path_facto
     except (CorruptFileError, InvalidInputError):
         return
     assert res.n_odometry >= 2 and np.all(np.diff(res.stamp_ns) > 0)
+
+
+@pytest.mark.parametrize("field", ["name", "type"])
+def test_a_metadata_yaml_with_a_non_string_topic_is_a_corrupt_file(small_bags, tmp_path, field):
+    """A ROS2 metadata.yaml whose topic name (or type) is a number raised TypeError (issue 25)."""
+    import re
+
+    (tmp_path / "b").mkdir()
+    for f in (small_bags / "small_mcap").iterdir():
+        (tmp_path / "b" / f.name).write_bytes(f.read_bytes())
+    meta = tmp_path / "b" / "metadata.yaml"
+    text = meta.read_text()
+    edited = re.sub(rf"(\n\s+{field}: )[^\n]+", r"\g<1>42", text, count=1)
+    assert edited != text
+    meta.write_text(edited)
+    with pytest.raises((CorruptFileError, InvalidInputError)):
+        replay(tmp_path / "b", _config())

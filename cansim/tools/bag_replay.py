@@ -392,6 +392,9 @@ def replay(
     try:
         types: dict[str, set[str]] = {}
         for c in reader.connections:
+            if not (isinstance(c.topic, str) and isinstance(c.msgtype, str)):  # a hand-edited metadata.yaml
+                raise CorruptFileError(f"a topic's name and type must be text, got name {c.topic!r} and type "
+                                       f"{c.msgtype!r}; check the bag's metadata.yaml", path=name)
             types.setdefault(_norm(c.topic), set()).add(c.msgtype)
         topics = {t: " + ".join(sorted(ty)) for t, ty in types.items()}  # several types on one topic: refused below
         odo_default, img_defaults = default_topics(root)
