@@ -504,6 +504,13 @@ class LocalViewCells:
             raise CorruptFileError(f"corrupt local-view state ({exc})", field=prefix + "*") from exc
         if not (len(lv._locations) == len(lv._v) == len(lv._rows) == n):
             raise CorruptFileError("per-view arrays have different lengths", field=prefix + "*")
+        size = int(np.prod(lv.shape)) if lv.shape else 0
+        for field, values in (("locations", locations), ("decay", dec), ("v", lv._v),
+                              ("w_data", np.asarray(state["w_data"], dtype=np.float64))):
+            if values.size and not np.isfinite(values).all():  # e.g. -inf written into a saved file
+                raise CorruptFileError(f"{field} holds NaN or infinite values", field=prefix + field)
+        if any(len(ix) and (ix.min() < 0 or ix.max() >= size) for ix, _ in lv._rows):
+            raise CorruptFileError(f"a learnt weight points outside the {lv.shape} grid", field=prefix + "w_indices")
         return lv
 
 

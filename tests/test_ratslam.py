@@ -264,3 +264,21 @@ def test_20000_iterations_stay_under_200_mb():
         tracemalloc.stop()
     assert slam.iteration >= n
     assert peak < 200e6
+
+
+@pytest.mark.parametrize("field, value", [("lv_locations", -np.inf), ("lv_locations", np.nan), ("lv_decay", np.inf),
+                                          ("lv_v", np.nan)])
+def test_a_saved_model_with_non_finite_view_state_is_refused(tmp_path, field, value):
+    """RatSLAM.load accepted -inf written into lv_locations (issue 25)."""
+    slam = RatSLAM(CFG)
+    for k in range(5):
+        slam.step(0.05, 0.0, 1.0, k % 2)
+    slam.save(tmp_path / "m.npz")
+    arrays = dict(np.load(tmp_path / "m.npz", allow_pickle=False))
+    assert arrays[field].size
+    bad = arrays[field].astype(np.float64).copy()
+    bad.flat[0] = value
+    arrays[field] = bad
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(CorruptFileError, match=field):
+        RatSLAM.load(tmp_path / "bad.npz")
