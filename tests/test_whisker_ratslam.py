@@ -344,3 +344,19 @@ def test_library_map_takes_the_exploring_configuration():
     assert m.object_map.config.match_distance_cells == 1.0  # the source map is not touched
     with pytest.raises(InvalidInputError, match="grid"):
         WhiskerRatSLAM.library([m], ["a"], replace(m.config, grid_cells=7))
+
+
+def test_odometry_only_updates_keep_the_history_and_the_iteration_count_together(tmp_path):
+    """on_odo advanced ``iteration`` without recording the object map's history (issue 25)."""
+    from maps.odometry import SpatialOdometry
+
+    slam = WhiskerRatSLAM(WhiskerRatSLAMConfig())
+    odo = SpatialOdometry(np.array([0.01, 0.0, 0.0]), np.zeros(3), 1.0)
+    for k in range(4):
+        slam.on_odo(odo)
+        assert slam.iteration == slam.object_map.n_recorded == len(slam.object_map.history) == k + 1
+    slam.step(odo, None)
+    assert slam.iteration == slam.object_map.n_recorded == 5
+    slam.save(tmp_path / "m.npz")  # a model that has seen no view saves and loads back
+    again = WhiskerRatSLAM.load(tmp_path / "m.npz")
+    assert again.iteration == again.object_map.n_recorded == 5

@@ -324,10 +324,16 @@ class WhiskerRatSLAM(SlamLoop):
             state = super().step(odo, observation)
         finally:
             self._predicted = None
-        self.object_map.record()
         points = getattr(observation, "contact_points_m", None)
         if points is not None and self.object_map.n_experiences:  # what was felt, for maps.surface_match
             self.object_map.record_contacts(points)
+        return state
+
+    def _advance(self, odo: Any) -> SlamState:
+        """The odometry part of an iteration (from :meth:`step` and :meth:`on_odo` alike), then the
+        object map's history: one entry per iteration, so ``history`` and ``iteration`` agree."""
+        state = super()._advance(odo)
+        self.object_map.record()
         return state
 
     def _region_prior(self, n_regions: int) -> tuple[np.ndarray, np.ndarray]:
