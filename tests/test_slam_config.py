@@ -85,3 +85,22 @@ def test_to_dict_from_dict_round_trip_through_json(cell, energy, decay, restore,
 def test_a_bad_shared_field_is_named(name, value):
     with pytest.raises(ConfigError, match=name):
         _Toy(**{name: value})
+
+
+@pytest.mark.parametrize("make", [
+    lambda: RatSLAMConfig(heading_cells=10**400),
+    lambda: RatSLAMConfig(xy_cells=10**5),
+    lambda: WhiskerRatSLAMConfig(grid_cells=30),
+    lambda: WhiskerRatSLAMConfig(grid_cells=5, angle_cells=10**4),
+])
+def test_a_grid_too_large_is_refused_when_the_config_is_made(make):
+    """heading_cells=10**400 passed validation and failed later with MemoryError (issue 25)."""
+    from cansim.models.slam_config import MAX_POSE_CELLS
+
+    with pytest.raises(ConfigError, match=str(MAX_POSE_CELLS)):
+        make()
+
+
+def test_the_largest_grids_in_use_are_accepted():
+    RatSLAMConfig(xy_cells=61, heading_cells=36)
+    WhiskerRatSLAMConfig(grid_cells=10)  # the 10**6-cell bench grid

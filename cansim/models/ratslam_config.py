@@ -159,6 +159,7 @@ class RatSLAMConfig(SlamConfig):
         self._check_shared()
         config_field(self.xy_cells, "xy_cells", int, minimum=1)
         config_field(self.heading_cells, "heading_cells", int, minimum=1)
+        self._check_grid_size(x=self.xy_cells, y=self.xy_cells, heading=self.heading_cells)
         config_field(self.decode_window, "decode_window", int, minimum=0)
         config_field(self.initial_heading_deg, "initial_heading_deg", float)
         for name in ("link_time_since_start", "strict_translation"):

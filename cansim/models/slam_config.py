@@ -25,7 +25,11 @@ from cansim.errors import ConfigError
 from cansim.params import AttractorParams
 from whisker_io.validation import config_field
 
-__all__ = ["SlamConfig"]
+__all__ = ["SlamConfig", "MAX_POSE_CELLS"]
+
+#: Most pose cells a model's grid may have (2**26: a float64 activity of 512 MiB); a
+#: larger grid is refused when the config is made, not when memory runs out.
+MAX_POSE_CELLS = 2**26
 
 C = TypeVar("C", bound="SlamConfig")
 
@@ -80,6 +84,17 @@ class SlamConfig:
     relax_budget: int | None = 2_000
     backend: str = "numba"
     dtype: str = "float64"
+
+    @staticmethod
+    def _check_grid_size(**dims: int) -> None:
+        """Refuse a grid of more than :data:`MAX_POSE_CELLS` cells (dims: name -> cells, with multiplicity)."""
+        total = 1
+        for n in dims.values():
+            total *= int(n)
+        if total > MAX_POSE_CELLS:
+            shape = " x ".join(f"{n} ({name})" for name, n in dims.items())
+            raise ConfigError(f"the pose-cell grid {shape} has {total} cells, more than {MAX_POSE_CELLS}; "
+                              "use fewer cells per axis (a larger cell_size_m)")
 
     def __post_init__(self) -> None:
         self._check_shared()

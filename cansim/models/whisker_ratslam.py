@@ -177,6 +177,8 @@ class WhiskerRatSLAMConfig(SlamConfig):
         self._check_shared()
         config_field(self.grid_cells, "grid_cells", int, minimum=3)
         config_field(self.angle_cells, "angle_cells", int, minimum=3, optional=True, hint="None uses grid_cells")
+        na = self.grid_cells if self.angle_cells is None else self.angle_cells
+        self._check_grid_size(x=self.grid_cells, y=self.grid_cells, z=self.grid_cells, roll=na, pitch=na, yaw=na)
         if not isinstance(self.frontend, WhiskFrontEndConfig):
             raise ConfigError(f"frontend must be a WhiskFrontEndConfig (cansim.frontends.whisk), got {self.frontend!r}")
         self.map_config()
