@@ -46,3 +46,4 @@ def mug():
     from whisker_io.sim.objects import make_object
 
     return make_object("mug")
+

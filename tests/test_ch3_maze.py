@@ -266,8 +266,11 @@ def test_bad_tactile_images_raise_typed_errors_and_leave_the_model_unchanged(tmp
 # ----------------------------------------------------------------- the study
 @pytest.mark.slow
 def test_study_quick_mode_writes_the_named_columns(tmp_path):
+    from entry_point import run_cansim
+
     study = _load_study()
-    assert study.main(["--quick", "--out", str(tmp_path)]) == 0
+    done = run_cansim("study", "ch3", "--quick", "--out", str(tmp_path))  # the installed entry point, as a user runs it
+    assert done.returncode == 0, done.stderr[-3000:]
     with open(tmp_path / "ch3_metrics.csv", newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["control", "contact_angle", "kidnapped", "ARR", "ARCR", "EM", "map_error_m", "dr_error_m"]

@@ -155,8 +155,11 @@ def test_settings_refuse_an_uncalibrated_contact_model() -> None:
 # ----------------------------------------------------------------- the --quick study
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("ch5")
-    assert ch5_study.main(["--quick", "--contacts", "tip", "--out", str(out), "--workers", "2"]) == 0
+    from entry_point import run_cansim
+
+    out = tmp_path_factory.mktemp("ch5")  # through the installed entry point, as a user runs it
+    done = run_cansim("study", "ch5", "--quick", "--out", str(out), "--contacts", "tip", "--workers", "2")
+    assert done.returncode == 0, done.stderr[-3000:]
     return out
 
 

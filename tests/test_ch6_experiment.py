@@ -35,8 +35,11 @@ REQUIRED = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "i
 
 @pytest.fixture(scope="module")
 def reduced(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ch6")
-    assert ch6.main(["--quick", "--seeds", "1", "--iterations", str(N), "--out", str(out)]) == 0
+    from entry_point import run_cansim
+
+    out = tmp_path_factory.mktemp("ch6")  # through the installed entry point, as a user runs it
+    done = run_cansim("study", "ch6", "--quick", "--seeds", "1", "--iterations", str(N), "--out", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
     with open(out / "ch6_runs.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     return out, rows

@@ -155,7 +155,10 @@ def test_unknown_options_of_other_commands_are_usage_errors(capsys):
 
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_study_ch4_quick_runs_the_radial_distance_study(tmp_path):
-    assert cli.main(["study", "ch4", "--quick", "--out", str(tmp_path)]) == 0
+    from entry_point import run_cansim
+
+    done = run_cansim("study", "ch4", "--quick", "--out", str(tmp_path))  # the installed entry point
+    assert done.returncode == 0, done.stderr[-3000:]
     assert (tmp_path / "radial_results.csv").stat().st_size > 0
     assert (tmp_path / "radial_study_summary.txt").read_text().startswith("radial-distance study (quick)")
 

@@ -16,15 +16,17 @@ import math
 import pytest
 
 from cansim.studies import recognition
-from cansim.tools import cli
 
 pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("recognition")
-    assert cli.main(["study", "recognition", "--quick", "--out", str(out), "--no-progress"]) == 0
+    from entry_point import run_cansim
+
+    out = tmp_path_factory.mktemp("recognition")  # through the installed entry point, as a user runs it
+    done = run_cansim("study", "recognition", "--quick", "--out", str(out), "--no-progress")
+    assert done.returncode == 0, done.stderr[-3000:]
     with open(out / "recognition_runs.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     return out, rows
