@@ -215,3 +215,15 @@ def test_unknown_parameter_names_are_config_errors(module, name):
 def test_params_must_be_a_mapping(module):
     with pytest.raises(InvalidInputError):
         module.run([("n_cells", 10)], 0)
+
+
+@pytest.mark.parametrize("module", ["bump", "diffusion", "integration_gain", "lv_interference", "reanchoring"])
+@pytest.mark.parametrize("seed", [1.5, "7", -1, True, None])
+def test_a_seed_that_is_not_a_non_negative_integer_is_a_config_error(module, seed):
+    """A non-integer seed reached numpy in the experiments (issue 25)."""
+    import importlib
+
+    from cansim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="seed must be a non-negative integer"):
+        importlib.import_module(f"cansim.experiments.{module}").run({}, seed)

@@ -18,7 +18,7 @@ import numpy as np
 
 from cansim.errors import ZeroActivityError
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, packet_fwhm_cells, packet_std_cells, ring
-from cansim.experiments.params import require, resolve
+from cansim.experiments.params import checked_seed, require, resolve
 
 __all__ = ["DEFAULTS", "run", "figure"]
 
@@ -63,6 +63,7 @@ def run(params: dict, seed: int) -> dict:
     ConfigError, InvalidInputError
         An unknown parameter or a bad value.
     """
+    seed = checked_seed(seed)
     p = _check(params)
     rng = np.random.default_rng(seed)
     pop = ring(p)

@@ -25,7 +25,7 @@ import numpy as np
 from cansim.errors import ZeroActivityError
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import fit_line, unwrap_cells
-from cansim.experiments.params import require, resolve
+from cansim.experiments.params import checked_seed, require, resolve
 
 __all__ = ["DEFAULTS", "run", "msd", "figure"]
 
@@ -105,6 +105,7 @@ def run(params: dict, seed: int) -> dict:
         ``msd_final_cells2``, ``input_diffusion_ratio`` (D / (noise_std_cells^2 / 2) for
         velocity noise, 0 otherwise), ``n_collapsed``.
     """
+    seed = checked_seed(seed)
     p = _check(params)
     disp, collapsed = msd(p, seed)
     out = dict(p)

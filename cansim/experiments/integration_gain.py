@@ -29,7 +29,7 @@ import numpy as np
 from cansim.axes import Axis
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, kernel_params
 from cansim.experiments.fitting import fit_line, unwrap_cells
-from cansim.experiments.params import require, resolve
+from cansim.experiments.params import checked_seed, require, resolve
 from cansim.path_integration import SixDofMotion
 from cansim.population import Population
 
@@ -125,6 +125,7 @@ def run(params: dict, seed: int) -> dict:
         (95%), ``r_squared`` of the line and ``n_fit_steps`` (the last three quarters of
         the run; the first quarter is the packet's transient).
     """
+    seed = checked_seed(seed)
     p = _check(params)
     x = trajectory(p)
     T = len(x)

@@ -22,7 +22,7 @@ from cansim._renamed import take_renamed
 from cansim.errors import ZeroActivityError
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import circular_distance_cells
-from cansim.experiments.params import require, resolve
+from cansim.experiments.params import checked_seed, require, resolve
 from cansim.local_view import LocalViewCells, LocalViewParams
 
 __all__ = ["DEFAULTS", "run", "figure"]
@@ -84,6 +84,7 @@ def run(params: dict, seed: int) -> dict:
         ``tolerance_cells`` from its own position), ``min_spacing_cells`` (closest two
         views) and ``n_collapsed`` (recalls whose packet collapsed; counted as failures).
     """
+    seed = checked_seed(seed)
     p = _check(params)
     rng = np.random.default_rng(seed)
     n, k = p["n_cells"], p["n_views"]

@@ -17,7 +17,7 @@ from typing import Any, Optional, Sequence
 from cansim.errors import ConfigError, InvalidInputError
 from whisker_io.validation import finite_scalar
 
-__all__ = ["resolve", "require"]
+__all__ = ["resolve", "require", "checked_seed"]
 
 
 def resolve(params: Any, defaults: Mapping[str, Any], *, name: str,
@@ -86,3 +86,16 @@ def require(condition: bool, message: str) -> None:
     """Raise :class:`InvalidInputError` with ``message`` unless ``condition``."""
     if not condition:
         raise InvalidInputError(message)
+
+
+def checked_seed(seed: object) -> int:
+    """An experiment's seed as a non-negative ``int`` (numpy's generators take nothing else).
+
+    Raises
+    ------
+    ConfigError
+        A bool, a float, a string, a negative number (the message says what to give).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    return int(seed)

@@ -18,7 +18,7 @@ import numpy as np
 
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import circular_distance_cells, unwrap_cells
-from cansim.experiments.params import require, resolve
+from cansim.experiments.params import checked_seed, require, resolve
 
 __all__ = ["DEFAULTS", "run", "figure"]
 
@@ -67,6 +67,7 @@ def run(params: dict, seed: int) -> dict:
         ``final_error_cells``, ``max_step_cells`` (largest decoded move in one step) and
         ``mode`` (``"jump"``, ``"drift"`` or ``"none"``).
     """
+    seed = checked_seed(seed)
     p = _check(params)
     rng = np.random.default_rng(seed)
     n = p["n_cells"]
