@@ -179,3 +179,17 @@ def test_nmse_against_many_stored_arrays_equals_one_by_one():
     many_m = nmse(x, stored, None, masks)
     for k in range(7):
         assert many_m[k] == nmse(x, stored[k], None, masks[k])
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e150, 1e300])
+def test_the_gradient_is_scale_free_up_to_the_float_limit(scale):
+    """Signals scaled to 1e300 gave NaN slopes marked valid (issue 25): the same line, any scale, the same gradient."""
+    T = 2000
+    k = np.arange(T, dtype=float)
+    x = np.clip(k - 500, 0, 600) - np.clip(k - 1100, 0, 600) * 1.0
+    base = WhiskRecord("B2", np.linspace(-0.8, 0.8, T), x, -2.5 * x)
+    c = detect_contact(base)
+    rec = WhiskRecord("B2", np.linspace(-0.8, 0.8, T), x * scale, -2.5 * x * scale)
+    assert contact_gradient(rec, c) == pytest.approx(-2.5, rel=1e-9)
+    sda = slope_distribution([rec], [c])
+    assert sda.mask.tolist() == [True] and np.isfinite(sda.slopes).all()

@@ -90,10 +90,17 @@ def contact_gradient(
         raise InvalidInputError(f"contact indices do not fit record {record.module} of {record.n_samples} samples")
     xs = moving_average(record.x_counts, smoothing_span)[lo:hi]
     ys = moving_average(record.y_counts, smoothing_span)[lo:hi]
-    if xs.size < 2 or np.std(xs) < min_x_spread_counts:
+    if xs.size < 2 or not (np.isfinite(xs).all() and np.isfinite(ys).all()):
         return None
-    xc = xs - xs.mean()
-    return float(np.dot(xc, ys - ys.mean()) / np.dot(xc, xc))
+    # scale-free: centred signals divided by their largest magnitude, so signals near the
+    # float limit (1e300 counts) give their gradient, never an overflowed NaN marked valid
+    xc, yc = xs - xs.mean(), ys - ys.mean()
+    sx, sy = float(np.max(np.abs(xc))), float(np.max(np.abs(yc)))
+    if not (np.isfinite(sx) and np.isfinite(sy)) or sx == 0.0 or sx * float(np.std(xc / sx)) < min_x_spread_counts:
+        return None
+    u, w = xc / sx, (yc / sy if sy > 0 else yc)
+    g = float(np.dot(u, w) / np.dot(u, u)) * (sy / sx if sy > 0 else 1.0 / sx)
+    return g if np.isfinite(g) else None
 
 
 def slope_distribution(
