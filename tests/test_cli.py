@@ -72,6 +72,18 @@ def test_a_malformed_spec_exits_3_with_one_line_naming_the_key(tmp_path):
     assert proc.returncode == 3 and "no such sweep spec file" in _one_line_error(proc.stderr, "sweep")
 
 
+@pytest.mark.parametrize("param, value", [("global_inhibition", -1.0), ("n_cells", -5), ("duration_steps", 0)])
+def test_an_out_of_range_cell_exits_3_before_any_task_runs(tmp_path, param, value):
+    """A negative parameter was caught only when each task ran (exit 4); now the experiment's
+    check_params refuses it before the cluster starts (issue 25)."""
+    spec = tmp_path / "bad_values.toml"
+    spec.write_text(f'experiment = "bump"\nmetrics = ["fwhm_cells"]\n[grid]\n{param} = [{value}]\n')
+    proc = cansim("sweep", str(spec), "--out", str(tmp_path / "out"), "--no-progress")
+    assert proc.returncode == 3, proc.stderr
+    assert param in _one_line_error(proc.stderr, "sweep")
+    assert not (tmp_path / "out" / "parts").exists() or not any((tmp_path / "out" / "parts").iterdir())
+
+
 def test_a_huge_n_seeds_exits_3_at_once(tmp_path):
     """n_seeds = 2**63 - 1 used to enumerate every seed before starting (issue 25): now a ConfigError up front."""
     from cansim.tools.sweep import MAX_TASKS

@@ -20,7 +20,7 @@ from cansim.errors import ZeroActivityError
 from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, packet_fwhm_cells, packet_std_cells, ring
 from cansim.experiments.params import checked_seed, require, resolve
 
-__all__ = ["DEFAULTS", "run", "figure"]
+__all__ = ["check_params", "DEFAULTS", "run", "figure"]
 
 DEFAULTS: dict = {
     "n_cells": 120,
@@ -30,7 +30,8 @@ DEFAULTS: dict = {
 }
 
 
-def _check(params) -> dict:
+def check_params(params) -> dict:
+    """The cell's parameters, completed with :data:`DEFAULTS` and checked (a sweep calls it before starting)."""
     p = resolve(params, DEFAULTS, name="bump")
     check_ring(p, "bump")
     require(1 <= p["duration_steps"] <= 1_000_000, f"bump: duration_steps must lie in [1, 1e6], got {p['duration_steps']}")
@@ -64,7 +65,7 @@ def run(params: dict, seed: int) -> dict:
         An unknown parameter or a bad value.
     """
     seed = checked_seed(seed)
-    p = _check(params)
+    p = check_params(params)
     rng = np.random.default_rng(seed)
     pop = ring(p)
     pop.reset_gaussian([rng.uniform(0, p["n_cells"])], rng.uniform(0.5, 3.0))

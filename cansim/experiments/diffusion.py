@@ -27,7 +27,7 @@ from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import fit_line, unwrap_cells
 from cansim.experiments.params import checked_seed, require, resolve
 
-__all__ = ["DEFAULTS", "run", "msd", "figure"]
+__all__ = ["check_params", "DEFAULTS", "run", "msd", "figure"]
 
 DEFAULTS: dict = {
     "n_cells": 60,
@@ -42,7 +42,8 @@ DEFAULTS: dict = {
 }
 
 
-def _check(params) -> dict:
+def check_params(params) -> dict:
+    """The cell's parameters, completed with :data:`DEFAULTS` and checked (a sweep calls it before starting)."""
     p = resolve(params, DEFAULTS, name="diffusion", choices={"noise_kind": ("velocity", "injection")})
     check_ring(p, "diffusion")
     require(p["noise_std_cells"] >= 0, f"diffusion: noise_std_cells must be >= 0, got {p['noise_std_cells']}")
@@ -58,7 +59,7 @@ def msd(params: dict, seed: int) -> tuple[np.ndarray, int]:
 
     Trials whose packet collapsed are left out.
     """
-    p = _check(params)
+    p = check_params(params)
     rng = np.random.default_rng(seed)
     n, T = p["n_cells"], p["duration_steps"]
     disp, collapsed = [], 0
@@ -106,7 +107,7 @@ def run(params: dict, seed: int) -> dict:
         velocity noise, 0 otherwise), ``n_collapsed``.
     """
     seed = checked_seed(seed)
-    p = _check(params)
+    p = check_params(params)
     disp, collapsed = msd(p, seed)
     out = dict(p)
     t = np.arange(p["duration_steps"] + 1, dtype=np.float64)

@@ -33,7 +33,7 @@ from cansim.experiments.params import checked_seed, require, resolve
 from cansim.path_integration import SixDofMotion
 from cansim.population import Population
 
-__all__ = ["DEFAULTS", "run", "trajectory", "figure"]
+__all__ = ["check_params", "DEFAULTS", "run", "trajectory", "figure"]
 
 DEFAULTS: dict = {
     "ndim": 1,
@@ -50,7 +50,8 @@ _DEFAULT_CELLS = {1: 120, 3: 21, 6: 24}
 _CELL_M = {3: 1.0, 6: 0.02}  # metres per translational cell
 
 
-def _check(params) -> dict:
+def check_params(params) -> dict:
+    """The cell's parameters, completed with :data:`DEFAULTS` and checked (a sweep calls it before starting)."""
     p = resolve(params, DEFAULTS, name="integration_gain", choices={"ndim": (1, 3, 6)})
     if p["n_cells"] == 0:
         p["n_cells"] = _DEFAULT_CELLS[p["ndim"]]
@@ -86,7 +87,7 @@ def _population(p: dict) -> tuple[Population, object, object]:
 
 def trajectory(params: dict) -> np.ndarray:
     """Decoded position along the commanded axis after each of the ``duration_steps`` steps (cells, unwrapped)."""
-    p = _check(params)
+    p = check_params(params)
     pop, vel, om = _population(p)
     T = p["duration_steps"]
     if p["dynamics"]:
@@ -126,7 +127,7 @@ def run(params: dict, seed: int) -> dict:
         the run; the first quarter is the packet's transient).
     """
     seed = checked_seed(seed)
-    p = _check(params)
+    p = check_params(params)
     x = trajectory(p)
     T = len(x)
     first = T // 4

@@ -25,7 +25,7 @@ from cansim.experiments.fitting import circular_distance_cells
 from cansim.experiments.params import checked_seed, require, resolve
 from cansim.local_view import LocalViewCells, LocalViewParams
 
-__all__ = ["DEFAULTS", "run", "figure"]
+__all__ = ["check_params", "DEFAULTS", "run", "figure"]
 
 DEFAULTS: dict = {
     "n_cells": 120,
@@ -41,7 +41,8 @@ DEFAULTS: dict = {
 }
 
 
-def _check(params) -> dict:
+def check_params(params) -> dict:
+    """The cell's parameters, completed with :data:`DEFAULTS` and checked (a sweep calls it before starting)."""
     if isinstance(params, Mapping) and "inject_gain" in params:  # 0.1's name, until 0.3
         params = take_renamed(params, {"inject_gain": "inject_energy"}, "lv_interference", stacklevel=4)
     p = resolve(params, DEFAULTS, name="lv_interference")
@@ -85,7 +86,7 @@ def run(params: dict, seed: int) -> dict:
         views) and ``n_collapsed`` (recalls whose packet collapsed; counted as failures).
     """
     seed = checked_seed(seed)
-    p = _check(params)
+    p = check_params(params)
     rng = np.random.default_rng(seed)
     n, k = p["n_cells"], p["n_views"]
     pop = ring(p)

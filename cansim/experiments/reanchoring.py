@@ -20,7 +20,7 @@ from cansim.experiments._ring import KERNEL_DEFAULTS, check_ring, ring
 from cansim.experiments.fitting import circular_distance_cells, unwrap_cells
 from cansim.experiments.params import checked_seed, require, resolve
 
-__all__ = ["DEFAULTS", "run", "figure"]
+__all__ = ["check_params", "DEFAULTS", "run", "figure"]
 
 DEFAULTS: dict = {
     "n_cells": 120,
@@ -34,7 +34,8 @@ DEFAULTS: dict = {
 }
 
 
-def _check(params) -> dict:
+def check_params(params) -> dict:
+    """The cell's parameters, completed with :data:`DEFAULTS` and checked (a sweep calls it before starting)."""
     p = resolve(params, DEFAULTS, name="reanchoring")
     check_ring(p, "reanchoring")
     n = p["n_cells"]
@@ -68,7 +69,7 @@ def run(params: dict, seed: int) -> dict:
         ``mode`` (``"jump"``, ``"drift"`` or ``"none"``).
     """
     seed = checked_seed(seed)
-    p = _check(params)
+    p = check_params(params)
     rng = np.random.default_rng(seed)
     n = p["n_cells"]
     pop = ring(p)

@@ -76,15 +76,16 @@ import platform
 import re
 import socket
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
+from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
 
 __all__ = [
+    "check_parameters",
     "SweepSpec",
     "RandomParam",
     "Task",
@@ -541,6 +542,34 @@ def resolve_experiment(path: str) -> Callable[[dict[str, Any], int], Mapping[str
     return obj
 
 
+def check_parameters(path: str, tasks: Sequence[Task]) -> None:
+    """Check every cell's parameters with the experiment's own ``check_params``, if it declares one.
+
+    An experiment module (``"package.module:function"``) may define
+    ``check_params(params: dict)`` raising a project error for a value out of range;
+    every canonical experiment of :mod:`cansim.experiments` does. Each distinct cell is
+    checked once, before any worker starts.
+
+    Raises
+    ------
+    ConfigError
+        The first cell whose parameters the experiment refuses (named by its values).
+    """
+    module_name = path.partition(":")[0]
+    check = getattr(importlib.import_module(module_name), "check_params", None)
+    if not callable(check):
+        return
+    seen: set[str] = set()
+    for task in tasks:
+        if task.cell_id in seen:
+            continue
+        seen.add(task.cell_id)
+        try:
+            check(dict(task.params))
+        except CansimError as exc:
+            raise ConfigError(f"cell {task.params}: {exc}") from None
+
+
 def _metric_value(name: str, value: Any) -> Scalar:
     if isinstance(value, np.generic) and np.ndim(value) == 0:
         value = value.item()
@@ -881,6 +910,7 @@ def run(
     _check_folder(out_dir, spec)
 
     tasks = expand(spec)
+    check_parameters(spec.experiment, tasks)  # out-of-range values: exit 3 before the cluster, not 4 per task
     order = {t.task_id: i for i, t in enumerate(tasks)}
     done = read_results(out_dir)
     status: dict[str, str] = {}
