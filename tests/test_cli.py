@@ -84,6 +84,17 @@ def test_an_out_of_range_cell_exits_3_before_any_task_runs(tmp_path, param, valu
     assert not (tmp_path / "out" / "parts").exists() or not any((tmp_path / "out" / "parts").iterdir())
 
 
+def test_a_sweep_is_quiet_by_default_and_verbose_on_request(tmp_path):
+    """Sweeps printed about 33 Dask INFO lines per run (issue 25): none by default, Dask's lines with --verbose."""
+    spec = tmp_path / "small.toml"
+    spec.write_text('experiment = "bump"\nmetrics = ["fwhm_cells"]\n[grid]\nn_cells = [60]\n')
+    quiet = cansim("sweep", str(spec), "--out", str(tmp_path / "q"), "--no-progress", "--workers", "1")
+    assert quiet.returncode == 0 and quiet.stderr.strip() == ""
+    assert "1 tasks (1 cells): ran 1" in quiet.stdout
+    loud = cansim("sweep", str(spec), "--out", str(tmp_path / "v"), "--no-progress", "--workers", "1", "--verbose")
+    assert loud.returncode == 0 and "INFO" in loud.stderr
+
+
 def test_a_huge_n_seeds_exits_3_at_once(tmp_path):
     """n_seeds = 2**63 - 1 used to enumerate every seed before starting (issue 25): now a ConfigError up front."""
     from cansim.tools.sweep import MAX_TASKS

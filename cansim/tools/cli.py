@@ -109,6 +109,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from cansim.tools import sweep
 
+    if not (args.verbose or args.debug):  # Dask's scheduler and workers log at INFO: quiet unless asked
+        try:
+            import distributed  # noqa: F401 - its import configures its loggers; set them after it
+        except ImportError:
+            pass  # sweep.run names the missing extra
+        for name in ("distributed", "dask"):
+            logging.getLogger(name).setLevel(logging.WARNING)
     spec = sweep.load_spec(args.spec)
     out = args.out if args.out is not None else Path.cwd() / spec.name
     result = sweep.run(
@@ -236,6 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="worker processes of the local cluster (default: the usable CPUs)")
     p.add_argument("--retry-errors", action="store_true", help="run tasks recorded with an error again")
+    p.add_argument("--verbose", action="store_true", help="show Dask's scheduler and worker log lines (quiet by default)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_sweep)
 
