@@ -226,3 +226,13 @@ def test_moving_average_hand_computed_and_bad_signal():
 def test_detection_params_bad_values_are_typed(kwargs):
     with pytest.raises(InvalidInputError):
         DetectionParams(**kwargs)
+
+
+@pytest.mark.parametrize("span", [10**9, 2**31 - 1, 100_001])
+def test_a_smoothing_span_beyond_the_signal_is_refused_up_front(span):
+    """smoothing_span=10**9 was accepted and then ran out of memory (issue 25)."""
+    from whisker_io.contact.detection import moving_average
+
+    with pytest.raises(InvalidInputError, match="too large"):
+        moving_average(np.zeros(1000), span)
+    assert moving_average(np.arange(5.0), 100).shape == (5,)  # a span longer than a short signal stays allowed

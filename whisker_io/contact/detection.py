@@ -169,6 +169,11 @@ class DetectedContact:
         return self.sign * (self.peak_counts - self.baseline_counts)
 
 
+#: A smoothing span up to this many samples is accepted for any signal; beyond it, at most
+#: 8 x the signal length (a longer window only repeats the edge values, and costs memory).
+MAX_FREE_SPAN = 100_000
+
+
 def moving_average(signal: np.ndarray, span: int = 100) -> np.ndarray:
     """Centred moving average over the last axis (edges padded with the end values).
 
@@ -182,11 +187,13 @@ def moving_average(signal: np.ndarray, span: int = 100) -> np.ndarray:
         RuntimeError), or an empty or non-finite signal.
     """
     size = whole_number(span, "smoothing span", minimum=1)
-    if size > 2**31 - 1:
-        raise InvalidInputError(f"smoothing span {span!r} is too large; use at most the signal length")
     arr = finite_array(signal, None, "signal")
     if arr.ndim == 0 or arr.shape[-1] == 0:
         raise InvalidInputError("cannot smooth an empty signal")
+    limit = max(8 * arr.shape[-1], MAX_FREE_SPAN)  # the filter's work and memory grow with the span
+    if size > limit:
+        raise InvalidInputError(f"smoothing span {span!r} is too large for a signal of {arr.shape[-1]} samples "
+                                f"(at most {limit}); use at most the signal length")
     return uniform_filter1d(arr, size=size, axis=-1, mode="nearest")
 
 
