@@ -52,7 +52,9 @@ Tried and not kept: relaxing the object map to convergence (2,000 passes; its su
 moves < 0.5 mm: the map's relaxation had converged, it lacks the information above);
 adding point-to-plane / point-to-point terms between the contacts of different whisks
 (multi-view registration, nearest contact within 3-5 cm, 4-6 rounds) to the graph: Mug
-16 -> 15, Box 14 -> 16, Blob 22 -> 27 mm, at 5-25 s per map.
+16 -> 15, Box 14 -> 16, Blob 22 -> 27 mm, at 5-25 s per map; a Cauchy loss on the edges
+(against false re-localisations; the upright torus gets worse through the graph, 19 ->
+37 mm): scale 3 sigma Box 14 -> 105, Blob 22 -> 30 mm, torus unchanged (local minima).
 
 Conventions: a pose is ``(x, y, z m, qx, qy, qz, qw)`` (scalar-last quaternion), the
 relative pose of an edge ``T_a^-1 T_b``; the first node is fixed (the frame of the map).

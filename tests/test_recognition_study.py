@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import math
 
+import numpy as np
 import pytest
 
 from cansim.studies import recognition
@@ -43,6 +44,11 @@ def test_outputs_and_columns(quick):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text
+    surfaces = sorted((out / "maps" / "seed0").glob("*_surface.npz"))  # the stored surfaces of the surface matcher
+    assert len(surfaces) == 12
+    for f in surfaces:
+        with np.load(f) as z:
+            assert z["points_m"].shape[1] == 3 and len(z["points_m"]) >= 20 and np.isfinite(z["points_m"]).all()
 
 
 def test_viewpoints_lie_in_their_bin(quick):
