@@ -78,6 +78,15 @@ Mug, Blob, Box, Barrel, Plane, seed 0, 300 whisks):
   so far, to correct the stored surface) made it worse (Mug 99 mm from the mesh): the
   stored contacts are 3-8 cm apart, so the normals of their local planes are biased on
   curved surfaces, and the bias accumulates even with exact odometry.
+* **Surfaces from a pose graph of the whisk poses** (:func:`maps.pose_graph.whisk_surface`:
+  every whisk a node, the odometry of every loop and one closure per re-localisation, least
+  squares over SE(3)) lie 10-49 mm from the mesh instead of the maps' 16-130 mm (2 loops of
+  A; table in :mod:`maps.pose_graph`). Still not enough: presented along 2 loops of B
+  against the 8 pose-graph surfaces of Mug, Box, Blob, Barrel, Plane, duck, bear, jug (seed
+  0) the own object has the lowest evidence in 19/75 (Mug), 127/170 (Box), 15/71 (Blob),
+  16/61 (Barrel), 45/121 (Plane), 1/79 (duck), 8/89 (bear), 24/81 (jug) windows (own median
+  10-24 mm, best other 8-13 mm). In the recognition study (``--matchers surface``, same 8
+  objects, 200 whisks) it gives 1/8 correct IC decisions along A, 0/8 along B, none wrong.
 * **Cost**: 2.7 / 3.6 / 5.7 ms per whisk at 12 / 25 / 50 objects of 1,500 stored points
   (8 contacts a whisk, 3 iterations): over the 2-ms target at 50 objects.
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import math
 
+import numpy as np
 import pytest
 
 from cansim.studies import recognition
@@ -45,6 +46,11 @@ def test_outputs_and_columns(quick):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text
+    surfaces = sorted((out / "maps" / "seed0").glob("*_surface.npz"))  # the stored surfaces of the surface matcher
+    assert len(surfaces) == 12
+    for f in surfaces:
+        with np.load(f) as z:
+            assert z["points_m"].shape[1] == 3 and len(z["points_m"]) >= 20 and np.isfinite(z["points_m"]).all()
 
 
 def test_viewpoints_lie_in_their_bin(quick):
@@ -72,8 +78,10 @@ def test_novel_objects_get_no_decision_and_no_decision_is_wrong(quick):
     assert sum(r["decision"] not in ("", r["presented"]) for r in library) <= 0.05 * len(library)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match recognises visited poses, "
-                                       "not the surface (along B 0/12 correct decisions on main)")
+@pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match (the default) recognises "
+                                       "visited poses, not the surface (along B 0/12 correct decisions on main); the "
+                                       "surface matcher (--matchers surface) is not better yet: its pose-graph surfaces "
+                                       "lie 10-49 mm from the mesh (8 objects, B: 0/8)")
 @pytest.mark.parametrize("presentation", ["B", "viewpoints"])
 def test_headline_identified_from_a_new_path(quick, presentation):
     _, rows = quick

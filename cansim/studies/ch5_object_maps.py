@@ -278,8 +278,14 @@ def _slam_config(cfg: Config, s: Settings, cell_size_m: float) -> Any:
     return preset(cell_size_m=cell_size_m, frontend=fe)
 
 
-def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Whisk along ``poses`` with noisy odometry (Eq 6.4-6.11); the per-iteration log and ground truth."""
+def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generator) -> dict[str, Any]:
+    """Whisk along ``poses`` with noisy odometry (Eq 6.4-6.11); the per-iteration log and ground truth.
+
+    The log also keeps what the model was given, for replaying the same whisks through
+    another matcher (:mod:`maps.surface_match`) or a pose graph (:mod:`maps.pose_graph`):
+    ``odometry`` (list of :class:`maps.odometry.SpatialOdometry`, one per whisk) and
+    ``contacts`` (list of (k, 3) contact points in the end-effector frame, m, or None).
+    """
     from maps.odometry import SpatialOdometry
     from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
 
@@ -289,6 +295,8 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     dr = np.empty((n, 3))
     dr_pose = poses[0]
     n_observations = 0
+    odometry: list[Any] = []
+    contacts: list[Any] = []
     for k, pose in enumerate(poses):
         if k == 0:
             v, w, dt = np.zeros(3), np.zeros(3), 1.0
@@ -298,11 +306,15 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
         dr[k] = dr_pose.position_m
         features = chain.features(pose, rng)
         n_observations += bool(features.is_observation)
-        st = slam.step(SpatialOdometry(v, w, dt), features)
+        odometry.append(SpatialOdometry(v, w, dt))
+        pts = getattr(features, "contact_points_m", None)
+        contacts.append(None if pts is None else np.asarray(pts, dtype=np.float64))
+        st = slam.step(odometry[-1], features)
         exp_ids[k], reloc[k] = st.exp_id, st.relocalised
     return {
         "exp_ids": exp_ids, "relocalised": reloc, "dr_position_m": dr, "n_observations": n_observations,
         "true_p": np.array([p.position_m for p in poses]), "true_q": np.array([p.quaternion_xyzw for p in poses]),
+        "odometry": odometry, "contacts": contacts,
     }
 
 

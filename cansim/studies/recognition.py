@@ -25,8 +25,13 @@ What runs
   centre) and turned about a random axis so that its distance to the *nearest* mapping
   pose lies in a bin (``VIEWPOINT_BINS``; the issue's 5-10 cm / 5-15 deg among them);
   each run is at least ``--whisks`` whisks long (whole loops).
-* **Matchers** (``--matchers``): ``thesis``, the Eq 5.5 region match of the appended
-  library (as Ch.5 runs it).
+* **Matchers** (``--matchers``, default ``thesis``; every matcher decides the same
+  whisks): ``thesis``, the Eq 5.5 region match of the appended library (as Ch.5 runs
+  it); ``surface``, :class:`maps.surface_match.SurfaceMatcher` registering each whisk's
+  contacts to every library object's stored surface (what the mapping run felt, placed
+  by its whisk poses optimised as a pose graph, :func:`maps.pose_graph.whisk_surface`;
+  written next to each map as ``<object>_surface.npz``), started at the presentation's
+  first pose; its impulses go into the same leaky integrators (:mod:`maps.recognition`).
 
 Outputs (``--out``)
 -------------------
@@ -47,7 +52,20 @@ Run::
 Status (measured, see the summary of a run): with the thesis matcher a presentation
 along the mapping path is identified, along trajectory B or a viewpoint set 5-10 cm away
 it is mostly not - the region features of Eq 5.5 match the poses visited, not the
-surface. The study is the benchmark the new matcher is judged on.
+surface. The ``surface`` matcher does not do better yet, because the stored surfaces are
+not accurate enough: 8-object library (Mug, Box, Blob, Barrel, Plane, duck, bear, jug),
+seed 0, 200 whisks, 2 map loops (``--objects mug box blob barrel plane duck bear jug
+--seeds 1 --whisks 200 --matchers thesis surface``, 3.5 min), correct IC decisions
+thesis / surface: along A 6/8 / 1/8, along B 1/8 / 0/8, viewpoints 2-5 cm 0/8 / 1/8,
+5-10 cm 0/8 / 0/8, 10-15 cm 0/8 / 0/8; novel objects 15/15 no decision and no wrong
+decision with either (impulses own / other, surface: A 270 / 147, B 129 / 159, 5-10 cm
+93 / 111). The quick mode (12 objects, seed 0, ``--quick --matchers thesis surface``,
+5.5 min) gives thesis / surface: along A 9/12 / 2/12, along B 0/12 / 0/12, 5-10 cm
+0/12 / 0/12, novel 9/9 / 9/9 without a decision, no wrong decision (surface impulses own
+/ other: A 353 / 187, B 160 / 174, 5-10 cm 73 / 131). The pose-graph surfaces lie 10-49 mm from the mesh (maps.pose_graph
+docstring; half the object maps' error, not the 5-10 mm the matcher needs: on surfaces
+placed at the true poses it scores the own object best in 75-96 % of whisks,
+maps.surface_match docstring). The study is the benchmark the new matcher is judged on.
 """
 
 from __future__ import annotations
@@ -78,7 +96,11 @@ VIEWPOINT_BINS: tuple[tuple[str, tuple[float, float], tuple[float, float]], ...]
     ("vp 5-10 cm", (0.05, 0.10), (5.0, 15.0)),
     ("vp 10-15 cm", (0.10, 0.15), (15.0, 25.0)),
 )
-MATCHERS = ("thesis",)
+#: Matchers: ``thesis`` (Eq 5.5 region match of the appended library) and ``surface``
+#: (:class:`maps.surface_match.SurfaceMatcher` against the stored surfaces, module docstring).
+MATCHERS = ("thesis", "surface")
+#: The matchers a run uses unless told (``--matchers``).
+DEFAULT_MATCHERS = ("thesis",)
 COLUMNS = ("seed", "library_size", "matcher", "presented", "novel", "presentation", "distance_bin",
            "median_distance_m", "median_rotation_deg", "whisks", "whisks_with_contact", "decision", "correct",
            "decision_whisk", "final_ic_own", "final_ic_best_other", "impulses_own", "impulses_other")
@@ -96,6 +118,7 @@ class Setup:
     whisks: int
     thresholds: tuple[float, float]
     out: str
+    matchers: tuple[str, ...] = ("thesis",)
 
 
 # ------------------------------------------------------------------ viewpoints
@@ -172,13 +195,35 @@ def _settings(setup: Setup) -> Any:
 
 
 def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
-    """Map one library object along trajectory A; the saved model's path and the mapping poses."""
+    """Map one library object along trajectory A; the saved model's path and its stored surface's.
+
+    The model is built as :func:`cansim.studies.ch5_object_maps.build_job` builds it (same
+    seed, same whisks). Its stored surface (what was felt, placed by the whisk poses of
+    the mapping run optimised as a pose graph, :func:`maps.pose_graph.whisk_surface`,
+    in the arm's frame: the first whisk's true pose is the map's anchor) is saved next to
+    it for the ``surface`` matcher.
+    """
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
+    from maps.pose_graph import whisk_surface
+    from whisker_io.sim.catalogue import resolve_object
+    from whisker_io.sim.trajectories import object_trajectory
+
     ch5 = _ch5()
     name, setup = job
     path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{_file_name(name)}.npz"
     path.parent.mkdir(parents=True, exist_ok=True)
-    build = ch5.build_job((name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), str(path)))
-    return {"name": name, "path": str(path), "n_experiences": build["n_experiences"]}
+    cfg, s = ch5.Config("both", False, CONTACT_MODEL), _settings(setup)
+    mesh = resolve_object(name).mesh
+    step_m, step_deg = ch5.step_of(name)
+    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
+    slam = WhiskerRatSLAM(ch5._slam_config(cfg, s, step_m))
+    rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
+    log = ch5.explore(slam, ch5._chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
+    slam.save(path)
+    surface = poses[0].apply(whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"]))
+    surface_path = path.with_name(path.stem + "_surface.npz")
+    np.savez_compressed(surface_path, points_m=surface)
+    return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences}
 
 
 def _file_name(name: str) -> str:
@@ -186,8 +231,16 @@ def _file_name(name: str) -> str:
 
 
 def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple[float, float]] | None,
-                Sequence[str], Sequence[str], Setup]) -> dict[str, Any]:
-    """Explore ``presented`` along A, B or a viewpoint set against the library; one CSV row."""
+                Sequence[str], Sequence[str], Setup, Sequence[str]]) -> list[dict[str, Any]]:
+    """Explore ``presented`` along A, B or a viewpoint set against the library; one CSV row per matcher.
+
+    Every matcher of ``setup.matchers`` sees the same whisks (poses, contacts, noisy
+    odometry): ``thesis`` the re-localisations of the appended library model,
+    ``surface`` the impulses of :class:`maps.surface_match.SurfaceMatcher` replaying the
+    whisks against the library's stored surfaces (started at the presentation's first
+    pose, as the Ch.5 runs start the pose cells at a known place); both decide at
+    :data:`IC_THRESHOLD` with the same leaky integrators (:mod:`maps.recognition`).
+    """
     from maps.recognition import (
         LeakyIntegrator,
         confidence,
@@ -199,7 +252,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     from whisker_io.sim.trajectories import object_trajectory
 
     ch5 = _ch5()
-    presented, novel, presentation, vp_bin, paths, names, setup = job
+    presented, novel, presentation, vp_bin, paths, names, setup, surfaces = job
     mesh = resolve_object(presented).mesh
     step_m, step_deg = ch5.step_of(presented)
     family = "B" if presentation == "B" else "A"
@@ -216,28 +269,67 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     slam, lib = ch5.library_model(paths, names, cell_size_m=step_m)
     chain = ch5._chain(mesh, CONTACT_MODEL, NOISE_SCALE)
     log = ch5.explore(slam, chain, poses, rng)
-    table = lib.with_explored(slam.object_map.n_experiences)
-    targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)
     params = LeakyIntegrator()
-    ic = integrated_confidence(confidence(targets, len(names), params), params)
-    k = decide(ic, IC_THRESHOLD)
     own = names.index(presented) if presented in names else -1
     others = [j for j in range(len(names)) if j != own]
-    crossing = None if k is None else int(np.flatnonzero(ic[:, k] >= IC_THRESHOLD)[0])
-    return {
-        "seed": setup.seed, "library_size": len(names), "matcher": "thesis", "presented": presented,
-        "novel": novel, "presentation": presentation if vp_bin is None else "viewpoints",
-        "distance_bin": "" if vp_bin is None else vp_bin[0],
-        "median_distance_m": float(np.median(dist)), "median_rotation_deg": float(np.median(rot)),
-        "whisks": len(poses), "whisks_with_contact": int(log["n_observations"]),
-        "decision": "" if k is None else names[k],
-        "correct": (k is None) if novel else (k == own),
-        "decision_whisk": "" if crossing is None else crossing,
-        "final_ic_own": float(ic[-1, own]) if own >= 0 else 0.0,
-        "final_ic_best_other": float(ic[-1, others].max()) if others else 0.0,
-        "impulses_own": int(np.sum(targets == own)) if own >= 0 else 0,
-        "impulses_other": int(np.sum((targets >= 0) & (targets != own))),
-    }
+    rows = []
+    for matcher in setup.matchers:
+        if matcher == "thesis":
+            table = lib.with_explored(slam.object_map.n_experiences)
+            targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)
+        else:
+            targets = surface_targets(surfaces, names, poses[0], log["odometry"], log["contacts"])
+        ic = integrated_confidence(confidence(targets, len(names), params), params)
+        k = decide(ic, IC_THRESHOLD)
+        crossing = None if k is None else int(np.flatnonzero(ic[:, k] >= IC_THRESHOLD)[0])
+        rows.append({
+            "seed": setup.seed, "library_size": len(names), "matcher": matcher, "presented": presented,
+            "novel": novel, "presentation": presentation if vp_bin is None else "viewpoints",
+            "distance_bin": "" if vp_bin is None else vp_bin[0],
+            "median_distance_m": float(np.median(dist)), "median_rotation_deg": float(np.median(rot)),
+            "whisks": len(poses), "whisks_with_contact": int(log["n_observations"]),
+            "decision": "" if k is None else names[k],
+            "correct": (k is None) if novel else (k == own),
+            "decision_whisk": "" if crossing is None else crossing,
+            "final_ic_own": float(ic[-1, own]) if own >= 0 else 0.0,
+            "final_ic_best_other": float(ic[-1, others].max()) if others else 0.0,
+            "impulses_own": int(np.sum(targets == own)) if own >= 0 else 0,
+            "impulses_other": int(np.sum((targets >= 0) & (targets != own))),
+        })
+    return rows
+
+
+def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_pose: Any,
+                    odometry: Sequence[Any], contacts: Sequence[Any]) -> np.ndarray:
+    """The object each whisk's surface-matcher impulse went to (-1: none), (n_whisks,) int.
+
+    Parameters
+    ----------
+    surfaces : sequence of path
+        Each library object's stored surface (``points_m`` in the arm's frame, written by
+        :func:`map_job`), in the order of ``names``.
+    names : sequence of str
+    start_pose : Pose
+        The arm's pose at the first whisk.
+    odometry : sequence of SpatialOdometry
+        Per whisk (the first is ignored: the matcher starts at ``start_pose``).
+    contacts : sequence of ndarray (k, 3) or None
+        Per whisk, end-effector frame, m.
+    """
+    from maps.surface_match import SurfaceLibrary, SurfaceMatcher
+
+    points = []
+    for f in surfaces:
+        with np.load(f) as z:
+            points.append(z["points_m"])
+    library = SurfaceLibrary(points, names)
+    matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw])
+    out = np.full(len(contacts), -1, dtype=np.int64)
+    for i, (odo, pts) in enumerate(zip(odometry, contacts)):
+        imp = matcher.step(odo if i else None, pts)
+        if imp.any():
+            out[i] = int(np.argmax(imp))
+    return out
 
 
 def _pool_map(fn: Any, jobs: Sequence[Any], workers: int, desc: str, progress: bool) -> list[Any]:
@@ -252,7 +344,8 @@ def _pool_map(fn: Any, jobs: Sequence[Any], workers: int, desc: str, progress: b
 # ------------------------------------------------------------------ the study
 def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | None = None,
         library_sizes: Sequence[int] = (12,), seeds: Sequence[int] = (0,), bins: Sequence[str] | None = None,
-        map_loops: int = 2, whisks: int = 200, workers: int = 2, progress: bool = True) -> list[dict[str, Any]]:
+        map_loops: int = 2, whisks: int = 200, workers: int = 2, progress: bool = True,
+        matchers: Sequence[str] = ("thesis",)) -> list[dict[str, Any]]:
     """Run the benchmark; returns the CSV rows (also written to ``out``).
 
     Parameters
@@ -276,11 +369,23 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         Loops of trajectory A per map.
     whisks : int
         Least whisks per presentation (whole loops).
+    matchers : sequence of str
+        Of :data:`MATCHERS`; every presentation is decided by each (same whisks).
+
+    Raises
+    ------
+    cansim.errors.ConfigError
+        An unknown matcher.
     """
     from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.shapes import library_names, novel_names
 
+    from cansim.errors import ConfigError
+
     ch5 = _ch5()
+    matchers = tuple(dict.fromkeys(matchers))
+    if not matchers or any(m not in MATCHERS for m in matchers):
+        raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
     out.mkdir(parents=True, exist_ok=True)
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
@@ -292,18 +397,20 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     thresholds = (cal["pfh_threshold"], cal["sda_threshold"])
     rows: list[dict[str, Any]] = []
     for seed in seeds:
-        setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out))
+        setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers)
         maps = _pool_map(map_job, [(n, setup) for n in everything], workers, f"mapping (seed {seed})", progress)
         paths = {m["name"]: m["path"] for m in maps}
+        surface_paths = {m["name"]: m["surface"] for m in maps}
         jobs = []
         for size in sizes:
             names = everything[:size]
             lib_paths = [paths[n] for n in names]
             kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
             for presentation, vp in kinds:
-                jobs += [(p, False, presentation, vp, lib_paths, names, setup) for p in names]
-                jobs += [(p, True, presentation, vp, lib_paths, names, setup) for p in novel]
-        rows += _pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress)
+                lib_surfaces = [surface_paths[n] for n in names]
+                jobs += [(p, False, presentation, vp, lib_paths, names, setup, lib_surfaces) for p in names]
+                jobs += [(p, True, presentation, vp, lib_paths, names, setup, lib_surfaces) for p in novel]
+        rows += [r for rs in _pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
     with open(out / "recognition_runs.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
         w.writeheader()
@@ -325,7 +432,19 @@ def accuracy(rows: Sequence[dict[str, Any]], novel: bool) -> dict[str, tuple[int
 
 
 def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
-    """The confusion matrices, accuracy vs viewpoint distance and vs library size."""
+    """The confusion matrices, accuracy vs viewpoint distance and vs library size.
+
+    One set per matcher: the first matcher of the rows gets the plain file names, the
+    others the suffix ``_<matcher>``.
+    """
+    matchers = list(dict.fromkeys(r["matcher"] for r in rows))
+    files = []
+    for i, m in enumerate(matchers):
+        files += _figures([r for r in rows if r["matcher"] == m], out, "" if i == 0 else f"_{m}")
+    return files
+
+
+def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -351,8 +470,8 @@ def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
         ax.set_title(lab, fontsize=9)
     axes[0][0].set_ylabel("presented object (novel ones last)")
     fig.colorbar(im, ax=axes[0].tolist(), shrink=0.8, label="fraction of runs")
-    fig.suptitle(f"Recognition decisions, library of {small} objects")
-    files.append(out / "recognition_confusion.png")
+    fig.suptitle(f"Recognition decisions, library of {small} objects, matcher {rows[0]['matcher']}")
+    files.append(out / f"recognition_confusion{suffix}.png")
     fig.savefig(files[-1], dpi=110)
     plt.close(fig)
     # accuracy vs viewpoint distance
@@ -379,7 +498,7 @@ def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     ax.legend(fontsize=7, loc="center right")
     ax.set_title("Accuracy vs viewpoint distance (dots: single runs)")
     fig.tight_layout()
-    files.append(out / "recognition_accuracy_vs_distance.png")
+    files.append(out / f"recognition_accuracy_vs_distance{suffix}.png")
     fig.savefig(files[-1], dpi=110)
     plt.close(fig)
     # accuracy vs library size (trajectory B)
@@ -399,14 +518,22 @@ def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     ax.legend(fontsize=8)
     ax.set_title("Accuracy vs library size")
     fig.tight_layout()
-    files.append(out / "recognition_accuracy_vs_library.png")
+    files.append(out / f"recognition_accuracy_vs_library{suffix}.png")
     fig.savefig(files[-1], dpi=110)
     plt.close(fig)
     return files
 
 
+_MATCHER_LABEL = {"thesis": "thesis (Eq 5.5 region match)", "surface": "surface (maps.surface_match on the stored surfaces)"}
+
+
 def summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool) -> str:
-    """The issue's acceptance figures and the thesis' Fig 5.17 findings, each held or not."""
+    """The issue's acceptance figures and the thesis' Fig 5.17 findings, each held or not (one section per matcher)."""
+    matchers = list(dict.fromkeys(r["matcher"] for r in rows))
+    return "\n\n".join(_summary([r for r in rows if r["matcher"] == m], elapsed_s, quick, m) for m in matchers)
+
+
+def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matcher: str) -> str:
     lib = accuracy(rows, False)
     nov = accuracy(rows, True)
     small = min(r["library_size"] for r in rows)
@@ -423,7 +550,8 @@ def summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool) -> st
         return "HELD" if n and c / n >= target else "NOT HELD"
 
     lines = [f"Recognition benchmark ({'--quick' if quick else 'full'}): library of {small} objects, seeds {seeds}, "
-             f"IC threshold {IC_THRESHOLD:g}, matcher thesis (Eq 5.5 region match); {elapsed_s / 60:.1f} min.", "",
+             f"IC threshold {IC_THRESHOLD:g}, matcher {_MATCHER_LABEL.get(matcher, matcher)}; {elapsed_s / 60:.1f} min "
+             "(all matchers).", "",
              "Issue 22 acceptance (library objects: correct IC decision; novel objects: no decision):"]
     for key, target in (("trajectory A", 1.0), ("trajectory B", 0.9), ("vp 5-10 cm", 0.9)):
         lines.append(f"  {key:14s} correct {share(lib, key):14s} target {target:.0%}: {held(lib, key, target)}")
@@ -454,6 +582,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=None, help="seeds (default 3, quick 1)")
     ap.add_argument("--whisks", type=int, default=200, help="least whisks per presentation (default 200)")
     ap.add_argument("--map-loops", type=int, default=2, help="loops of trajectory A per map (default 2)")
+    ap.add_argument("--matchers", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
+                    help=f"matchers deciding every presentation (default: {' '.join(DEFAULT_MATCHERS)})")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-progress", action="store_true")
     a = ap.parse_args(None if argv is None else list(argv))
@@ -467,7 +597,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     bins = ("vp 5-10 cm",) if a.quick else None
     rows = run(a.out, a.objects, a.novel, library_sizes=sizes if not a.objects else (len(a.objects),), seeds=seeds,
-               bins=bins, map_loops=a.map_loops, whisks=a.whisks, workers=a.workers, progress=not a.no_progress)
+               bins=bins, map_loops=a.map_loops, whisks=a.whisks, workers=a.workers, progress=not a.no_progress,
+               matchers=a.matchers)
     files = figures(rows, a.out)
     text = summary(rows, time.perf_counter() - t0, a.quick)
     (a.out / "recognition_summary.txt").write_text(text + "\n")

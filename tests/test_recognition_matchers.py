@@ -1,0 +1,57 @@
+"""The matchers of the recognition benchmark (cansim.studies.recognition): selection and the surface path.
+
+Fast checks (the study's runs are in the slow ``test_recognition_study.py``): an unknown
+matcher is refused before any work, and the surface matcher's per-whisk targets on a
+hand-made two-object library go to the object whose stored surface the whisks touch.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cansim.errors import ConfigError
+from cansim.studies import recognition
+from maps.odometry import SpatialOdometry
+from whisker_io.pose import Pose
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.one_of(st.just(()), st.lists(st.sampled_from(["thesis", "surface", "Thesis", "", "region", "surface "]),
+                                       min_size=1, max_size=3).filter(lambda m: any(x not in recognition.MATCHERS for x in m))))
+def test_unknown_matchers_are_refused_before_any_work(tmp_path_factory, matchers) -> None:
+    out = tmp_path_factory.mktemp("rec") / "out"
+    with pytest.raises(ConfigError):
+        recognition.run(out, objects=["mug"], novel=[], matchers=matchers, progress=False)
+    assert not out.exists()
+
+
+def _grid(z: float, n: int = 21, half: float = 0.15) -> np.ndarray:
+    u = np.linspace(-half, half, n)
+    x, y = np.meshgrid(u, u)
+    return np.stack([x.ravel(), y.ravel(), np.full(x.size, z)], axis=1)
+
+
+def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
+    """Library: a plate at z = 0 and one at z = 0.1 m (9 cm apart, beyond the 8-cm gate of
+    the default SurfaceMatchConfig). The arm sits 0.2 m above the origin looking down (-z)
+    and feels 5 points of the z = 0 plate per whisk, not moving: every impulse is object 0's."""
+    files = []
+    for k, z in enumerate((0.0, 0.09)):
+        files.append(tmp_path / f"s{k}.npz")
+        np.savez_compressed(files[-1], points_m=_grid(z))
+    down = Pose.from_rotvec([0.0, 0.0, 0.2], [np.pi, 0.0, 0.0])  # tool z axis along -z of the world
+    rng = np.random.default_rng(0)
+    contacts = []
+    for _ in range(20):
+        world = np.c_[rng.uniform(-0.1, 0.1, (5, 2)), np.zeros(5)]
+        contacts.append(down.inverse().apply(world))
+    still = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
+    targets = recognition.surface_targets(files, ["low", "high"], down, [None] + [still] * 19, contacts)
+    assert targets.shape == (20,)
+    assert set(targets.tolist()) <= {-1, 0}
+    assert np.sum(targets == 0) >= 10  # after the window fills, every whisk
