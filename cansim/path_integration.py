@@ -32,7 +32,7 @@ import numpy as np
 
 from cansim.axes import Axis
 from cansim.errors import InvalidInputError, ShapeError
-from cansim.grid_inputs import MAX_SHIFT_CELLS, shift_too_large
+from cansim.grid_inputs import MAX_SHIFT_CELLS, check_shift, shift_too_large
 from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = [
@@ -192,11 +192,19 @@ class UniformMotion(MotionModel):
                 )
 
         def compute(velocity, dt):
+            # check_shift's refusal without a numpy reduction: a ring's one shift is a float,
+            # a grid's few shifts are compared in Python (NaN fails the comparison: refused)
             if velocity is None:
                 return _NO_MOTION
             if n == 1 and isinstance(velocity, float):
-                return MotionShifts(None, None, np.array([velocity * dt * inv0]))
-            return MotionShifts(None, None, velocity * (dt * inv))
+                s = velocity * dt * inv0
+                if not abs(s) < MAX_SHIFT_CELLS:
+                    raise shift_too_large(abs(s), "uniform")
+                return MotionShifts(None, None, np.array([s]))
+            u = velocity * (dt * inv)
+            if not all(abs(x) < MAX_SHIFT_CELLS for x in u.tolist()):
+                check_shift(u, "uniform")  # raises, with the largest shift in the message
+            return MotionShifts(None, None, u)
 
         def shifts(velocity, omega, dt):
             dt = check_dt(dt)
@@ -213,7 +221,7 @@ class UniformMotion(MotionModel):
                 return compute(velocity, dt)
             return shifts(velocity, omega, dt)  # not of a validated form: check it
 
-        return shifts, trusted
+        return _range_checked(shifts), _range_checked(trusted)
 
 
 @dataclass(frozen=True)

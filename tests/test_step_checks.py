@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from cansim import Axis, Population
 from cansim.errors import InvalidInputError
 from cansim.grid_inputs import MAX_SHIFT_CELLS
-from cansim.path_integration import PlanarMotion, UniformMotion, shifts_range_checked
+from cansim.grid_inputs import check_shift
+from cansim.path_integration import MotionShifts, PlanarMotion, UniformMotion, shifts_range_checked
 from whisker_io.validation import finite_scalar, finite_vector
 
 _ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True)
@@ -71,6 +72,30 @@ def test_planar_shift_range_is_refused_exactly_where_the_array_check_refuses(v, 
             assert math.isclose(ms.uniform[2], rot, rel_tol=1e-12)
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_HUGE_OR_SMALL, min_size=1, max_size=4), st.one_of(st.floats(0.0, 10.0), st.floats(0.0, 1e300)),
+       st.sampled_from([1e-9, 0.5, 1e3]))
+def test_uniform_shift_range_is_refused_exactly_where_the_array_check_refuses(velocity, dt, step):
+    n = len(velocity)
+    axes = tuple(Axis.linear(f"a{i}", 5, step) for i in range(n))
+    checked, trusted = UniformMotion().bind_checked_and_trusted(axes)
+    arg = velocity[0] if n == 1 else np.array(velocity)
+    with np.errstate(over="ignore", invalid="ignore"):  # the definition, in the engine's rounding order
+        inv = 1.0 / step
+        want = np.array([velocity[0] * dt * inv]) if n == 1 else np.array(velocity) * (dt * np.full(n, inv))
+        try:
+            check_shift(want, "uniform")
+            refused = False
+        except InvalidInputError:
+            refused = True
+        for f in (checked, trusted):
+            if refused:
+                with pytest.raises(InvalidInputError, match="too large to represent"):
+                    f(arg, None, dt)
+                continue
+            assert f(arg, None, dt).uniform.tolist() == want.tolist()
+
+
 def test_an_oversized_step_leaves_the_population_unchanged():
     pop = Population.openratslam(5, 8, 1e-6, backend="numpy")
     before = pop.activity
@@ -86,7 +111,7 @@ def test_a_users_motion_model_is_still_range_checked_by_the_population():
 
     class Wild(UniformMotion):
         def bind(self, axes):  # shifts nobody checked
-            return lambda velocity, omega, dt: UniformMotion().bind(axes)(velocity, omega, dt)
+            return lambda velocity, omega, dt: MotionShifts(None, None, np.array([velocity * dt]))
 
     axes = (Axis.linear("x", 9, 1.0),)
     assert not any(shifts_range_checked(f) for f in Wild().bind_checked_and_trusted(axes))
