@@ -14,7 +14,7 @@ import numpy as np
 
 from cansim.errors import InvalidInputError, ShapeError
 
-__all__ = ["MAX_SHIFT_CELLS", "MAX_INJECTION", "check_shift", "whole_cells", "checked_injection"]
+__all__ = ["MAX_SHIFT_CELLS", "MAX_INJECTION", "check_shift", "shift_too_large", "whole_cells", "checked_injection"]
 
 #: Largest shift (cells, per axis and step) the kernels represent exactly (integer parts are
 #: 32-bit on OpenCL); a larger one comes from corrupt odometry and is refused.
@@ -43,10 +43,16 @@ def check_shift(shifts: Optional[np.ndarray], what: str) -> None:
         return
     biggest = float(np.abs(shifts).max(initial=0.0))
     if not biggest < MAX_SHIFT_CELLS:
-        raise InvalidInputError(
-            f"the {what} shift is {biggest!r} cells in one step, too large to represent; "
-            "check velocity * dt against the cell size (or split the step)"
-        )
+        raise shift_too_large(biggest, what)
+
+
+def shift_too_large(biggest: float, what: str) -> InvalidInputError:
+    """The error :func:`check_shift` raises for a largest absolute shift of ``biggest`` cells
+    (for a motion model that checks its shifts on scalars, before any array is made)."""
+    return InvalidInputError(
+        f"the {what} shift is {biggest!r} cells in one step, too large to represent; "
+        "check velocity * dt against the cell size (or split the step)"
+    )
 
 
 def whole_cells(value: object, what: str) -> np.ndarray:

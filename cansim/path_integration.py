@@ -32,6 +32,7 @@ import numpy as np
 
 from cansim.axes import Axis
 from cansim.errors import InvalidInputError, ShapeError
+from cansim.grid_inputs import MAX_SHIFT_CELLS, check_shift, shift_too_large
 from whisker_io.validation import finite_scalar, finite_vector
 
 __all__ = [
@@ -83,6 +84,20 @@ def check_dt(dt: float) -> float:
     if dtf < 0:
         raise InvalidInputError(f"dt must be >= 0 seconds, got {dtf}")
     return dtf
+
+
+def _range_checked(shift_function: Callable[..., MotionShifts]) -> Callable[..., MotionShifts]:
+    """Mark a bound shift function that refuses shifts beyond :data:`cansim.grid_inputs.MAX_SHIFT_CELLS`
+    itself (see :func:`shifts_range_checked`)."""
+    shift_function.range_checked = True  # type: ignore[attr-defined]
+    return shift_function
+
+
+def shifts_range_checked(shift_function: Callable[..., object]) -> bool:
+    """Whether ``shift_function`` (from :meth:`MotionModel.bind_checked_and_trusted`) refuses every
+    shift :func:`cansim.grid_inputs.check_shift` would refuse, with its error, so the caller
+    need not check its shifts again (a user's model: False, its shifts are checked)."""
+    return getattr(shift_function, "range_checked", False) is True
 
 
 class MotionShifts(NamedTuple):
@@ -177,11 +192,19 @@ class UniformMotion(MotionModel):
                 )
 
         def compute(velocity, dt):
+            # check_shift's refusal without a numpy reduction: a ring's one shift is a float,
+            # a grid's few shifts are compared in Python (NaN fails the comparison: refused)
             if velocity is None:
                 return _NO_MOTION
             if n == 1 and isinstance(velocity, float):
-                return MotionShifts(None, None, np.array([velocity * dt * inv0]))
-            return MotionShifts(None, None, velocity * (dt * inv))
+                s = velocity * dt * inv0
+                if not abs(s) < MAX_SHIFT_CELLS:
+                    raise shift_too_large(abs(s), "uniform")
+                return MotionShifts(None, None, np.array([s]))
+            u = velocity * (dt * inv)
+            if not all(abs(x) < MAX_SHIFT_CELLS for x in u.tolist()):
+                check_shift(u, "uniform")  # raises, with the largest shift in the message
+            return MotionShifts(None, None, u)
 
         def shifts(velocity, omega, dt):
             dt = check_dt(dt)
@@ -198,7 +221,7 @@ class UniformMotion(MotionModel):
                 return compute(velocity, dt)
             return shifts(velocity, omega, dt)  # not of a validated form: check it
 
-        return shifts, trusted
+        return _range_checked(shifts), _range_checked(trusted)
 
 
 @dataclass(frozen=True)
@@ -235,12 +258,21 @@ class PlanarMotion(MotionModel):
             d = np.stack([np.sin(th), np.cos(th)], axis=1)
         directions = d / np.array([axes[0].step, axes[1].step])
         inv_th = 1.0 / axes[2].step
+        d_max = float(np.abs(directions).max())
 
         def compute(v, w, dt):
-            # a huge v * dt overflows to inf (inf * 0 = nan): the caller's shift check refuses it
-            with np.errstate(over="ignore", invalid="ignore"):
-                cond = (v * dt) * directions if v != 0.0 else None
+            # check_shift's refusal on scalars, before any array is made: rounding is monotone, so
+            # the largest |(v * dt) * directions| is exactly abs(v * dt) * d_max (inf or nan: refused)
+            cond = None
+            if v != 0.0:
+                s = v * dt
+                biggest = abs(s) * d_max
+                if not biggest < MAX_SHIFT_CELLS:
+                    raise shift_too_large(biggest, "translation")
+                cond = s * directions
             rot = w * dt * inv_th
+            if not abs(rot) < MAX_SHIFT_CELLS:
+                raise shift_too_large(abs(rot), "uniform")
             uniform = np.array([0.0, 0.0, rot]) if rot != 0.0 else None
             return MotionShifts((0, 1) if cond is not None else None, cond, uniform)
 
@@ -254,7 +286,7 @@ class PlanarMotion(MotionModel):
                 return compute(velocity, omega, dt)
             return shifts(velocity, omega, dt)  # not of a validated form: check it
 
-        return shifts, trusted
+        return _range_checked(shifts), _range_checked(trusted)
 
 
 def euler_grid_rotations(angle_axes: Sequence[Axis], convention: str = EULER_CONVENTION) -> np.ndarray:

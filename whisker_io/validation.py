@@ -49,6 +49,8 @@ def _holds_text(value: list | tuple) -> bool:
 
 
 def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
+    if type(value) is np.ndarray and value.dtype == np.float64:  # already real numbers: just the copy
+        return value.copy()
     if isinstance(value, (str, bytes, bool, np.bool_)):
         raise InvalidInputError(f"{name} must be real numbers, got {value!r}")
     try:
@@ -65,7 +67,10 @@ def _as_float_array(value: object, name: str) -> NDArray[np.float64]:
 
 
 def _check_finite(arr: NDArray[np.float64], name: str) -> None:
-    if np.isfinite(arr).all():  # fast path: the error details below only when needed
+    if arr.size <= 16:  # a few values (an odometry vector, a decoded pose): Python's isfinite beats a ufunc
+        if all(map(math.isfinite, arr.ravel().tolist())):
+            return
+    elif np.isfinite(arr).all():  # fast path: the error details below only when needed
         return
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
@@ -93,6 +98,10 @@ def finite_scalar(value: object, name: str) -> float:
     ShapeError
         An array with one or more dimensions.
     """
+    if type(value) is float:  # the common case first: no ABC or numpy machinery on the valid path
+        if math.isfinite(value):
+            return value
+        raise InvalidInputError(f"{name} must be finite, got {value!r}")
     if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
         try:
             out = float(value)
@@ -170,7 +179,10 @@ def finite_vector(value: ArrayLike, n: int | None, name: str) -> NDArray[np.floa
     arr = _as_float_array(value, name)
     if arr.ndim == 0 and n == 1:
         arr = arr.reshape(1)
-    return finite_array(arr, (n,), name)
+    if arr.ndim != 1 or (n is not None and arr.shape[0] != n):
+        raise ShapeError(f"{name} must have shape ({'n' if n is None else n},), got {arr.shape}")
+    _check_finite(arr, name)  # finite_array's checks on the array made once (no second copy)
+    return arr
 
 
 def whole_number(value: object, name: str, minimum: int | None = None) -> int:

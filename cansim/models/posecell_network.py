@@ -245,8 +245,13 @@ class PosecellNetwork:
         if injection is None:
             return []
         fi, vals = checked_injection(*injection, self.size)
-        cells = np.unravel_index(fi, self.shape)
-        return [(int(x), int(y), int(t), float(v)) for x, y, t, v in zip(*cells, vals)]
+        ny, nth = self._nxy, self._nth
+        out = []
+        for flat, v in zip(fi.tolist(), vals.tolist()):  # (x, y, theta) C-order, as np.unravel_index
+            xy, t = divmod(flat, nth)
+            x, y = divmod(xy, ny)
+            out.append((x, y, t, v))
+        return out
 
     def step(
         self,

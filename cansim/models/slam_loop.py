@@ -196,7 +196,7 @@ class SlamLoop:
     @property
     def best_pc(self) -> tuple[float, ...]:
         """Last decoded packet, fractional cells."""
-        return tuple(float(v) for v in self._best)
+        return tuple(self._best.tolist())  # Python floats, as float(v) of each
 
     @property
     def n_views(self) -> int:
@@ -243,8 +243,9 @@ class SlamLoop:
         """An odometry update alone (pose cells, learning, map); see :meth:`step`."""
         return self._advance(self.odometry(*odometry))
 
-    def _advance(self, odo: Odometry) -> SlamState:
-        """The odometry part of an iteration, for an odometry that :meth:`odometry` checked."""
+    def _advance(self, odo: Odometry, view_id: int = -1, new_view: bool = False) -> SlamState:
+        """The odometry part of an iteration, for an odometry that :meth:`odometry` checked
+        (``view_id`` / ``new_view``: this iteration's view, for the returned state)."""
         injection = (self._pending_index, self._pending_values) if len(self._pending_index) else None
         # the odometry object is validated: an engine with a trusted step skips the second check
         step = getattr(self.pose_cells, "_step_validated", None) or self.pose_cells.step
@@ -272,8 +273,8 @@ class SlamLoop:
             relocalised=bool(result.relocalised) if result else False,
             action=result.action if result else Action.NO_ACTION,
             map_pose=em.current_pose(),
-            view_id=-1,
-            new_view=False,
+            view_id=view_id,
+            new_view=new_view,
         )
 
     def step(self, *args: Any) -> SlamState:
@@ -299,8 +300,7 @@ class SlamLoop:
         if observation is None:
             return self._advance(odo)
         match = self.on_view(observation)
-        state = self._advance(odo)
-        return SlamState(**{**state.__dict__, "view_id": match.view_id, "new_view": bool(match.is_new)})
+        return self._advance(odo, match.view_id, bool(match.is_new))
 
     def run(self, odometry: Sequence[Any], observations: Sequence[Any], *, progress: bool = False) -> SlamLog:
         """Call :meth:`step` for every (odometry, observation) pair.
