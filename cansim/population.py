@@ -35,6 +35,10 @@ IndexLike = Union[Sequence[int], np.ndarray]
 #: ``WhiskerRatSLAMConfig.cell_size_m`` (a test checks that the two agree).
 WHISKER6D_CELL_SIZE_M = 0.1
 
+#: Most cells a population may have (2**26: a float64 activity of 512 MiB), checked before
+#: anything is allocated; the models' configs refuse larger grids with the same limit.
+MAX_CELLS = 2**26
+
 
 class Population:
     """A grid of rate cells with periodic boundaries on every axis, activity ``A >= 0``.
@@ -88,8 +92,15 @@ class Population:
             raise InvalidInputError(f"dtype must be float32 or float64, got {dt}")
         if not isinstance(decode_window, (int, np.integer)) or decode_window < 0:
             raise InvalidInputError(f"decode_window must be an integer >= 0, got {decode_window!r}")
+        size = 1
+        for a in axes:  # Python integers: no overflow before the limit is checked
+            size *= int(a.size)
+        if size > MAX_CELLS:
+            raise InvalidInputError(
+                f"a grid of {' x '.join(str(a.size) for a in axes)} = {size} cells is more than the limit {MAX_CELLS} "
+                "(2**26: a float64 activity of 512 MiB); use fewer cells per axis")
         self._axes = axes
-        self._size = int(np.prod([a.size for a in axes]))
+        self._size = size
         self._params = params
         self._dtype = dt
         self._motion = motion if motion is not None else UniformMotion()

@@ -455,3 +455,13 @@ def test_trusted_twin_checks_inputs_not_of_the_validated_form(kind, args):
         checked(*args)
     with pytest.raises(type(want.value)):
         trusted(*args)
+
+
+@pytest.mark.parametrize("make", [lambda: Population.head_direction(2**40), lambda: Population.head_direction(2**26 + 1),
+                                  lambda: Population.whisker6d(30), lambda: Population.openratslam(xy_cells=10**4)])
+def test_a_grid_over_the_cell_limit_is_refused_before_allocating(make):
+    """Population.head_direction(2**40) was accepted and then ran out of memory (issue 25)."""
+    from cansim.population import MAX_CELLS
+
+    with pytest.raises(InvalidInputError, match=str(MAX_CELLS)):
+        make()

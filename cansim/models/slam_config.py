@@ -23,13 +23,15 @@ from typing import Any, TypeVar
 
 from cansim.errors import ConfigError
 from cansim.params import AttractorParams
+from cansim.population import MAX_CELLS
 from whisker_io.validation import config_field
 
 __all__ = ["SlamConfig", "MAX_POSE_CELLS"]
 
-#: Most pose cells a model's grid may have (2**26: a float64 activity of 512 MiB); a
-#: larger grid is refused when the config is made, not when memory runs out.
-MAX_POSE_CELLS = 2**26
+#: Most pose cells a model's grid may have: the engine's limit
+#: (:data:`cansim.population.MAX_CELLS`); a larger grid is refused when the config is
+#: made, not when memory runs out.
+MAX_POSE_CELLS = MAX_CELLS
 
 C = TypeVar("C", bound="SlamConfig")
 
