@@ -122,7 +122,7 @@ def test_lv_interference_takes_inject_energy_and_the_old_name():
 
     assert "inject_energy" in lv_interference.DEFAULTS and "inject_gain" not in lv_interference.DEFAULTS
     with pytest.warns(DeprecationWarning, match="inject_gain is now inject_energy"):
-        p = lv_interference._check({"inject_gain": 0.2})
+        p = lv_interference.check_params({"inject_gain": 0.2})
     assert p["inject_energy"] == 0.2
 
 

@@ -331,10 +331,10 @@ class WhiskerRatSLAM(SlamLoop):
             self.object_map.record_contacts(points)
         return state
 
-    def _advance(self, odo: Any) -> SlamState:
+    def _advance(self, odo: Any, view_id: int = -1, new_view: bool = False) -> SlamState:
         """The odometry part of an iteration (from :meth:`step` and :meth:`on_odo` alike), then the
         object map's history: one entry per iteration, so ``history`` and ``iteration`` agree."""
-        state = super()._advance(odo)
+        state = super()._advance(odo, view_id, new_view)
         self.object_map.record()
         return state
 
