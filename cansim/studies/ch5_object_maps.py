@@ -318,20 +318,31 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     }
 
 
-def build_job(job: tuple[str, Config, Settings, str | None]) -> dict[str, Any]:
-    """One localisation run: an object map from ``n_loops`` loops of trajectory A (optionally saved)."""
+def map_object(name: str, cfg: Config, s: Settings) -> tuple[Any, list[Any], dict[str, Any]]:
+    """Map ``name`` (a name or mesh file) along ``s.n_loops`` loops of trajectory A: (model, poses, exploration log).
+
+    Seeded by ``(s.seed, "build", name, cfg.label)``: every caller that maps the same
+    object with the same configuration gets the same whisks and the same map.
+    """
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
-    from maps.localisation import relocalisation_errors, step_sizes
     from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.trajectories import object_trajectory
 
-    name, cfg, s, save_to = job
     mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name)
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
+    return slam, poses, log
+
+
+def build_job(job: tuple[str, Config, Settings, str | None]) -> dict[str, Any]:
+    """One localisation run: an object map from ``n_loops`` loops of trajectory A (optionally saved)."""
+    from maps.localisation import relocalisation_errors, step_sizes
+
+    name, cfg, s, save_to = job
+    slam, poses, log = map_object(name, cfg, s)
     err = relocalisation_errors(log["exp_ids"], log["relocalised"], log["true_p"], log["true_q"])
     st, sr = step_sizes(log["true_p"], log["true_q"])
     if save_to is not None:

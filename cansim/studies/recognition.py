@@ -197,28 +197,19 @@ def _settings(setup: Setup) -> Any:
 def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     """Map one library object along trajectory A; the saved model's path and its stored surface's.
 
-    The model is built as :func:`cansim.studies.ch5_object_maps.build_job` builds it (same
-    seed, same whisks). Its stored surface (what was felt, placed by the whisk poses of
+    The model is :func:`cansim.studies.ch5_object_maps.map_object`'s, as the Ch.5 study
+    builds it (same seed, same whisks). Its stored surface (what was felt, placed by the whisk poses of
     the mapping run optimised as a pose graph, :func:`maps.pose_graph.whisk_surface`,
     in the arm's frame: the first whisk's true pose is the map's anchor) is saved next to
     it for the ``surface`` matcher.
     """
-    from cansim.models.whisker_ratslam import WhiskerRatSLAM
     from maps.pose_graph import whisk_surface
-    from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import object_trajectory
 
     ch5 = _ch5()
     name, setup = job
     path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{_file_name(name)}.npz"
     path.parent.mkdir(parents=True, exist_ok=True)
-    cfg, s = ch5.Config("both", False, CONTACT_MODEL), _settings(setup)
-    mesh = resolve_object(name).mesh
-    step_m, step_deg = ch5.step_of(name)
-    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
-    slam = WhiskerRatSLAM(ch5._slam_config(cfg, s, step_m))
-    rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
-    log = ch5.explore(slam, ch5._chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
+    slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup))
     slam.save(path)
     surface = poses[0].apply(whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"]))
     surface_path = path.with_name(path.stem + "_surface.npz")
