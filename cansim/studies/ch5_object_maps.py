@@ -235,12 +235,16 @@ class Settings:
     id_loops: int = 1
     matching: str = "mapping"
     id_whisks: int = 0
+    odometry_scale: float = 1.0
 
     def __post_init__(self) -> None:
         from cansim.errors import ConfigError
 
         if self.matching not in ("mapping", "thesis"):
             raise ConfigError(f"matching is 'mapping' or 'thesis', got {self.matching!r}")
+        if isinstance(self.odometry_scale, bool) or not isinstance(self.odometry_scale, (int, float)) \
+                or not 0.0 <= self.odometry_scale <= 10.0:
+            raise ConfigError(f"odometry_scale is a multiple of the Eq 6.4-6.11 noise in [0, 10], got {self.odometry_scale!r}")
 
     def thresholds_for(self, contact_model: str) -> tuple[float, float]:
         """(T_pfh, T_sda) of one contact model."""
@@ -278,8 +282,20 @@ def _slam_config(cfg: Config, s: Settings, cell_size_m: float) -> Any:
     return preset(cell_size_m=cell_size_m, frontend=fe)
 
 
-def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generator) -> dict[str, Any]:
+def odometry_noise(scale: float = 1.0) -> Any:
+    """The Eq 6.4-6.11 odometry noise with its rotation and displacement deviations times ``scale``."""
+    from whisker_io.sim.odometry_noise import OdometryNoise
+
+    base = OdometryNoise()
+    return OdometryNoise(euler_std_rad=base.euler_std_rad * scale, displacement_std_m=base.displacement_std_m * scale)
+
+
+def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generator,
+            odometry_scale: float = 1.0) -> dict[str, Any]:
     """Whisk along ``poses`` with noisy odometry (Eq 6.4-6.11); the per-iteration log and ground truth.
+
+    ``odometry_scale`` multiplies the noise's rotation and displacement deviations
+    (:func:`odometry_noise`; 1 = the thesis' Sec 6.1.3.1.1 values).
 
     The log also keeps what the model was given, for replaying the same whisks through
     another matcher (:mod:`maps.surface_match`) or a pose graph (:mod:`maps.pose_graph`):
@@ -297,11 +313,12 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     n_observations = 0
     odometry: list[Any] = []
     contacts: list[Any] = []
+    noise = odometry_noise(odometry_scale)
     for k, pose in enumerate(poses):
         if k == 0:
             v, w, dt = np.zeros(3), np.zeros(3), 1.0
         else:
-            v, w, dt = noisy_odometry(poses[k - 1], pose, rng)
+            v, w, dt = noisy_odometry(poses[k - 1], pose, rng, noise)
             dr_pose = integrate_odometry(dr_pose, v, w, dt)
         dr[k] = dr_pose.position_m
         features = chain.features(pose, rng)
@@ -333,7 +350,7 @@ def map_object(name: str, cfg: Config, s: Settings) -> tuple[Any, list[Any], dic
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
-    log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
+    log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng, s.odometry_scale)
     return slam, poses, log
 
 

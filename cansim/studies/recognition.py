@@ -78,7 +78,7 @@ import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -119,6 +119,7 @@ class Setup:
     thresholds: tuple[float, float]
     out: str
     matchers: tuple[str, ...] = ("thesis",)
+    odometry_scale: float = 1.0
 
 
 # ------------------------------------------------------------------ viewpoints
@@ -191,7 +192,8 @@ def _ch5():
 def _settings(setup: Setup) -> Any:
     ch5 = _ch5()
     return ch5.Settings(n_loops=setup.map_loops, noise_scale=NOISE_SCALE,
-                        thresholds={CONTACT_MODEL: setup.thresholds}, radial_model=None, seed=setup.seed)
+                        thresholds={CONTACT_MODEL: setup.thresholds}, radial_model=None, seed=setup.seed,
+                        odometry_scale=setup.odometry_scale)
 
 
 def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
@@ -259,7 +261,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     dist, rot = nearest_distances(poses, mapping)
     slam, lib = ch5.library_model(paths, names, cell_size_m=step_m)
     chain = ch5._chain(mesh, CONTACT_MODEL, NOISE_SCALE)
-    log = ch5.explore(slam, chain, poses, rng)
+    log = ch5.explore(slam, chain, poses, rng, setup.odometry_scale)
     params = LeakyIntegrator()
     own = names.index(presented) if presented in names else -1
     others = [j for j in range(len(names)) if j != own]
@@ -269,7 +271,9 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
             table = lib.with_explored(slam.object_map.n_experiences)
             targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)
         else:
-            targets = surface_targets(surfaces, names, poses[0], log["odometry"], log["contacts"])
+            targets = surface_targets(surfaces, names, poses[0], log["odometry"], log["contacts"],
+                                      odometry_scale=setup.odometry_scale,
+                                      seed=derive_seed(setup.seed, "surface", presented, presentation))
         ic = integrated_confidence(confidence(targets, len(names), params), params)
         k = decide(ic, IC_THRESHOLD)
         crossing = None if k is None else int(np.flatnonzero(ic[:, k] >= IC_THRESHOLD)[0])
@@ -291,7 +295,8 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
 
 
 def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_pose: Any,
-                    odometry: Sequence[Any], contacts: Sequence[Any]) -> np.ndarray:
+                    odometry: Sequence[Any], contacts: Sequence[Any], odometry_scale: float = 1.0,
+                    seed: int = 0) -> np.ndarray:
     """The object each whisk's surface-matcher impulse went to (-1: none), (n_whisks,) int.
 
     Parameters
@@ -306,15 +311,22 @@ def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_
         Per whisk (the first is ignored: the matcher starts at ``start_pose``).
     contacts : sequence of ndarray (k, 3) or None
         Per whisk, end-effector frame, m.
+    odometry_scale : float
+        The odometry's noise as a multiple of Eq 6.4-6.11's (the matcher's motion model).
+    seed : int
+        Seed of the matcher's hypotheses.
     """
-    from maps.surface_match import SurfaceLibrary, SurfaceMatcher
+    from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 
     points = []
     for f in surfaces:
         with np.load(f) as z:
             points.append(z["points_m"])
     library = SurfaceLibrary(points, names)
-    matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw])
+    base = SurfaceMatchConfig()
+    cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * odometry_scale,
+                  displacement_sigma_m=base.displacement_sigma_m * odometry_scale, seed=seed)
+    matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw], cfg)
     out = np.full(len(contacts), -1, dtype=np.int64)
     for i, (odo, pts) in enumerate(zip(odometry, contacts)):
         imp = matcher.step(odo if i else None, pts)
@@ -336,7 +348,7 @@ def _pool_map(fn: Any, jobs: Sequence[Any], workers: int, desc: str, progress: b
 def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | None = None,
         library_sizes: Sequence[int] = (12,), seeds: Sequence[int] = (0,), bins: Sequence[str] | None = None,
         map_loops: int = 2, whisks: int = 200, workers: int = 2, progress: bool = True,
-        matchers: Sequence[str] = ("thesis",)) -> list[dict[str, Any]]:
+        matchers: Sequence[str] = ("thesis",), odometry_scale: float = 1.0) -> list[dict[str, Any]]:
     """Run the benchmark; returns the CSV rows (also written to ``out``).
 
     Parameters
@@ -362,6 +374,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         Least whisks per presentation (whole loops).
     matchers : sequence of str
         Of :data:`MATCHERS`; every presentation is decided by each (same whisks).
+    odometry_scale : float
+        Odometry noise of the maps and the presentations as a multiple of Eq 6.4-6.11's
+        (1 = the thesis' Sec 6.1.3.1.1 values), in [0, 10].
 
     Raises
     ------
@@ -377,6 +392,8 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     matchers = tuple(dict.fromkeys(matchers))
     if not matchers or any(m not in MATCHERS for m in matchers):
         raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
+    if isinstance(odometry_scale, bool) or not isinstance(odometry_scale, (int, float)) or not 0.0 <= odometry_scale <= 10.0:
+        raise ConfigError(f"odometry_scale is a multiple of the Eq 6.4-6.11 noise in [0, 10], got {odometry_scale!r}")
     out.mkdir(parents=True, exist_ok=True)
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
@@ -388,7 +405,8 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     thresholds = (cal["pfh_threshold"], cal["sda_threshold"])
     rows: list[dict[str, Any]] = []
     for seed in seeds:
-        setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers)
+        setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
+                      odometry_scale=float(odometry_scale))
         maps = _pool_map(map_job, [(n, setup) for n in everything], workers, f"mapping (seed {seed})", progress)
         paths = {m["name"]: m["path"] for m in maps}
         surface_paths = {m["name"]: m["surface"] for m in maps}
@@ -575,6 +593,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--map-loops", type=int, default=2, help="loops of trajectory A per map (default 2)")
     ap.add_argument("--matchers", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
                     help=f"matchers deciding every presentation (default: {' '.join(DEFAULT_MATCHERS)})")
+    ap.add_argument("--odometry-noise", type=float, default=1.0, metavar="SCALE",
+                    help="odometry noise of maps and presentations as a multiple of Eq 6.4-6.11 (default 1: the thesis')")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-progress", action="store_true")
     a = ap.parse_args(None if argv is None else list(argv))
@@ -583,13 +603,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             ap.error(f"--{name.replace('_', '-')} must be >= 1")
     if a.seeds is not None and a.seeds < 1:
         ap.error("--seeds must be >= 1")
+    if not 0.0 <= a.odometry_noise <= 10.0:
+        ap.error("--odometry-noise must be in [0, 10]")
     t0 = time.perf_counter()
     seeds = range(a.seeds if a.seeds is not None else (1 if a.quick else 3))
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     bins = ("vp 5-10 cm",) if a.quick else None
     rows = run(a.out, a.objects, a.novel, library_sizes=sizes if not a.objects else (len(a.objects),), seeds=seeds,
                bins=bins, map_loops=a.map_loops, whisks=a.whisks, workers=a.workers, progress=not a.no_progress,
-               matchers=a.matchers)
+               matchers=a.matchers, odometry_scale=a.odometry_noise)
     files = figures(rows, a.out)
     text = summary(rows, time.perf_counter() - t0, a.quick)
     (a.out / "recognition_summary.txt").write_text(text + "\n")
