@@ -55,3 +55,29 @@ def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
     assert targets.shape == (20,)
     assert set(targets.tolist()) <= {-1, 0}
     assert np.sum(targets == 0) >= 10  # after the window fills, every whisk
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.one_of(st.just(-0.1), st.just(10.5), st.just(float("nan")), st.just(float("inf")), st.just(True), st.just("1")))
+def test_bad_odometry_scales_are_refused_before_any_work(tmp_path_factory, scale) -> None:
+    from cansim.studies import ch5_object_maps
+
+    out = tmp_path_factory.mktemp("rec") / "out"
+    with pytest.raises(ConfigError):
+        recognition.run(out, objects=["mug"], novel=[], odometry_scale=scale, progress=False)
+    assert not out.exists()
+    with pytest.raises(ConfigError):
+        ch5_object_maps.Settings(2, 0.3, {}, None, 0, odometry_scale=scale)
+
+
+def test_odometry_noise_scales_the_thesis_model() -> None:
+    """Scale 1 is Eq 6.4-6.11's noise exactly (2.5 deg per Euler angle, 1 cm); 0.25 a quarter of each."""
+    import math
+
+    from cansim.studies.ch5_object_maps import odometry_noise
+    from whisker_io.sim.odometry_noise import OdometryNoise
+
+    assert odometry_noise(1.0) == OdometryNoise()
+    q = odometry_noise(0.25)
+    assert q.euler_std_rad == pytest.approx(math.radians(2.5) / 4) and q.displacement_std_m == pytest.approx(0.0025)
+    assert q.angular_speed_mean_rad_s == OdometryNoise().angular_speed_mean_rad_s
