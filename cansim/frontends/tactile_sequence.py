@@ -89,10 +89,10 @@ class TactileSequenceConfig:
 
     sequence_length: int = 8
     match_threshold: float = 6.0
-    min_informative: int = 4
+    min_informative: int = 3
     exclude_recent: int = 30
-    min_consistent: int = 2
-    distinct_ratio: float = 1.0
+    min_consistent: int = 3
+    distinct_ratio: float = 0.5
     distinct_cycles: int = 5
 
     def __post_init__(self) -> None:

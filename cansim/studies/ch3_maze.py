@@ -110,7 +110,7 @@ RECOGNITIONS: tuple[str, ...] = ("sequence", "thesis_ch3")
 """Place recognition of the study: ``sequence`` (default; :mod:`cansim.frontends.tactile_sequence`)
 or ``thesis_ch3`` (Table 3.1's single-image Eq 3.1 matcher, threshold and energy by grid search)."""
 
-SEQUENCE = TactileSequenceConfig(sequence_length=12, min_informative=3, exclude_recent=30, min_consistent=2, distinct_ratio=0.5,
+SEQUENCE = TactileSequenceConfig(sequence_length=8, min_informative=3, exclude_recent=30, min_consistent=3, distinct_ratio=0.5,
                                  distinct_cycles=5)
 """The sequence matcher of the default recognition; ``match_threshold`` is calibrated per condition."""
 FALSE_MATCH_RATE = 0.01
@@ -197,7 +197,7 @@ def simulate(route: MazeRoute, terrain: Any, settings: StudySettings, control: s
     schedule = WhiskSchedule()
     chain = PlanarChain(terrain, control, seed=seed)
     whisks = chain.whisk_path(schedule.whisk_poses(run.truth))
-    images = {m: chain.tactile_images(whisks, ContactAngleParams(m)) for m in CONTACT_ANGLES}
+    images = {m: chain.tactile_images(whisks, ContactAngleParams.ch3(m)) for m in CONTACT_ANGLES}
     if progress is not None:
         progress.update(1)
     return Recording(run=run, image_index=schedule.image_index(len(run)), images=images, control=control, seed=seed,
