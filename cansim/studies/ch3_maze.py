@@ -25,34 +25,80 @@ What runs
   the same recording with stretches removed - in three loops (one in the quick mode)
   the agent is carried a quarter loop ahead from mid-loop, without odometry for the
   jump; the odometry and images of the remaining iterations are unchanged.
-* RatSLAM with Table 3.1 (:meth:`cansim.models.ratslam_config.RatSLAMConfig.thesis_ch3`, tactile
-  front end, Eq 3.1).
+* Place recognition, ``--recognition``:
+
+  - ``sequence`` (default): :mod:`cansim.frontends.tactile_sequence` - every whisk
+    cycle's image is a template; a cycle matches a stored one when the mean Eq 3.1
+    dissimilarity of the last 8 images along the diagonal is at most the calibrated
+    threshold, at least 3 of the 8 images show a contact, the best candidate is
+    distinct (below half of any candidate 5 cycles or more away) and the best
+    candidates of 3 consecutive cycles advanced in step; the view ids feed RatSLAM
+    (Table 3.1, ``frontend="ids"``) with ``inject_energy`` 0.3 and
+    ``match_distance_cells`` 2 (Table 3.1: 1); an iteration that shows the previous
+    iteration's cycle again carries no view.
+  - ``thesis_ch3``: RatSLAM with Table 3.1 (:meth:`cansim.models.ratslam_config.RatSLAMConfig.thesis_ch3`,
+    tactile front end, Eq 3.1 on one image per iteration), as the thesis ran it.
+
+  The ``onset`` contact angle of both uses Sec 3.2.2's 80-count contact threshold
+  (:meth:`whisker_io.contact.contact_angle.ContactAngleParams.ch3`); the Ch.5 pipeline's
+  500 counts missed three maze contacts in four.
 * Metrics (:mod:`maps.metrics`): ARR and ARCR (Alg 1 with the project's reading of it;
   base set = the start and the first loop; 0.1 m / 25 deg), the Energy Metric
   (Eq 3.2-3.3) over the relations between consecutive experiences - each experience
   taken at the iteration it became the active one, its relaxed map pose against the
   true pose then - and the absolute trajectory errors (RMSE after rigid alignment)
   of the relaxed map (the active experience's pose per iteration) and of dead
-  reckoning.
+  reckoning; for kidnapped runs, the iterations from each kidnap to the next correct
+  re-localisation (summary item 4b).
 
-Calibration (the Eq 3.1 ``match_threshold``, ``inject_energy``)
-----------------------------------------------------------------
-The thesis tuned these two on the first run of every condition and does not print
-them. Here each condition (control x contact-angle strategy) is tuned on two tuning
-runs of its own (seeds 1000 and 1001; the quick mode one, 1000; not kidnapped, never
-scored) by a grid search
+Why places alias (issue 24; measured on tuning run 1000, quick path, summary section and ``ch3_distances.png``)
+-----------------------------------------------------------------------------------------------------------
+* One image carries little: 2.5-3 of its 18 pixels see a wall on average. With the
+  Ch.5 detection thresholds the ``onset`` strategy left 46 % (open loop) and 75 % (RCP)
+  of the images blank, and blank images are identical everywhere (RCP + onset: the
+  median Eq 3.1 distance between *different* places was 0).
+* Open loop + max angle quantises: every whisker still in contact at the top of the
+  whisk is at the same +50 deg, so the pixel only says "contact or not" - 26 % of the
+  images are distinct (RCP + max angle 87 %, the threshold strategy 91-93 %).
+* The nearest earlier image (another pass) is the right place (0.1 m, 25 deg) for
+  59 % (open loop, max angle) to 78 % (threshold) of the revisited cycles - the
+  single-image matcher's ceiling; the same-place and different-place Eq 3.1
+  distributions overlap (single-image AUC 0.91-0.95 for max angle and threshold).
+  A sequence of 8 raises it to 88-95 %, and the distinctiveness and consistency tests
+  take the rest: ARCR 0.98-1.0 in every condition.
+* RCP's alternating contacts cost less than the above: RCP lowers the single-image NN from 0.78 to 0.75 (threshold) and raises it from 0.59
+  to 0.68 (max angle, fewer saturated angles).
+
+What is left (measured): the map error is bounded by the first pass's odometry. The
+experience map (OpenRatSLAM ``on_create_link``) keeps one link per pair of experiences,
+so revisits close loops but never average the odometry of a link; a run whose first
+loop drifted far (seed 2) keeps that loop's scale. Map / dead reckoning is 0.23-0.31
+in seeds 1 and 3 of the full study and up to 0.67 in seed 2.
+
+Calibration
+-----------
+``sequence``: each condition's ``match_threshold`` is the 1 % quantile of the
+different-place sequence dissimilarities on its tuning runs (same seeds as below;
+pairs of cycles at least 30 cycles apart, different = beyond Alg 1's 0.1 m or 25 deg;
+:func:`calibrate_sequence`) - no search over the SLAM metrics. The matcher's other
+values, ``inject_energy`` and ``match_distance_cells`` are one setting for every
+condition, chosen on the tuning seeds 1000 and 1001 (quick path); the scored seeds 1-3
+were held out of that choice.
+
+``thesis_ch3``: the thesis tuned the Eq 3.1 ``match_threshold`` and ``inject_energy`` on
+the first run of every condition and does not print them. Here each condition
+(control x contact-angle strategy) is tuned on two tuning runs of its own (seeds 1000
+and 1001; the quick mode one, 1000; not kidnapped, never scored) by a grid search
 over both parameters (full: thresholds 2, 4, 6, 8, 10, 15, 20, 30 in units of
 Eq 3.1; energies 0.02, 0.04, 0.06, 0.1, 0.15, 0.25; quick: 3 x 3). With ARR and ARCR
 averaged over the tuning runs, the choice is the largest ARR among the points whose
 ARCR is at least 0.9, or the largest ARCR if none reaches it - the balance of
 Sec 3.2.1 ("occasional false matches do not cause too much influence while still
 allowing occasional correct matches to cause regular re-localization") with
-reliability first, since one false loop closure bends the whole map. Two tuning
-runs rather than the thesis' one: parameters tuned on a single run transferred
-poorly in trials (ARCR 0.8 on the tuning run, 0.2-0.3 on the next). Ties go to the
-first point in grid order. The chosen pairs are in ``ch3_summary.txt``, the whole
-grid in ``ch3_calibration.csv``. The scored runs use seeds 1..R (R = 3 repetitions
-as in Sec 3.2.2; 1 in the quick mode) for both the sensor and the odometry noise.
+reliability first. Ties go to the first point in grid order.
+
+The scored runs use seeds 1..R (R = 3 repetitions as in Sec 3.2.2; 2 in the quick
+mode) for both the sensor and the odometry noise.
 
 Outputs (in ``--out``, default the working folder)
 --------------------------------------------------
@@ -60,22 +106,30 @@ Outputs (in ``--out``, default the working folder)
   kidnapped, ARR, ARCR, EM, map_error_m, dr_error_m`` (``control`` in ``open_loop, rcp``;
   ``kidnapped`` ``true``/``false``); rows ordered by repetition, control, contact-angle
   strategy, then normal before kidnapped.
-* ``ch3_calibration.csv`` - the calibration grid per condition: mean ARR, ARCR, the chosen point.
+* ``ch3_calibration.csv`` - ``sequence``: per condition the threshold, the energy and
+  the same-place (median, 90th percentile) and different-place (1st percentile,
+  median) sequence dissimilarities with the share of same-place pairs under the
+  threshold; ``thesis_ch3``: the calibration grid per condition (mean ARR, ARCR, the
+  chosen point).
+* ``ch3_distances.png`` - Eq 3.1 dissimilarity, same place on another pass against
+  different places, one image and a sequence, per control and contact-angle strategy
+  (tuning runs), with the calibrated threshold.
 * ``ch3_map.png`` (Fig 3.6) - the maze with ground truth, dead reckoning and the
   relaxed experience map, open loop + max angle (the thesis' vanilla system) and
   RCP + threshold; ``ch3_experience_ids.png`` (Fig 3.5) - experience id over
   iteration with re-localisations, without and with kidnapping (kidnaps in the
   legend); ``ch3_performance.png`` (Fig 3.7) - ARR, ARCR, EM and the map / dead-reckoning
-  error ratio per control and contact-angle strategy.
+  error ratio per control and contact-angle strategy (sd over repetitions).
 * ``ch3_summary.txt`` - each thesis finding, the measured figure beside it and
-  whether its direction is reproduced; the calibration.
+  whether its direction is reproduced; the calibration; issue 24's bounds per
+  condition and repetition; the aliasing measurements.
 
 Usage::
 
-    python examples/ch3_maze.py [--quick] [--out DIR] [--repetitions R]
+    cansim study ch3 [--quick] [--out DIR] [--repetitions R] [--recognition sequence|thesis_ch3]
 
-``--quick`` (a 4-loop path, one tuning run, one repetition, a 3 x 3 grid) runs in well under 2
-minutes, the full study in a few minutes on one core.
+``--quick`` (a 4-loop path, one tuning run, two repetitions) runs in about 30 s
+(``thesis_ch3``: about 70 s, its 3 x 3 grid), the full study in about 3 minutes.
 """
 
 # no ``from __future__ import annotations``: the dataclasses below must also build when a
