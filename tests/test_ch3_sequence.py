@@ -149,6 +149,20 @@ def test_study_recognitions_feed_ratslam_as_documented():
     for k, v in enumerate(views):
         assert (v is None) == (shown[k] < 0 or (k > 0 and shown[k] == shown[k - 1]))
     assert len({v for v in views if v is not None}) <= len(rec.cycles())
+    # the reference recognition: a revisited cycle takes the id of the first cycle at its true place
+    truth_views = study.true_place_view_ids(rec)
+    cycles, poses = rec.cycles(), rec.whisk_poses
+    first_cycle: dict[int, int] = {}
+    for k, v in enumerate(truth_views):
+        if v is None:
+            continue
+        j = int(shown[k])
+        if v in first_cycle:
+            i = first_cycle[v]
+            assert math.hypot(*(poses[j, :2] - poses[i, :2])) < 0.015 and j - i >= study.SEQUENCE.exclude_recent
+        else:
+            first_cycle[v] = j
+    assert len(first_cycle) < len(cycles)  # the second loop revisits the first
     with pytest.raises(ValueError, match="recognition"):
         study.run_slam(rec, "threshold", 6.0, 0.1, "no such")
 
