@@ -76,7 +76,8 @@ def test_blank_sequences_are_not_evidence_of_a_place():
 def test_an_ambiguous_periodic_route_is_rejected_by_the_distinctiveness_test():
     period = _route(6, seed=3)
     stream = np.concatenate([period] * 8)  # the same 6 images again and again: every period matches equally
-    cfg = TactileSequenceConfig(sequence_length=4, exclude_recent=12, min_consistent=1, min_informative=0, distinct_cycles=3)
+    # (without tracking: a track acquired while only one period was stored would be followed)
+    cfg = TactileSequenceConfig(sequence_length=4, exclude_recent=12, min_consistent=1, min_informative=0, distinct_cycles=3, track=False)
     strict = TactileSequenceMatcher(cfg)
     strict_new = [strict.match(img).is_new for img in stream]
     # candidates of cycle t: j = 3 .. t - 13; the first j in phase with t is at most 3 + 5, its twin 6
@@ -85,6 +86,24 @@ def test_an_ambiguous_periodic_route_is_rejected_by_the_distinctiveness_test():
     loose = TactileSequenceMatcher(dataclasses.replace(cfg, distinct_ratio=1.0))
     loose_new = [loose.match(img).is_new for img in stream]
     assert not any(loose_new[27:])
+
+
+def test_a_recognised_route_is_followed_along_a_uniform_wall():
+    # distinct places, then 10 cycles along a uniform wall (the same image), then distinct places again
+    wall = np.full((10, 3, 6), 90, dtype=np.uint8)
+    lap = np.concatenate([_route(20, seed=5), wall, _route(20, seed=6)])
+    cfg = TactileSequenceConfig(sequence_length=4, exclude_recent=10, min_consistent=2, min_informative=0, distinct_cycles=3)
+    for track in (False, True):
+        m = TactileSequenceMatcher(dataclasses.replace(cfg, track=track))
+        for img in lap:
+            m.match(img)
+        second = [m.match(img) for img in lap]
+        # cycle 23 of the lap on: its 4-window lies on the wall, where every candidate 3 or more cycles away is as good
+        on_wall = [r.is_new for r in second[24:30]]
+        if track:  # followed from the distinct approach: the first lap's ids throughout
+            assert [r.template_id for r in second[4:]] == list(range(4, len(lap)))
+        else:  # acquiring a place there is refused: new ids on the wall
+            assert all(on_wall)
 
 
 def test_match_all_equals_matching_one_by_one():

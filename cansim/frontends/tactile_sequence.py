@@ -19,18 +19,21 @@ idea of SeqSLAM (Milford and Wyeth 2012) for the tactile image:
   current pass is not a revisit), and only when at least ``min_informative`` of the
   last ``L`` images show a contact: a sequence of blank images matches every other
   blank stretch and says nothing about the place;
-* the best ``j`` is a match when ``D <= match_threshold`` and the match continues the
-  previous ones: the best ``j`` of the last ``min_consistent`` cycles advanced one
-  cycle per cycle (several consistent matches before a jump, so an isolated
-  coincidence never injects energy into the pose cells);
+* the best ``j`` is a match when ``D <= match_threshold``, it is distinct (below
+  ``distinct_ratio`` of any candidate ``distinct_cycles`` or more away) and the match
+  continues the previous ones: the best ``j`` of the last ``min_consistent`` cycles
+  advanced one cycle per cycle (several consistent matches before a jump, so an
+  isolated coincidence never injects energy into the pose cells);
+* once matched, the route is followed (``track``): the next cycle takes stored cycle
+  ``j + 1`` while its ``D`` stays within the threshold;
 * a matched cycle takes the view id of the stored cycle it matched; any other cycle
   gets a new view id. The ids feed RatSLAM's local-view cells (``frontend="ids"``).
 
 The threshold is calibrated from the distributions of ``D`` between the same place
 and different places (:func:`calibrate_threshold`), not by a search over the SLAM
 metrics. Table 3.1's single-image matcher (:class:`cansim.frontends.tactile.TactileTemplates`)
-is the special case ``sequence_length=1, min_informative=0, min_consistent=1,
-exclude_recent=0`` except that it stores only unmatched images.
+is close to the special case ``sequence_length=1, min_informative=0, min_consistent=1,
+exclude_recent=0, distinct_ratio=1, track=False`` (it stores only unmatched images).
 
 Example
 -------
@@ -84,7 +87,17 @@ class TactileSequenceConfig:
         than an on-the-spot turn and than ``L``).
     min_consistent : int
         Consecutive cycles whose best candidates advanced one cycle per cycle (all
-        below the threshold) before a match is reported (>= 1; default 2).
+        below the threshold) before a match is reported (>= 1; default 3).
+    distinct_ratio : float
+        The best candidate must be below this share of the best candidate
+        ``distinct_cycles`` or more cycles away (in [0, 1]; 1 = no test; default 0.5).
+    distinct_cycles : int
+        How far (cycles) a rival candidate must be to count as another place (>= 1; default 5).
+    track : bool
+        After a confirmed match, the next cycle matches the next stored cycle whenever
+        its dissimilarity is within the threshold, without the distinctiveness test and
+        the wait (default True): the tests are needed to acquire a place, not to follow
+        a route already recognised - along a uniform wall every candidate looks alike.
     """
 
     sequence_length: int = 8
@@ -94,6 +107,7 @@ class TactileSequenceConfig:
     min_consistent: int = 3
     distinct_ratio: float = 0.5
     distinct_cycles: int = 5
+    track: bool = True
 
     def __post_init__(self) -> None:
         config_field(self.sequence_length, "sequence_length", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
@@ -104,6 +118,7 @@ class TactileSequenceConfig:
         config_field(self.min_consistent, "min_consistent", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
         config_field(self.distinct_ratio, "distinct_ratio", float, minimum=0, maximum=1, hint="best / second-best dissimilarity")
         config_field(self.distinct_cycles, "distinct_cycles", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
+        config_field(self.track, "track", bool)
 
 
 def _check_image(image: ArrayLike) -> NDArray[np.int64]:
@@ -143,6 +158,7 @@ class TactileSequenceMatcher:
         self._rows: list[NDArray[np.float64]] = []  # Eq 3.1 of the last L images to every stored image
         self._best: list[int] = []  # best candidate of each recent cycle (-1 = none below the threshold)
         self._n_views = 0
+        self._track = -1  # stored cycle matched by the previous cycle (-1 = none)
 
     def __len__(self) -> int:
         """Number of view ids handed out (templates)."""
@@ -195,6 +211,16 @@ class TactileSequenceMatcher:
             for k in range(L):
                 total += self._rows[-1 - k][cand - k]
             total /= L
+            nxt = self._track + 1
+            if cfg.track and self._track >= 0 and L - 1 <= nxt < last and total[nxt - (L - 1)] <= cfg.match_threshold:
+                # following a confirmed match: the next stored cycle continues it (no distinctiveness, no wait)
+                self._track = nxt
+                self._best.append(nxt)
+                if len(self._best) > cfg.min_consistent:
+                    self._best.pop(0)
+                vid = self._view_ids[nxt]
+                self._view_ids.append(vid)
+                return TemplateMatch(vid, False, float(total[nxt - (L - 1)]))
             i = int(np.argmin(total))
             far = np.abs(cand - cand[i]) >= cfg.distinct_cycles
             second = float(total[far].min()) if far.any() else math.inf
@@ -209,6 +235,7 @@ class TactileSequenceMatcher:
         recent = self._best
         consistent = best >= 0 and len(recent) == cfg.min_consistent and all(
             recent[-1 - k] == best - k for k in range(cfg.min_consistent))
+        self._track = best if consistent else -1
         if consistent:
             vid = self._view_ids[best]
             self._view_ids.append(vid)

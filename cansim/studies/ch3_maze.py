@@ -32,7 +32,8 @@ What runs
     dissimilarity of the last 8 images along the diagonal is at most the calibrated
     threshold, at least 3 of the 8 images show a contact, the best candidate is
     distinct (below half of any candidate 5 cycles or more away) and the best
-    candidates of 3 consecutive cycles advanced in step; the view ids feed RatSLAM
+    candidates of 3 consecutive cycles advanced in step; once matched, the following
+    cycles take the following stored cycles while within the threshold; the view ids feed RatSLAM
     (Table 3.1, ``frontend="ids"``) with ``inject_energy`` 0.3 and
     ``match_distance_cells`` 2 (Table 3.1: 1); an iteration that shows the previous
     iteration's cycle again carries no view.
@@ -170,7 +171,7 @@ RECOGNITIONS: tuple[str, ...] = ("sequence", "thesis_ch3")
 or ``thesis_ch3`` (Table 3.1's single-image Eq 3.1 matcher, threshold and energy by grid search)."""
 
 SEQUENCE = TactileSequenceConfig(sequence_length=8, min_informative=3, exclude_recent=30, min_consistent=3, distinct_ratio=0.5,
-                                 distinct_cycles=5)
+                                 distinct_cycles=5, track=True)
 """The sequence matcher of the default recognition; ``match_threshold`` is calibrated per condition."""
 FALSE_MATCH_RATE = 0.01
 """Share of the different-place sequence dissimilarities below the calibrated match threshold."""
