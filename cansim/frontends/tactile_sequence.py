@@ -1,11 +1,13 @@
 """Sequence matching of tactile images: place recognition over the last few whisks (Ch.3, Eq 3.1).
 
 Why (measured, ``cansim study ch3``, figure ``ch3_distances.png``): a single 3 x 6 tactile
-image of the Ch.3 maze carries little information - on average 0.3-3 of its 18 pixels see
-a wall, and 5-75 % of the images are blank (no whisker in contact), depending on the
-whisker control and the contact-angle strategy - so one image's Eq 3.1 distance to a
-different place is often as small as to the same place on another pass, and the nearest
-stored image is the right place for only 20-80 % of the images. A run of consecutive
+image of the Ch.3 maze carries little information - on average 2.5-3 of its 18 pixels see
+a wall (and, with the Ch.5 contact detection, 46-75 % of the onset images were blank),
+open loop + max angle leaves only "contact or not" per pixel - so one image's Eq 3.1
+distance to a different place is often as small as to the same place on another pass,
+and the nearest stored image (another pass) is the right place for only 58-82 % of the
+revisited cycles (20-40 % with the blank onset images); a sequence of 8 raises it to
+88-97 %. A run of consecutive
 images is far more distinctive: the same place reached again along the same path gives
 the same *sequence* of images, a different place rarely does. This front end is the
 idea of SeqSLAM (Milford and Wyeth 2012) for the tactile image:

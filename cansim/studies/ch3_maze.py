@@ -66,20 +66,21 @@ Why places alias (issue 24; measured on tuning run 1000, quick path, summary sec
   single-image matcher's ceiling; the same-place and different-place Eq 3.1
   distributions overlap (single-image AUC 0.91-0.95 for max angle and threshold).
   A sequence of 8 raises it to 88-95 %, and the distinctiveness and consistency tests
-  take the rest: ARCR 0.98-1.0 in every condition.
+  take the rest.
 * RCP's alternating contacts cost less than the above: RCP lowers the single-image NN from 0.78 to 0.75 (threshold) and raises it from 0.59
   to 0.68 (max angle, fewer saturated angles).
 
-What is left (measured): the map error is bounded by the odometry, not by the
-recognition. The matches are within about 1 cm of the true place (precision 0.98-1.0),
-but the experience map (OpenRatSLAM ``on_create_link``) keeps one link per pair of
-experiences, so revisits close loops without averaging the odometry of the links, and
-the clockwise and anticlockwise loops (opposite headings: never the same place for
-Alg 1) meet only where the agent turns. With *perfect* recognition (view ids from the
-true places, :func:`true_place_view_ids`, the summary's reference line) the quick
-path's map / dead reckoning is 0.28-0.51 on seeds 1, 2, 1000, 1001, so a bound of 0.5 in
-every repetition is out of reach of any recognition on this map; the sequence matcher
-gives 0.32-0.60 (quick, seeds 1-2) and 0.23-0.67 (full, seeds 1-3).
+Result and what is left (measured, ``cansim study ch3`` and ``--quick``; scored seeds
+held out of every choice): the matches are within about 1 cm of the true place
+(precision 0.99-1.0). Full study (seeds 1-3): map / dead reckoning 0.18-0.35 in every
+condition and repetition, ARCR 0.99-1.0, ARR 0.43-0.54, a correct re-localisation after
+every kidnap. Quick study (seeds 1-2, 4 loops): 0.31-0.52, ARCR 0.98-1.0; seed 2 stays
+at 0.46-0.52, where view ids taken from the true places (:func:`true_place_view_ids`,
+the summary's reference line) give 0.45 with the same RatSLAM: on 4 loops the map is
+limited by the odometry, not by the recognition - the experience map (OpenRatSLAM
+``on_create_link``) keeps one link per pair of experiences, so revisits close loops
+without averaging the odometry of the links, and the clockwise and anticlockwise loops
+(opposite headings: never the same place for Alg 1) meet only where the agent turns.
 
 Calibration
 -----------
