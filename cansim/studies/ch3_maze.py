@@ -135,8 +135,9 @@ Usage::
 
     cansim study ch3 [--quick] [--out DIR] [--repetitions R] [--recognition sequence|thesis_ch3]
 
-``--quick`` (a 4-loop path, one tuning run, two repetitions) runs in about 30 s
-(``thesis_ch3``: about 70 s, its 3 x 3 grid), the full study in about 3 minutes.
+``--quick`` (a 4-loop path, one tuning run, two repetitions) takes about 30 s of CPU
+(``thesis_ch3``: about 45 s, its 3 x 3 grid), the full study a few minutes (measured
+wall times are in the README).
 """
 
 # no ``from __future__ import annotations``: the dataclasses below must also build when a
