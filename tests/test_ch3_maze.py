@@ -264,31 +264,94 @@ def test_bad_tactile_images_raise_typed_errors_and_leave_the_model_unchanged(tmp
 
 
 # ----------------------------------------------------------------- the study
-@pytest.mark.slow
-def test_study_quick_mode_writes_the_named_columns(tmp_path):
+@pytest.fixture(scope="module")
+def quick_study(tmp_path_factory):
+    """``cansim study ch3 --quick`` through the installed entry point, as a user runs it; its output folder and rows."""
     from entry_point import run_cansim
 
-    study = _load_study()
-    done = run_cansim("study", "ch3", "--quick", "--out", str(tmp_path))  # the installed entry point, as a user runs it
+    out = tmp_path_factory.mktemp("ch3_quick")
+    done = run_cansim("study", "ch3", "--quick", "--out", str(out))
     assert done.returncode == 0, done.stderr[-3000:]
-    with open(tmp_path / "ch3_metrics.csv", newline="", encoding="utf-8") as fh:
+    with open(out / "ch3_metrics.csv", newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
+    return out, rows
+
+
+@pytest.mark.slow
+def test_study_quick_mode_writes_the_named_columns(quick_study):
+    tmp_path, rows = quick_study
+    study = _load_study()
     assert rows[0] == ["control", "contact_angle", "kidnapped", "ARR", "ARCR", "EM", "map_error_m", "dr_error_m"]
     body = rows[1:]
-    assert len(body) == 2 * 3 * 2  # {open_loop, rcp} x {onset, max_angle, threshold} x {normal, kidnapped}
+    assert len(body) == 2 * 2 * 3 * 2  # 2 repetitions x {open_loop, rcp} x {onset, max_angle, threshold} x {normal, kidnapped}
     assert {r[0] for r in body} == {"open_loop", "rcp"}
     assert {r[1] for r in body} == {"onset", "max_angle", "threshold"}
     assert {r[2] for r in body} == {"true", "false"}
     for r in body:
         arr, em, map_err, dr_err = float(r[3]), float(r[5]), float(r[6]), float(r[7])
         assert 0.0 <= arr <= 1.0 and em >= 0.0 and map_err > 0.0 and dr_err > 0.0
-    for name in ("ch3_map.png", "ch3_experience_ids.png", "ch3_performance.png"):
+    for name in ("ch3_map.png", "ch3_experience_ids.png", "ch3_performance.png", "ch3_distances.png"):
         assert (tmp_path / name).stat().st_size > 20_000
     summary = (tmp_path / "ch3_summary.txt").read_text(encoding="utf-8")
-    for figure in ("0.1765", "0.2257", "0.1916", "0.1568", "match_threshold", "inject_energy"):
+    for figure in ("0.1765", "0.2257", "0.1916", "0.1568", "match_threshold", "inject_energy", "Why places alias", "seeds [1, 2]"):
         assert figure in summary
     assert study.main(["--repetitions", "0", "--out", str(tmp_path)]) == 2
     assert study.main(["--no-such-option"]) == 2
+    assert study.main(["--recognition", "nothing", "--out", str(tmp_path)]) == 2
+
+
+def _quick_rows(rows, control, angle, kidnapped):
+    return [r for r in rows[1:] if r[0] == control and r[1] == angle and r[2] == ("true" if kidnapped else "false")]
+
+
+def _reference_ratios(summary: str) -> list[float]:
+    """Map / dead reckoning of the summary's perfect-recognition reference, one per repetition."""
+    line = next(s for s in summary.splitlines() if "reference, perfect recognition" in s)
+    return [float(v) for v in line.split("map / dr ")[1].split(" - ")[0].split(", ")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("control, angle", [(c, m) for c in ("open_loop", "rcp") for m in ("onset", "max_angle", "threshold")])
+def test_quick_study_map_beats_dead_reckoning_with_correct_relocalisations(quick_study, control, angle):
+    """What holds in every condition and repetition (normal runs): ARCR >= 0.9, the map at most 0.6 of dead
+    reckoning and within 0.1 of what perfect recognition gives with the same RatSLAM (the summary's reference)."""
+    tmp_path, rows = quick_study
+    reference = _reference_ratios((tmp_path / "ch3_summary.txt").read_text(encoding="utf-8"))
+    normal = _quick_rows(rows, control, angle, False)
+    assert len(normal) == len(reference) == 2
+    for r, ref in zip(normal, reference):
+        assert float(r[4]) >= 0.9, r
+        ratio = float(r[6]) / float(r[7])
+        assert ratio <= 0.6 and ratio <= ref + 0.1, (r, ref)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's bound: not met - seed 2's map / dead reckoning is 0.46-0.52 with sequence "
+                   "recognition and 0.45 with perfect recognition (the experience map keeps the first pass's odometry)")
+def test_quick_study_map_is_within_half_of_dead_reckoning_in_every_condition(quick_study):
+    _, rows = quick_study
+    for c in ("open_loop", "rcp"):
+        for m in ("onset", "max_angle", "threshold"):
+            for r in _quick_rows(rows, c, m, False):
+                assert float(r[6]) <= 0.5 * float(r[7]), r
+
+
+@pytest.mark.slow
+def test_quick_study_relocalises_as_often_as_the_thesis_and_kidnapping_lowers_arr(quick_study):
+    tmp_path, rows = quick_study
+    ol_max = [float(r[3]) for r in _quick_rows(rows, "open_loop", "max_angle", False)]
+    assert min(ol_max) >= 0.18  # the thesis' ARR, open loop + max angle (Fig 3.7: 0.1765), in every repetition
+    for c in ("open_loop", "rcp"):
+        for m in ("onset", "max_angle", "threshold"):
+            normal, kid = _quick_rows(rows, c, m, False), _quick_rows(rows, c, m, True)
+            for a, b in zip(normal, kid):  # same repetition, same recording with stretches removed
+                assert float(b[3]) < float(a[3]), (c, m)
+                assert float(b[4]) >= 0.9, (c, m)  # the map recovers: re-localisations after kidnaps are correct
+    summary = (tmp_path / "ch3_summary.txt").read_text(encoding="utf-8")
+    assert "kidnapped runs a correct re-localisation follows each kidnap" in summary
+    line = next(s for s in summary.splitlines() if s.startswith("4b."))
+    got, total = line.split(" in ")[1].split(" ")[0].split("/")
+    assert got == total == "12"
 
 
 # ----------------------------------------------------------------- typed errors of the new entry points (hypothesis)

@@ -25,34 +25,93 @@ What runs
   the same recording with stretches removed - in three loops (one in the quick mode)
   the agent is carried a quarter loop ahead from mid-loop, without odometry for the
   jump; the odometry and images of the remaining iterations are unchanged.
-* RatSLAM with Table 3.1 (:meth:`cansim.models.ratslam_config.RatSLAMConfig.thesis_ch3`, tactile
-  front end, Eq 3.1).
+* Place recognition, ``--recognition``:
+
+  - ``sequence`` (default): :mod:`cansim.frontends.tactile_sequence` - every whisk
+    cycle's image is a template; a cycle matches a stored one when the mean Eq 3.1
+    dissimilarity of the last 8 images along the diagonal is at most the calibrated
+    threshold, at least 3 of the 8 images show a contact, the best candidate is
+    distinct (below half of any candidate 5 cycles or more away) and the best
+    candidates of 3 consecutive cycles advanced in step; once matched, the following
+    cycles take the following stored cycles while within the threshold; the view ids feed RatSLAM
+    (Table 3.1, ``frontend="ids"``) with ``inject_energy`` 0.3 and
+    ``match_distance_cells`` 2 (Table 3.1: 1); an iteration that shows the previous
+    iteration's cycle again carries no view.
+  - ``thesis_ch3``: RatSLAM with Table 3.1 (:meth:`cansim.models.ratslam_config.RatSLAMConfig.thesis_ch3`,
+    tactile front end, Eq 3.1 on one image per iteration), as the thesis ran it.
+
+  The ``onset`` contact angle of both uses Sec 3.2.2's 80-count contact threshold
+  (:meth:`whisker_io.contact.contact_angle.ContactAngleParams.ch3`); the Ch.5 pipeline's
+  500 counts missed three maze contacts in four.
 * Metrics (:mod:`maps.metrics`): ARR and ARCR (Alg 1 with the project's reading of it;
   base set = the start and the first loop; 0.1 m / 25 deg), the Energy Metric
   (Eq 3.2-3.3) over the relations between consecutive experiences - each experience
   taken at the iteration it became the active one, its relaxed map pose against the
   true pose then - and the absolute trajectory errors (RMSE after rigid alignment)
   of the relaxed map (the active experience's pose per iteration) and of dead
-  reckoning.
+  reckoning; for kidnapped runs, the iterations from each kidnap to the next correct
+  re-localisation (summary item 4b).
 
-Calibration (the Eq 3.1 ``match_threshold``, ``inject_energy``)
-----------------------------------------------------------------
-The thesis tuned these two on the first run of every condition and does not print
-them. Here each condition (control x contact-angle strategy) is tuned on two tuning
-runs of its own (seeds 1000 and 1001; the quick mode one, 1000; not kidnapped, never
-scored) by a grid search
+Why places alias (issue 24; measured on tuning run 1000, quick path, summary section and ``ch3_distances.png``)
+-----------------------------------------------------------------------------------------------------------
+* One image carries little: 2.5-3 of its 18 pixels see a wall on average. With the
+  Ch.5 detection thresholds the ``onset`` strategy left 46 % (open loop) and 75 % (RCP)
+  of the images blank, and blank images are identical everywhere (RCP + onset: the
+  median Eq 3.1 distance between *different* places was 0).
+* Open loop + max angle quantises: every whisker still in contact at the top of the
+  whisk is at the same +50 deg, so the pixel only says "contact or not" - 26 % of the
+  images are distinct (RCP + max angle 87 %, the threshold strategy 91-93 %).
+* The nearest earlier image (another pass) is the right place (0.1 m, 25 deg) for
+  59 % (open loop, max angle) to 78 % (threshold) of the revisited cycles - the
+  single-image matcher's ceiling; the same-place and different-place Eq 3.1
+  distributions overlap (single-image AUC 0.91-0.95 for max angle and threshold).
+  A sequence of 8 raises it to 88-95 %, and the distinctiveness and consistency tests
+  take the rest.
+* The contact-angle estimate costs nothing measurable: images drawn with the
+  simulator's true contact angle find their place (NN) for 76 % of the revisited cycles
+  (both controls), as the onset (78 / 75 %) and threshold (78 / 75 %) images do; the
+  threshold strategy reads -0.7 deg early on average (5-95 %: -3.8 to +2.5 deg open
+  loop), the Ch.3 onset within 0.3 deg. One 3 x 6 image per iteration cannot carry
+  the place - even exact - while a sequence of 8 does (95 %).
+* RCP's alternating contacts cost less than the above: RCP lowers the single-image NN from 0.78 to 0.75 (threshold) and raises it from 0.59
+  to 0.68 (max angle, fewer saturated angles).
+
+Result and what is left (measured, ``cansim study ch3`` and ``--quick``; scored seeds
+held out of every choice): the matches are within about 1 cm of the true place
+(precision 0.99-1.0). Full study (seeds 1-3): map / dead reckoning 0.18-0.35 in every
+condition and repetition, ARCR 0.99-1.0, ARR 0.43-0.54, a correct re-localisation after
+every kidnap. Quick study (seeds 1-2, 4 loops): 0.31-0.52, ARCR 0.98-1.0; seed 2 stays
+at 0.46-0.52, where view ids taken from the true places (:func:`true_place_view_ids`,
+the summary's reference line) give 0.45 with the same RatSLAM: on 4 loops the map is
+limited by the odometry, not by the recognition - the experience map (OpenRatSLAM
+``on_create_link``) keeps one link per pair of experiences, so revisits close loops
+without averaging the odometry of the links, and the clockwise and anticlockwise loops
+(opposite headings: never the same place for Alg 1) meet only where the agent turns.
+
+Calibration
+-----------
+``sequence``: each condition's ``match_threshold`` is the 1 % quantile of the
+different-place sequence dissimilarities on its tuning runs (same seeds as below;
+pairs of cycles at least 30 cycles apart, different = beyond Alg 1's 0.1 m or 25 deg;
+:func:`calibrate_sequence`) - no search over the SLAM metrics. The matcher's other
+values, ``inject_energy`` and ``match_distance_cells`` are one setting for every
+condition, chosen on the tuning seeds 1000 and 1001 (quick path); the scored seeds 1-3
+were held out of that choice.
+
+``thesis_ch3``: the thesis tuned the Eq 3.1 ``match_threshold`` and ``inject_energy`` on
+the first run of every condition and does not print them. Here each condition
+(control x contact-angle strategy) is tuned on two tuning runs of its own (seeds 1000
+and 1001; the quick mode one, 1000; not kidnapped, never scored) by a grid search
 over both parameters (full: thresholds 2, 4, 6, 8, 10, 15, 20, 30 in units of
 Eq 3.1; energies 0.02, 0.04, 0.06, 0.1, 0.15, 0.25; quick: 3 x 3). With ARR and ARCR
 averaged over the tuning runs, the choice is the largest ARR among the points whose
 ARCR is at least 0.9, or the largest ARCR if none reaches it - the balance of
 Sec 3.2.1 ("occasional false matches do not cause too much influence while still
 allowing occasional correct matches to cause regular re-localization") with
-reliability first, since one false loop closure bends the whole map. Two tuning
-runs rather than the thesis' one: parameters tuned on a single run transferred
-poorly in trials (ARCR 0.8 on the tuning run, 0.2-0.3 on the next). Ties go to the
-first point in grid order. The chosen pairs are in ``ch3_summary.txt``, the whole
-grid in ``ch3_calibration.csv``. The scored runs use seeds 1..R (R = 3 repetitions
-as in Sec 3.2.2; 1 in the quick mode) for both the sensor and the odometry noise.
+reliability first. Ties go to the first point in grid order.
+
+The scored runs use seeds 1..R (R = 3 repetitions as in Sec 3.2.2; 2 in the quick
+mode) for both the sensor and the odometry noise.
 
 Outputs (in ``--out``, default the working folder)
 --------------------------------------------------
@@ -60,22 +119,31 @@ Outputs (in ``--out``, default the working folder)
   kidnapped, ARR, ARCR, EM, map_error_m, dr_error_m`` (``control`` in ``open_loop, rcp``;
   ``kidnapped`` ``true``/``false``); rows ordered by repetition, control, contact-angle
   strategy, then normal before kidnapped.
-* ``ch3_calibration.csv`` - the calibration grid per condition: mean ARR, ARCR, the chosen point.
+* ``ch3_calibration.csv`` - ``sequence``: per condition the threshold, the energy and
+  the same-place (median, 90th percentile) and different-place (1st percentile,
+  median) sequence dissimilarities with the share of same-place pairs under the
+  threshold; ``thesis_ch3``: the calibration grid per condition (mean ARR, ARCR, the
+  chosen point).
+* ``ch3_distances.png`` - Eq 3.1 dissimilarity, same place on another pass against
+  different places, one image and a sequence, per control and contact-angle strategy
+  (tuning runs), with the calibrated threshold.
 * ``ch3_map.png`` (Fig 3.6) - the maze with ground truth, dead reckoning and the
   relaxed experience map, open loop + max angle (the thesis' vanilla system) and
   RCP + threshold; ``ch3_experience_ids.png`` (Fig 3.5) - experience id over
   iteration with re-localisations, without and with kidnapping (kidnaps in the
   legend); ``ch3_performance.png`` (Fig 3.7) - ARR, ARCR, EM and the map / dead-reckoning
-  error ratio per control and contact-angle strategy.
+  error ratio per control and contact-angle strategy (sd over repetitions).
 * ``ch3_summary.txt`` - each thesis finding, the measured figure beside it and
-  whether its direction is reproduced; the calibration.
+  whether its direction is reproduced; the calibration; issue 24's bounds per
+  condition and repetition; the aliasing measurements.
 
 Usage::
 
-    python examples/ch3_maze.py [--quick] [--out DIR] [--repetitions R]
+    cansim study ch3 [--quick] [--out DIR] [--repetitions R] [--recognition sequence|thesis_ch3]
 
-``--quick`` (a 4-loop path, one tuning run, one repetition, a 3 x 3 grid) runs in well under 2
-minutes, the full study in a few minutes on one core.
+``--quick`` (a 4-loop path, one tuning run, two repetitions) takes about 30 s of CPU
+(``thesis_ch3``: about 45 s, its 3 x 3 grid), the full study a few minutes (measured
+wall times are in the README).
 """
 
 # no ``from __future__ import annotations``: the dataclasses below must also build when a
@@ -92,7 +160,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from cansim.frontends.tactile import TactileTemplateConfig
+from cansim.frontends.tactile import TactileTemplateConfig, tactile_similarity
+from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequenceMatcher, calibrate_threshold, sequence_distances
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
@@ -105,6 +174,24 @@ CONTROLS: tuple[str, ...] = ("open_loop", "rcp")
 CONTACT_ANGLES: tuple[str, ...] = ("onset", "max_angle", "threshold")
 METRIC_COLUMNS: tuple[str, ...] = ("control", "contact_angle", "kidnapped", "ARR", "ARCR", "EM", "map_error_m", "dr_error_m")
 THESIS = {"ARR_open_loop": 0.1765, "ARR_rcp": 0.2257, "EM_open_loop": 0.1916, "EM_rcp": 0.1568}
+RECOGNITIONS: tuple[str, ...] = ("sequence", "thesis_ch3")
+"""Place recognition of the study: ``sequence`` (default; :mod:`cansim.frontends.tactile_sequence`)
+or ``thesis_ch3`` (Table 3.1's single-image Eq 3.1 matcher, threshold and energy by grid search)."""
+
+SEQUENCE = TactileSequenceConfig(sequence_length=8, min_informative=3, exclude_recent=30, min_consistent=3, distinct_ratio=0.5,
+                                 distinct_cycles=5, track=True)
+"""The sequence matcher of the default recognition; ``match_threshold`` is calibrated per condition."""
+FALSE_MATCH_RATE = 0.01
+"""Share of the different-place sequence dissimilarities below the calibrated match threshold."""
+SEQUENCE_INJECT_ENERGY = 0.3
+"""``inject_energy`` of the sequence recognition (one value for every condition, chosen on the tuning seeds)."""
+SEQUENCE_MATCH_DISTANCE_CELLS = 2.0
+"""``match_distance_cells`` of the sequence recognition (Table 3.1: 1; chosen on the tuning seeds)."""
+SAME_PLACE_M = 0.015
+"""Two whisk cycles are at the same place when their poses are within one place (15 mm) and 25 deg."""
+DIFFERENT_PLACE_M = 0.1
+"""... and at different places beyond Alg 1's 0.1 m or 25 deg."""
+ANGLE_DEG = 25.0
 
 
 @dataclass(frozen=True)
@@ -125,7 +212,7 @@ FULL = StudySettings(
     tuning_seeds=(1000, 1001),
 )
 QUICK = StudySettings(
-    loops=(-1, -1, 1, 1), kidnap_loops=(1,), repetitions=1, thresholds=(3.0, 6.0, 12.0), energies=(0.03, 0.06, 0.12),
+    loops=(-1, -1, 1, 1), kidnap_loops=(1,), repetitions=2, thresholds=(3.0, 6.0, 12.0), energies=(0.03, 0.06, 0.12),
     tuning_seeds=(1000,),
 )
 
@@ -140,11 +227,17 @@ class Recording:
     images: dict[str, np.ndarray]  # contact-angle strategy -> (m, 3, 6) uint8
     control: str
     seed: int
+    whisk_poses: np.ndarray  # (m, 3) true pose at the middle of every whisk cycle (x m, y m, yaw rad)
 
     def observations(self, contact_angle: str) -> list[np.ndarray | None]:
         """The RatSLAM observation of every iteration (None before the first completed whisk)."""
         imgs = self.images[contact_angle]
         return [None if j < 0 else imgs[j] for j in self.image_index]
+
+    def cycles(self) -> np.ndarray:
+        """The whisk cycles shown, in the order the iterations first show them (kidnapped runs skip some)."""
+        idx = self.image_index[self.image_index >= 0]
+        return idx[np.r_[True, idx[1:] != idx[:-1]]] if idx.size else idx
 
 
 def make_path(route: MazeRoute, loops: Sequence[int], seed: int, kidnap: Sequence[tuple[int, int]] | None = None) -> SyntheticRun:
@@ -172,10 +265,11 @@ def simulate(route: MazeRoute, terrain: Any, settings: StudySettings, control: s
     schedule = WhiskSchedule()
     chain = PlanarChain(terrain, control, seed=seed)
     whisks = chain.whisk_path(schedule.whisk_poses(run.truth))
-    images = {m: chain.tactile_images(whisks, ContactAngleParams(m)) for m in CONTACT_ANGLES}
+    images = {m: chain.tactile_images(whisks, ContactAngleParams.ch3(m)) for m in CONTACT_ANGLES}
     if progress is not None:
         progress.update(1)
-    return Recording(run=run, image_index=schedule.image_index(len(run)), images=images, control=control, seed=seed)
+    return Recording(run=run, image_index=schedule.image_index(len(run)), images=images, control=control, seed=seed,
+                     whisk_poses=schedule.whisk_poses(run.truth))
 
 
 def kidnapped(recording: Recording, route: MazeRoute, settings: StudySettings) -> tuple[Recording, tuple[int, ...]]:
@@ -185,18 +279,173 @@ def kidnapped(recording: Recording, route: MazeRoute, settings: StudySettings) -
     keep = kept_iterations(len(recording.run), events)
     if not np.array_equal(run.truth, recording.run.truth[keep]):  # pragma: no cover - make_run's contract
         raise RuntimeError("the kidnapped path does not match the clean one")
-    rec = Recording(run=run, image_index=recording.image_index[keep], images=recording.images, control=recording.control, seed=recording.seed)
+    rec = Recording(run=run, image_index=recording.image_index[keep], images=recording.images, control=recording.control, seed=recording.seed,
+                    whisk_poses=recording.whisk_poses)
     return rec, run.kidnap_indices
 
 
 # ------------------------------------------------------------------ RatSLAM and metrics
-def run_slam(recording: Recording, contact_angle: str, match_threshold: float, inject_energy: float) -> tuple[RatSLAM, np.ndarray]:
-    """RatSLAM (Table 3.1 + the two calibrated values) over a recording; returns the model and its experience log."""
-    cfg = RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=float(match_threshold)), inject_energy=float(inject_energy))
-    slam = RatSLAM(cfg)
+def sequence_view_ids(recording: Recording, contact_angle: str, config: TactileSequenceConfig) -> list[int | None]:
+    """The view id of every iteration from the sequence matcher (None: no image, or a cycle shown again).
+
+    The matcher sees every shown whisk cycle once, in order; an iteration that shows the
+    cycle of the previous iteration again carries no observation (odometry only), so a
+    view is never "seen twice in a row" merely because of the 1.5 Hz / 1 Hz pairing.
+    """
+    cycles = recording.cycles()
+    ids = TactileSequenceMatcher(config).match_all(recording.images[contact_angle][cycles]) if cycles.size else np.zeros(0, np.int64)
+    view_of = dict(zip(cycles.tolist(), ids.tolist()))
+    out: list[int | None] = []
+    prev = -1
+    for j in recording.image_index.tolist():
+        out.append(None if j < 0 or j == prev else view_of[j])
+        prev = j
+    return out
+
+
+def true_place_view_ids(recording: Recording) -> list[int | None]:
+    """Perfect place recognition, for reference: the view ids :func:`sequence_view_ids` would give if every revisit were known.
+
+    A shown cycle takes the view id of the first earlier cycle at the same place
+    (:func:`place_pairs`: within 15 mm and 25 deg, at least :data:`SEQUENCE`'s
+    ``exclude_recent`` cycles before), else a new one; iterations as in :func:`sequence_view_ids`.
+    """
+    cycles = recording.cycles()
+    same, _ = place_pairs(recording.whisk_poses[cycles], SEQUENCE.exclude_recent)
+    ids = np.empty(cycles.size, dtype=np.int64)
+    n = 0
+    for t in range(cycles.size):
+        earlier = np.flatnonzero(same[t])
+        if earlier.size:
+            ids[t] = ids[earlier[0]]
+        else:
+            ids[t], n = n, n + 1
+    view_of = dict(zip(cycles.tolist(), ids.tolist()))
+    out: list[int | None] = []
+    prev = -1
+    for j in recording.image_index.tolist():
+        out.append(None if j < 0 or j == prev else view_of[j])
+        prev = j
+    return out
+
+
+def run_slam(recording: Recording, contact_angle: str, match_threshold: float, inject_energy: float,
+             recognition: str = "sequence") -> tuple[RatSLAM, np.ndarray]:
+    """RatSLAM over a recording; returns the model and its experience log.
+
+    ``recognition="thesis_ch3"``: Table 3.1 with the tactile front end (Eq 3.1 per image,
+    ``match_threshold`` in sqrt(level)); ``"sequence"``: Table 3.1 with the view ids of
+    :data:`SEQUENCE` (``match_threshold`` its mean Eq 3.1 per image) and
+    :data:`SEQUENCE_MATCH_DISTANCE_CELLS`; ``"true_places"``: the same RatSLAM with
+    :func:`true_place_view_ids` (a reference: what perfect recognition gives; the
+    images and ``match_threshold`` are not used).
+    """
     run = recording.run
-    log = slam.run(run.vtrans, run.vrot, run.dt, recording.observations(contact_angle))
+    if recognition == "thesis_ch3":
+        cfg = RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=float(match_threshold)), inject_energy=float(inject_energy))
+        observations: list[Any] = recording.observations(contact_angle)
+    elif recognition in ("sequence", "true_places"):
+        cfg = RatSLAMConfig.thesis_ch3(frontend="ids", inject_energy=float(inject_energy), match_distance_cells=SEQUENCE_MATCH_DISTANCE_CELLS)
+        observations = (true_place_view_ids(recording) if recognition == "true_places" else
+                        sequence_view_ids(recording, contact_angle, dataclasses.replace(SEQUENCE, match_threshold=float(match_threshold))))
+    else:
+        raise ValueError(f"unknown recognition {recognition!r}; choose one of {list(RECOGNITIONS)}")
+    slam = RatSLAM(cfg)
+    log = slam.run(run.vtrans, run.vrot, run.dt, observations)
     return slam, log.exp_ids
+
+
+# ------------------------------------------------------------------ why places alias
+def place_pairs(poses: np.ndarray, min_gap: int) -> tuple[np.ndarray, np.ndarray]:
+    """Masks (m, m) of cycle pairs ``(t, j)``, ``j <= t - min_gap``: same place, different place.
+
+    Same: within :data:`SAME_PLACE_M` and :data:`ANGLE_DEG`; different: farther than
+    :data:`DIFFERENT_PLACE_M` or turned more than :data:`ANGLE_DEG` (Alg 1's thresholds).
+    """
+    m = poses.shape[0]
+    dist = np.hypot(poses[:, None, 0] - poses[None, :, 0], poses[:, None, 1] - poses[None, :, 1])
+    dth = np.abs((poses[:, None, 2] - poses[None, :, 2] + math.pi) % (2 * math.pi) - math.pi)
+    earlier = np.tril(np.ones((m, m), dtype=bool), -min_gap)
+    ang = math.radians(ANGLE_DEG)
+    return earlier & (dist < SAME_PLACE_M) & (dth < ang), earlier & ((dist > DIFFERENT_PLACE_M) | (dth >= ang))
+
+
+def place_distances(recording: Recording, contact_angle: str, sequence_length: int,
+                    min_informative: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Eq 3.1 dissimilarities (mean per image over ``sequence_length`` cycles) of same and of different places.
+
+    Pairs at least :data:`SEQUENCE`'s ``exclude_recent`` cycles apart (another pass), of
+    the clean recording's cycles; with ``min_informative``, only query cycles whose last
+    ``sequence_length`` images hold that many with a contact (as the matcher requires).
+    """
+    imgs = recording.images[contact_angle]
+    same, diff = place_pairs(recording.whisk_poses[: imgs.shape[0]], SEQUENCE.exclude_recent)
+    d = sequence_distances(imgs, sequence_length)
+    informative = imgs.reshape(imgs.shape[0], -1).any(axis=1).astype(np.int64)
+    window = np.convolve(informative, np.ones(sequence_length, dtype=np.int64))[: imgs.shape[0]]
+    ok = np.isfinite(d) & (window >= min_informative)[:, None]
+    return d[same & ok], d[diff & ok]
+
+
+def calibrate_sequence(recordings: Sequence[Recording], contact_angle: str) -> tuple[float, dict[str, float]]:
+    """The sequence match threshold of one condition from its tuning recordings.
+
+    The :data:`FALSE_MATCH_RATE` quantile of the different-place dissimilarities (sequences
+    of :data:`SEQUENCE`'s length and informativeness) pooled over the recordings; returns it
+    and a description of both distributions.
+    """
+    same, diff = zip(*(place_distances(r, contact_angle, SEQUENCE.sequence_length, SEQUENCE.min_informative) for r in recordings))
+    s, d = np.concatenate(same), np.concatenate(diff)
+    thr = calibrate_threshold(d, FALSE_MATCH_RATE)
+    return thr, {"same_median": float(np.median(s)) if s.size else math.nan, "same_p90": float(np.percentile(s, 90)) if s.size else math.nan,
+                 "different_p1": float(np.percentile(d, 1)), "different_median": float(np.median(d)),
+                 "recall_at_threshold": float(np.mean(s <= thr)) if s.size else math.nan}
+
+
+def aliasing_stats(recording: Recording, contact_angle: str, match_threshold: float | None = None) -> dict[str, float]:
+    """How distinct the tactile images of one recording are (the "why places alias" measurements).
+
+    ``blank``: share of images without a contact; ``pixels``: mean pixels in contact (of 18);
+    ``distinct``: share of distinct images; ``nn_single`` / ``nn_sequence``: share of cycles
+    with a same-place cycle on an earlier pass whose nearest earlier cycle (Eq 3.1 of the
+    image, or of the :data:`SEQUENCE` length sequence) is within Alg 1's 0.1 m and 25 deg;
+    with ``match_threshold``, ``recall`` / ``precision``: share of those cycles the
+    :data:`SEQUENCE` matcher gives a stored view, share of its matches within 0.1 m and 25 deg.
+    """
+    imgs = recording.images[contact_angle]
+    m = imgs.shape[0]
+    poses = recording.whisk_poses[:m]
+    same, _ = place_pairs(poses, SEQUENCE.exclude_recent)
+    dist = np.hypot(poses[:, None, 0] - poses[None, :, 0], poses[:, None, 1] - poses[None, :, 1])
+    dth = np.abs((poses[:, None, 2] - poses[None, :, 2] + math.pi) % (2 * math.pi) - math.pi)
+    good = (dist < DIFFERENT_PLACE_M) & (dth < math.radians(ANGLE_DEG))
+    out = {"blank": float(np.mean(~imgs.reshape(m, -1).any(axis=1))), "pixels": float(np.mean((imgs > 0).sum(axis=(1, 2)))),
+           "distinct": len(np.unique(imgs.reshape(m, -1), axis=0)) / m}
+    for key, length in (("nn_single", 1), ("nn_sequence", SEQUENCE.sequence_length)):
+        d = sequence_distances(imgs, length)
+        hits = []
+        for t in range(m):
+            cand = np.arange(max(0, length - 1), t - SEQUENCE.exclude_recent + 1)
+            if cand.size and same[t].any():
+                hits.append(bool(good[t, cand[np.argmin(d[t, cand])]]))
+        out[key] = float(np.mean(hits)) if hits else math.nan
+    if match_threshold is not None:
+        matcher = TactileSequenceMatcher(dataclasses.replace(SEQUENCE, match_threshold=float(match_threshold)))
+        first: dict[int, int] = {}
+        matched, correct, revisits = 0, 0, 0
+        for t in range(m):
+            r = matcher.match(imgs[t])
+            revisit = bool(same[t].any())
+            revisits += revisit
+            if r.is_new:
+                first[r.template_id] = t
+                continue
+            matched += revisit
+            correct += bool(good[t, first[r.template_id]])
+        n_matches = m - len(first)
+        out["recall"] = matched / revisits if revisits else math.nan
+        out["precision"] = correct / n_matches if n_matches else math.nan
+    return out
 
 
 def experience_energy(exp_ids: np.ndarray, map_poses: np.ndarray, truth: np.ndarray) -> float:
@@ -234,6 +483,21 @@ def evaluate(recording: Recording, slam: RatSLAM, exp_ids: np.ndarray) -> dict[s
 ARCR_FLOOR = 0.9
 
 
+def recovery_delays(metrics: dict[str, Any], kidnaps: Sequence[int]) -> list[float]:
+    """Iterations from each kidnap to the first correct re-localisation after it (``inf``: none before the next kidnap or the end).
+
+    ``kidnaps`` are iterations of the kidnapped run; ``metrics`` is :func:`evaluate`'s result on it.
+    """
+    first_valid = int(metrics["valid"][0])
+    correct = np.asarray(metrics["exm"].correct_indices, dtype=np.int64) + first_valid
+    ends = list(kidnaps[1:]) + [int(metrics["valid"][-1]) + 1]
+    out = []
+    for at, end in zip(kidnaps, ends):
+        after = correct[(correct >= at) & (correct < end)]
+        out.append(float(after[0] - at) if after.size else math.inf)
+    return out
+
+
 def choose(grid: list[dict[str, Any]]) -> int:
     """Calibration choice: the largest mean ARR among grid points with mean ARCR >= 0.9, else the largest ARCR.
 
@@ -253,7 +517,7 @@ def calibrate(recordings: Sequence[Recording], contact_angle: str, settings: Stu
         for inj in settings.energies:
             arr, arcr = [], []
             for rec in recordings:
-                slam, ids = run_slam(rec, contact_angle, thr, inj)
+                slam, ids = run_slam(rec, contact_angle, thr, inj, "thesis_ch3")
                 m = evaluate(rec, slam, ids)
                 arr.append(m["ARR"])
                 arcr.append(m["ARCR"])
@@ -325,6 +589,39 @@ def figure_performance(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[tuple[str, str], tuple[float, float]] | None, path: Path) -> None:
+    """Why places alias: Eq 3.1 dissimilarity of the same place (another pass) and of different places.
+
+    One panel per control and contact-angle strategy; one image (thin lines) against a
+    sequence of :data:`SEQUENCE`'s length (thick lines, mean Eq 3.1 per image, informative
+    windows only); the calibrated sequence threshold dashed.
+    """
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(CONTROLS), len(CONTACT_ANGLES), figsize=(15.0, 7.5), sharex=True)
+    bins = np.linspace(0.0, 80.0, 81)
+    for r, control in enumerate(CONTROLS):
+        for c, m in enumerate(CONTACT_ANGLES):
+            ax = axes[r, c]
+            for length, lw, informative in ((1, 0.8, 0), (SEQUENCE.sequence_length, 2.0, SEQUENCE.min_informative)):
+                same, diff = zip(*(place_distances(rec, m, length, informative) for rec in recordings[control]))
+                for values, colour, label in ((np.concatenate(same), "tab:green", "same place"), (np.concatenate(diff), "tab:red", "different place")):
+                    if values.size:
+                        ax.hist(np.clip(values, 0.0, bins[-1]), bins=bins, density=True, histtype="step", color=colour, lw=lw,
+                                label=f"{label}, {'one image' if length == 1 else f'sequence of {length}'}")
+            if calibration is not None:
+                ax.axvline(calibration[(control, m)][0], color="0.3", ls="--", lw=1.0, label="sequence threshold")
+            ax.set_title(f"{control.replace('_', ' ')}, {m.replace('_', ' ')}", fontsize="small")
+            ax.set_yscale("log")
+            if r == len(CONTROLS) - 1:
+                ax.set_xlabel("Eq 3.1 dissimilarity (mean per image), sqrt(grey level)")
+    axes[0, 0].legend(fontsize="x-small")
+    fig.suptitle("Tactile place recognition: Eq 3.1 dissimilarity, same place on another pass vs different places (tuning runs)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 # ------------------------------------------------------------------ summary
 def _mean(rows: list[dict[str, Any]], key: str, **match: Any) -> float:
     vals = [r[key] for r in rows if all(r[k] == v for k, v in match.items())]
@@ -332,7 +629,8 @@ def _mean(rows: list[dict[str, Any]], key: str, **match: Any) -> float:
     return float(np.mean(vals)) if vals else math.nan
 
 
-def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str], tuple[float, float]], settings: StudySettings, seeds: Sequence[int]) -> list[str]:
+def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str], tuple[float, float]], settings: StudySettings, seeds: Sequence[int],
+                  recognition: str = "sequence") -> list[str]:
     """Each thesis finding, the measured figure beside it and whether its direction is reproduced."""
 
     def yes(flag: bool) -> str:
@@ -363,6 +661,12 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     out.append(f"4. Kidnapping lowers ARR and raises EM (Fig 3.5): ARR lower in {lower}/{n} conditions, EM higher in {higher}/{n}: "
                f"{yes(lower > n / 2)} (ARR), {yes(higher > n / 2)} (EM)")
     out.extend(parts)
+    kid_rows = [r for r in rows if r["kidnapped"]]
+    recovered = sum(all(math.isfinite(d) for d in r["recovery"]) for r in kid_rows)
+    delays = [d for r in kid_rows for d in r["recovery"] if math.isfinite(d)]
+    out.append(f"4b. The map re-localises after every kidnap: in {recovered}/{len(kid_rows)} kidnapped runs a correct re-localisation "
+               f"follows each kidnap (median {float(np.median(delays)) if delays else math.nan:.0f} iterations later, "
+               f"longest {max(delays) if delays else math.nan:.0f})")
     flags = []
     for control in CONTROLS:
         a_max, a_thr = _mean(rows, "ARR", control=control, contact_angle="max_angle", kidnapped=False), _mean(rows, "ARR", control=control, contact_angle="threshold", kidnapped=False)
@@ -382,11 +686,55 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
             out.append(f"   {control:9} {m:9}: ARR {_mean(rows, 'ARR', **k):.4f}  ARCR {_mean(rows, 'ARCR', **k):.4f}  EM {_mean(rows, 'EM', **k):.4f}  "
                        f"map {_mean(rows, 'map_error_m', **k):.3f} / dr {_mean(rows, 'dr_error_m', **k):.3f}")
     out.append("")
-    out.append(f"Calibration (not printed in the thesis): per condition on its tuning runs (seeds {list(settings.tuning_seeds)}, not kidnapped, not scored),")
-    out.append(f"grid match_threshold {list(settings.thresholds)} x inject_energy {list(settings.energies)};")
-    out.append(f"largest mean ARR among points with mean ARCR >= {ARCR_FLOOR}, else the largest ARCR; whole grid in ch3_calibration.csv")
+    if recognition == "thesis_ch3":
+        out.append(f"Recognition thesis_ch3 (Table 3.1: one image per iteration, Eq 3.1). Calibration (not printed in the thesis): per condition "
+                   f"on its tuning runs (seeds {list(settings.tuning_seeds)}, not kidnapped, not scored),")
+        out.append(f"grid match_threshold {list(settings.thresholds)} x inject_energy {list(settings.energies)};")
+        out.append(f"largest mean ARR among points with mean ARCR >= {ARCR_FLOOR}, else the largest ARCR; whole grid in ch3_calibration.csv")
+    else:
+        out.append(f"Recognition sequence ({SEQUENCE}; RatSLAM Table 3.1 with inject_energy {SEQUENCE_INJECT_ENERGY}, "
+                   f"match_distance_cells {SEQUENCE_MATCH_DISTANCE_CELLS}).")
+        out.append(f"match_threshold per condition = the {FALSE_MATCH_RATE:g} quantile of the different-place sequence dissimilarities on its "
+                   f"tuning runs (seeds {list(settings.tuning_seeds)}, not scored); distributions in ch3_calibration.csv and ch3_distances.png")
     for (control, m), (thr, inj) in calibration.items():
-        out.append(f"   {control:9} {m:9}: match_threshold {thr:g}, inject_energy {inj:g}")
+        out.append(f"   {control:9} {m:9}: match_threshold {thr:.4g}, inject_energy {inj:g}")
+    return out
+
+
+def acceptance_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """Issue 24's bounds per condition over every repetition (normal runs): map error <= dead reckoning / 2, ARCR >= 0.9."""
+    out = ["", "Map against dead reckoning and ARCR in every repetition (normal runs; bounds: map <= dr / 2, ARCR >= 0.9)"]
+    for control in CONTROLS:
+        for m in CONTACT_ANGLES:
+            rs = [r for r in rows if r["control"] == control and r["contact_angle"] == m and not r["kidnapped"]]
+            ratios = [r["map_error_m"] / r["dr_error_m"] for r in rs]
+            arcr = [r["ARCR"] for r in rs]
+            ok = all(q <= 0.5 for q in ratios) and all(a >= 0.9 for a in arcr)
+            out.append(f"   {control:9} {m:9}: map / dr {', '.join(f'{q:.2f}' for q in ratios)}; ARCR {', '.join(f'{a:.3f}' for a in arcr)}: "
+                       f"{'within' if ok else 'NOT within'}")
+    return out
+
+
+def aliasing_lines(aliasing: dict[tuple[str, str], dict[str, float]], distributions: dict[tuple[str, str], dict[str, float]],
+                   settings: StudySettings, recognition: str = "sequence") -> list[str]:
+    """The "why places alias" section: image content and Eq 3.1 distances, same against different place."""
+    out = ["", f"Why places alias (tuning run seed {settings.tuning_seeds[0]}; figure ch3_distances.png):",
+           "   blank = images without any contact; pixels = mean pixels in contact of 18; distinct = share of distinct images;",
+           "   NN = share of revisited cycles whose nearest earlier cycle (another pass) is the right place (0.1 m, 25 deg),",
+           f"   one image (Eq 3.1) / a sequence of {SEQUENCE.sequence_length}; sequence distances (mean Eq 3.1 per image) "
+           "same place median / different place 1st percentile"]
+    for (control, m), a in aliasing.items():
+        d = distributions[(control, m)]
+        out.append(f"   {control:9} {m:9}: blank {a['blank']:.2f}  pixels {a['pixels']:.1f}  distinct {a['distinct']:.2f}  "
+                   f"NN {a['nn_single']:.2f} -> {a['nn_sequence']:.2f}  same {d['same_median']:.1f} / different {d['different_p1']:.1f}  "
+                   f"sequence matcher: recall {a['recall']:.2f}, precision {a['precision']:.2f}")
+    if recognition == "sequence":
+        out.append("   findings 1, 5 and 6 under sequence recognition: ARR follows the matcher's recall above (the share of revisited "
+                   "cycles given a stored view), which the distinctiveness and consistency tests set, not the image quality alone")
+    for control in CONTROLS:
+        a_max, a_thr = aliasing[(control, "max_angle")]["nn_single"], aliasing[(control, "threshold")]["nn_single"]
+        out.append(f"   finding 5 on the images, {control}: one image finds its place (NN) {a_max:.2f} with max angle, {a_thr:.2f} with the "
+                   f"contact angle: {'the thesis direction' if a_thr > a_max else 'NOT the thesis direction'}")
     return out
 
 
@@ -404,7 +752,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="4 loops, 1 repetition, a 3 x 3 calibration grid")
     parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: the working folder)")
-    parser.add_argument("--repetitions", type=int, default=None, help="scored repetitions (default 3, quick 1)")
+    parser.add_argument("--repetitions", type=int, default=None, help="scored repetitions (default 3, quick 2)")
+    parser.add_argument("--recognition", choices=RECOGNITIONS, default="sequence",
+                        help="place recognition: 'sequence' (default, sequence matching, threshold calibrated from the "
+                             "same/different-place distributions) or 'thesis_ch3' (Table 3.1: one image, grid search)")
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:
@@ -434,25 +785,39 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     calibration: dict[tuple[str, str], tuple[float, float]] = {}
     grid_rows: list[dict[str, Any]] = []
+    tuning_recordings: dict[str, list[Recording]] = {}
+    distributions: dict[tuple[str, str], dict[str, float]] = {}
     for control in CONTROLS:
-        tuning = [simulate(route, terrain, settings, control, seed, progress) for seed in settings.tuning_seeds]
+        tuning = tuning_recordings[control] = [simulate(route, terrain, settings, control, seed, progress) for seed in settings.tuning_seeds]
         for m in CONTACT_ANGLES:
+            thr_seq, distributions[(control, m)] = calibrate_sequence(tuning, m)
+            if args.recognition == "sequence":
+                calibration[(control, m)] = (thr_seq, SEQUENCE_INJECT_ENERGY)
+                progress.update(n_grid * len(settings.tuning_seeds))
+                continue
             calibration[(control, m)], grid = calibrate(tuning, m, settings, progress)
             grid_rows.extend({"control": control, "contact_angle": m, **g} for g in grid)
 
     rows: list[dict[str, Any]] = []
+    reference: dict[int, float] = {}
     examples: dict[tuple[str, str, bool], tuple[Recording, RatSLAM, dict[str, Any], tuple[int, ...]]] = {}
     for seed in seeds:
         for control in CONTROLS:
             normal_rec = simulate(route, terrain, settings, control, seed, progress)
             kid_rec, kidnaps = kidnapped(normal_rec, route, settings)
+            if control == CONTROLS[0]:  # the odometry depends on the seed only
+                ref_slam, ref_ids = run_slam(normal_rec, CONTACT_ANGLES[0], 0.0, SEQUENCE_INJECT_ENERGY, "true_places")
+                ref = evaluate(normal_rec, ref_slam, ref_ids)
+                reference[seed] = ref["map_error_m"] / ref["dr_error_m"]
             for m in CONTACT_ANGLES:
                 thr, inj = calibration[(control, m)]
                 for is_kid, rec in ((False, normal_rec), (True, kid_rec)):
-                    slam, ids = run_slam(rec, m, thr, inj)
+                    slam, ids = run_slam(rec, m, thr, inj, args.recognition)
                     metrics = evaluate(rec, slam, ids)
                     metrics["ids"] = ids[metrics["valid"]]
-                    rows.append({"control": control, "contact_angle": m, "kidnapped": is_kid, **{k: metrics[k] for k in METRIC_COLUMNS[3:]}})
+                    delays = recovery_delays(metrics, kidnaps) if is_kid else []
+                    rows.append({"control": control, "contact_angle": m, "kidnapped": is_kid, "recovery": delays,
+                                 **{k: metrics[k] for k in METRIC_COLUMNS[3:]}})
                     if seed == seeds[0]:
                         examples[(control, m, is_kid)] = (rec, slam, metrics, kidnaps if is_kid else ())
                     progress.update(1)
@@ -463,12 +828,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.writerow(METRIC_COLUMNS)
         for r in rows:
             writer.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
-    grid_columns = ("control", "contact_angle", "match_threshold", "inject_energy", "ARR", "ARCR", "chosen")
+    grid_columns: tuple[str, ...] = ("control", "contact_angle", "match_threshold", "inject_energy", "ARR", "ARCR", "chosen")
+    if args.recognition == "sequence":
+        grid_columns = ("control", "contact_angle", "match_threshold", "inject_energy", "same_median", "same_p90", "different_p1",
+                        "different_median", "recall_at_threshold")
+        grid_rows = [{"control": c, "contact_angle": m, "match_threshold": calibration[(c, m)][0], "inject_energy": calibration[(c, m)][1],
+                      **distributions[(c, m)]} for c in CONTROLS for m in CONTACT_ANGLES]
     with open(out / "ch3_calibration.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(grid_columns)
         for g in grid_rows:
             writer.writerow([_fmt(g[c]) for c in grid_columns])
+    figure_distances(tuning_recordings, calibration if args.recognition == "sequence" else None, out / "ch3_distances.png")
+    aliasing = {(c, m): aliasing_stats(tuning_recordings[c][0], m, calibrate_sequence(tuning_recordings[c], m)[0])
+                for c in CONTROLS for m in CONTACT_ANGLES}
 
     # Fig 3.6: the vanilla system and RCP + contact angle
     fig, axes = plt.subplots(1, 2, figsize=(13.0, 5.5))
@@ -495,7 +868,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     plt.close(fig)
 
     figure_performance(rows, out / "ch3_performance.png")
-    lines = summary_lines(rows, calibration, settings, seeds)
+    lines = summary_lines(rows, calibration, settings, seeds, args.recognition)
+    lines.extend(acceptance_lines(rows))
+    lines.append(f"   reference, perfect recognition (true_place_view_ids, same RatSLAM): map / dr {', '.join(f'{q:.2f}' for q in reference.values())} "
+                 "- the experience map keeps the first pass's odometry on each link, so even perfect recognition leaves this much")
+    lines.extend(aliasing_lines(aliasing, distributions, settings, args.recognition))
     lines.append("")
     lines.append(f"{'quick' if args.quick else 'full'} study, {time.perf_counter() - t0:.0f} s")
     (out / "ch3_summary.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
