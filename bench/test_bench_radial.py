@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from whisker_io.radial.datasets import TrainingSetParams, make_training_set, validation_array
-from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model, train_models
+from whisker_io.radial.models import TABLE_4_1, SearchParams, fit_model, train_models
 from whisker_io.radial.pipeline import contact_points_from_features
 
 
@@ -26,7 +26,7 @@ def training():
 
 @pytest.fixture(scope="module")
 def svr10(training):
-    return fit_model("svr10", *TABLE_4_1["svr10"], training, SearchSettings())
+    return fit_model("svr10", *TABLE_4_1["svr10"], training, SearchParams())
 
 
 def _cycle(training, n=18):
@@ -51,6 +51,6 @@ def test_svr10_contact_points_one_array_cycle_18_modules(benchmark, training, sv
 
 def test_train_all_12_table_4_1_models_default_training_set(benchmark, training):
     models = benchmark.pedantic(
-        train_models, args=(training, list(TABLE_4_1), SearchSettings()), rounds=1, iterations=1
+        train_models, args=(training, list(TABLE_4_1), SearchParams()), rounds=1, iterations=1
     )
     assert len(models) == 12

@@ -139,7 +139,7 @@ def test_id_config_label_parses_or_exits(label: str) -> None:
 
 
 def test_settings_refuse_an_uncalibrated_contact_model() -> None:
-    s = ch5_study.Settings(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
     assert s.thresholds_for("tip") == (0.9, 0.3)
     with pytest.raises(ConfigError, match="svr"):
         s.thresholds_for("svr")
@@ -218,18 +218,18 @@ def test_trajectory_b_gives_lower_confidence_than_a(quick: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def svr_settings(tmp_path_factory: pytest.TempPathFactory) -> ch5_study.Settings:
+def svr_settings(tmp_path_factory: pytest.TempPathFactory) -> ch5_study.StudyConfig:
     """The study's reduced localisation settings: 2 loops, SVR thresholds calibrated as the study does."""
     model = ch5_study._ensure_radial_model(None, tmp_path_factory.mktemp("ch5_radial"))
     cal = ch5_study.calibrate(ch5_study.DEFAULT_NOISE_SCALE, 0.75, 0, "svr", model)
     assert cal["contact_model"] == "svr" and cal["n_pairs"] > 0
-    return ch5_study.Settings(2, ch5_study.DEFAULT_NOISE_SCALE, {"svr": (cal["pfh_threshold"], cal["sda_threshold"])},
+    return ch5_study.StudyConfig(2, ch5_study.DEFAULT_NOISE_SCALE, {"svr": (cal["pfh_threshold"], cal["sda_threshold"])},
                               model, 0)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["mug", "box"])
-def test_both_features_svr_localise_below_the_step(svr_settings: ch5_study.Settings, name: str) -> None:
+def test_both_features_svr_localise_below_the_step(svr_settings: ch5_study.StudyConfig, name: str) -> None:
     for seed in (0, 1, 2):
         b = ch5_study.build_job((name, ch5_study.BEST, dataclasses.replace(svr_settings, seed=seed), None))
         assert b["matching"] == "mapping"

@@ -24,7 +24,7 @@ def assets(tmp_path_factory):
     """A saved object model (a short simulated Box map) and a quickly trained svr10 model."""
     from cansim.explore.explorer import build_object_model
     from whisker_io.radial.features import RadialDataset
-    from whisker_io.radial.models import SearchSettings, train_models
+    from whisker_io.radial.models import SearchParams, train_models
     from whisker_io.radial.persistence import save_model
     from whisker_io.sim.objects import make_object
     from whisker_io.sim.trajectories import object_trajectory
@@ -41,7 +41,7 @@ def assets(tmp_path_factory):
     s, av = rng.uniform(0.2, 1.0, n), rng.uniform(0.5, 4.0, n)
     cp, ca = s / av, 2000.0 * (1.2 - s)
     X = np.column_stack([cp, ca, ca / cp, ca / cp / cp, av, rng.normal(0, 1, n), wl])
-    model = train_models(RadialDataset(X, wl * s, name="known"), ["svr10"], SearchSettings().quick())["svr10"]
+    model = train_models(RadialDataset(X, wl * s, name="known"), ["svr10"], SearchParams().quick())["svr10"]
     save_model(model, d / "svr10.skops")
     return d
 

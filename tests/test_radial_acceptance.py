@@ -2,7 +2,7 @@
 
 Sizes: training 8 lengths x 20 distances x 3 frequencies, validation 18 waypoints
 x 2 whisks, Evans 26 distances x 9 speeds; hyper-parameters by 3-fold CV on the
-training set (``SearchSettings().quick()``). Nothing is fitted on validation data.
+training set (``SearchParams().quick()``). Nothing is fitted on validation data.
 """
 
 from __future__ import annotations
@@ -23,13 +23,13 @@ from whisker_io.radial.datasets import (
     make_validation_set,
 )
 from whisker_io.radial.evaluation import evaluate_models, evans_comparison, length_generalisation
-from whisker_io.radial.models import SearchSettings, train_models
+from whisker_io.radial.models import SearchParams, train_models
 from whisker_io.radial.pipeline import dataset_contact_points
 
 # the quick MLP search stops L-BFGS early on purpose
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
-SETTINGS = SearchSettings().quick()
+SETTINGS = SearchParams().quick()
 
 
 @pytest.fixture(scope="module")

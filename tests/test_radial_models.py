@@ -29,7 +29,7 @@ from whisker_io.radial.evaluation import (
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
 from whisker_io.radial.models import (
     TABLE_4_1,
-    SearchSettings,
+    SearchParams,
     TipAssumption,
     UniformRandom,
     fit_model,
@@ -40,7 +40,7 @@ from whisker_io.radial.models import (
 # the quick MLP search stops L-BFGS early on purpose
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
-QUICK = SearchSettings().quick()
+QUICK = SearchParams().quick()
 
 
 def known_table(n: int, seed: int, lengths_mm=(65, 78, 87, 94, 107, 137)) -> RadialDataset:
@@ -112,9 +112,9 @@ def test_train_models_all_labels_and_order() -> None:
 
 def test_mlp_structure_limits_and_unknown_labels_rejected() -> None:
     with pytest.raises(InvalidInputError):
-        SearchSettings(mlp_hidden=((59,),))
+        SearchParams(mlp_hidden=((59,),))
     with pytest.raises(InvalidInputError):
-        SearchSettings(mlp_hidden=((10, 10, 10),))
+        SearchParams(mlp_hidden=((10, 10, 10),))
     with pytest.raises(InvalidInputError):
         train_models(known_table(50, 0), ["svr13"], QUICK)
 
@@ -209,7 +209,7 @@ def test_empty_training_set_is_a_typed_error() -> None:
         assert isinstance(info.value, CansimError) and isinstance(info.value, ValueError)
     tiny = known_table(5, 0)  # fewer contacts than CV folds
     with pytest.raises(EmptyDatasetError, match="10-fold CV"):
-        fit_model("svr9", *TABLE_4_1["svr9"], tiny, SearchSettings())
+        fit_model("svr9", *TABLE_4_1["svr9"], tiny, SearchParams())
 
 
 def test_dataset_validation() -> None:

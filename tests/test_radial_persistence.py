@@ -8,10 +8,10 @@ import skops.io as sio
 
 from whisker_io.radial.errors import FeatureMismatchError, CorruptFileError, ModelVersionError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
-from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model
+from whisker_io.radial.models import TABLE_4_1, SearchParams, fit_model
 from whisker_io.radial.persistence import FORMAT, FORMAT_VERSION, load_model, save_model
 
-QUICK = SearchSettings().quick()
+QUICK = SearchParams().quick()
 
 
 @pytest.fixture(scope="module")

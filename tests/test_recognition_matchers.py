@@ -67,7 +67,7 @@ def test_bad_odometry_scales_are_refused_before_any_work(tmp_path_factory, scale
         recognition.run(out, objects=["mug"], novel=[], odometry_scale=scale, progress=False)
     assert not out.exists()
     with pytest.raises(ConfigError):
-        ch5_object_maps.Settings(2, 0.3, {}, None, 0, odometry_scale=scale)
+        ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, odometry_scale=scale)
 
 
 def test_odometry_noise_scales_the_thesis_model() -> None:

@@ -20,7 +20,7 @@ from whisker_io.contact.detection import DetectionParams
 from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
 from whisker_io.pose import Pose
 from whisker_io.radial.features import RadialDataset
-from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model
+from whisker_io.radial.models import TABLE_4_1, SearchParams, fit_model
 from whisker_io.radial.persistence import save_model
 from whisker_io.records.recording import RecordingWriter
 from whisker_io.records.whisk_record import WhiskRecord
@@ -227,7 +227,7 @@ def svr_file(tmp_path_factory):
     X = rng.uniform(0.1, 1.0, (120, 7))
     X[:, 6] = rng.choice([0.06, 0.1, 0.16], 120)
     model = fit_model("svr10", *TABLE_4_1["svr10"], RadialDataset(X, X[:, 6] * X[:, 0], name="toy"),
-                      SearchSettings().quick())
+                      SearchParams().quick())
     return save_model(model, tmp_path_factory.mktemp("models") / "svr10.skops")
 
 

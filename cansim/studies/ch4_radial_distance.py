@@ -90,7 +90,7 @@ from whisker_io.radial.evaluation import (
     pca_loadings,
     write_results_csv,
 )
-from whisker_io.radial.models import SearchSettings, train_models
+from whisker_io.radial.models import SearchParams, train_models
 from whisker_io.radial.persistence import save_model
 from whisker_io.radial.pipeline import dataset_contact_points
 from whisker_io.radial.plots import plot_boxplots, plot_histograms, plot_pca_loadings
@@ -121,7 +121,7 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tp, vp, ep = TrainingSetParams(seed=seed), ValidationSetParams(seed=seed + 1), EvansSetParams(seed=seed + 2)
-    settings = SearchSettings(seed=seed)
+    settings = SearchParams(seed=seed)
     if quick:
         tp, vp, ep, settings = tp.reduced(), vp.reduced(), ep.reduced(), settings.quick()
     notes: list[str] = []

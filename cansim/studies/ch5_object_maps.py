@@ -148,7 +148,7 @@ Box run, seed 2):
 
 Commands: ``python examples/ch5_study.py --out DIR --radial-model M`` (full, seed 0;
 ``M`` the quick Ch.4 SVR model ``svr9.skops`` this script trains), the reduced runs with
-:func:`build_job` on ``Settings(2, 0.3, {"svr": calibrate(0.3, 0.75, 0, "svr", M)},
+:func:`build_job` on ``StudyConfig(2, 0.3, {"svr": calibrate(0.3, 0.75, 0, "svr", M)},
 M, seed)`` as ``tests/test_ch5_study.py`` builds them.
 """
 
@@ -218,7 +218,7 @@ BEST = Config("both", False, "svr")
 
 
 @dataclass(frozen=True)
-class Settings:
+class StudyConfig:
     """Everything a worker needs (picklable).
 
     ``thresholds`` maps a contact model to its (T_pfh, T_sda); ``matching`` is
@@ -271,7 +271,7 @@ def _chain(mesh: Any, contact: str, noise_scale: float, radial_model: str | None
     return WhiskChain(mesh, signals=False, contact_model=contact, contact_noise=noise)
 
 
-def _slam_config(cfg: Config, s: Settings, cell_size_m: float) -> Any:
+def _slam_config(cfg: Config, s: StudyConfig, cell_size_m: float) -> Any:
     from cansim.frontends.whisk import WhiskFrontEndConfig
     from cansim.models.whisker_ratslam import WhiskerRatSLAMConfig
 
@@ -335,7 +335,7 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     }
 
 
-def map_object(name: str, cfg: Config, s: Settings) -> tuple[Any, list[Any], dict[str, Any]]:
+def map_object(name: str, cfg: Config, s: StudyConfig) -> tuple[Any, list[Any], dict[str, Any]]:
     """Map ``name`` (a name or mesh file) along ``s.n_loops`` loops of trajectory A: (model, poses, exploration log).
 
     Seeded by ``(s.seed, "build", name, cfg.label)``: every caller that maps the same
@@ -354,7 +354,7 @@ def map_object(name: str, cfg: Config, s: Settings) -> tuple[Any, list[Any], dic
     return slam, poses, log
 
 
-def build_job(job: tuple[str, Config, Settings, str | None]) -> dict[str, Any]:
+def build_job(job: tuple[str, Config, StudyConfig, str | None]) -> dict[str, Any]:
     """One localisation run: an object map from ``n_loops`` loops of trajectory A (optionally saved)."""
     from maps.localisation import relocalisation_errors, step_sizes
 
@@ -403,7 +403,7 @@ def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m
     return WhiskerRatSLAM.library(models, names, cfg)
 
 
-def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Settings]) -> dict[str, Any]:
+def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, StudyConfig]) -> dict[str, Any]:
     """Explore ``presented`` from scratch on trajectory A or B against the appended library."""
     from maps.recognition import (
         LeakyIntegrator,
@@ -707,7 +707,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
     return lines
 
 
-def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cals: Sequence[dict[str, Any]], s: Settings,
+def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cals: Sequence[dict[str, Any]], s: StudyConfig,
             star: Config, quick: bool, compare: Sequence[dict[str, Any]] = ()) -> str:
     """``ch5_summary.txt``: each thesis finding, the measured figure, reproduced or not.
 
@@ -850,7 +850,7 @@ def main(argv: list[str] | None = None) -> int:
     thresholds = {r["contact_model"]: (r["pfh_threshold"] if a.pfh_threshold is None else a.pfh_threshold,
                                        r["sda_threshold"] if a.sda_threshold is None else a.sda_threshold) for r in cals}
     matching = "thesis" if a.thesis_matching else "mapping"
-    s = Settings(loops, a.noise_scale, thresholds, radial, a.seed, a.id_loops, matching, id_whisks)
+    s = StudyConfig(loops, a.noise_scale, thresholds, radial, a.seed, a.id_loops, matching, id_whisks)
     maps_dir = out / "ch5_maps"
     maps_dir.mkdir(exist_ok=True)
     jobs = [(o, c, s, str(maps_dir / f"{o}.npz") if c == id_cfg else None) for o in objects for c in configs]
@@ -873,5 +873,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def __getattr__(name: str) -> Any:
+    """``Settings``: the old name of :class:`StudyConfig` (0.1; removed in 0.3), with a DeprecationWarning."""
+    if name == "Settings":
+        import warnings
+
+        warnings.warn("cansim.studies.ch5_object_maps.Settings is now StudyConfig (the Params / Config / Spec naming "
+                      "rule, CONTRIBUTING.md); the old name goes in 0.3", DeprecationWarning, stacklevel=2)
+        return StudyConfig
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 if __name__ == "__main__":
     raise SystemExit(main())
+

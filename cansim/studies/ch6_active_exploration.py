@@ -233,6 +233,13 @@ class Setup:
     believed_scale: float = 1.0
     #: contact seeking (:mod:`cansim.explore.contact_seeking`; off: the thesis' Alg 7-8, the study's figures)
     contact_seeking: bool = False
+    #: the believed volume (:func:`believed_volume` of ``objects`` and ``believed_scale``), built once by
+    #: :func:`prepare`; None: built when needed
+    believed: Any = None
+
+    def believed_box(self) -> Any:
+        """The believed volume (a trimesh box): :attr:`believed`, or built from the known objects."""
+        return self.believed if self.believed is not None else believed_volume(self.objects, self.believed_scale)
 
 
 def envelope() -> Any:
@@ -358,7 +365,7 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
             lambda a, b, r=rng: noisy_odometry(a, b, r), placement=spc_params(), adjustments_per_pose=MAX_ADJUSTMENTS,
             model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
     return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model, tuple(objects),
-                 float(believed_scale), bool(contact_seeking))
+                 float(believed_scale), bool(contact_seeking), believed_volume(objects, believed_scale))
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
@@ -381,7 +388,7 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     mesh = resolve_object(presented).mesh if mesh is None else mesh
     chain = chain_for(presented, setup.noise_scale, setup.contact_model, mesh)
     sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", presented, strategy, spc))
-    box = believed_volume(setup.objects, setup.believed_scale)
+    box = setup.believed_box()
     search = DefaultSearch(box.bounds.mean(axis=0), float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
                            footprint_m=array_bases_m())
     if arm is None:

@@ -191,7 +191,7 @@ def _ch5():
 
 def _settings(setup: Setup) -> Any:
     ch5 = _ch5()
-    return ch5.Settings(n_loops=setup.map_loops, noise_scale=NOISE_SCALE,
+    return ch5.StudyConfig(n_loops=setup.map_loops, noise_scale=NOISE_SCALE,
                         thresholds={CONTACT_MODEL: setup.thresholds}, radial_model=None, seed=setup.seed,
                         odometry_scale=setup.odometry_scale)
 

@@ -42,7 +42,7 @@ from pathlib import Path
 from whisker_io.radial.datasets import TrainingSetParams, ValidationSetParams, make_training_set, make_validation_set
 from whisker_io.errors import CansimError
 from whisker_io.radial.evaluation import evaluate_models, write_results_csv
-from whisker_io.radial.models import SearchSettings, train_models
+from whisker_io.radial.models import SearchParams, train_models
 from whisker_io.radial.persistence import load_model, save_model
 from whisker_io.radial.pipeline import dataset_contact_points
 
@@ -51,7 +51,7 @@ def _train(args: argparse.Namespace) -> int:
     if args.models.exists() and not args.models.is_dir():
         print(f"--models {args.models} exists and is not a folder", file=sys.stderr)
         return 2
-    tp, settings = TrainingSetParams(seed=args.seed), SearchSettings(seed=args.seed)
+    tp, settings = TrainingSetParams(seed=args.seed), SearchParams(seed=args.seed)
     if args.quick:
         tp, settings = tp.reduced(), settings.quick()
     train = make_training_set(tp, progress=True)

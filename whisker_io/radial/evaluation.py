@@ -36,7 +36,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.radial.errors import EmptyDatasetError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset
 from whisker_io.radial.models import (
-    SearchSettings,
+    SearchParams,
     TipAssumption,
     TrainedModel,
     UniformRandom,
@@ -343,7 +343,7 @@ _COMPARISON: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 
 
-def _compare(train: RadialDataset, test: RadialDataset, settings: SearchSettings) -> dict[str, np.ndarray]:
+def _compare(train: RadialDataset, test: RadialDataset, settings: SearchParams) -> dict[str, np.ndarray]:
     """Fit the four comparison models on ``train``; absolute Eq 4.1 errors on ``test``."""
     out = {}
     for fam, feats in _COMPARISON:
@@ -359,7 +359,7 @@ def _compare(train: RadialDataset, test: RadialDataset, settings: SearchSettings
 
 def evans_comparison(
     evans: RadialDataset,
-    settings: SearchSettings = SearchSettings(),
+    settings: SearchParams = SearchParams(),
     test_fraction: float = 0.3,
     seed: int = 0,
 ) -> dict[str, np.ndarray]:
@@ -389,7 +389,7 @@ def length_generalisation(
     train: RadialDataset,
     test: RadialDataset,
     reference_length_m: float = 0.107,
-    settings: SearchSettings = SearchSettings(),
+    settings: SearchParams = SearchParams(),
     max_fraction: float | None = None,
 ) -> dict[str, dict[str, np.ndarray]]:
     """Fig 4.11: train on one whisker length vs on many, test on other lengths.
@@ -403,7 +403,7 @@ def length_generalisation(
         Contacts on whisker lengths not in ``train`` (unseen lengths).
     reference_length_m : float
         The single training length (thesis: 107 mm).
-    settings : SearchSettings
+    settings : SearchParams
     max_fraction : float, optional
         If given, only test contacts with ``d_gt <= max_fraction * d_wl`` count.
 

@@ -53,7 +53,7 @@ from whisker_io.radial.features import FEATURE_NAMES, RadialDataset, feature_ind
 __all__ = [
     "TABLE_4_1",
     "BASELINES",
-    "SearchSettings",
+    "SearchParams",
     "SelectFeatures",
     "TipAssumption",
     "UniformRandom",
@@ -192,7 +192,7 @@ class UniformRandom(_LengthBaseline):
 
 
 @dataclass(frozen=True)
-class SearchSettings:
+class SearchParams:
     """Hyper-parameter search settings (Sec 4.1.3); grids are in standardised units.
 
     Parameters
@@ -255,7 +255,7 @@ class SearchSettings:
         if any(d < 1 for d in self.poly_degrees):
             raise InvalidInputError("poly_degrees must be >= 1")
 
-    def quick(self) -> "SearchSettings":
+    def quick(self) -> "SearchParams":
         """A reduced copy for tests and smoke runs (3-fold CV, small grids)."""
         return replace(
             self,
@@ -283,7 +283,7 @@ def _pipeline(features: Sequence[str], reg: BaseEstimator, poly_degree: int | No
 
 
 def make_estimator(
-    family: str, features: Sequence[str], settings: SearchSettings = SearchSettings(), **params: Any
+    family: str, features: Sequence[str], settings: SearchParams = SearchParams(), **params: Any
 ) -> BaseEstimator:
     """An unfitted radial-distance model of one family on ``features``.
 
@@ -293,7 +293,7 @@ def make_estimator(
     features : sequence of str
         Input features (names of :data:`FEATURE_NAMES`); ignored by the baselines,
         which use WL.
-    settings : SearchSettings
+    settings : SearchParams
         Supplies the seed and MLP iterations.
     **params
         Fixed hyper-parameters: ``degree`` for poly (default 3, the thesis'
@@ -328,7 +328,7 @@ def make_estimator(
     raise InvalidInputError(f"unknown model family {family!r}; use svr, poly, nn, tip or random")
 
 
-def _grid(family: str, s: SearchSettings) -> list[dict[str, list[Any]]]:
+def _grid(family: str, s: SearchParams) -> list[dict[str, list[Any]]]:
     if family == "svr":
         grids = []
         for k in s.svr_kernels:
@@ -354,7 +354,7 @@ def _grid(family: str, s: SearchSettings) -> list[dict[str, list[Any]]]:
 
 
 def make_search(
-    family: str, features: Sequence[str], settings: SearchSettings = SearchSettings()
+    family: str, features: Sequence[str], settings: SearchParams = SearchParams()
 ) -> HalvingGridSearchCV:
     """K-fold cross-validated grid search (mean squared error) over one family's grid.
 
@@ -433,7 +433,7 @@ def fit_model(
     family: str,
     features: Sequence[str],
     train: RadialDataset,
-    settings: SearchSettings = SearchSettings(),
+    settings: SearchParams = SearchParams(),
     **fixed: Any,
 ) -> TrainedModel:
     """Search hyper-parameters by K-fold CV on ``train`` and fit the best model on all of it.
@@ -446,7 +446,7 @@ def fit_model(
     features : sequence of str
     train : RadialDataset
         Training contacts (never the validation set).
-    settings : SearchSettings
+    settings : SearchParams
     **fixed
         If given, no search: these hyper-parameters are used as they are (for
         example ``degree=5`` for the Evans et al. 5th-order polynomial).
@@ -501,7 +501,7 @@ def fit_model(
 def train_models(
     train: RadialDataset,
     labels: Sequence[str] | None = None,
-    settings: SearchSettings = SearchSettings(),
+    settings: SearchParams = SearchParams(),
     progress: bool = False,
 ) -> dict[str, TrainedModel]:
     """Train the Table 4.1 models and the baselines ("one command trains all").
@@ -511,7 +511,7 @@ def train_models(
     train : RadialDataset
     labels : sequence of str, optional
         Subset of ``TABLE_4_1`` and ``BASELINES`` keys; default all 12 + 2.
-    settings : SearchSettings
+    settings : SearchParams
     progress : bool
         Show a tqdm progress bar.
 
@@ -536,3 +536,14 @@ def train_models(
         family, feats = catalogue[lab]
         out[lab] = fit_model(lab, family, feats, train, settings)
     return out
+
+
+def __getattr__(name: str) -> Any:
+    """``SearchSettings``: the old name of :class:`SearchParams` (0.1; removed in 0.3), with a DeprecationWarning."""
+    if name == "SearchSettings":
+        import warnings
+
+        warnings.warn("whisker_io.radial.models.SearchSettings is now SearchParams (the Params / Config / Spec naming "
+                      "rule, CONTRIBUTING.md); the old name goes in 0.3", DeprecationWarning, stacklevel=2)
+        return SearchParams
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
