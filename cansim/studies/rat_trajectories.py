@@ -68,6 +68,13 @@ spiking ring is *not* re-anchored by this scheme: its drift is the same or worse
 the views (a current of 5 threshold units neither moves its packet reliably nor, at 10-20,
 avoids pulling it to views learnt from an already drifted packet); left open.
 
+Held-out recording (``--trajectory tanni --duration-s 1800 --no-spiking``, seeds 0-2): the
+landmark scheme as tuned on Sargolini does **not** transfer. The 0.05 m landmark discs in a
+3.5 m x 2.5 m arena are entered on 78-93 of 54,000 samples (3 s of 30 min), so re-anchoring
+changes nothing: ring 5.4 -> 5.4 deg/min (RMS 107 deg), sheet 0.017 -> 0.017 m/min (RMS
+0.34 m). Landmarks that the rat visits as often as in the 1 m box (e.g. a radius scaled with
+the arena) were not tried on Tanni, to keep it held out.
+
 References: Sargolini F. et al. (2006) Science 312:758; Tanni S. et al. (2022) Curr Biol
 32:2646; George T. M. et al. (2024) eLife 12:RP85274 (RatInABox); Zhang K. (1996) J Neurosci
 16:2112 (velocity-shifted attractor).
