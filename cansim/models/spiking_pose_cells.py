@@ -18,6 +18,17 @@ uses: ``shape`` (xy, xy, heading) in pose-cell units, ``decode`` (fractional pos
 the pose grid, sum 1: what learnt LV weights learn, Eq 2.18) and ``step`` (an injection
 - stored-location Eq 5.8 or learnt Eq 2.17 energy on the pose grid - becomes currents:
 its marginal over heading into the sheet, its marginal over (x, y) into the ring).
+
+Measured on the synthetic 5-loop route of ``examples/ratslam_synthetic.py`` (map ATE,
+m; spiking / rate / dead reckoning): seed 0 0.071 / 0.046 / 0.273; held-out seeds 1 and 2
+0.074 / 0.048 / 0.227 and 0.069 / 0.055 / 0.237. Tuned on seed 0: the view current (a
+current of 3-60 threshold units did not move the sheet's packet, 150 moves it 3 cells in
+two iterations) and the sheet's recurrent weight (100, the ring's, lets a 2-D packet die;
+300 holds it). Limits: the velocity leads are calibrated along one axis at 10-80 cells/s,
+and a sheet packet pins to the lattice below ~5 cells/s per axis, so the decoded (x', y')
+wander from the rate model's by a median 3-7 pose cells on that route; the map still
+closes its loops because the views re-anchor the packets (1,002 re-localisations against
+the rate model's 899).
 """
 
 from __future__ import annotations
