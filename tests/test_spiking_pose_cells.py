@@ -62,7 +62,8 @@ def test_an_injection_pulls_the_packet_to_its_cell(pc):
     assert abs(_wrapped(pc.decode()[0], target[0], XY)) < 1.0
 
 
-@pytest.mark.parametrize("args", [(float("nan"), 0.0, 1.0), (0.0, float("inf"), 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, -1.0)])
+@pytest.mark.parametrize("args", [(float("nan"), 0.0, 1.0), (0.0, float("inf"), 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, -1.0),
+                                  (0.6, 0.0, 1.0), (0.0, 3.2, 1.0)])
 def test_bad_odometry_is_refused_and_changes_nothing(pc, args):
     before = pc.decode()
     with pytest.raises(InvalidInputError):
@@ -167,3 +168,23 @@ def test_spiking_pose_cells_map_the_five_loop_route_between_dead_reckoning_and_t
     dead_reckoning = absolute_trajectory_error(run.dead_reckoning, run.truth).rmse
     assert errors["spiking"] < dead_reckoning
     assert errors["spiking"] < 2.0 * errors["population"]
+
+
+@pytest.fixture(scope="module")
+def shared_pc():
+    return SpikingPoseCells(XY, TH, CELL)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=25, deadline=None)
+@given(v=st.floats(allow_nan=True, allow_infinity=True, width=32), w=st.floats(allow_nan=True, allow_infinity=True, width=32),
+       dt=st.floats(allow_nan=True, allow_infinity=True, width=32))
+def test_step_accepts_or_raises_a_typed_error(shared_pc, v, w, dt):
+    before = shared_pc.decode()
+    try:
+        out = shared_pc.step(v, w, dt)
+    except CansimError:
+        assert np.array_equal(shared_pc.decode(), before)
+        return
+    assert out.shape == (3,) and np.all(np.isfinite(out))
+    assert abs(v * dt) < XY * CELL / 2 and abs(w * dt) < math.pi  # larger steps are refused

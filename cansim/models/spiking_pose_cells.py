@@ -270,11 +270,18 @@ class SpikingPoseCells:
         Raises
         ------
         InvalidInputError
-            Non-finite odometry, ``dt <= 0`` or a bad injection; nothing changed.
+            Non-finite odometry, ``dt <= 0``, a step of half the grid or more (m or rad) or a
+            bad injection; nothing changed.
+        ZeroActivityError
+            A packet died out (the recurrent weights are too weak for the input).
         """
         v, w, d = (float(x) for x in (velocity, omega, dt))
         if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(d) and d > 0):
             raise InvalidInputError(f"odometry must be finite with dt > 0, got v={velocity!r}, omega={omega!r}, dt={dt!r}")
+        half_m = self._shape[0] * self._sheet.axes[0].step * self._k / 2.0
+        if abs(v * d) >= half_m or abs(w * d) >= math.pi:
+            raise InvalidInputError(f"one iteration moves {v * d:g} m and turns {w * d:g} rad: more than half the pose grid "
+                                    f"({half_m:g} m, pi rad) is not path integration; split the odometry sample")
         sheet_cur, ring_cur = self._currents(injection)
         scale = d / self._params.network_s_per_iteration
         w_net, v_net = w * scale, v * scale
