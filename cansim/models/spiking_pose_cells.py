@@ -45,7 +45,6 @@ from cansim.params import AttractorParams
 from cansim.spiking import (
     HD_RING_ATTRACTOR,
     SpikeCountDecoder,
-    SpikingParams,
     SpikingPopulation,
     calibrate_velocity_lead,
     spiking_params_from_rate,
