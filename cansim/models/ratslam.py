@@ -12,8 +12,9 @@ this module only wires the parts from a :class:`~cansim.models.ratslam_config.Ra
    C++ truncation, no injection for the 10 most recent templates - with fewer than 10
    every revisit injects, as C++'s unsigned arithmetic does - and the decay rules) or
    explicit learnt LV->PC weights (Eq 2.17/2.18), ``lv_mode``;
-3. pose cells - :class:`cansim.population.Population` (any backend and dtype) or, in the
-   parity preset, :class:`cansim.models.posecell_network.PosecellNetwork`;
+3. pose cells - :class:`cansim.population.Population` (any backend and dtype), in the
+   parity preset :class:`cansim.models.posecell_network.PosecellNetwork`, or (opt-in,
+   ``pose_cells="spiking"``) :class:`cansim.models.spiking_pose_cells.SpikingPoseCells`;
 4. map - :class:`maps.experience_map.ExperienceMap` with :class:`maps.se2.SE2Geometry`.
 
 Parity preset (:meth:`RatSLAMConfig.openratslam`): the C++ pose-cell engine (the C++
@@ -80,8 +81,12 @@ class RatSLAM(SlamLoop):
     def __init__(self, config: RatSLAMConfig | None = None, **params: Any) -> None:
         RatSLAMConfig.check_names(params)
         cfg = self.config = configured(RatSLAMConfig, config, params, "RatSLAM")
-        pose_cells: Population | PosecellNetwork
-        if cfg.pose_cells == "openratslam":
+        pose_cells: Any
+        if cfg.pose_cells == "spiking":  # opt-in; imported here so that the rate engines import nothing spiking
+            from cansim.models.spiking_pose_cells import SpikingPoseCells
+
+            pose_cells = SpikingPoseCells(cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, frame=cfg.frame)
+        elif cfg.pose_cells == "openratslam":
             pose_cells = PosecellNetwork(
                 cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, params=cfg.attractor, decode_window=cfg.decode_window,
             )
@@ -155,6 +160,17 @@ class RatSLAM(SlamLoop):
         return super().run(odometry, observations, progress=progress)
 
     # ------------------------------------------------------- save / resume
+    def extra_arrays(self) -> dict[str, np.ndarray]:
+        """The spiking pose cells' state (``pose_cells="spiking"``; nothing for the rate engines)."""
+        if self.config.pose_cells == "spiking":
+            return self.pose_cells.state_arrays("spc_")
+        return {}
+
+    def restore_extra(self, arrays: Any) -> None:
+        """Restore what :meth:`extra_arrays` wrote."""
+        if self.config.pose_cells == "spiking":
+            self.pose_cells.restore_state(arrays, "spc_")
+
     def describe(self) -> dict[str, Any]:
         """The configuration, for :meth:`save`."""
         return {"model": "RatSLAM", "config": self.config.to_dict()}

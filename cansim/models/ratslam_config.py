@@ -112,10 +112,13 @@ class RatSLAMConfig(SlamConfig):
         CAN backend name (numba by default).
     strict_translation : bool
         Raise when a step moves the packet more than one cell.
-    pose_cells : {"population", "openratslam"}
+    pose_cells : {"population", "openratslam", "spiking"}
         The pose-cell engine: cansim's :class:`~cansim.population.Population` (any
-        backend and dtype) or :class:`~cansim.models.posecell_network.PosecellNetwork` (the
-        C++ core's arithmetic bit for bit, float64, numba).
+        backend and dtype), :class:`~cansim.models.posecell_network.PosecellNetwork` (the
+        C++ core's arithmetic bit for bit, float64, numba) or
+        :class:`~cansim.models.spiking_pose_cells.SpikingPoseCells` (a spiking HD ring x
+        place sheet, its default :class:`~cansim.models.spiking_pose_cells.SpikingPoseCellParams`;
+        ``backend`` and ``dtype`` do not apply).
 
     Raises
     ------
@@ -165,7 +168,9 @@ class RatSLAMConfig(SlamConfig):
         for name in ("link_time_since_start", "strict_translation"):
             config_field(getattr(self, name), name, bool)
         config_field(self.frame, "frame", str, choices=("standard", "openratslam"))
-        config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam"))
+        config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam", "spiking"))
+        if self.pose_cells == "spiking" and self.frame != "standard":
+            raise ConfigError("pose_cells='spiking' uses frame='standard' (heading 0 along +x')")
         self._check_attractor()
         fe = self.frontend
         if not ((isinstance(fe, str) and fe == "ids") or isinstance(fe, (VisualTemplateConfig, TactileTemplateConfig))):

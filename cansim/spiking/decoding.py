@@ -74,6 +74,28 @@ class SpikeCountDecoder:
             old = self._history.popleft()
             np.subtract.at(self._counts, old, 1)
 
+    def state_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The window (one row per step: its spike count, then the spikes) as named arrays for :meth:`restore_state`."""
+        hist = list(self._history)
+        return {prefix + "lengths": np.array([len(h) for h in hist], dtype=np.int64),
+                prefix + "spikes": np.concatenate(hist) if hist else np.zeros(0, dtype=np.int64)}
+
+    def restore_state(self, arrays, prefix: str = "") -> None:
+        """Set the window written by :meth:`state_arrays` (raises CorruptFileError naming a bad field)."""
+        from cansim.errors import CorruptFileError
+
+        try:
+            lengths = np.asarray(arrays[prefix + "lengths"], dtype=np.int64)
+            spikes = np.asarray(arrays[prefix + "spikes"])
+        except (KeyError, ValueError, TypeError) as exc:
+            raise CorruptFileError(f"missing or malformed ({exc})", field=prefix + "lengths") from exc
+        if lengths.ndim != 1 or len(lengths) > self._window or np.any(lengths < 0) or lengths.sum() != spikes.size \
+                or spikes.ndim != 1 or (spikes.size and (spikes.dtype.kind not in "iu" or spikes.min() < 0 or spikes.max() >= self._n)):
+            raise CorruptFileError("inconsistent spike window", field=prefix + "spikes")
+        self.reset()
+        for row in np.split(spikes.astype(np.int64), np.cumsum(lengths)[:-1]) if len(lengths) else []:
+            self.add(row)
+
     def decode(self) -> np.ndarray:
         """Fractional cell index per axis, shape (ndim,).
 

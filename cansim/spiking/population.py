@@ -401,6 +401,49 @@ class SpikingPopulation:
         self._check_current(current)
         return [self.step(velocity, current) for _ in range(int(n_steps))]
 
+    def state_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The dynamic state (potentials, currents, refractory counters, last spikes, step count
+        and the noise generator) as named arrays; :meth:`restore_state` sets it back exactly."""
+        import json
+
+        return {prefix + "v": self._v.copy(), prefix + "i": self._i.copy(), prefix + "ref": self._ref.copy(),
+                prefix + "spk": self._spk.copy(), prefix + "t": np.array(self._t, dtype=np.int64),
+                prefix + "rng": np.array(json.dumps(self._rng.bit_generator.state))}
+
+    def restore_state(self, arrays, prefix: str = "") -> None:
+        """Set the state written by :meth:`state_arrays` (same grid).
+
+        Raises
+        ------
+        CorruptFileError
+            A field is missing, of the wrong shape or not finite (named).
+        """
+        import json
+
+        from cansim.errors import CorruptFileError
+
+        def need(key: str) -> np.ndarray:
+            if prefix + key not in arrays:
+                raise CorruptFileError("missing", field=prefix + key)
+            return np.asarray(arrays[prefix + key])
+
+        v, i, ref, spk, t = need("v"), need("i"), need("ref"), need("spk"), need("t")
+        for key, arr in (("v", v), ("i", i), ("ref", ref)):
+            if arr.shape != (self._n,) or not np.all(np.isfinite(arr)):
+                raise CorruptFileError(f"expected {self._n} finite values", field=prefix + key)
+        if spk.ndim != 1 or spk.dtype.kind not in "iu" or (spk.size and (spk.min() < 0 or spk.max() >= self._n)):
+            raise CorruptFileError("expected flat cell indices", field=prefix + "spk")
+        if t.shape != () or t.dtype.kind not in "iu" or int(t) < 0:
+            raise CorruptFileError("expected a step count >= 0", field=prefix + "t")
+        rng = np.random.default_rng()
+        try:
+            rng.bit_generator.state = json.loads(str(need("rng")))
+        except (ValueError, TypeError, KeyError) as exc:
+            raise CorruptFileError(f"not a generator state ({exc})", field=prefix + "rng") from exc
+        self._v, self._i = v.astype(np.float64), i.astype(np.float64)
+        self._ref, self._spk = ref.astype(np.int64), spk.astype(np.int64)
+        self._t, self._rng = int(t), rng
+
     def with_params(self, params: SpikingParams) -> "SpikingPopulation":
         """A new population on the same grid, step, seed and backend with other parameters."""
         return SpikingPopulation(self._axes, params, dt_s=self._dt, seed=self._seed, backend=self._backend)

@@ -55,6 +55,7 @@ STUDIES = {
     "ch5": "cansim.studies.ch5_object_maps",
     "ch6": "cansim.studies.ch6_active_exploration",
     "recognition": "cansim.studies.recognition",
+    "rat": "cansim.studies.rat_trajectories",
 }
 #: demo -> module of :mod:`cansim.studies`; the first is ``cansim demo`` without a name
 DEMOS = {
@@ -67,6 +68,7 @@ _STUDY_TITLES = {
     "ch5": "WhiskerRatSLAM: 6-D localisation and object recognition",
     "ch6": "active whisker-array exploration for fast shape recognition",
     "recognition": "object recognition from new paths and viewpoints (benchmark, 12-50 objects)",
+    "rat": "rate and spiking attractors on recorded rat trajectories: drift with and without re-anchoring",
 }
 
 log = logging.getLogger("cansim.tools.cli")
@@ -247,12 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_sweep)
 
-    p = add("study", "run a thesis study (ch3, ch4, ch5, ch6) or the recognition benchmark",
+    p = add("study", "run a thesis study (ch3, ch4, ch5, ch6), the recognition benchmark or the rat-trajectory study",
             "Run one of the thesis' studies (modules of cansim.studies): "
             + "; ".join(f"{c} = {_STUDY_TITLES[c]}, {m}" for c, m in STUDIES.items())
             + ". Options after the chapter go to the study (e.g. 'cansim study ch5 --quick --objects mug box'; "
             "'python -m cansim.studies.ch5_object_maps --help' lists them).",
-            usage="cansim study [-h] [--quick] [--out DIR] {ch3,ch4,ch5,ch6,recognition} [study options]")
+            usage="cansim study [-h] [--quick] [--out DIR] {ch3,ch4,ch5,ch6,recognition,rat} [study options]")
     p.add_argument("chapter", choices=list(STUDIES), help="the chapter's study")
     p.add_argument("--quick", action="store_true", help="the study's quick mode (its headline result, in minutes)")
     p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")
