@@ -281,3 +281,58 @@ def test_a_file_written_on_disk_round_trips_byte_for_byte(tmp_path):
     slam.save(tmp_path / "a.npz")
     RatSLAM.load(tmp_path / "a.npz").save(tmp_path / "b.npz")
     assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes() == saved(slam)
+
+
+# -------------------------- configurations given as numpy values (issue 25)
+def numpyish(value):
+    """``value`` as given, or as the numpy scalar a script computing it would hand over."""
+    if isinstance(value, bool):
+        return st.sampled_from([value, np.bool_(value)])
+    if isinstance(value, int):
+        return st.sampled_from([value, np.int64(value), np.int32(value)])
+    return st.sampled_from([value, np.float64(value), np.float32(value)])
+
+
+ratslam_configs = st.fixed_dictionaries({
+    "xy_cells": numpyish(9), "heading_cells": numpyish(12), "cell_size_m": numpyish(0.1),
+    "decode_window": numpyish(2), "relax_budget": numpyish(300), "strict_translation": numpyish(False),
+    "inject_energy": numpyish(0.2), "initial_heading_deg": numpyish(45.0),
+})
+
+
+@settings(**SETTINGS)
+@given(params=ratslam_configs, exc_width=st.sampled_from([7, np.int64(5), [7, 7, 5], (np.int64(7), 7, 5), np.array([5, 5, 7])]),
+       prefix=prefixes, follow_up=follow_ups)
+@example(params={"xy_cells": np.int64(9), "cell_size_m": np.float32(0.1)}, exc_width=7,
+         prefix=[(0, (0.9,) * 7, 0)], follow_up=[(0, (0.1,) * 7, 0)])
+def test_a_model_configured_with_numpy_values_saves_loads_and_steps_as_the_original(params, exc_width, prefix, follow_up):
+    """RatSLAM(xy_cells=np.int64(9)) was accepted, then save() raised TypeError (not JSON serializable):
+    the model could not be saved at all. A configuration now holds plain Python values
+    (``whisker_io.validation.plain_fields``), so it saves, loads to an equal configuration,
+    and the loaded model computes as the original (np.float32(0.1) becomes the float64 of
+    that value in both, not float32 arithmetic in one of them)."""
+    from cansim import AttractorParams
+
+    model = RatSLAM(backend="numpy", attractor=AttractorParams(exc_width=exc_width), **params)
+    assert model.config == RatSLAM(model.config).config  # plain values: equal and hashable
+    hash(model.config)
+    for act in prefix:
+        KINDS["ratslam_numpy"].apply(model, act)
+    loaded = assert_round_trip(model, follow_up, KINDS["ratslam_numpy"].apply)
+    assert loaded.config == model.config
+
+
+@settings(**SETTINGS)
+@given(grid=numpyish(5), gate=numpyish(0.3), n_bins=numpyish(81), threshold=numpyish(0.4), relax=numpyish(3))
+def test_whisker_and_map_configurations_with_numpy_values_save_and_load(grid, gate, n_bins, threshold, relax):
+    from cansim.frontends.whisk import WhiskFrontEndConfig
+    from maps.experience_map import MapConfig
+    from maps.se2 import SE2Geometry
+
+    slam = WhiskerRatSLAM(backend="numpy", grid_cells=grid, pose_gate_m=gate, pose_gate_deg=np.float64(60.0),
+                          frontend=WhiskFrontEndConfig(n_bins=n_bins, pfh_threshold=threshold))
+    loaded = assert_round_trip(slam, [(0, (0.5,) * 7, 0), (0, (0.5,) * 7, 1)], KINDS["whisker_thesis"].apply)
+    assert loaded.config == slam.config
+    em = ExperienceMap(MapConfig(relax_passes=relax, pc_shape=(np.int64(9), 9, 12)), SE2Geometry(heading_axis=np.int64(2)))
+    back = ExperienceMap.load(io.BytesIO(saved(em)))
+    assert back.config == em.config and saved(back) == saved(em)
