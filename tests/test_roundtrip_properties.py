@@ -373,3 +373,40 @@ def test_a_spiking_population_round_trips_through_a_nir_file(tau_mem, bias, w_re
         return [p.step().tobytes() for _ in range(60)]
 
     assert drive(back) == drive(pop)
+
+
+# ------------------------------------------- radial-distance models (Ch.4)
+_RADIAL: dict = {}
+
+
+def _radial(label: str):
+    """A fitted Table 4.1 model on a small synthetic data set (fitted once per label)."""
+    if label not in _RADIAL:
+        from whisker_io.radial.features import RadialDataset
+        from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model
+
+        rng = np.random.default_rng(0)
+        X = rng.uniform(0.1, 1.0, (120, 7))
+        X[:, 6] = rng.choice([0.065, 0.107], 120)
+        data = RadialDataset(X, X[:, 6] * X[:, 0], name="toy")
+        _RADIAL[label] = (data, fit_model(label, *TABLE_4_1[label], data, SearchSettings().quick()))
+    return _RADIAL[label]
+
+
+@pytest.mark.parametrize("label", ["poly5", pytest.param("svr10", marks=pytest.mark.slow)])  # SVR: a 7 s search
+def test_a_radial_model_saves_the_same_metadata_after_a_load(tmp_path, label):
+    """save -> load -> save -> load keeps the metadata and the predictions exactly. The
+    hyper-parameters were written as ``repr`` strings and loaded as those strings, so every
+    save of a loaded model quoted them once more ('rbf' -> "'rbf'" -> ...). The skops file
+    itself is not byte-stable (skops names its members by object id and stamps the time),
+    so the comparison is of what the file holds."""
+    from whisker_io.radial.persistence import load_model, save_model
+
+    data, model = _radial(label)
+    first = load_model(save_model(model, tmp_path / "a.skops"))
+    second = load_model(save_model(first, tmp_path / "b.skops"))
+    fields = ("label", "family", "features", "best_params", "cv_rmse_m", "fit_seconds", "training_hash")
+    for name in fields:
+        assert getattr(second, name) == getattr(first, name), name
+    assert dict(first.best_params) == {k: (v.item() if isinstance(v, np.generic) else v) for k, v in model.best_params.items()}
+    assert second.predict(data.features).tobytes() == first.predict(data.features).tobytes() == model.predict(data.features).tobytes()
