@@ -410,3 +410,53 @@ def test_a_radial_model_saves_the_same_metadata_after_a_load(tmp_path, label):
         assert getattr(second, name) == getattr(first, name), name
     assert dict(first.best_params) == {k: (v.item() if isinstance(v, np.generic) else v) for k, v in model.best_params.items()}
     assert second.predict(data.features).tobytes() == first.predict(data.features).tobytes() == model.predict(data.features).tobytes()
+
+
+# ------------------------- full-size models on long routes (slow)
+def _loop_route():
+    from cansim.testing.worlds import LoopRoute, make_run
+
+    return make_run(LoopRoute(step_m=0.05), loops=(1, 1), seed=2)
+
+
+def _whisk_loop(n_places=12, laps=3, seed=1):
+    """A circle of whisks, one distinct region per place, revisited every lap (loop closures)."""
+    rng = np.random.default_rng(seed)
+    pfh, sda = rng.dirichlet(np.full(81, 0.3), n_places), rng.normal(0, 1, (n_places, 18))
+    odo = SpatialOdometry(np.array([0.03 * 1.06, 0, 0]), np.array([0, 0, 2 * math.pi / n_places * 1.04]), 1.0)
+    calls = []
+    for k in range(laps * n_places):
+        f = np.abs(pfh[k % n_places] + rng.normal(0, 0.02 / 81, 81))
+        calls.append((odo, (f / f.sum(), sda[k % n_places] + rng.normal(0, 0.02, 18))))
+    return calls
+
+
+LONG = ["ratslam_default", "ratslam_openratslam_parity_default", "whisker_mapping_numba"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", LONG)
+@settings(**{**SETTINGS, "max_examples": max(N, 4)})
+@given(split=st.floats(0.0, 1.0))
+def test_full_size_models_round_trip_anywhere_on_a_route_with_loop_closures(name, split):
+    """The default grids (21 x 21 x 36, 5^6 on numba) on routes long enough to close loops:
+    saved at any iteration, loaded, and run to the end, the resumed model ends byte-identical."""
+    if name.startswith("ratslam"):
+        run = _loop_route()
+        cfg = RatSLAMConfig(cell_size_m=0.05) if name == "ratslam_default" else RatSLAMConfig.openratslam(cell_size_m=0.1)
+        model = RatSLAM(cfg)
+        calls = [((float(run.vtrans[k]), float(run.vrot[k]), float(run.dt if np.ndim(run.dt) == 0 else run.dt[k])),
+                  int(run.view_ids[k])) for k in range(len(run))]
+    else:
+        model = WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
+        calls = [((odo,), obs) for odo, obs in _whisk_loop()]
+    cut = int(split * len(calls))
+
+    def apply(m, call):
+        return m.step(*call[0], call[1])
+
+    for call in calls[:cut]:
+        apply(model, call)
+    assert_round_trip(model, calls[cut:] or calls[-1:], apply)
+    em = model.experience_map  # the whole route ran: it closed loops (links beyond the chain of experiences)
+    assert em.n_links > em.n_experiences - 1
