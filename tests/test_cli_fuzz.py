@@ -31,10 +31,11 @@ BOUND_S = 60.0
 
 
 class File:
-    """A file the call names, written into the call's working folder first."""
+    """A file written into the call's working folder first; the call names ``arg`` (default: the file)."""
 
-    def __init__(self, name: str, content: bytes | None) -> None:
+    def __init__(self, name: str, content: bytes | None, arg: str | None = None) -> None:
         self.name, self.content = name, content  # content None: the file does not exist
+        self.arg = name if arg is None else arg
 
     def __repr__(self) -> str:
         return f"File({self.name!r}, {self.content[:40] if self.content else self.content!r})"
@@ -49,8 +50,9 @@ def run_cli(argv: list, timeout: float = BOUND_S) -> subprocess.CompletedProcess
         for a in argv:
             if isinstance(a, File):
                 if a.content is not None:
+                    (Path(tmp) / a.name).parent.mkdir(parents=True, exist_ok=True)
                     (Path(tmp) / a.name).write_bytes(a.content)
-                args.append(a.name)
+                args.append(a.arg)
             else:
                 args.append(a)
         try:
@@ -99,6 +101,23 @@ def _spec_text(body: dict) -> bytes:
     return "\n".join(f"{k} = {v}" for k, v in body.items()).encode()
 
 
+#: ROS2 bag folders whose metadata.yaml is junk, or YAML of the right layout with wrong types
+_ROS2_META = """rosbag2_bagfile_information:
+  version: 5
+  storage_identifier: sqlite3
+  relative_file_paths: [{files}]
+  topics_with_message_count:
+    - topic_metadata: {{name: {topic}, type: {msgtype}, serialization_format: cdr}}
+      message_count: {count}
+"""
+bad_ros2_meta = st.one_of(
+    junk,
+    st.fixed_dictionaries({"files": st.sampled_from(["x.db3", "", "5", "[1, 2]"]),
+                           "topic": st.sampled_from(["5", "/odom", "[a]", "null", "{a: 1}"]),
+                           "msgtype": st.sampled_from(["nav_msgs/msg/Odometry", "7", "null", "zz/msg/Nope"]),
+                           "count": st.sampled_from(["1", "-1", "x", "1e400"])}).map(lambda d: _ROS2_META.format(**d).encode()),
+)
+
 #: sweep specs that are valid TOML but malformed (always at least one bad entry)
 bad_specs = st.one_of(
     st.fixed_dictionaries({"experiment": st.sampled_from(['"bump"', '"sweep_fixtures:fast"']),
@@ -132,6 +151,7 @@ commands = {
         st.tuples(names.map(lambda s: File(f"{s}.bag", None))).map(list),
         st.tuples(junk.map(lambda b: File("run.bag", b)), st.just("--no-progress")).map(list),
         st.tuples(st.just("run.bag"), st.just("--stamps"), names.filter(lambda s: s not in ("header", "log"))).map(list),
+        st.tuples(bad_ros2_meta.map(lambda b: File("ros2bag/metadata.yaml", b, arg="ros2bag")), st.just("--no-progress")).map(list),
         st.tuples(junk.map(lambda b: File("run.bag", b)), st.just("--config"),
                   junk.map(lambda b: File("config.txt", b)), st.just("--no-progress")).map(list),
     ),
@@ -140,6 +160,12 @@ commands = {
         st.tuples(st.just("--quick"), st.sampled_from(["--backends", "--workloads"]), names.map(lambda s: f"zz{s}")).map(list),
         st.tuples(st.just("--max-threads"), st.one_of(not_positive, not_an_int)).map(list),
         st.tuples(unknown_option).map(list),
+    ),
+    "study": st.one_of(
+        st.tuples(names.map(lambda s: f"ch{s}")).map(list),
+        st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--loops", "--id-loops"]), not_positive).map(list),
+        st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--seed", "--workers"]), negative).map(list),
+        st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks"]), not_positive).map(list),
     ),
     "top": st.one_of(st.just([]), st.tuples(names.map(lambda s: f"zz{s}")).map(list), st.tuples(unknown_option).map(list)),
 }
