@@ -347,6 +347,11 @@ def plain_fields(config: Any) -> None:
     a saved model then loads back to a model that steps exactly as the original.
     Other values (strings, None, nested configurations, arrays of other shapes, which
     the field checks refuse) are left as they are.
+
+    Parameters
+    ----------
+    config : dataclass instance
+        A (frozen) configuration dataclass; changed in place.
     """
     for f in dataclasses.fields(config):
         value = getattr(config, f.name)
