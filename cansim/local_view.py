@@ -40,7 +40,7 @@ import numpy as np
 
 from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
-from whisker_io.validation import config_field, finite_array, finite_vector
+from whisker_io.validation import config_field, finite_array, finite_vector, plain_fields
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -142,6 +142,7 @@ class LocalViewParams:
     min_weight: float = 0.0
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers
         if self.mode not in ("stored", "learnt"):
             raise InvalidInputError(f"mode must be 'stored' or 'learnt', got {self.mode!r}")
         if self.rounding not in ("truncate", "round"):

@@ -8,7 +8,7 @@ from typing import Sequence, Union
 
 from cansim.errors import InvalidInputError
 from cansim.kernels import NORMALISATIONS, SeparableKernel
-from whisker_io.validation import finite_scalar, whole_number
+from whisker_io.validation import finite_scalar, plain_fields, whole_number
 
 __all__ = ["AttractorParams"]
 
@@ -61,6 +61,7 @@ class AttractorParams:
     kernel_normalisation: str = "sum"
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars, lists -> Python numbers, tuples (equal, hashable, JSON-able)
         if self.kernel_normalisation not in NORMALISATIONS:
             raise InvalidInputError(f"kernel_normalisation must be one of {NORMALISATIONS}, got {self.kernel_normalisation!r}")
         if not finite_scalar(self.global_inhibition, "global_inhibition") >= 0:

@@ -514,7 +514,8 @@ class Population:
         n_steps : int or None
             T; needed only when no other argument has a step axis (pure dynamics).
         record_activity : bool
-            Also return the activity after every step.
+            Also return the activity after every step (``True``/``False`` or a numpy bool;
+            anything else, e.g. an array, raises InvalidInputError).
 
         Returns
         -------
@@ -528,11 +529,14 @@ class Population:
         InvalidInputError, ShapeError
             A bad per-step input (non-finite, negative dt, wrong shape, lengths that differ,
             a bad injection), named with its step; checked for every step before the first
-            one runs, so nothing changes.
+            one runs, so nothing changes. A ``record_activity`` that is not a bool.
         ZeroActivityError
             The dynamics collapsed at some step; the state is left as it was before the run
             (no step of it is kept).
         """
+        if not isinstance(record_activity, (bool, np.bool_)):  # bool(np.array([])) raised numpy's ValueError
+            raise InvalidInputError(f"record_activity must be True or False, got {type(record_activity).__name__} "
+                                    f"{record_activity!r:.60}")
         inputs = run_inputs(self._motion, self._motion_shifts, self.ndim, self._size,
                             velocity, omega, dt, injections, n_steps)  # cansim.population_run
         res = self._backend.run(self._a, inputs, exc=self._exc, inh=self._inh, phi=self._phi,

@@ -92,7 +92,7 @@ from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, plain_fields
 
 __all__ = [
     "FORMAT_VERSION",
@@ -168,6 +168,7 @@ class MapConfig:
     keep_first_accumulator: bool = True
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the map)
         config_field(self.correction, "correction", float, above=0, maximum=1, hint="alpha of Eq 2.25")
         config_field(self.relax_passes, "relax_passes", int, minimum=0)
         config_field(self.match_distance_cells, "match_distance_cells", float, minimum=0, hint="a distance in cells")

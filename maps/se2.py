@@ -73,7 +73,8 @@ class SE2Geometry:
 
     def __init__(self, initial_heading_deg: float = 90.0, heading_axis: int | None = 2, heading_cells: int = 36) -> None:
         self.initial_heading_deg = float(config_field(initial_heading_deg, "initial_heading_deg", float))
-        self.heading_axis = config_field(heading_axis, "heading_axis", int, minimum=0, optional=True)
+        axis = config_field(heading_axis, "heading_axis", int, minimum=0, optional=True)
+        self.heading_axis = None if axis is None else int(axis)  # a Python int: saved as JSON with the map
         self.heading_cells = int(config_field(heading_cells, "heading_cells", int, minimum=1))
 
     def params(self) -> dict[str, Any]:

@@ -9,7 +9,9 @@ typed error with a message naming the argument, never a NaN result later:
 * :func:`finite_array` - an array of finite reals of a given shape;
 * :func:`whole_number` - an integer count (an integral float is accepted);
 * :func:`config_field` - one field of a configuration dataclass (its kind, range,
-  oddness or allowed names), raising :class:`~whisker_io.errors.ConfigError`.
+  oddness or allowed names), raising :class:`~whisker_io.errors.ConfigError`;
+* :func:`plain_fields` - a configuration dataclass's numpy scalars and lists made
+  plain Python numbers and tuples (called first by each ``__post_init__``).
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
 shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
@@ -20,6 +22,7 @@ string, ``True`` would pass as 1).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from collections.abc import Sequence
@@ -30,7 +33,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "MAX_STEP_M", "MAX_TURN_RAD"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "plain_fields", "MAX_STEP_M",
+           "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -318,3 +322,39 @@ def config_field(
     if optional:
         want += " or None"
     raise ConfigError(f"{name} must be {want}, got {value!r}" + (f"; {hint}" if hint else ""))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):  # np.int64(9) -> 9, np.float32(0.1) -> 0.10000000149011612, np.bool_ -> bool
+        return value.item()
+    if isinstance(value, np.ndarray) and value.ndim == 1:  # a per-axis array, e.g. exc_width=np.array([7, 7, 5])
+        return tuple(value.tolist())
+    if isinstance(value, (list, tuple)):
+        items = tuple(_plain(v) for v in value)
+        return value if type(value) is tuple and all(a is b for a, b in zip(items, value)) else items
+    return value
+
+
+def plain_fields(config: Any) -> None:
+    """Make a frozen configuration dataclass hold plain Python values, in place.
+
+    A numpy scalar becomes the Python number of the same value (``np.int64(9)`` -> ``9``,
+    ``np.float32(0.1)`` -> ``0.10000000149011612``, ``np.bool_`` -> ``bool``); a list, a
+    tuple of numpy scalars or a 1-D array (a per-axis value) becomes a tuple of Python
+    values. Each configuration's ``__post_init__`` calls it before checking its fields,
+    so a configuration built from numpy values equals, hashes, computes (float64, not
+    float32 arithmetic) and saves (JSON) as the one built from the same Python values:
+    a saved model then loads back to a model that steps exactly as the original.
+    Other values (strings, None, nested configurations, arrays of other shapes, which
+    the field checks refuse) are left as they are.
+
+    Parameters
+    ----------
+    config : dataclass instance
+        A (frozen) configuration dataclass; changed in place.
+    """
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        plain = _plain(value)
+        if plain is not value:
+            object.__setattr__(config, f.name, plain)

@@ -36,7 +36,7 @@ import numpy as np
 
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import config_field, whole_number
+from whisker_io.validation import config_field, plain_fields, whole_number
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
@@ -99,6 +99,7 @@ class VisualTemplateConfig:
     emulate_uninitialised_clear: bool = False
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the model)
         for name in ("template_width_blocks", "template_height_blocks", "step_match_blocks"):
             config_field(getattr(self, name), name, int, minimum=1)
         for name in ("crop_x_min_px", "crop_y_min_px", "shift_match_blocks", "patch_half_width_blocks"):

@@ -45,7 +45,7 @@ from numba import njit
 from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_columns, nmse_columns
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, plain_fields
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
 
@@ -85,6 +85,7 @@ class WhiskFrontEndConfig:
     n_whiskers: int = 18
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the model)
         config_field(self.features, "features", str, choices=FEATURES)
         for name in ("pfh_threshold", "sda_threshold"):
             config_field(getattr(self, name), name, float, above=0)

@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 from cansim.errors import ConfigError
 from cansim.params import AttractorParams
 from cansim.population import MAX_CELLS
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, plain_fields
 
 __all__ = ["SlamConfig", "MAX_POSE_CELLS"]
 
@@ -102,7 +102,11 @@ class SlamConfig:
         self._check_shared()
 
     def _check_shared(self) -> None:
-        """Check the shared fields (a model's ``__post_init__`` calls this, then checks its own)."""
+        """Check the shared fields (a model's ``__post_init__`` calls this, then checks its own).
+
+        Every field, the model's own too, is first made a plain Python value (:func:`plain_fields`).
+        """
+        plain_fields(self)
         config_field(self.cell_size_m, "cell_size_m", float, above=0)
         for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
             config_field(getattr(self, name), name, float, minimum=0)

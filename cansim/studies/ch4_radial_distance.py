@@ -253,6 +253,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
+    if args.seed < 0:  # refused before any work (numpy raised ValueError after the data sets were built)
+        ap.error(f"--seed must be >= 0, got {args.seed}")
     logging.basicConfig(level=logging.WARNING)
     # the MLP search stops L-BFGS at mlp_max_iter like the thesis' bounded search; don't flood the console
     from sklearn.exceptions import ConvergenceWarning

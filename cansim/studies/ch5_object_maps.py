@@ -825,6 +825,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
+    # every number is checked before any work (a 0 loop count ran the default, a negative seed or a bad
+    # quantile failed after minutes of mapping or calibration)
+    for name in ("loops", "id_loops"):
+        if getattr(a, name) is not None and getattr(a, name) < 1:
+            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(a, name)}")
+    for name in ("id_whisks", "seed", "workers"):
+        if getattr(a, name) is not None and getattr(a, name) < 0:
+            ap.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(a, name)}")
+    for name in ("noise_scale", "pfh_threshold", "sda_threshold"):
+        v = getattr(a, name)
+        if v is not None and not (math.isfinite(v) and v >= 0 and (name == "noise_scale" or v > 0)):
+            ap.error(f"--{name.replace('_', '-')} must be a finite number {'>= 0' if name == 'noise_scale' else '> 0'}, got {v}")
+    if not 0 < a.calibration_quantile <= 1:
+        ap.error(f"--calibration-quantile must lie in (0, 1], got {a.calibration_quantile}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     out = a.out
     out.mkdir(parents=True, exist_ok=True)

@@ -674,9 +674,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
     finite = all(math.isfinite(v) and v >= 0 for v in (args.noise_scale, args.object_offset_m, args.object_yaw_deg))
     finite = finite and math.isfinite(args.believed_scale) and 1.0 <= args.believed_scale <= 3.0
-    if args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45:
-        print("ch6_active_exploration: --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, --object-offset-m in "
-              "[0, 0.1], --object-yaw-deg in [0, 45] and --believed-scale in [1, 3] are needed", file=sys.stderr)
+    if (args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45
+            or args.seed < 0):
+        print("ch6_active_exploration: --seed >= 0, --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, "
+              "--object-offset-m in [0, 0.1], --object-yaw-deg in [0, 45] and --believed-scale in [1, 3] are needed",
+              file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
     logging.getLogger("cansim.explore.explorer").setLevel(logging.ERROR)  # refusals are counted in the CSV

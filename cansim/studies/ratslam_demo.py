@@ -61,6 +61,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
     args = parser.parse_args(argv)
+    if args.seed < 0:  # numpy's default_rng raised ValueError (a traceback, exit 1)
+        parser.error(f"--seed must be >= 0, got {args.seed}")
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -320,6 +320,8 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     if not 0.0 <= args.contact_noise <= 1.0:
         ap.error("--contact-noise must lie in [0, 1]")
+    if args.seed < 0:
+        ap.error(f"--seed must be >= 0, got {args.seed}")
     result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
                  progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching,
                  scale_to_m=args.scale_to_m, up_axis=args.up_axis)

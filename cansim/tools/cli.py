@@ -230,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
             "passed to the demo ('python -m cansim.studies.whisker_ratslam_demo --help' lists them).",
             usage="cansim demo [-h] [--out DIR] [--seed SEED] [whisker|ratslam] [demo options]")
     p.add_argument("--out", type=Path, default=Path.cwd(), metavar="DIR", help="output folder (default: working directory)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
+    p.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the run (default 0)")
     p.set_defaults(func=_cmd_demo)
 
     p = add("sweep", "run a parameter sweep (TOML spec) on Dask",
@@ -295,6 +295,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=_cmd_bench)
     return parser
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
 
 
 def _positive_int(text: str) -> int:

@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import contextlib
 import hashlib
 import importlib
 import itertools
@@ -74,7 +75,9 @@ import math
 import os
 import platform
 import re
+import signal
 import socket
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
@@ -842,11 +845,48 @@ def _client(address: str | None, workers: int | None, connect_timeout_s: float) 
         except (OSError, TimeoutError) as exc:
             raise ConfigError(f"scheduler: cannot connect to {address} ({_one_line(exc)}); is the scheduler running?") from None
     n = default_workers() if workers is None else workers
-    cluster = LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR,
-        env={"NUMBA_NUM_THREADS": "1"},  # one process per core: no nested thread pools
-    )
+    with _sigint_ignored():  # the worker processes inherit it (see _sigint_ignored)
+        cluster = LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR,
+            env={"NUMBA_NUM_THREADS": "1"},  # one process per core: no nested thread pools
+        )
     return Client(cluster), cluster
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Any:
+    """Ignore SIGINT in this process while the local cluster's worker processes start.
+
+    Ctrl-C in a terminal signals the whole process group: each worker process raised its
+    own KeyboardInterrupt and printed a traceback (dozens per sweep) before this process's
+    one-line message. A started process keeps an ignored SIGINT ignored (Python installs
+    its KeyboardInterrupt handler only over the default disposition), so the workers leave
+    the interrupt to this process, which cancels the tasks and closes the cluster. Only
+    from the main thread (where signal handlers live); elsewhere nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def _quiet_shutdown(interrupted: bool) -> Any:
+    """After an interruption, Dask's scheduler warns about the cancelled tasks of each worker it
+    removes while the cluster closes; those lines are not news to the user who pressed Ctrl-C."""
+    loggers = [logging.getLogger(name) for name in ("distributed", "dask")] if interrupted else []
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
 
 
 def run(
@@ -943,6 +983,7 @@ def _execute(todo: list[Task], skipped: int, total: int, out: Path, client: Any,
         bar = tqdm(total=total, initial=skipped, desc="sweep", unit="task", dynamic_ncols=True)
     failed = 0
     futures: dict[Any, Task] = {}
+    interrupted = False
     try:
         for t in todo:
             futures[client.submit(run_task, t, pure=False, key=f"cansim-sweep-{t.task_id}-{os.urandom(4).hex()}")] = t
@@ -960,15 +1001,17 @@ def _execute(todo: list[Task], skipped: int, total: int, out: Path, client: Any,
             fut.release()
             if on_row is not None:
                 on_row(row)
-    except BaseException:
+    except BaseException as exc:
+        interrupted = isinstance(exc, KeyboardInterrupt)
         for fut in futures:
             fut.cancel()
         raise
     finally:
         if bar is not None:
             bar.close()
-        if own_client is not None:
-            own_client.close()
-        if own_cluster is not None:
-            own_cluster.close()
+        with _quiet_shutdown(interrupted):
+            if own_client is not None:
+                own_client.close()
+            if own_cluster is not None:
+                own_cluster.close()
     return failed

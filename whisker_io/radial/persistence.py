@@ -11,7 +11,11 @@ estimator classes of :mod:`whisker_io.radial.models`. The file also holds:
 * ``units``: unit of every input feature and of the prediction (m);
 * ``versions``: numpy, scipy, scikit-learn, skops and whisker_io at save time;
 * ``training_hash``: SHA-256 fingerprint of the training set
-  (:meth:`RadialDataset.fingerprint`), hyper-parameters and CV error.
+  (:meth:`RadialDataset.fingerprint`), hyper-parameters and CV error. The
+  hyper-parameters are kept as they are when they are numbers, strings, booleans
+  or None (numpy scalars as the Python number), as their ``repr`` string
+  otherwise, so a loaded model saves the same metadata again (each save used to
+  quote the loaded strings once more: ``'rbf'`` -> ``"'rbf'"`` -> ...).
 
 A file written by another format version, scikit-learn major.minor or numpy
 major version is refused with :class:`ModelVersionError` (scikit-learn does not
@@ -63,6 +67,15 @@ def library_versions() -> dict[str, str]:
     return out
 
 
+def _plain_param(value: Any) -> Any:
+    """A hyper-parameter as saved: plain Python scalars as they are, anything else as its ``repr``."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)
+
+
 def _major_minor(v: str, n: int) -> tuple[str, ...]:
     return tuple(v.split(".")[:n])
 
@@ -93,7 +106,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         "units": {**{f: FEATURE_UNITS[f] for f in FEATURE_NAMES}, "prediction": "m"},
         "versions": library_versions(),
         "training_hash": model.training_hash,
-        "best_params": {k: repr(v) for k, v in model.best_params.items()},
+        "best_params": {str(k): _plain_param(v) for k, v in model.best_params.items()},
         "cv_rmse_m": float(model.cv_rmse_m),
         "fit_seconds": float(model.fit_seconds),
     }
@@ -119,7 +132,7 @@ def load_model(
     Returns
     -------
     TrainedModel
-        ``best_params`` are the saved ``repr`` strings.
+        ``best_params`` as saved (numbers, strings, booleans, None; other values as their ``repr``).
 
     Raises
     ------
