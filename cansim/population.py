@@ -152,14 +152,16 @@ class Population:
         return cls(axes, params or AttractorParams(), motion=PlanarMotion(frame), **kwargs)
 
     @classmethod
-    def head_direction(cls, n: int = 360, *, params: Optional[AttractorParams] = None, **kwargs) -> "Population":
-        """A 1-D head-direction ring of ``n`` cells (step ``2*pi/n`` rad).
+    @renamed_keywords(n="heading_cells")
+    def head_direction(cls, heading_cells: int = 360, *, params: Optional[AttractorParams] = None,
+                       **kwargs) -> "Population":
+        """A 1-D head-direction ring of ``heading_cells`` cells (step ``2*pi/heading_cells`` rad).
 
         Default kernels are OpenRatSLAM's theta-axis kernels (excitation 7 taps sigma 1,
         inhibition 5 taps sigma 2, phi 2e-5); :meth:`integrate` takes the angular
         velocity in rad/s as ``velocity``.
         """
-        return cls((Axis.angle("heading", n),), params or AttractorParams(), **kwargs)
+        return cls((Axis.angle("heading", heading_cells),), params or AttractorParams(), **kwargs)
 
     @classmethod
     @renamed_keywords(n="grid_cells", n_angle="angle_cells", cell_size="cell_size_m")

@@ -75,6 +75,13 @@ def test_whisker6d_old_keywords_warn_and_build_the_same_grid():
     assert _grid(pop)[0] == ("x", 4, 0.02) and pop.shape == (4, 4, 4, 6, 6, 6)
 
 
+def test_head_direction_old_keyword_warns_and_builds_the_same_ring():
+    with pytest.warns(DeprecationWarning, match="n is now heading_cells") as record:
+        pop = Population.head_direction(n=90, backend="numpy")
+    assert len(record) == 1 and pop.shape == (90,)
+    assert Population.head_direction(heading_cells=90, backend="numpy").shape == (90,)
+
+
 def test_posecell_network_old_keywords_warn():
     with pytest.warns(DeprecationWarning) as record:
         pc = PosecellNetwork(dim_xy=9, dim_th=12, cell_size=0.5)
