@@ -335,9 +335,11 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     }
 
 
-def map_object(name: str, cfg: Config, s: StudyConfig) -> tuple[Any, list[Any], dict[str, Any]]:
+def map_object(name: str, cfg: Config, s: StudyConfig,
+               step: tuple[float, float] | None = None) -> tuple[Any, list[Any], dict[str, Any]]:
     """Map ``name`` (a name or mesh file) along ``s.n_loops`` loops of trajectory A: (model, poses, exploration log).
 
+    ``step`` (m, deg) is the largest step between whisks (default :func:`step_of`).
     Seeded by ``(s.seed, "build", name, cfg.label)``: every caller that maps the same
     object with the same configuration gets the same whisks and the same map.
     """
@@ -346,7 +348,7 @@ def map_object(name: str, cfg: Config, s: StudyConfig) -> tuple[Any, list[Any], 
     from whisker_io.sim.trajectories import object_trajectory
 
     mesh = resolve_object(name).mesh
-    step_m, step_deg = step_of(name)
+    step_m, step_deg = step_of(name) if step is None else step
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
