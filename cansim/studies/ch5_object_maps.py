@@ -168,6 +168,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from whisker_io._deprecated import renamed_attributes
 
 logger = logging.getLogger("ch5_study")
 
@@ -889,15 +890,8 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def __getattr__(name: str) -> Any:
-    """``Settings``: the old name of :class:`StudyConfig` (0.1; removed in 0.3), with a DeprecationWarning."""
-    if name == "Settings":
-        import warnings
-
-        warnings.warn("cansim.studies.ch5_object_maps.Settings is now StudyConfig (the Params / Config / Spec naming "
-                      "rule, CONTRIBUTING.md); the old name goes in 0.3", DeprecationWarning, stacklevel=2)
-        return StudyConfig
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``Settings``: the old name of :class:`StudyConfig` (warns; removed in 0.3).
+__getattr__ = renamed_attributes(__name__, {"Settings": "StudyConfig"}, globals())
 
 
 if __name__ == "__main__":

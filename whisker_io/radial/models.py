@@ -47,6 +47,7 @@ from sklearn.svm import SVR
 from threadpoolctl import threadpool_limits
 
 from whisker_io.errors import InvalidInputError
+from whisker_io._deprecated import renamed_attributes
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset, feature_indices
 
@@ -538,12 +539,5 @@ def train_models(
     return out
 
 
-def __getattr__(name: str) -> Any:
-    """``SearchSettings``: the old name of :class:`SearchParams` (0.1; removed in 0.3), with a DeprecationWarning."""
-    if name == "SearchSettings":
-        import warnings
-
-        warnings.warn("whisker_io.radial.models.SearchSettings is now SearchParams (the Params / Config / Spec naming "
-                      "rule, CONTRIBUTING.md); the old name goes in 0.3", DeprecationWarning, stacklevel=2)
-        return SearchParams
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``SearchSettings``: the old name of :class:`SearchParams` (warns; removed in 0.3).
+__getattr__ = renamed_attributes(__name__, {"SearchSettings": "SearchParams"}, globals())
