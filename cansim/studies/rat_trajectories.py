@@ -446,6 +446,21 @@ def _ring_result(model, p, traj, decoded_rad, views, lv, anchored, wall, landmar
                     landmarks_m=landmarks)
 
 
+def _view_injection(views, lv, k: int, population):  # noqa: ANN001, ANN202
+    """Sample ``k``'s learnt LV -> attractor injection (Eq 2.17; None away from landmarks or without
+    anchoring), whether its view is new (it then learns the packet, Eq 2.18) and whether a known
+    view was seen (an anchoring sample)."""
+    vid = views.view_id(k) if lv is not None else -1
+    if vid < 0:
+        return None, False, False
+    new = vid == lv.n_views
+    return lv.observe(vid, population.decode()), new, not new
+
+
+def _non_empty(injection):  # noqa: ANN001, ANN202
+    return injection if injection is not None and len(injection[0]) else None
+
+
 def _simulate_rate_ring(traj: RatTrajectory, p: dict, omega: np.ndarray) -> DriftRun:
     ring = Population.head_direction(p["ring_cells"], params=_ring_params(p))
     step = ring.axes[0].step
@@ -457,13 +472,9 @@ def _simulate_rate_ring(traj: RatTrajectory, p: dict, omega: np.ndarray) -> Drif
     anchored = 0
     t0 = time.perf_counter()
     for k in range(traj.n_samples):
-        injection = None
-        vid = views.view_id(k) if lv is not None else -1
-        new = vid == lv.n_views if vid >= 0 else False
-        if vid >= 0:
-            injection = lv.observe(vid, ring.decode())
-            anchored += 0 if new else 1
-        d = ring.step(velocity=float(omega[k]), dt=dt, injection=injection if injection is not None and len(injection[0]) else None)
+        injection, new, known = _view_injection(views, lv, k, ring)
+        anchored += known
+        d = ring.step(velocity=float(omega[k]), dt=dt, injection=_non_empty(injection))
         if new:
             lv.learn(ring.activity)  # Eq 2.18: the new view learns the packet it sees
         out[k] = d[0] * step
@@ -547,13 +558,9 @@ def _simulate_rate_sheet(traj: RatTrajectory, p: dict, velocity: np.ndarray) -> 
     anchored = 0
     t0 = time.perf_counter()
     for k in range(traj.n_samples):
-        injection = None
-        vid = views.view_id(k) if lv is not None else -1
-        new = vid == lv.n_views if vid >= 0 else False
-        if vid >= 0:
-            injection = lv.observe(vid, sheet.decode())
-            anchored += 0 if new else 1
-        d = sheet.step(velocity=velocity[k], dt=dt, injection=injection if injection is not None and len(injection[0]) else None)
+        injection, new, known = _view_injection(views, lv, k, sheet)
+        anchored += known
+        d = sheet.step(velocity=velocity[k], dt=dt, injection=_non_empty(injection))
         if new:
             lv.learn(sheet.activity)
         rel = (np.asarray(d, dtype=np.float64) - centre) * cell
