@@ -266,3 +266,40 @@ def test_nothing_compiles_in_the_loop_after_warm_up_on_a_cold_cache(tmp_path):
     out = _run(WARM_SCRIPT, {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}).split()
     assert int(out[0]) > 0
     assert int(out[1]) == 0
+
+
+@pytest.mark.parametrize("which", ["nbi", "nbc"])
+def test_corrupt_numba_cache_file_of_a_generated_module_recompiles(tmp_path, which, caplog):
+    """A corrupt numba index or data file: a warning, a fresh compilation, the right result, a repaired cache."""
+    src = SOURCE.replace("triple_plus", f"triple_plus_{which}")
+    script = textwrap.dedent(f"""\
+        import sys
+        from numba.core import event
+        count = [0]
+        class Count(event.Listener):
+            def on_start(self, ev):
+                pass
+            def on_end(self, ev):
+                count[0] += 1
+        event.register("numba:compile", Count())
+        from cansim.backends.kernel_cache import cached_module
+        m = cached_module({src!r}, "corrupt", folder=sys.argv[1])
+        print(m.triple_plus_{which}(2, 3), count[0])
+        """)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+
+    def run():
+        out = subprocess.run([sys.executable, "-c", script, str(tmp_path / "kernels")], env=env, cwd=ROOT,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.split(), out.stderr
+
+    assert run()[0] == ["9", "1"]  # cold: compiled once
+    assert run()[0] == ["9", "0"]  # warm: loaded
+    files = list((tmp_path / "numba").rglob(f"*.{which}"))
+    assert files
+    for f in files:
+        f.write_bytes(b"garbage")
+    (result, compiled), err = run()
+    assert (result, compiled) == ("9", "1") and "corrupt numba cache" in err
+    assert run()[0] == ["9", "0"]  # the entry was written anew
