@@ -303,3 +303,39 @@ def test_corrupt_numba_cache_file_of_a_generated_module_recompiles(tmp_path, whi
     (result, compiled), err = run()
     assert (result, compiled) == ("9", "1") and "corrupt numba cache" in err
     assert run()[0] == ["9", "0"]  # the entry was written anew
+
+
+def test_warm_up_block_says_so_when_it_takes_longer_than_its_bound(capsys):
+    """A block that outlasts ``after_s``: one INFO line when the bound passes, the progress line on stderr,
+    and a closing line; a block within its bound says nothing. (Waits on the announcement, no sleeping.)"""
+    import threading
+
+    from cansim.warm_up import WarmUp
+
+    seen = threading.Event()
+    records = []
+
+    class Catch(logging.Handler):
+        def emit(self, record):
+            records.append(record.getMessage())
+            seen.set()
+
+    logger = logging.getLogger("cansim.warm_up")
+    handler = Catch(level=logging.INFO)
+    logger.addHandler(handler)
+    old = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        with WarmUp("Model", progress=True, after_s=0.0) as w:
+            w.stage("pose cells")
+            assert seen.wait(60)  # the announcement arrives while the block runs
+        assert w.elapsed_s > 0.0
+        assert len(records) == 2 and "compiling" in records[0] and "kernels ready" in records[1]
+        assert "Model: kernels ready" in capsys.readouterr().err
+        records.clear()
+        with WarmUp("Model", progress=True, after_s=3600.0):
+            pass
+        assert records == [] and capsys.readouterr().err == ""
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)
