@@ -339,3 +339,27 @@ def test_warm_up_block_says_so_when_it_takes_longer_than_its_bound(capsys):
     finally:
         logger.removeHandler(handler)
         logger.setLevel(old)
+
+
+@settings(max_examples=25, deadline=None)
+@given(value=st.integers(-10**12, 10**12), stem=st.from_regex(r"[a-z][a-z0-9_]{0,12}", fullmatch=True))
+def test_cached_module_round_trips_any_source(value, stem):
+    """Whatever the source, the module imported is that source, stored under its key."""
+    import tempfile
+
+    source = f"VALUE = {value}\n"
+    with tempfile.TemporaryDirectory() as folder:
+        m = cached_module(source, stem, folder=Path(folder))
+        assert m is not None and m.VALUE == value
+        assert (Path(folder) / f"{stem}_{module_key(source)}.py").read_text() == source
+
+
+def test_kernel_cache_dir_precedence(monkeypatch, tmp_path):
+    monkeypatch.setenv("CANSIM_KERNEL_CACHE", str(tmp_path / "own"))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "own"
+    monkeypatch.delenv("CANSIM_KERNEL_CACHE")
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "numba" / "cansim_generated"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "xdg" / "cansim" / "kernels"
