@@ -76,6 +76,7 @@ def test_cached_module_is_written_once_and_reused(tmp_path):
     assert m1 is not None and m1.triple_plus(2, 1) == 7
     path = tmp_path / f"demo_{module_key(SOURCE)}.py"
     assert path.read_text() == SOURCE
+    assert path.stat().st_mode & 0o444 == 0o444  # readable by every user of a shared cache folder
     stamp = path.stat().st_mtime_ns
     assert cached_module(SOURCE, "demo", folder=tmp_path) is m1
     assert path.stat().st_mtime_ns == stamp  # an intact file is never rewritten (numba's index stamp stays valid)

@@ -91,6 +91,7 @@ def _write_atomically(path: Path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a shared cache folder is readable by all
         if path.exists():  # a corrupt copy: replace it
             os.replace(tmp, path)
             return

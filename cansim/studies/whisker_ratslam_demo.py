@@ -147,13 +147,13 @@ def run(
     slam = WhiskerRatSLAM(cfg)
     dead = [poses[0]]
     states, n_obs = [], 0
+    t0 = t_first = time.perf_counter()
+    warm_up_s = slam.warm_up(progress=progress)  # every kernel compiled (or loaded from the cache) before the loop
     rows = range(len(poses))
     if progress:
         from tqdm import tqdm
 
         rows = tqdm(rows, desc=f"whisking the {object_name}", unit="whisk")
-    t0 = t_first = time.perf_counter()
-    warm_up_s = slam.warm_up(progress=progress)  # every kernel compiled (or loaded from the cache) before the loop
     for k in rows:
         if k == 1:  # the rate starts after the first whisk (the time to it includes the warm-up)
             t_first = time.perf_counter()
