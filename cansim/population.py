@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from typing import Optional, Sequence, Union
@@ -480,6 +481,34 @@ class Population:
         self._commit(new)
         self._last_decoded = decoded
         return decoded.copy()
+
+    def warm_up(self, velocity=None, omega=None, dt: float = 1.0, *, run: bool = False, progress: bool = False) -> float:
+        """Compile (or load from the disk cache) the kernels of :meth:`step` now, not in the loop.
+
+        One :meth:`step` with this odometry and a one-cell injection runs on a scratch copy
+        of the activity (and, with ``run``, a one-step :meth:`run`); the population is left
+        as it was, bit for bit. Pass the odometry your loop uses (e.g. a non-zero velocity)
+        so that the shift kernels it needs are compiled too. Logs one line (and with
+        ``progress`` shows one on stderr) when this takes more than a second
+        (:class:`cansim.warm_up.WarmUp`).
+
+        Returns
+        -------
+        float
+            Seconds taken (s).
+        """
+        from cansim.warm_up import WarmUp
+
+        scratch = copy.copy(self)  # shares the backend (its kernel caches), not the activity
+        scratch._a, scratch._spare = self._a.copy(), np.empty_like(self._spare)
+        with WarmUp(f"population {'x'.join(map(str, self.shape))}", progress=progress) as w:
+            w.stage("step")
+            scratch.step(velocity, omega, dt, injection=(np.zeros(1, np.int64), np.ones(1)))
+            if run:
+                w.stage("run")
+                scratch.run(None if velocity is None else [velocity], None if omega is None else [omega], [dt],
+                            [(np.zeros(1, np.int64), np.ones(1))])
+        return w.elapsed_s
 
     def run(
         self,

@@ -284,6 +284,7 @@ class WhiskerRatSLAM(SlamLoop):
             check_odometry=_positive_dt,
         )
         self._predicted: np.ndarray | None = None  # dead-reckoned pose of the whisk being matched
+        self._warm = False  # warm_up() has run (the first step runs it)
 
     @property
     def object_map(self) -> ObjectMap:
@@ -316,6 +317,8 @@ class WhiskerRatSLAM(SlamLoop):
         """
         if len(args) not in (2, 4):
             raise InvalidInputError("step takes (odometry, observation) or (v, omega, dt, observation)")
+        if not getattr(self, "_warm", True):
+            self.warm_up()
         *odo_args, observation = args
         if observation is not None and getattr(observation, "is_observation", True) is False:
             observation = None
@@ -330,6 +333,24 @@ class WhiskerRatSLAM(SlamLoop):
         if points is not None and self.object_map.n_experiences:  # what was felt, for maps.surface_match
             self.object_map.record_contacts(points)
         return state
+
+    def warm_up(self, *, progress: bool = False) -> float:
+        """Compile (or load from the disk cache) every kernel this configuration uses, now.
+
+        Runs a short scripted exploration on a fresh model of the same configuration
+        (:func:`cansim.models.warm_up.warm_up_whisker`); this model is unchanged. The first
+        :meth:`step` calls it when it has not run, so no kernel compiles inside the loop.
+        Logs a line (and with ``progress`` shows one on stderr) when it takes more than a second.
+
+        Returns
+        -------
+        float
+            Seconds taken (s).
+        """
+        from cansim.models.warm_up import warm_up_whisker
+
+        self._warm = True
+        return warm_up_whisker(self, progress=progress)
 
     def _advance(self, odo: Any, view_id: int = -1, new_view: bool = False) -> SlamState:
         """The odometry part of an iteration (from :meth:`step` and :meth:`on_odo` alike), then the

@@ -1,0 +1,366 @@
+"""Generated kernels cached on disk (cansim.backends.kernel_cache) and the models' warm-up.
+
+Compilations are counted with numba's compile events (a compile event fires only when a
+function is compiled, not when it is loaded from the cache), never timed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from cansim.backends import kernel_cache
+from cansim.backends.kernel_cache import cached_module, module_key
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: a generated module in the style of cansim.backends._numba_small: one cached numba function
+SOURCE = textwrap.dedent("""\
+    from numba import njit
+
+    @njit(cache=True)
+    def triple_plus(x, k):
+        return 3 * x + k
+    """)
+
+
+def _run(script: str, env_extra: dict) -> str:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **env_extra)
+    out = subprocess.run([sys.executable, "-c", script], env=env, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip().splitlines()[-1]
+
+
+#: counts compilations of functions of generated modules, then builds a 3x3 population's small-grid step
+COUNTING_SCRIPT = textwrap.dedent("""\
+    from numba.core import event
+    count = [0]
+    class Count(event.Listener):
+        def on_start(self, ev):
+            pass
+        def on_end(self, ev):
+            if ev.data["dispatcher"].py_func.__module__.startswith("_cansim_kernels"):
+                count[0] += 1
+    event.register("numba:compile", Count())
+    import numpy as np
+    from cansim.axes import Axis
+    from cansim.population import Population
+    p = Population([Axis.linear("x", 3, 1.0), Axis.linear("y", 3, 1.0)], backend="numba")
+    p.step(np.array([0.3, 0.0]))
+    print(count[0], repr(p.activity.tobytes().hex()))
+    """)
+
+
+def test_second_process_compiles_no_generated_kernel(tmp_path):
+    """The first process compiles the generated small-grid step; the second loads it: no compilation."""
+    env = {"CANSIM_KERNEL_CACHE": str(tmp_path / "kernels")}
+    first = _run(COUNTING_SCRIPT, env).split()
+    second = _run(COUNTING_SCRIPT, env).split()
+    assert int(first[0]) > 0  # a cold folder: the generated step and its passes compile
+    assert int(second[0]) == 0
+    assert first[1] == second[1]  # the loaded kernel gives the same activity, bit for bit
+    files = list((tmp_path / "kernels").glob("small_3x3_*.py"))
+    assert len(files) == 1 and "def step(" in files[0].read_text()
+
+
+def test_cached_module_is_written_once_and_reused(tmp_path):
+    m1 = cached_module(SOURCE, "demo", folder=tmp_path)
+    assert m1 is not None and m1.triple_plus(2, 1) == 7
+    path = tmp_path / f"demo_{module_key(SOURCE)}.py"
+    assert path.read_text() == SOURCE
+    assert path.stat().st_mode & 0o444 == 0o444  # readable by every user of a shared cache folder
+    stamp = path.stat().st_mtime_ns
+    assert cached_module(SOURCE, "demo", folder=tmp_path) is m1
+    assert path.stat().st_mtime_ns == stamp  # an intact file is never rewritten (numba's index stamp stays valid)
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_key_depends_on_source_and_dependencies(tmp_path):
+    dep = tmp_path / "dep.py"
+    dep.write_text("a = 1\n")
+    k1 = module_key(SOURCE, [dep])
+    dep.write_text("a = 2\n")
+    assert module_key(SOURCE, [dep]) != k1  # an edited dependency: a new file, a fresh compilation
+    assert module_key(SOURCE + "\n") != module_key(SOURCE)
+
+
+@pytest.mark.parametrize("garbage", [b"", b"from numba import njit\n\n@njit(cache=True)\ndef triple_plus(x", b"\x00\xff\xfe"])
+def test_corrupt_module_is_replaced_and_recompiled(tmp_path, garbage):
+    path = tmp_path / f"demo_{module_key(SOURCE)}.py"
+    path.write_bytes(garbage)
+    m = cached_module(SOURCE, "demo", folder=tmp_path)
+    assert m is not None and m.triple_plus(5, -1) == 14
+    assert path.read_text() == SOURCE
+
+
+def test_competing_writer_keeps_the_first_copy(tmp_path, monkeypatch):
+    """Two processes at once: the other one's link lands first; ours fails and its copy is kept."""
+    path = tmp_path / f"demo_{module_key(SOURCE)}.py"
+    real_link = os.link
+    calls = []
+
+    def link_after_competitor(src, dst):
+        calls.append(dst)
+        Path(dst).write_text(SOURCE)  # the competitor's complete copy appears first
+        return real_link(src, dst)
+
+    monkeypatch.setattr(kernel_cache.os, "link", link_after_competitor)
+    m = cached_module(SOURCE, "demo", folder=tmp_path)
+    assert calls and m is not None and m.triple_plus(1, 1) == 4
+    assert path.read_text() == SOURCE
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file()) == [path.name]  # no temporary file left
+
+
+def test_concurrent_processes_write_one_intact_module(tmp_path):
+    """Four processes write and import the same module at once: each imports it, one file, no leftovers."""
+    script = textwrap.dedent(f"""\
+        import sys
+        from cansim.backends.kernel_cache import cached_module
+        m = cached_module({SOURCE!r}, "race", folder=sys.argv[1])
+        print(m.triple_plus(1, 2) if m is not None else "none")
+        """)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    procs = [subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], env=env, cwd=ROOT, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(4)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [o[0].strip() for o in outs] == ["5"] * 4, [o[1] for o in outs]
+    files = [p.name for p in tmp_path.iterdir() if p.is_file()]
+    assert files == [f"race_{module_key(SOURCE)}.py"]
+    assert (tmp_path / files[0]).read_text() == SOURCE
+
+
+def test_unwritable_folder_falls_back_with_one_warning(tmp_path, monkeypatch, caplog):
+    """A read-only folder (writing fails) and a folder that cannot exist (a file is in the way)."""
+    monkeypatch.setattr(kernel_cache, "_WARNED", set())
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(kernel_cache.tempfile, "mkstemp", refuse)
+    with caplog.at_level(logging.WARNING, logger=kernel_cache.__name__):
+        assert cached_module(SOURCE, "demo", folder=tmp_path) is None
+        assert cached_module(SOURCE + "#\n", "demo", folder=tmp_path) is None
+    assert len(caplog.records) == 1 and "in memory" in caplog.records[0].getMessage()
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    assert cached_module(SOURCE, "demo", folder=blocker / "kernels") is None
+
+
+def test_small_grid_step_works_without_a_cache_folder(tmp_path, monkeypatch, caplog):
+    """No usable kernel cache: the generated step compiles in memory and gives the cached step's result."""
+    from cansim.axes import Axis
+    from cansim.backends import _numba_small
+    from cansim.backends.numba_backend import NumbaBackend
+    from cansim.population import Population
+
+    def step(backend):
+        p = Population([Axis.linear("x", 4, 1.0), Axis.linear("y", 4, 1.0)], backend=backend)
+        p.activity = np.random.default_rng(5).random(p.shape).astype(p.dtype)
+        p.step(np.array([0.3, -0.2]))
+        return p.activity.tobytes()
+
+    cached = step(NumbaBackend())
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the folder should be")
+    monkeypatch.setenv("CANSIM_KERNEL_CACHE", str(blocker / "kernels"))
+    monkeypatch.setattr(kernel_cache, "_WARNED", set())
+    monkeypatch.setattr(_numba_small, "_STEPS", {})  # this process builds the kernels again
+    with caplog.at_level(logging.WARNING, logger=kernel_cache.__name__):
+        assert step(NumbaBackend()) == cached
+    assert any("in memory" in r.getMessage() for r in caplog.records)
+    assert all(ns["__name__"] == "_cansim_kernels_in_memory" for ns in _numba_small._STEPS.values())
+
+
+# ------------------------------------------------------------------------ warm-up
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), vx=st.floats(-0.9, 0.9), run=st.booleans())
+def test_population_warm_up_leaves_the_population_unchanged(seed, vx, run):
+    from cansim.axes import Axis
+    from cansim.population import Population
+
+    p = Population([Axis.linear("x", 3, 1.0), Axis.linear("y", 3, 1.0)], backend="numba")
+    rng = np.random.default_rng(seed)
+    p.activity = rng.random(p.shape).astype(p.dtype)
+    before = p.activity.copy()
+    took = p.warm_up(np.array([vx, 0.0]), run=run)
+    assert took >= 0.0
+    assert p.activity.tobytes() == before.tobytes()
+    q = Population([Axis.linear("x", 3, 1.0), Axis.linear("y", 3, 1.0)], backend="numba")
+    q.activity = before
+    assert p.step(np.array([vx, 0.0])).tobytes() == q.step(np.array([vx, 0.0])).tobytes()
+
+
+def _whisk_loop(slam, n=14, seed=3):
+    from maps.odometry import SpatialOdometry
+
+    rng = np.random.default_rng(seed)
+    states = []
+    for k in range(n):
+        pfh = rng.dirichlet(np.ones(slam.config.frontend.n_bins))
+        sda = rng.normal(0, 1, slam.config.frontend.n_whiskers)
+        odo = SpatialOdometry(rng.normal(0, 0.02, 3), rng.normal(0, 0.1, 3), 1.0)
+        states.append(slam.step(odo, (pfh, sda) if k % 5 else None))
+    return states
+
+
+def test_whisker_ratslam_warm_up_does_not_change_the_run():
+    """The warm-up runs on a scratch model: the states equal those of a model that never warmed up."""
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+
+    cfg = WhiskerRatSLAMConfig.mapping(cell_size_m=0.05)
+    warm, cold = WhiskerRatSLAM(cfg), WhiskerRatSLAM(cfg)
+    assert warm.warm_up() >= 0.0
+    cold._warm = True  # skip the automatic warm-up of the first step
+    a, b = _whisk_loop(warm), _whisk_loop(cold)
+    assert [(s.exp_id, s.relocalised, tuple(s.best_pc)) for s in a] == [(s.exp_id, s.relocalised, tuple(s.best_pc)) for s in b]
+    assert np.array_equal(warm.object_map.poses, cold.object_map.poses)
+    assert warm.pose_cells.activity.tobytes() == cold.pose_cells.activity.tobytes()
+
+
+def test_first_step_warms_up_once(monkeypatch):
+    from cansim.models import warm_up as wu
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+
+    calls = []
+    real = wu.warm_up_whisker
+    monkeypatch.setattr(wu, "warm_up_whisker", lambda m, **kw: calls.append(m) or real(m, **kw))
+    slam = WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.05))
+    _whisk_loop(slam, n=3)
+    assert calls == [slam]
+
+
+WARM_SCRIPT = textwrap.dedent("""\
+    from numba.core import event
+    count = [0]
+    class Count(event.Listener):
+        def on_start(self, ev):
+            pass
+        def on_end(self, ev):
+            count[0] += 1
+    event.register("numba:compile", Count())
+    import numpy as np
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+    from maps.odometry import SpatialOdometry
+    slam = WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.05, backend="numba"))
+    slam.warm_up()
+    before = count[0]
+    rng = np.random.default_rng(7)
+    places = [(rng.dirichlet(np.ones(81)), rng.normal(0, 1, 18)) for _ in range(9)]
+    for k in range(40):
+        obs = None if k % 7 == 3 else places[k % 9]
+        slam.step(SpatialOdometry(np.array([0.05, 0.01, 0.0]), np.array([0.0, 0.05, 0.7]), 1.0), obs)
+    print(before, count[0] - before, slam.object_map.n_experiences)
+    """)
+
+
+@pytest.mark.slow
+def test_nothing_compiles_in_the_loop_after_warm_up_on_a_cold_cache(tmp_path):
+    """A cold cache: the warm-up compiles; a loop with re-visits, re-localisations and blind whisks compiles nothing."""
+    out = _run(WARM_SCRIPT, {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}).split()
+    assert int(out[0]) > 0
+    assert int(out[1]) == 0
+
+
+@pytest.mark.parametrize("which", ["nbi", "nbc"])
+def test_corrupt_numba_cache_file_of_a_generated_module_recompiles(tmp_path, which, caplog):
+    """A corrupt numba index or data file: a warning, a fresh compilation, the right result, a repaired cache."""
+    src = SOURCE.replace("triple_plus", f"triple_plus_{which}")
+    script = textwrap.dedent(f"""\
+        import sys
+        from numba.core import event
+        count = [0]
+        class Count(event.Listener):
+            def on_start(self, ev):
+                pass
+            def on_end(self, ev):
+                count[0] += 1
+        event.register("numba:compile", Count())
+        from cansim.backends.kernel_cache import cached_module
+        m = cached_module({src!r}, "corrupt", folder=sys.argv[1])
+        print(m.triple_plus_{which}(2, 3), count[0])
+        """)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+
+    def run():
+        out = subprocess.run([sys.executable, "-c", script, str(tmp_path / "kernels")], env=env, cwd=ROOT,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.split(), out.stderr
+
+    assert run()[0] == ["9", "1"]  # cold: compiled once
+    assert run()[0] == ["9", "0"]  # warm: loaded
+    files = list((tmp_path / "numba").rglob(f"*.{which}"))
+    assert files
+    for f in files:
+        f.write_bytes(b"garbage")
+    (result, compiled), err = run()
+    assert (result, compiled) == ("9", "1") and "corrupt numba cache" in err
+    assert run()[0] == ["9", "0"]  # the entry was written anew
+
+
+def test_warm_up_block_says_so_when_it_takes_longer_than_its_bound(capsys):
+    """A block that outlasts ``after_s``: one INFO line when the bound passes, the progress line on stderr,
+    and a closing line; a block within its bound says nothing. (Waits on the announcement, no sleeping.)"""
+    import threading
+
+    from cansim.warm_up import WarmUp
+
+    seen = threading.Event()
+    records = []
+
+    class Catch(logging.Handler):
+        def emit(self, record):
+            records.append(record.getMessage())
+            seen.set()
+
+    logger = logging.getLogger("cansim.warm_up")
+    handler = Catch(level=logging.INFO)
+    logger.addHandler(handler)
+    old = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        with WarmUp("Model", progress=True, after_s=0.0) as w:
+            w.stage("pose cells")
+            assert seen.wait(60)  # the announcement arrives while the block runs
+        assert w.elapsed_s > 0.0
+        assert len(records) == 2 and "compiling" in records[0] and "kernels ready" in records[1]
+        assert "Model: kernels ready" in capsys.readouterr().err
+        records.clear()
+        with WarmUp("Model", progress=True, after_s=3600.0):
+            pass
+        assert records == [] and capsys.readouterr().err == ""
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)
+
+
+@settings(max_examples=25, deadline=None)
+@given(value=st.integers(-10**12, 10**12), stem=st.from_regex(r"[a-z][a-z0-9_]{0,12}", fullmatch=True))
+def test_cached_module_round_trips_any_source(value, stem):
+    """Whatever the source, the module imported is that source, stored under its key."""
+    import tempfile
+
+    source = f"VALUE = {value}\n"
+    with tempfile.TemporaryDirectory() as folder:
+        m = cached_module(source, stem, folder=Path(folder))
+        assert m is not None and m.VALUE == value
+        assert (Path(folder) / f"{stem}_{module_key(source)}.py").read_text() == source
+
+
+def test_kernel_cache_dir_precedence(monkeypatch, tmp_path):
+    monkeypatch.setenv("CANSIM_KERNEL_CACHE", str(tmp_path / "own"))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "own"
+    monkeypatch.delenv("CANSIM_KERNEL_CACHE")
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "numba" / "cansim_generated"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert kernel_cache.kernel_cache_dir() == tmp_path / "xdg" / "cansim" / "kernels"
