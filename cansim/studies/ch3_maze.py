@@ -187,6 +187,9 @@ SEQUENCE_INJECT_ENERGY = 0.3
 """``inject_energy`` of the sequence recognition (one value for every condition, chosen on the tuning seeds)."""
 SEQUENCE_MATCH_DISTANCE_CELLS = 2.0
 """``match_distance_cells`` of the sequence recognition (Table 3.1: 1; chosen on the tuning seeds)."""
+SEQUENCE_LINK_UPDATE = "average"
+"""``link_update`` of the sequence recognition's experience map: a link driven again becomes the running mean
+of its traversals (:mod:`maps.link_average`; Table 3.1 / OpenRatSLAM: ``"first"``, the first traversal only)."""
 SAME_PLACE_M = 0.015
 """Two whisk cycles are at the same place when their poses are within one place (15 mm) and 25 deg."""
 DIFFERENT_PLACE_M = 0.1
@@ -336,7 +339,7 @@ def run_slam(recording: Recording, contact_angle: str, match_threshold: float, i
     ``recognition="thesis_ch3"``: Table 3.1 with the tactile front end (Eq 3.1 per image,
     ``match_threshold`` in sqrt(level)); ``"sequence"``: Table 3.1 with the view ids of
     :data:`SEQUENCE` (``match_threshold`` its mean Eq 3.1 per image) and
-    :data:`SEQUENCE_MATCH_DISTANCE_CELLS`; ``"true_places"``: the same RatSLAM with
+    :data:`SEQUENCE_MATCH_DISTANCE_CELLS` and :data:`SEQUENCE_LINK_UPDATE`; ``"true_places"``: the same RatSLAM with
     :func:`true_place_view_ids` (a reference: what perfect recognition gives; the
     images and ``match_threshold`` are not used).
     """
@@ -345,7 +348,8 @@ def run_slam(recording: Recording, contact_angle: str, match_threshold: float, i
         cfg = RatSLAMConfig.thesis_ch3(frontend=TactileTemplateConfig(match_threshold=float(match_threshold)), inject_energy=float(inject_energy))
         observations: list[Any] = recording.observations(contact_angle)
     elif recognition in ("sequence", "true_places"):
-        cfg = RatSLAMConfig.thesis_ch3(frontend="ids", inject_energy=float(inject_energy), match_distance_cells=SEQUENCE_MATCH_DISTANCE_CELLS)
+        cfg = RatSLAMConfig.thesis_ch3(frontend="ids", inject_energy=float(inject_energy), match_distance_cells=SEQUENCE_MATCH_DISTANCE_CELLS,
+                                       link_update=SEQUENCE_LINK_UPDATE)
         observations = (true_place_view_ids(recording) if recognition == "true_places" else
                         sequence_view_ids(recording, contact_angle, dataclasses.replace(SEQUENCE, match_threshold=float(match_threshold))))
     else:
