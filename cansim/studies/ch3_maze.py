@@ -875,7 +875,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     lines = summary_lines(rows, calibration, settings, seeds, args.recognition)
     lines.extend(acceptance_lines(rows))
     lines.append(f"   reference, perfect recognition (true_place_view_ids, same RatSLAM): map / dr {', '.join(f'{q:.2f}' for q in reference.values())} "
-                 "- the experience map keeps the first pass's odometry on each link, so even perfect recognition leaves this much")
+                 f"- the same map (link_update {SEQUENCE_LINK_UPDATE!r}: a repeated link is the running mean of its traversals) "
+                 "with view ids from the true places: the part of the ratio better recognition cannot remove")
     lines.extend(aliasing_lines(aliasing, distributions, settings, args.recognition))
     lines.append("")
     lines.append(f"{'quick' if args.quick else 'full'} study, {time.perf_counter() - t0:.0f} s")
