@@ -28,6 +28,7 @@ import math
 from typing import Sequence
 
 from maps.se2 import clip_rad_180, signed_delta_rad
+from whisker_io.validation import finite_vector, whole_number
 
 __all__ = ["LINK_UPDATES", "average_se2_link", "invert_se2_link"]
 
@@ -51,8 +52,13 @@ def invert_se2_link(link: Sequence[float]) -> tuple[float, float, float, float]:
         link from B to A. B sees A at distance ``d`` in the world direction
         ``theta_A + heading + pi``, i.e. ``heading + pi - facing`` from B's facing
         ``theta_A + facing``.
+
+    Raises
+    ------
+    ShapeError, InvalidInputError
+        Not 4 finite values.
     """
-    d, heading, facing, dt = (float(v) for v in link)
+    d, heading, facing, dt = finite_vector(link, 4, "link").tolist()
     return (d, clip_rad_180(heading + math.pi - facing), clip_rad_180(-facing), dt)
 
 
@@ -73,10 +79,15 @@ def average_se2_link(mean: Sequence[float], observed: Sequence[float], n_before:
     -------
     tuple of float
         ``(d, heading, facing, dt)`` over ``n_before + 1`` traversals (module docstring).
+
+    Raises
+    ------
+    ShapeError, InvalidInputError
+        ``mean`` or ``observed`` not 4 finite values, or ``n_before`` not an integer >= 1.
     """
-    w = 1.0 / (n_before + 1)
-    d0, h0, f0, t0 = (float(v) for v in mean)
-    d1, h1, f1, t1 = (float(v) for v in observed)
+    w = 1.0 / (whole_number(n_before, "n_before", minimum=1) + 1)
+    d0, h0, f0, t0 = finite_vector(mean, 4, "mean link").tolist()
+    d1, h1, f1, t1 = finite_vector(observed, 4, "observed link").tolist()
     x0, y0 = d0 * math.cos(h0), d0 * math.sin(h0)
     x = x0 + (d1 * math.cos(h1) - x0) * w
     y = y0 + (d1 * math.sin(h1) - y0) * w

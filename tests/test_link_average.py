@@ -12,7 +12,7 @@ from maps.experience_map import ExperienceMap, MapConfig
 from maps.link_average import average_se2_link, invert_se2_link
 from maps.se2 import SE2Geometry
 from maps.se3 import SE3Geometry
-from whisker_io.errors import ConfigError, CorruptFileError
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 
 R2 = math.sqrt(0.5)
 
@@ -140,3 +140,40 @@ def test_bad_link_update_is_refused(value):
 def test_average_on_an_se3_map_is_refused():
     with pytest.raises(ConfigError, match="SE2Geometry"):
         ExperienceMap(MapConfig(pc_shape=(10, 10, 10, 10, 10, 10), offset_axes=(), link_update="average"), SE3Geometry())
+
+
+angle = st.floats(-3.1, 3.1)
+link_st = st.tuples(st.floats(0.0, 5.0), angle, angle, st.floats(0.0, 100.0))
+
+
+@given(link_st, link_st, st.integers(1, 1000))
+def test_mean_lies_between_old_and_new_and_inverse_round_trips(old, new, n):
+    """Invariants: inverting twice is the identity; the new mean's displacement is on the segment
+    from the old mean's to the observation's, at 1 / (n + 1) of the way."""
+    np.testing.assert_allclose(invert_se2_link(invert_se2_link(old)), old, atol=1e-9)
+    d, h, _, t = average_se2_link(old, new, n)
+    xy0 = np.array([old[0] * math.cos(old[1]), old[0] * math.sin(old[1])])
+    xy1 = np.array([new[0] * math.cos(new[1]), new[0] * math.sin(new[1])])
+    np.testing.assert_allclose([d * math.cos(h), d * math.sin(h)], xy0 + (xy1 - xy0) / (n + 1), atol=1e-9)
+    assert min(old[3], new[3]) - 1e-9 <= t <= max(old[3], new[3]) + 1e-9
+
+
+@given(st.sampled_from([math.nan, math.inf, -math.inf]), st.integers(0, 3))
+def test_non_finite_links_are_refused(bad, i):
+    link = [1.0, 0.0, 0.0, 1.0]
+    link[i] = bad
+    with pytest.raises(InvalidInputError):
+        invert_se2_link(link)
+    with pytest.raises(InvalidInputError):
+        average_se2_link(link, [1.0, 0.0, 0.0, 1.0], 1)
+
+
+@given(st.one_of(st.integers(max_value=0), st.floats(0.1, 0.9), st.booleans()))
+def test_bad_traversal_counts_are_refused(n):
+    with pytest.raises(InvalidInputError, match="n_before"):
+        average_se2_link([1.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0], n)
+
+
+def test_wrong_length_links_are_refused():
+    with pytest.raises(ShapeError):
+        average_se2_link([1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 1.0], 1)
