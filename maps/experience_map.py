@@ -27,7 +27,9 @@ On ``offset_axes`` (OpenRatSLAM: theta) the packet is first corrected by the vie
 offset of the last injection and wrapped once, as the C++ does.
 
 A link stores the odometry accumulated since its source experience (geometry
-columns) and the elapsed time. After every action the map relaxes (Eq 2.25) in
+columns) and the elapsed time. With ``MapConfig(link_update="average")`` a repeated
+traversal of a link (in either direction) replaces it by the running mean of its
+traversals (:mod:`maps.link_average`); by default it is skipped, as in OpenRatSLAM. After every action the map relaxes (Eq 2.25) in
 OpenRatSLAM's order (experiences by id, then each experience's outgoing links in
 creation order).
 
@@ -88,6 +90,7 @@ from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module'
     read_map_header,
     write_map_arrays,
 )
+from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
 from maps.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
@@ -156,6 +159,14 @@ class MapConfig:
         dead-reckoning accumulator (the C++ sets experience 0 while 0 is already
         current, a no-op), so the motion before it is counted again in the next link.
         False: every creation resets it (the object map, thesis Alg 6).
+    link_update : {"first", "average"}
+        What a repeated traversal of a link does (a re-localisation from one of its ends
+        to the other, in either direction). ``"first"`` (default, OpenRatSLAM): nothing,
+        the link keeps the odometry of its first traversal. ``"average"``: the link
+        becomes the running mean of its traversals - displacement in the source's frame
+        (m, averaged in Cartesian form), relative facing (rad, circular mean) and elapsed
+        time (s) - see :mod:`maps.link_average`; Eq 2.25's relaxation is unchanged.
+        SE(2) maps only.
     """
 
     correction: float = 0.5
@@ -166,6 +177,7 @@ class MapConfig:
     relax_budget: int | None = 2_000
     link_time_since_start: bool = False
     keep_first_accumulator: bool = True
+    link_update: str = "first"
 
     def __post_init__(self) -> None:
         plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the map)
@@ -175,6 +187,7 @@ class MapConfig:
         config_field(self.relax_budget, "relax_budget", int, minimum=1, optional=True, hint="None relaxes every link")
         for name in ("link_time_since_start", "keep_first_accumulator"):
             config_field(getattr(self, name), name, bool)
+        config_field(self.link_update, "link_update", str, choices=LINK_UPDATES)
         shape, axes = _sequence(self.pc_shape, "pc_shape"), _sequence(self.offset_axes, "offset_axes")
         if not shape:
             raise ConfigError("pc_shape must have at least one axis")
@@ -252,6 +265,8 @@ class ExperienceMap:
         self.config = config if config is not None else MapConfig()
         self.geometry: Geometry = geometry if geometry is not None else SE2Geometry(heading_cells=self.config.pc_shape[-1])
         g, nd = self.geometry, len(self.config.pc_shape)
+        if self.config.link_update == "average" and not isinstance(g, SE2Geometry):
+            raise ConfigError(f"link_update='average' needs an SE2Geometry map, got {type(g).__name__}; use link_update='first'")
         self._n_exp = 0
         self._n_link = 0
         self._a = _Arrays(
@@ -261,6 +276,8 @@ class ExperienceMap:
         self._vt_exps: dict[int, list[int]] = {}
         self._out: dict[int, set[int]] = {}
         self._n_links_of: dict[int, int] = {}
+        self._link_of: dict[tuple[int, int], int] = {}  # (from, to) -> link index
+        self._traversals = np.zeros(16, dtype=np.int64)  # traversals averaged into each link
         self.current_id = 0
         self.prev_id = 0
         self._acc = g.initial_accumulator()
@@ -303,6 +320,11 @@ class ExperienceMap:
         """``(ends, data)``: int64 (m, 2) from/to ids and float64 (m, link width + 1) -
         the geometry's link columns (SE(2): d m, heading rad, facing rad) then dt s."""
         return self._a.ends[: self._n_link].copy(), self._a.links[: self._n_link].copy()
+
+    @property
+    def link_traversals(self) -> np.ndarray:
+        """Traversals averaged into each link, int64 (m,); all 1 unless ``link_update="average"``; a copy."""
+        return self._traversals[: self._n_link].copy()
 
     @property
     def accumulator(self) -> tuple[float, ...]:
@@ -474,16 +496,22 @@ class ExperienceMap:
         self._set_current(n, 0.0)
 
     def _add_link(self, id_from: int, id_to: int, rotation: float) -> bool:
-        """OpenRatSLAM ``on_create_link``: add a link unless one exists in either direction."""
+        """OpenRatSLAM ``on_create_link``: add a link unless one exists in either direction
+        (then, with ``link_update="average"``, average this traversal into it)."""
         if id_to in self._out.get(id_from, ()) or id_from in self._out.get(id_to, ()):
+            if self.config.link_update == "average":
+                self._average_link(id_from, id_to, rotation)
             return False
         m, a = self._n_link, self._a
         a.ends, a.links = _grow(a.ends, m + 1), _grow(a.links, m + 1)
+        self._traversals = _grow(self._traversals, m + 1)
         a.ends[m] = (id_from, id_to)
         a.links[m, :-1] = self.geometry.link(a.pose[id_from], self._acc, rotation)
         a.links[m, -1] = self.accum_time_s
+        self._traversals[m] = 1
         self._n_link = m + 1
         self._out.setdefault(id_from, set()).add(id_to)
+        self._link_of[(id_from, id_to)] = m
         for e in (id_from, id_to):
             self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
         key = id_from * (1 << 32) + m
@@ -493,6 +521,20 @@ class ExperienceMap:
         if self._graph is not None:
             self._graph_link(m)
         return True
+
+    def _average_link(self, id_from: int, id_to: int, rotation: float) -> None:
+        """Fold the odometry since ``id_from`` (a traversal to ``id_to``) into their link's running mean."""
+        a = self._a
+        observed = (*self.geometry.link(a.pose[id_from], self._acc, rotation), self.accum_time_s)
+        k = self._link_of.get((id_from, id_to))
+        if k is None:  # the link runs id_to -> id_from: express the traversal in its direction
+            k = self._link_of[(id_to, id_from)]
+            observed = invert_se2_link(observed)
+        n = int(self._traversals[k])
+        a.links[k] = average_se2_link(a.links[k].tolist(), observed, n)
+        self._traversals[k] = n + 1
+        if self._graph is not None:
+            self._graph_link(k)
 
     def _set_current(self, new_id: int, rotation: float) -> None:
         """OpenRatSLAM ``on_set_experience`` (setting the current experience again changes nothing)."""
@@ -588,6 +630,7 @@ class ExperienceMap:
             self.config, self.geometry, a.pc[:n].copy(), a.vt[:n].copy(), a.pose[:n].copy(), a.ends[:m].copy(),
             a.links[:m].copy(), np.array([*self._acc, self.accum_time_s, *self._offset.tolist()]),
             np.array([self.current_id, self.prev_id, self._cursor], dtype=np.int64),
+            self._traversals[:m].copy() if self.config.link_update == "average" else None,
         )
         return write_map_arrays(saved, prefix)
 
@@ -634,8 +677,11 @@ class ExperienceMap:
         a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(saved.link_data, dtype=np.float64), m)
         for i, v in enumerate(exp_vt.tolist()):
             self._vt_exps.setdefault(v, []).append(i)
-        for f, t in link_ends.tolist():  # no duplicates: read_map_body refused them
+        self._traversals = _grow(np.ones(m, dtype=np.int64) if saved.link_traversals is None
+                                 else np.array(saved.link_traversals, dtype=np.int64), m)
+        for k, (f, t) in enumerate(link_ends.tolist()):  # no duplicates: read_map_body refused them
             self._out.setdefault(f, set()).add(t)
+            self._link_of[(f, t)] = k
             for e in (f, t):
                 self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)

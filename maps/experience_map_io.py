@@ -18,7 +18,10 @@ Saved file format (``.npz``, no pickle)
 width); ``link_ends`` int64 (m, 2); ``link_data`` float64 (m, link width + 1: the
 geometry columns, then dt s); ``state_f`` float64 = the accumulator, the accumulated
 time (s) and the view offset (cells); ``state_i`` int64 (3,) = current id, previous id,
-relaxation cursor. Floats are raw IEEE-754 doubles: a round trip is bit identical and a
+relaxation cursor; ``link_traversals`` int64 (m,), only in maps with
+``link_update="average"``: the traversals averaged into each link. The ``config`` JSON
+omits ``link_update`` when it is the default ``"first"``, so a default map's file is the
+same as before the option existed, and files without it load as ``"first"``. Floats are raw IEEE-754 doubles: a round trip is bit identical and a
 resumed run equals an uninterrupted one. Every name may carry a prefix (``em_`` inside a
 saved SLAM model).
 """
@@ -62,12 +65,16 @@ class MapArrays:
     link_data: np.ndarray
     state_f: np.ndarray
     state_i: np.ndarray
+    link_traversals: np.ndarray | None = None
 
 
 def write_map_arrays(saved: MapArrays, prefix: str = "") -> dict[str, np.ndarray]:
     """The ``.npz`` fields of a map (module docstring), each name prefixed with ``prefix``."""
     geometry = saved.geometry
-    config = {"map": asdict(saved.config), "geometry": geometry.name, "geometry_params": geometry.params()}
+    map_fields = asdict(saved.config)
+    if map_fields.get("link_update") == "first":  # the default: files as before the option existed
+        del map_fields["link_update"]
+    config = {"map": map_fields, "geometry": geometry.name, "geometry_params": geometry.params()}
     arrays = {
         "format": np.int64(FORMAT_VERSION),
         "config": np.array(json.dumps(config)),
@@ -79,6 +86,8 @@ def write_map_arrays(saved: MapArrays, prefix: str = "") -> dict[str, np.ndarray
         "state_f": saved.state_f,
         "state_i": saved.state_i,
     }
+    if saved.link_traversals is not None:
+        arrays["link_traversals"] = saved.link_traversals
     return {prefix + k: np.asarray(v) for k, v in arrays.items()}
 
 
@@ -152,6 +161,11 @@ def read_map_body(arrays: Mapping[str, np.ndarray], prefix: str, config: Any, ge
     link_data = _field(arrays, prefix, "link_data", "f", (m, g.link_width + 1))
     state_f = _field(arrays, prefix, "state_f", "f", (g.accum_width + 1 + nd,))
     state_i = _field(arrays, prefix, "state_i", "i", (3,))
+    traversals = None
+    if getattr(config, "link_update", "first") == "average":
+        traversals = _field(arrays, prefix, "link_traversals", "i", (m,))
+        if np.any(traversals < 1):
+            raise CorruptFileError("a link with fewer than 1 traversal", field=prefix + "link_traversals")
     problem = g.check_poses(exp_pose)
     if problem:
         raise CorruptFileError(problem, field=prefix + "exp_pose")
@@ -168,7 +182,7 @@ def read_map_body(arrays: Mapping[str, np.ndarray], prefix: str, config: Any, ge
         if t in out.get(f, ()) or f in out.get(t, ()):
             raise CorruptFileError(f"duplicate link {f}->{t} at row {k}", field=prefix + "link_ends")
         out.setdefault(f, set()).add(t)
-    return MapArrays(config, geometry, exp_pc, exp_vt, exp_pose, link_ends, link_data, state_f, state_i)
+    return MapArrays(config, geometry, exp_pc, exp_vt, exp_pose, link_ends, link_data, state_f, state_i, traversals)
 
 
 def map_to_networkx(em: Any) -> Any:

@@ -326,9 +326,9 @@ def test_quick_study_map_beats_dead_reckoning_with_correct_relocalisations(quick
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 24's bound: not met - seed 2's map / dead reckoning is 0.46-0.52 with sequence "
-                   "recognition and 0.45 with perfect recognition (the experience map keeps the first pass's odometry)")
 def test_quick_study_map_is_within_half_of_dead_reckoning_in_every_condition(quick_study):
+    """Issue 24's bound on the quick study's seeds 1-2 (measured 0.29-0.49 with the map's link averaging; 0.31-0.52
+    without it). Held-out seeds 3-4 do not meet it, with or without averaging - see the ch3_maze docstring."""
     _, rows = quick_study
     for c in ("open_loop", "rcp"):
         for m in ("onset", "max_angle", "threshold"):

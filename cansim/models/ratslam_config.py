@@ -100,6 +100,10 @@ class RatSLAMConfig(SlamConfig):
         OpenRatSLAM never resets its link timer, so every link's ``delta_time_s`` is
         the time since the first odometry; True reproduces that, False (default)
         stores the time since the link's source experience.
+    link_update : {"first", "average"}
+        A repeated traversal of a link: ``"first"`` (default, OpenRatSLAM) keeps the
+        first traversal's odometry, ``"average"`` the running mean of the traversals
+        (m, rad, s; :mod:`maps.link_average`).
     frontend : "ids", VisualTemplateConfig or TactileTemplateConfig
         The front end, selected by the type: ``"ids"`` (precomputed view ids,
         default), a :class:`~cansim.frontends.visual.VisualTemplateConfig` (camera
@@ -136,6 +140,7 @@ class RatSLAMConfig(SlamConfig):
     decode_window: int = 3
     initial_heading_deg: float = 90.0
     link_time_since_start: bool = False
+    link_update: str = "first"
     frontend: FrontEndConfig = "ids"
     frame: str = "standard"
     strict_translation: bool = False
@@ -279,7 +284,7 @@ class RatSLAMConfig(SlamConfig):
         return MapConfig(
             correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
             pc_shape=(self.xy_cells, self.xy_cells, self.heading_cells), offset_axes=(2,), relax_budget=self.relax_budget,
-            link_time_since_start=self.link_time_since_start,
+            link_time_since_start=self.link_time_since_start, link_update=self.link_update,
         )
 
     def map_geometry(self) -> SE2Geometry:
