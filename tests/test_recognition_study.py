@@ -87,3 +87,20 @@ def test_headline_identified_from_a_new_path(quick, presentation):
     _, rows = quick
     runs = [r for r in rows if r["presentation"] == presentation and r["novel"] == "False"]
     assert sum(r["decision"] == r["presented"] for r in runs) >= 0.9 * len(runs)
+
+
+def test_the_surface_matcher_identifies_along_b_when_the_maps_are_accurate_enough(tmp_path):
+    """With a quarter of the Eq 6.4-6.11 odometry noise (stored surfaces 3-9 mm from the mesh) the
+    particle filters name Mug, Bear and Barrel along trajectory B at IC 300 with no wrong impulse
+    to speak of, where the thesis' region match names at most as many with many wrong impulses
+    (maps.surface_match docstring, Status); the novel knot gets no decision."""
+    rows = recognition.run(tmp_path / "out", objects=["mug", "bear", "barrel", "kettle"], novel=["knot-h0"], bins=(),
+                           seeds=(0,), matchers=("thesis", "surface"), odometry_scale=0.25, progress=False)
+    along_b = {(r["matcher"], r["presented"]): r for r in rows if r["presentation"] == "B"}
+    surface = [along_b["surface", n] for n in ("mug", "bear", "barrel", "kettle")]
+    thesis = [along_b["thesis", n] for n in ("mug", "bear", "barrel", "kettle")]
+    assert sum(r["correct"] for r in surface) >= 3
+    assert sum(r["correct"] for r in surface) >= sum(r["correct"] for r in thesis)
+    assert sum(r["impulses_other"] for r in surface) <= 0.05 * sum(r["impulses_own"] for r in surface)
+    assert all(r["decision"] in ("", r["presented"]) for r in surface)
+    assert along_b["surface", "knot-h0"]["decision"] == ""
