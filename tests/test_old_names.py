@@ -11,6 +11,7 @@ import pytest
 @pytest.mark.parametrize(("module", "old", "new"), [
     ("whisker_io.radial.models", "SearchSettings", "SearchParams"),
     ("cansim.studies.ch5_object_maps", "Settings", "StudyConfig"),
+    ("cansim.studies.ch3_maze", "StudySettings", "StudyConfig"),
 ])
 def test_old_names_warn_and_give_the_new_class(module: str, old: str, new: str) -> None:
     mod = importlib.import_module(module)

@@ -186,6 +186,7 @@ from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
+from whisker_io._deprecated import renamed_attributes
 from whisker_io.contact.contact_angle import ContactAngleParams
 from whisker_io.sim.ch3_scene import MazeRoute, ch3_terrain
 from whisker_io.sim.planar_chain import PlanarChain, WhiskSchedule
@@ -218,7 +219,7 @@ ANGLE_DEG = 25.0
 
 
 @dataclass(frozen=True)
-class StudySettings:
+class StudyConfig:
     """Size of the study (the full study or its quick mode)."""
 
     loops: tuple[int, ...]
@@ -229,12 +230,12 @@ class StudySettings:
     tuning_seeds: tuple[int, ...]
 
 
-FULL = StudySettings(
+FULL = StudyConfig(
     loops=ch3_loops(), kidnap_loops=(1, 4, 6), repetitions=3,
     thresholds=(2.0, 4.0, 6.0, 8.0, 10.0, 15.0, 20.0, 30.0), energies=(0.02, 0.04, 0.06, 0.1, 0.15, 0.25),
     tuning_seeds=(1000, 1001),
 )
-QUICK = StudySettings(
+QUICK = StudyConfig(
     loops=(-1, -1, 1, 1), kidnap_loops=(1,), repetitions=2, thresholds=(3.0, 6.0, 12.0), energies=(0.03, 0.06, 0.12),
     tuning_seeds=(1000,),
 )
@@ -282,7 +283,7 @@ def kept_iterations(n: int, events: Sequence[tuple[int, int]]) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def simulate(route: MazeRoute, terrain: Any, settings: StudySettings, control: str, seed: int, progress: Any = None) -> Recording:
+def simulate(route: MazeRoute, terrain: Any, settings: StudyConfig, control: str, seed: int, progress: Any = None) -> Recording:
     """Whisk along the clean path of ``seed`` and build the images of every strategy."""
     run = make_path(route, settings.loops, seed)
     schedule = WhiskSchedule()
@@ -295,7 +296,7 @@ def simulate(route: MazeRoute, terrain: Any, settings: StudySettings, control: s
                      whisk_poses=schedule.whisk_poses(run.truth))
 
 
-def kidnapped(recording: Recording, route: MazeRoute, settings: StudySettings) -> tuple[Recording, tuple[int, ...]]:
+def kidnapped(recording: Recording, route: MazeRoute, settings: StudyConfig) -> tuple[Recording, tuple[int, ...]]:
     """The kidnapped variant of a recording: stretches removed (Fig 3.5), the rest unchanged."""
     events = kidnap_events(recording.run, settings.kidnap_loops)
     run = make_path(route, settings.loops, recording.seed, events)
@@ -534,7 +535,7 @@ def choose(grid: list[dict[str, Any]]) -> int:
     return max(range(len(grid)), key=lambda i: (arcr[i], grid[i]["ARR"], -i))
 
 
-def calibrate(recordings: Sequence[Recording], contact_angle: str, settings: StudySettings, progress: Any = None) -> tuple[tuple[float, float], list[dict[str, Any]]]:
+def calibrate(recordings: Sequence[Recording], contact_angle: str, settings: StudyConfig, progress: Any = None) -> tuple[tuple[float, float], list[dict[str, Any]]]:
     """Grid search of (match_threshold, inject_energy) on the tuning recordings (ARR, ARCR averaged)."""
     grid = []
     for thr in settings.thresholds:
@@ -653,7 +654,7 @@ def _mean(rows: list[dict[str, Any]], key: str, **match: Any) -> float:
     return float(np.mean(vals)) if vals else math.nan
 
 
-def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str], tuple[float, float]], settings: StudySettings, seeds: Sequence[int],
+def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str], tuple[float, float]], settings: StudyConfig, seeds: Sequence[int],
                   recognition: str = "sequence") -> list[str]:
     """Each thesis finding, the measured figure beside it and whether its direction is reproduced."""
 
@@ -740,7 +741,7 @@ def acceptance_lines(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def aliasing_lines(aliasing: dict[tuple[str, str], dict[str, float]], distributions: dict[tuple[str, str], dict[str, float]],
-                   settings: StudySettings, recognition: str = "sequence") -> list[str]:
+                   settings: StudyConfig, recognition: str = "sequence") -> list[str]:
     """The "why places alias" section: image content and Eq 3.1 distances, same against different place."""
     out = ["", f"Why places alias (tuning run seed {settings.tuning_seeds[0]}; figure ch3_distances.png):",
            "   blank = images without any contact; pixels = mean pixels in contact of 18; distinct = share of distinct images;",
@@ -905,6 +906,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("\n".join(lines))
     return 0
 
+
+#: ``StudySettings``: the old name of :class:`StudyConfig` (warns; removed in 0.3).
+__getattr__ = renamed_attributes(__name__, {"StudySettings": "StudyConfig"}, globals())
 
 if __name__ == "__main__":
     sys.exit(main())
