@@ -350,3 +350,21 @@ def test_bad_rotation_ring_parameters_get_config_errors(field, value):
         return
     with pytest.raises(ConfigError):
         RotationRingParams(**{field: value})
+
+
+def test_a_graph_rockpool_writes_back_is_refused_with_the_lost_edge_named():
+    """Rockpool's to_nir of the module its from_nir built drops the inhibition -> cells edge: not the same network."""
+    _need("rockpool")
+    import torch
+    from rockpool.nn.modules.torch.nir import from_nir as rockpool_from_nir
+    from rockpool.nn.modules.torch.nir import to_nir as rockpool_to_nir
+
+    g = to_nir(_ring_population(24))
+    back = rockpool_to_nir(rockpool_from_nir(g), torch.zeros(1, 1, 24))
+    with pytest.raises(ConfigError, match="metadata"):
+        from_nir(back)
+    with pytest.raises(ConfigError, match="inhibition -> cells"):
+        from_nir(back, metadata=g.metadata["cansim"])
+    # the same graph with cansim's edges is accepted when the metadata is handed over
+    same = nir.NIRGraph(nodes=dict(g.nodes), edges=list(g.edges), metadata={})
+    assert from_nir(same, metadata=g.metadata["cansim"]).params == _ring_population(24).params

@@ -371,7 +371,14 @@ def _edge_set(graph: Any) -> set:
         raise ConfigError("the graph's edges must be (source, target) pairs") from None
 
 
-def from_nir(graph: Any, *, dt_s: Optional[float] = None, seed: Optional[int] = None, backend: str = "numba") -> SpikingPopulation:
+def from_nir(
+    graph: Any,
+    *,
+    dt_s: Optional[float] = None,
+    seed: Optional[int] = None,
+    backend: str = "numba",
+    metadata: Optional[dict] = None,
+) -> SpikingPopulation:
     """Rebuild a :class:`SpikingPopulation` from a graph written by :func:`to_nir`.
 
     Parameters
@@ -381,6 +388,14 @@ def from_nir(graph: Any, *, dt_s: Optional[float] = None, seed: Optional[int] = 
     dt_s, seed : optional
         Override cansim's step and the seed stored in the metadata.
     backend : {"numpy", "numba"}
+    metadata : dict, optional
+        ``metadata["cansim"]`` of the graph cansim wrote, for a graph that lost it: one a
+        consumer wrote back for the same network (e.g. Rockpool's ``to_nir`` after its
+        ``from_nir``). Such a graph is accepted when its nodes and edges are the network
+        described here. (What the consumers write back was tried: snnTorch 1.0's
+        ``export_to_nir`` fails on the module its reader built; Norse 1.1's ``to_nir``
+        writes untyped nodes and Rockpool 3.1's drops the ``inhibition -> cells`` edge and
+        rewrites ``r``, so those graphs are refused with the missing edge named.)
 
     Raises
     ------
@@ -397,7 +412,9 @@ def from_nir(graph: Any, *, dt_s: Optional[float] = None, seed: Optional[int] = 
     nir = _nir()
     if not isinstance(graph, nir.NIRGraph):
         raise ConfigError("from_nir needs a nir.NIRGraph (e.g. from nir.read)")
-    meta = (graph.metadata or {}).get("cansim")
+    meta = (graph.metadata or {}).get("cansim") if isinstance(graph.metadata, dict) else None
+    if meta is None and metadata is not None:
+        meta = metadata
     fmt = str(meta.get("format", "")) if isinstance(meta, dict) else ""
     if fmt == NIR_FORMAT_V1:
         return _from_nir_v1(graph, meta, dt_s, seed, backend)
