@@ -12,9 +12,7 @@ Layout (every array flat over the grid in C order, ``N`` cells)::
     input -> current_in (Affine) -> cells (CubaLIF) -> output
                                     cells -> excitation (Linear) -> inhibition (Linear) -> cells
 
-Conventions the consumers implement, and what follows
------------------------------------------------------
-All three readers step the graph with a fixed step ``dt`` (snnTorch 1.0 hard-codes
+**Conventions the consumers implement, and what follows.** All three readers step the graph with a fixed step ``dt`` (snnTorch 1.0 hard-codes
 ``dt = 1e-4 s`` and asserts ``r = tau_mem / dt``; Norse takes ``dt`` as an argument;
 Rockpool derives ``dt = tau_mem / (1 + r)``) and they read a neuron's output as ``1`` in a
 step with a spike and ``0`` otherwise: a spike is a box of height 1 held for one step,
