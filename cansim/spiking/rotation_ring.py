@@ -17,7 +17,7 @@ the ring.
   half around ``j - shift``. At ``omega = 0`` both halves fire alike and the pushes
   cancel; a positive ``omega`` makes the first half fire more, and the bump moves towards
   increasing angle at a speed that grows with ``omega``. The gain is not calibrated to one:
-  on 360 cells (noise-free, measured in cansim's simulation) the bump turned at 0.88, 0.79
+  on 360 cells (measured with Euler steps of the graph's equations) the bump turned at 0.88, 0.79
   and 0.58 times ``omega`` for 0.5, 1 and 2 rad/s; the speed is set in cells per second,
   so on fewer cells the gain in degrees is larger (about 1.3 on 120 cells for a 0-3 rad/s
   sinusoid). Above about 2 rad/s the rotation cells saturate.
