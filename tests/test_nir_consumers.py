@@ -386,3 +386,20 @@ def test_a_graph_rockpool_writes_back_is_refused_with_the_lost_edge_named():
     # the same graph with cansim's edges is accepted when the metadata is handed over
     same = nir.NIRGraph(nodes=dict(g.nodes), edges=list(g.edges), metadata={})
     assert from_nir(same, metadata=g.metadata["cansim"]).params == _ring_population(24).params
+
+
+def test_the_rat_heading_example_runs_on_a_short_piece(tmp_path):
+    pytest.importorskip("ratinabox", reason="the recorded trajectory ships with ratinabox")
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "nir_ring_rat_heading.py"
+    spec = importlib.util.spec_from_file_location("nir_ring_rat_heading", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--seconds", "0.3", "--cells", "60", "--out", str(tmp_path / "h.json")]) == 0
+    res = json.loads((tmp_path / "h.json").read_text())
+    assert res["seconds"] == 0.3 and 0.0 <= res["rms_heading_error_deg"] <= 180.0
+    t, head = mod.rat_heading(1.0)
+    assert t[0] == 0.0 and t[-1] <= 1.0 + 1e-9 and np.all(np.isfinite(head))
