@@ -11,7 +11,14 @@ Writes into the output folder:
 
 * ``spiking_ring.png`` - spike raster with the true heading and both decoded headings,
   and the heading errors;
-* ``spiking_ring.nir`` - the spiking ring as a NIR graph (``cansim.spiking.to_nir``);
+* ``spiking_ring.nir`` - the spiking ring's stationary network as a NIR graph
+  (``cansim.spiking.to_nir``), written in the conventions snnTorch, Norse and Rockpool
+  read: load it with ``snntorch.import_nir.import_from_nir(graph)``,
+  ``norse.torch.from_nir(graph, dt=1e-4)`` or ``rockpool.nn.modules.torch.nir.from_nir(graph)``;
+  its input is a current per cell (threshold units), its output the spikes, one step 0.1 ms;
+* ``spiking_ring_pi.nir`` - a 360-cell ring that path-integrates inside the graph
+  (``cansim.spiking.rotation_ring_graph``: rotation cells driven by the angular velocity);
+  input: a current per ring cell, then the angular velocity (rad/s);
 * ``spiking_ring_metrics.json`` - ``rms_vs_true_deg``, ``rms_vs_rate_deg``,
   ``rate_rms_vs_true_deg``, spike counts and timing.
 
@@ -33,7 +40,7 @@ import numpy as np
 from tqdm import tqdm
 
 from cansim import Population
-from cansim.spiking import HD_RING_ATTRACTOR, SpikeCountDecoder, spiking_from_rate, to_nir
+from cansim.spiking import HD_RING_ATTRACTOR, RotationRingParams, SpikeCountDecoder, rotation_ring_graph, spiking_from_rate, to_nir
 
 log = logging.getLogger("spiking_ring")
 
@@ -145,6 +152,16 @@ def plot(res: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def write_graphs(out: Path, population) -> list[Path]:
+    """Write ``spiking_ring.nir`` (``to_nir(population)``) and ``spiking_ring_pi.nir`` (the rotation ring) into ``out``."""
+    import nir
+
+    paths = [out / "spiking_ring.nir", out / "spiking_ring_pi.nir"]
+    nir.write(paths[0], to_nir(population))
+    nir.write(paths[1], rotation_ring_graph(RotationRingParams(n_cells=360)))
+    return paths
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration-s", type=float, default=None, help="simulated seconds (default 60, 10 with --quick)")
@@ -160,15 +177,14 @@ def main(argv: list[str] | None = None) -> int:
     res = run(duration, args.seed, args.quick, progress=not args.no_progress)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(res, args.out / "spiking_ring.png")
-    import nir
-
-    nir.write(args.out / "spiking_ring.nir", to_nir(res["population"]))
+    write_graphs(args.out, res["population"])
     (args.out / "spiking_ring_metrics.json").write_text(json.dumps(res["metrics"], indent=2) + "\n")
     m = res["metrics"]
     print(f"The spiking ring tracked the heading with an RMS error of {m['rms_vs_true_deg']:.2f} deg "
           f"({m['rms_vs_rate_deg']:.2f} deg from the rate ring, which is {m['rate_rms_vs_true_deg']:.2f} deg from the truth); "
           f"{m['n_spikes']} spikes, {m['mean_rate_hz']:.1f} Hz mean rate.")
-    print("Wrote " + ", ".join(str(args.out / f) for f in ("spiking_ring.png", "spiking_ring.nir", "spiking_ring_metrics.json")) + ".")
+    files = ("spiking_ring.png", "spiking_ring.nir", "spiking_ring_pi.nir", "spiking_ring_metrics.json")
+    print("Wrote " + ", ".join(str(args.out / f) for f in files) + ".")
     return 0
 
 

@@ -67,22 +67,60 @@ def test_round_trip_through_a_file_gives_the_same_spikes(tmp_path):
 
 
 def test_graph_weights_and_neuron_parameters_equal_cansims():
-    n = 48
+    n, dt = 48, 1e-4
     ap = AttractorParams(exc_width=9, exc_sigma=2.0, inh_width=7, inh_sigma=3.0)
     nrn = NeuronParams(tau_mem_s=0.015, tau_syn_s=0.004, v_rest=-0.2, v_reset=-0.1, v_threshold=1.3, resistance=2.0, bias_current=0.5)
     pop = SpikingPopulation((Axis.angle("h", n),), SpikingParams(attractor=ap, neurons=nrn, recurrent_weight=40.0, global_weight=0.7))
     g = to_nir(pop)
-    assert set(g.nodes) == {"input", "input_scale", "cells", "recurrent", "output"}
-    assert ("cells", "recurrent") in g.edges and ("recurrent", "cells") in g.edges and ("cells", "output") in g.edges
-    assert isinstance(g.nodes["cells"], nir.CubaLIF) and isinstance(g.nodes["recurrent"], nir.Affine)
-    np.testing.assert_allclose(g.nodes["recurrent"].weight, _ring_weights_by_hand(n, 9, 2.0, 7, 3.0, 40.0, 0.7), atol=1e-13)
-    np.testing.assert_array_equal(g.nodes["recurrent"].bias, np.zeros(n))
+    assert set(g.nodes) == {"input", "current_in", "cells", "excitation", "inhibition", "output"}
+    assert {("input", "current_in"), ("current_in", "cells"), ("cells", "excitation"), ("excitation", "inhibition"),
+            ("inhibition", "cells"), ("cells", "output")} == set(g.edges)
+    assert isinstance(g.nodes["cells"], nir.CubaLIF) and isinstance(g.nodes["excitation"], nir.Linear)
+    # the two factors multiply to the kernel, written out by hand, times R dt / tau_mem
+    by_hand = _ring_weights_by_hand(n, 9, 2.0, 7, 3.0, 40.0, 0.7) * 2.0 * dt / 0.015
+    np.testing.assert_allclose(g.nodes["inhibition"].weight @ g.nodes["excitation"].weight, by_hand, atol=1e-13)
     c = g.nodes["cells"]
-    for name, val in [("tau_syn", 0.004), ("tau_mem", 0.015), ("r", 2.0), ("v_threshold", 1.3), ("v_reset", -0.1),
-                      ("v_leak", -0.2 + 2.0 * 0.5), ("w_in", 0.004)]:
-        np.testing.assert_allclose(getattr(c, name), np.full(n, val), rtol=1e-15)
-    np.testing.assert_allclose(g.nodes["input_scale"].scale, np.full(n, 1 / 0.004))
-    assert g.metadata["cansim"]["refractory_s"] == 0.002
+    for name, val in [("tau_syn", 0.004), ("tau_mem", 0.015), ("r", 0.015 / dt), ("v_threshold", 1.5), ("v_reset", 0.1),
+                      ("v_leak", 0.0), ("w_in", 0.004 / dt)]:
+        np.testing.assert_allclose(getattr(c, name), np.full(n, val), rtol=1e-12)
+    gain = 2.0 * dt * dt / (0.015 * 0.004)  # R dt^2 / (tau_mem tau_syn)
+    np.testing.assert_allclose(g.nodes["current_in"].weight, gain * np.eye(n), rtol=1e-12)
+    np.testing.assert_allclose(g.nodes["current_in"].bias, np.full(n, gain * 0.5), rtol=1e-12)
+    assert g.metadata["cansim"]["refractory_s"] == 0.002 and g.metadata["cansim"]["nir_step_s"] == dt
+
+
+def _v1_graph(pop: SpikingPopulation):
+    """A graph of the first format (cansim.spiking/1), written out by hand."""
+    p, nrn, n = pop.params, pop.params.neurons, pop.size
+    ones = np.ones(n)
+    a = p.attractor
+    meta = {"format": "cansim.spiking/1", "grid_shape": np.array(pop.shape), "axis_names": "h",
+            "axis_steps": np.array([pop.axes[0].step]), "axis_angular": np.array([1]),
+            "exc_width": np.array([a.exc_width]), "exc_sigma": np.array([a.exc_sigma]), "inh_width": np.array([a.inh_width]),
+            "inh_sigma": np.array([a.inh_sigma]), "global_inhibition": a.global_inhibition, "kernel_normalisation": "sum",
+            "recurrent_weight": p.recurrent_weight, "global_weight": p.global_weight, "velocity_lead_s": p.velocity_lead_s,
+            "lead_table": np.zeros((0, 2)), "v_rest": nrn.v_rest, "bias_current": nrn.bias_current,
+            "refractory_s": nrn.refractory_s, "noise_sigma": nrn.noise_sigma, "poisson_gain_hz": nrn.poisson_gain_hz,
+            "dt_s": pop.dt_s, "seed": pop.seed}
+    cells = nir.CubaLIF(tau_syn=nrn.tau_syn_s * ones, tau_mem=nrn.tau_mem_s * ones, r=nrn.resistance * ones,
+                        v_leak=(nrn.v_rest + nrn.resistance * nrn.bias_current) * ones, v_threshold=nrn.v_threshold * ones,
+                        v_reset=nrn.v_reset * ones, w_in=nrn.tau_syn_s * ones)
+    w = _ring_weights_by_hand(n, a.exc_width, a.exc_sigma, a.inh_width, a.inh_sigma, p.recurrent_weight, p.global_weight)
+    nodes = {"input": nir.Input(input_type={"input": np.array([n])}), "input_scale": nir.Scale(scale=ones / nrn.tau_syn_s),
+             "cells": cells, "recurrent": nir.Affine(weight=w, bias=np.zeros(n)), "output": nir.Output(output_type={"output": np.array([n])})}
+    edges = [("input", "input_scale"), ("input_scale", "cells"), ("cells", "recurrent"), ("recurrent", "cells"), ("cells", "output")]
+    return nir.NIRGraph(nodes=nodes, edges=edges, metadata={"cansim": meta})
+
+
+def test_graphs_of_the_first_format_are_still_read():
+    pop = SpikingPopulation((Axis.angle("h", 40),), SpikingParams(attractor=HD_RING_ATTRACTOR), seed=4)
+    back = from_nir(_v1_graph(pop))
+    assert back.params == pop.params and back.seed == 4
+    assert all(np.array_equal(x, y) for x, y in zip(_drive(pop, 300, 2), _drive(back, 300, 2)))
+    edited = _v1_graph(pop)
+    edited.nodes["recurrent"].weight[0, 1] += 0.5
+    with pytest.raises(ConfigError, match="edited"):
+        from_nir(edited)
 
 
 def test_a_3d_grid_round_trips_in_memory():
@@ -125,7 +163,7 @@ def test_import_refuses_foreign_or_edited_graphs():
     pop = SpikingPopulation((Axis.angle("h", 12),), SpikingParams())
     g = to_nir(pop)
     edited = to_nir(pop)
-    edited.nodes["recurrent"].weight[0, 1] += 0.5
+    edited.nodes["inhibition"].weight[0, 1] += 0.5
     with pytest.raises(ConfigError, match="edited"):
         from_nir(edited)
     bare = nir.NIRGraph(nodes=dict(g.nodes), edges=list(g.edges), metadata={})
@@ -145,7 +183,7 @@ def test_import_refuses_foreign_or_edited_graphs():
 
 @settings(max_examples=30, **HSET)
 @given(
-    key=st.sampled_from(["grid_shape", "axis_steps", "exc_width", "exc_sigma", "inh_width", "global_inhibition", "v_rest",
+    key=st.sampled_from(["nir_step_s", "grid_shape", "axis_steps", "exc_width", "exc_sigma", "inh_width", "global_inhibition", "v_rest",
                          "refractory_s", "noise_sigma", "recurrent_weight", "global_weight", "velocity_lead_s", "dt_s",
                          "seed", "lead_table"]),
     bad=st.sampled_from([math.nan, math.inf, -math.inf, "a", None, [], 10**400, [math.inf]]),
@@ -179,8 +217,8 @@ def test_import_rejects_bad_neuron_values_with_config_error(field, bad):
     arr = getattr(g.nodes["cells"], field)
     arr[:] = bad
     if field == "v_leak" and math.isfinite(bad):
-        back = from_nir(g)  # a finite leak potential is only a different bias
-        assert back.params.neurons.bias_current == pytest.approx(bad)
+        back = from_nir(g)  # a finite leak potential is only a different bias: v_leak / R more current
+        assert back.params.neurons.bias_current == pytest.approx(0.8 + bad / 1.0)
         return
     with pytest.raises(ConfigError):
         from_nir(g)

@@ -2,7 +2,11 @@
 
 See :mod:`cansim.spiking.population` for the model, :mod:`cansim.spiking.correspondence`
 for what corresponds to what between the rate and the spiking population, and
-:mod:`cansim.spiking.nir_io` for export to / import from NIR.
+:mod:`cansim.spiking.nir_io` for export to / import from NIR (in the conventions snnTorch,
+Norse and Rockpool read), :mod:`cansim.spiking.rotation_ring` for a ring that path-integrates
+with neurons and synapses (expressible in NIR), :mod:`cansim.spiking.nir_graph_sim` for
+cansim's own simulation of such graphs and :mod:`cansim.spiking.nir_consumers` for running
+them in those toolchains.
 """
 
 from __future__ import annotations
@@ -13,7 +17,9 @@ from cansim.spiking.population import SPIKING_BACKENDS, SpikingParams, SpikingPo
 from cansim.spiking.decoding import SpikeCountDecoder
 from cansim.spiking.calibration import calibrate_velocity_lead, measure_packet_speed
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR, spiking_from_rate, spiking_params_from_rate
-from cansim.spiking.nir_io import NIR_FORMAT, from_nir, to_nir
+from cansim.spiking.nir_io import NIR_FORMAT, NIR_STEP_S, from_nir, to_nir
+from cansim.spiking.nir_graph_sim import NIRGraphSimulator
+from cansim.spiking.rotation_ring import RotationRingParams, ring_input, rotation_ring_graph
 
 __all__ = [
     "NeuronParams",
@@ -32,4 +38,9 @@ __all__ = [
     "to_nir",
     "from_nir",
     "NIR_FORMAT",
+    "NIR_STEP_S",
+    "NIRGraphSimulator",
+    "RotationRingParams",
+    "rotation_ring_graph",
+    "ring_input",
 ]
