@@ -386,13 +386,13 @@ def _radial(label: str):
     """A fitted Table 4.1 model on a small synthetic data set (fitted once per label)."""
     if label not in _RADIAL:
         from whisker_io.radial.features import RadialDataset
-        from whisker_io.radial.models import TABLE_4_1, SearchSettings, fit_model
+        from whisker_io.radial.models import TABLE_4_1, SearchParams, fit_model
 
         rng = np.random.default_rng(0)
         X = rng.uniform(0.1, 1.0, (120, 7))
         X[:, 6] = rng.choice([0.065, 0.107], 120)
         data = RadialDataset(X, X[:, 6] * X[:, 0], name="toy")
-        _RADIAL[label] = (data, fit_model(label, *TABLE_4_1[label], data, SearchSettings().quick()))
+        _RADIAL[label] = (data, fit_model(label, *TABLE_4_1[label], data, SearchParams().quick()))
     return _RADIAL[label]
 
 

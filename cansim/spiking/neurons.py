@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 from cansim.errors import ConfigError, InvalidInputError
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, plain_fields
 
 #: most steps of ``dt_s`` one refractory period may span (a 1 ms period at 1 ps steps): a smaller step
 #: is a mistyped unit, and a step of ~1e-320 s would overflow the count
@@ -86,6 +86,7 @@ class NeuronParams:
     poisson_gain_hz: float = 100.0
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers: float64 arithmetic, exact NIR / JSON round trips
         if self.model not in NEURON_MODELS:
             raise ConfigError(f"model must be one of {NEURON_MODELS}, got {self.model!r}")
         for name in ("tau_mem_s", "tau_syn_s", "resistance", "refractory_s", "poisson_gain_hz"):

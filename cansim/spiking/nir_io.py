@@ -171,14 +171,15 @@ def cuba_lif_node(neurons: NeuronParams, n: int, dt_s: float = NIR_STEP_S) -> An
             neurons.v_reset, neurons.v_rest,
         )
     ones = np.ones(int(n), dtype=np.float64)
+    tau_mem, tau_syn = float(neurons.tau_mem_s), float(neurons.tau_syn_s)  # float64: r and w_in from the values written
     return nir.CubaLIF(
-        tau_syn=neurons.tau_syn_s * ones,
-        tau_mem=neurons.tau_mem_s * ones,
-        r=(neurons.tau_mem_s / dt) * ones,
+        tau_syn=tau_syn * ones,
+        tau_mem=tau_mem * ones,
+        r=(tau_mem / dt) * ones,
         v_leak=np.zeros(int(n)),
         v_threshold=(neurons.v_threshold - neurons.v_rest) * ones,
         v_reset=(neurons.v_reset - neurons.v_rest) * ones,
-        w_in=(neurons.tau_syn_s / dt) * ones,
+        w_in=(tau_syn / dt) * ones,
     )
 
 

@@ -34,7 +34,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import finite_scalar, finite_vector, plain_fields
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 
@@ -77,6 +77,7 @@ class SpikingParams:
     lead_table: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
+        plain_fields(self)  # numpy scalars -> Python numbers (as every configuration does)
         if not isinstance(self.attractor, AttractorParams):
             raise ConfigError("attractor must be a cansim.AttractorParams")
         if not isinstance(self.neurons, NeuronParams):
