@@ -318,6 +318,11 @@ def sequence_view_ids(recording: Recording, contact_angle: str, config: TactileS
     """
     cycles = recording.cycles()
     ids = TactileSequenceMatcher(config).match_all(recording.images[contact_angle][cycles]) if cycles.size else np.zeros(0, np.int64)
+    return _per_iteration(recording, cycles, ids)
+
+
+def _per_iteration(recording: Recording, cycles: np.ndarray, ids: np.ndarray) -> list[int | None]:
+    """The view id of each iteration: its whisk cycle's id the first iteration it is shown, else None."""
     view_of = dict(zip(cycles.tolist(), ids.tolist()))
     out: list[int | None] = []
     prev = -1
@@ -344,13 +349,7 @@ def true_place_view_ids(recording: Recording) -> list[int | None]:
             ids[t] = ids[earlier[0]]
         else:
             ids[t], n = n, n + 1
-    view_of = dict(zip(cycles.tolist(), ids.tolist()))
-    out: list[int | None] = []
-    prev = -1
-    for j in recording.image_index.tolist():
-        out.append(None if j < 0 or j == prev else view_of[j])
-        prev = j
-    return out
+    return _per_iteration(recording, cycles, ids)
 
 
 def run_slam(recording: Recording, contact_angle: str, match_threshold: float, inject_energy: float,
