@@ -53,7 +53,7 @@ What runs
   re-localisation (summary item 4b).
 
 Why places alias (issue 24; measured on tuning run 1000, quick path, summary section and ``ch3_distances.png``)
------------------------------------------------------------------------------------------------------------
+---------------------------------------------------------------------------------------------------------------
 * One image carries little: 2.5-3 of its 18 pixels see a wall on average. With the
   Ch.5 detection thresholds the ``onset`` strategy left 46 % (open loop) and 75 % (RCP)
   of the images blank, and blank images are identical everywhere (RCP + onset: the
