@@ -474,20 +474,9 @@ def from_nir(
             noise_sigma=float(meta["noise_sigma"]),
             poisson_gain_hz=float(meta["poisson_gain_hz"]),
         )
-        params = _spiking_params(meta, attractor, neurons)
-        pop = SpikingPopulation(
-            axes,
-            params,
-            dt_s=float(meta["dt_s"]) if dt_s is None else dt_s,
-            seed=int(meta["seed"]) if seed is None else seed,
-            backend=backend,
-        )
-    except KeyError as exc:
-        raise ConfigError(f"metadata['cansim'] lacks the entry {exc.args[0]!r}; re-export with cansim.spiking.to_nir") from None
-    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: int(inf), float(10**400)
-        if isinstance(exc, ConfigError):
-            raise
-        raise ConfigError(f"malformed metadata['cansim'] or node parameters: {exc}") from None
+        params, pop = _population(meta, axes, attractor, neurons, dt_s, seed, backend)
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise _metadata_error(exc, "metadata['cansim'] or node parameters") from None
     try:
         w_exc = np.asarray(exc.weight, dtype=np.float64)
         w_inh = np.asarray(inh.weight, dtype=np.float64)
@@ -508,6 +497,29 @@ def from_nir(
     if not np.allclose(w_inh @ w_exc, expected, rtol=0.0, atol=WEIGHT_RTOL * scale):
         raise ConfigError("the recurrent weights are not the kernels of metadata['cansim']; the graph was edited")
     return pop
+
+
+def _population(meta: dict, axes: tuple, attractor: AttractorParams, neurons: NeuronParams, dt_s: Optional[float],
+                seed: Optional[int], backend: str) -> tuple[SpikingParams, SpikingPopulation]:
+    """The population a graph describes: its network parameters and the population (both formats)."""
+    params = _spiking_params(meta, attractor, neurons)
+    pop = SpikingPopulation(
+        axes,
+        params,
+        dt_s=float(meta["dt_s"]) if dt_s is None else dt_s,
+        seed=int(meta["seed"]) if seed is None else seed,
+        backend=backend,
+    )
+    return params, pop
+
+
+def _metadata_error(exc: Exception, what: str) -> ConfigError:
+    """The typed error of a failed read of a graph's metadata or parameters (OverflowError: int(inf), float(10**400))."""
+    if isinstance(exc, ConfigError):
+        return exc
+    if isinstance(exc, KeyError):
+        return ConfigError(f"metadata['cansim'] lacks the entry {exc.args[0]!r}; re-export with cansim.spiking.to_nir")
+    return ConfigError(f"malformed {what}: {exc}")
 
 
 def _from_nir_v1(graph: Any, meta: dict, dt_s: Optional[float], seed: Optional[int], backend: str) -> SpikingPopulation:
@@ -547,20 +559,9 @@ def _from_nir_v1(graph: Any, meta: dict, dt_s: Optional[float], seed: Optional[i
             noise_sigma=float(meta["noise_sigma"]),
             poisson_gain_hz=float(meta["poisson_gain_hz"]),
         )
-        params = _spiking_params(meta, attractor, neurons)
-        pop = SpikingPopulation(
-            axes,
-            params,
-            dt_s=float(meta["dt_s"]) if dt_s is None else dt_s,
-            seed=int(meta["seed"]) if seed is None else seed,
-            backend=backend,
-        )
-    except KeyError as exc:
-        raise ConfigError(f"metadata['cansim'] lacks the entry {exc.args[0]!r}; re-export with cansim.spiking.to_nir") from None
-    except (TypeError, ValueError, OverflowError) as exc:
-        if isinstance(exc, ConfigError):
-            raise
-        raise ConfigError(f"malformed metadata['cansim']: {exc}") from None
+        params, pop = _population(meta, axes, attractor, neurons, dt_s, seed, backend)
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise _metadata_error(exc, "metadata['cansim']") from None
     weight = np.asarray(rec.weight, dtype=np.float64)
     if weight.shape != (pop.size, pop.size):
         raise ConfigError(f"the Affine weight must have shape {(pop.size, pop.size)}, got {weight.shape}")
