@@ -94,7 +94,6 @@ from scipy.spatial.transform import Rotation
 from maps.object_library import ObjectLibrary
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
-from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.validation import config_field, finite_array
 
