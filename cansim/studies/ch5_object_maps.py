@@ -169,6 +169,7 @@ import numpy as np
 
 from cansim.seeding import derive_seed
 from whisker_io._deprecated import renamed_attributes
+from whisker_io.validation import config_field
 
 logger = logging.getLogger("ch5_study")
 
@@ -243,9 +244,8 @@ class StudyConfig:
 
         if self.matching not in ("mapping", "thesis"):
             raise ConfigError(f"matching is 'mapping' or 'thesis', got {self.matching!r}")
-        if isinstance(self.odometry_scale, bool) or not isinstance(self.odometry_scale, (int, float)) \
-                or not 0.0 <= self.odometry_scale <= 10.0:
-            raise ConfigError(f"odometry_scale is a multiple of the Eq 6.4-6.11 noise in [0, 10], got {self.odometry_scale!r}")
+        config_field(self.odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
+                     hint="a multiple of the Eq 6.4-6.11 odometry noise")
 
     def thresholds_for(self, contact_model: str) -> tuple[float, float]:
         """(T_pfh, T_sda) of one contact model."""

@@ -396,13 +396,14 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     from whisker_io.sim.shapes import library_names, novel_names
 
     from cansim.errors import ConfigError
+    from whisker_io.validation import config_field
 
     ch5 = _ch5()
     matchers = tuple(dict.fromkeys(matchers))
     if not matchers or any(m not in MATCHERS for m in matchers):
         raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
-    if isinstance(odometry_scale, bool) or not isinstance(odometry_scale, (int, float)) or not 0.0 <= odometry_scale <= 10.0:
-        raise ConfigError(f"odometry_scale is a multiple of the Eq 6.4-6.11 noise in [0, 10], got {odometry_scale!r}")
+    config_field(odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
+                 hint="a multiple of the Eq 6.4-6.11 odometry noise")
     out.mkdir(parents=True, exist_ok=True)
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
