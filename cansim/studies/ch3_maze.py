@@ -182,6 +182,7 @@ import numpy as np
 
 from cansim.frontends.tactile import TactileTemplateConfig, tactile_similarity
 from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequenceMatcher, calibrate_threshold, sequence_distances
+from cansim.errors import InvalidInputError
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
@@ -190,6 +191,7 @@ from whisker_io._deprecated import renamed_attributes
 from whisker_io.contact.contact_angle import ContactAngleParams
 from whisker_io.sim.ch3_scene import MazeRoute, ch3_terrain
 from whisker_io.sim.planar_chain import PlanarChain, WhiskSchedule
+from whisker_io.validation import finite_array, finite_scalar, whole_number
 
 CONTROLS: tuple[str, ...] = ("open_loop", "rcp")
 CONTACT_ANGLES: tuple[str, ...] = ("onset", "max_angle", "threshold")
@@ -281,9 +283,32 @@ def kidnap_events(run: SyntheticRun, loops: Sequence[int]) -> list[tuple[int, in
 
 
 def kept_iterations(n: int, events: Sequence[tuple[int, int]]) -> np.ndarray:
-    """Indices of the clean run's iterations that the kidnapped run keeps."""
+    """Indices of the clean run's iterations that the kidnapped run keeps.
+
+    Parameters
+    ----------
+    n : int
+        Iterations of the clean run, >= 0.
+    events : sequence of (at, skip)
+        Kidnaps: ``skip`` >= 1 iterations removed from iteration ``at`` >= 0 on (:func:`kidnap_events`);
+        stretches may overlap or run past ``n``.
+
+    Returns
+    -------
+    ndarray of int64, shape (k,)
+        The kept iterations, increasing.
+
+    Raises
+    ------
+    InvalidInputError
+        ``n`` or an event not whole numbers in range.
+    """
+    n = whole_number(n, "n", minimum=0)
     keep = np.ones(n, dtype=bool)
-    for at, skip in events:
+    for event in events:
+        if len(event) != 2:
+            raise InvalidInputError(f"each kidnap event must be (at, skip), got {event!r}")
+        at, skip = whole_number(event[0], "kidnap at", minimum=0), whole_number(event[1], "kidnap skip", minimum=1)
         keep[at : at + skip] = False
     return np.flatnonzero(keep)
 
@@ -378,7 +403,7 @@ def run_slam(recording: Recording, contact_angle: str, match_threshold: float, i
         observations = (true_place_view_ids(recording) if recognition == "true_places" else
                         sequence_view_ids(recording, contact_angle, dataclasses.replace(SEQUENCE, match_threshold=float(match_threshold))))
     else:
-        raise ValueError(f"unknown recognition {recognition!r}; choose one of {list(RECOGNITIONS)}")
+        raise InvalidInputError(f"unknown recognition {recognition!r}; choose one of {list(RECOGNITIONS) + ['true_places']}")
     slam = RatSLAM(cfg)
     log = slam.run(run.vtrans, run.vrot, run.dt, observations)
     return slam, log.exp_ids
@@ -390,7 +415,21 @@ def place_pairs(poses: np.ndarray, min_gap: int) -> tuple[np.ndarray, np.ndarray
 
     Same: within :data:`SAME_PLACE_M` and :data:`ANGLE_DEG`; different: farther than
     :data:`DIFFERENT_PLACE_M` or turned more than :data:`ANGLE_DEG` (Alg 1's thresholds).
+
+    Parameters
+    ----------
+    poses : array (m, 3)
+        ``(x m, y m, yaw rad)`` per whisk cycle, finite.
+    min_gap : int
+        Fewest cycles between a pair, >= 1.
+
+    Raises
+    ------
+    ShapeError, InvalidInputError
+        ``poses`` not (m, 3) finite values, ``min_gap`` not an integer >= 1.
     """
+    poses = finite_array(poses, (None, 3), "poses")
+    min_gap = whole_number(min_gap, "min_gap", minimum=1)
     m = poses.shape[0]
     dist = np.hypot(poses[:, None, 0] - poses[None, :, 0], poses[:, None, 1] - poses[None, :, 1])
     dth = np.abs((poses[:, None, 2] - poses[None, :, 2] + math.pi) % (2 * math.pi) - math.pi)
@@ -531,7 +570,16 @@ def choose(grid: list[dict[str, Any]]) -> int:
     """Calibration choice: the largest mean ARR among grid points with mean ARCR >= 0.9, else the largest ARCR.
 
     Ties go to the first point in grid order.
+
+    Raises
+    ------
+    InvalidInputError
+        An empty grid, or a point without a finite ``ARR`` (``ARCR`` may be NaN: no re-localisation).
     """
+    if not grid:
+        raise InvalidInputError("the calibration grid is empty; give at least one threshold and one energy")
+    for g in grid:
+        finite_scalar(g["ARR"], "ARR")
     arcr = [-1.0 if math.isnan(g["ARCR"]) else g["ARCR"] for g in grid]
     feasible = [i for i in range(len(grid)) if arcr[i] >= ARCR_FLOOR]
     if feasible:
