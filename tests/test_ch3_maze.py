@@ -313,22 +313,25 @@ def _reference_ratios(summary: str) -> list[float]:
 @pytest.mark.slow
 @pytest.mark.parametrize("control, angle", [(c, m) for c in ("open_loop", "rcp") for m in ("onset", "max_angle", "threshold")])
 def test_quick_study_map_beats_dead_reckoning_with_correct_relocalisations(quick_study, control, angle):
-    """What holds in every condition and repetition (normal runs): ARCR >= 0.9, the map at most 0.6 of dead
-    reckoning and within 0.1 of what perfect recognition gives with the same RatSLAM (the summary's reference)."""
+    """Issue 24's acceptance in every condition and repetition (normal runs) of the run the user gets: ARCR >= 0.9
+    and the relaxed map at most half of dead reckoning's error (seeds 1-2 measured 0.19-0.34, ARCR 0.990-1.0;
+    held-out seeds 5-8 of the same route: 0.30-0.60, see the ch3_maze docstring). Perfect recognition with the same
+    RatSLAM (the summary's reference) is within the bound too: the route itself allows it."""
     tmp_path, rows = quick_study
     reference = _reference_ratios((tmp_path / "ch3_summary.txt").read_text(encoding="utf-8"))
     normal = _quick_rows(rows, control, angle, False)
     assert len(normal) == len(reference) == 2
     for r, ref in zip(normal, reference):
         assert float(r[4]) >= 0.9, r
-        ratio = float(r[6]) / float(r[7])
-        assert ratio <= 0.6 and ratio <= ref + 0.1, (r, ref)
+        assert float(r[6]) <= 0.5 * float(r[7]), r
+        assert ref <= 0.5, reference
 
 
 @pytest.mark.slow
 def test_quick_study_map_is_within_half_of_dead_reckoning_in_every_condition(quick_study):
-    """Issue 24's bound on the quick study's seeds 1-2 (measured 0.29-0.49 with the map's link averaging; 0.31-0.52
-    without it). Held-out seeds 3-4 do not meet it, with or without averaging - see the ch3_maze docstring."""
+    """Issue 24's bound over all conditions of the quick study's seeds 1-2 on the study's 8-loop route (measured
+    0.19-0.34; on the former 4-loop path 0.29-0.49, and held-out seeds 3-4 missed it there). Held-out seeds 5-8:
+    5 and 8 within, 6 (0.45-0.60) and 7 (up to 0.53) not - see the ch3_maze docstring."""
     _, rows = quick_study
     for c in ("open_loop", "rcp"):
         for m in ("onset", "max_angle", "threshold"):
