@@ -184,7 +184,7 @@ Usage::
     cansim study ch3 [--quick] [--out DIR] [--repetitions R] [--recognition sequence|thesis_ch3]
 
 ``--quick`` (the study's 8 loops, one kidnap, one tuning run, two repetitions) takes about
-75 s of CPU (``thesis_ch3``: more, its 3 x 3 grid), the full study a few minutes (measured
+50-75 s of CPU (``thesis_ch3``: more, its 3 x 3 grid), the full study a few minutes (measured
 wall times are in the README).
 """
 
