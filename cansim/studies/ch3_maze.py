@@ -205,7 +205,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from cansim.frontends.tactile import TactileTemplateConfig, tactile_similarity
+from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequenceMatcher, calibrate_threshold, sequence_distances
 from cansim.errors import InvalidInputError
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
