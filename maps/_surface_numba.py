@@ -2,8 +2,9 @@
 
 Each kernel does for every hypothesis what :class:`maps.surface_match.SurfaceMatcher`
 describes, in one pass without temporaries: :func:`likelihoods` places a whisk's contacts
-by every hypothesis of every object, looks up the nearest stored point on the object's
-grid and returns the log likelihood and the capped squared residuals; :func:`move`
+by every hypothesis of every object, reads its distance to the object's stored surface
+from the object's signed-distance grid (:mod:`maps.surface_field`) and returns the log
+likelihood and the residuals; :func:`field_distance` is that read for given points; :func:`move`
 applies one odometry step with the noise undone; :func:`resample` is systematic resampling.
 ``tests/test_surface_match.py`` holds them to the numpy expressions they replace.
 """
@@ -15,63 +16,71 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["likelihoods", "move", "resample"]
+__all__ = ["field_distance", "likelihoods", "move", "resample"]
+
+
+@njit(cache=True, inline="always")
+def _field_at(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+              values: np.ndarray, cell: float, cap: float) -> float:  # pragma: no cover - compiled
+    """``|f|`` of object ``k``'s grid at (x, y, z), trilinear; ``cap`` off the grid (never more than ``cap``)."""
+    u = (x - lo[k, 0]) / cell
+    v = (y - lo[k, 1]) / cell
+    w = (z - lo[k, 2]) / cell
+    i = int(math.floor(u))
+    j = int(math.floor(v))
+    l_ = int(math.floor(w))
+    sx, sy, sz = shape[k, 0], shape[k, 1], shape[k, 2]
+    if i < 0 or j < 0 or l_ < 0 or i >= sx - 1 or j >= sy - 1 or l_ >= sz - 1:
+        return cap
+    fu, fv, fw = u - i, v - j, w - l_
+    base = start[k] + (i * sy + j) * sz + l_
+    c00 = values[base] * (1.0 - fw) + values[base + 1] * fw
+    c01 = values[base + sz] * (1.0 - fw) + values[base + sz + 1] * fw
+    c10 = values[base + sy * sz] * (1.0 - fw) + values[base + sy * sz + 1] * fw
+    c11 = values[base + sy * sz + sz] * (1.0 - fw) + values[base + sy * sz + sz + 1] * fw
+    f = (c00 * (1.0 - fv) + c01 * fv) * (1.0 - fu) + (c10 * (1.0 - fv) + c11 * fv) * fu
+    return min(abs(f), cap)
+
+
+@njit(cache=True)
+def field_distance(x: np.ndarray, obj: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+                   values: np.ndarray, cell: float, cap: float) -> np.ndarray:  # pragma: no cover - compiled
+    """``|f|`` (n,) of points ``x`` (n, 3) on the grids of objects ``obj`` (n,) (:mod:`maps.surface_field`)."""
+    out = np.empty(x.shape[0])
+    for n in range(x.shape[0]):
+        out[n] = _field_at(x[n, 0], x[n, 1], x[n, 2], obj[n], lo, shape, start, values, cell, cap)
+    return out
 
 
 @njit(cache=True)
 def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
-                table: np.ndarray, cell: float, points: np.ndarray, normals: np.ndarray, gate: float,
-                lateral_weight: float, sigma: float, outlier: float, cap: float,
+                values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float,
                 rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
     """Log likelihood (K, N) of the contacts ``pts`` (m, 3) under hypotheses ``R`` (K, N, 3, 3), ``t`` (K, N, 3),
-    and the sum of the contacts' squared residuals capped at ``cap`` (K, N), for the objects ``rows``
-    (the other rows are 0).
+    and each contact's residual (K, N, m), for the objects ``rows`` (the other rows are 0).
 
-    A contact's residual is ``hypot(normal, lateral_weight * lateral)`` to its nearest stored point of
-    the object (within ``gate``; beyond, the contact is an outlier: likelihood ``outlier``, residual
-    ``cap``); its likelihood is ``outlier + exp(-r^2 / (2 sigma^2))``.
+    A contact's residual ``r`` is its distance to the object's stored surface (the grid's
+    ``|f|``, at most ``cap``); its likelihood is ``outlier + exp(-r^2 / (2 sigma^2))``.
     """
     K, N = R.shape[0], R.shape[1]
     m = pts.shape[0]
     ll = np.zeros((K, N))
-    sq = np.zeros((K, N))
+    res = np.zeros((K, N, m))
     inv2s2 = 0.5 / (sigma * sigma)
-    log_out = math.log(outlier)
     for r_ in range(rows.shape[0]):
         k = rows[r_]
-        sx, sy, sz = shape[k, 0], shape[k, 1], shape[k, 2]
         for n in range(N):
             acc = 0.0
-            acc_sq = 0.0
             for j in range(m):
                 px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
                 x = R[k, n, 0, 0] * px + R[k, n, 0, 1] * py + R[k, n, 0, 2] * pz + t[k, n, 0]
                 y = R[k, n, 1, 0] * px + R[k, n, 1, 1] * py + R[k, n, 1, 2] * pz + t[k, n, 1]
                 z = R[k, n, 2, 0] * px + R[k, n, 2, 1] * py + R[k, n, 2, 2] * pz + t[k, n, 2]
-                i = int(math.floor((x - lo[k, 0]) / cell + 0.5))
-                jj = int(math.floor((y - lo[k, 1]) / cell + 0.5))
-                kk = int(math.floor((z - lo[k, 2]) / cell + 0.5))
-                idx = -1
-                if 0 <= i < sx and 0 <= jj < sy and 0 <= kk < sz:
-                    idx = table[start[k] + (i * sy + jj) * sz + kk]
-                r = math.inf
-                if idx >= 0:
-                    dx, dy, dz = x - points[idx, 0], y - points[idx, 1], z - points[idx, 2]
-                    d2 = dx * dx + dy * dy + dz * dz
-                    if d2 <= gate * gate:
-                        nn = abs(dx * normals[idx, 0] + dy * normals[idx, 1] + dz * normals[idx, 2])
-                        lat2 = max(d2 - nn * nn, 0.0)
-                        r = math.sqrt(nn * nn + lateral_weight * lateral_weight * lat2)
-                if r < math.inf:
-                    acc += math.log(outlier + math.exp(-r * r * inv2s2))
-                    rc = min(r, cap)
-                    acc_sq += rc * rc
-                else:
-                    acc += log_out
-                    acc_sq += cap * cap
+                r = _field_at(x, y, z, k, lo, shape, start, values, cell, cap)
+                acc += math.log(outlier + math.exp(-r * r * inv2s2))
+                res[k, n, j] = r
             ll[k, n] = acc
-            sq[k, n] = acc_sq
-    return ll, sq
+    return ll, res
 
 
 @njit(cache=True)

@@ -195,6 +195,18 @@ class ObjectMap(ExperienceMap):
         e = self._contact_exp[:n]
         return poses[e, :3] + Rotation.from_quat(poses[e, 3:7]).apply(self._contact_pts[:n])
 
+    def contact_viewpoints(self) -> np.ndarray:
+        """Where each stored contact was felt from, (n_contacts, 3) m in the map frame.
+
+        The position of the contact's experience (the end-effector pose it is stored
+        in), in the order of :meth:`surface_points`: the arm was outside the object there,
+        which orients the stored surface's normals (:mod:`maps.surface_field`).
+        """
+        n = self._n_contacts
+        if n == 0:
+            return np.zeros((0, 3))
+        return self._a.pose[: self.n_experiences][self._contact_exp[:n], :3].copy()
+
     def predicted_pose(self, *odometry: Any) -> np.ndarray:
         """The dead-reckoned pose after one more odometry sample; the map is unchanged.
 

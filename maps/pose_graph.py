@@ -306,7 +306,7 @@ def whisk_graph_edges(odometry: Sequence[SpatialOdometry | None], experience_ids
 
 def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: Any, relocalised: Any,
                   contacts_m: Sequence[Any], config: WhiskGraphConfig = WhiskGraphConfig(),
-                  max_evaluations: int = 200) -> np.ndarray:
+                  max_evaluations: int = 200, with_viewpoints: bool = False) -> Any:
     """What a mapping run felt, placed by its optimised whisk poses, in the first whisk's frame.
 
     The whisk graph (:func:`whisk_graph_edges`) is optimised from dead reckoning
@@ -321,11 +321,15 @@ def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: An
         Each whisk's contact points in the end-effector frame, m.
     max_evaluations : int
         As :func:`optimise_pose_graph`.
+    with_viewpoints : bool
+        Also return where each contact was felt from.
 
     Returns
     -------
-    ndarray (n_contacts, 3)
-        The contact points, m, in whisk order.
+    ndarray (n_contacts, 3), or (ndarray (n_contacts, 3), ndarray (n_contacts, 3))
+        The contact points, m, in whisk order; with ``with_viewpoints`` also each
+        contact's whisk position (the optimised end-effector position, m), which orients
+        the stored surface's normals (:mod:`maps.surface_field`).
 
     Raises
     ------
@@ -338,11 +342,12 @@ def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: An
         raise ShapeError(f"need one contact array (or None) per whisk ({len(odo)}), got {len(contacts)}")
     edges = whisk_graph_edges(odo, experience_ids, relocalised, config)
     poses = optimise_pose_graph(dead_reckoned_poses(odo), edges, fixed=0, max_evaluations=max_evaluations) if odo else np.zeros((0, 7))
-    out = [np.zeros((0, 3))]
+    out, seen = [np.zeros((0, 3))], [np.zeros((0, 3))]
     for k, c in enumerate(contacts):
         if c is None:
             continue
         p = finite_array(c, (None, 3), f"contacts_m[{k}]")
         if len(p):
             out.append(poses[k, :3] + Rotation.from_quat(poses[k, 3:]).apply(np.array(p, dtype=np.float64)))
-    return np.concatenate(out)
+            seen.append(np.repeat(poses[k, None, :3], len(p), axis=0))
+    return (np.concatenate(out), np.concatenate(seen)) if with_viewpoints else np.concatenate(out)

@@ -88,12 +88,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from maps.object_library import ObjectLibrary
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
+from maps.surface_field import SurfaceFieldConfig, SurfaceFields
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.validation import config_field, finite_array
 
@@ -105,28 +105,14 @@ __all__ = [
     "calibrate_tolerance",
 ]
 
-_MAX_CELLS = 8_000_000  # largest look-up table of one object (cells)
-
-
 @dataclass(frozen=True)
 class SurfaceMatchConfig:
     """Parameters of the surface matcher (module docstring).
 
     Parameters
     ----------
-    gate_m : float
-        A contact whose nearest stored point of object ``k`` is farther than this is
-        off ``k``'s stored surface (an outlier for the likelihood, ``cap_m`` for the
-        evidence), m.
     cap_m : float
-        Largest residual of one contact in the evidence, m.
-    normal_neighbours : int
-        Stored points whose principal axes give a stored point's normal (>= 3).
-    lateral_weight : float
-        Weight of a contact's offset along the stored surface (from its nearest stored
-        point) in its residual, in [0, 1]: 0 trusts the stored plane everywhere within
-        the gate, 1 is the point-to-point distance. Stored contacts are centimetres apart,
-        so a contact between them is on the surface though far from any of them.
+        Largest residual of one contact, m (a contact off the stored surface's grid has it).
     particles : int
         Pose hypotheses per object (>= 1).
     contact_sigma_m : float
@@ -154,8 +140,9 @@ class SurfaceMatchConfig:
         Log-likelihood (nats) by which the best object's window evidence must exceed
         every other object's for an impulse (4.6 = odds of 100 to 1).
     tolerance_m : float
-        Largest window evidence (RMS residual of the contacts under the hypotheses, m)
-        of an object that gets an impulse: a novel object fits no stored surface.
+        Largest window evidence (median residual of the window's contacts under the
+        hypotheses, m) of an object that gets an impulse: a novel object fits no stored
+        surface.
     prune_margin : float
         Once the window is full, an object whose window log evidence is more than this
         (nats) below the best object's is dropped for the rest of the presentation (its
@@ -165,10 +152,7 @@ class SurfaceMatchConfig:
         Seed of the hypotheses' sampling (deterministic runs).
     """
 
-    gate_m: float = 0.04
     cap_m: float = 0.03
-    normal_neighbours: int = 8
-    lateral_weight: float = 0.3
     particles: int = 200
     contact_sigma_m: float = 0.006
     outlier_weight: float = 0.05
@@ -180,17 +164,15 @@ class SurfaceMatchConfig:
     min_window_contacts: int = 12
     min_contacts: int = 1
     margin: float = 4.6
-    tolerance_m: float = 0.012
+    tolerance_m: float = 0.008
     prune_margin: float = 30.0
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("gate_m", "cap_m", "contact_sigma_m", "outlier_weight", "tolerance_m", "margin", "prune_margin"):
+        for name in ("cap_m", "contact_sigma_m", "outlier_weight", "tolerance_m", "margin", "prune_margin"):
             config_field(getattr(self, name), name, float, above=0)
         for name in ("rotation_sigma_deg", "displacement_sigma_m", "initial_sigma_m", "initial_sigma_deg"):
             config_field(getattr(self, name), name, float, minimum=0)
-        config_field(self.lateral_weight, "lateral_weight", float, minimum=0, maximum=1)
-        config_field(self.normal_neighbours, "normal_neighbours", int, minimum=3)
         config_field(self.particles, "particles", int, minimum=1, maximum=100_000)
         config_field(self.window_whisks, "window_whisks", int, minimum=1)
         config_field(self.min_window_contacts, "min_window_contacts", int, minimum=1)
@@ -215,65 +197,8 @@ def _apply(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
     return pose[:3] + Rotation.from_quat(pose[3:]).apply(np.array(points, dtype=np.float64))
 
 
-def _normals(points: np.ndarray, k: int) -> np.ndarray:
-    """Unit normals (n, 3): the least principal axis of each point's ``k`` nearest points."""
-    n = len(points)
-    if n < 3:
-        return np.tile([0.0, 0.0, 1.0], (n, 1))
-    kk = min(k, n)
-    _, idx = cKDTree(points).query(points, k=kk)
-    nb = points[idx]  # (n, kk, 3)
-    d = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", d, d)
-    _, vec = np.linalg.eigh(cov)
-    return vec[:, :, 0]
-
-
-class _NearestGrid:
-    """Nearest stored point of each object on a regular grid (one flat table for all objects).
-
-    Each cell within ``reach`` of an object's bounding box holds the index of the stored
-    point nearest to the cell's centre (:class:`scipy.spatial.cKDTree`, built once); a
-    query reads its cell and measures the exact distance to that point. The point found
-    is the true nearest one or one at most a cell diagonal farther.
-    """
-
-    def __init__(self, surfaces: list[np.ndarray], cell_m: float, reach_m: float) -> None:
-        self.cell = cell_m
-        lo, shape, start, tables = [], [], [], []
-        offset, base = 0, 0
-        for pts in surfaces:
-            a = pts.min(axis=0) - reach_m
-            n = np.ceil((pts.max(axis=0) + reach_m - a) / cell_m).astype(np.int64) + 1
-            axes = [a[i] + cell_m * np.arange(n[i]) for i in range(3)]
-            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-            d, i = cKDTree(pts).query(centres, k=1, distance_upper_bound=reach_m + cell_m)
-            tables.append(np.where(np.isfinite(d), i + base, -1).astype(np.int64))
-            lo.append(a), shape.append(n), start.append(offset)
-            offset += int(np.prod(n))
-            base += len(pts)
-        self.lo, self.shape = np.array(lo), np.array(shape)
-        self.start = np.array(start, dtype=np.int64)
-        self.table = np.concatenate(tables)
-
-    def nearest(self, x: np.ndarray, obj: np.ndarray, gate: float, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ijk = np.floor((x - self.lo[obj]) / self.cell + 0.5).astype(np.int64)
-        sh = self.shape[obj]
-        inside = np.all((ijk >= 0) & (ijk < sh), axis=1)
-        ijk = np.where(inside[:, None], ijk, 0)
-        flat = self.start[obj] + (ijk[:, 0] * sh[:, 1] + ijk[:, 1]) * sh[:, 2] + ijk[:, 2]
-        idx = np.where(inside, self.table[flat], -1)
-        found = idx >= 0
-        d = np.full(len(x), np.inf)
-        d[found] = np.linalg.norm(x[found] - points[idx[found]], axis=1)
-        far = ~(d <= gate)
-        d[far] = np.inf
-        idx[far] = len(points)
-        return d, idx
-
-
 class SurfaceLibrary:
-    """The stored surfaces of several objects in one frame, with normals and one k-d tree.
+    """The stored surfaces of several objects in one frame, as signed-distance grids.
 
     Parameters
     ----------
@@ -281,40 +206,46 @@ class SurfaceLibrary:
         Each object's stored points in the common (arm) frame, m; at least 3 each.
     names : sequence of str
         Distinct object names, one per surface.
-    normal_neighbours : int
-        Neighbours of a point's normal (>= 3).
+    viewpoints_m : sequence of (array_like (n_k, 3) or None), optional
+        Where each stored point was felt from (the end-effector position of its whisk),
+        m: it orients the surface's normals (:mod:`maps.surface_field`). None: the
+        orientation is propagated between neighbouring points.
+    field : SurfaceFieldConfig
+        The grids' spacing, smoothing and reach.
+
+    Attributes
+    ----------
+    names : tuple of str
+    points_m : ndarray (n, 3)
+        Every object's stored points, in object order.
+    point_object : ndarray (n,) int
+    normals : ndarray (n, 3)
+        The stored points' outward normals.
+    fields : SurfaceFields
 
     Raises
     ------
     InvalidInputError, ShapeError
         No object, fewer than 3 points, non-finite points, names that are not distinct or
-        do not match the surfaces.
+        do not match the surfaces, a surface too large for its grid (not in metres).
     """
 
-    def __init__(self, surfaces_m: Sequence[Any], names: Sequence[str], normal_neighbours: int = 8,
-                 grid_cell_m: float = 0.01, grid_reach_m: float = 0.1) -> None:
+    def __init__(self, surfaces_m: Sequence[Any], names: Sequence[str], viewpoints_m: Sequence[Any] | None = None,
+                 field: SurfaceFieldConfig = SurfaceFieldConfig()) -> None:
         surfaces, names = list(surfaces_m), [str(n) for n in names]
         if not surfaces:
             raise InvalidInputError("a SurfaceLibrary needs at least one object surface")
         if len(names) != len(surfaces) or len(set(names)) != len(names):
             raise InvalidInputError(f"need one distinct name per surface, got {len(names)} names for {len(surfaces)} surfaces")
-        config_field(normal_neighbours, "normal_neighbours", int, minimum=3)
-        config_field(grid_cell_m, "grid_cell_m", float, above=0)
-        config_field(grid_reach_m, "grid_reach_m", float, above=0)
         pts = [finite_array(s, (None, 3), f"surface {names[k]!r}") for k, s in enumerate(surfaces)]
         for k, p in enumerate(pts):
             if len(p) < 3:
                 raise InvalidInputError(f"object {names[k]!r} has {len(p)} stored contact points (need >= 3): map it with contacts")
-            cells = np.prod(np.ceil((np.ptp(p, axis=0) + 2 * grid_reach_m) / grid_cell_m) + 1)
-            if cells > _MAX_CELLS:
-                raise InvalidInputError(f"object {names[k]!r} spans {np.ptp(p, axis=0).round(2).tolist()} m: its look-up table would "
-                                        f"need {cells:.3g} cells (at most {_MAX_CELLS:g}); surfaces must be in metres, or use a "
-                                        "larger grid_cell_m")
         self.names: tuple[str, ...] = tuple(names)
+        self.fields = SurfaceFields(pts, viewpoints_m, field)
         self.points_m = np.concatenate(pts)
-        self.normals = np.concatenate([_normals(p, normal_neighbours) for p in pts])
+        self.normals = np.concatenate(self.fields.normals)
         self.point_object = np.repeat(np.arange(len(pts), dtype=np.int64), [len(p) for p in pts])
-        self._grid = _NearestGrid(pts, grid_cell_m, grid_reach_m)
 
     @property
     def n_objects(self) -> int:
@@ -323,7 +254,7 @@ class SurfaceLibrary:
 
     @classmethod
     def from_object_maps(cls, maps: Sequence[ObjectMap], names: Sequence[str], anchors: Sequence[Any],
-                         normal_neighbours: int = 8) -> "SurfaceLibrary":
+                         field: SurfaceFieldConfig = SurfaceFieldConfig()) -> "SurfaceLibrary":
         """The library of object maps whose frames sit at ``anchors`` in the arm's frame.
 
         Parameters
@@ -334,14 +265,18 @@ class SurfaceLibrary:
         anchors : sequence of array_like (7,)
             Pose of each map's frame (its first experience's frame: where the arm was when
             mapping began) in the arm's frame, ``(x, y, z m, qx, qy, qz, qw)``.
+        field : SurfaceFieldConfig
         """
         maps, anchors = list(maps), list(anchors)
         if len(maps) != len(anchors) or any(not isinstance(m, ObjectMap) for m in maps):
             raise InvalidInputError("need one ObjectMap and one anchor pose per object")
-        return cls([_apply(_pose7(a, "anchor"), m.surface_points()) for m, a in zip(maps, anchors)], names, normal_neighbours)
+        poses = [_pose7(a, "anchor") for a in anchors]
+        return cls([_apply(a, m.surface_points()) for m, a in zip(maps, poses)], names,
+                   [_apply(a, m.contact_viewpoints()) for m, a in zip(maps, poses)], field)
 
     @classmethod
-    def from_object_library(cls, library: ObjectLibrary, anchors: Sequence[Any], normal_neighbours: int = 8) -> "SurfaceLibrary":
+    def from_object_library(cls, library: ObjectLibrary, anchors: Sequence[Any],
+                            field: SurfaceFieldConfig = SurfaceFieldConfig()) -> "SurfaceLibrary":
         """The library of appended object maps (:func:`maps.object_library.append_object_maps`)."""
         if not isinstance(library, ObjectLibrary):
             raise InvalidInputError(f"library must be an ObjectLibrary, got {type(library).__name__}")
@@ -350,35 +285,16 @@ class SurfaceLibrary:
             raise InvalidInputError(f"need one anchor per object ({len(library.names)}), got {len(anchors)}")
         om = library.object_map
         obj = library.exp_object[om.contact_experiences]
-        world = om.surface_points()
-        parts = [_apply(_pose7(a, "anchor"), world[obj == k]) for k, a in enumerate(anchors)]
-        return cls(parts, library.names, normal_neighbours)
-
-    def nearest(self, points_m: np.ndarray, objects: np.ndarray, gate_m: float) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest stored point of the given object for each point.
-
-        Parameters
-        ----------
-        points_m : ndarray (n, 3)
-        objects : ndarray (n,) int
-            Object whose surface each point is matched to.
-        gate_m : float
-            Largest distance searched.
-
-        Returns
-        -------
-        (distance_m, index) : ndarray (n,) each
-            Euclidean distance (inf beyond the gate) and the stored point's index
-            (``len(points_m)`` of the library beyond the gate).
-        """
-        return self._grid.nearest(np.asarray(points_m, dtype=np.float64), np.asarray(objects), float(gate_m), self.points_m)
+        world, seen = om.surface_points(), om.contact_viewpoints()
+        poses = [_pose7(a, "anchor") for a in anchors]
+        return cls([_apply(a, world[obj == k]) for k, a in enumerate(poses)], library.names,
+                   [_apply(a, seen[obj == k]) for k, a in enumerate(poses)], field)
 
     def residuals(self, points_m: Any, config: SurfaceMatchConfig = SurfaceMatchConfig()) -> np.ndarray:
         """Each object's RMS residual of fixed points (no registration), (n_objects,) m.
 
-        A point's residual on object ``k`` is the point-to-plane distance to ``k``'s
-        nearest stored point within ``config.gate_m`` (``cap_m`` if none), capped at
-        ``cap_m`` (module docstring, item 4).
+        A point's residual on object ``k`` is its distance to ``k``'s stored surface
+        (:meth:`maps.surface_field.SurfaceFields.distance`), capped at ``config.cap_m``.
 
         Raises
         ------
@@ -388,21 +304,9 @@ class SurfaceLibrary:
         p = finite_array(points_m, (None, 3), "points_m")
         if len(p) == 0:
             raise InvalidInputError("residuals need at least one point")
-        K = self.n_objects
-        x = np.broadcast_to(p, (K, len(p), 3))
-        r = self._point_residuals(x, config)
-        return np.sqrt(np.mean(r**2, axis=1))
-
-    def _point_residuals(self, x: np.ndarray, cfg: SurfaceMatchConfig) -> np.ndarray:
-        """(K, m) capped point-to-plane residuals of points x (K, m, 3), point set k on object k."""
-        K, m = x.shape[:2]
-        obj = np.repeat(np.arange(K), m)
-        d, i = self.nearest(x.reshape(-1, 3), obj, cfg.gate_m)
-        ok = np.isfinite(d)
-        r = np.full(K * m, cfg.cap_m)
-        ii = i[ok]
-        r[ok] = np.abs(np.einsum("ij,ij->i", self.normals[ii], x.reshape(-1, 3)[ok] - self.points_m[ii]))
-        return np.minimum(r, cfg.cap_m).reshape(K, m)
+        K, m = self.n_objects, len(p)
+        r = self.fields.distance(np.tile(p, (K, 1)), np.repeat(np.arange(K, dtype=np.int64), m))
+        return np.sqrt(np.mean(np.minimum(r, config.cap_m).reshape(K, m) ** 2, axis=1))
 
 
 def _euler_xyz(angles: np.ndarray) -> np.ndarray:
@@ -447,10 +351,13 @@ class SurfaceMatcher:
     log_evidence : ndarray (n_objects,)
         Log likelihood (nats) of the window's whisks under each object.
     evidence_m : ndarray (n_objects,)
-        RMS residual (m) of the window's contacts under each object's hypotheses
-        (weighted mean over the hypotheses; inf before any contact).
+        Median residual (m) of the window's contacts under each object's hypotheses
+        (each contact's distance to the stored surface averaged over the hypotheses by
+        their posterior weights; inf before any contact and for dropped objects). The
+        median, not the RMS: the contact noise of Sec 6.1.3.1.2 puts about one contact in
+        ten 1-2 cm off the true surface.
     last_scores_m : ndarray (n_objects,)
-        The same for the last whisk with contacts.
+        RMS residual (m) of the last whisk's contacts.
     window_contacts : int
         Contacts in the evidence window.
     """
@@ -470,7 +377,7 @@ class SurfaceMatcher:
         self._t = (start[:3] + self._rng.normal(0.0, config.initial_sigma_m, (K * N, 3))).reshape(K, N, 3)
         self._logw = np.zeros((K, N))
         self.active = np.ones(K, dtype=bool)
-        self._window: list[tuple[np.ndarray, np.ndarray, int]] = []  # (log likelihood (K,), sum sq residual (K,), contacts)
+        self._window: list[tuple[np.ndarray, np.ndarray, int]] = []  # (log likelihood (K,), residuals (K, m), contacts m)
         self.log_evidence = np.zeros(K)
         self.evidence_m = np.full(K, np.inf)
         self.last_scores_m = np.full(K, np.inf)
@@ -535,10 +442,10 @@ class SurfaceMatcher:
         impulses = np.zeros(K, dtype=bool)
         if pts is None or len(pts) < cfg.min_contacts:
             return impulses
-        lib, grid = self.library, self.library._grid
-        ll, sq_n = _kernels().likelihoods(self._R, self._t, pts, grid.lo, grid.shape, grid.start, grid.table, grid.cell,
-                                          lib.points_m, lib.normals, cfg.gate_m, cfg.lateral_weight, cfg.contact_sigma_m,
-                                          cfg.outlier_weight, cfg.cap_m, np.flatnonzero(self.active))
+        f = self.library.fields
+        ll, res = _kernels().likelihoods(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
+                                         cfg.contact_sigma_m, cfg.outlier_weight, min(cfg.cap_m, f.config.cap_m),
+                                         np.flatnonzero(self.active))
         prior = self._logw - self._logw.max(axis=1, keepdims=True)
         prior -= np.log(np.exp(prior).sum(axis=1, keepdims=True))
         post = prior + ll
@@ -546,18 +453,18 @@ class SurfaceMatcher:
         whisk_ll = top[:, 0] + np.log(np.exp(post - top).sum(axis=1))  # log of the mean likelihood under the prior
         w = np.exp(post - top)
         w /= w.sum(axis=1, keepdims=True)
-        sq = np.einsum("kn,kn->k", w, sq_n)
+        contact_r = np.einsum("kn,knm->km", w, res)  # each contact's residual under the posterior
         whisk_ll[~self.active] = -np.inf
-        sq[~self.active] = np.inf
-        self.last_scores_m = np.sqrt(sq / len(pts))
+        contact_r[~self.active] = np.inf
+        self.last_scores_m = np.sqrt(np.mean(contact_r**2, axis=1))
         self._logw = np.log(np.maximum(w, 1e-300))
         self._resample(w)
-        self._window.append((whisk_ll, sq, len(pts)))
+        self._window.append((whisk_ll, contact_r, len(pts)))
         if len(self._window) > cfg.window_whisks:
             self._window.pop(0)
         n = self.window_contacts = sum(c for _, _, c in self._window)
         self.log_evidence = np.sum([e for e, _, _ in self._window], axis=0)
-        self.evidence_m = np.sqrt(np.sum([s for _, s, _ in self._window], axis=0) / n)
+        self.evidence_m = np.median(np.concatenate([r for _, r, _ in self._window], axis=1), axis=1)
         order = np.argsort(-self.log_evidence)
         best = int(order[0])
         if len(self._window) == cfg.window_whisks:

@@ -189,3 +189,14 @@ def test_bad_whisk_logs_raise() -> None:
         whisk_surface(odo, [0, 1], [False, False], [None, np.array([[np.nan, 0, 0]])])
     with pytest.raises(InvalidInputError):
         optimise_pose_graph(np.tile(I7, (2, 1)), _edges([(0, 1)], [_x(1.0)]), max_evaluations=0)
+
+
+def test_whisk_surface_says_where_each_contact_was_felt_from() -> None:
+    """Three whisks 1 m apart along x, no closure: the graph keeps dead reckoning, so the
+    viewpoints are the whisk positions (0, 1, 2 m), one per contact; whisk 1 felt nothing."""
+    odo = [None, _odo([1, 0, 0]), _odo([1, 0, 0])]
+    contacts = [np.array([[0.1, 0.0, 0.0]]), None, np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])]
+    points, seen = whisk_surface(odo, [0, 1, 2], [False] * 3, contacts, with_viewpoints=True)
+    np.testing.assert_allclose(points, [[0.1, 0, 0], [2.1, 0, 0], [2.0, 0.2, 0]], atol=1e-9)
+    np.testing.assert_allclose(seen, [[0, 0, 0], [2, 0, 0], [2, 0, 0]], atol=1e-9)
+    np.testing.assert_allclose(whisk_surface(odo, [0, 1, 2], [False] * 3, contacts), points, atol=0)

@@ -222,9 +222,9 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     path.parent.mkdir(parents=True, exist_ok=True)
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP)
     slam.save(path)
-    surface = poses[0].apply(whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"]))
+    points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], with_viewpoints=True)
     surface_path = path.with_name(path.stem + "_surface.npz")
-    np.savez_compressed(surface_path, points_m=surface)
+    np.savez_compressed(surface_path, points_m=poses[0].apply(points), viewpoints_m=poses[0].apply(seen))
     return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences}
 
 
@@ -311,8 +311,9 @@ def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_
     Parameters
     ----------
     surfaces : sequence of path
-        Each library object's stored surface (``points_m`` in the arm's frame, written by
-        :func:`map_job`), in the order of ``names``.
+        Each library object's stored surface (``points_m`` in the arm's frame and
+        ``viewpoints_m``, where each was felt from; written by :func:`map_job`), in the
+        order of ``names``.
     names : sequence of str
     start_pose : Pose
         The arm's pose at the first whisk.
@@ -327,11 +328,12 @@ def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_
     """
     from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 
-    points = []
+    points, seen = [], []
     for f in surfaces:
         with np.load(f) as z:
             points.append(z["points_m"])
-    library = SurfaceLibrary(points, names)
+            seen.append(z["viewpoints_m"] if "viewpoints_m" in z.files else None)
+    library = SurfaceLibrary(points, names, seen)
     base = SurfaceMatchConfig()
     cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * odometry_scale,
                   displacement_sigma_m=base.displacement_sigma_m * odometry_scale, seed=seed)
