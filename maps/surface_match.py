@@ -443,28 +443,31 @@ class SurfaceMatcher:
         if pts is None or len(pts) < cfg.min_contacts:
             return impulses
         f = self.library.fields
+        rows = np.flatnonzero(self.active)
         ll, res = _kernels().likelihoods(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
-                                         cfg.contact_sigma_m, cfg.outlier_weight, min(cfg.cap_m, f.config.cap_m),
-                                         np.flatnonzero(self.active))
-        prior = self._logw - self._logw.max(axis=1, keepdims=True)
+                                         cfg.contact_sigma_m, cfg.outlier_weight, min(cfg.cap_m, f.config.cap_m), rows)
+        logw = self._logw[rows]
+        prior = logw - logw.max(axis=1, keepdims=True)
         prior -= np.log(np.exp(prior).sum(axis=1, keepdims=True))
-        post = prior + ll
+        post = prior + ll[rows]
         top = post.max(axis=1, keepdims=True)
-        whisk_ll = top[:, 0] + np.log(np.exp(post - top).sum(axis=1))  # log of the mean likelihood under the prior
         w = np.exp(post - top)
-        w /= w.sum(axis=1, keepdims=True)
-        contact_r = np.einsum("kn,knm->km", w, res)  # each contact's residual under the posterior
-        whisk_ll[~self.active] = -np.inf
-        contact_r[~self.active] = np.inf
+        total = w.sum(axis=1)
+        whisk_ll = np.full(K, -np.inf)
+        whisk_ll[rows] = top[:, 0] + np.log(total)  # log of the mean likelihood under the prior
+        w /= total[:, None]
+        contact_r = np.full((K, len(pts)), np.inf)
+        contact_r[rows] = np.einsum("kn,knm->km", w, res[rows])  # each contact's residual under the posterior
         self.last_scores_m = np.sqrt(np.mean(contact_r**2, axis=1))
-        self._logw = np.log(np.maximum(w, 1e-300))
-        self._resample(w)
+        self._logw[rows] = np.log(np.maximum(w, 1e-300))
+        self._resample(w, rows)
         self._window.append((whisk_ll, contact_r, len(pts)))
         if len(self._window) > cfg.window_whisks:
             self._window.pop(0)
         n = self.window_contacts = sum(c for _, _, c in self._window)
         self.log_evidence = np.sum([e for e, _, _ in self._window], axis=0)
-        self.evidence_m = np.median(np.concatenate([r for _, r, _ in self._window], axis=1), axis=1)
+        self.evidence_m = np.full(K, np.inf)
+        self.evidence_m[rows] = np.median(np.concatenate([r[rows] for _, r, _ in self._window], axis=1), axis=1)
         order = np.argsort(-self.log_evidence)
         best = int(order[0])
         if len(self._window) == cfg.window_whisks:
@@ -475,12 +478,15 @@ class SurfaceMatcher:
                 impulses[best] = True
         return impulses
 
-    def _resample(self, w: np.ndarray) -> None:
-        """Systematic resampling of the objects whose effective sample size fell under half."""
-        K, N = w.shape
-        rows = np.flatnonzero(self.active & (1.0 / np.sum(w**2, axis=1) < N / 2))
+    def _resample(self, w: np.ndarray, rows: np.ndarray) -> None:
+        """Systematic resampling of the objects ``rows`` (weights ``w``, (len(rows), N)) whose effective sample size fell under half."""
+        K, N = self._logw.shape
+        low = np.flatnonzero(1.0 / np.sum(w**2, axis=1) < N / 2)
+        rows = rows[low]
         if len(rows):
-            idx = _kernels().resample(w, self._rng.random(K), rows)  # (len(rows), N)
+            full = np.zeros((K, N))
+            full[rows] = w[low]
+            idx = _kernels().resample(full, self._rng.random(K), rows)  # (len(rows), N)
             self._R[rows] = np.take_along_axis(self._R[rows], idx[:, :, None, None], axis=1)
             self._t[rows] = np.take_along_axis(self._t[rows], idx[:, :, None], axis=1)
             self._logw[rows] = -math.log(N)
