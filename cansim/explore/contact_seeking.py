@@ -169,6 +169,14 @@ class ContactSeekingParams:
         0.66 -> 0.77, seeds 0-1, 150 whisks) and lowered the whisks with contact on the
         1.5-times box (superquadric 0.81 -> 0.72, Box 0.88 -> 0.85, Mug 0.84 -> 0.80,
         seeds 0-2).
+    clear_ahead_m : float
+        The contact guard (:func:`clear_of_contacts`): every goal is moved back along its
+        y-axis until each contact of the whisk that lies before the array (within
+        ``clear_radius_m`` of its axis) is at least this far along y from the end-effector
+        origin (default 0.21 m, the SPC band's lower bound, the back-off's own limit; 0: off).
+    clear_radius_m : float
+        Distance from the array's axis within which a contact counts as before the array
+        (default 0.1 m: the whisker bases lie within 0.08 m of the axis).
 
     Raises
     ------
@@ -185,8 +193,13 @@ class ContactSeekingParams:
     hold_max_turn_rad: float = math.pi
     beyond_centre_m: float = 0.1
     turn_few: bool = True
+    clear_ahead_m: float = 0.21
+    clear_radius_m: float = 0.1
 
     def __post_init__(self) -> None:
+        for name in ("clear_ahead_m",):
+            config_field(getattr(self, name), name, float, minimum=0, maximum=_MAX_M, hint="give metres")
+        config_field(self.clear_radius_m, "clear_radius_m", float, above=0, maximum=_MAX_M, hint="give metres")
         for name in ("advance_step_m", "max_advance_m", "backoff_min_m"):
             config_field(getattr(self, name), name, float, above=0, maximum=_MAX_M, hint="give metres")
         for name in ("front_m", "hold_margin_m", "beyond_centre_m"):
@@ -344,3 +357,41 @@ def contact_range_m(ee_pose: PoseLike, centre_m: ArrayLike, front_m: float) -> t
     n = float(np.linalg.norm(d))
     u = d / n if n > 1e-9 else np.array([0.0, 0.0, 1.0])
     return max(0.0, n - float(front_m)), u
+
+
+def clear_of_contacts(goal: PoseLike, contacts_world_m: ArrayLike, *, ahead_m: float, radius_m: float) -> Pose:
+    """``goal`` moved back along its own y-axis until every felt contact before the array lies ``ahead_m`` along y.
+
+    A contact point (world) lies before the array at ``goal`` when its distance from the
+    goal's y-axis is below ``radius_m``; it must then lie at least ``ahead_m`` along y from
+    the goal's end-effector origin. Contacts beside or behind the array (the splayed long
+    whiskers' tips) do not count. Orientation is kept; the goal is never moved forward.
+
+    Parameters
+    ----------
+    goal : PoseLike
+        The planned end-effector pose (world).
+    contacts_world_m : array_like (n, 3)
+        Contact points felt (world frame, m; n may be 0).
+    ahead_m, radius_m : float
+        m, > 0.
+
+    Returns
+    -------
+    Pose
+    """
+    pose = as_pose(goal)
+    for name, v in (("ahead_m", ahead_m), ("radius_m", radius_m)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v) \
+                or not 0 < v <= _MAX_M:
+            raise InvalidInputError(f"{name} must be a finite number of metres in (0, {_MAX_M}], got {v!r}")
+    c = _contacts(contacts_world_m) if np.size(contacts_world_m) else np.zeros((0, 3))
+    if not len(c):
+        return pose
+    local = pose.inverse().apply(c)
+    front = np.hypot(local[:, 0], local[:, 2]) < radius_m
+    if not front.any():
+        return pose
+    deficit = float(ahead_m - local[front, 1].min())
+    return _shifted(pose, -deficit) if deficit > 0 else pose
+

@@ -69,7 +69,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError
-from cansim.explore.contact_seeking import ContactSeekingParams, contact_range_m, held_face_pose, seek_contact
+from cansim.explore.contact_seeking import (
+    ContactSeekingParams, clear_of_contacts, contact_range_m, held_face_pose, seek_contact,
+)
 from cansim.explore.placement import PlacementParams, place
 from cansim.explore.search import (
     STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
@@ -474,6 +476,15 @@ class Explorer:
         return held_face_pose(goal, self.default.centre_m, self.seeking.front_m, rng, self.seeking.hold_margin_m)
 
     def _plan(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
+        goal, source = self._plan_goal(pose, obs, reloc)
+        if self.seeking is not None and self.placement is not None and self.seeking.clear_ahead_m > 0:
+            pts = np.asarray(getattr(obs, "contact_points_m", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
+            if len(pts):  # the whisk's contacts must stay clear of the array at the goal (clear_of_contacts)
+                goal = clear_of_contacts(goal, pose.apply(pts), ahead_m=self.seeking.clear_ahead_m,
+                                         radius_m=self.seeking.clear_radius_m)
+        return goal, source
+
+    def _plan_goal(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
         contact = bool(getattr(obs, "is_observation", False))
         if self.seeking is not None and self.placement is not None:
             sought = self._seek(pose, obs)
