@@ -322,3 +322,33 @@ def test_explorer_rejects_a_bad_contact_seeking(value):
 
     with pytest.raises(ConfigError):
         Explorer([object()], lambda p: None, object(), lambda a, b: None, object(), contact_seeking=value)  # type: ignore[arg-type]
+
+
+def test_a_surface_can_come_within_16_mm_of_a_base_without_a_whisker_touching():
+    """Why a blind advance cannot be made safe by contact feedback alone with the thesis array (module docstring).
+
+    Its whiskers splay outward (at full protraction 40 deg off the array's axis), so the
+    space straight ahead of the front bases is swept by none of them: a sphere of radius
+    0.12 m on the axis, its apex 3 mm beyond the front bases' plane (y = 0.2019 m), lies
+    about 1.5 cm from the nearest base (by hand: at the bases' ring radius 0.054 m the
+    surface is 0.12 - sqrt(0.12^2 - 0.054^2) = 12.8 mm further on), yet the 60-mm
+    whiskers' tips at protraction (0.093 m off the axis, 0.046 m ahead of their bases)
+    stay just outside it and no whisker touches (with the apex 2 mm beyond, five do). An
+    advance of 2 cm after such a whisk puts a base inside.
+    """
+    import trimesh
+
+    from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.sim.sweep import ContactNoise
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    r, gap = 0.12, 0.003
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=r)
+    sphere.apply_translation([0.0, 0.2019 + gap + r, 0.0])
+    f = WhiskChain(sphere, contact_model="truth", contact_noise=ContactNoise().scaled(0.0)).features(Pose.identity(), np.random.default_rng(0))
+    assert f.n_contacts == 0
+    bases = np.asarray(WhiskerArray.thesis().positions_m)
+    clearance = -sphere.nearest.signed_distance(bases).max()
+    assert 0.0 < clearance < 0.016
+    ahead = bases + [0.0, 0.02, 0.0]  # the same array 2 cm further along its axis
+    assert sphere.contains(ahead).any()
