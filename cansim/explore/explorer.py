@@ -16,7 +16,8 @@ One iteration = one whisk:
    confidence (IC) decides the identity;
 4. the goal: contact seeking's when it is on (:mod:`cansim.explore.contact_seeking`, opt-in: back
    off when the contacts lie nearer than the SPC band, advance along the array's axis
-   after a whisk without contact, turn toward fewer than ``mu`` contacts), else the
+   after a whisk without contact, turn toward fewer than ``mu`` contacts, and keep every
+   goal clear of the whisk's contacts), else the
    surface placement controller's correction while it has one (at most
    ``max_adjustments`` per region, back-offs and turns included), else the active
    strategy's proposal (:func:`cansim.explore.search.active_strategy`); the default
@@ -342,9 +343,13 @@ class Explorer:
         None (the default): the thesis' behaviour (Alg 7 alone; the search's faces before
         its believed volume), which reaches no surface of an object that does not fill
         that volume. Contact seeking extends the SPC: with ``placement`` None it is off
-        too. It is not the default yet: it puts a whisker base inside the object in 5-20 %
-        of the whisks (a placement no arm can make) and, where the believed volume is the
-        object's exact box (the Ch.6 study), it delays the IC 300 decision (module docstring).
+        too. It is not the default: it puts a whisker base inside the object in 5-15 % of
+        the whisks (a placement no arm can make; the thesis' placement puts none), because
+        no whisker of the thesis array sweeps the space straight ahead of its front bases,
+        and where the believed volume is the object's exact box (the Ch.6 study) it delays
+        the IC 300 decision (:mod:`cansim.explore.contact_seeking` for the measurements).
+        Every goal it plans, whatever proposed it, is kept clear of the whisk's contacts
+        (:func:`cansim.explore.contact_seeking.clear_of_contacts`).
     """
 
     def __init__(
