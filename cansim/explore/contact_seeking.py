@@ -163,7 +163,7 @@ from cansim.explore.placement import PlacementParams, place
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.validation import config_field, finite_vector
 
-__all__ = ["ACTIONS", "ContactSeekingParams", "SeekStep", "contact_range_m", "held_face_pose", "seek_contact"]
+__all__ = ["ACTIONS", "ContactSeekingParams", "SeekStep", "clear_of_contacts", "contact_range_m", "held_face_pose", "seek_contact"]
 
 #: The actions of :func:`seek_contact` (None: leave the goal to Alg 7 and the search).
 ACTIONS = ("back_off", "advance", "turn")
