@@ -121,8 +121,8 @@ inside, and so may a face placed at the held range where the surface comes neare
 whisks with a base inside (tuning shapes, guard on) 42-64 % follow an advance, 22-41 % a
 new face, the rest Alg 7's corrections; the depth is 0-3 cm (guard off). Shorter steps trade contact
 for safety along one frontier (tuning shapes, seeds 0-2; contact share / whisks inside, of
-2160): 4-cm advance 0.76 / 236; guard off, 3 cm 0.74 / 232, 2 cm 0.63 / 147; guard on,
-1-cm advance 0.31 / 2 (duck, superquadric, Box, seeds 0-1, of 720); the guard over the last 5
+2160): 4-cm advance 0.76 / 236, 3 cm 0.70 / 160 (with a 2.5-cm hold margin 0.65 / 154);
+guard off, 3 cm 0.74 / 232, 2 cm 0.63 / 147; guard on, 1-cm advance 0.31 / 2 (duck, superquadric, Box, seeds 0-1, of 720); the guard over the last 5
 whisks' contacts with 3-cm steps 0.61 / 76, over 10 with a 3-cm hold margin 0.45 / 44.
 Not adopted either: orbiting toward the next face about the search centre at the held
 range in 8-deg steps (a lateral move lands in space the side whiskers swept) instead of
