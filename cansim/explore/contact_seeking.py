@@ -127,6 +127,11 @@ whisks' contacts with 3-cm steps 0.61 / 76, over 10 with a 3-cm hold margin 0.45
 Not adopted either: orbiting toward the next face about the search centre at the held
 range in 8-deg steps (a lateral move lands in space the side whiskers swept) instead of
 jumping to it: contact 0.81 and 433 whisks inside without the guard, 0.73 / 260 with it.
+Nor a free-space certificate (an advance only as far as every base lands in space some
+whisker swept without touching, kept in 5- or 10-mm voxels, steps of 1-4 cm; a scratch
+study, seeds 0-1, 120 whisks): no advance was ever certified, the bases' path lying in the
+blind space, so the array never left the believed volume's faces: contact 0.00 on the duck
+and the superquadric, 0.67-0.71 on the Box (3-5 of 240 inside, after Alg 7's moves).
 No setting reached both targets, and every one that touches puts bases inside where the
 thesis' placement puts none: contact seeking stays opt-in (``Explorer(...,
 contact_seeking=ContactSeekingParams())``, ``cansim study ch6 --contact-seeking``).
