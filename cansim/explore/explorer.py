@@ -16,7 +16,8 @@ One iteration = one whisk:
    confidence (IC) decides the identity;
 4. the goal: contact seeking's when it is on (:mod:`cansim.explore.contact_seeking`, opt-in: back
    off when the contacts lie nearer than the SPC band, advance along the array's axis
-   after a whisk without contact, turn toward fewer than ``mu`` contacts), else the
+   after a whisk without contact, turn toward fewer than ``mu`` contacts, and keep every
+   goal clear of the whisk's contacts), else the
    surface placement controller's correction while it has one (at most
    ``max_adjustments`` per region, back-offs and turns included), else the active
    strategy's proposal (:func:`cansim.explore.search.active_strategy`); the default
@@ -69,7 +70,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError
-from cansim.explore.contact_seeking import ContactSeekingParams, contact_range_m, held_face_pose, seek_contact
+from cansim.explore.contact_seeking import (
+    ContactSeekingParams, clear_of_contacts, contact_range_m, held_face_pose, seek_contact,
+)
 from cansim.explore.placement import PlacementParams, place
 from cansim.explore.search import (
     STRATEGIES, DefaultSearch, ObjectView, SearchContext, active_strategy, make_strategy,
@@ -340,9 +343,13 @@ class Explorer:
         None (the default): the thesis' behaviour (Alg 7 alone; the search's faces before
         its believed volume), which reaches no surface of an object that does not fill
         that volume. Contact seeking extends the SPC: with ``placement`` None it is off
-        too. It is not the default yet: it puts a whisker base inside the object in 5-20 %
-        of the whisks (a placement no arm can make) and, where the believed volume is the
-        object's exact box (the Ch.6 study), it delays the IC 300 decision (module docstring).
+        too. It is not the default: it puts a whisker base inside the object in 5-15 % of
+        the whisks (a placement no arm can make; the thesis' placement puts none), because
+        no whisker of the thesis array sweeps the space straight ahead of its front bases,
+        and where the believed volume is the object's exact box (the Ch.6 study) it delays
+        the IC 300 decision (:mod:`cansim.explore.contact_seeking` for the measurements).
+        Every goal it plans, whatever proposed it, is kept clear of the whisk's contacts
+        (:func:`cansim.explore.contact_seeking.clear_of_contacts`).
     """
 
     def __init__(
@@ -474,6 +481,15 @@ class Explorer:
         return held_face_pose(goal, self.default.centre_m, self.seeking.front_m, rng, self.seeking.hold_margin_m)
 
     def _plan(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
+        goal, source = self._plan_goal(pose, obs, reloc)
+        if self.seeking is not None and self.placement is not None and self.seeking.clear_ahead_m > 0:
+            pts = np.asarray(getattr(obs, "contact_points_m", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
+            if len(pts):  # the whisk's contacts must stay clear of the array at the goal (clear_of_contacts)
+                goal = clear_of_contacts(goal, pose.apply(pts), ahead_m=self.seeking.clear_ahead_m,
+                                         radius_m=self.seeking.clear_radius_m)
+        return goal, source
+
+    def _plan_goal(self, pose: Pose, obs: object, reloc: list[tuple[int, int]]) -> tuple[Pose, str]:
         contact = bool(getattr(obs, "is_observation", False))
         if self.seeking is not None and self.placement is not None:
             sought = self._seek(pose, obs)

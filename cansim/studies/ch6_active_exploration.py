@@ -667,7 +667,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
                          "larger, issue 22)")
     ap.add_argument("--contact-seeking", action="store_true",
-                    help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn")
+                    help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn, "
+                         "keep every goal clear of the contacts felt")
     args = ap.parse_args(list(argv) if argv is not None else None)
     args.objects = tuple(args.objects)
     args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 10)
