@@ -152,6 +152,53 @@ def _segments(occ_k, start, length, nk, gap_k, seg_s, seg_m):
 
 
 @njit(**_OPTS)
+def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    """The common case of :func:`plan_packets`, decided without its tables: one box whose occupied
+    cells leave no gap to cut at, and every injected cell inside their arcs. Then writes the
+    one box (the union's arcs) and returns True; otherwise False (``union_occ`` is dirty)."""
+    d = n.shape[0]
+    loc = np.zeros((d, n.max()), np.uint8)
+    if mark_occupancy(bits, m, loc) == 0:
+        return False
+    for k in range(d):
+        for p in range(m[k]):
+            if loc[k, p] != 0:
+                union_occ[k, (s[k] + p) % n[k]] = 1
+    for k in range(d):
+        a0, l0 = arc_from_occupancy(union_occ[k], n[k])
+        cl_s[0, k] = a0
+        cl_m[0, k] = l0
+        if l0 < n[k] and l0 > gap[k] and _has_gap(union_occ[k], a0, l0, n[k], gap[k]):
+            return False
+    for t in range(inj_idx.shape[0]):
+        r = inj_idx[t]
+        for k in range(d - 1, -1, -1):
+            if (r % n[k] - cl_s[0, k]) % n[k] >= cl_m[0, k]:
+                return False
+            r //= n[k]
+    for t in range(inj_idx.shape[0]):  # inside the arcs: they do not change them
+        r = inj_idx[t]
+        for k in range(d - 1, -1, -1):
+            union_occ[k, r % n[k]] = 1
+            r //= n[k]
+    return True
+
+
+@njit(**_OPTS)
+def _has_gap(occ_k, start, length, nk, gap_k):
+    """Whether the arc ``(start, length)`` holds a run of at least ``gap_k`` unmarked cells of ``occ_k``."""
+    run = 0
+    for p in range(length):
+        if occ_k[(start + p) % nk] == 0:
+            run += 1
+            if run >= gap_k:
+                return True
+        else:
+            run = 0
+    return False
+
+
+@njit(**_OPTS)
 def plan_packets(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
     """Split the non-zero cells of ``nsrc`` box buffers and the injected cells into packets.
 
@@ -165,6 +212,10 @@ def plan_packets(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m,
     0 when nothing is occupied, 1 when the step runs on one box (``cl_s[0]``, ``cl_m[0]``,
     the union's arcs).
     """
+    if nsrc == 1 and _one_packet(bits[src_off[0]:src_off[1]], src_s[0], src_m[0], n, inj_idx, gap, cl_s, cl_m,
+                                 union_occ):
+        return 1
+    union_occ[:] = 0
     d = n.shape[0]
     nmax = n.max()
     it_occ = np.zeros((MAX_ITEMS, d, nmax), np.uint8)
