@@ -73,6 +73,14 @@ def separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spr
 
 
 @njit(**_OPTS)
+def least_gaps(exc_w, inh_w, gap):
+    """:func:`separations`' margins without the shifts' part (a lower bound of them): a packet with
+    no gap this wide cannot be cut by any step's margin, so the one-packet test needs no shifts."""
+    for k in range(exc_w.shape[0]):
+        gap[k] = 2 * (exc_w[k] // 2) + inh_w[k] // 2 + 1
+
+
+@njit(**_OPTS)
 def apart(as_, am, bs, bm, n, gap):
     """Whether two boxes' arcs leave at least ``gap[k]`` empty cells both ways round on some axis k."""
     for k in range(n.shape[0]):
@@ -635,7 +643,6 @@ def packets_step(
     size = a.shape[0]
     gap = np.empty(d, np.int64)
     spread = np.empty(d, np.int64)
-    separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
     zero = np.zeros(d, np.int64)
     src_off = np.array([0, size], np.int64)
     src_s = zero.reshape(1, d)
@@ -643,7 +650,13 @@ def packets_step(
     cl_s = np.empty((MAX_ITEMS, d), np.int64)
     cl_m = np.empty((MAX_ITEMS, d), np.int64)
     union_occ = np.zeros((d, n.max()), np.uint8)
-    k_cl = plan_packets(a_bits, src_off, src_s, src_m, 1, n, inj_idx, gap, cl_s, cl_m, union_occ)
+    least_gaps(exc_w, inh_w, gap)
+    if _one_packet(a_bits, zero, n, n, inj_idx, gap, cl_s, cl_m, union_occ):
+        k_cl = 1
+    else:
+        separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
+        union_occ[:] = 0
+        k_cl = plan_packets(a_bits, src_off, src_s, src_m, 1, n, inj_idx, gap, cl_s, cl_m, union_occ)
     if k_cl == 0:
         return STATUS_COLLAPSE
     proto = out[:1].copy()
@@ -706,6 +719,8 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
     trig = trig_table(n)
     zero = np.zeros(d, np.int64)
     gap = np.empty(d, np.int64)
+    gap0 = np.empty(d, np.int64)
+    least_gaps(exc_w, inh_w, gap0)
     spread = np.empty(d, np.int64)
     cl_s = np.empty((MAX_ITEMS, d), np.int64)
     cl_m = np.empty((MAX_ITEMS, d), np.int64)
@@ -730,17 +745,26 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
         hi = inj_off[t + 1]
         inj = inj_idx[lo:hi]
         ival = inj_val[lo:hi]
-        separations(exc_w, inh_w, n, has_cond[t], cmask, cond_tabs[t], has_uni[t], unis[t], gap, spread)
         union_occ[:] = 0
+        k_cl = -1
         if mode == 0:
-            one_off[1] = size
-            k_cl = plan_packets(a_bits, one_off, grid_s, grid_m, 1, n, inj, gap, cl_s, cl_m, union_occ)
+            if _one_packet(a_bits, zero, n, n, inj, gap0, cl_s, cl_m, union_occ):
+                k_cl = 1
         elif mode == 1:
-            one_off[1] = box_size(m)
-            k_cl = plan_packets(bufs[cur][:box_size(m)].view(np.uint64), one_off, s.reshape(1, d), m.reshape(1, d),
-                                1, n, inj, gap, cl_s, cl_m, union_occ)
-        else:
-            k_cl = plan_packets(st_bits, st_off, st_s, st_m, nst, n, inj, gap, cl_s, cl_m, union_occ)
+            if _one_packet(bufs[cur][:box_size(m)].view(np.uint64), s, m, n, inj, gap0, cl_s, cl_m, union_occ):
+                k_cl = 1
+        if k_cl < 0:
+            separations(exc_w, inh_w, n, has_cond[t], cmask, cond_tabs[t], has_uni[t], unis[t], gap, spread)
+            union_occ[:] = 0
+            if mode == 0:
+                one_off[1] = size
+                k_cl = plan_packets(a_bits, one_off, grid_s, grid_m, 1, n, inj, gap, cl_s, cl_m, union_occ)
+            elif mode == 1:
+                one_off[1] = box_size(m)
+                k_cl = plan_packets(bufs[cur][:box_size(m)].view(np.uint64), one_off, s.reshape(1, d),
+                                    m.reshape(1, d), 1, n, inj, gap, cl_s, cl_m, union_occ)
+            else:
+                k_cl = plan_packets(st_bits, st_off, st_s, st_m, nst, n, inj, gap, cl_s, cl_m, union_occ)
         if k_cl == 0:
             return t
         if k_cl >= 2:
