@@ -12,7 +12,13 @@ each, every step: two places recognised at once, as RatSLAM's random-walk route 
 It imports cansim from the CURRENT DIRECTORY (run it from the checkout's root). Not
 collected by pytest (no ``test_`` prefix).
 
-Usage: ``cd CHECKOUT && LOOP_REPS=5 python /path/to/bench/packets_loop.py [21|61 ...]``
+``walk`` (given as an argument, e.g. ``walk21``) times ``WALK`` whole ``RatSLAM.step`` calls of
+the default (generic ``Population``) engine on a seeded random walk in a 12 m x 12 m room
+whose view id is the 2 m x 2 m tile the robot stands on: revisited tiles inject at their
+learnt places while the packet is elsewhere, so several packets live at once (the kind of
+route issue 26 measured); prints ms per step and the final experience count.
+
+Usage: ``cd CHECKOUT && LOOP_REPS=5 python /path/to/bench/packets_loop.py [21|61|walk21|walk61 ...]``
 """
 import os, sys, time
 sys.path.insert(0, os.getcwd())  # the tree we stand in, not the installed checkout
@@ -60,7 +66,41 @@ def loop(xy, n_packets, how):
     return best / N * 1e3, pop.decode()
 
 
-grids = [int(g) for g in sys.argv[1:]] or [21, 61]
+WALK = 1500
+
+
+def walk(xy):
+    from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+
+    best = np.inf
+    for _ in range(REPS):
+        rng = np.random.default_rng(3)
+        slam = RatSLAM(RatSLAMConfig(xy_cells=xy))
+        x = y = 6.0
+        th = 0.0
+        steps = []
+        for k in range(WALK + WARM):
+            v = 0.3
+            w = float(rng.normal(0.0, 0.4))
+            th += w
+            x = (x + v * np.cos(th)) % 12.0
+            y = (y + v * np.sin(th)) % 12.0
+            steps.append((v, w, int(x // 2) * 6 + int(y // 2)))
+        for v, w, view in steps[:WARM]:
+            slam.step(v, w, 1.0, view)
+        t0 = time.perf_counter()
+        for v, w, view in steps[WARM:]:
+            s = slam.step(v, w, 1.0, view)
+        best = min(best, time.perf_counter() - t0)
+    return best / WALK * 1e3, s
+
+
+args = sys.argv[1:] or ["21", "61"]
+for a in [g for g in args if g.startswith("walk")]:
+    t, s = walk(int(a[4:]))
+    print(f"{a[4:]}x{a[4:]}x36 walk {t:.4f} ms per RatSLAM step  experiences {s.exp_id} "
+          f"decoded {np.round(s.best_pc, 3).tolist()}", flush=True)
+grids = [int(g) for g in args if not g.startswith("walk")]
 for xy in grids:
     for how in ("step", "run"):
         t1, d1 = loop(xy, 1, how)
