@@ -224,9 +224,9 @@ def test_far_packets_cost_about_one_box_each():
     assert _n_boxes(one, kw) == 1
 
 
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(
-    shape=st.lists(st.integers(8, 40), min_size=2, max_size=4).filter(lambda s: int(np.prod(s)) <= 60_000).map(tuple),
+    shape=st.lists(st.integers(8, 60), min_size=2, max_size=4).filter(lambda s: int(np.prod(s)) <= 80_000).map(tuple),
     seed=st.integers(0, 2**31 - 1),
     n_packets=st.integers(1, 4),
     scale=st.sampled_from([0.3, 1.0, 3.0]),
