@@ -858,21 +858,13 @@ def start_box(a, a_bits, out, ws, n, inj_idx, dense):
 
 
 @njit(**_OPTS)
-def box_step(
-    bufs, cur, s, m, n,
-    inj_idx, inj_val,
-    do_dyn, exc, exc_w, inh, inh_w, phi,
-    do_cond, cmask, cond_tab,
-    do_uni, uni,
-    proto, dense, par_work, nthreads,
-):
-    """One step on a box: inject, dynamics (Alg 3-5 and normalisation), conditional and uniform shift.
+def box_inject_excite_inhibit(bufs, cur, s, m, n, inj_idx, inj_val, exc, exc_w, inh, inh_w, phi, proto,
+                              par_work, nthreads):
+    """First half of :func:`box_step`: injection, excitation (Alg 3), inhibition (Alg 4) and the
+    subtraction of global inhibition (Alg 5), written into the excitation's box buffer.
 
-    The activity is ``bufs[cur]``, a box buffer of box ``(s, m)`` holding every non-zero
-    cell and every injected cell (float64 values of the storage dtype, whose 1-element
-    array is ``proto``). ``s``, ``m`` are updated in place to the result's box. Returns
-    ``(status, index of the buffer holding the result)``; the result is in ``bufs[0]``
-    or ``bufs[1]``, ``bufs[2]`` is scratch.
+    Returns ``(index of the buffer holding c = max(e - e (*) I - phi, 0), sum of c in box order)``;
+    ``s``, ``m`` become the excitation's box. Nothing is normalised yet.
     """
     d = n.shape[0]
     if inj_idx.shape[0] > 0:
@@ -887,49 +879,64 @@ def box_step(
                 r //= n[k]
             src_box[b] += inj_val[t]
         round_to(src_box, box_size(m), proto)
-    if do_dyn:
-        # 2. local excitation (Alg 3): the box grows by the half-widths axis by axis
+    # 2. local excitation (Alg 3): the box grows by the half-widths axis by axis
+    for k in range(d):
+        nt = exc_w[k]
+        run_conv_pass(bufs[cur], bufs[1 - cur], s, m, k, exc[k], nt, nt // 2, nt // 2, n, par_work, nthreads)
+        cur = 1 - cur
+    ecur = cur
+    size_e = box_size(m)
+    # 3. local inhibition (Alg 4): e (*) I is only needed inside e's box
+    i0 = 2
+    i1 = 1 - ecur
+    no_growth = np.int64(0)
+    src = bufs[ecur]
+    for k in range(d):
+        dst = bufs[i0]
+        run_conv_pass(src, dst, s, m, k, inh[k], inh_w[k], no_growth, no_growth, n, par_work, nthreads)
+        src = dst
+        i0, i1 = i1, i0
+    e = bufs[ecur]
+    # 4. global inhibition (Alg 5)
+    total = global_inhibit(e, src, e, size_e, phi)
+    return ecur, total
+
+
+@njit(**_OPTS)
+def box_normalise(bufs, cur, s, m, n, total, proto, dense):
+    """5. normalisation of :func:`box_step`: ``c / total`` rounded to the storage dtype, and the box
+    shrunk to its non-zero cells (unless ``dense``). Returns ``(occupied, buffer index)``;
+    not occupied (every cell 0) leaves ``s``, ``m`` as they were."""
+    d = n.shape[0]
+    size_e = box_size(m)
+    e = bufs[cur]
+    for t in range(size_e):
+        e[t] = e[t] / total
+    round_to(e, size_e, proto)
+    # the packet is narrower than e's box: shrink to its non-zero cells
+    if not dense:
+        ts = np.empty(d, np.int64)
+        tm = np.empty(d, np.int64)
+        if not occupied_box(e[:size_e].view(np.uint64), s, m, n, np.empty(0, np.int64), ts, tm):
+            return False, cur
+        shrink = False
         for k in range(d):
-            nt = exc_w[k]
-            run_conv_pass(bufs[cur], bufs[1 - cur], s, m, k, exc[k], nt, nt // 2, nt // 2, n, par_work, nthreads)
-            cur = 1 - cur
-        ecur = cur
-        size_e = box_size(m)
-        # 3. local inhibition (Alg 4): e (*) I is only needed inside e's box
-        i0 = 2
-        i1 = 1 - ecur
-        no_growth = np.int64(0)
-        src = bufs[ecur]
-        for k in range(d):
-            dst = bufs[i0]
-            run_conv_pass(src, dst, s, m, k, inh[k], inh_w[k], no_growth, no_growth, n, par_work, nthreads)
-            src = dst
-            i0, i1 = i1, i0
-        e = bufs[ecur]
-        # 4. global inhibition (Alg 5) and 5. normalisation
-        total = global_inhibit(e, src, e, size_e, phi)
-        if not (np.isfinite(total) and total > 0.0):
-            return STATUS_COLLAPSE, cur
-        for t in range(size_e):
-            e[t] = e[t] / total
-        round_to(e, size_e, proto)
-        cur = ecur
-        # the packet is narrower than e's box: shrink to its non-zero cells
-        if not dense:
-            ts = np.empty(d, np.int64)
-            tm = np.empty(d, np.int64)
-            occupied_box(e[:size_e].view(np.uint64), s, m, n, inj_idx[:0], ts, tm)
-            shrink = False
-            for k in range(d):
-                if tm[k] < m[k]:
-                    shrink = True
-            if shrink:
-                other = 1 - cur
-                crop(bufs[cur], s, m, bufs[other], ts, tm, n)
-                cur = other
-                s[:] = ts
-                m[:] = tm
-    # 6. path integration: heading-conditional translation, then the uniform shift
+            if tm[k] < m[k]:
+                shrink = True
+        if shrink:
+            other = 1 - cur
+            crop(bufs[cur], s, m, bufs[other], ts, tm, n)
+            cur = other
+            s[:] = ts
+            m[:] = tm
+    return True, cur
+
+
+@njit(**_OPTS)
+def box_shift(bufs, cur, s, m, n, do_cond, cmask, cond_tab, do_uni, uni, proto, par_work, nthreads):
+    """6. path integration of :func:`box_step`: heading-conditional translation, then the uniform
+    shift (Fig 5.7-5.11). The box buffer is ``bufs[cur]`` (0 or 1); returns the result's index."""
+    d = n.shape[0]
     sb = (bufs[0], bufs[1])  # the result is in bufs[0] or bufs[1] here
     kinds = np.zeros(d, np.int64)
     col = 0
@@ -960,7 +967,48 @@ def box_step(
             moving = True
     if moving:
         cur = run_shift_cycle(sb, cur, s, m, n, kinds, cmask, cond_tab, uni, np.int64(last_cond), proto, par_work, nthreads)
-    return STATUS_OK, cur
+    return cur
+
+
+@njit(**_OPTS)
+def box_step(
+    bufs, cur, s, m, n,
+    inj_idx, inj_val,
+    do_dyn, exc, exc_w, inh, inh_w, phi,
+    do_cond, cmask, cond_tab,
+    do_uni, uni,
+    proto, dense, par_work, nthreads,
+):
+    """One step on a box: inject, dynamics (Alg 3-5 and normalisation), conditional and uniform shift.
+
+    The activity is ``bufs[cur]``, a box buffer of box ``(s, m)`` holding every non-zero
+    cell and every injected cell (float64 values of the storage dtype, whose 1-element
+    array is ``proto``). ``s``, ``m`` are updated in place to the result's box. Returns
+    ``(status, index of the buffer holding the result)``; the result is in ``bufs[0]``
+    or ``bufs[1]``, ``bufs[2]`` is scratch. The three phases are
+    :func:`box_inject_excite_inhibit`, :func:`box_normalise` and :func:`box_shift`
+    (the multi-packet step, :mod:`cansim.backends._numba_packets`, runs them per packet).
+    """
+    if do_dyn:
+        cur, total = box_inject_excite_inhibit(bufs, cur, s, m, n, inj_idx, inj_val, exc, exc_w, inh, inh_w, phi,
+                                               proto, par_work, nthreads)
+        if not (np.isfinite(total) and total > 0.0):
+            return STATUS_COLLAPSE, cur
+        occupied, cur = box_normalise(bufs, cur, s, m, n, total, proto, dense)
+    elif inj_idx.shape[0] > 0:
+        d = n.shape[0]
+        src_box = bufs[cur]
+        for t in range(inj_idx.shape[0]):
+            r = inj_idx[t]
+            b = 0
+            stride = 1
+            for k in range(d - 1, -1, -1):
+                b += ((r % n[k] - s[k]) % n[k]) * stride  # inside the box by construction
+                stride *= m[k]
+                r //= n[k]
+            src_box[b] += inj_val[t]
+        round_to(src_box, box_size(m), proto)
+    return STATUS_OK, box_shift(bufs, cur, s, m, n, do_cond, cmask, cond_tab, do_uni, uni, proto, par_work, nthreads)
 
 
 @njit(**_OPTS)

@@ -5,8 +5,10 @@ small packet. This backend finds, per axis, the smallest circular arc holding ev
 non-zero cell (the complement of the largest empty gap) and runs the whole step
 (injection, excitation, inhibition, global inhibition, normalisation, conditional and
 uniform shifts, decoding) in one compiled call on that box, grown by the kernel
-half-widths and shift extents as it goes. With many packets or a spread-out activity
-the box covers the grid and the same code is the dense path. Small hypercube grids that
+half-widths and shift extents as it goes. Several packets far enough apart each get a
+box of their own (:mod:`cansim.backends._numba_packets`, the same bits as one box round
+them all); packets too close to keep apart share one. With a spread-out activity the box
+covers the grid and the same code is the dense path. Small hypercube grids that
 the excitation kernel covers whole (e.g. 5^6) have no box to gain and run a step generated
 for their shape (:mod:`cansim.backends._numba_small`); 1-D rings have their own kernel
 (:mod:`cansim.backends._numba_ring`). Results equal the numpy
@@ -24,6 +26,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from cansim.backends import _numba_kernels as _k
+from cansim.backends import _numba_packets as _p
 from cansim.backends.base import Backend, RunInputs, RunResult
 
 __all__ = ["NumbaBackend"]
@@ -151,6 +154,19 @@ class NumbaBackend(Backend):
         if uniform is not None:
             uni = np.ascontiguousarray(uniform, dtype=np.float64).reshape(-1)
         decoded = np.empty(a.ndim, dtype=np.float64) if window is not None else _NO_DECODE
+        if dyn is not None and window is not None and not self._dense:  # the fused step: one box per packet
+            status = _p.packets_step(
+                flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
+                fi, vals,
+                exc, exc_w, inh, inh_w, phi,
+                cond is not None, cmask, ctab,
+                uni.shape[0] > 0, uni,
+                int(window), decoded,
+                self._par_work, self._nthreads(),
+            )
+            if status != _k.STATUS_OK:
+                return None, None
+            return out, decoded
         status = _k.pipeline(
             flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
             fi, vals,
@@ -262,14 +278,19 @@ class NumbaBackend(Backend):
                 excp, exc_w, inhp, inh_w = self._packed_taps(exc, inh)
                 cmask = self._cmask(inputs.shift_axes, d) if inputs.shift_axes is not None else self._shape(a.shape)
                 ubits = _BITS[a.dtype.itemsize]
-                status = _r.pipeline_run(
-                    flat, flat.view(ubits), bufs[0], hist, bool(record_activity), ws, self._shape(a.shape),
+                run_kernel = _r.pipeline_run
+                extra = ()
+                if not self._dense:  # one box per packet (cansim.backends._numba_packets)
+                    run_kernel = _p.packets_run
+                    extra = (np.empty(flat.shape[0], dtype=np.float64),)
+                status = run_kernel(
+                    flat, flat.view(ubits), bufs[0], hist, bool(record_activity), ws, *extra, self._shape(a.shape),
                     off, idx, val,
                     excp, exc_w, inhp, inh_w, float(phi),
                     has_cond, cmask, ctabs,
                     np.ascontiguousarray(has_uni, dtype=np.bool_), uni,
                     int(window), decoded,
-                    self._dense, self._par_work, self._nthreads(),
+                    *((self._dense,) if run_kernel is _r.pipeline_run else ()), self._par_work, self._nthreads(),
                 )
         if status >= 0:
             return RunResult(None, None, None, int(status))

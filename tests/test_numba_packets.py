@@ -1,0 +1,246 @@
+"""Several packets as fast as one (issue 26, item 2): one box per packet, the same bits.
+
+The numba backend's fused step and run compute each far-apart packet on its own box
+(:mod:`cansim.backends._numba_packets`). Here two and three packets, far apart, wrapping
+round the periodic boundary, or close enough that their boxes merge, are stepped
+
+- through the per-packet step and compared bit for bit with the one-box step round all
+  of them (the kernel the backend used before, ``_numba_kernels.pipeline``),
+- through every available backend and compared with the dense full-grid numpy reference
+  (an independent computation: ``np.roll`` on the whole grid, its own summation order),
+- through ``run`` and compared bit for bit with the one-box step called once per step,
+
+and the packets are checked to have been kept apart (or merged) as their distance says.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("numba")
+
+from cansim import available_backends  # noqa: E402
+from cansim.backends import get_backend  # noqa: E402
+from cansim.backends import _numba_kernels as _k  # noqa: E402
+from cansim.backends import _numba_packets as _p  # noqa: E402
+from cansim.backends.base import RunInputs  # noqa: E402
+from cansim.backends.numba_backend import NumbaBackend, _pack  # noqa: E402
+from cansim.backends.numpy_backend import NumpyBackend  # noqa: E402
+from cansim.kernels import gaussian_kernel_1d  # noqa: E402
+
+REF = NumpyBackend()
+PACKETS = NumbaBackend()
+
+#: (shape, packet centres, number of boxes the first step keeps apart)
+LAYOUTS = {
+    "two far apart, 61x61x36": ((61, 61, 36), [(10, 10, 5), (40, 45, 23)], 2),
+    "three far apart, 61x61x36": ((61, 61, 36), [(5, 5, 5), (35, 40, 20), (20, 48, 5)], 3),
+    "two wrapping the boundary": ((61, 61, 36), [(0, 60, 35), (30, 30, 17)], 2),
+    "three, one on every corner wrap": ((50, 50, 36), [(0, 0, 0), (25, 25, 18), (49, 24, 0)], 3),
+    "two close: one merged box": ((61, 61, 36), [(20, 20, 10), (25, 24, 12)], 1),
+    "two far on theta only, 21x21x36": ((21, 21, 36), [(10, 10, 2), (10, 10, 20)], 2),
+    "two on 21x21x36, apart on theta": ((21, 21, 36), [(3, 3, 3), (13, 13, 20)], 2),
+    "4-D, two apart": ((24, 24, 10, 30), [(0, 0, 0, 0), (12, 12, 5, 15)], 2),
+    "2-D, three apart": ((40, 40), [(0, 0), (20, 20), (0, 20)], 3),
+}
+
+
+def _packets(shape, centres, dtype, half=1, seed=0):
+    """Blocks of +-half cells (wrapping) of random activity around each centre; sum 1."""
+    rng = np.random.default_rng(seed)
+    a = np.zeros(shape)
+    for c in centres:
+        idx = np.ix_(*[(np.arange(-half, half + 1) + ci) % n for ci, n in zip(c, shape)])
+        a[idx] += rng.uniform(0.5, 1.0, size=(2 * half + 1,) * len(shape))
+    return (a / a.sum()).astype(dtype)
+
+
+def _step_kwargs(shape, rng, *, inject=True, scale=1.0):
+    """OpenRatSLAM-like kernels (7 taps sigma 1, 5 taps sigma 2), conditional shifts on the leading axes."""
+    d = len(shape)
+    k = max(d - 1, 1) if d <= 3 else d // 2
+    kw = dict(exc=[gaussian_kernel_1d(7, 1.0)] * d, inh=[gaussian_kernel_1d(5, 2.0)] * d, phi=2e-5, window=3,
+              flat_index=None, values=None, shift_axes=None, cond_shifts=None, uniform_shifts=None)
+    if inject:
+        kw["flat_index"] = rng.integers(0, int(np.prod(shape)), 2).astype(np.int64)
+        kw["values"] = rng.uniform(0.0, 0.2, 2)
+    if d >= 2:
+        kw["shift_axes"] = tuple(range(k))
+        kw["cond_shifts"] = rng.uniform(-1.3, 1.3, shape[k:] + (k,)) * scale
+    u = rng.uniform(-1.5, 1.5, d) * scale
+    if d >= 2:
+        u[:k] = 0.0
+    kw["uniform_shifts"] = u
+    return kw
+
+
+def _one_box_step(a, kw):
+    """The step on one box round every packet (the engine before issue 26 item 2)."""
+    flat = np.ascontiguousarray(a).reshape(-1)
+    out = np.empty_like(flat)
+    n = np.array(a.shape, dtype=np.int64)
+    exc, exc_w = _pack(kw["exc"])
+    inh, inh_w = _pack(kw["inh"])
+    fi = np.empty(0, np.int64) if kw["flat_index"] is None else np.asarray(kw["flat_index"], np.int64)
+    vals = np.empty(0) if kw["values"] is None else np.asarray(kw["values"], np.float64)
+    if kw["cond_shifts"] is not None:
+        cmask = np.zeros(a.ndim, np.int64)
+        cmask[list(kw["shift_axes"])] = 1
+        ctab = np.ascontiguousarray(kw["cond_shifts"]).reshape(-1, len(kw["shift_axes"]))
+    else:
+        cmask, ctab = n, np.zeros((1, 1))
+    uni = np.zeros(0) if kw["uniform_shifts"] is None else np.asarray(kw["uniform_shifts"], np.float64)
+    dec = np.empty(a.ndim)
+    bits = flat.view(np.uint32 if a.dtype == np.float32 else np.uint64)
+    status = _k.pipeline(flat, bits, out, np.empty(3 * flat.size), n, fi, vals, True, exc, exc_w, inh, inh_w,
+                         float(kw["phi"]), kw["cond_shifts"] is not None, cmask, ctab, uni.shape[0] > 0, uni,
+                         True, int(kw["window"]), dec, False, 10**15, 1)
+    if status != _k.STATUS_OK:
+        return None, None
+    return out.reshape(a.shape), dec
+
+
+def _n_boxes(a, kw):
+    """How many boxes the per-packet step plans for ``a`` (before injecting)."""
+    d = a.ndim
+    n = np.array(a.shape, dtype=np.int64)
+    ew = np.array([len(t) for t in kw["exc"]], np.int64)
+    iw = np.array([len(t) for t in kw["inh"]], np.int64)
+    gap, spread = np.empty(d, np.int64), np.empty(d, np.int64)
+    cmask = np.zeros(d, np.int64)
+    ctab = np.zeros((1, 1))
+    if kw["cond_shifts"] is not None:
+        cmask[list(kw["shift_axes"])] = 1
+        ctab = np.ascontiguousarray(kw["cond_shifts"]).reshape(-1, len(kw["shift_axes"]))
+    uni = np.asarray(kw["uniform_shifts"], np.float64)
+    _p.separations(ew, iw, n, kw["cond_shifts"] is not None, cmask, ctab, True, uni, gap, spread)
+    flat = a.reshape(-1).astype(np.float64)
+    cl_s = np.empty((_p.MAX_ITEMS, d), np.int64)
+    cl_m = np.empty((_p.MAX_ITEMS, d), np.int64)
+    occ = np.zeros((d, n.max()), np.uint8)
+    return _p.plan_packets(flat.view(np.uint64), np.array([0, flat.size]), np.zeros((1, d), np.int64),
+                           n.reshape(1, d), 1, n, np.empty(0, np.int64), gap, cl_s, cl_m, occ)
+
+
+def _close(got, ref, dtype):
+    tol = 1e-5 if np.dtype(dtype) == np.float32 else 1e-12
+    np.testing.assert_allclose(got, ref, rtol=tol, atol=tol * float(np.max(ref)))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_per_packet_step_equals_one_box_step_bit_for_bit(layout, dtype):
+    shape, centres, boxes = LAYOUTS[layout]
+    a = _packets(shape, centres, dtype)
+    kw = _step_kwargs(shape, np.random.default_rng(len(layout)))
+    assert _n_boxes(a, kw) == boxes
+    want_a, want_d = _one_box_step(a, kw)
+    before = a.copy()
+    got_a, got_d = PACKETS.step(a, **kw)
+    np.testing.assert_array_equal(a, before)
+    np.testing.assert_array_equal(got_a, want_a)
+    np.testing.assert_array_equal(got_d, want_d)
+
+
+@pytest.mark.parametrize("backend", available_backends())
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_every_backend_matches_the_dense_reference_on_several_packets(layout, backend):
+    shape, centres, _ = LAYOUTS[layout]
+    a = _packets(shape, centres, np.float32, seed=3)
+    kw = _step_kwargs(shape, np.random.default_rng(7))
+    ref_a, ref_d = REF.step(a.astype(np.float64), **kw)  # the whole grid, in float64
+    got_a, got_d = get_backend(backend).step(a, **kw)
+    _close(got_a, ref_a, np.float32)
+    # the decoded position of a packet sits between cells: compare it on the circle of each axis
+    diff = (np.asarray(got_d) - ref_d + np.array(shape) / 2) % np.array(shape) - np.array(shape) / 2
+    assert np.all(np.abs(diff) < 1e-4)
+
+
+@pytest.mark.parametrize("layout", ["three far apart, 61x61x36", "two wrapping the boundary",
+                                    "two close: one merged box", "2-D, three apart"])
+def test_run_equals_one_box_steps_bit_for_bit(layout):
+    """A run keeps the packets in their boxes between steps (and re-plans them each step);
+    every step equals the one-box step on the previous step's grid."""
+    shape, centres, _ = LAYOUTS[layout]
+    a = _packets(shape, centres, np.float32, seed=5)
+    rng = np.random.default_rng(11)
+    T = 25
+    steps = []
+    for t in range(T):
+        kw = _step_kwargs(shape, rng, inject=(t % 4 == 0))
+        if t % 5 == 3:  # a step without motion
+            kw["cond_shifts"] = kw["shift_axes"] = None
+            kw["uniform_shifts"] = None
+        steps.append(kw)
+    off = np.zeros(T + 1, np.int64)
+    idx, val = [], []
+    for t, kw in enumerate(steps):
+        n_inj = 0 if kw["flat_index"] is None else len(kw["flat_index"])
+        if n_inj:
+            idx.append(kw["flat_index"])
+            val.append(kw["values"])
+        off[t + 1] = off[t] + n_inj
+    d = len(shape)
+    axes = next(kw["shift_axes"] for kw in steps if kw["shift_axes"] is not None)
+    has_cond = np.array([kw["cond_shifts"] is not None for kw in steps])
+    proto = next(kw["cond_shifts"] for kw in steps if kw["cond_shifts"] is not None)
+    cond = np.stack([kw["cond_shifts"] if kw["cond_shifts"] is not None else np.zeros_like(proto) for kw in steps])
+    has_uni = np.array([kw["uniform_shifts"] is not None for kw in steps])
+    uni = np.stack([kw["uniform_shifts"] if kw["uniform_shifts"] is not None else np.zeros(d) for kw in steps])
+    inputs = RunInputs(T, off, np.concatenate(idx), np.concatenate(val), axes, cond, has_cond, uni, has_uni)
+    res = PACKETS.run(a, inputs, exc=steps[0]["exc"], inh=steps[0]["inh"], phi=2e-5, window=3, record_activity=True)
+    assert res.collapsed_at is None
+    cur = a
+    for t, kw in enumerate(steps):
+        cur, dec = _one_box_step(cur, kw)
+        np.testing.assert_array_equal(res.history[t], cur, err_msg=f"step {t}")
+        np.testing.assert_array_equal(res.decoded[t], dec, err_msg=f"step {t}")
+    np.testing.assert_array_equal(res.activity, cur)
+
+
+def test_a_lone_injection_far_from_the_packet_is_a_packet_of_its_own():
+    shape = (61, 61, 36)
+    a = _packets(shape, [(10, 10, 10)], np.float32)
+    kw = _step_kwargs(shape, np.random.default_rng(2), inject=False)
+    kw["flat_index"] = np.array([np.ravel_multi_index((45, 40, 30), shape)], np.int64)
+    kw["values"] = np.array([0.3])
+    want_a, want_d = _one_box_step(a, kw)
+    got_a, got_d = PACKETS.step(a, **kw)
+    np.testing.assert_array_equal(got_a, want_a)
+    np.testing.assert_array_equal(got_d, want_d)
+    assert want_a[45, 40, 30] == 0.0 or np.count_nonzero(want_a[35:56, 30:51, 20:]) > 0  # the injection survived
+
+
+def test_far_packets_cost_about_one_box_each():
+    """Two packets far apart: the planned boxes are packet-sized, not the grid (the point of item 2)."""
+    shape = (61, 61, 36)
+    a = _packets(shape, [(5, 5, 5), (35, 40, 23)], np.float32)
+    kw = _step_kwargs(shape, np.random.default_rng(0), inject=False)
+    assert _n_boxes(a, kw) == 2
+    one = _packets(shape, [(5, 5, 5)], np.float32)
+    assert _n_boxes(one, kw) == 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    shape=st.lists(st.integers(8, 60), min_size=2, max_size=4).filter(lambda s: int(np.prod(s)) <= 80_000).map(tuple),
+    seed=st.integers(0, 2**31 - 1),
+    n_packets=st.integers(1, 4),
+    scale=st.sampled_from([0.3, 1.0, 3.0]),
+    dtype=st.sampled_from([np.float32, np.float64]),
+)
+def test_random_packets_per_packet_step_equals_one_box_step(shape, seed, n_packets, scale, dtype):
+    rng = np.random.default_rng(seed)
+    centres = [tuple(int(rng.integers(n)) for n in shape) for _ in range(n_packets)]
+    a = _packets(shape, centres, dtype, half=int(rng.integers(0, 3)), seed=seed)
+    kw = _step_kwargs(shape, rng, scale=scale)
+    want_a, want_d = _one_box_step(a, kw)
+    got_a, got_d = PACKETS.step(a, **kw)
+    if want_a is None:
+        assert got_a is None
+        return
+    np.testing.assert_array_equal(got_a, want_a)
+    np.testing.assert_array_equal(got_d, want_d)
