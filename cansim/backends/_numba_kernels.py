@@ -249,12 +249,18 @@ def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
 @njit(**_OPTS)
 def scatter(src, s, m, out, n):
     """Write box buffer ``src`` (box ``s, m``) into the full grid ``out`` (flat); zero elsewhere."""
-    d = n.shape[0]
     if is_full(m, n):
         for i in range(out.shape[0]):
             out[i] = src[i]
         return
     out[:] = 0
+    place(src, s, m, out, n)
+
+
+@njit(**_OPTS)
+def place(src, s, m, out, n):
+    """Write box buffer ``src`` (box ``s, m``) into the flat grid ``out`` (other cells untouched)."""
+    d = n.shape[0]
     zero = np.zeros(d, np.int64)
     off = _offset_tables(zero, n, s, m, n)  # box index -> grid offset
     last = d - 1

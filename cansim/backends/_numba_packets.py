@@ -32,7 +32,7 @@ from numba import njit
 from cansim.backends._numba_kernels import (
     STATUS_COLLAPSE, STATUS_OK, _advance, _offset_tables, arc_from_occupancy, box_argmax, box_inject_excite_inhibit,
     box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
-    decode_box, grow_arc, mark_occupancy, scatter, split_shift, trig_table, unravel,
+    decode_box, grow_arc, mark_occupancy, place, scatter, split_shift, trig_table, unravel,
 )
 
 __all__ = ["packets_run", "packets_step", "plan_packets", "separations"]
@@ -379,26 +379,6 @@ def paste(src, s_src, m_src, dst, s_dst, m_dst, n):
                 if v >= 0:
                     dst[base + p] = src[b + v]
         _advance(idx, m_dst, last - 1)
-
-
-@njit(**_OPTS)
-def place(src, s, m, out, n):
-    """Write box buffer ``src`` (box ``s, m``) into the flat grid ``out`` (other cells untouched)."""
-    d = n.shape[0]
-    zero = np.zeros(d, np.int64)
-    off = _offset_tables(zero, n, s, m, n)
-    last = d - 1
-    ml = m[last]
-    nrows = box_size(m) // ml
-    idx = np.zeros(d, np.int64)
-    for r in range(nrows):
-        b = 0
-        for k in range(last):
-            b += off[k, idx[k]]
-        base = r * ml
-        for p in range(ml):
-            out[b + off[last, p]] = src[base + p]
-        _advance(idx, m, last - 1)
 
 
 # ------------------------------------------------------------------------ decoding
