@@ -9,7 +9,7 @@ from just-created to after loop closures:
 * the loaded model and the original, fed the same further calls, return identical
   outputs and end in identical saved bytes (the resumed run equals the uninterrupted one).
 
-Models covered: :class:`cansim.RatSLAM` (numpy / numba backends, float64 / float32,
+Models covered: :class:`cansim.RatSLAM` (numpy / numba backends, float64 / float32; both models on every backend here, OpenCL included,
 stored and learnt local-view modes, the C++-parity preset with
 :class:`~cansim.models.posecell_network.PosecellNetwork`, the ids, panoramic-id, camera
 and tactile front ends), :class:`~cansim.models.whisker_ratslam.WhiskerRatSLAM` (the
@@ -196,6 +196,23 @@ KINDS = {
 @example(prefix=[(0, (0.9,) * 7, k % 3) for k in range(8)], follow_up=[(0, (0.9,) * 7, 0)] * 2)  # revisits, closures
 def test_every_model_round_trips_from_any_reachable_state(name, prefix, follow_up):
     kind = KINDS[name]
+    model = kind.make()
+    for act in prefix:
+        kind.apply(model, act)
+    assert_round_trip(model, follow_up, kind.apply)
+
+
+@settings(**{**SETTINGS, "max_examples": max(N // 4, 5),
+             "suppress_health_check": [HealthCheck.too_slow, HealthCheck.function_scoped_fixture]})
+@given(prefix=prefixes, follow_up=follow_ups, whisker=st.booleans())
+def test_models_on_every_backend_round_trip_from_any_reachable_state(backend, prefix, follow_up, whisker):
+    """RatSLAM and WhiskerRatSLAM on each backend this machine runs (OpenCL included where a
+    device builds the kernels; CI requires it): saved anywhere, loaded on the same backend, they
+    continue byte-identically."""
+    if whisker:
+        kind = Kind(lambda: WhiskerRatSLAM(backend=backend.name), _spatial, _regions())
+    else:
+        kind = Kind(lambda: RatSLAM(backend=backend.name, **SMALL), _planar, IDS)
     model = kind.make()
     for act in prefix:
         kind.apply(model, act)
