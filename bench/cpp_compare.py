@@ -79,15 +79,6 @@ BOOST_HELP = (
     "`apt-get install libboost-dev`; Fedora: `dnf install boost-devel`; macOS: "
     "`brew install boost` - or pass --boost-include DIR, the folder that holds boost/."
 )
-# OpenRatSLAM's defaults, written out so the C++ prints no "not found" warnings; the three
-# grid keys are filled per case. These are also RatSLAMConfig.openratslam()'s values.
-SETTINGS_DEFAULTS = {
-    "pc_w_e_dim": "7", "pc_w_i_dim": "5", "pc_w_e_var": "1", "pc_w_i_var": "2",
-    "pc_global_inhib": "0.00002", "vt_active_decay": "1.0", "pc_vt_inject_energy": "0.15",
-    "exp_delta_pc_threshold": "2.0", "pc_vt_restore": "0.05", "exp_correction": "0.5",
-    "exp_loops": "10", "exp_initial_em_deg": "90",
-}
-
 # One step's input: has_vt, vt_id, vt_rad, vtrans (m/s), vrot (rad/s), dt (s).
 StepInput = tuple[int, int, float, float, float, float]
 
@@ -154,10 +145,16 @@ def compile_driver(checkout: Path, build_dir: Path, boost_include: Path | None =
 
 
 def settings_ini(xy_cells: int, heading_cells: int, cell_size_m: float) -> str:
-    """OpenRatSLAM's config text (``[ratslam]`` section) for one grid."""
-    keys = {"pc_dim_xy": str(xy_cells), "pc_dim_th": str(heading_cells), "pc_cell_x_size": repr(float(cell_size_m))}
-    keys.update(SETTINGS_DEFAULTS)
-    return "[ratslam]\n" + "".join(f"{k}={v}\n" for k, v in keys.items())
+    """OpenRatSLAM's config text (``[ratslam]`` section) of the parity preset for one grid.
+
+    Written by the project's adapter from ``RatSLAMConfig.openratslam()`` (every key, so the
+    C++ prints no "not found" warnings and runs the same model the parity preset does).
+    """
+    from cansim.models.openratslam_config import write_openratslam_text
+    from cansim.models.ratslam_config import RatSLAMConfig
+
+    return write_openratslam_text(RatSLAMConfig.openratslam(xy_cells=xy_cells, heading_cells=heading_cells,
+                                                            cell_size_m=cell_size_m))
 
 
 # ----------------------------------------------------------------------------- the routes

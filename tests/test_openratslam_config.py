@@ -6,6 +6,7 @@ docs/concepts/ratslam.rst), never computed by the adapter.
 
 from __future__ import annotations
 
+import dataclasses
 import ast
 import io
 import math
@@ -380,3 +381,25 @@ def test_a_model_saved_by_an_earlier_version_loads_and_continues_as_it_would_hav
     s = slam.step(0.01, 0.02, 1.0, np.array(expected["image"], dtype=np.uint8))
     assert list(s.best_pc) == expected["best_pc"] and list(s.map_pose) == expected["map_pose"]
     assert (s.exp_id, s.relocalised, s.view_id) == (expected["exp_id"], expected["relocalised"], expected["view_id"])
+
+
+# ------------------------------------------------- writing OpenRatSLAM's config
+@settings(max_examples=30, deadline=None)
+@given(xy=st.integers(3, 61), th=st.integers(4, 72), cell=st.floats(0.01, 2.0, allow_nan=False),
+       inject=st.floats(0.0, 1.0), loops=st.integers(0, 50), visual=st.booleans())
+def test_written_config_reads_back_to_the_same_keyed_values(xy, th, cell, inject, loops, visual):
+    from cansim.models.openratslam_config import OPENRATSLAM_KEYS, read_openratslam_text, write_openratslam_text
+
+    cfg = RatSLAMConfig.openratslam(xy_cells=xy, heading_cells=th, cell_size_m=cell, inject_energy=inject,
+                                    relax_passes=loops)
+    if visual:
+        cfg = dataclasses.replace(cfg, frontend=VisualTemplateConfig(crop_x_max_px=None, panoramic=True))
+    text = write_openratslam_text(cfg)
+    assert text.startswith("[ratslam]\n") and ("template_x_size=" in text) == visual
+    back = read_openratslam_text(text, RatSLAMConfig)
+    for key, (field, _) in OPENRATSLAM_KEYS.items():
+        part, _, name = field.rpartition(".")
+        if part == "frontend" and not visual:
+            continue
+        got, want = (getattr(getattr(c, part), name) if part else getattr(c, name) for c in (back, cfg))
+        assert got == want, key

@@ -64,7 +64,8 @@ from cansim.frontends.visual import VisualTemplateConfig
 
 # The config class is passed in (``config_cls``): ratslam_config imports this module, not the reverse.
 
-__all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed"]
+__all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed",
+           "write_openratslam_text"]
 
 
 class _Key(NamedTuple):
@@ -203,6 +204,37 @@ def read_openratslam_text(text: str, config_cls: type, **overrides: Any) -> Any:
         culprits = [f"{k} (line {line})" for k, (_, line) in values.items() if OPENRATSLAM_KEYS[k].field.split(".")[-1] in str(exc)]
         raise ConfigError(f"OpenRatSLAM config key {', '.join(culprits) or '(a combination of keys)'}: {exc}") from None
     return replace(cfg, **overrides) if overrides else cfg
+
+
+def write_openratslam_text(config: Any) -> str:
+    """The OpenRatSLAM config text (a ``[ratslam]`` section) of a :class:`RatSLAMConfig`.
+
+    Every key of :data:`OPENRATSLAM_KEYS` whose field the config has; the visual
+    template's keys only when its front end is a
+    :class:`~cansim.frontends.visual.VisualTemplateConfig`. Floats are written exactly
+    (``repr``), an image edge (None) as -1 and booleans as 0 / 1, so that
+    :func:`read_openratslam_text` gives the same values back (and OpenRatSLAM's C++ reads
+    them, e.g. ``bench/cpp_compare.py``'s driver; an integral float is written without
+    ``.0`` because OpenRatSLAM reads ``pc_w_e_var`` and ``pc_w_i_var`` as integers).
+    """
+    lines = ["[ratslam]"]
+    for key, (field, kind) in OPENRATSLAM_KEYS.items():
+        part, _, name = field.rpartition(".")
+        owner = getattr(config, part) if part else config
+        if part == "frontend" and not isinstance(owner, VisualTemplateConfig):
+            continue
+        value = getattr(owner, name)
+        if kind == "edge" and value is None:
+            text = "-1"
+        elif kind == "bool":
+            text = "1" if value else "0"
+        elif kind == "float":  # integral values without ".0": the C++ reads some of these keys as int
+            v = float(value)
+            text = str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+        else:
+            text = str(int(value))
+        lines.append(f"{key}={text}")
+    return "\n".join(lines) + "\n"
 
 
 def read_openratslam_file(path: str | os.PathLike[str], config_cls: type, **overrides: Any) -> Any:
