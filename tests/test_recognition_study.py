@@ -2,10 +2,11 @@
 
 One run of ``cansim study recognition --quick`` (12-object library, seed 0, presentations
 along trajectory A, trajectory B and viewpoints 5-10 cm / 5-15 deg from the mapping
-poses, three novel objects): the outputs, what holds today (the own map leads along the
-mapping path, novel objects get no decision, no wrong decision), and the issue's
-headline target, which the thesis matcher does not reach (strict xfail: it turns into a
-failure the day it is reached, so the marker is removed then).
+poses, three novel objects; both matchers): the outputs, what holds today (the own map
+leads along the mapping path for both matchers; the thesis matcher decides nothing for
+novel objects and nothing wrong; the surface matcher names more objects from new paths),
+and the issue's headline target, which neither matcher reaches (strict xfail: it turns
+into a failure the day it is reached, so the marker is removed then).
 """
 
 from __future__ import annotations
@@ -40,9 +41,10 @@ def test_outputs_and_columns(quick):
     novel = [r for r in rows if r["novel"] == "True"]
     assert len({r["presented"] for r in library}) == 12 and len({r["presented"] for r in novel}) == 3
     assert {(r["presentation"], r["distance_bin"]) for r in rows} == {("A", ""), ("B", ""), ("viewpoints", "vp 5-10 cm")}
-    assert len(rows) == (12 + 3) * 3
+    assert len(rows) == (12 + 3) * 3 * len(recognition.DEFAULT_MATCHERS)
+    assert {r["matcher"] for r in rows} == set(recognition.DEFAULT_MATCHERS) == {"thesis", "surface"}
     for name in ("recognition_confusion.png", "recognition_accuracy_vs_distance.png",
-                 "recognition_accuracy_vs_library.png"):
+                 "recognition_accuracy_vs_library.png", "recognition_confusion_surface.png"):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text
@@ -51,6 +53,7 @@ def test_outputs_and_columns(quick):
     for f in surfaces:
         with np.load(f) as z:
             assert z["points_m"].shape[1] == 3 and len(z["points_m"]) >= 20 and np.isfinite(z["points_m"]).all()
+            assert z["viewpoints_m"].shape == z["points_m"].shape and np.isfinite(z["viewpoints_m"]).all()
 
 
 def test_viewpoints_lie_in_their_bin(quick):
@@ -70,24 +73,38 @@ def test_along_the_mapping_path_the_own_map_leads_every_run(quick):
             assert r["decision"] in ("", r["presented"])
 
 
-def test_novel_objects_get_no_decision_and_no_decision_is_wrong(quick):
+def test_thesis_matcher_decides_nothing_for_novel_objects_and_nothing_wrong(quick):
     _, rows = quick
+    rows = [r for r in rows if r["matcher"] == "thesis"]
     novel = [r for r in rows if r["novel"] == "True"]
     assert sum(r["decision"] == "" for r in novel) >= math.ceil(0.95 * len(novel))
     library = [r for r in rows if r["novel"] == "False"]
     assert sum(r["decision"] not in ("", r["presented"]) for r in library) <= 0.05 * len(library)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match (the default) recognises "
-                                       "visited poses, not the surface (along B 0/12 correct decisions); the surface "
-                                       "matcher on interpolated surfaces (--matchers surface) names 5/12 along B under "
-                                       "the thesis' odometry noise but with wrong decisions (distorted maps), and 89 % along B, 83 % "
-                                       "from the viewpoints at a quarter of it (seeds 0-2), short of 90 %")
+def test_surface_matcher_names_more_objects_from_new_paths(quick):
+    """Under the thesis' odometry noise the surface matcher names 12 of 24 along B and the
+    viewpoints where the region match names none (it also decides wrongly: the module's Status)."""
+    _, rows = quick
+    new_path = [r for r in rows if r["presentation"] in ("B", "viewpoints") and r["novel"] == "False"]
+    correct = {m: sum(r["decision"] == r["presented"] for r in new_path if r["matcher"] == m) for m in ("thesis", "surface")}
+    assert correct["surface"] >= correct["thesis"] + 6, correct
+
+
+@pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match recognises visited poses, not "
+                                       "the surface (along B 0/12); the surface matcher on interpolated surfaces names 5/12 "
+                                       "along B and 7/12 from the viewpoints under the thesis' odometry noise, with wrong "
+                                       "decisions (distorted maps); at a quarter of that noise 89 % along B and 83 % from "
+                                       "the viewpoints (seeds 0-2), short of 90 %")
 @pytest.mark.parametrize("presentation", ["B", "viewpoints"])
 def test_headline_identified_from_a_new_path(quick, presentation):
+    """Held by either matcher: 90 % correct decisions."""
     _, rows = quick
-    runs = [r for r in rows if r["presentation"] == presentation and r["novel"] == "False"]
-    assert sum(r["decision"] == r["presented"] for r in runs) >= 0.9 * len(runs)
+    share = {}
+    for m in recognition.DEFAULT_MATCHERS:
+        runs = [r for r in rows if r["matcher"] == m and r["presentation"] == presentation and r["novel"] == "False"]
+        share[m] = sum(r["decision"] == r["presented"] for r in runs) / len(runs)
+    assert max(share.values()) >= 0.9, share
 
 
 def test_the_surface_matcher_identifies_along_b_when_the_maps_are_accurate_enough(tmp_path):
