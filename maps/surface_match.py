@@ -42,8 +42,8 @@ identified. This module identifies the *surface* instead of the *view*:
    (a novel object fits no stored surface well). :func:`calibrate_tolerance` turns
    same-object and different-object evidence samples into a tolerance.
 
-Status (measured; opt-in, ``cansim study recognition --matchers surface``)
-----------------------------------------------------------------------------
+Status (measured; ``cansim study recognition`` runs it beside the thesis matcher)
+---------------------------------------------------------------------------------
 The interpolated surfaces (this version) against the nearest-stored-point residual they
 replaced, correct IC-300 decisions over the 12-object library (maps of 2 loops of A by
 WhiskerRatSLAM, surfaces from the pose graph of :mod:`maps.pose_graph`; chosen on seed
@@ -61,7 +61,7 @@ in :mod:`cansim.studies.recognition`):
   5/12 (was 1/12), viewpoints 5/12 (was 0/12), but 3-5 wrong decisions per 12 and a novel
   object named: where the own map is distorted another object's surface fits as well,
   and no margin (4.6-20 nats) or residual test tried separates them. The thesis' region
-  match names none along B and makes no wrong decision, so it stays the default.
+  match names none along B and makes no wrong decision; the study reports both.
 * **On accurate surfaces** (contacts felt at the true poses), under the full noise:
   along B 9/12, viewpoints 8/12, 1 wrong decision of 24 (seed 0); the remaining misses are
   the presentation's own dead reckoning (skull, duck) and the bucket.
