@@ -210,17 +210,10 @@ def _offset_tables(s_from, m_from, s_to, m_to, n):
 
 
 @njit(**_OPTS)
-def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
-    """Fill box buffer ``dst`` (box ``s_dst, m_dst``) from ``src`` (box ``s_src, m_src``); zero outside src."""
+def _copy_box(src, s_src, m_src, dst, s_dst, m_dst, n, zero_outside):
+    """Copy into box buffer ``dst`` (box ``s_dst, m_dst``) the cells of ``src`` (box ``s_src, m_src``)
+    that lie in it; the other cells of ``dst`` become 0 (``zero_outside``) or stay as they are."""
     d = n.shape[0]
-    same = True
-    for k in range(d):
-        if s_src[k] != s_dst[k] or m_src[k] != m_dst[k]:
-            same = False
-    if same:
-        for i in range(box_size(m_dst)):
-            dst[i] = src[i]
-        return
     off = _offset_tables(s_src, m_src, s_dst, m_dst, n)
     last = d - 1
     ml = m_dst[last]
@@ -239,11 +232,36 @@ def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
         if ok:
             for p in range(ml):
                 v = off[last, p]
-                dst[base + p] = src[b + v] if v >= 0 else 0.0
-        else:
+                if v >= 0:
+                    dst[base + p] = src[b + v]
+                elif zero_outside:
+                    dst[base + p] = 0.0
+        elif zero_outside:
             for p in range(ml):
                 dst[base + p] = 0.0
         _advance(idx, m_dst, last - 1)
+
+
+@njit(**_OPTS)
+def crop(src, s_src, m_src, dst, s_dst, m_dst, n):
+    """Fill box buffer ``dst`` (box ``s_dst, m_dst``) from ``src`` (box ``s_src, m_src``); zero outside src."""
+    d = n.shape[0]
+    same = True
+    for k in range(d):
+        if s_src[k] != s_dst[k] or m_src[k] != m_dst[k]:
+            same = False
+    if same:
+        for i in range(box_size(m_dst)):
+            dst[i] = src[i]
+        return
+    _copy_box(src, s_src, m_src, dst, s_dst, m_dst, n, True)
+
+
+@njit(**_OPTS)
+def paste(src, s_src, m_src, dst, s_dst, m_dst, n):
+    """Copy into box buffer ``dst`` (box ``s_dst, m_dst``) the cells of ``src`` (box ``s_src, m_src``)
+    that lie in it; other cells of ``dst`` are left as they are."""
+    _copy_box(src, s_src, m_src, dst, s_dst, m_dst, n, False)
 
 
 @njit(**_OPTS)
@@ -864,6 +882,23 @@ def start_box(a, a_bits, out, ws, n, inj_idx, dense):
 
 
 @njit(**_OPTS)
+def box_inject(box, s, m, n, inj_idx, inj_val, proto):
+    """Add the injections ``inj_val`` at flat grid indices ``inj_idx`` (inside the box ``s, m`` by
+    construction) to the box buffer ``box``, then round the box to the working dtype (``proto``)."""
+    d = n.shape[0]
+    for t in range(inj_idx.shape[0]):
+        r = inj_idx[t]
+        b = 0
+        stride = 1
+        for k in range(d - 1, -1, -1):
+            b += ((r % n[k] - s[k]) % n[k]) * stride
+            stride *= m[k]
+            r //= n[k]
+        box[b] += inj_val[t]
+    round_to(box, box_size(m), proto)
+
+
+@njit(**_OPTS)
 def box_inject_excite_inhibit(bufs, cur, s, m, n, inj_idx, inj_val, exc, exc_w, inh, inh_w, phi, proto,
                               par_work, nthreads):
     """First half of :func:`box_step`: injection, excitation (Alg 3), inhibition (Alg 4) and the
@@ -874,17 +909,7 @@ def box_inject_excite_inhibit(bufs, cur, s, m, n, inj_idx, inj_val, exc, exc_w, 
     """
     d = n.shape[0]
     if inj_idx.shape[0] > 0:
-        src_box = bufs[cur]
-        for t in range(inj_idx.shape[0]):
-            r = inj_idx[t]
-            b = 0
-            stride = 1
-            for k in range(d - 1, -1, -1):
-                b += ((r % n[k] - s[k]) % n[k]) * stride  # inside the box by construction
-                stride *= m[k]
-                r //= n[k]
-            src_box[b] += inj_val[t]
-        round_to(src_box, box_size(m), proto)
+        box_inject(bufs[cur], s, m, n, inj_idx, inj_val, proto)
     # 2. local excitation (Alg 3): the box grows by the half-widths axis by axis
     for k in range(d):
         nt = exc_w[k]
@@ -1002,18 +1027,7 @@ def box_step(
             return STATUS_COLLAPSE, cur
         occupied, cur = box_normalise(bufs, cur, s, m, n, total, proto, dense)
     elif inj_idx.shape[0] > 0:
-        d = n.shape[0]
-        src_box = bufs[cur]
-        for t in range(inj_idx.shape[0]):
-            r = inj_idx[t]
-            b = 0
-            stride = 1
-            for k in range(d - 1, -1, -1):
-                b += ((r % n[k] - s[k]) % n[k]) * stride  # inside the box by construction
-                stride *= m[k]
-                r //= n[k]
-            src_box[b] += inj_val[t]
-        round_to(src_box, box_size(m), proto)
+        box_inject(bufs[cur], s, m, n, inj_idx, inj_val, proto)
     return STATUS_OK, box_shift(bufs, cur, s, m, n, do_cond, cmask, cond_tab, do_uni, uni, proto, par_work, nthreads)
 
 

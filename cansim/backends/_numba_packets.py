@@ -32,7 +32,7 @@ from numba import njit
 from cansim.backends._numba_kernels import (
     STATUS_COLLAPSE, STATUS_OK, _advance, _offset_tables, arc_from_occupancy, box_argmax, box_inject_excite_inhibit,
     box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
-    decode_box, grow_arc, mark_occupancy, place, scatter, split_shift, trig_table, unravel,
+    decode_box, grow_arc, mark_occupancy, paste, place, scatter, split_shift, trig_table, unravel,
 )
 
 __all__ = ["packets_run", "packets_step", "plan_packets", "separations"]
@@ -350,35 +350,6 @@ def plan_packets(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m,
             cl_s[0, k] = a0
             cl_m[0, k] = l0
     return k_cl
-
-
-# -------------------------------------------------------------------- box copies
-@njit(**_OPTS)
-def paste(src, s_src, m_src, dst, s_dst, m_dst, n):
-    """Copy into box buffer ``dst`` (box ``s_dst, m_dst``) the cells of ``src`` (box ``s_src, m_src``)
-    that lie in it; other cells of ``dst`` are left as they are."""
-    d = n.shape[0]
-    off = _offset_tables(s_src, m_src, s_dst, m_dst, n)
-    last = d - 1
-    ml = m_dst[last]
-    nrows = box_size(m_dst) // ml
-    idx = np.zeros(d, np.int64)
-    for r in range(nrows):
-        b = 0
-        ok = True
-        for k in range(last):
-            v = off[k, idx[k]]
-            if v < 0:
-                ok = False
-                break
-            b += v
-        if ok:
-            base = r * ml
-            for p in range(ml):
-                v = off[last, p]
-                if v >= 0:
-                    dst[base + p] = src[b + v]
-        _advance(idx, m_dst, last - 1)
 
 
 # ------------------------------------------------------------------------ decoding
