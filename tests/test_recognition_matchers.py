@@ -37,8 +37,8 @@ def _grid(z: float, n: int = 21, half: float = 0.15) -> np.ndarray:
 
 
 def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
-    """Library: a plate at z = 0 and one at z = 0.1 m (9 cm apart, beyond the 8-cm gate of
-    the default SurfaceMatchConfig). The arm sits 0.2 m above the origin looking down (-z)
+    """Library: a plate at z = 0 and one at z = 0.09 m (9 cm apart, far beyond the residual's
+    3-cm cap), loaded from the study's surface files. The arm sits 0.2 m above the origin looking down (-z)
     and feels 5 points of the z = 0 plate per whisk, not moving: every impulse is object 0's."""
     files = []
     for k, z in enumerate((0.0, 0.09)):
@@ -51,7 +51,9 @@ def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
         world = np.c_[rng.uniform(-0.1, 0.1, (5, 2)), np.zeros(5)]
         contacts.append(down.inverse().apply(world))
     still = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
-    targets = recognition.surface_targets(files, ["low", "high"], down, [None] + [still] * 19, contacts)
+    library = recognition.load_surface_library(files, ["low", "high"])
+    assert library.names == ("low", "high")
+    targets = recognition.surface_targets(library, down, [None] + [still] * 19, contacts)
     assert targets.shape == (20,)
     assert set(targets.tolist()) <= {-1, 0}
     assert np.sum(targets == 0) >= 10  # after the window fills, every whisk

@@ -238,7 +238,7 @@ def _file_name(name: str) -> str:
 
 
 def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple[float, float]] | None,
-                Sequence[str], Sequence[str], Setup, Sequence[str]]) -> list[dict[str, Any]]:
+                Sequence[str], Sequence[str], Setup, Any]) -> list[dict[str, Any]]:
     """Explore ``presented`` along A, B or a viewpoint set against the library; one CSV row per matcher.
 
     Every matcher of ``setup.matchers`` sees the same whisks (poses, contacts, noisy
@@ -259,7 +259,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     from whisker_io.sim.trajectories import object_trajectory
 
     ch5 = _ch5()
-    presented, novel, presentation, vp_bin, paths, names, setup, surfaces = job
+    presented, novel, presentation, vp_bin, paths, names, setup, library = job
     mesh = resolve_object(presented).mesh
     step_m, step_deg = ch5.STEP  # the same step for every object, the Box too (module docstring)
     family = "B" if presentation == "B" else "A"
@@ -285,7 +285,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
             table = lib.with_explored(slam.object_map.n_experiences)
             targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)
         else:
-            targets = surface_targets(surfaces, names, poses[0], log["odometry"], log["contacts"],
+            targets = surface_targets(library, poses[0], log["odometry"], log["contacts"],
                                       odometry_scale=setup.odometry_scale,
                                       seed=derive_seed(setup.seed, "surface", presented, presentation))
         ic = integrated_confidence(confidence(targets, len(names), params), params)
@@ -308,18 +308,36 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     return rows
 
 
-def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_pose: Any,
-                    odometry: Sequence[Any], contacts: Sequence[Any], odometry_scale: float = 1.0,
-                    seed: int = 0) -> np.ndarray:
-    """The object each whisk's surface-matcher impulse went to (-1: none), (n_whisks,) int.
+def load_surface_library(surfaces: Sequence[str | Path], names: Sequence[str]) -> Any:
+    """The library objects' stored surfaces (files written by :func:`map_job`) as one
+    :class:`maps.surface_match.SurfaceLibrary` (its grids built once, for every presentation).
 
     Parameters
     ----------
     surfaces : sequence of path
         Each library object's stored surface (``points_m`` in the arm's frame and
-        ``viewpoints_m``, where each was felt from; written by :func:`map_job`), in the
-        order of ``names``.
+        ``viewpoints_m``, where each was felt from; files without it orient the normals
+        between neighbours), in the order of ``names``.
     names : sequence of str
+    """
+    from maps.surface_match import SurfaceLibrary
+
+    points, seen = [], []
+    for f in surfaces:
+        with np.load(f) as z:
+            points.append(z["points_m"])
+            seen.append(z["viewpoints_m"] if "viewpoints_m" in z.files else None)
+    return SurfaceLibrary(points, names, seen)
+
+
+def surface_targets(library: Any, start_pose: Any, odometry: Sequence[Any], contacts: Sequence[Any],
+                    odometry_scale: float = 1.0, seed: int = 0) -> np.ndarray:
+    """The object each whisk's surface-matcher impulse went to (-1: none), (n_whisks,) int.
+
+    Parameters
+    ----------
+    library : SurfaceLibrary
+        The library's stored surfaces (:func:`load_surface_library`).
     start_pose : Pose
         The arm's pose at the first whisk.
     odometry : sequence of SpatialOdometry
@@ -331,14 +349,8 @@ def surface_targets(surfaces: Sequence[str | Path], names: Sequence[str], start_
     seed : int
         Seed of the matcher's hypotheses.
     """
-    from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
+    from maps.surface_match import SurfaceMatchConfig, SurfaceMatcher
 
-    points, seen = [], []
-    for f in surfaces:
-        with np.load(f) as z:
-            points.append(z["points_m"])
-            seen.append(z["viewpoints_m"] if "viewpoints_m" in z.files else None)
-    library = SurfaceLibrary(points, names, seen)
     base = SurfaceMatchConfig()
     cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * odometry_scale,
                   displacement_sigma_m=base.displacement_sigma_m * odometry_scale, seed=seed)
@@ -432,10 +444,10 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
             names = everything[:size]
             lib_paths = [paths[n] for n in names]
             kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
+            library = load_surface_library([surface_paths[n] for n in names], names) if "surface" in matchers else None
             for presentation, vp in kinds:
-                lib_surfaces = [surface_paths[n] for n in names]
-                jobs += [(p, False, presentation, vp, lib_paths, names, setup, lib_surfaces) for p in names]
-                jobs += [(p, True, presentation, vp, lib_paths, names, setup, lib_surfaces) for p in novel]
+                jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
+                jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
         rows += [r for rs in _pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
     with open(out / "recognition_runs.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
