@@ -130,10 +130,15 @@ def oriented_normals(points_m: np.ndarray, viewpoints_m: np.ndarray | None, neig
     return normals
 
 
+def _grid_extent(points: np.ndarray, cfg: SurfaceFieldConfig) -> tuple[np.ndarray, np.ndarray]:
+    """First cell centre (3,) m and cells per axis (3,) of the grid over ``points`` plus ``reach_m``."""
+    lo = points.min(axis=0) - cfg.reach_m
+    return lo, np.ceil((points.max(axis=0) + cfg.reach_m - lo) / cfg.cell_m).astype(np.int64) + 1
+
+
 def _imls_grid(points: np.ndarray, normals: np.ndarray, cfg: SurfaceFieldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(lo (3,), shape (3,) int, values (prod(shape),)) of one object's clipped signed distance."""
-    lo = points.min(axis=0) - cfg.reach_m
-    shape = np.ceil((points.max(axis=0) + cfg.reach_m - lo) / cfg.cell_m).astype(np.int64) + 1
+    lo, shape = _grid_extent(points, cfg)
     axes = [lo[i] + cfg.cell_m * np.arange(shape[i]) for i in range(3)]
     centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     h = cfg.smoothing_m
@@ -199,7 +204,7 @@ class SurfaceFields:
         for k, (pts, vp) in enumerate(zip(surfaces, views)):
             if len(pts) < 3:
                 raise InvalidInputError(f"surface {k} has {len(pts)} stored points (need >= 3): map it with contacts")
-            cells = cell_count(np.ptp(pts, axis=0), config)
+            cells = float(np.prod(_grid_extent(pts, config)[1].astype(float)))
             if cells > MAX_CELLS:
                 raise InvalidInputError(f"surface {k} spans {np.ptp(pts, axis=0).round(2).tolist()} m: its grid would need "
                                         f"{cells:.3g} cells (at most {MAX_CELLS:g}); surfaces must be in metres, or use a "
@@ -236,9 +241,3 @@ class SurfaceFields:
 
         return _surface_numba.field_distance(x, obj.astype(np.int64), self.lo, self.shape, self.start, self.values,
                                              self.config.cell_m, self.config.cap_m)
-
-
-def cell_count(span_m: np.ndarray, config: SurfaceFieldConfig) -> float:
-    """Cells of the grid of a surface spanning ``span_m`` (3,) m."""
-    return float(np.prod(np.ceil((np.asarray(span_m) + 2 * config.reach_m) / config.cell_m) + 1))
-
