@@ -83,3 +83,20 @@ def test_odometry_noise_scales_the_thesis_model() -> None:
     q = odometry_noise(0.25)
     assert q.euler_std_rad == pytest.approx(math.radians(2.5) / 4) and q.displacement_std_m == pytest.approx(0.0025)
     assert q.angular_speed_mean_rad_s == OdometryNoise().angular_speed_mean_rad_s
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.sampled_from(["missing", "not_npz", "no_points", "bad_shape"]))
+def test_bad_surface_files_raise_typed_errors(tmp_path_factory, kind) -> None:
+    from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
+
+    d = tmp_path_factory.mktemp("surf")
+    f = d / "s.npz"
+    if kind == "not_npz":
+        f.write_bytes(b"not a zip")
+    elif kind == "no_points":
+        np.savez_compressed(f, other=np.zeros(3))
+    elif kind == "bad_shape":
+        np.savez_compressed(f, points_m=np.zeros((5, 2)))
+    with pytest.raises((InvalidInputError, CorruptFileError, ShapeError)):
+        recognition.load_surface_library([f], ["x"])

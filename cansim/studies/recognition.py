@@ -319,14 +319,27 @@ def load_surface_library(surfaces: Sequence[str | Path], names: Sequence[str]) -
         ``viewpoints_m``, where each was felt from; files without it orient the normals
         between neighbours), in the order of ``names``.
     names : sequence of str
+
+    Raises
+    ------
+    InvalidInputError, CorruptFileError, ShapeError
+        A missing file, a file that is not a stored surface, malformed points.
     """
+    import zipfile
+
     from maps.surface_match import SurfaceLibrary
+    from whisker_io.errors import CorruptFileError, InvalidInputError
 
     points, seen = [], []
     for f in surfaces:
-        with np.load(f) as z:
-            points.append(z["points_m"])
-            seen.append(z["viewpoints_m"] if "viewpoints_m" in z.files else None)
+        try:
+            with np.load(f) as z:
+                points.append(z["points_m"])
+                seen.append(z["viewpoints_m"] if "viewpoints_m" in z.files else None)
+        except FileNotFoundError:
+            raise InvalidInputError(f"{f}: no such surface file (map the object first: the study's map_job writes it)") from None
+        except (KeyError, OSError, ValueError, zipfile.BadZipFile) as exc:
+            raise CorruptFileError(f"{f}: not a stored-surface file with points_m ({exc})") from None
     return SurfaceLibrary(points, names, seen)
 
 
