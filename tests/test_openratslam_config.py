@@ -403,3 +403,12 @@ def test_written_config_reads_back_to_the_same_keyed_values(xy, th, cell, inject
             continue
         got, want = (getattr(getattr(c, part), name) if part else getattr(c, name) for c in (back, cfg))
         assert got == want, key
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.one_of(st.none(), st.just("xy_cells=21"), st.integers(), st.just(VisualTemplateConfig())))
+def test_writing_anything_but_a_ratslam_config_raises(config):
+    from cansim.models.openratslam_config import write_openratslam_text
+
+    with pytest.raises(ConfigError, match="RatSLAMConfig"):
+        write_openratslam_text(config)

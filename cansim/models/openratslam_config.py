@@ -216,7 +216,14 @@ def write_openratslam_text(config: Any) -> str:
     :func:`read_openratslam_text` gives the same values back (and OpenRatSLAM's C++ reads
     them, e.g. ``bench/cpp_compare.py``'s driver; an integral float is written without
     ``.0`` because OpenRatSLAM reads ``pc_w_e_var`` and ``pc_w_i_var`` as integers).
+
+    Raises
+    ------
+    ConfigError
+        ``config`` is not a RatSLAMConfig.
     """
+    if not all(hasattr(config, name) for name in ("xy_cells", "attractor", "frontend")):
+        raise ConfigError(f"write_openratslam_text needs a RatSLAMConfig, got {type(config).__name__}")
     lines = ["[ratslam]"]
     for key, (field, kind) in OPENRATSLAM_KEYS.items():
         part, _, name = field.rpartition(".")
