@@ -14,17 +14,24 @@ Local-view ids of map ``k`` are shifted by ``view_offsets[k]``, the number of re
 stored before it, so the caller appends the regions in the same order. The contact points
 each map keeps (:meth:`~maps.object_map.ObjectMap.record_contacts`) are appended with
 their experiences.
+
+A library saves to one ``.npz`` file (:meth:`ObjectLibrary.save`, no pickle): the
+appended map's fields (:meth:`~maps.object_map.ObjectMap.to_arrays`, prefixed ``map_``)
+beside ``exp_object``, ``names`` (a unicode array) and ``history_object``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import BinaryIO
 
 import numpy as np
 
 from maps.object_map import ObjectMap
-from whisker_io.errors import InvalidInputError
+from maps.persistence import read_npz
+from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
 
@@ -64,6 +71,75 @@ class ObjectLibrary:
         if isinstance(n_experiences, bool) or not isinstance(n_experiences, (int, np.integer)) or n_experiences < n_lib:
             raise InvalidInputError(f"n_experiences must be an integer >= the library's {n_lib}, got {n_experiences!r}")
         return np.concatenate([self.exp_object, np.full(int(n_experiences) - n_lib, -1, dtype=np.int64)])
+
+    # ----------------------------------------------------------- save / load
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The library as named arrays: the map's (prefixed ``map_``), ``exp_object``, ``names``, ``history_object``."""
+        arrays = self.object_map.to_arrays(prefix + "map_")
+        arrays[prefix + "exp_object"] = np.asarray(self.exp_object, dtype=np.int64)
+        arrays[prefix + "names"] = np.array(self.names, dtype=np.str_)
+        arrays[prefix + "history_object"] = np.asarray(self.history_object, dtype=np.int64)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ObjectLibrary":
+        """Rebuild a library from :meth:`to_arrays` output.
+
+        Raises
+        ------
+        CorruptFileError
+            A field is missing or disagrees with the map (named in the error): an
+            object index outside the names, tables longer than the map's experiences or iterations, repeated
+            or non-text names.
+        """
+        object_map = ObjectMap.from_arrays(arrays, prefix + "map_")
+
+        def need(key: str) -> np.ndarray:
+            if prefix + key not in arrays:
+                raise CorruptFileError("missing", field=prefix + key)
+            return np.asarray(arrays[prefix + key])
+
+        names_arr = need("names")
+        if names_arr.ndim != 1 or names_arr.dtype.kind != "U" or len(names_arr) == 0:
+            raise CorruptFileError(f"expected a 1-D array of object names, got {names_arr.dtype} {names_arr.shape}",
+                                   field=prefix + "names")
+        names = tuple(str(n) for n in names_arr.tolist())
+        if len(set(names)) != len(names):
+            raise CorruptFileError(f"object names must be distinct, got {list(names)}", field=prefix + "names")
+        # the map may have grown since the library was appended (the model explores on it): the
+        # tables cover its first experiences and iterations
+        for key, length in (("exp_object", object_map.n_experiences), ("history_object", object_map.n_recorded)):
+            a = need(key)
+            if a.ndim != 1 or not 1 <= len(a) <= length or a.dtype.kind != "i" or a.min() < 0 or a.max() >= len(names):
+                raise CorruptFileError(f"expected 1 to {length} object indices in [0, {len(names)}), got {a.dtype} "
+                                       f"{a.shape}", field=prefix + key)
+        return cls(object_map, need("exp_object").astype(np.int64), names, need("history_object").astype(np.int64))
+
+    def save(self, path: str | os.PathLike[str] | BinaryIO) -> None:
+        """Write the library to ``path`` (``.npz``, no pickle); :meth:`load` reads it back bit-exactly.
+
+        A file name is written to a temporary name beside it and renamed, so a crash never
+        leaves a half-written library under that name; an open binary file is written as is.
+        """
+        arrays = self.to_arrays()
+        if not isinstance(path, (str, os.PathLike)):
+            np.savez(path, **arrays)
+            return
+        tmp = os.fspath(path) + ".tmp.npz"
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str] | BinaryIO) -> "ObjectLibrary":
+        """Read a library written by :meth:`save`.
+
+        Raises
+        ------
+        CorruptFileError
+            The file is unreadable, or a field is missing or malformed.
+        """
+        return cls.from_arrays(read_npz(path))
 
 
 def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_offsets: Sequence[int]) -> ObjectLibrary:

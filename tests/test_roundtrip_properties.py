@@ -14,7 +14,8 @@ stored and learnt local-view modes, the C++-parity preset with
 :class:`~cansim.models.posecell_network.PosecellNetwork`, the ids, panoramic-id, camera
 and tactile front ends), :class:`~cansim.models.whisker_ratslam.WhiskerRatSLAM` (the
 thesis preset, pose-consistent matching, learnt mode, an object-library model from
-:meth:`WhiskerRatSLAM.library`), :class:`maps.experience_map.ExperienceMap` and
+:meth:`WhiskerRatSLAM.library`, and its :class:`maps.object_library.ObjectLibrary` table while
+the model explores), :class:`maps.experience_map.ExperienceMap` and
 :class:`maps.object_map.ObjectMap` saved on their own, and
 :class:`cansim.local_view.LocalViewCells` (``to_arrays`` / ``from_arrays``), a spiking
 population through a NIR file (``to_nir`` / ``from_nir``: the network, not its dynamic
@@ -157,8 +158,8 @@ SMALL = dict(xy_cells=9, heading_cells=12, cell_size_m=0.1)
 IDS = [0, 7, 2**40, 3, (7, 0.7), (11, -2.9)]  # any non-negative id; (id, relative_rad) is a panoramic match
 
 
-def _library():
-    """An object-library model (Fig 5.16) of two small object models."""
+def _library_and_table():
+    """An object-library model (Fig 5.16) of two small object models, and its experience -> object table."""
     regions = _regions(seed=1)
     models = []
     for seed in (0, 1):
@@ -167,8 +168,11 @@ def _library():
         for k in range(4):
             m.step(*_spatial(rng.random(7)), regions[(k + seed) % 4])
         models.append(m)
-    model, _ = WhiskerRatSLAM.library(models, ["a", "b"])
-    return model
+    return WhiskerRatSLAM.library(models, ["a", "b"])
+
+
+def _library():
+    return _library_and_table()[0]
 
 
 KINDS = {
@@ -253,6 +257,53 @@ def test_experience_and_object_maps_round_trip_on_their_own(prefix, follow_up, m
     for act in prefix:
         apply(em, act)
     assert_round_trip(em, follow_up, apply)
+
+
+@settings(**SETTINGS)
+@given(prefix=prefixes)
+@example(prefix=[])
+def test_object_library_round_trips_while_its_model_explores(prefix):
+    """ObjectLibrary.save / load: names, experience -> object and iteration -> object tables and
+    the appended map, also after the model has explored on it (the map grows beyond the tables)."""
+    from maps.object_library import ObjectLibrary
+
+    model, lib = _library_and_table()
+    kind = KINDS["whisker_library"]
+    n_lib, h_lib = lib.object_map.n_experiences, lib.object_map.n_recorded
+    for act in prefix:
+        kind.apply(model, act)
+    first = saved(lib)
+    loaded = ObjectLibrary.load(io.BytesIO(first))
+    assert saved(loaded) == first, f"save -> load -> save changed {differing_fields(first, saved(loaded))}"
+    assert loaded.names == ("a", "b")
+    assert loaded.exp_object.tolist() == lib.exp_object.tolist() and len(loaded.exp_object) == n_lib
+    assert loaded.history_object.tolist() == lib.history_object.tolist() and len(loaded.history_object) == h_lib
+    assert saved(loaded.object_map) == saved(model.object_map)  # the map the model explored on, as it is now
+    n = model.object_map.n_experiences
+    assert loaded.with_explored(n).tolist() == lib.with_explored(n).tolist()
+
+
+@pytest.mark.parametrize("field, value", [
+    ("names", np.array(["a", "a"])), ("names", np.array([1, 2])), ("names", np.array([], dtype=np.str_)),
+    ("exp_object", np.array([0, 5])), ("exp_object", np.array([0.0, 1.0])), ("exp_object", np.zeros(999, np.int64)),
+    ("history_object", np.array([-1])), ("history_object", np.zeros((2, 2), np.int64)),
+])
+def test_object_library_refuses_a_corrupt_table_naming_the_field(field, value):
+    from maps.object_library import ObjectLibrary
+    from whisker_io.errors import CorruptFileError
+
+    _, lib = _library_and_table()
+    arrays = dict(np.load(io.BytesIO(saved(lib))))
+    arrays[field] = value
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    with pytest.raises(CorruptFileError, match=field):
+        ObjectLibrary.load(io.BytesIO(buf.getvalue()))
+    del arrays[field]
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    with pytest.raises(CorruptFileError, match=f"{field}.*missing"):
+        ObjectLibrary.load(io.BytesIO(buf.getvalue()))
 
 
 # --------------------------------------------------- local-view cells

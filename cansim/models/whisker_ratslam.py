@@ -402,7 +402,9 @@ class WhiskerRatSLAM(SlamLoop):
         Returns
         -------
         (WhiskerRatSLAM, ObjectLibrary)
-            The model and the experience -> object table.
+            The model and the experience -> object table. Save both to resume an
+            identification: the model with :meth:`save`, the table (names included) with
+            :meth:`~maps.object_library.ObjectLibrary.save`.
         """
         if not models or len(models) != len(names) or not all(isinstance(m, WhiskerRatSLAM) for m in models):
             raise InvalidInputError("library needs one WhiskerRatSLAM per name (at least one)")
