@@ -91,7 +91,7 @@ from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module'
     write_map_arrays,
 )
 from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
-from maps.persistence import read_npz
+from whisker_io.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, InvalidInputError

@@ -30,7 +30,7 @@ from typing import BinaryIO
 import numpy as np
 
 from maps.object_map import ObjectMap
-from maps.persistence import read_npz
+from whisker_io.persistence import read_npz
 from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]

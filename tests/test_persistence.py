@@ -1,11 +1,11 @@
-"""maps.persistence.read_npz: every unreadable archive is a CorruptFileError (issue 25)."""
+"""whisker_io.persistence.read_npz: every unreadable archive is a CorruptFileError (issue 25)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from maps.persistence import read_npz
+from whisker_io.persistence import read_npz
 from whisker_io.errors import CorruptFileError
 
 

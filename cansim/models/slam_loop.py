@@ -37,7 +37,7 @@ from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
-from maps.persistence import read_npz
+from whisker_io.persistence import read_npz
 
 __all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState", "configured"]
 

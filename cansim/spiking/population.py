@@ -23,9 +23,11 @@ same spikes for the same seed.
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import BinaryIO, Optional, Sequence
 
 import numpy as np
 
@@ -34,6 +36,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
+from whisker_io.persistence import read_npz
 from whisker_io.validation import finite_scalar, finite_vector, plain_fields
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
@@ -42,6 +45,9 @@ __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 #: SpikingPopulation and by the backend conformance suite (cansim.testing.conformance)
 SPIKING_BACKENDS = ("numpy", "numba")
 
+
+#: Version of the ``.npz`` layout :meth:`SpikingPopulation.save` writes.
+_SAVE_FORMAT = 1
 
 #: Narrowest Gaussian of :meth:`SpikingPopulation.kick`, cells: a narrower one underflows (exp(-d^2 / 2 sigma^2) = 0/0).
 MIN_KICK_SIGMA_CELLS = 0.05
@@ -405,7 +411,6 @@ class SpikingPopulation:
     def state_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The dynamic state (potentials, currents, refractory counters, last spikes, step count
         and the noise generator) as named arrays; :meth:`restore_state` sets it back exactly."""
-        import json
 
         return {prefix + "v": self._v.copy(), prefix + "i": self._i.copy(), prefix + "ref": self._ref.copy(),
                 prefix + "spk": self._spk.copy(), prefix + "t": np.array(self._t, dtype=np.int64),
@@ -419,8 +424,6 @@ class SpikingPopulation:
         CorruptFileError
             A field is missing, of the wrong shape or not finite (named).
         """
-        import json
-
         from cansim.errors import CorruptFileError
 
         def need(key: str) -> np.ndarray:
@@ -444,6 +447,62 @@ class SpikingPopulation:
         self._v, self._i = v.astype(np.float64), i.astype(np.float64)
         self._ref, self._spk = ref.astype(np.int64), spk.astype(np.int64)
         self._t, self._rng = int(t), rng
+
+    # ----------------------------------------------------------- save / load
+    def save(self, path: "str | os.PathLike[str] | BinaryIO") -> None:
+        """Write the population - grid, parameters, step, seed, backend and its dynamic state
+        (:meth:`state_arrays`: potentials, currents, refractory counters, last spikes, step
+        count, noise generator) - to an ``.npz`` file (no pickle).
+
+        :meth:`load` gives a population that continues exactly as this one would (the same
+        spikes); a NIR graph (:func:`cansim.spiking.to_nir`) carries the network only.
+        A file name is written to a temporary name beside it and renamed, so a crash never
+        leaves a half-written file; an open binary file is written as is.
+        """
+        from dataclasses import asdict
+
+        description = {
+            "axes": [{"name": a.name, "size": a.size, "step": a.step, "angular": a.angular} for a in self._axes],
+            "params": asdict(self._params), "dt_s": self._dt, "seed": self._seed, "backend": self._backend,
+        }
+        arrays = {"spiking_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(description)),
+                  **self.state_arrays("state_")}
+        if not isinstance(path, (str, os.PathLike)):
+            np.savez(path, **arrays)
+            return
+        tmp = os.fspath(path) + ".tmp.npz"
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: "str | os.PathLike[str] | BinaryIO") -> "SpikingPopulation":
+        """Read a population written by :meth:`save`, in the state it was saved in.
+
+        Raises
+        ------
+        CorruptFileError
+            The file is unreadable, of another format version, or a field is missing or
+            malformed (named in the error).
+        """
+        from cansim.errors import CansimError, CorruptFileError
+
+        arrays = read_npz(path)
+        fmt = arrays.get("spiking_format")
+        if fmt is None or fmt.shape != () or fmt.dtype.kind not in "iu" or int(fmt) != _SAVE_FORMAT:
+            raise CorruptFileError(f"expected spiking population format {_SAVE_FORMAT}, got "
+                                   f"{None if fmt is None else fmt.tolist()!r}", field="spiking_format")
+        try:
+            d = json.loads(str(arrays["population"]))
+            p = dict(d["params"])
+            params = SpikingParams(attractor=AttractorParams(**p.pop("attractor")),
+                                   neurons=NeuronParams(**p.pop("neurons")), **p)
+            axes = [Axis(a["name"], a["size"], a["step"], a["angular"]) for a in d["axes"]]
+            population = cls(axes, params, dt_s=d["dt_s"], seed=d["seed"], backend=d["backend"])
+        except (KeyError, TypeError, ValueError, AttributeError, CansimError) as exc:
+            raise CorruptFileError(f"not a spiking population description ({exc})", field="population") from exc
+        population.restore_state(arrays, "state_")
+        return population
 
     def with_params(self, params: SpikingParams) -> "SpikingPopulation":
         """A new population on the same grid, step, seed and backend with other parameters."""
