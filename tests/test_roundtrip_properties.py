@@ -19,8 +19,7 @@ the model explores), :class:`maps.experience_map.ExperienceMap` and
 :class:`maps.object_map.ObjectMap` saved on their own, and
 :class:`cansim.local_view.LocalViewCells` (``to_arrays`` / ``from_arrays``), a spiking
 population through a NIR file (``to_nir`` / ``from_nir``: the network) and with its dynamic
-state (``SpikingPopulation.save`` / ``load``), and the Ch.4 radial-distance models (``save_model`` / ``load_model``: skops files
-are not byte-stable, so their contents are compared). A :class:`cansim.Population` on its
+state (``SpikingPopulation.save`` / ``load``), and the Ch.4 radial-distance models (``save_model`` / ``load_model``). A :class:`cansim.Population` on its
 own has no save format: its state is saved inside the models above (the pose cells of the
 presets they use: ``openratslam``, ``whisker6d``; numpy and numba, float64 and float32).
 Full-size models on long routes with loop closures are the slow cases.
@@ -526,16 +525,18 @@ def _radial(label: str):
 
 @pytest.mark.parametrize("label", ["poly5", "svr10", "nn1"])
 def test_a_radial_model_saves_the_same_metadata_after_a_load(tmp_path, label):
-    """save -> load -> save -> load keeps the metadata and the predictions exactly. The
-    hyper-parameters were written as ``repr`` strings and loaded as those strings, so every
-    save of a loaded model quoted them once more ('rbf' -> "'rbf'" -> ...). The skops file
-    itself is not byte-stable (skops names its members by object id and stamps the time),
-    so the comparison is of what the file holds."""
+    """save -> load -> save writes identical bytes (skops names members by object id and zip
+    stamps the time: the saved archive is made reproducible), and save -> load -> save -> load
+    keeps the metadata and the predictions exactly. The hyper-parameters were written as
+    ``repr`` strings and loaded as those strings, so every save of a loaded model quoted them
+    once more ('rbf' -> "'rbf'" -> ...)."""
     from whisker_io.radial.persistence import load_model, save_model
 
     data, model = _radial(label)
     first = load_model(save_model(model, tmp_path / "a.skops"))
     second = load_model(save_model(first, tmp_path / "b.skops"))
+    assert (tmp_path / "a.skops").read_bytes() == (tmp_path / "b.skops").read_bytes()
+    assert save_model(model, tmp_path / "c.skops").read_bytes() == (tmp_path / "a.skops").read_bytes()
     fields = ("label", "family", "features", "best_params", "cv_rmse_m", "fit_seconds", "training_hash")
     for name in fields:
         assert getattr(second, name) == getattr(first, name), name

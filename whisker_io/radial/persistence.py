@@ -112,9 +112,86 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     }
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    sio.dump({"meta": meta, "estimator": model.estimator}, tmp)
+    tmp.write_bytes(_canonical_skops(sio.dumps({"meta": meta, "estimator": model.estimator})))
     os.replace(tmp, path)
     return path
+
+
+#: Time stamp of every member of a saved model (the zip format's earliest date), so that
+#: the same model saves to the same bytes.
+_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+
+
+def _canonical_skops(data: bytes) -> bytes:
+    """The same skops archive with reproducible bytes.
+
+    skops names each object by its ``id()`` (the ``__id__`` of a schema node and the
+    ``<id>.npy`` member of an array), and zip stamps the time: two saves of one model
+    differ. The ids become 1, 2, 3, ... in the order the schema lists them (a shared
+    object keeps one number, so shared references stay shared; each immutable JSON value
+    gets its own, since whether Python interned equal strings is not part of the model),
+    the members are sorted by name and carry one fixed time stamp: the same model, or
+    a model loaded from the file, saves to the same bytes, and skops reads back the same
+    content.
+    """
+    import io
+    import json
+
+    with zipfile.ZipFile(io.BytesIO(data)) as src:
+        schema = json.loads(src.read("schema.json"))
+        numbers: dict[int, int] = {}  # skops id -> its first new number (what a cached node refers to)
+        issued = [0]  # numbers from 1: skops does not memoize an __id__ of 0
+
+        def fresh() -> int:
+            issued[0] += 1
+            return issued[0]
+
+        def number(skops_id: int) -> int:
+            if skops_id not in numbers:
+                numbers[skops_id] = fresh()
+            return numbers[skops_id]
+
+        def renumber(node: Any) -> Any:
+            if isinstance(node, dict):
+                out = {}
+                for key, value in node.items():
+                    if key == "__id__" and isinstance(value, int) and not isinstance(value, bool):
+                        loader = node.get("__loader__")
+                        if loader == "JsonNode":  # an immutable value: whether Python shared one object
+                            out[key] = fresh()    # between equal values is irrelevant, so each gets its own
+                            numbers.setdefault(value, out[key])
+                        elif loader == "CachedNode":
+                            out[key] = numbers.get(value, value)
+                        else:
+                            out[key] = number(value)
+                    elif key == "file" and isinstance(value, str) and value.endswith(".npy") and value[:-4].isdigit():
+                        out[key] = f"{number(int(value[:-4]))}.npy"
+                    else:
+                        out[key] = renumber(value)
+                return out
+            if isinstance(node, list):
+                return [renumber(v) for v in node]
+            return node
+
+        schema = renumber(schema)
+        members = []
+        for info in src.infolist():
+            name = info.filename
+            if name.endswith(".npy") and name[:-4].isdigit():
+                if int(name[:-4]) not in numbers:
+                    raise CorruptFileError(f"skops wrote array member {name} that its schema does not name")
+                members.append((f"{numbers[int(name[:-4])]}.npy", src.read(name), info.compress_type))
+            elif name != "schema.json":
+                members.append((name, src.read(name), info.compress_type))
+        members.append(("schema.json", json.dumps(schema, indent=2).encode(), zipfile.ZIP_STORED))
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as dst:
+        for name, payload, compress in sorted(members, key=lambda m: m[0]):
+            info = zipfile.ZipInfo(name, date_time=_ZIP_TIME)
+            info.compress_type = compress
+            info.external_attr = 0o644 << 16
+            dst.writestr(info, payload)
+    return out.getvalue()
 
 
 def load_model(
