@@ -863,6 +863,14 @@ def _sigint_ignored() -> Any:
     its KeyboardInterrupt handler only over the default disposition), so the workers leave
     the interrupt to this process, which cancels the tasks and closes the cluster. Only
     from the main thread (where signal handlers live); elsewhere nothing changes.
+
+    The price: a Ctrl-C pressed during these seconds of start-up is ignored by this process
+    too (press again once the progress bar shows). Blocking SIGINT instead of ignoring it
+    would keep the press pending, but the worker processes are started by
+    ``distributed``'s event-loop thread, which exists before this call and does not
+    block it, so they would not inherit the block (measured: their ``SigBlk`` is 0);
+    and a handler in this process is reset to the default in an ``exec``-ed worker,
+    which would then print the traceback again.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
