@@ -257,11 +257,12 @@ def config_field(
 ) -> Any:
     """Check one field of a configuration and return it unchanged.
 
-    The one validator of the configuration dataclasses (``MapConfig``,
-    ``RatSLAMConfig``, ``WhiskerRatSLAMConfig``, the front-end configs): each
-    ``__post_init__`` lists its fields here with the kind and range, so every
-    bad value is refused before any part is built, with a message naming the
-    field, the allowed values and the value given.
+    The one check of a configuration field (``MapConfig``, ``RatSLAMConfig``,
+    ``WhiskerRatSLAMConfig``, the front-end configs): a field declares its kind and
+    range with :func:`checked` and :func:`validate_fields` applies them here, so every
+    bad value is refused before any part is built, with a message naming the field,
+    the allowed values and the value given. Called directly only for what is not one
+    field (the entries of a tuple) or for a bound read from another field.
 
     Parameters
     ----------
@@ -345,9 +346,10 @@ def plain_fields(config: Any) -> None:
     A numpy scalar becomes the Python number of the same value (``np.int64(9)`` -> ``9``,
     ``np.float32(0.1)`` -> ``0.10000000149011612``, ``np.bool_`` -> ``bool``); a list, a
     tuple of numpy scalars or a 1-D array (a per-axis value) becomes a tuple of Python
-    values. Each configuration's ``__post_init__`` calls it before checking its fields,
-    so a configuration built from numpy values equals, hashes, computes (float64, not
-    float32 arithmetic) and saves (JSON) as the one built from the same Python values:
+    values. :func:`validate_fields` calls it before checking the fields (and the few
+    configurations that check every field by hand call it first), so a configuration
+    built from numpy values equals, hashes, computes (float64, not float32 arithmetic)
+    and saves (JSON) as the one built from the same Python values:
     a saved model then loads back to a model that steps exactly as the original.
     Other values (strings, None, nested configurations, arrays of other shapes, which
     the field checks refuse) are left as they are.
