@@ -40,7 +40,7 @@ import numpy as np
 
 from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
-from whisker_io.validation import config_field, finite_array, finite_vector, plain_fields
+from whisker_io.validation import checked, finite_array, finite_vector, validate_fields
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -127,36 +127,29 @@ class LocalViewParams:
     """
 
     mode: str = "stored"
-    inject_energy: float = 0.15
-    active_decay: float = 1.0
-    decay_restore: float = 0.05
-    decay_floor: Optional[float] = None
-    rise_on_every_match: bool = False
-    decay_per_iteration: bool = False
-    recent_exclusion: int = 10
-    cpp_unsigned_recent: bool = True
+    inject_energy: float = checked(0.15, float, minimum=0)
+    active_decay: float = checked(1.0, float, minimum=0)
+    decay_restore: float = checked(0.05, float, minimum=0)
+    decay_floor: Optional[float] = checked(None, float, minimum=0, optional=True)
+    rise_on_every_match: bool = checked(False, bool)
+    decay_per_iteration: bool = checked(False, bool)
+    recent_exclusion: int = checked(10, int, minimum=0)
+    cpp_unsigned_recent: bool = checked(True, bool)
     rounding: str = "truncate"
-    cpp_cells: bool = False
-    learning_rate: float = 1.0
-    trace_decay: float = 0.0
-    min_weight: float = 0.0
+    cpp_cells: bool = checked(False, bool)
+    learning_rate: float = checked(1.0, float, minimum=0)
+    trace_decay: float = checked(0.0, float, minimum=0)  # and < 1: checked in __post_init__
+    min_weight: float = checked(0.0, float, minimum=0)  # and < 1: checked in __post_init__
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers
+        validate_fields(self)  # the declared fields; numpy scalars -> Python numbers
         if self.mode not in ("stored", "learnt"):
             raise InvalidInputError(f"mode must be 'stored' or 'learnt', got {self.mode!r}")
         if self.rounding not in ("truncate", "round"):
             raise InvalidInputError(f"rounding must be 'truncate' or 'round', got {self.rounding!r}")
-        config_field(self.decay_floor, "decay_floor", float, minimum=0, optional=True)
-        for name in ("inject_energy", "active_decay", "decay_restore", "learning_rate"):
-            config_field(getattr(self, name), name, float, minimum=0)
         for name in ("min_weight", "trace_decay"):
-            v = config_field(getattr(self, name), name, float, minimum=0)
-            if not v < 1.0:
-                raise ConfigError(f"{name} must lie in [0, 1), got {v!r}")
-        config_field(self.recent_exclusion, "recent_exclusion", int, minimum=0)
-        for name in ("rise_on_every_match", "decay_per_iteration", "cpp_unsigned_recent", "cpp_cells"):
-            config_field(getattr(self, name), name, bool)
+            if not getattr(self, name) < 1.0:
+                raise ConfigError(f"{name} must lie in [0, 1), got {getattr(self, name)!r}")
         if self.cpp_cells and (self.mode != "stored" or self.rounding != "truncate"):
             raise InvalidInputError("cpp_cells reproduces OpenRatSLAM's stored-mode truncation; use mode='stored', rounding='truncate'")
 

@@ -95,7 +95,7 @@ from whisker_io.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import config_field, plain_fields
+from whisker_io.validation import checked, config_field, validate_fields
 
 __all__ = [
     "FORMAT_VERSION",
@@ -169,25 +169,18 @@ class MapConfig:
         SE(2) maps only.
     """
 
-    correction: float = 0.5
-    relax_passes: int = 10
-    match_distance_cells: float = 2.0
+    correction: float = checked(0.5, float, above=0, maximum=1, hint="alpha of Eq 2.25")
+    relax_passes: int = checked(10, int, minimum=0)
+    match_distance_cells: float = checked(2.0, float, minimum=0, hint="a distance in cells")
     pc_shape: tuple[int, ...] = (21, 21, 36)
     offset_axes: tuple[int, ...] = (2,)
-    relax_budget: int | None = 2_000
-    link_time_since_start: bool = False
-    keep_first_accumulator: bool = True
-    link_update: str = "first"
+    relax_budget: int | None = checked(2_000, int, minimum=1, optional=True, hint="None relaxes every link")
+    link_time_since_start: bool = checked(False, bool)
+    keep_first_accumulator: bool = checked(True, bool)
+    link_update: str = checked("first", str, choices=LINK_UPDATES)
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the map)
-        config_field(self.correction, "correction", float, above=0, maximum=1, hint="alpha of Eq 2.25")
-        config_field(self.relax_passes, "relax_passes", int, minimum=0)
-        config_field(self.match_distance_cells, "match_distance_cells", float, minimum=0, hint="a distance in cells")
-        config_field(self.relax_budget, "relax_budget", int, minimum=1, optional=True, hint="None relaxes every link")
-        for name in ("link_time_since_start", "keep_first_accumulator"):
-            config_field(getattr(self, name), name, bool)
-        config_field(self.link_update, "link_update", str, choices=LINK_UPDATES)
+        validate_fields(self)  # the declared fields; numpy scalars -> Python numbers (saved as JSON with the map)
         shape, axes = _sequence(self.pc_shape, "pc_shape"), _sequence(self.offset_axes, "offset_axes")
         if not shape:
             raise ConfigError("pc_shape must have at least one axis")

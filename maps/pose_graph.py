@@ -75,7 +75,7 @@ from scipy.spatial.transform import Rotation
 from maps.odometry import SpatialOdometry
 from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import config_field, finite_array
+from whisker_io.validation import checked, config_field, finite_array, validate_fields
 
 __all__ = ["PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
 
@@ -93,14 +93,13 @@ class WhiskGraphConfig:
         Of a re-localisation: how far a whisk may be from the whisk whose experience it matched.
     """
 
-    odometry_sigma_m: float = 0.01
-    odometry_sigma_deg: float = 2.5
-    closure_sigma_m: float = 0.01
-    closure_sigma_deg: float = 3.0
+    odometry_sigma_m: float = checked(0.01, float, above=0)
+    odometry_sigma_deg: float = checked(2.5, float, above=0)
+    closure_sigma_m: float = checked(0.01, float, above=0)
+    closure_sigma_deg: float = checked(3.0, float, above=0)
 
     def __post_init__(self) -> None:
-        for name in ("odometry_sigma_m", "odometry_sigma_deg", "closure_sigma_m", "closure_sigma_deg"):
-            config_field(getattr(self, name), name, float, above=0)
+        validate_fields(self)
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
+from whisker_io.validation import checked, validate_fields
 
 __all__ = [
     "LeakyIntegrator",
@@ -62,15 +63,12 @@ class LeakyIntegrator:
         Time of one iteration in the integral (1 = one whisk).
     """
 
-    impulse: float = 1.0
-    decay: float = 0.75
-    dt: float = 1.0
+    impulse: float = checked(1.0, float)
+    decay: float = checked(0.75, float)
+    dt: float = checked(1.0, float)
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("impulse", 0.0, math.inf), ("decay", 0.0, 1.0), ("dt", 0.0, math.inf)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ConfigError(f"{name} must be a finite number, got {v!r}")
+        validate_fields(self)
         if not self.impulse > 0 or not 0.0 <= self.decay < 1.0 or not self.dt > 0:
             raise ConfigError(f"need impulse > 0, 0 <= decay < 1 and dt > 0; got {self.impulse}, {self.decay}, {self.dt}")
 

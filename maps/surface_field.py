@@ -39,7 +39,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import config_field, finite_array
+from whisker_io.validation import checked, finite_array, validate_fields
 
 __all__ = ["SurfaceFieldConfig", "SurfaceFields", "oriented_normals"]
 
@@ -67,18 +67,15 @@ class SurfaceFieldConfig:
         Stored points whose principal axes give a stored point's normal (>= 3).
     """
 
-    cell_m: float = 0.0075
-    smoothing_m: float = 0.015
-    reach_m: float = 0.05
-    cap_m: float = 0.03
-    neighbours: int = 16
-    normal_neighbours: int = 8
+    cell_m: float = checked(0.0075, float, above=0, maximum=10.0)
+    smoothing_m: float = checked(0.015, float, above=0, maximum=10.0)
+    reach_m: float = checked(0.05, float, above=0, maximum=10.0)
+    cap_m: float = checked(0.03, float, above=0, maximum=10.0)
+    neighbours: int = checked(16, int, minimum=1, maximum=256)
+    normal_neighbours: int = checked(8, int, minimum=3, maximum=256)
 
     def __post_init__(self) -> None:
-        for name in ("cell_m", "smoothing_m", "reach_m", "cap_m"):
-            config_field(getattr(self, name), name, float, above=0, maximum=10.0)
-        config_field(self.neighbours, "neighbours", int, minimum=1, maximum=256)
-        config_field(self.normal_neighbours, "normal_neighbours", int, minimum=3, maximum=256)
+        validate_fields(self)
 
 
 def oriented_normals(points_m: np.ndarray, viewpoints_m: np.ndarray | None, neighbours: int) -> np.ndarray:

@@ -93,7 +93,7 @@ from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
 from maps.surface_field import SurfaceFieldConfig, SurfaceFields
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import config_field, finite_array
+from whisker_io.validation import checked, finite_array, validate_fields
 
 __all__ = [
     "SurfaceMatchConfig",
@@ -150,32 +150,24 @@ class SurfaceMatchConfig:
         Seed of the hypotheses' sampling (deterministic runs).
     """
 
-    cap_m: float = 0.03
-    particles: int = 200
-    contact_sigma_m: float = 0.006
-    outlier_weight: float = 0.05
-    rotation_sigma_deg: float = 2.5
-    displacement_sigma_m: float = 0.01
-    initial_sigma_m: float = 0.0
-    initial_sigma_deg: float = 0.0
-    window_whisks: int = 20
-    min_window_contacts: int = 12
-    min_contacts: int = 1
-    margin: float = 4.6
-    tolerance_m: float = 0.008
-    prune_margin: float = 30.0
-    seed: int = 0
+    cap_m: float = checked(0.03, float, above=0)
+    particles: int = checked(200, int, minimum=1, maximum=100_000)
+    contact_sigma_m: float = checked(0.006, float, above=0)
+    outlier_weight: float = checked(0.05, float, above=0)
+    rotation_sigma_deg: float = checked(2.5, float, minimum=0)
+    displacement_sigma_m: float = checked(0.01, float, minimum=0)
+    initial_sigma_m: float = checked(0.0, float, minimum=0)
+    initial_sigma_deg: float = checked(0.0, float, minimum=0)
+    window_whisks: int = checked(20, int, minimum=1)
+    min_window_contacts: int = checked(12, int, minimum=1)
+    min_contacts: int = checked(1, int, minimum=1)
+    margin: float = checked(4.6, float, above=0)
+    tolerance_m: float = checked(0.008, float, above=0)
+    prune_margin: float = checked(30.0, float, above=0)
+    seed: int = checked(0, int, minimum=0)
 
     def __post_init__(self) -> None:
-        for name in ("cap_m", "contact_sigma_m", "outlier_weight", "tolerance_m", "margin", "prune_margin"):
-            config_field(getattr(self, name), name, float, above=0)
-        for name in ("rotation_sigma_deg", "displacement_sigma_m", "initial_sigma_m", "initial_sigma_deg"):
-            config_field(getattr(self, name), name, float, minimum=0)
-        config_field(self.particles, "particles", int, minimum=1, maximum=100_000)
-        config_field(self.window_whisks, "window_whisks", int, minimum=1)
-        config_field(self.min_window_contacts, "min_window_contacts", int, minimum=1)
-        config_field(self.min_contacts, "min_contacts", int, minimum=1)
-        config_field(self.seed, "seed", int, minimum=0)
+        validate_fields(self)
 
 
 def _pose7(pose: Any, name: str) -> np.ndarray:

@@ -11,7 +11,10 @@ typed error with a message naming the argument, never a NaN result later:
 * :func:`config_field` - one field of a configuration dataclass (its kind, range,
   oddness or allowed names), raising :class:`~whisker_io.errors.ConfigError`;
 * :func:`plain_fields` - a configuration dataclass's numpy scalars and lists made
-  plain Python numbers and tuples (called first by each ``__post_init__``).
+  plain Python numbers and tuples;
+* :func:`checked` - a dataclass field whose constraint (a :class:`FieldCheck`) is
+  declared with it, and :func:`validate_fields` - the one validator that reads those
+  declarations (called first by each configuration's ``__post_init__``).
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
 shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
@@ -23,6 +26,7 @@ string, ``True`` would pass as 1).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 from collections.abc import Sequence
@@ -33,8 +37,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "plain_fields", "MAX_STEP_M",
-           "MAX_TURN_RAD"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "plain_fields", "FieldCheck",
+           "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -253,11 +257,12 @@ def config_field(
 ) -> Any:
     """Check one field of a configuration and return it unchanged.
 
-    The one validator of the configuration dataclasses (``MapConfig``,
-    ``RatSLAMConfig``, ``WhiskerRatSLAMConfig``, the front-end configs): each
-    ``__post_init__`` lists its fields here with the kind and range, so every
-    bad value is refused before any part is built, with a message naming the
-    field, the allowed values and the value given.
+    The one check of a configuration field (``MapConfig``, ``RatSLAMConfig``,
+    ``WhiskerRatSLAMConfig``, the front-end configs): a field declares its kind and
+    range with :func:`checked` and :func:`validate_fields` applies them here, so every
+    bad value is refused before any part is built, with a message naming the field,
+    the allowed values and the value given. Called directly only for what is not one
+    field (the entries of a tuple) or for a bound read from another field.
 
     Parameters
     ----------
@@ -341,9 +346,10 @@ def plain_fields(config: Any) -> None:
     A numpy scalar becomes the Python number of the same value (``np.int64(9)`` -> ``9``,
     ``np.float32(0.1)`` -> ``0.10000000149011612``, ``np.bool_`` -> ``bool``); a list, a
     tuple of numpy scalars or a 1-D array (a per-axis value) becomes a tuple of Python
-    values. Each configuration's ``__post_init__`` calls it before checking its fields,
-    so a configuration built from numpy values equals, hashes, computes (float64, not
-    float32 arithmetic) and saves (JSON) as the one built from the same Python values:
+    values. :func:`validate_fields` calls it before checking the fields (and the few
+    configurations that check every field by hand call it first), so a configuration
+    built from numpy values equals, hashes, computes (float64, not float32 arithmetic)
+    and saves (JSON) as the one built from the same Python values:
     a saved model then loads back to a model that steps exactly as the original.
     Other values (strings, None, nested configurations, arrays of other shapes, which
     the field checks refuse) are left as they are.
@@ -358,3 +364,214 @@ def plain_fields(config: Any) -> None:
         plain = _plain(value)
         if plain is not value:
             object.__setattr__(config, f.name, plain)
+
+
+# ------------------------------------------------------------ declared field checks
+#: The key of a :func:`checked` field's :class:`FieldCheck` in ``dataclasses.Field.metadata``.
+CHECK_KEY = "whisker_io.check"
+
+
+@dataclasses.dataclass(frozen=True)
+class FieldCheck:
+    """The constraint of one configuration field: the options of :func:`config_field`.
+
+    Made by :func:`checked` and stored in the field's metadata; :func:`validate_fields`
+    applies it through :func:`config_field`, so the error (a
+    :class:`~whisker_io.errors.ConfigError`) and its message are :func:`config_field`'s.
+
+    Parameters
+    ----------
+    kind : {int, float, bool, str}
+        The field's kind (see :func:`config_field`).
+    minimum, above, maximum : float, optional
+        ``value >= minimum``, ``value > above``, ``value <= maximum``.
+    odd : bool
+        An odd integer.
+    choices : tuple of str, optional
+        The allowed names of a ``str`` field.
+    optional : bool
+        ``None`` is allowed too.
+    hint : str
+        What to do, appended to the message.
+
+    Raises
+    ------
+    TypeError
+        A kind other than int, float, bool or str, bounds on a non-number, choices on a
+        non-string, or ``odd`` on a non-integer (a mistake in the declaration, raised when
+        the class is defined).
+    """
+
+    kind: type
+    minimum: float | None = None
+    above: float | None = None
+    maximum: float | None = None
+    odd: bool = False
+    choices: tuple[str, ...] | None = None
+    optional: bool = False
+    hint: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in _KIND_NAMES:
+            raise TypeError(f"a checked field's kind is int, float, bool or str, got {self.kind!r}")
+        bounded = any(b is not None for b in (self.minimum, self.above, self.maximum))
+        if bounded and self.kind not in (int, float):
+            raise TypeError(f"bounds need kind int or float, got {self.kind.__name__}")
+        if self.odd and self.kind is not int:
+            raise TypeError("odd needs kind int")
+        if self.choices is not None:
+            if self.kind is not str:
+                raise TypeError("choices need kind str")
+            object.__setattr__(self, "choices", tuple(self.choices))
+
+    def check(self, value: Any, name: str) -> Any:
+        """Apply the constraint to ``value`` (the field ``name``) and return it unchanged.
+
+        Raises
+        ------
+        ConfigError
+            As :func:`config_field`.
+        """
+        return config_field(value, name, self.kind, minimum=self.minimum, above=self.above, maximum=self.maximum,
+                            odd=self.odd, choices=self.choices, optional=self.optional, hint=self.hint)
+
+
+def checked(
+    default: Any = dataclasses.MISSING,
+    kind: type | None = None,
+    *,
+    default_factory: Any = dataclasses.MISSING,
+    minimum: float | None = None,
+    above: float | None = None,
+    maximum: float | None = None,
+    odd: bool = False,
+    choices: Sequence[str] | None = None,
+    optional: bool = False,
+    hint: str = "",
+    **field_options: Any,
+) -> Any:
+    """A dataclass field that declares its own constraint (read by :func:`validate_fields`).
+
+    The constraint sits next to the field it checks, as scikit-learn declares an
+    estimator's parameter constraints: the class's ``__post_init__`` is then
+    ``validate_fields(self)`` followed only by the rules that tie fields together.
+
+    Parameters
+    ----------
+    default : object, optional
+        The field's default (leave out, with no ``default_factory``, for a required field).
+    kind : {int, float, bool, str}
+        The field's kind (see :func:`config_field`); required.
+    default_factory : callable, optional
+        Makes the default, as in :func:`dataclasses.field`.
+    minimum, above, maximum, odd, choices, optional, hint
+        The options of :func:`config_field`.
+    **field_options
+        Passed on to :func:`dataclasses.field` (``repr``, ``compare``, ``metadata`` ...).
+
+    Returns
+    -------
+    dataclasses.Field
+        The field, its :class:`FieldCheck` in ``metadata[CHECK_KEY]``.
+
+    Raises
+    ------
+    TypeError
+        No ``kind``, or an inconsistent declaration (see :class:`FieldCheck`).
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class ProbeParams:
+    ...     radius_m: float = checked(0.05, float, above=0, hint="give metres")
+    ...     samples: int = checked(5, int, minimum=1, odd=True)
+    ...     def __post_init__(self) -> None:
+    ...         validate_fields(self)
+    >>> ProbeParams(radius_m=0.1).samples
+    5
+    >>> ProbeParams(samples=4)
+    Traceback (most recent call last):
+    ...
+    whisker_io.errors.ConfigError: samples must be an odd integer >= 1, got 4
+    """
+    if kind is None:
+        raise TypeError("checked() needs the field's kind: int, float, bool or str")
+    rule = FieldCheck(kind, minimum=minimum, above=above, maximum=maximum, odd=odd,
+                      choices=None if choices is None else tuple(choices), optional=optional, hint=hint)
+    metadata = {**field_options.pop("metadata", {}), CHECK_KEY: rule}
+    return dataclasses.field(default=default, default_factory=default_factory, metadata=metadata, **field_options)
+
+
+@functools.cache
+def field_checks(cls: type) -> tuple[tuple[str, FieldCheck], ...]:
+    """The declared constraints of a configuration dataclass, in field order.
+
+    A field redeclared by a subclass only to change its default (e.g.
+    ``inject_energy: float = 0.3``) keeps the constraint declared by the nearest base
+    class that declares one.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass.
+
+    Returns
+    -------
+    tuple of (str, FieldCheck)
+        Each constrained field's name and its constraint.
+    """
+    out = []
+    for f in dataclasses.fields(cls):
+        rule = f.metadata.get(CHECK_KEY)
+        if rule is None:
+            for base in cls.__mro__[1:]:
+                inherited = getattr(base, "__dataclass_fields__", {}).get(f.name)
+                if inherited is not None and CHECK_KEY in inherited.metadata:
+                    rule = inherited.metadata[CHECK_KEY]
+                    break
+        if rule is not None:
+            out.append((f.name, rule))
+    return tuple(out)
+
+
+def validate_fields(config: Any) -> None:
+    """Check every declared field of a configuration dataclass, in field order.
+
+    The one validator of the configuration classes: first :func:`plain_fields` (numpy
+    scalars -> Python numbers, lists -> tuples), then each field declared with
+    :func:`checked` through :func:`config_field`. A class's ``__post_init__`` calls it
+    first and then checks only what ties fields together (``a < b``, a shape that
+    depends on another field), as short explicit code.
+
+    Parameters
+    ----------
+    config : dataclass instance
+        A (frozen) configuration; its numpy values are made plain in place.
+
+    Raises
+    ------
+    ConfigError
+        The first declared field (in field order) that is of the wrong kind or out of
+        range; the message is :func:`config_field`'s (field name, allowed values, value
+        given, hint).
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class WindowParams:
+    ...     start_s: float = checked(0.0, float, minimum=0)
+    ...     stop_s: float = checked(1.0, float, minimum=0)
+    ...     def __post_init__(self) -> None:
+    ...         validate_fields(self)
+    ...         if not self.start_s < self.stop_s:  # a rule between fields stays explicit
+    ...             raise ConfigError("start_s must be < stop_s")
+    >>> WindowParams(stop_s=-1.0)
+    Traceback (most recent call last):
+    ...
+    whisker_io.errors.ConfigError: stop_s must be a finite number >= 0, got -1.0
+    """
+    plain_fields(config)
+    for name, rule in field_checks(type(config)):
+        rule.check(getattr(config, name), name)

@@ -169,7 +169,7 @@ from numpy.typing import ArrayLike
 from cansim.errors import InvalidInputError
 from cansim.explore.placement import PlacementParams, place
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import config_field, finite_vector
+from whisker_io.validation import checked, finite_vector, validate_fields
 
 __all__ = ["ACTIONS", "ContactSeekingParams", "SeekStep", "clear_of_contacts", "contact_range_m", "held_face_pose", "seek_contact"]
 
@@ -233,28 +233,19 @@ class ContactSeekingParams:
         angle outside [0, pi], a value that is not a finite number.
     """
 
-    advance_step_m: float = 0.04
-    max_advance_m: float = 0.3
-    front_m: float = 0.2019
-    backoff_min_m: float = 0.01
-    hold_margin_m: float = 0.015
-    hold_max_turn_rad: float = math.pi
-    beyond_centre_m: float = 0.1
-    turn_few: bool = True
-    clear_ahead_m: float = 0.21
-    clear_radius_m: float = 0.1
+    advance_step_m: float = checked(0.04, float, above=0, maximum=_MAX_M, hint="give metres")
+    max_advance_m: float = checked(0.3, float, above=0, maximum=_MAX_M, hint="give metres")
+    front_m: float = checked(0.2019, float, minimum=0, maximum=_MAX_M, hint="give metres")
+    backoff_min_m: float = checked(0.01, float, above=0, maximum=_MAX_M, hint="give metres")
+    hold_margin_m: float = checked(0.015, float, minimum=0, maximum=_MAX_M, hint="give metres")
+    hold_max_turn_rad: float = checked(math.pi, float, minimum=0, maximum=math.pi, hint="give radians in [0, pi]")
+    beyond_centre_m: float = checked(0.1, float, minimum=0, maximum=_MAX_M, hint="give metres")
+    turn_few: bool = checked(True, bool)
+    clear_ahead_m: float = checked(0.21, float, minimum=0, maximum=_MAX_M, hint="give metres")
+    clear_radius_m: float = checked(0.1, float, above=0, maximum=_MAX_M, hint="give metres")
 
     def __post_init__(self) -> None:
-        for name in ("clear_ahead_m",):
-            config_field(getattr(self, name), name, float, minimum=0, maximum=_MAX_M, hint="give metres")
-        config_field(self.clear_radius_m, "clear_radius_m", float, above=0, maximum=_MAX_M, hint="give metres")
-        for name in ("advance_step_m", "max_advance_m", "backoff_min_m"):
-            config_field(getattr(self, name), name, float, above=0, maximum=_MAX_M, hint="give metres")
-        for name in ("front_m", "hold_margin_m", "beyond_centre_m"):
-            config_field(getattr(self, name), name, float, minimum=0, maximum=_MAX_M, hint="give metres")
-        config_field(self.hold_max_turn_rad, "hold_max_turn_rad", float, minimum=0, maximum=math.pi,
-                     hint="give radians in [0, pi]")
-        config_field(self.turn_few, "turn_few", bool)
+        validate_fields(self)
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,7 @@ from scipy.spatial.transform import Rotation
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.sim.trajectories import facing_pose
-from whisker_io.validation import finite_vector
+from whisker_io.validation import checked, finite_vector, validate_fields
 
 __all__ = ["DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place", "ring_half_angle_rad"]
 
@@ -105,26 +105,19 @@ class PlacementParams:
         module docstring.
     """
 
-    mu: int = 3
-    delta_theta_rad: float = DEFAULT_CONE_HALF_ANGLE_RAD
-    delta_l_m: float = 0.21
-    delta_u_m: float = 0.26
-    rotation_steps: int = 2
-    translation_steps: int = 2
+    mu: int = checked(3, int, minimum=1)
+    delta_theta_rad: float = checked(DEFAULT_CONE_HALF_ANGLE_RAD, float)  # in (0, pi): checked in __post_init__
+    delta_l_m: float = checked(0.21, float)
+    delta_u_m: float = checked(0.26, float)
+    rotation_steps: int = checked(2, int, minimum=1)
+    translation_steps: int = checked(2, int, minimum=1)
     max_rotation_step_rad: float | None = None
-    roll_rad: float = 0.0
+    roll_rad: float = checked(0.0, float)
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     reference_point_m: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
-        for name in ("mu", "rotation_steps", "translation_steps"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ConfigError(f"{name} must be an integer >= 1, got {v!r}")
-        for name in ("delta_theta_rad", "delta_l_m", "delta_u_m", "roll_rad"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ConfigError(f"{name} must be a finite number, got {v!r}")
+        validate_fields(self)
         if not 0 < self.delta_theta_rad < math.pi:
             raise ConfigError(f"delta_theta_rad must lie in (0, pi), got {self.delta_theta_rad}")
         if not 0 <= self.delta_l_m < self.delta_u_m:

@@ -23,7 +23,7 @@ import numpy as np
 
 from whisker_io.errors import InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import config_field, plain_fields
+from whisker_io.validation import checked, validate_fields
 
 __all__ = ["TACTILE_SHAPE", "TactileTemplateConfig", "TactileTemplates", "tactile_similarity"]
 
@@ -60,11 +60,10 @@ class TactileTemplateConfig:
         ``vt_match_threshold`` plays this part for camera images).
     """
 
-    match_threshold: float = 20.0
+    match_threshold: float = checked(20.0, float, minimum=0, hint="an Eq 3.1 dissimilarity in sqrt(level)")
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the model)
-        config_field(self.match_threshold, "match_threshold", float, minimum=0, hint="an Eq 3.1 dissimilarity in sqrt(level)")
+        validate_fields(self)  # the declared fields; numpy scalars -> Python numbers (saved as JSON with the model)
 
 
 class TactileTemplates:

@@ -61,7 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 from cansim.frontends.store import TemplateMatch
 from cansim.frontends.tactile import TACTILE_SHAPE
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import config_field
+from whisker_io.validation import checked, config_field, validate_fields
 
 __all__ = ["TactileSequenceConfig", "TactileSequenceMatcher", "calibrate_threshold", "sequence_distances"]
 
@@ -102,25 +102,19 @@ class TactileSequenceConfig:
         a route already recognised - along a uniform wall every candidate looks alike.
     """
 
-    sequence_length: int = 8
-    match_threshold: float = 6.0
-    min_informative: int = 3
-    exclude_recent: int = 30
-    min_consistent: int = 3
-    distinct_ratio: float = 0.5
-    distinct_cycles: int = 5
-    track: bool = True
+    sequence_length: int = checked(8, int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
+    match_threshold: float = checked(6.0, float, minimum=0, hint="a mean Eq 3.1 dissimilarity in sqrt(level)")
+    min_informative: int = 3  # at most sequence_length: checked in __post_init__
+    exclude_recent: int = checked(30, int, minimum=0, hint="whisk cycles")
+    min_consistent: int = checked(3, int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
+    distinct_ratio: float = checked(0.5, float, minimum=0, maximum=1, hint="best / second-best dissimilarity")
+    distinct_cycles: int = checked(5, int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
+    track: bool = checked(True, bool)
 
     def __post_init__(self) -> None:
-        config_field(self.sequence_length, "sequence_length", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
-        config_field(self.match_threshold, "match_threshold", float, minimum=0, hint="a mean Eq 3.1 dissimilarity in sqrt(level)")
+        validate_fields(self)
         config_field(self.min_informative, "min_informative", int, minimum=0, maximum=self.sequence_length,
                      hint="images with a contact among the last sequence_length")
-        config_field(self.exclude_recent, "exclude_recent", int, minimum=0, hint="whisk cycles")
-        config_field(self.min_consistent, "min_consistent", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
-        config_field(self.distinct_ratio, "distinct_ratio", float, minimum=0, maximum=1, hint="best / second-best dissimilarity")
-        config_field(self.distinct_cycles, "distinct_cycles", int, minimum=1, maximum=_MAX_SEQUENCE, hint="whisk cycles")
-        config_field(self.track, "track", bool)
 
 
 def _check_image(image: ArrayLike) -> NDArray[np.int64]:

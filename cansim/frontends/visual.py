@@ -36,7 +36,7 @@ import numpy as np
 
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import config_field, plain_fields, whole_number
+from whisker_io.validation import checked, validate_fields, whole_number
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
@@ -83,33 +83,23 @@ class VisualTemplateConfig:
         Reproduce the C++ uninitialised-index bug outcome (see the module docstring).
     """
 
-    template_width_blocks: int = 60
-    template_height_blocks: int = 10
-    crop_x_min_px: int = 0
-    crop_x_max_px: int | None = None
-    crop_y_min_px: int = 0
-    crop_y_max_px: int | None = None
-    shift_match_blocks: int = 25
-    step_match_blocks: int = 5
-    match_threshold: float = 0.03
-    normalisation_mean: float = 0.0
-    patch_half_width_blocks: int = 0
-    min_patch_std: float = 0.0
-    panoramic: bool = False
-    emulate_uninitialised_clear: bool = False
+    template_width_blocks: int = checked(60, int, minimum=1)
+    template_height_blocks: int = checked(10, int, minimum=1)
+    crop_x_min_px: int = checked(0, int, minimum=0)
+    crop_x_max_px: int | None = checked(None, int, minimum=1, optional=True, hint="None is the image edge")
+    crop_y_min_px: int = checked(0, int, minimum=0)
+    crop_y_max_px: int | None = checked(None, int, minimum=1, optional=True, hint="None is the image edge")
+    shift_match_blocks: int = checked(25, int, minimum=0)
+    step_match_blocks: int = checked(5, int, minimum=1)
+    match_threshold: float = checked(0.03, float, minimum=0)
+    normalisation_mean: float = checked(0.0, float, minimum=0)
+    patch_half_width_blocks: int = checked(0, int, minimum=0)
+    min_patch_std: float = checked(0.0, float, minimum=0)
+    panoramic: bool = checked(False, bool)
+    emulate_uninitialised_clear: bool = checked(False, bool)
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the model)
-        for name in ("template_width_blocks", "template_height_blocks", "step_match_blocks"):
-            config_field(getattr(self, name), name, int, minimum=1)
-        for name in ("crop_x_min_px", "crop_y_min_px", "shift_match_blocks", "patch_half_width_blocks"):
-            config_field(getattr(self, name), name, int, minimum=0)
-        for name in ("crop_x_max_px", "crop_y_max_px"):
-            config_field(getattr(self, name), name, int, minimum=1, optional=True, hint="None is the image edge")
-        for name in ("match_threshold", "normalisation_mean", "min_patch_std"):
-            config_field(getattr(self, name), name, float, minimum=0)
-        for name in ("panoramic", "emulate_uninitialised_clear"):
-            config_field(getattr(self, name), name, bool)
+        validate_fields(self)  # the declared fields; numpy scalars -> Python numbers (saved as JSON with the model)
         for lo, hi in (("crop_x_min_px", "crop_x_max_px"), ("crop_y_min_px", "crop_y_max_px")):
             if getattr(self, hi) is not None and getattr(self, hi) <= getattr(self, lo):
                 raise ConfigError(f"{hi} ({getattr(self, hi)}) must be > {lo} ({getattr(self, lo)}): the crop would be empty")

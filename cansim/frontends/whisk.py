@@ -45,7 +45,7 @@ from numba import njit
 from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_columns, nmse_columns
-from whisker_io.validation import config_field, plain_fields
+from whisker_io.validation import checked, validate_fields
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
 
@@ -76,23 +76,16 @@ class WhiskFrontEndConfig:
         SDA length (18 on the thesis' array).
     """
 
-    features: str = "both"
-    pfh_threshold: float = 0.4
-    sda_threshold: float = 0.5
-    feature_update: bool = False
-    use_sda_mask: bool = False
-    n_bins: int = 81
-    n_whiskers: int = 18
+    features: str = checked("both", str, choices=FEATURES)
+    pfh_threshold: float = checked(0.4, float, above=0)
+    sda_threshold: float = checked(0.5, float, above=0)
+    feature_update: bool = checked(False, bool)
+    use_sda_mask: bool = checked(False, bool)
+    n_bins: int = checked(81, int, minimum=1)
+    n_whiskers: int = checked(18, int, minimum=1)
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers (saved as JSON with the model)
-        config_field(self.features, "features", str, choices=FEATURES)
-        for name in ("pfh_threshold", "sda_threshold"):
-            config_field(getattr(self, name), name, float, above=0)
-        for name in ("n_bins", "n_whiskers"):
-            config_field(getattr(self, name), name, int, minimum=1)
-        for name in ("feature_update", "use_sda_mask"):
-            config_field(getattr(self, name), name, bool)
+        validate_fields(self)  # the declared fields; numpy scalars -> Python numbers (saved as JSON with the model)
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ from cansim.models.slam_config import SlamConfig
 from cansim.params import AttractorParams
 from maps.experience_map import MapConfig
 from maps.se2 import SE2Geometry
-from whisker_io.validation import config_field
+from whisker_io.validation import checked, config_field
 
 __all__ = ["RatSLAMConfig", "FrontEndConfig"]
 
@@ -135,16 +135,16 @@ class RatSLAMConfig(SlamConfig):
     # shared fields (SlamConfig), at SlamConfig's defaults: cell_size_m, attractor, lv_mode,
     # inject_energy, active_decay, decay_restore, match_distance_cells, correction,
     # relax_passes, relax_budget, backend, dtype
-    xy_cells: int = 21
-    heading_cells: int = 36
-    decode_window: int = 3
-    initial_heading_deg: float = 90.0
-    link_time_since_start: bool = False
+    xy_cells: int = checked(21, int, minimum=1)
+    heading_cells: int = checked(36, int, minimum=1)
+    decode_window: int = checked(3, int, minimum=0)
+    initial_heading_deg: float = checked(90.0, float)
+    link_time_since_start: bool = checked(False, bool)
     link_update: str = "first"
     frontend: FrontEndConfig = "ids"
-    frame: str = "standard"
-    strict_translation: bool = False
-    pose_cells: str = "population"
+    frame: str = checked("standard", str, choices=("standard", "openratslam"))
+    strict_translation: bool = checked(False, bool)
+    pose_cells: str = checked("population", str, choices=("population", "openratslam", "spiking"))
 
     def __new__(cls, *args: Any, **kwargs: Any) -> "RatSLAMConfig":
         # a dataclass __init__ would raise TypeError for a foreign keyword; refuse it by name
@@ -164,16 +164,8 @@ class RatSLAMConfig(SlamConfig):
             raise ConfigError(f"unknown RatSLAMConfig field(s) {sorted(unknown)}; the fields are {[f.name for f in fields(cls)]}")
 
     def __post_init__(self) -> None:
-        self._check_shared()
-        config_field(self.xy_cells, "xy_cells", int, minimum=1)
-        config_field(self.heading_cells, "heading_cells", int, minimum=1)
+        super().__post_init__()  # the declared fields (SlamConfig's and these), the attractor's type
         self._check_grid_size(x=self.xy_cells, y=self.xy_cells, heading=self.heading_cells)
-        config_field(self.decode_window, "decode_window", int, minimum=0)
-        config_field(self.initial_heading_deg, "initial_heading_deg", float)
-        for name in ("link_time_since_start", "strict_translation"):
-            config_field(getattr(self, name), name, bool)
-        config_field(self.frame, "frame", str, choices=("standard", "openratslam"))
-        config_field(self.pose_cells, "pose_cells", str, choices=("population", "openratslam", "spiking"))
         if self.pose_cells == "spiking" and self.frame != "standard":
             raise ConfigError("pose_cells='spiking' uses frame='standard' (heading 0 along +x')")
         self._check_attractor()

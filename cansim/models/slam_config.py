@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 from cansim.errors import ConfigError
 from cansim.params import AttractorParams
 from cansim.population import MAX_CELLS
-from whisker_io.validation import config_field, plain_fields
+from whisker_io.validation import checked, validate_fields
 
 __all__ = ["SlamConfig", "MAX_POSE_CELLS"]
 
@@ -74,18 +74,18 @@ class SlamConfig:
         the model's ``map_config()``, :class:`maps.experience_map.MapConfig`).
     """
 
-    cell_size_m: float = 1.0
+    cell_size_m: float = checked(1.0, float, above=0)
     attractor: AttractorParams = field(default_factory=AttractorParams)
-    lv_mode: str = "stored"
-    inject_energy: float = 0.15
-    active_decay: float = 1.0
-    decay_restore: float = 0.05
-    match_distance_cells: float = 2.0
+    lv_mode: str = checked("stored", str, choices=("stored", "learnt"))
+    inject_energy: float = checked(0.15, float, minimum=0)
+    active_decay: float = checked(1.0, float, minimum=0)
+    decay_restore: float = checked(0.05, float, minimum=0)
+    match_distance_cells: float = checked(2.0, float, minimum=0)
     correction: float = 0.5
     relax_passes: int = 10
     relax_budget: int | None = 2_000
-    backend: str = "numba"
-    dtype: str = "float64"
+    backend: str = checked("numba", str)
+    dtype: str = checked("float64", str, choices=("float64", "float32"))
 
     @staticmethod
     def _check_grid_size(**dims: int) -> None:
@@ -99,20 +99,12 @@ class SlamConfig:
                               "use fewer cells per axis (a larger cell_size_m)")
 
     def __post_init__(self) -> None:
-        self._check_shared()
+        """Check every declared field, the model's own too (:func:`validate_fields`), then the attractor's type.
 
-    def _check_shared(self) -> None:
-        """Check the shared fields (a model's ``__post_init__`` calls this, then checks its own).
-
-        Every field, the model's own too, is first made a plain Python value (:func:`plain_fields`).
+        A model's ``__post_init__`` calls this first, then checks what ties its own fields together
+        (a field redeclared for its default keeps the check declared here).
         """
-        plain_fields(self)
-        config_field(self.cell_size_m, "cell_size_m", float, above=0)
-        for name in ("inject_energy", "active_decay", "decay_restore", "match_distance_cells"):
-            config_field(getattr(self, name), name, float, minimum=0)
-        config_field(self.lv_mode, "lv_mode", str, choices=("stored", "learnt"))
-        config_field(self.dtype, "dtype", str, choices=("float64", "float32"))
-        config_field(self.backend, "backend", str)
+        validate_fields(self)
         if not isinstance(self.attractor, AttractorParams):
             raise ConfigError(f"attractor must be an AttractorParams (cansim.params), got {self.attractor!r}")
 

@@ -49,7 +49,7 @@ from cansim.spiking import (
     calibrate_velocity_lead,
     spiking_params_from_rate,
 )
-from whisker_io.validation import config_field
+from whisker_io.validation import checked, config_field, validate_fields
 
 __all__ = ["SpikingPoseCellParams", "SpikingPoseCells"]
 
@@ -85,27 +85,21 @@ class SpikingPoseCellParams:
         Noise seed of both populations.
     """
 
-    ring_cells_per_heading_cell: int = 10
-    sheet_cells_per_cell: int = 2
-    ring_recurrent_weight: float = 100.0
-    sheet_recurrent_weight: float = 300.0
-    network_s_per_iteration: float = 0.1
-    dt_s: float = 0.001
-    view_current_per_energy: float = 2000.0
-    max_view_current: float = 150.0
+    ring_cells_per_heading_cell: int = checked(10, int, minimum=1)
+    sheet_cells_per_cell: int = checked(2, int, minimum=1)
+    ring_recurrent_weight: float = checked(100.0, float, minimum=0)
+    sheet_recurrent_weight: float = checked(300.0, float, minimum=0)
+    network_s_per_iteration: float = checked(0.1, float, above=0)
+    dt_s: float = checked(0.001, float, above=0)
+    view_current_per_energy: float = checked(2000.0, float, minimum=0)
+    max_view_current: float = checked(150.0, float, minimum=0)
     calibration_speeds_cells_per_s: tuple[float, ...] = (10.0, 20.0, 40.0, 80.0)
-    seed: int = 0
+    seed: int = checked(0, int, minimum=0)
 
     def __post_init__(self) -> None:
-        config_field(self.ring_cells_per_heading_cell, "ring_cells_per_heading_cell", int, minimum=1)
-        config_field(self.sheet_cells_per_cell, "sheet_cells_per_cell", int, minimum=1)
-        for name in ("ring_recurrent_weight", "sheet_recurrent_weight", "view_current_per_energy", "max_view_current"):
-            config_field(getattr(self, name), name, float, minimum=0)
-        config_field(self.network_s_per_iteration, "network_s_per_iteration", float, above=0)
-        config_field(self.dt_s, "dt_s", float, above=0)
+        validate_fields(self)
         if not self.network_s_per_iteration >= self.dt_s or self.network_s_per_iteration / self.dt_s > 1e5:
             raise ConfigError("network_s_per_iteration must hold between 1 and 1e5 steps of dt_s")
-        config_field(self.seed, "seed", int, minimum=0)
         speeds = tuple(float(s) for s in self.calibration_speeds_cells_per_s)
         if not speeds or any(not (math.isfinite(s) and s > 0) for s in speeds) or list(speeds) != sorted(set(speeds)):
             raise ConfigError("calibration_speeds_cells_per_s must be distinct, ascending, finite and > 0")

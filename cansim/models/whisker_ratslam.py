@@ -102,7 +102,7 @@ from maps.experience_map import MapConfig
 from maps.object_library import ObjectLibrary, append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
-from whisker_io.validation import config_field
+from whisker_io.validation import checked
 
 __all__ = ["WhiskerRatSLAM", "WhiskerRatSLAMConfig"]
 
@@ -164,19 +164,17 @@ class WhiskerRatSLAMConfig(SlamConfig):
     attractor: AttractorParams = field(default_factory=_thesis_kernels)
     inject_energy: float = 0.3
     match_distance_cells: float = 1.0
-    grid_cells: int = 5
-    angle_cells: int | None = None
+    grid_cells: int = checked(5, int, minimum=3)
+    angle_cells: int | None = checked(None, int, minimum=3, optional=True, hint="None uses grid_cells")
     frontend: WhiskFrontEndConfig = field(default_factory=WhiskFrontEndConfig)
-    pose_gate_m: float | None = None
-    pose_gate_deg: float | None = None
-    pose_gate_growth_m: float | None = None
-    pose_gate_growth_deg: float | None = None
-    pose_weight: float = 0.0
+    pose_gate_m: float | None = checked(None, float, above=0, optional=True)
+    pose_gate_deg: float | None = checked(None, float, above=0, maximum=180.0, optional=True)
+    pose_gate_growth_m: float | None = checked(None, float, above=0, optional=True)
+    pose_gate_growth_deg: float | None = checked(None, float, above=0, maximum=180.0, optional=True)
+    pose_weight: float = checked(0.0, float, minimum=0)
 
     def __post_init__(self) -> None:
-        self._check_shared()
-        config_field(self.grid_cells, "grid_cells", int, minimum=3)
-        config_field(self.angle_cells, "angle_cells", int, minimum=3, optional=True, hint="None uses grid_cells")
+        super().__post_init__()  # the declared fields (SlamConfig's and these), the attractor's type
         na = self.grid_cells if self.angle_cells is None else self.angle_cells
         self._check_grid_size(x=self.grid_cells, y=self.grid_cells, z=self.grid_cells, roll=na, pitch=na, yaw=na)
         if not isinstance(self.frontend, WhiskFrontEndConfig):
@@ -184,14 +182,11 @@ class WhiskerRatSLAMConfig(SlamConfig):
         self.map_config()
         # pose-consistent matching (module docstring): each gate is a (metres, degrees) pair, both set or both None
         for pair in (("pose_gate_m", "pose_gate_deg"), ("pose_gate_growth_m", "pose_gate_growth_deg")):
-            for name, top in zip(pair, (None, 180.0)):
-                config_field(getattr(self, name), name, float, above=0, maximum=top, optional=True)
             if (getattr(self, pair[0]) is None) != (getattr(self, pair[1]) is None):
                 raise ConfigError(f"{pair[0]} and {pair[1]} are both None or both set, got "
                                   f"{(getattr(self, pair[0]), getattr(self, pair[1]))!r}")
         if self.pose_gate_growth_m is not None and self.pose_gate_m is None:
             raise ConfigError("pose_gate_growth_m needs pose_gate_m (the largest gate)")
-        config_field(self.pose_weight, "pose_weight", float, minimum=0)
 
     @classmethod
     def thesis(cls, **overrides: Any) -> "WhiskerRatSLAMConfig":

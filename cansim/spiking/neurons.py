@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 from cansim.errors import ConfigError, InvalidInputError
-from whisker_io.validation import config_field, plain_fields
+from whisker_io.validation import checked, config_field, validate_fields
 
 #: most steps of ``dt_s`` one refractory period may span (a 1 ms period at 1 ps steps): a smaller step
 #: is a mistyped unit, and a step of ~1e-320 s would overflow the count
@@ -74,25 +74,23 @@ class NeuronParams:
     """
 
     model: str = "lif"
-    tau_mem_s: float = 0.02
-    tau_syn_s: float = 0.005
-    v_rest: float = 0.0
-    v_reset: float = 0.0
-    v_threshold: float = 1.0
-    resistance: float = 1.0
-    bias_current: float = 0.8
-    refractory_s: float = 0.002
-    noise_sigma: float = 0.2
-    poisson_gain_hz: float = 100.0
+    tau_mem_s: float = checked(0.02, float)  # and > 0 (with its own message): checked in __post_init__
+    tau_syn_s: float = checked(0.005, float)
+    v_rest: float = checked(0.0, float)
+    v_reset: float = checked(0.0, float)
+    v_threshold: float = checked(1.0, float)
+    resistance: float = checked(1.0, float)
+    bias_current: float = checked(0.8, float)
+    refractory_s: float = checked(0.002, float)
+    noise_sigma: float = checked(0.2, float)
+    poisson_gain_hz: float = checked(100.0, float)
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers: float64 arithmetic, exact NIR / JSON round trips
+        validate_fields(self)  # numpy scalars -> Python numbers: float64 arithmetic, exact NIR / JSON round trips
         if self.model not in NEURON_MODELS:
             raise ConfigError(f"model must be one of {NEURON_MODELS}, got {self.model!r}")
         for name in ("tau_mem_s", "tau_syn_s", "resistance", "refractory_s", "poisson_gain_hz"):
             _positive(name, getattr(self, name))
-        for name in ("v_rest", "v_reset", "v_threshold", "bias_current", "noise_sigma"):
-            _finite(name, getattr(self, name))
         if self.noise_sigma < 0:
             raise ConfigError(f"noise_sigma must be >= 0, got {self.noise_sigma!r}")
         if not self.v_reset < self.v_threshold:

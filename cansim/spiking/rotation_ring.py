@@ -51,7 +51,6 @@ recorded rat trajectory were not used for that.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,6 +70,7 @@ from cansim.spiking.nir_io import (
     input_gain,
 )
 from cansim.spiking.population import SpikingParams
+from whisker_io.validation import checked, validate_fields
 
 __all__ = ["RotationRingParams", "rotation_ring_graph", "ring_input", "ROTATION_RING_FORMAT"]
 
@@ -110,28 +110,22 @@ class RotationRingParams:
     n_cells: int = 360
     attractor: AttractorParams = HD_RING_ATTRACTOR
     neurons: NeuronParams = field(default_factory=lambda: RING_NEURONS)
-    recurrent_weight: float = 15.0
-    global_weight: float = 0.1
-    rotation_bias: float = 0.3
-    ring_to_rotation_weight: float = 1.0
-    velocity_gain: float = 0.25
-    rotation_to_ring_weight: float = 6.0
+    recurrent_weight: float = checked(15.0, float, minimum=0)
+    global_weight: float = checked(0.1, float, minimum=0)
+    rotation_bias: float = checked(0.3, float)
+    ring_to_rotation_weight: float = checked(1.0, float, minimum=0)
+    velocity_gain: float = checked(0.25, float, minimum=0)
+    rotation_to_ring_weight: float = checked(6.0, float, minimum=0)
     shift_cells: int = 10
 
     def __post_init__(self) -> None:
+        validate_fields(self)
         if isinstance(self.n_cells, bool) or not isinstance(self.n_cells, (int, np.integer)) or not 8 <= self.n_cells <= 4096:
             raise ConfigError(f"n_cells must be an integer in [8, 4096], got {self.n_cells!r}")
         if not isinstance(self.attractor, AttractorParams):
             raise ConfigError("attractor must be a cansim.AttractorParams")
         if not isinstance(self.neurons, NeuronParams) or self.neurons.model != "lif":
             raise ConfigError("neurons must be a cansim.spiking.NeuronParams with model='lif'")
-        for name in ("recurrent_weight", "global_weight", "ring_to_rotation_weight", "velocity_gain", "rotation_to_ring_weight"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name} must be a finite number >= 0, got {v!r}")
-        v = self.rotation_bias
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(f"rotation_bias must be a finite number, got {v!r}")
         s = self.shift_cells
         if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 1 <= s < self.n_cells / 2:
             raise ConfigError(f"shift_cells must be an integer in [1, n_cells / 2), got {s!r}")

@@ -169,7 +169,7 @@ import numpy as np
 
 from cansim.seeding import derive_seed
 from whisker_io._deprecated import renamed_attributes
-from whisker_io.validation import config_field
+from whisker_io.validation import checked, validate_fields
 
 logger = logging.getLogger("ch5_study")
 
@@ -237,15 +237,14 @@ class StudyConfig:
     id_loops: int = 1
     matching: str = "mapping"
     id_whisks: int = 0
-    odometry_scale: float = 1.0
+    odometry_scale: float = checked(1.0, float, minimum=0.0, maximum=10.0, hint="a multiple of the Eq 6.4-6.11 odometry noise")
 
     def __post_init__(self) -> None:
         from cansim.errors import ConfigError
 
+        validate_fields(self)
         if self.matching not in ("mapping", "thesis"):
             raise ConfigError(f"matching is 'mapping' or 'thesis', got {self.matching!r}")
-        config_field(self.odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
-                     hint="a multiple of the Eq 6.4-6.11 odometry noise")
 
     def thresholds_for(self, contact_model: str) -> tuple[float, float]:
         """(T_pfh, T_sda) of one contact model."""
