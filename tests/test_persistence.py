@@ -41,3 +41,14 @@ def test_an_unsupported_compression_method_is_a_corrupt_file(tmp_path):
     path.write_bytes(bytes(raw))
     with pytest.raises(CorruptFileError):
         read_npz(path)
+
+
+def test_a_damaged_archive_in_memory_is_a_corrupt_file_named_by_its_type():
+    """Models save to and load from open files (io.BytesIO); a damaged one raised TypeError from
+    the error's own constructor (os.fspath of a BytesIO) instead of CorruptFileError."""
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, a=np.arange(3))
+    with pytest.raises(CorruptFileError, match="<BytesIO>: cannot be read"):
+        read_npz(io.BytesIO(buf.getvalue()[:20]))

@@ -505,6 +505,28 @@ def test_a_corrupt_spiking_population_file_is_refused_naming_the_field(field, va
         SpikingPopulation.load(io.BytesIO(buf.getvalue()))
 
 
+@settings(**SETTINGS)
+@given(cut=st.floats(0.0, 1.0, exclude_max=True), flip=st.integers(0, 255), kind=st.sampled_from(["spiking", "library"]))
+def test_a_damaged_population_or_library_file_raises_the_projects_error(cut, flip, kind):
+    """A truncated or bit-flipped SpikingPopulation / ObjectLibrary file: CorruptFileError, nothing else."""
+    from cansim.axes import Axis
+    from cansim.spiking.population import SpikingPopulation
+    from maps.object_library import ObjectLibrary
+    from whisker_io.errors import CorruptFileError
+
+    if kind == "spiking":
+        cls, data = SpikingPopulation, saved(SpikingPopulation([Axis.angle("th", 12)], backend="numpy"))
+    else:
+        cls, data = ObjectLibrary, saved(_library_and_table()[1])
+    at = int(cut * len(data))
+    for damaged in (data[:at], data[:at] + bytes([data[at] ^ (flip or 1)]) + data[at + 1:]):
+        try:
+            back = cls.load(io.BytesIO(damaged))
+        except CorruptFileError:
+            continue
+        assert saved(back) == data, "a damaged file loaded as something else than what was saved"
+
+
 # ------------------------------------------- radial-distance models (Ch.4)
 _RADIAL: dict = {}
 

@@ -75,8 +75,8 @@ class CorruptFileError(CansimError, ValueError):
     ----------
     problem : str
         What is wrong.
-    path : str or os.PathLike, optional
-        The file.
+    path : str, os.PathLike or file object, optional
+        The file (an open file is named by its ``name``, else by its type).
     field : str, optional
         The offending entry of the file (an ``.npz`` member, a JSON key, a column).
     line : int, optional
@@ -97,7 +97,11 @@ class CorruptFileError(CansimError, ValueError):
         field: str | None = None,
         line: int | None = None,
     ) -> None:
-        self.path = None if path is None else os.fspath(path)
+        if path is None or isinstance(path, (str, os.PathLike)):
+            self.path = None if path is None else os.fspath(path)
+        else:  # an open file (e.g. a model loaded from io.BytesIO): its name if it has one
+            name = getattr(path, "name", None)
+            self.path = name if isinstance(name, str) else f"<{type(path).__name__}>"
         self.field = field
         self.line = line
         where = []
