@@ -9,7 +9,7 @@ from just-created to after loop closures:
 * the loaded model and the original, fed the same further calls, return identical
   outputs and end in identical saved bytes (the resumed run equals the uninterrupted one).
 
-Models covered: :class:`cansim.RatSLAM` (numpy / numba backends, float64 / float32; both models on every backend here, OpenCL included,
+Models covered: :class:`cansim.RatSLAM` (numpy / numba backends, float64 / float32, spiking pose cells; both models on every backend here, OpenCL included,
 stored and learnt local-view modes, the C++-parity preset with
 :class:`~cansim.models.posecell_network.PosecellNetwork`, the ids, panoramic-id, camera
 and tactile front ends), :class:`~cansim.models.whisker_ratslam.WhiskerRatSLAM` (the
@@ -178,6 +178,7 @@ KINDS = {
     "ratslam_numpy": Kind(lambda: RatSLAM(backend="numpy", **SMALL), _planar, IDS),
     "ratslam_numba_float32": Kind(lambda: RatSLAM(backend="numba", dtype="float32", **SMALL), _planar, IDS),
     "ratslam_learnt": Kind(lambda: RatSLAM(backend="numpy", lv_mode="learnt", **SMALL), _planar, IDS),
+    "ratslam_spiking": Kind(lambda: RatSLAM(backend="numpy", pose_cells="spiking", **SMALL), _planar, IDS),
     "ratslam_openratslam_parity": Kind(lambda: RatSLAM(RatSLAMConfig.openratslam(**SMALL)), _planar, IDS),
     "ratslam_camera": Kind(lambda: RatSLAM(backend="numpy", frontend=VisualTemplateConfig(), **SMALL), _planar,
                            _images((20, 60), 3)),
