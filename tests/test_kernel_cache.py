@@ -237,6 +237,85 @@ def test_first_step_warms_up_once(monkeypatch):
     assert calls == [slam]
 
 
+@pytest.mark.parametrize("frontend", ["ids", "camera", "tactile"])
+def test_ratslam_warm_up_does_not_change_the_run(frontend):
+    """RatSLAM's warm-up (explicit, or by the first step with its observation) runs on a scratch model:
+    the states equal those of a model that never warmed up."""
+    from cansim import RatSLAM
+    from cansim.frontends.tactile import TactileTemplateConfig
+    from cansim.frontends.visual import VisualTemplateConfig
+
+    rng = np.random.default_rng(3)
+    kw = dict(xy_cells=11, heading_cells=12, cell_size_m=0.1)
+    if frontend == "camera":
+        kw["frontend"] = VisualTemplateConfig(template_width_blocks=12, template_height_blocks=4, shift_match_blocks=3)
+        views = [rng.integers(0, 256, (24, 60)).astype(np.uint8) for _ in range(5)]
+    elif frontend == "tactile":
+        kw["frontend"] = TactileTemplateConfig()
+        views = [rng.integers(0, 256, (3, 6)).astype(np.uint8) for _ in range(5)]
+    else:
+        views = list(range(5))
+    explicit, first_step, cold = RatSLAM(**kw), RatSLAM(**kw), RatSLAM(**kw)
+    assert explicit.warm_up(views[0]) >= 0.0
+    cold._warm = True  # skip the automatic warm-up of the first step
+
+    def loop(slam):
+        return [slam.step(0.05, 0.3, 1.0, None if k % 4 == 3 else views[k % 5]) for k in range(24)]
+
+    a, b, c = loop(explicit), loop(first_step), loop(cold)
+    key = [(s.exp_id, s.relocalised, tuple(s.best_pc)) for s in c]
+    assert [(s.exp_id, s.relocalised, tuple(s.best_pc)) for s in a] == key
+    assert [(s.exp_id, s.relocalised, tuple(s.best_pc)) for s in b] == key
+    assert first_step._warm and np.array_equal(first_step.experience_map.poses, cold.experience_map.poses)
+
+
+def test_ratslam_first_step_or_run_warms_up_once_with_the_first_observation(monkeypatch):
+    from cansim import RatSLAM
+    from cansim.models import warm_up as wu
+
+    calls = []
+    real = wu.warm_up_ratslam
+    monkeypatch.setattr(wu, "warm_up_ratslam", lambda m, obs=None, **kw: calls.append((m, obs)) or real(m, obs, **kw))
+    slam = RatSLAM(xy_cells=11, heading_cells=12, cell_size_m=0.1)
+    for k in range(3):
+        slam.step(0.05, 0.1, 1.0, 7 + k)
+    ran = RatSLAM(xy_cells=11, heading_cells=12, cell_size_m=0.1)
+    ran.run([0.05] * 3, [0.1] * 3, 1.0, [None, 4, 5])
+    assert calls == [(slam, 7), (ran, 4)]
+
+
+RATSLAM_WARM_SCRIPT = textwrap.dedent("""\
+    from numba.core import event
+    count = [0]
+    class Count(event.Listener):
+        def on_start(self, ev):
+            pass
+        def on_end(self, ev):
+            count[0] += 1
+    event.register("numba:compile", Count())
+    import numpy as np
+    from cansim import RatSLAM
+    from cansim.frontends.visual import VisualTemplateConfig
+    slam = RatSLAM(xy_cells=15, heading_cells=18, cell_size_m=0.1, backend="numba",
+                   frontend=VisualTemplateConfig(template_width_blocks=12, template_height_blocks=4, shift_match_blocks=3))
+    rng = np.random.default_rng(7)
+    images = [rng.integers(0, 256, (24, 60)).astype(np.uint8) for _ in range(6)]
+    slam.warm_up(images[0])
+    before = count[0]
+    for k in range(40):
+        slam.step(0.08, 0.4, 1.0, None if k % 7 == 3 else images[k % 6])
+    print(before, count[0] - before, slam.experience_map.n_experiences)
+    """)
+
+
+@pytest.mark.slow
+def test_nothing_compiles_in_a_ratslam_loop_after_warm_up_on_a_cold_cache(tmp_path):
+    """Issue 26 item 4 for RatSLAM: a cold cache, a camera front end: the warm-up compiles, the loop nothing."""
+    out = _run(RATSLAM_WARM_SCRIPT, {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}).split()
+    assert int(out[0]) > 0
+    assert int(out[1]) == 0
+
+
 WARM_SCRIPT = textwrap.dedent("""\
     from numba.core import event
     count = [0]

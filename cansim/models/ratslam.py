@@ -110,6 +110,7 @@ class RatSLAM(SlamLoop):
             PlanarOdometry,
             check_odometry=self._check_strict if cfg.strict_translation else None,
         )
+        self._warm = False  # warm_up() has run (the first step or run runs it)
 
     def _check_strict(self, odo: PlanarOdometry) -> None:
         step_m = abs(odo.v * odo.dt)
@@ -148,13 +149,45 @@ class RatSLAM(SlamLoop):
             Bad odometry (NaN, negative dt, > 1 cell/step in strict mode) or a bad
             observation; the model is unchanged.
         """
+        if not self._warm:
+            self.warm_up(observation)
         return super().step(vtrans, vrot, dt, observation)
+
+    def warm_up(self, observation: Any = None, *, progress: bool = False) -> float:
+        """Compile (or load from the disk cache) every kernel this configuration uses, now.
+
+        Runs a short scripted circle on a fresh model of the same configuration
+        (:func:`cansim.models.warm_up.warm_up_ratslam`); this model is unchanged. The first
+        :meth:`step` or :meth:`run` calls it (with its first observation, so an image front
+        end compiles for the images' dtype) when it has not run, so no kernel compiles
+        inside the loop; a loop of :meth:`on_view` / :meth:`on_odo` calls (bag replay)
+        calls it first itself. Logs a line (and with ``progress`` shows one on stderr)
+        when it takes more than a second.
+
+        Parameters
+        ----------
+        observation : optional
+            An observation of the kind the loop will give (e.g. one camera image).
+        progress : bool
+            Show a progress line on stderr when it takes more than a second.
+
+        Returns
+        -------
+        float
+            Seconds taken (s).
+        """
+        from cansim.models.warm_up import warm_up_ratslam
+
+        self._warm = True
+        return warm_up_ratslam(self, observation, progress=progress)
 
     def run(self, vtrans: Any, vrot: Any, dt: Any, observations: Any, *, progress: bool = False) -> SlamLog:  # type: ignore[override]
         """:meth:`step` for every row: ``vtrans``, ``vrot`` (n,) m/s and rad/s, ``dt`` s (scalar or (n,))."""
         n = len(vtrans)
         if len(vrot) != n or len(observations) != n:
             raise InvalidInputError(f"vtrans, vrot and observations must have the same length, got {n}, {len(vrot)}, {len(observations)}")
+        if not self._warm:
+            self.warm_up(next((o for o in observations if o is not None), None), progress=progress)
         dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         odometry = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
         return super().run(odometry, observations, progress=progress)

@@ -22,12 +22,15 @@ import numpy as np
 from cansim.warm_up import WarmUp
 from maps.odometry import SpatialOdometry
 
-__all__ = ["WARM_UP_PLACES", "WARM_UP_LAPS", "warm_up_whisker"]
+__all__ = ["WARM_UP_PLACES", "WARM_UP_LAPS", "RATSLAM_WARM_UP_PLACES", "warm_up_ratslam", "warm_up_whisker"]
 
 #: places around the scripted circle (enough experiences for the map's pose gate)
 WARM_UP_PLACES = 12
 #: laps of the circle: the second revisits every place (matches, re-localisations, links)
 WARM_UP_LAPS = 2
+#: places of RatSLAM's scripted circle (its map has no pose gate; few steps keep the
+#: spiking pose cells' warm-up, ~70 ms per step, short)
+RATSLAM_WARM_UP_PLACES = 4
 
 
 def warm_up_whisker(model: Any, *, progress: bool = False) -> float:
@@ -60,4 +63,63 @@ def warm_up_whisker(model: Any, *, progress: bool = False) -> float:
             for k in range(WARM_UP_PLACES):
                 obs = None if (lap, k) == (0, 1) else (pfh[k], sda[k])
                 scratch.step(odo, obs)
+    return w.elapsed_s
+
+
+def _ratslam_views(model: Any, observation: Any, n: int) -> list[Any]:
+    """``n`` distinct observations of the kind the model's front end reads (module docstring)."""
+    from cansim.frontends.tactile import TactileTemplateConfig
+    from cansim.frontends.visual import VisualTemplateConfig
+
+    fe = model.config.frontend
+    rng = np.random.default_rng(0)  # the synthetic views; a private generator
+    if isinstance(fe, (VisualTemplateConfig, TactileTemplateConfig)):
+        if observation is not None:  # the user's own image: same dtype and shape, hence the same kernels
+            base = np.asarray(observation)
+        elif isinstance(fe, TactileTemplateConfig):
+            base = np.zeros((3, 6), dtype=np.uint8)
+        else:
+            h = max(fe.crop_y_max_px or 0, fe.crop_y_min_px + 4 * fe.template_height_blocks)
+            w = max(fe.crop_x_max_px or 0, fe.crop_x_min_px + 4 * fe.template_width_blocks)
+            base = np.zeros((h, w), dtype=np.uint8)
+        top = 255 if base.dtype.kind in "ui" else 1.0
+        return [rng.integers(0, int(top) + 1, size=base.shape).astype(base.dtype) if top == 255
+                else rng.uniform(0.0, 1.0, size=base.shape).astype(base.dtype) for _ in range(n)]
+    return list(range(n))
+
+
+def warm_up_ratslam(model: Any, observation: Any = None, *, progress: bool = False) -> float:
+    """Run a scripted circle on a fresh copy of a RatSLAM's configuration (as :func:`warm_up_whisker`).
+
+    Two laps of :data:`RATSLAM_WARM_UP_PLACES` places, one cell of translation and a
+    quarter turn per step, one distinct view per place (view ids, or images of the
+    shape and dtype of ``observation`` - the model's first image when the first
+    :meth:`~cansim.models.ratslam.RatSLAM.step` warms up - or of the configured crop),
+    one step without a view: the pose cells, the front end's matching, the experience
+    map's links and relaxation all run once.
+
+    Parameters
+    ----------
+    model : cansim.models.ratslam.RatSLAM
+        The model whose kernels are wanted; unchanged.
+    observation : optional
+        An observation of the kind the model will get (its images' shape and dtype).
+    progress : bool
+        Show a progress line on stderr when this takes more than a second.
+
+    Returns
+    -------
+    float
+        Seconds taken (s).
+    """
+    cfg = model.config
+    scratch = type(model)(cfg)
+    scratch._warm = True  # its own first step must not warm up again
+    views = _ratslam_views(model, observation, RATSLAM_WARM_UP_PLACES)
+    with WarmUp(type(model).__name__, progress=progress) as w:
+        for lap in range(WARM_UP_LAPS):
+            w.stage(f"lap {lap + 1} of {WARM_UP_LAPS}")
+            for k in range(RATSLAM_WARM_UP_PLACES):
+                view = None if (lap, k) == (0, 1) else views[k]
+                scratch.step(cfg.cell_size_m, 2.0 * math.pi / RATSLAM_WARM_UP_PLACES, 1.0, view)
     return w.elapsed_s
