@@ -294,3 +294,18 @@ def test_detect_contacts_equals_detect_contact_per_record():
     single = [detect_contact(r, p) for r in recs]
     assert sum(d is not None for d in single) >= 5 and single[-1] is not None and single[-1].sign == -1
     assert batch == single
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.sampled_from([0.0, 1.0, 2.0, 3.0, -1.0]) | st.floats(-100, 100), min_size=0, max_size=60),
+       st.sampled_from([1.0, -1.0]), st.floats(-50, 50))
+def test_bounded_maxima_are_find_peaks_peaks(values, sign, level):
+    """The compiled scan returns scipy's find_peaks peaks (flat tops included) with bound >= level."""
+    from scipy.signal import find_peaks
+
+    from whisker_io.contact._detection_numba import bounded_maxima
+
+    y = np.array(values, dtype=np.float64)
+    bound = np.linspace(-50, 50, y.size)
+    peaks, _ = find_peaks(sign * y)
+    assert bounded_maxima(y, sign, bound, level).tolist() == peaks[bound[peaks] >= level].tolist()

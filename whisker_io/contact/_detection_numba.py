@@ -72,3 +72,29 @@ def contact_extent(
             offset = k
             break
     return bounds[0], bounds[1], rise_mid, fall_mid, onset, offset
+
+
+@njit(cache=True)
+def bounded_maxima(y: np.ndarray, sign: float, bound: np.ndarray, min_bound: float) -> np.ndarray:  # pragma: no cover
+    """The local maxima of ``z = sign * y`` as ``scipy.signal.find_peaks(z)`` returns them (a flat
+    top gives its middle sample, rounded down; the end samples are never peaks), keeping those
+    with ``bound >= min_bound``."""
+    n = y.size
+    out = np.empty(max(n // 2, 1), np.int64)
+    count = 0
+    i = 1
+    i_max = n - 1
+    while i < i_max:
+        zi = sign * y[i]
+        if sign * y[i - 1] < zi:
+            i_ahead = i + 1
+            while i_ahead < i_max and sign * y[i_ahead] == zi:
+                i_ahead += 1
+            if sign * y[i_ahead] < zi:
+                mid = (i + i_ahead - 1) // 2
+                if bound[mid] >= min_bound:
+                    out[count] = mid
+                    count += 1
+                i = i_ahead
+        i += 1
+    return out[:count]

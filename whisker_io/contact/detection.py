@@ -53,9 +53,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.signal import find_peaks, peak_prominences, peak_widths
+from scipy.signal import peak_prominences, peak_widths
 
-from whisker_io.contact._detection_numba import contact_extent, prominence_bound
+from whisker_io.contact._detection_numba import bounded_maxima, contact_extent, prominence_bound
 from whisker_io.errors import InvalidInputError
 from whisker_io.validation import finite_array, finite_scalar, whole_number
 from whisker_io.records.whisk_record import WhiskRecord
@@ -221,11 +221,10 @@ def _best_peak(ys: np.ndarray, params: DetectionParams) -> tuple[int, int, float
         bound = prominence_bound(ys, float(sign))
         if not np.any(bound >= P):
             continue
-        z = sign * ys
-        peaks, _ = find_peaks(z)
-        peaks = peaks[bound[peaks] >= P]
+        peaks = bounded_maxima(ys, float(sign), bound, float(P))  # find_peaks(z)'s peaks that can reach P
         if not peaks.size:
             continue
+        z = sign * ys
         prom, left, right = peak_prominences(z, peaks)
         keep = prom >= P
         if not keep.any():
