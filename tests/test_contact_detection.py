@@ -309,3 +309,12 @@ def test_bounded_maxima_are_find_peaks_peaks(values, sign, level):
     bound = np.linspace(-50, 50, y.size)
     peaks, _ = find_peaks(sign * y)
     assert bounded_maxima(y, sign, bound, level).tolist() == peaks[bound[peaks] >= level].tolist()
+
+
+def test_warm_up_kernels_compiles_every_detection_scan():
+    from whisker_io.contact import _detection_numba as k
+    from whisker_io.contact.detection import warm_up_kernels
+
+    warm_up_kernels()
+    for fn in (k.prominence_bound, k.bounded_maxima, k.contact_extent):
+        assert fn.signatures, fn.__name__  # compiled for float64 signals before any whisk

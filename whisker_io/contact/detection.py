@@ -68,6 +68,7 @@ __all__ = [
     "detect_contacts",
     "max_angle",
     "threshold_contact_angle",
+    "warm_up_kernels",
 ]
 
 
@@ -237,6 +238,15 @@ def _best_peak(ys: np.ndarray, params: DetectionParams) -> tuple[int, int, float
             if best is None or prom[j] > best[2]:
                 best = (int(peaks[j]), sign, float(prom[j]))
     return best
+
+
+def warm_up_kernels() -> None:
+    """Compile (or load from numba's disk cache) the detection's compiled scans now, so the first
+    whisk with a contact does not pay for it (the signal-path chains call this when built)."""
+    z = np.array([0.0, 1.0, 0.0])
+    bound = prominence_bound(z, 1.0)
+    bounded_maxima(z, 1.0, bound, 0.0)
+    contact_extent(z, 1.0, 1, 0.5, 0.5)
 
 
 def _refine_onset(d: np.ndarray, onset: int, rise_mid: int, span: int) -> int:

@@ -87,7 +87,7 @@ from numpy.typing import NDArray
 from whisker_io.array.control import WhiskController
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rotate_shaft
-from whisker_io.contact.detection import DetectedContact, DetectionParams, _detect_smoothed
+from whisker_io.contact.detection import DetectedContact, DetectionParams, _detect_smoothed, warm_up_kernels
 from whisker_io.contact.features import contact_features
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.features.pfh import PFHParams
@@ -378,6 +378,8 @@ class WhiskChain:
         self.sweep_params = sweep_params
         self.detection_params = det
         self._kin = _Kinematics(arr)
+        if signals:
+            warm_up_kernels()  # the synthesis kernel was compiled by the calibration above
 
     def whisk(self, pose: PoseLike, rng: np.random.Generator) -> ChainWhisk:
         """Whisk once at ``pose`` and return the features with everything that led to them.
@@ -482,6 +484,7 @@ class RecordedChain:
         self.pfh_params = pfh_params
         self.detection_params = det
         self._kin = _Kinematics(arr)
+        warm_up_kernels()
 
     def _generator(self, rng: np.random.Generator | None) -> np.random.Generator | None:
         return _check_generator(rng) if self.contact_noise is not None else None
