@@ -129,7 +129,8 @@ def main() -> None:
     src, dst = np.random.default_rng(0).random(pop.size), np.empty(pop.size)
     ws_src, ws_dst = np.ones(2 * pop.size), np.empty(2 * pop.size)
     big_src, big_dst = np.ones(32 * pop.size), np.empty(32 * pop.size)
-    print(f"grid {tuple(int(k) for k in n)}, boxes: start {b0.tolist()}, dynamics result {b1.tolist()}, output {b2.tolist()}")
+    print(f"grid {tuple(int(k) for k in n)}, boxes: start {b0.tolist()}, dynamics result {b1.tolist()}, "
+          f"output {b2.tolist()}")
     for k, val in parts.items():
         print(f"  {k:40s} {val / 1e6:8.1f} MB")
     print(f"bytes per step (passes): {total / 1e6:.1f} MB; compulsory (read + write the float32 grid once): "
