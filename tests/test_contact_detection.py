@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from whisker_io.contact.detection import (
     DetectedContact,
@@ -236,3 +238,83 @@ def test_a_smoothing_span_beyond_the_signal_is_refused_up_front(span):
     with pytest.raises(InvalidInputError, match="too large"):
         moving_average(np.zeros(1000), span)
     assert moving_average(np.arange(5.0), 100).shape == (5,)  # a span longer than a short signal stays allowed
+
+
+_signal = st.lists(st.one_of(st.floats(-3000, 3000), st.sampled_from([0.0, -0.0, 5.0])), min_size=2, max_size=300)
+
+
+@settings(max_examples=80, deadline=None)
+@given(_signal, st.sampled_from([1.0, -1.0]))
+def test_prominence_bound_is_the_cumulative_minima_formula(values, sign):
+    from whisker_io.contact._detection_numba import prominence_bound
+
+    y = np.array(values)
+    z = sign * y
+    expected = z - np.maximum(np.minimum.accumulate(z), np.minimum.accumulate(z[::-1])[::-1])
+    assert np.array_equal(prominence_bound(y, sign), expected)
+
+
+@settings(max_examples=80, deadline=None)
+@given(_signal, st.sampled_from([1.0, -1.0]), st.data())
+def test_contact_extent_is_the_numpy_scan(values, sign, data):
+    """The one-scan indices equal the whole-signal numpy formulas (runs above a level around the
+    top, the last non-rise before the rise and the first non-fall after the fall)."""
+    from whisker_io.contact._detection_numba import contact_extent
+
+    y = np.array(values)
+    z = sign * y
+    top = data.draw(st.integers(0, y.size - 1))
+    tol, half = data.draw(st.floats(0, 50)), data.draw(st.floats(0, 3000))
+
+    def run(level):
+        low = np.flatnonzero(z <= level)
+        before, after = low[low < top], low[low > top]
+        return (int(before[-1]) + 1 if before.size else 0), (int(after[0]) - 1 if after.size else z.size - 1)
+
+    peak, plateau_end = run(z[top] - tol)
+    rise_mid, fall_mid = run(z[top] - half)
+    d = np.diff(z)
+    stops = np.flatnonzero(d[:rise_mid] <= 0.0)
+    ends = np.flatnonzero(d[fall_mid:] >= 0.0)
+    expected = (peak, plateau_end, rise_mid, fall_mid, int(stops[-1]) + 1 if stops.size else 0,
+                fall_mid + int(ends[0]) if ends.size else z.size - 1)
+    got = contact_extent(y, sign, top, float(z[top] - tol), float(z[top] - half))
+    assert tuple(int(v) for v in got) == expected
+
+
+def test_detect_contacts_equals_detect_contact_per_record():
+    """The batch (range pre-test across modules, smoothing in one call) finds what the one-record
+    path finds, field for field, on contacts, free whisking and a negative deflection."""
+    contacts = [WhiskContact(0.1 * i - 0.4, 0.02 + 0.01 * i, 0.1) if i % 3 else None for i in range(9)]
+    recs, _ = simulate_whisk_cycle(contacts, OpenLoop(WhiskPattern(1.0)), seed=11)
+    flipped = WhiskRecord("N1", recs[1].angle_rad, recs[1].x_counts, -recs[1].y_counts)
+    recs = list(recs) + [flipped]
+    p = DetectionParams(min_prominence_counts=80.0, confirm_threshold_counts=80.0)
+    batch = detect_contacts(recs, p)
+    single = [detect_contact(r, p) for r in recs]
+    assert sum(d is not None for d in single) >= 5 and single[-1] is not None and single[-1].sign == -1
+    assert batch == single
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.sampled_from([0.0, 1.0, 2.0, 3.0, -1.0]) | st.floats(-100, 100), min_size=0, max_size=60),
+       st.sampled_from([1.0, -1.0]), st.floats(-50, 50))
+def test_bounded_maxima_are_find_peaks_peaks(values, sign, level):
+    """The compiled scan returns scipy's find_peaks peaks (flat tops included) with bound >= level."""
+    from scipy.signal import find_peaks
+
+    from whisker_io.contact._detection_numba import bounded_maxima
+
+    y = np.array(values, dtype=np.float64)
+    bound = np.linspace(-50, 50, y.size)
+    peaks, _ = find_peaks(sign * y)
+    assert bounded_maxima(y, sign, bound, level).tolist() == peaks[bound[peaks] >= level].tolist()
+
+
+def test_warm_up_kernels_compiles_every_detection_scan():
+    from whisker_io.contact import _detection_numba as k
+    from whisker_io.contact.detection import warm_up_kernels
+
+    warm_up_kernels()
+    for fn in (k.prominence_bound, k.bounded_maxima, k.contact_extent):
+        assert fn.signatures, fn.__name__  # compiled for float64 signals before any whisk

@@ -258,3 +258,51 @@ def test_from_float_arrays_is_typed_or_valid(a, b, module):
         return
     assert a.size == b.size > 0 and np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and module.isalnum()
     np.testing.assert_array_equal(rec.x_counts, b)
+
+
+def test_from_float_rows_equals_from_float_arrays_per_row():
+    rng = np.random.default_rng(1)
+    a, x, y = rng.normal(size=(3, 4, 30))
+    rows = WhiskRecord.from_float_rows(["A1", "A2", "B1", "C3"], a, x, y, sample_rate_hz=500.0, cycle=2)
+    for i, rec in enumerate(rows):
+        one = WhiskRecord("A1 A2 B1 C3".split()[i], a[i], x[i], y[i], sample_rate_hz=500.0, cycle=2)
+        assert (rec.module, rec.cycle, rec.sample_rate_hz, rec.spare) == (one.module, 2, 500.0, None)
+        np.testing.assert_array_equal(rec.as_columns(), one.as_columns())
+        with pytest.raises(ValueError):
+            rec.y_counts[0] = 1.0  # read-only views
+    lists = WhiskRecord.from_float_rows(["A1"], [[1, 2]], [[3, 4]], [[5, 6]])  # copied to float64
+    assert lists[0].y_counts.dtype == np.float64 and lists[0].y_counts.tolist() == [5.0, 6.0]
+
+
+def test_from_float_rows_refuses_with_the_row_named():
+    ok = np.zeros((2, 5))
+    bad = ok.copy()
+    bad[1, 3] = np.nan
+    with pytest.raises(InvalidInputError, match=r"A2\.x_counts.*index 3"):
+        WhiskRecord.from_float_rows(["A1", "A2"], ok, bad, ok)
+    with pytest.raises(InvalidInputError, match="one row per module name"):
+        WhiskRecord.from_float_rows(["A1"], ok, ok, ok)
+    with pytest.raises(InvalidInputError, match="one shape"):
+        WhiskRecord.from_float_rows(["A1", "A2"], ok, ok[:, :4], ok)
+    with pytest.raises(InvalidInputError, match="non-empty"):
+        WhiskRecord.from_float_rows(["A1", "A2"], ok[:, :0], ok[:, :0], ok[:, :0])
+    with pytest.raises(InvalidInputError, match="module name"):
+        WhiskRecord.from_float_rows(["A1", "A 2"], ok, ok, ok)
+    with pytest.raises(InvalidInputError, match="sequence of module names"):
+        WhiskRecord.from_float_rows("A1", ok[:1], ok[:1], ok[:1])
+
+
+@settings(max_examples=80, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(0, 3), st.integers(0, 5)),
+              elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+       st.lists(st.text(max_size=3), max_size=4), st.integers(-2, 3))
+def test_from_float_rows_is_typed_or_valid(a, names, cycle):
+    try:
+        rows = WhiskRecord.from_float_rows(names, a, a, a, cycle=cycle)
+    except CansimError as exc:
+        assert isinstance(exc, InvalidInputError)
+        return
+    assert a.shape[0] == len(names) and a.shape[1] > 0 and np.all(np.isfinite(a)) and cycle >= 0
+    assert all(m.isalnum() for m in names) and [r.module for r in rows] == names
+    for i, r in enumerate(rows):
+        np.testing.assert_array_equal(r.angle_rad, a[i])

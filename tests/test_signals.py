@@ -16,6 +16,7 @@ from whisker_io.sim.signals import (
     SignalParams,
     WhiskContact,
     bending_stiffness,
+    add_sensor_noise,
     deflection_counts,
     free_whisking_threshold_counts,
     radial_distance_from_stiffness,
@@ -273,3 +274,60 @@ def test_rod_contact_refuses_a_push_that_never_ends():
     for kw in ({"lead_s": 1e308}, {"tail_s": 1e308}, {"lead_s": 1e6}):
         with pytest.raises(InvalidInputError, match="lead_s"):
             simulate_rod_contact(0.05, 0.1, 0.1, **kw)
+
+
+def _numpy_cycle(contacts, angles, params, seed):
+    """The cycle as the numpy functions compose it, with the noise drawn as three separate (n, T) arrays."""
+    rng = np.random.default_rng(seed)
+    noise = tuple(rng.standard_normal(angles.shape) for _ in range(3))
+    x0, y0 = deflection_counts(angles, contacts, params)
+    return add_sensor_noise(x0, y0, angles, noise, params), y0
+
+
+_contact = st.one_of(
+    st.none(),
+    st.builds(
+        lambda ang, frac, L, nrm, slip: WhiskContact(math.radians(ang), frac * L, L, normal=nrm, slip_rad=slip),
+        st.floats(-60, 60), st.floats(0.02, 1.0), st.sampled_from([0.06, 0.1, 0.16]),
+        st.tuples(*(st.floats(-1, 1),) * 3).filter(lambda v: 0.1 < math.hypot(*v)),
+        st.one_of(st.just(math.inf), st.floats(0.01, 1.0))),
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(_contact, min_size=1, max_size=6), st.integers(0, 2**31), st.booleans(), st.floats(0.0, 8.0),
+       st.sampled_from([500.0, 2047.0]))
+def test_cycle_is_the_numpy_composition_bit_for_bit(contacts, seed, quantize, noise_std, adc_max):
+    """The compiled one-pass synthesis and the one noise draw of (3, n, T) give the same bits as
+    deflection_counts + add_sensor_noise with three (n, T) draws from the same seed; the truths
+    are the argmax formulas on the noise-free y."""
+    p = SignalParams(noise_std_counts=noise_std, quantize=quantize, adc_max_counts=adc_max)
+    ctrl = OpenLoop(WhiskPattern(2.0, sample_rate_hz=p.sample_rate_hz))
+    recs, truths = simulate_whisk_cycle(contacts, ctrl, p, seed=seed)
+    angles = ctrl.command(len(contacts))
+    (x, y, th), y0 = _numpy_cycle(contacts, angles, p, seed)
+    for i, r in enumerate(recs):
+        assert r.x_counts.tobytes() == x[i].tobytes()
+        assert r.y_counts.tobytes() == y[i].tobytes()
+        assert r.angle_rad.tobytes() == th[i].tobytes()
+    for i, (c, t) in enumerate(zip(contacts, truths)):
+        past = angles[i] > c.angle_rad if c is not None else None
+        if c is None or not past.any() or not np.any(y0[i]):
+            assert t is None
+            continue
+        assert t.onset_index == int(np.argmax(past))
+        assert t.peak_index == int(np.argmax(np.abs(y0[i])))
+        assert t.peak_y_counts == y0[i, t.peak_index]
+
+
+def test_retract_at_max_cycle_is_the_numpy_composition():
+    """A controller that re-commands the cycle (retract at the sensor limit) gets the same noise again."""
+    contacts = [WhiskContact(0.0, 0.02, 0.1), None, WhiskContact(0.3, 0.09, 0.16)]
+    ctrl = RetractAtMax(WhiskPattern(1.0))
+    recs, _ = simulate_whisk_cycle(contacts, ctrl, None, seed=5)
+    angles = OpenLoop(WhiskPattern(1.0)).command(3)
+    (_, y_first, _), _ = _numpy_cycle(contacts, angles, SignalParams(), 5)
+    angles2 = RetractAtMax(WhiskPattern(1.0)).respond(angles, y_first)
+    assert not np.array_equal(angles2, angles)  # the controller did react
+    (x, y, th), _ = _numpy_cycle(contacts, angles2, SignalParams(), 5)
+    assert all(np.array_equal(r.y_counts, y[i]) and np.array_equal(r.angle_rad, th[i]) for i, r in enumerate(recs))

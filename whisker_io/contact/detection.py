@@ -53,8 +53,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.signal import find_peaks, peak_prominences, peak_widths
+from scipy.signal import peak_prominences, peak_widths
 
+from whisker_io.contact._detection_numba import bounded_maxima, contact_extent, prominence_bound
 from whisker_io.errors import InvalidInputError
 from whisker_io.validation import finite_array, finite_scalar, whole_number
 from whisker_io.records.whisk_record import WhiskRecord
@@ -67,6 +68,7 @@ __all__ = [
     "detect_contacts",
     "max_angle",
     "threshold_contact_angle",
+    "warm_up_kernels",
 ]
 
 
@@ -217,14 +219,13 @@ def _best_peak(ys: np.ndarray, params: DetectionParams) -> tuple[int, int, float
     if ys.size == 0 or float(ys.max()) - float(ys.min()) < P:  # a prominence never exceeds the range
         return None
     for sign in params.signs:
-        z = sign * ys
-        bound = z - np.maximum(np.minimum.accumulate(z), np.minimum.accumulate(z[::-1])[::-1])
+        bound = prominence_bound(ys, float(sign))
         if not np.any(bound >= P):
             continue
-        peaks, _ = find_peaks(z)
-        peaks = peaks[bound[peaks] >= P]
+        peaks = bounded_maxima(ys, float(sign), bound, float(P))  # find_peaks(z)'s peaks that can reach P
         if not peaks.size:
             continue
+        z = sign * ys
         prom, left, right = peak_prominences(z, peaks)
         keep = prom >= P
         if not keep.any():
@@ -239,13 +240,13 @@ def _best_peak(ys: np.ndarray, params: DetectionParams) -> tuple[int, int, float
     return best
 
 
-def _level_crossings(z: np.ndarray, top: int, level: float) -> tuple[int, int]:
-    """First and last index of the run of samples above ``level`` that contains ``top``."""
-    low = np.flatnonzero(z <= level)
-    before, after = low[low < top], low[low > top]
-    first = int(before[-1]) + 1 if before.size else 0
-    last = int(after[0]) - 1 if after.size else z.size - 1
-    return first, last
+def warm_up_kernels() -> None:
+    """Compile (or load from numba's disk cache) the detection's compiled scans now, so the first
+    whisk with a contact does not pay for it (the signal-path chains call this when built)."""
+    z = np.array([0.0, 1.0, 0.0])
+    bound = prominence_bound(z, 1.0)
+    bounded_maxima(z, 1.0, bound, 0.0)
+    contact_extent(z, 1.0, 1, 0.5, 0.5)
 
 
 def _refine_onset(d: np.ndarray, onset: int, rise_mid: int, span: int) -> int:
@@ -263,12 +264,14 @@ def _refine_onset(d: np.ndarray, onset: int, rise_mid: int, span: int) -> int:
     if m < 3:
         return onset
     k = np.arange(m, dtype=np.float64)
+    k_mean = 0.5 * (m - 1)  # k.mean(), exactly: the sum of 0..m-1 is exact and (m - 1) / 2 representable
     dk = d[onset : onset + m]
-    kc = k - k.mean()
-    slope = float(np.dot(kc, dk - dk.mean()) / np.dot(kc, kc))
+    dk_mean = dk.mean()
+    kc = k - k_mean
+    slope = float(np.dot(kc, dk - dk_mean) / np.dot(kc, kc))
     if not slope > 0:
         return onset
-    k0 = onset + k.mean() - float(dk.mean()) / slope
+    k0 = onset + k_mean - float(dk_mean) / slope
     if not (onset - span // 2 <= k0 <= rise_mid):
         return onset
     return int(math.floor(k0)) + 1  # first sample with a positive derivative
@@ -302,7 +305,7 @@ def detect_contact(
     if smoothed is None:
         y_s = moving_average(rec.y_counts, p.smoothing_span)
     else:
-        y_s = smoothed
+        y_s = np.ascontiguousarray(smoothed, dtype=np.float64)
     found = _best_peak(y_s, p)
     if found is None:
         return None
@@ -310,16 +313,14 @@ def detect_contact(
     baseline = float(np.mean(rec.y_counts[-p.baseline_samples :]))
     if abs(y_s[top] - baseline) <= p.confirm_threshold_counts:
         return None
-    z = sign * y_s
-    peak, plateau_end = _level_crossings(z, top, z[top] - p.plateau_tolerance_counts)
-    rise_mid, fall_mid = _level_crossings(z, top, z[top] - 0.5 * prom)
-    d = np.diff(z)  # d[k] = z[k+1] - z[k]
-    stops = np.flatnonzero(d[:rise_mid] <= 0.0)
-    onset = int(stops[-1]) + 1 if stops.size else 0
+    y_c = y_s
+    z_top = sign * y_c[top]
+    # runs above the plateau level and half the prominence around the top, and the sign changes of
+    # diff(sign * y_s) before the rise (onset) and after the fall (offset), in one compiled scan
+    peak, plateau_end, rise_mid, fall_mid, onset, offset = (int(v) for v in contact_extent(
+        y_c, float(sign), int(top), float(z_top - p.plateau_tolerance_counts), float(z_top - 0.5 * prom)))
     if p.refine_onset:
-        onset = _refine_onset(d, onset, rise_mid, p.smoothing_span)
-    ends = np.flatnonzero(d[fall_mid:] >= 0.0)
-    offset = fall_mid + int(ends[0]) if ends.size else z.size - 1
+        onset = _refine_onset(np.diff(sign * y_c), onset, rise_mid, p.smoothing_span)  # d[k] = z[k+1] - z[k]
     if p.compensate_lead:
         onset = min(onset + (p.smoothing_span + 1) // 2, peak)
         offset = max(offset - p.smoothing_span // 2, plateau_end)
@@ -347,17 +348,36 @@ def detect_contacts(
 
     Records of equal length are smoothed together in one call.
     """
+    return _detect_smoothed(records, params)[0]
+
+
+def _detect_smoothed(
+    records: Sequence[WhiskRecord], params: DetectionParams | None = None
+) -> tuple[list[DetectedContact | None], list[np.ndarray]]:
+    """:func:`detect_contacts` and the smoothed y of every record (views of one (n, T) array
+    per record length), for callers that smooth the same records again (the SDA).
+
+    Vectorised across modules: records of equal length are smoothed in one call, and one
+    pass over the (n, T) smoothed array finds the modules whose range reaches the
+    prominence; only those go through the per-module peak search (the range bounds the
+    prominence, so the others have no peak: :func:`detect_contact` returns ``None`` for
+    them at its first test).
+    """
     p = DetectionParams() if params is None else params
     recs = [_check_record(r) for r in records]
     out: list[DetectedContact | None] = [None] * len(recs)
+    smoothed: list[np.ndarray] = [np.empty(0)] * len(recs)
     by_len: dict[int, list[int]] = {}
     for i, r in enumerate(recs):
         by_len.setdefault(r.n_samples, []).append(i)
     for idx in by_len.values():
         ys = moving_average(np.stack([recs[i].y_counts for i in idx]), p.smoothing_span)
+        reach = (ys.max(axis=1) - ys.min(axis=1)) >= p.min_prominence_counts
         for j, i in enumerate(idx):
-            out[i] = detect_contact(recs[i], p, smoothed=ys[j])
-    return out
+            smoothed[i] = ys[j]
+            if reach[j]:
+                out[i] = detect_contact(recs[i], p, smoothed=ys[j])
+    return out, smoothed
 
 
 def max_angle(record: WhiskRecord) -> float:

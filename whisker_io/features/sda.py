@@ -90,6 +90,11 @@ def contact_gradient(
         raise InvalidInputError(f"contact indices do not fit record {record.module} of {record.n_samples} samples")
     xs = moving_average(record.x_counts, smoothing_span)[lo:hi]
     ys = moving_average(record.y_counts, smoothing_span)[lo:hi]
+    return _window_gradient(xs, ys, min_x_spread_counts)
+
+
+def _window_gradient(xs: np.ndarray, ys: np.ndarray, min_x_spread_counts: float) -> float | None:
+    """The least-squares gradient of :func:`contact_gradient` on smoothed onset..peak windows."""
     if xs.size < 2 or not (np.isfinite(xs).all() and np.isfinite(ys).all()):
         return None
     # scale-free: centred signals divided by their largest magnitude, so signals near the
@@ -134,6 +139,37 @@ def slope_distribution(
         if g is not None:
             slopes[i], mask[i] = g, True
     return SlopeDistribution(slopes=slopes, mask=mask, modules=tuple(r.module for r in recs))
+
+
+def _slope_distribution_smoothed(
+    records: Sequence[WhiskRecord],
+    contacts: Sequence[DetectedContact | None],
+    y_smoothed: Sequence[np.ndarray],
+    smoothing_span: int,
+    min_x_spread_counts: float = 1.0,
+) -> SlopeDistribution:
+    """:func:`slope_distribution` of checked records and their detections, given the smoothed y
+    of contact detection (``y_smoothed[i]`` is ``moving_average(records[i].y_counts, smoothing_span)``);
+    the x of the contacted modules is smoothed in one call. Same bits as :func:`slope_distribution`."""
+    n = len(records)
+    slopes = np.zeros(n)
+    mask = np.zeros(n, dtype=bool)
+    hit = [i for i, c in enumerate(contacts) if c is not None]
+    by_len: dict[int, list[int]] = {}
+    for i in hit:
+        by_len.setdefault(records[i].n_samples, []).append(i)
+    for idx in by_len.values():
+        xs = moving_average(np.stack([records[i].x_counts for i in idx]), smoothing_span)
+        for j, i in enumerate(idx):
+            c = contacts[i]
+            lo, hi = c.onset_index, c.peak_index + 1
+            if not (0 <= lo < hi <= records[i].n_samples):
+                raise InvalidInputError(f"contact indices do not fit record {records[i].module} "
+                                        f"of {records[i].n_samples} samples")
+            g = _window_gradient(xs[j, lo:hi], y_smoothed[i][lo:hi], min_x_spread_counts)
+            if g is not None:
+                slopes[i], mask[i] = g, True
+    return SlopeDistribution(slopes=slopes, mask=mask, modules=tuple(r.module for r in records))
 
 
 def nmse(

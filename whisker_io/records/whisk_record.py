@@ -11,6 +11,7 @@ format that stores them is in :mod:`whisker_io.records.recording`.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -148,6 +149,87 @@ class WhiskRecord:
         object.__setattr__(rec, "cycle", int(cycle))
         object.__setattr__(rec, "spare", None)
         return rec
+
+    @classmethod
+    def from_float_rows(
+        cls,
+        modules: Sequence[str],
+        angle_rad: np.ndarray,
+        x_counts: np.ndarray,
+        y_counts: np.ndarray,
+        sample_rate_hz: float = SAMPLE_RATE_HZ,
+        cycle: int = 0,
+    ) -> list[WhiskRecord]:
+        """One record per row of (n, T) float64 arrays (the n modules of one cycle), as read-only views.
+
+        :meth:`from_float_arrays` for a whole array cycle, with the checks made once on the
+        (n, T) arrays instead of once per column. The caller must not modify float64 arrays
+        afterwards (they are viewed, not copied); other input is copied to float64 first.
+
+        Parameters
+        ----------
+        modules : sequence of str, length n
+            Module names, one per row.
+        angle_rad, x_counts, y_counts : ndarray, shape (n, T)
+            Radians, counts, counts.
+        sample_rate_hz : float, default 2000
+        cycle : int, default 0
+
+        Returns
+        -------
+        list of WhiskRecord, length n
+
+        Raises
+        ------
+        InvalidInputError
+            As :meth:`from_float_arrays` (naming the first bad sample), arrays that are not
+            (n, T) of one shape, or a number of module names other than n.
+        """
+        if isinstance(modules, str) or not isinstance(modules, Sequence):
+            raise InvalidInputError(f"modules must be a sequence of module names, got {modules!r}")
+        names = list(modules)
+        cols = (angle_rad, x_counts, y_counts)
+        if not all(isinstance(c, np.ndarray) and c.dtype == np.float64 for c in cols):
+            try:  # copies: the caller's lists or other dtypes are not viewed
+                cols = tuple(np.array(c, dtype=np.float64) for c in cols)
+            except (TypeError, ValueError):
+                raise InvalidInputError("angle_rad, x_counts and y_counts must be (n, T) arrays of numbers") from None
+        shape = cols[0].shape
+        if not all(c.ndim == 2 and c.shape == shape for c in cols) or shape[0] != len(names):
+            raise InvalidInputError(f"angle_rad, x_counts and y_counts must be (n, T) arrays of one shape with one "
+                                    f"row per module name ({len(names)}), got {[c.shape for c in cols]}")
+        if shape[1] == 0:
+            raise InvalidInputError("whisk records need samples: columns must be non-empty and of equal length")
+        for col_name, c in zip(("angle_rad", "x_counts", "y_counts"), cols):
+            if not np.isfinite(c).all():
+                row = int(np.flatnonzero(~np.isfinite(c).all(axis=1))[0])
+                _samples(f"{names[row]}.{col_name}", c[row])  # raises, naming the first bad sample
+        for m in names:
+            if not isinstance(m, str) or not MODULE_NAME_RE.match(m):
+                raise InvalidInputError(
+                    f"module name {m!r} must be a non-empty string of letters and digits, e.g. 'C2'")
+        if not (isinstance(cycle, (int, np.integer)) and cycle >= 0):
+            raise InvalidInputError(f"cycle must be an integer >= 0, got {cycle!r}")
+        rate = finite_scalar(sample_rate_hz, "sample_rate_hz")
+        if not rate > 0:
+            raise InvalidInputError(f"sample_rate_hz must be a positive number, got {sample_rate_hz!r}")
+        views = []
+        for c in cols:
+            v = c.view()
+            v.setflags(write=False)
+            views.append(v)
+        out: list[WhiskRecord] = []
+        for i, m in enumerate(names):
+            rec = object.__new__(cls)
+            object.__setattr__(rec, "module", m)
+            object.__setattr__(rec, "angle_rad", views[0][i])
+            object.__setattr__(rec, "x_counts", views[1][i])
+            object.__setattr__(rec, "y_counts", views[2][i])
+            object.__setattr__(rec, "sample_rate_hz", rate)
+            object.__setattr__(rec, "cycle", int(cycle))
+            object.__setattr__(rec, "spare", None)
+            out.append(rec)
+        return out
 
     @property
     def n_samples(self) -> int:

@@ -354,6 +354,38 @@ class ContactTruth:
     peak_y_counts: float
 
 
+def _check_angles(angles_rad: np.ndarray, n: int) -> np.ndarray:
+    th = np.asarray(angles_rad, dtype=np.float64)
+    if th.ndim != 2 or th.shape[0] != n:
+        raise InvalidInputError(f"angles_rad must have shape (len(contacts)={n}, T), got {th.shape}")
+    return th
+
+
+def _contact_arrays(
+    contacts: Sequence[WhiskContact | None], p: SignalParams
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per whisker: contact angle theta_c (inf: free), slip angle (inf: none), ``G k(a)``
+    (0: free) and the sensor split ``fx``, ``fy`` of :meth:`WhiskContact.sensor_split`."""
+    n = len(contacts)
+    theta_c = np.full(n, np.inf)
+    gain_k = np.zeros(n)
+    fx = np.zeros(n)
+    fy = np.zeros(n)
+    slip = np.full(n, np.inf)
+    a = np.ones(n)
+    L = np.ones(n)
+    for i, c in enumerate(contacts):
+        if c is None:
+            continue
+        theta_c[i] = c.angle_rad
+        slip[i] = c.slip_rad
+        a[i], L[i] = c.radial_distance_m, c.whisker_length_m
+        fx[i], fy[i] = c.sensor_split()
+    hit = np.isfinite(theta_c)
+    gain_k[hit] = p.gain_counts_per_nm * _stiffness(a[hit], L[hit], p)  # a, L checked by WhiskContact
+    return theta_c, slip, gain_k, fx, fy
+
+
 def deflection_counts(
     angles_rad: np.ndarray,
     contacts: Sequence[WhiskContact | None],
@@ -375,26 +407,8 @@ def deflection_counts(
         Deflections, counts, clipped to +-adc_max.
     """
     p = SignalParams() if params is None else params
-    th = np.asarray(angles_rad, dtype=np.float64)
-    if th.ndim != 2 or th.shape[0] != len(contacts):
-        raise InvalidInputError(f"angles_rad must have shape (len(contacts)={len(contacts)}, T), got {th.shape}")
-    n = th.shape[0]
-    theta_c = np.full(n, np.inf)
-    gain_k = np.zeros(n)
-    fx = np.zeros(n)
-    fy = np.zeros(n)
-    slip = np.full(n, np.inf)
-    a = np.ones(n)
-    L = np.ones(n)
-    for i, c in enumerate(contacts):
-        if c is None:
-            continue
-        theta_c[i] = c.angle_rad
-        slip[i] = c.slip_rad
-        a[i], L[i] = c.radial_distance_m, c.whisker_length_m
-        fx[i], fy[i] = c.sensor_split()
-    hit = np.isfinite(theta_c)
-    gain_k[hit] = p.gain_counts_per_nm * _stiffness(a[hit], L[hit], p)  # a, L checked by WhiskContact
+    th = _check_angles(angles_rad, len(contacts))
+    theta_c, slip, gain_k, fx, fy = _contact_arrays(contacts, p)
     past = np.maximum(th - theta_c[:, None], 0.0)  # inf contact angle -> 0
     slipping = np.isfinite(slip)
     if slipping.any():
@@ -438,16 +452,18 @@ def add_sensor_noise(
 
 
 def _truths(
-    angles: np.ndarray, y_clean: np.ndarray, contacts: Sequence[WhiskContact | None], fs: float
+    peaks: tuple[np.ndarray, np.ndarray, np.ndarray], contacts: Sequence[WhiskContact | None], fs: float
 ) -> list[ContactTruth | None]:
+    """Ground truth per whisker from :func:`_synthesise`'s per-whisker scan: the onset is the first
+    sample past the contact angle, the peak the largest noise-free ``|y|`` (``None``: no contact,
+    the whisk never passes the contact angle, or no deflection)."""
+    first_past, peak_index, peak_y = peaks
     out: list[ContactTruth | None] = []
     for i, c in enumerate(contacts):
-        past = angles[i] > c.angle_rad if c is not None else None
-        if c is None or not past.any() or not np.any(y_clean[i]):
+        if c is None or first_past[i] < 0 or peak_y[i] == 0.0:
             out.append(None)
             continue
-        onset = int(np.argmax(past))
-        peak = int(np.argmax(np.abs(y_clean[i])))
+        onset = int(first_past[i])
         out.append(
             ContactTruth(
                 onset_index=onset,
@@ -455,8 +471,8 @@ def _truths(
                 contact_angle_rad=c.angle_rad,
                 radial_distance_m=c.radial_distance_m,
                 whisker_length_m=c.whisker_length_m,
-                peak_index=peak,
-                peak_y_counts=float(y_clean[i, peak]),
+                peak_index=int(peak_index[i]),
+                peak_y_counts=float(peak_y[i]),
             )
         )
     return out
@@ -517,21 +533,41 @@ def simulate_whisk_cycle(
     if len(names) != n:
         raise InvalidInputError(f"modules has {len(names)} names for {n} contacts")
     rng = np.random.default_rng(seed)
-    angles = ctrl.command(n)
-    noise = (rng.standard_normal(angles.shape), rng.standard_normal(angles.shape), rng.standard_normal(angles.shape))
-    x0, y0 = deflection_counts(angles, contacts, p)
-    x, y, th = add_sensor_noise(x0, y0, angles, noise, p)
+    angles = _check_angles(ctrl.command(n), n)
+    # x, y and angle noise in one draw: the same numbers in the same order as three draws of (n, T)
+    noise = rng.standard_normal((3,) + angles.shape)
+    per_whisker = _contact_arrays(contacts, p)
+    x, y, th, peaks = _synthesise(angles, per_whisker, noise, p)
     new_angles = ctrl.respond(angles, y)
     if new_angles is not angles and not np.array_equal(new_angles, angles):
-        angles = new_angles
-        x0, y0 = deflection_counts(angles, contacts, p)
-        x, y, th = add_sensor_noise(x0, y0, angles, noise, p)
+        angles = _check_angles(new_angles, n)
+        x, y, th, peaks = _synthesise(angles, per_whisker, noise, p)
     ctrl.end_cycle(y)
-    records = [
-        WhiskRecord.from_float_arrays(names[i], th[i], x[i], y[i], sample_rate_hz=p.sample_rate_hz, cycle=cycle)
-        for i in range(n)
-    ]
-    return records, _truths(angles, y0, contacts, p.sample_rate_hz)
+    records = WhiskRecord.from_float_rows(names, th, x, y, sample_rate_hz=p.sample_rate_hz, cycle=cycle)
+    return records, _truths(peaks, contacts, p.sample_rate_hz)
+
+
+def _synthesise(
+    angles: np.ndarray,
+    per_whisker: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    noise: np.ndarray,
+    p: SignalParams,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``add_sensor_noise(*deflection_counts(...), angles, noise)`` in one compiled pass (the same
+    bits): measured x, y, angle, each (n, T), and per whisker the first sample past contact,
+    the peak sample of the noise-free ``|y|`` and its value (:func:`_truths`)."""
+    from whisker_io.sim._signals_numba import synthesise_cycle
+
+    a = np.ascontiguousarray(angles, dtype=np.float64)
+    if noise.shape != (3,) + a.shape:
+        raise InvalidInputError(f"the controller's response has shape {a.shape}, not the commanded {noise.shape[1:]}")
+    x, y, th = (np.empty(a.shape) for _ in range(3))
+    n = a.shape[0]
+    first_past, peak_index, peak_y = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    theta_c, slip, gain_k, fx, fy = per_whisker
+    synthesise_cycle(a, theta_c, slip, gain_k, fx, fy, float(p.adc_max_counts), noise, float(p.noise_std_counts),
+                     float(p.angle_noise_std_rad), bool(p.quantize), x, y, th, first_past, peak_index, peak_y)
+    return x, y, th, (first_past, peak_index, peak_y)
 
 
 

@@ -87,12 +87,12 @@ from numpy.typing import NDArray
 from whisker_io.array.control import WhiskController
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rotate_shaft
-from whisker_io.contact.detection import DetectedContact, DetectionParams, detect_contacts
+from whisker_io.contact.detection import DetectedContact, DetectionParams, _detect_smoothed, warm_up_kernels
 from whisker_io.contact.features import contact_features
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.features.pfh import PFHParams
 from whisker_io.features.region import RegionFeatures, region_features
-from whisker_io.features.sda import slope_distribution
+from whisker_io.features.sda import _slope_distribution_smoothed
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.radial.pipeline import RadialPredictor, RadialSource, estimate_radial_distance, resolve_radial_model
 from whisker_io.records.recording import RecordingWriter, ReplayedCycle
@@ -198,6 +198,7 @@ def _signal_features(
     kin: _Kinematics,
     records: Sequence[WhiskRecord],
     detections: Sequence[DetectedContact | None],
+    y_smoothed: Sequence[NDArray[np.float64]],
     contact_model: str,
     predictor: RadialPredictor | None,
     truth_radial_m: NDArray[np.float64] | None,
@@ -206,7 +207,10 @@ def _signal_features(
     pfh_params: PFHParams,
     detection_params: DetectionParams,
 ) -> RegionFeatures:
-    """Detected contacts of one cycle (array order) -> radial distance -> region features."""
+    """Detected contacts of one cycle (array order) -> radial distance -> region features.
+
+    ``y_smoothed``: the smoothed y-deflection of each record from contact detection
+    (:func:`~whisker_io.contact.detection._detect_smoothed`), reused by the SDA."""
     n = len(array)
     present = np.array([d is not None for d in detections], dtype=bool)
     theta = np.array([d.contact_angle_rad if d is not None else 0.0 for d in detections])
@@ -223,7 +227,7 @@ def _signal_features(
         present[idx[~good]] = False
         if good.any():
             r[idx[good]] = estimate_radial_distance(F[good], predictor)  # type: ignore[arg-type]
-    sda = slope_distribution(records, detections, detection_params.smoothing_span)
+    sda = _slope_distribution_smoothed(records, detections, y_smoothed, detection_params.smoothing_span)
     if sda.slopes.shape != (n,):  # pragma: no cover - records are one per module
         raise InvalidInputError(f"expected {n} records, got {sda.slopes.shape[0]}")
     return _features(kin, present, theta, r, sda.slopes, sda.mask, noise, rng, pfh_params)
@@ -374,6 +378,8 @@ class WhiskChain:
         self.sweep_params = sweep_params
         self.detection_params = det
         self._kin = _Kinematics(arr)
+        if signals:
+            warm_up_kernels()  # the synthesis kernel was compiled by the calibration above
 
     def whisk(self, pose: PoseLike, rng: np.random.Generator) -> ChainWhisk:
         """Whisk once at ``pose`` and return the features with everything that led to them.
@@ -408,10 +414,12 @@ class WhiskChain:
                               self.pfh_params)
             return ChainWhisk(pose, feats, sweep)
         result = self._simulator.whisk(self.target, pose, rng=gen)
-        dets = tuple(detect_contacts(result.records, self.detection_params))
+        found, smoothed = _detect_smoothed(result.records, self.detection_params)
+        dets = tuple(found)
         truth = np.array([c.radial_distance_m if c is not None else np.nan for c in result.sweep_contacts])
-        feats = _signal_features(self.array, self._kin, result.records, dets, self.contact_model, self._predictor,
-                                 truth, self.contact_noise, gen, self.pfh_params, self.detection_params)
+        feats = _signal_features(self.array, self._kin, result.records, dets, smoothed, self.contact_model,
+                                 self._predictor, truth, self.contact_noise, gen, self.pfh_params,
+                                 self.detection_params)
         return ChainWhisk(pose, feats, result.sweep_contacts, result.records, dets)
 
     def features(self, pose: PoseLike, rng: np.random.Generator) -> RegionFeatures:
@@ -476,6 +484,7 @@ class RecordedChain:
         self.pfh_params = pfh_params
         self.detection_params = det
         self._kin = _Kinematics(arr)
+        warm_up_kernels()
 
     def _generator(self, rng: np.random.Generator | None) -> np.random.Generator | None:
         return _check_generator(rng) if self.contact_noise is not None else None
@@ -503,9 +512,9 @@ class RecordedChain:
         return self._features(recs, self._generator(rng))
 
     def _features(self, records: list[WhiskRecord], rng: np.random.Generator | None) -> RegionFeatures:
-        dets = detect_contacts(records, self.detection_params)
-        return _signal_features(self.array, self._kin, records, dets, self.contact_model, self._predictor, None,
-                                self.contact_noise, rng, self.pfh_params, self.detection_params)
+        dets, smoothed = _detect_smoothed(records, self.detection_params)
+        return _signal_features(self.array, self._kin, records, dets, smoothed, self.contact_model, self._predictor,
+                                None, self.contact_noise, rng, self.pfh_params, self.detection_params)
 
     def __call__(self, cycle: ReplayedCycle) -> tuple[Pose, RegionFeatures]:
         """The chain as a pipeline of :mod:`whisker_io.hw.recorder`: one recorded cycle -> ``(pose, features)``.

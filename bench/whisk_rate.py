@@ -1,0 +1,42 @@
+"""Whisks/s of the whisk chain's signal path, runnable in any checkout (issue 26 item 5).
+
+The loop of ``bench/test_bench_whisk_chain.py`` (``WhiskChain(mesh, signals=True,
+contact_model="tip").features`` at every pose of one loop of trajectory A, seed 0), after one
+uncounted loop; prints whisks / (minimum CPU time of ``ROUNDS`` loops) per object. CPU time
+(``time.process_time``), not wall time, because the machine it was measured on was shared
+(load average 3-6 on 2 cores): wall time then measures the share of the CPU, not the code.
+It imports the packages of the CURRENT DIRECTORY (run it from the checkout's root), so two
+checkouts can be run alternately on the same work. Not collected by pytest.
+
+Usage: ``cd CHECKOUT && python /path/to/bench/whisk_rate.py [mug,kettle] [ROUNDS]``
+"""
+import os
+import sys
+import time
+
+sys.path.insert(0, os.getcwd())  # the tree we stand in, not the installed checkout
+import numpy as np  # noqa: E402
+
+import whisker_io  # noqa: E402
+
+assert os.path.dirname(os.path.dirname(os.path.abspath(whisker_io.__file__))) == os.getcwd(), whisker_io.__file__
+from whisker_io.sim.objects import make_object  # noqa: E402
+from whisker_io.sim.trajectories import object_trajectory  # noqa: E402
+from whisker_io.sim.whisk_chain import WhiskChain  # noqa: E402
+
+names = sys.argv[1].split(",") if len(sys.argv) > 1 else ["mug", "kettle"]
+rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 5
+out = []
+for name in names:
+    mesh = make_object(name)
+    poses = object_trajectory(mesh, "A", n_loops=1)
+    chain = WhiskChain(mesh, signals=True, contact_model="tip")
+    rng = np.random.default_rng(0)
+    [chain.features(p, rng) for p in poses]
+    best = np.inf
+    for _ in range(rounds):
+        t0 = time.process_time()
+        [chain.features(p, rng) for p in poses]
+        best = min(best, time.process_time() - t0)
+    out.append(f"{name}={len(poses) / best:.1f}")
+print(" ".join(out))
