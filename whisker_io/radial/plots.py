@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from whisker_io.plots.axes import figure_and_axes, figure_and_axes_grid
+from whisker_io.plots.axes import boxplot_handles, figure_and_axes, figure_and_axes_grid
 from whisker_io.radial.evaluation import PCAResult
 
 __all__ = ["plot_pca_loadings", "plot_histograms", "plot_boxplots"]
@@ -132,21 +132,14 @@ def plot_boxplots(
     xlabel : str
         What the groups are (default "model").
     """
-    from matplotlib.lines import Line2D
-
     fig, ax = figure_and_axes(ax, (1.4 * max(3, len(groups)) + 1.5, 4.0))
     labels = list(groups)
     parts = ax.boxplot([np.asarray(groups[k], dtype=float) for k in labels], notch=True, showfliers=False)
     ax.set_xticks(np.arange(1, len(labels) + 1), labels, rotation=30, ha="right", fontsize=8)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    box = parts["boxes"][0] if parts["boxes"] else None
-    median = parts["medians"][0] if parts["medians"] else None
-    if box is not None and median is not None:
-        ax.legend(handles=[
-            Line2D([], [], color=median.get_color(), label="median (notch: ~95 % CI of the median)"),
-            Line2D([], [], color=box.get_color(), label="box: quartiles; whiskers: data within 1.5 IQR"),
-        ], fontsize=7, loc="upper right")
+    if parts["boxes"]:
+        ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="upper right")
     if ymax is not None:
         ax.set_ylim(bottom=0.0, top=ymax)
     if title:
