@@ -21,6 +21,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 from matplotlib.collections import Collection  # noqa: E402
 from matplotlib.colors import to_hex  # noqa: E402
 from matplotlib.container import ErrorbarContainer  # noqa: E402
@@ -468,6 +470,28 @@ def test_boxplot_handles_name_every_mark():
                       "outlier (beyond the whiskers)"]
     assert boxplot_handles({"boxes": []}) == []
     plt.close(fig)
+
+
+@settings(max_examples=10, deadline=None)
+@given(groups=st.lists(st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=30), min_size=1, max_size=4),
+       notch=st.booleans(), fliers=st.booleans())
+def test_boxplot_handles_match_what_was_drawn(groups, notch, fliers):
+    """Median and box always; the notch named only when drawn; an outlier entry iff an outlier is drawn."""
+    from whisker_io.plots.axes import boxplot_handles
+
+    fig, ax = plt.subplots()
+    try:
+        parts = ax.boxplot([np.asarray(g) for g in groups], notch=notch, showfliers=fliers)
+        labels = [h.get_label() for h in boxplot_handles(parts)]
+        drawn_outlier = any(len(f.get_xdata()) for f in parts["fliers"])
+        assert labels[0].startswith("median") and ("notch" in labels[0]) == notch
+        assert labels[1].startswith("box: quartiles")
+        assert ("outlier (beyond the whiskers)" in labels) == drawn_outlier
+        ax.legend(handles=boxplot_handles(parts))
+        ax.set(xlabel="group index", ylabel="value (m)", title="box plot")
+        assert_readable_figure(fig)
+    finally:
+        plt.close(fig)
 
 
 def _load_example(name: str):

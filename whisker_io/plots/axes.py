@@ -4,6 +4,7 @@ Every plotting function of the distribution (``whisker_io.plots``,
 ``whisker_io.radial.plots``, ``maps.plot_maps``) takes an optional matplotlib
 Axes (or a sequence of Axes) and returns the Figure; these two functions make
 that choice in one place. matplotlib is imported only when a new figure is made.
+:func:`boxplot_handles` is the key every box plot of the project puts in its legend.
 """
 
 from __future__ import annotations
