@@ -58,7 +58,8 @@ def _is_colorbar(ax) -> bool:
 
 
 def _data_artists(ax) -> list:
-    out = [a for a in (*ax.lines, *ax.collections, *ax.patches, *ax.images) if a.get_visible()]
+    out = [a for a in (*ax.lines, *ax.collections, *ax.patches, *ax.images) if a.get_visible()
+           and not (isinstance(a, Line2D) and len(a.get_xdata()) == 0)]  # an empty line draws nothing
     return [a for a in out if not (isinstance(a, Patch) and a is ax.patch)]
 
 

@@ -725,7 +725,7 @@ def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[t
             ax.set_yscale("log")
             ax.set_ylabel("probability density (log)", fontsize="small")
             if r == len(CONTROLS) - 1:
-                ax.set_xlabel("Eq 3.1 dissimilarity (mean per image), sqrt(grey level)")
+                ax.set_xlabel(f"Eq 3.1 dissimilarity, mean per image (sqrt(grey level)); above {bins[-1]:g}: last bin")
     axes[0, 0].legend(fontsize="x-small")
     fig.suptitle("Tactile place recognition: Eq 3.1 dissimilarity, same place on another pass vs different places (tuning runs)")
     fig.tight_layout()
