@@ -148,7 +148,7 @@ def figure(results: Sequence[dict]):
         ax_r.plot(xs, [r["msd_r_squared"] for r in rows], "o-", label=f"{kind} ({level})")
         if kind == "velocity":
             ax_d.plot(xs, [x * x / 2 for x in xs], "k--", lw=0.8, label="input alone (s^2 / 2)")
-    xlabel = "noise level (velocity: std, cells / step; injection: energy, of total 1)"
+    xlabel = "noise level (velocity: cells/step; injection: energy)"  # the std or the energy, see the legend
     ax_d.set(xlabel=xlabel, ylabel="D (cells^2 / step)", title="Packet diffusion")
     ax_r.set(xlabel=xlabel, ylabel="R^2 of MSD = a + 2 D t", ylim=(0, 1.05), title="Linearity of the variance")
     ax_d.legend(fontsize=8)

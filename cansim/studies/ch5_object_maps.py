@@ -566,7 +566,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
     parts = ax.boxplot(data, tick_labels=objs)
-    ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="upper left")
+    ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     ax.set_xlabel("object")
     ax.set_ylabel("dead-reckoning displacement error (m)")
     ax.set_title("Fig 5.14b: integrated odometry vs truth, one loop of A")

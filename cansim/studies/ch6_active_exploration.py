@@ -525,11 +525,11 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     for s in STRATEGY_NAMES:
         med = [np.median([x["im"] for x in strat_rows if x["strategy"] == s and x["threshold"] == t] or [np.nan]) for t in THRESHOLDS]
         ax.plot(THRESHOLDS, med, marker="o", label=s)
-    ax.set_xlabel("IC threshold (integrated confidence)"); ax.set_ylabel("median IM (whisks)"); ax.legend(); ax.set_title("Fig 6.7: IM vs threshold")
+    ax.set_xlabel("IC threshold (integrated confidence)"); ax.set_ylabel("median IM (whisks)"); ax.legend(); ax.set_title("Fig 6.7: identity margin (IM) vs threshold")
     fig.tight_layout(); fig.savefig(out / "fig6_7_im_threshold.png", dpi=100); plt.close(fig)
 
-    for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: IM at IC 300"),
-                              ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: SRT at IC 300")):
+    for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: identity margin (IM) at IC 300"),
+                              ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: successful recognition time (SRT) at IC 300")):
         fig, ax = plt.subplots(figsize=(6, 4))
         d = [[x[col] for x in strat_rows if x["strategy"] == s and x["threshold"] == 300.0] or [np.nan] for s in STRATEGY_NAMES]
         parts = ax.boxplot(d, notch=True)

@@ -139,7 +139,7 @@ def plot_boxplots(
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if parts["boxes"]:
-        ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="upper right")
+        ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     if ymax is not None:
         ax.set_ylim(bottom=0.0, top=ymax)
     if title:
