@@ -526,6 +526,13 @@ def test_whisker_ratslam_demo_figures_read(tmp_path, saved_figures):
     _check_saved(saved_figures, ["whisker_ratslam_map.png", "whisker_ratslam_experiences.png"])
 
 
+def test_ratslam_demo_figures_read(tmp_path, saved_figures):
+    from cansim.studies import ratslam_demo
+
+    assert ratslam_demo.main(["--out", str(tmp_path)]) == 0
+    _check_saved(saved_figures, ["ratslam_map.png", "ratslam_experience_ids.png", "ratslam_experience_ids_kidnapped.png"])
+
+
 # --------------------------------------------------------------- whole quick studies (slow)
 @pytest.mark.slow
 @pytest.mark.parametrize("study, argv, expected", [
@@ -538,7 +545,6 @@ def test_whisker_ratslam_demo_figures_read(tmp_path, saved_figures):
                                              "fig6_7_im_threshold.png", "fig6_8_im_strategy.png", "fig6_9_srt_strategy.png"]),
     ("recognition", ["--quick"], ["recognition_confusion.png", "recognition_accuracy_vs_distance.png",
                                   "recognition_accuracy_vs_library.png"]),
-    ("ratslam_demo", [], ["ratslam_map.png", "ratslam_experience_ids.png", "ratslam_experience_ids_kidnapped.png"]),
 ])
 def test_quick_study_figures_read(study, argv, expected, tmp_path, saved_figures):
     import importlib
