@@ -136,6 +136,7 @@ def plot(res: dict, path: Path) -> None:
     ax0.set_ylim(0, 360)
     ax0.set_ylabel("heading (deg)")
     ax0.legend(loc="upper right", markerscale=5, fontsize=8)
+    ax0.set_title("true heading and the heading decoded from each ring", fontsize=10)
     m = res["metrics"]
     ax_r.set_title(
         f"spike raster (one dot per spike); 360-neuron spiking HD ring vs rate ring: RMS {m['rms_vs_true_deg']:.1f} deg vs true, "
@@ -147,6 +148,7 @@ def plot(res: dict, path: Path) -> None:
     ax1.set_ylabel("error (deg)")
     ax1.set_xlabel("time (s)")
     ax1.legend(loc="upper left", fontsize=8)
+    ax1.set_title("decoded minus true heading", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -74,7 +74,8 @@ def plot_experience_map(
         segs = np.stack([poses[ends[:, 0]], poses[ends[:, 1]]], axis=1)
         from matplotlib.collections import LineCollection
 
-        ax.add_collection(LineCollection(segs, colors="tab:blue", linewidths=0.8, zorder=3))
+        ax.add_collection(LineCollection(segs, colors="tab:blue", linewidths=0.8, zorder=3,
+                                        label="links (odometry between experiences)"))
     if len(poses):
         ax.scatter(poses[:, 0], poses[:, 1], s=8, color="tab:blue", label="experiences", zorder=4)
     ax.set_aspect("equal", adjustable="datalim")

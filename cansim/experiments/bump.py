@@ -98,13 +98,16 @@ def figure(results: Sequence[dict]):
     import matplotlib.pyplot as plt
 
     fig, (ax_w, ax_a) = plt.subplots(1, 2, figsize=(9, 3.6))
+    collapsed_labelled = False
     for phi in sorted({r["global_inhibition"] for r in results}):
         rows = sorted((r for r in results if r["global_inhibition"] == phi), key=lambda r: r["exc_sigma_cells"])
         xs = [r["exc_sigma_cells"] for r in rows]
         ax_w.plot(xs, [r["fwhm_cells"] for r in rows], "o-", label=f"phi = {phi:g}")
         ax_a.plot(xs, [r["amplitude"] for r in rows], "o-", label=f"phi = {phi:g}")
         dead = [r for r in rows if r["collapsed"]]
-        ax_w.plot([r["exc_sigma_cells"] for r in dead], [0] * len(dead), "kx")
+        ax_w.plot([r["exc_sigma_cells"] for r in dead], [0] * len(dead), "kx",
+                  label="collapsed (no packet, drawn at 0)" if dead and not collapsed_labelled else None)
+        collapsed_labelled = collapsed_labelled or bool(dead)
     ax_w.set(xlabel="excitation sigma (cells)", ylabel="packet FWHM (cells)", title="Packet width")
     ax_a.set(xlabel="excitation sigma (cells)", ylabel="peak activity (of total 1)", title="Packet amplitude")
     ax_w.legend(fontsize=8)

@@ -145,11 +145,12 @@ def figure(results: Sequence[dict]):
             continue
         xs = [r[level] for r in rows]
         ax_d.plot(xs, [r["diffusion_cells2_per_step"] for r in rows], "o-", label=f"{kind} ({level})")
-        ax_r.plot(xs, [r["msd_r_squared"] for r in rows], "o-", label=kind)
+        ax_r.plot(xs, [r["msd_r_squared"] for r in rows], "o-", label=f"{kind} ({level})")
         if kind == "velocity":
             ax_d.plot(xs, [x * x / 2 for x in xs], "k--", lw=0.8, label="input alone (s^2 / 2)")
-    ax_d.set(xlabel="noise level", ylabel="D (cells^2 / step)", title="Packet diffusion")
-    ax_r.set(xlabel="noise level", ylabel="R^2 of MSD = a + 2 D t", ylim=(0, 1.05), title="Linearity of the variance")
+    xlabel = "noise level (velocity: cells/step; injection: energy)"  # the std or the energy, see the legend
+    ax_d.set(xlabel=xlabel, ylabel="D (cells^2 / step)", title="Packet diffusion")
+    ax_r.set(xlabel=xlabel, ylabel="R^2 of MSD = a + 2 D t", ylim=(0, 1.05), title="Linearity of the variance")
     ax_d.legend(fontsize=8)
     fig.tight_layout()
     return fig

@@ -106,6 +106,7 @@ def figure(results: Sequence[dict]):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    jump_labelled = False
     for energy in sorted({r["injection_energy"] for r in results}):
         rows = sorted((r for r in results if r["injection_energy"] == energy and r["reanchored"]),
                       key=lambda r: r["offset_cells"])
@@ -113,8 +114,10 @@ def figure(results: Sequence[dict]):
                 label=f"energy {energy:g}")
         for r in rows:
             if r["mode"] == "jump":
-                ax.plot(abs(r["offset_cells"]), r["reanchor_steps"], "k^", ms=4)
-    ax.set(xlabel="|view offset| (cells)", ylabel="steps to re-anchor", title="Re-anchoring (triangles: jumps)")
+                ax.plot(abs(r["offset_cells"]), r["reanchor_steps"], "k^", ms=4,
+                        label=None if jump_labelled else "jump (a new packet grew at the view)")
+                jump_labelled = True
+    ax.set(xlabel="|view offset| (cells)", ylabel="time to re-anchor (steps)", title="Re-anchoring (triangles: jumps)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig

@@ -667,6 +667,8 @@ def figure_performance(rows: list[dict[str, Any]], path: Path) -> None:
 
     panels = (("ARR", "ARR (higher is better)"), ("ARCR", "ARCR (higher is better)"), ("EM", "EM (lower is better)"),
               ("error_ratio", "map error / dead-reckoning error (lower is better)"))
+    ylabels = {"ARR": "ARR (average re-localisation rate, Alg 1)", "ARCR": "ARCR (average correct re-localisation rate, Alg 1)",
+               "EM": "EM (m^2 + rad^2, Eq 3.2-3.3)", "error_ratio": "trajectory error ratio (map / dead reckoning)"}
     fig, axes = plt.subplots(1, len(panels), figsize=(16.0, 4.0))
     width = 0.38
     x = np.arange(len(CONTACT_ANGLES))
@@ -683,7 +685,9 @@ def figure_performance(rows: list[dict[str, Any]], path: Path) -> None:
         ax.set_xticks(x, [m.replace("_", " ") for m in CONTACT_ANGLES])
         ax.set_title(title, fontsize="small")
         ax.set_xlabel("contact-angle strategy")
-    axes[-1].axhline(1.0, color="0.5", lw=0.8, ls="--")
+        ax.set_ylabel(ylabels[key], fontsize="small")
+    axes[-1].axhline(1.0, color="0.5", lw=0.8, ls="--", label="map as good as dead reckoning")
+    axes[-1].legend(fontsize="x-small")
     axes[0].legend(fontsize="small")
     n_reps = max((sum(1 for r in rows if r["control"] == c and r["contact_angle"] == m and not r["kidnapped"])
                   for c in CONTROLS for m in CONTACT_ANGLES), default=0)
@@ -719,8 +723,9 @@ def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[t
                 ax.axvline(calibration[(control, m)][0], color="0.3", ls="--", lw=1.0, label="sequence threshold")
             ax.set_title(f"{control.replace('_', ' ')}, {m.replace('_', ' ')}", fontsize="small")
             ax.set_yscale("log")
+            ax.set_ylabel("probability density (log)", fontsize="small")
             if r == len(CONTROLS) - 1:
-                ax.set_xlabel("Eq 3.1 dissimilarity (mean per image), sqrt(grey level)")
+                ax.set_xlabel(f"Eq 3.1 dissimilarity, mean per image (sqrt(grey level)); above {bins[-1]:g}: last bin")
     axes[0, 0].legend(fontsize="x-small")
     fig.suptitle("Tactile place recognition: Eq 3.1 dissimilarity, same place on another pass vs different places (tuning runs)")
     fig.tight_layout()

@@ -160,10 +160,12 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
         models, val.data, keep=val.unseen, reconstruct=partial(dataset_contact_points, val.array), mesh=val.mesh, seed=seed
     )
     write_results_csv(scores, out / "radial_results.csv")
-    plot_histograms({s.model: s.errors for s in scores}, "radial error / whisker length (Eq 4.1)").savefig(
+    plot_histograms({s.model: s.errors for s in scores}, "radial error / whisker length (Eq 4.1)",
+                    title="Fig 4.9: radial-distance error on unseen whisker lengths, per model").savefig(
         out / "fig4_9_radial_error.png", dpi=110
     )
-    plot_histograms({s.model: 1e3 * s.mesh_distances_m for s in scores}, "point-to-mesh distance (mm)").savefig(
+    plot_histograms({s.model: 1e3 * s.mesh_distances_m for s in scores}, "point-to-mesh distance (mm)",
+                    title="Fig 4.8: reconstructed contact point to object surface, per model").savefig(
         out / "fig4_8_mesh_distance.png", dpi=110
     )
     by = {s.model: s for s in scores}

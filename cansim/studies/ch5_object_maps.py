@@ -559,11 +559,14 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from whisker_io.plots.axes import boxplot_handles
+
     objs = list(dict.fromkeys(b["object"] for b in builds))
     # Fig 5.14b: dead-reckoning displacement error over one loop of A
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
-    ax.boxplot(data, tick_labels=objs)
+    parts = ax.boxplot(data, tick_labels=objs)
+    ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     ax.set_xlabel("object")
     ax.set_ylabel("dead-reckoning displacement error (m)")
     ax.set_title("Fig 5.14b: integrated odometry vs truth, one loop of A")
@@ -574,7 +577,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
-        ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=objs, showfliers=False)
+        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=objs, showfliers=False)
         for i, o in enumerate(objs):
             st = next(b[step_key] for b in builds if b["object"] == o)
             ax.hlines(st, i + 0.6, i + 1.4, colors="tab:red", linestyles="--")
@@ -588,7 +591,8 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     from matplotlib.lines import Line2D
 
     legend = [Line2D([], [], color="tab:red", ls="--", label="step between whisks"),
-              Line2D([], [], marker="*", ms=12, color="gold", mec="k", ls="", label=f"median of {star.label}")]
+              Line2D([], [], marker="*", ms=12, color="gold", mec="k", ls="", label=f"median of {star.label}"),
+              *boxplot_handles(parts)]
     axes[0].legend(handles=legend, fontsize=7, loc="upper left")
     axes[0].set_title("Fig 5.15: position error per object (boxes: all configurations)")
     axes[1].set_title("Fig 5.15: rotation error per object")
@@ -608,8 +612,8 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             if len(rows):
                 a1.axvspan(rows[0], rows[-1], color=cmap(k), alpha=0.15)
                 a1.text(rows[0], 0, name, fontsize=7, va="bottom")
-        a1.plot(t[:n0], h[:n0], color="0.5", lw=0.8)
-        a1.plot(t[n0:], h[n0:], color="k", lw=0.8)
+        a1.plot(t[:n0], h[:n0], color="0.5", lw=0.8, label="experience id while the library maps were built")
+        a1.plot(t[n0:], h[n0:], color="k", lw=0.8, label="experience id while the object is presented")
         corr = r["names"].index(r["presented"]) if r["presented"] in r["names"] else -1
         tg = r["targets"]
         ok = np.flatnonzero(tg == corr)
@@ -617,13 +621,15 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
         a1.plot(n0 + ok, h[n0 + ok], "o", color="tab:green", ms=4, label="correct re-localisation")
         a1.plot(n0 + bad, h[n0 + bad], "o", color="tab:red", ms=4, label="incorrect re-localisation")
         a1.set_ylabel("experience id")
+        a1.set_xlabel("iteration (library build, then presentation; shaded: each library object's map, same colours below)")
         a1.legend(fontsize=7, loc="upper left")
         a1.set_title(f"Fig 5.16: {r['presented']} presented (trajectory A)")
         for k, name in enumerate(r["names"]):
             a2.plot(r["confidence"][:, k], color=cmap(k), label=name)
-        a2.axhline(RC_THRESHOLD, color="tab:red", lw=1)
+        a2.axhline(RC_THRESHOLD, color="tab:red", lw=1, label=f"threshold {RC_THRESHOLD:g}")
         a2.set_xlabel("iteration of the exploration")
         a2.set_ylabel("confidence c_k")
+        a2.set_title("raw confidence of each map identity during the presentation")
         a2.legend(fontsize=7, ncol=3)
         fig.tight_layout()
         fig.savefig(out / "fig5_16_history.png", dpi=110)

@@ -476,6 +476,8 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from whisker_io.plots.axes import boxplot_handles
+
     # Fig 6.2: whisk poses with and without SPC (noisy odometry), one seed
     fig = plt.figure(figsize=(10, 5))
     for i, label in enumerate(("on", "off")):
@@ -484,8 +486,10 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
         if r is not None:
             P = np.array([p.position_m for p in r["result"].poses])
             Y = np.array([p.rotation.as_matrix()[:, 1] for p in r["result"].poses])
-            ax.quiver(P[:, 0], P[:, 1], P[:, 2], Y[:, 0], Y[:, 1], Y[:, 2], length=0.05, linewidth=0.5)
-            ax.plot(P[:, 0], P[:, 1], P[:, 2], lw=0.4, color="grey")
+            ax.quiver(P[:, 0], P[:, 1], P[:, 2], Y[:, 0], Y[:, 1], Y[:, 2], length=0.05, linewidth=0.5,
+                      label="whisk pose (arrow: array y-axis)")
+            ax.plot(P[:, 0], P[:, 1], P[:, 2], lw=0.4, color="grey", label="path between whisks")
+            ax.legend(loc="upper left", fontsize=7)
         ax.set_title(f"SPC {label}: whisk poses (y-axis arrows)")
         ax.set_xlabel("x (m)"); ax.set_ylabel("y (m)"); ax.set_zlabel("z (m)")
     fig.tight_layout(); fig.savefig(out / "fig6_2_spc_poses.png", dpi=100); plt.close(fig)
@@ -499,6 +503,7 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
             axes[1].plot(r.ic[:, k], label=name)
         for thr in THRESHOLDS:
             axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
+        axes[1].set_title("integrated confidence (dotted: the IC thresholds)", fontsize=9)
     axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
     axes[0].legend(); axes[0].set_title(f"Fig 6.4: {runs[0]['presented']} presented, {runs[0]['strategy']}" if runs else "")
     fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
@@ -508,9 +513,11 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     fig, ax = plt.subplots(figsize=(6, 4))
     data = [[x[col] for x in spc_rows if x["spc"] == s] for col in ("mean_correct_confidence", "mean_incorrect_confidence")
             for s in ("on", "off")]
-    ax.boxplot([d if d else [np.nan] for d in data], notch=True)
+    parts = ax.boxplot([d if d else [np.nan] for d in data], notch=True)
     ax.set_xticks([1, 2, 3, 4], ["correct\nSPC on", "correct\nSPC off", "incorrect\nSPC on", "incorrect\nSPC off"])
-    ax.set_ylabel("mean raw confidence"); ax.set_title("Fig 6.6: SPC on vs off")
+    ax.set_xlabel("map identity (correct / incorrect) and SPC setting")
+    ax.legend(handles=boxplot_handles(parts), fontsize=7)
+    ax.set_ylabel("mean raw confidence (per run)"); ax.set_title("Fig 6.6: SPC on vs off")
     fig.tight_layout(); fig.savefig(out / "fig6_6_confidence_spc.png", dpi=100); plt.close(fig)
 
     strat_rows = [x for x in rows if x["spc"] == "on" and x.get("study") == "strategy"]
@@ -518,15 +525,17 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     for s in STRATEGY_NAMES:
         med = [np.median([x["im"] for x in strat_rows if x["strategy"] == s and x["threshold"] == t] or [np.nan]) for t in THRESHOLDS]
         ax.plot(THRESHOLDS, med, marker="o", label=s)
-    ax.set_xlabel("IC threshold"); ax.set_ylabel("median IM (whisks)"); ax.legend(); ax.set_title("Fig 6.7: IM vs threshold")
+    ax.set_xlabel("IC threshold (integrated confidence)"); ax.set_ylabel("median IM (whisks)"); ax.legend(); ax.set_title("Fig 6.7: identity margin (IM) vs threshold")
     fig.tight_layout(); fig.savefig(out / "fig6_7_im_threshold.png", dpi=100); plt.close(fig)
 
-    for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: IM at IC 300"),
-                              ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: SRT at IC 300")):
+    for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: identity margin (IM) at IC 300"),
+                              ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: successful recognition time (SRT) at IC 300")):
         fig, ax = plt.subplots(figsize=(6, 4))
         d = [[x[col] for x in strat_rows if x["strategy"] == s and x["threshold"] == 300.0] or [np.nan] for s in STRATEGY_NAMES]
-        ax.boxplot(d, notch=True)
+        parts = ax.boxplot(d, notch=True)
         ax.set_xticks([1, 2, 3], list(STRATEGY_NAMES)); ax.set_ylabel(f"{col.upper()} (whisks)"); ax.set_title(title)
+        ax.set_xlabel("exploration strategy")
+        ax.legend(handles=boxplot_handles(parts), fontsize=7)
         fig.tight_layout(); fig.savefig(out / fname, dpi=100); plt.close(fig)
 
 

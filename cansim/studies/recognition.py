@@ -507,7 +507,8 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     presented = list(dict.fromkeys(r["presented"] for r in base))
     decided = [p for p in presented if not any(r["novel"] for r in base if r["presented"] == p)] + ["none"]
     files = []
-    fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels) + 1.5, 0.32 * len(presented) + 2.5), squeeze=False)
+    fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels) + 1.5, 0.32 * len(presented) + 2.5), squeeze=False,
+                             sharey=True)  # one column of object names, not one over each neighbour
     for ax, lab in zip(axes[0], labels):
         m = np.zeros((len(presented), len(decided)))
         for r in base:
@@ -536,11 +537,12 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
                 xs.append(r["median_distance_m"] * 100)
                 ys.append(float(bool(r["correct"])))
         ax.scatter(xs, np.array(ys) + (0.02 if novel else -0.02), s=10, color=colour, alpha=0.4)
-        for lab, (c, n) in acc.items():
+        for j, (lab, (c, n)) in enumerate(acc.items()):
             d = np.median([r["median_distance_m"] * 100 for r in base if _label(r) == lab and bool(r["novel"]) == novel])
             ax.plot(d, c / n, "o", ms=9, color=colour, mec="k")
             if not novel:
-                ax.annotate(f"{lab}: {c}/{n}", (d, c / n), textcoords="offset points", xytext=(6, -12), fontsize=7)
+                ax.annotate(f"{lab}: {c}/{n}", (d, c / n), textcoords="offset points", xytext=(6, -12 + 10 * (j % 3)),
+                            fontsize=7)  # staggered: conditions at the same distance do not overwrite each other
         ax.plot([], [], "o", color=colour, mec="k", label=f"{what} (share per presentation)")
     ax.axhline(0.9, color="0.5", ls=":", lw=1, label="issue 22 target (library objects)")
     ax.set_xlabel("median distance of the presentation's whisks to the nearest mapping pose (cm)")

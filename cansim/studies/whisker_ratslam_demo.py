@@ -263,13 +263,15 @@ def figures(result: dict, out: Path) -> list[Path]:
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")
     v, f = mesh.vertices, mesh.faces
-    ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=f, color="0.8", alpha=0.35, linewidth=0)
+    ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=f, color="0.8", alpha=0.35, linewidth=0,
+                    label=f"object ({result['metrics']['object']})")
     ax.plot(*truth.T, "-", color="tab:green", lw=1.2, label="ground truth")
     ax.plot(*dead.T, "--", color="tab:red", lw=1.0, label="dead reckoning")
     ends, _ = slam.object_map.links
-    for a, b in ends:
-        ax.plot(*np.stack([nodes[a], nodes[b]]).T, "-", color="tab:blue", lw=0.6, alpha=0.6)
-    ax.scatter(*nodes.T, s=12, color="tab:blue", label="object-map experiences (links in blue)")
+    for j, (a, b) in enumerate(ends):
+        ax.plot(*np.stack([nodes[a], nodes[b]]).T, "-", color="tab:blue", lw=0.6, alpha=0.6,
+                label="links between experiences" if j == 0 else None)
+    ax.scatter(*nodes.T, s=12, color="tab:blue", label="object-map experiences")
     ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
     m = result["metrics"]
     ax.set_title(f"WhiskerRatSLAM on the {m['object']}: {m['experiences']} experiences, {m['relocalisations']} re-localisations")

@@ -4,6 +4,7 @@ Every plotting function of the distribution (``whisker_io.plots``,
 ``whisker_io.radial.plots``, ``maps.plot_maps``) takes an optional matplotlib
 Axes (or a sequence of Axes) and returns the Figure; these two functions make
 that choice in one place. matplotlib is imported only when a new figure is made.
+:func:`boxplot_handles` is the key every box plot of the project puts in its legend.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["figure_and_axes", "figure_and_axes_grid"]
+__all__ = ["figure_and_axes", "figure_and_axes_grid", "boxplot_handles"]
 
 
 def figure_and_axes(
@@ -93,3 +94,38 @@ def figure_and_axes_grid(
     for ax in flat[n:]:
         ax.set_visible(False)
     return fig, flat[:n]
+
+
+def boxplot_handles(parts: dict[str, list[Any]]) -> list[Any]:
+    """Legend handles that say what the marks of a matplotlib box plot are.
+
+    A box plot draws the median (a coloured line), the box (quartiles), the whiskers
+    (the furthest data within 1.5 IQR of the box, matplotlib's default) and, when
+    shown, the outliers beyond them; a reader of the figure needs that key.
+
+    Parameters
+    ----------
+    parts : dict
+        What ``Axes.boxplot`` returned (``"medians"``, ``"boxes"``, ``"fliers"`` ...).
+
+    Returns
+    -------
+    list of matplotlib.lines.Line2D
+        Handles for ``Axes.legend(handles=...)``; empty when nothing was drawn.
+    """
+    from matplotlib.lines import Line2D
+
+    handles: list[Any] = []
+    if not parts.get("boxes"):
+        return handles
+    notched = len(parts["boxes"][0].get_xdata()) > 5  # a notched box has 11 vertices, a plain one 5
+    median = parts["medians"][0]
+    handles.append(Line2D([], [], color=median.get_color(),
+                          label="median" + (" (notch: ~95 % CI of the median)" if notched else "")))
+    handles.append(Line2D([], [], color=parts["boxes"][0].get_color(), label="box: quartiles; whiskers: data within 1.5 IQR"))
+    shown = [f for f in parts.get("fliers", []) if len(f.get_xdata())]
+    if shown:
+        f = shown[0]
+        handles.append(Line2D([], [], ls="", marker=f.get_marker(), mec=f.get_markeredgecolor(), mfc=f.get_markerfacecolor(),
+                              color=f.get_color(), label="outlier (beyond the whiskers)"))
+    return handles

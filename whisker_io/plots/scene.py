@@ -66,7 +66,7 @@ def plot_scene(
         faces = faces[:: int(np.ceil(len(faces) / max_faces))]
     tris = mesh.triangles[faces]
     shade = 0.35 + 0.5 * np.clip(mesh.face_normals[faces] @ np.array([0.3, -0.4, 0.87]), 0, 1)
-    coll = Poly3DCollection(tris, facecolors=plt.cm.Blues(shade), edgecolors="none", alpha=0.35)
+    coll = Poly3DCollection(tris, facecolors=plt.cm.Blues(shade), edgecolors="none", alpha=0.35, label="object")
     ax.add_collection3d(coll)
 
     pose = as_pose(pose)
@@ -74,11 +74,15 @@ def plot_scene(
     contacts = list(contacts) if contacts is not None else [None] * n
     theta = np.array([0.0 if c is None else c.angle_rad for c in contacts])
     frames = whisker_frames(array, pose, theta)
+    named: set[bool] = set()
     for i, c in enumerate(contacts):
         base = frames[i, :3, 3]
         reach = array.lengths_m[i] if c is None else c.radial_distance_m
         tip = base + reach * frames[i, :3, 1]
-        ax.plot(*np.c_[base, tip], color="0.5" if c is None else "k", lw=1)
+        label = "whisker without contact (at angle 0)" if c is None else "whisker in contact (up to the contact)"
+        ax.plot(*np.c_[base, tip], color="0.5" if c is None else "k", lw=1,
+                label=None if (c is None) in named else label)
+        named.add(c is None)
     ax.scatter(*frames[:, :3, 3].T, color="k", s=8, label="whisker bases")
     hit = np.array([c.point for c in contacts if c is not None]).reshape(-1, 3)
     if len(hit):
@@ -89,6 +93,7 @@ def plot_scene(
     ax.set(xlim=(centre[0] - half, centre[0] + half), ylim=(centre[1] - half, centre[1] + half),
            zlim=(centre[2] - half, centre[2] + half), xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
     ax.legend(loc="upper left", fontsize="small")
+    ax.set_title(f"Whisker array at the object: {len(hit)} of {n} whiskers in contact")
     return fig
 
 
@@ -126,11 +131,18 @@ def plot_pfh(histogram: ArrayLike, ax: "Axes | None" = None, title: str = "Point
 
 
 def plot_tactile_image(image: ArrayLike, ax: "Axes | None" = None) -> "Figure":
-    """Grey-scale view of a tactile image (Fig 3.2 layout: columns A-F, rows 1-3)."""
+    """Grey-scale view of a tactile image (Fig 3.2 layout: columns A-F, rows 1-3), with its grey scale.
+
+    Grey is the contact height scaled to 1-255, 0 = no contact
+    (:mod:`whisker_io.features.tactile_image`).
+    """
     img = np.asarray(image)
-    _, ax = figure_and_axes(ax, (4.0, 2.2))
-    ax.imshow(img, cmap="gray", vmin=0, vmax=255)
+    _, ax = figure_and_axes(ax, (4.8, 2.2))
+    im = ax.imshow(img, cmap="gray", vmin=0, vmax=255)
     ax.set_xticks(range(img.shape[1]), [chr(ord("A") + i) for i in range(img.shape[1])])
     ax.set_yticks(range(img.shape[0]), [str(i + 1) for i in range(img.shape[0])])
+    ax.set_xlabel("whisker column")
+    ax.set_ylabel("whisker row")
+    ax.figure.colorbar(im, ax=ax, label="contact height\n(grey level, 0 = none)")
     ax.set_title("tactile image")
     return ax.figure

@@ -72,14 +72,14 @@ def plot_whisk(
         ax.plot(t, moving_average(values, smoothing_span) / adc_max_counts, color=colour, lw=1.5, label=f"{name}-deflection")
     ax.set_ylim(-1.05, 1.05)
     ax.set_xlabel("time in whisk cycle (s)")
-    ax.set_ylabel("deflection (scaled)")
+    ax.set_ylabel(f"deflection (counts / {adc_max_counts:g})")
     ax2 = ax.twinx()
     ax2.plot(t, np.degrees(record.angle_rad), color="tab:green", lw=1.0, label="angle")
     ax2.set_ylabel("whisk angle (deg)")
     if contact is not None:
         ax.axvline(contact.onset_time_s, color="red", lw=1.2, label="onset")
         ax.axvline(contact.offset_time_s, color="black", lw=1.0, ls="--", label="offset")
-        ax.plot([contact.peak_time_s], [contact.peak_counts / adc_max_counts], "o", color="red", ms=4)
+        ax.plot([contact.peak_time_s], [contact.peak_counts / adc_max_counts], "o", color="red", ms=4, label="peak")
     handles = ax.get_legend_handles_labels()
     h2 = ax2.get_legend_handles_labels()
     ax.legend(handles[0] + h2[0], handles[1] + h2[1], loc="upper left", fontsize=8)
@@ -105,6 +105,7 @@ def plot_xy_gradient(
     ax.set_xlabel("x-deflection (counts)")
     ax.set_ylabel("y-deflection (counts)")
     ax.legend(fontsize=8)
+    ax.set_title(f"x against y deflection, module {record.module}, cycle {record.cycle}")
     return fig
 
 
@@ -133,12 +134,16 @@ def plot_sda(
             raise InvalidInputError("reference SDA must have the same modules in the same order")
         series.append((reference, labels[1], "tab:orange"))
     width = 0.8 / len(series)
+    masked_named = False
     for j, (s, label, colour) in enumerate(series):
         pos = idx + (j - (len(series) - 1) / 2) * width
         ax.bar(pos[s.mask], s.slopes[s.mask], width, color=colour, label=label)
-        ax.bar(pos[~s.mask], np.zeros((~s.mask).sum()) + 0.02, width, color="0.85", hatch="//", edgecolor="0.6")
+        ax.bar(pos[~s.mask], np.zeros((~s.mask).sum()) + 0.02, width, color="0.85", hatch="//", edgecolor="0.6",
+               label="_masked" if masked_named or not np.any(~s.mask) else "no contact / no slope (masked)")
+        masked_named = masked_named or bool(np.any(~s.mask))
     ax.axhline(0.0, color="black", lw=0.6)
     ax.set_xticks(idx, sda.modules, fontsize=8)
+    ax.set_xlabel("whisker module")
     ax.set_ylabel("slope (dy/dx)")
     title = "slope distribution array"
     if reference is not None:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from whisker_io.plots.axes import figure_and_axes, figure_and_axes_grid
+from whisker_io.plots.axes import boxplot_handles, figure_and_axes, figure_and_axes_grid
 from whisker_io.radial.evaluation import PCAResult
 
 __all__ = ["plot_pca_loadings", "plot_histograms", "plot_boxplots"]
@@ -36,8 +36,8 @@ def plot_pca_loadings(pca: PCAResult, axes: Sequence[Any] | None = None) -> Any:
         ax.set_xticks(x, pca.feature_names)
         ax.set_ylim(-1, 1)
         ax.set_title(f"PC{i + 1} ({100 * pca.explained_variance_ratio[i]:.0f}% var.)")
-        if i == 0:
-            ax.set_ylabel("coefficient (standardised features)")
+        ax.set_xlabel("feature")
+        ax.set_ylabel("coefficient (standardised features)" if i == 0 else "coefficient")
     fig.tight_layout()
     return fig
 
@@ -49,6 +49,7 @@ def plot_histograms(
     bins: int = 40,
     value_range: tuple[float, float] | None = None,
     ncols: int = 4,
+    title: str | None = None,
 ) -> Any:
     """One histogram per model with its median and standard deviation (Fig 4.8/4.9 style).
 
@@ -68,6 +69,8 @@ def plot_histograms(
     value_range : (lo, hi), optional
         Common histogram range; default the pooled 1st-99th percentile.
     ncols : int
+    title : str, optional
+        Figure title (what the panels show), above the per-model panels.
 
     Returns
     -------
@@ -98,6 +101,9 @@ def plot_histograms(
                     ax.plot([side], [0.0], marker="<" if side == 0.0 else ">", color="tab:red", ms=6,
                             transform=ax.transAxes, clip_on=False)
         ax.set_xlabel(xlabel, fontsize=8)
+        ax.set_ylabel("count (contacts)", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -108,10 +114,12 @@ def plot_boxplots(
     ax: Any = None,
     title: str | None = None,
     ymax: float | None = None,
+    xlabel: str = "model",
 ) -> Any:
     """Notched box plots, one box per group (Fig 4.10/4.11 style).
 
-    Non-overlapping notches mark medians different at about the 5 % level.
+    Non-overlapping notches mark medians different at about the 5 % level; a legend
+    says what the box, whiskers and median line are.
 
     Parameters
     ----------
@@ -121,12 +129,17 @@ def plot_boxplots(
     title : str, optional
     ymax : float, optional
         Upper y-limit (the thesis caps at 30 % of whisker length).
+    xlabel : str
+        What the groups are (default "model").
     """
     fig, ax = figure_and_axes(ax, (1.4 * max(3, len(groups)) + 1.5, 4.0))
     labels = list(groups)
-    ax.boxplot([np.asarray(groups[k], dtype=float) for k in labels], notch=True, showfliers=False)
+    parts = ax.boxplot([np.asarray(groups[k], dtype=float) for k in labels], notch=True, showfliers=False)
     ax.set_xticks(np.arange(1, len(labels) + 1), labels, rotation=30, ha="right", fontsize=8)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
+    if parts["boxes"]:
+        ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     if ymax is not None:
         ax.set_ylim(bottom=0.0, top=ymax)
     if title:
