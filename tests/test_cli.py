@@ -176,6 +176,7 @@ def test_unknown_options_of_other_commands_are_usage_errors(capsys):
     assert "unrecognized arguments: --object box" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # ~10 s on a quiet machine; the other chapters' entry-point runs are slow too
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_study_ch4_quick_runs_the_radial_distance_study(tmp_path):
     from entry_point import run_cansim
