@@ -153,7 +153,7 @@ def test_the_spiking_template_is_smoothed_around_the_ring_by_hand():
 BAD = [("duration_s", 1.0), ("duration_s", float("nan")), ("model", "grid_cells"), ("trajectory", "x"),
        ("heading_bins", 0), ("landmark_radius_m", -0.1), ("inject_energy", -1.0), ("ring_exc_width", 4),
        ("sheet_cells", 3), ("spiking_dt_s", 0.01), ("anchoring", "yes"), ("nonsense", 1),
-       ("spiking_template_sigma_cells", -1.0), ("spiking_inject_hold_s", float("inf"))]
+       ("spiking_template_sigma_cells", -1.0), ("spiking_inject_hold_s", float("inf")), ("spiking_inject_offset", -0.5)]
 
 
 @pytest.mark.parametrize("key, value", BAD)

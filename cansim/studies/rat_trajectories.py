@@ -79,7 +79,11 @@ template more than ~30 deg from the packet does not move it (at 387 s: 78 deg be
 the template (at 223 s: -3 -> +8 deg with templates at -26 to -29). The injected current
 does not win against the packet's own recurrent excitation and global inhibition; a
 current strong enough to (15) makes the packet jump to stale templates (17.8 deg/min on
-300 s, seed 0).
+300 s, seed 0). A third variant, ``spiking_inject_offset``, subtracts a uniform current
+while a view injects (the packet away from the template fades, the template's cells fire):
+with offset 1, sigma 4 cells and the current of 5, seeds 0 and 1 (tuned) go 5.8 -> 3.7 and
+15.5 -> 12.4 deg/min, but the held-out seed 2 goes 14.5 -> 15.4 (RMS 87.7 -> 91.5 deg):
+not a reliable re-anchoring either.
 
 Held-out recording (``--trajectory tanni --duration-s 1800 --no-spiking``, seeds 0-2): the
 landmark scheme as tuned on Sargolini does **not** transfer. The 0.05 m landmark discs in a
@@ -180,6 +184,7 @@ DEFAULTS: dict = {
     "spiking_inject_current": 5.0,
     "spiking_template_sigma_cells": 0.0,
     "spiking_inject_hold_s": 0.0,
+    "spiking_inject_offset": 0.0,
     "spiking_dt_s": 0.001,
     "quick_calibration": False,
 }
@@ -554,6 +559,7 @@ def _simulate_spiking_ring(traj: RatTrajectory, p: dict, omega: np.ndarray, seed
                 current = np.zeros(spk.size)
                 np.add.at(current, idx, val)
                 current *= p["spiking_inject_current"] / float(current.max())
+                current -= p["spiking_inject_offset"]  # a uniform inhibition: the packet away from the template fades
                 held, held_for = current, hold_samples
                 anchored += 1
         if current is None and held_for > 0:  # a seen view's current lasts spiking_inject_hold_s
@@ -625,6 +631,8 @@ def check_params(params) -> dict:
             f"rat_trajectories: spiking_inject_current must lie in [0, 100], got {p['spiking_inject_current']}")
     require(0.0 <= p["spiking_template_sigma_cells"] <= 60.0,
             f"rat_trajectories: spiking_template_sigma_cells must lie in [0, 60], got {p['spiking_template_sigma_cells']}")
+    require(0.0 <= p["spiking_inject_offset"] <= 100.0,
+            f"rat_trajectories: spiking_inject_offset must lie in [0, 100], got {p['spiking_inject_offset']}")
     require(0.0 <= p["spiking_inject_hold_s"] <= 5.0,
             f"rat_trajectories: spiking_inject_hold_s must lie in [0, 5] s, got {p['spiking_inject_hold_s']}")
     require(1e-4 <= p["spiking_dt_s"] <= 0.002, f"rat_trajectories: spiking_dt_s must lie in [1e-4, 2e-3] s, got {p['spiking_dt_s']}")
