@@ -9,8 +9,11 @@ simulation of the same graph (``cansim.spiking.NIRGraphSimulator``):
   within 30 cells of it, the largest distance of the 100 ms population vectors from
   cansim's over the 1 s, the bump's width (circular std, cells) and mean rate;
 * the path-integrating ring (``cansim.spiking.rotation_ring_graph``, ``--pi-cells`` cells):
-  kick, then 0.8 s of a turning signal between 0 and 3 rad/s; reported: the RMS distance of
-  the decoded heading from the integral of the signal.
+  kick, 0.5 s for the bump to settle, then 0.8 s of a turning signal between 0 and 3 rad/s,
+  handed to the graph as the command of the ring's turning calibration
+  (``cansim.spiking.calibrate_turning``, measured once by cansim's simulation; the same
+  commands for every consumer); reported: the RMS distance of the decoded heading from the
+  integral of the signal and the angle turned.
 
 Needs the extra ``nir-consumers``. Usage::
 
@@ -35,6 +38,7 @@ from cansim.spiking import (
     RotationRingParams,
     SpikingParams,
     SpikingPopulation,
+    calibrate_turning,
     ring_input,
     rotation_ring_graph,
     to_nir,
@@ -83,17 +87,18 @@ def stationary(step, n: int = 360) -> dict:
     }
 
 
-def turning(step, n: int) -> dict:
-    """Kick, then omega(t) = 1.5 + 1.5 sin(2 pi t / 0.4) rad/s for 0.8 s; RMS heading error from the integral."""
+def turning(step, n: int, cal) -> dict:
+    """Kick, settle 0.5 s, then omega(t) = 1.5 + 1.5 sin(2 pi t / 0.4) rad/s for 0.8 s (as ``cal.command``)."""
     kick = _gauss(n, 90.0 * n / 360.0)
     trace, decay = np.zeros(n), math.exp(-DT / 0.05)
     times, heads = [], []
-    for k in range(int(round(0.9 / DT))):
+    start = 0.6
+    for k in range(int(round((start + 0.8) / DT))):
         t = k * DT
-        om = 1.5 + 1.5 * math.sin(2 * math.pi * (t - 0.1) / 0.4) if t >= 0.1 else 0.0
+        om = cal.command(1.5 + 1.5 * math.sin(2 * math.pi * (t - start) / 0.4)) if t >= start else 0.0
         trace = trace * decay + step(ring_input(kick if t < 0.1 else 0.0, om, n))
-        if (k + 1) % 200 == 0 and t >= 0.1:
-            times.append(t + DT - 0.1)
+        if (k + 1) % 200 == 0 and t >= start:
+            times.append(t + DT - start)
             heads.append(_pv_deg(trace))
     t = np.array(times)
     truth = 90.0 + np.degrees(1.5 * t + 1.5 * 0.4 / (2 * math.pi) * (1 - np.cos(2 * math.pi * t / 0.4)))
@@ -112,7 +117,9 @@ def main(argv: list[str] | None = None) -> int:
                             SpikingParams(attractor=HD_RING_ATTRACTOR, neurons=nrn, recurrent_weight=15.0, global_weight=0.1),
                             dt_s=DT)
     g_still = to_nir(pop)
-    g_pi = rotation_ring_graph(RotationRingParams(n_cells=args.pi_cells))
+    pi_params = RotationRingParams(n_cells=args.pi_cells)
+    g_pi = rotation_ring_graph(pi_params)
+    cal = calibrate_turning(pi_params)
     status = consumer_status()
     runs = {"cansim": (lambda g: NIRGraphSimulator(g).step)}
     for name in NIR_CONSUMERS:
@@ -123,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     results = {}
     for name, make in runs.items():
         t0 = time.perf_counter()
-        results[name] = {"stationary": stationary(make(g_still)), "turning": turning(make(g_pi), args.pi_cells)}
+        results[name] = {"stationary": stationary(make(g_still)), "turning": turning(make(g_pi), args.pi_cells, cal)}
         results[name]["wall_s"] = time.perf_counter() - t0
     ref = results["cansim"]
     print("who        pv(deg)  in30   max|held-cansim|(deg)  width(cells)  rate(Hz)  turn RMS err(deg)  turned/integral(deg)  wall(s)")

@@ -139,10 +139,21 @@ def test_drift_per_minute_is_the_slope_through_the_origin():
     assert run.rms_error == pytest.approx(math.sqrt(np.mean((3.0 * t / 60.0) ** 2)))
 
 
+def test_the_spiking_template_is_smoothed_around_the_ring_by_hand():
+    counts = np.zeros(36)
+    counts[1] = 2.0
+    out = rt._smooth_on_ring(counts, 2.0)
+    d = np.minimum(np.abs(np.arange(36) - 1), 36 - np.abs(np.arange(36) - 1))  # distance on the ring
+    g = np.exp(-0.5 * (d / 2.0) ** 2)
+    np.testing.assert_allclose(out, 2.0 * g / g.sum(), atol=1e-12)  # wraps past cell 0 to cell 35
+    assert rt._smooth_on_ring(counts, 0.0) is counts
+
+
 # --------------------------------------------------------------- bad input
 BAD = [("duration_s", 1.0), ("duration_s", float("nan")), ("model", "grid_cells"), ("trajectory", "x"),
        ("heading_bins", 0), ("landmark_radius_m", -0.1), ("inject_energy", -1.0), ("ring_exc_width", 4),
-       ("sheet_cells", 3), ("spiking_dt_s", 0.01), ("anchoring", "yes"), ("nonsense", 1)]
+       ("sheet_cells", 3), ("spiking_dt_s", 0.01), ("anchoring", "yes"), ("nonsense", 1),
+       ("spiking_template_sigma_cells", -1.0), ("spiking_inject_hold_s", float("inf")), ("spiking_inject_offset", -0.5)]
 
 
 @pytest.mark.parametrize("key, value", BAD)

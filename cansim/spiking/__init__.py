@@ -19,7 +19,13 @@ from cansim.spiking.calibration import calibrate_velocity_lead, measure_packet_s
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR, spiking_from_rate, spiking_params_from_rate
 from cansim.spiking.nir_io import NIR_FORMAT, NIR_STEP_S, from_nir, to_nir
 from cansim.spiking.nir_graph_sim import NIRGraphSimulator
-from cansim.spiking.rotation_ring import RotationRingParams, ring_input, rotation_ring_graph
+from cansim.spiking.rotation_ring import (
+    RotationRingParams,
+    TurningCalibration,
+    calibrate_turning,
+    ring_input,
+    rotation_ring_graph,
+)
 
 __all__ = [
     "NeuronParams",
@@ -43,4 +49,6 @@ __all__ = [
     "RotationRingParams",
     "rotation_ring_graph",
     "ring_input",
+    "TurningCalibration",
+    "calibrate_turning",
 ]

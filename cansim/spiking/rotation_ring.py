@@ -16,11 +16,25 @@ the ring.
   ``rotation_to_ring_weight`` times the (sum-normalised) excitation kernel, the second
   half around ``j - shift``. At ``omega = 0`` both halves fire alike and the pushes
   cancel; a positive ``omega`` makes the first half fire more, and the bump moves towards
-  increasing angle at a speed that grows with ``omega``. The gain is not calibrated to one:
-  on 360 cells (measured with Euler steps of the graph's equations) the bump turned at 0.88, 0.79
-  and 0.58 times ``omega`` for 0.5, 1 and 2 rad/s; the speed is set in cells per second,
-  so on fewer cells the gain in degrees is larger (about 1.3 on 120 cells for a 0-3 rad/s
-  sinusoid). Above about 2 rad/s the rotation cells saturate.
+  increasing angle at a speed that grows with ``omega``.
+
+Linear range. Two constraints bound it. A rotation cell on the bump must fire at
+``omega = 0`` (its bias plus the input from its ring cell above threshold), or the bump,
+once its rate has settled after the kick, is pinned to the lattice and small rates do not
+move it (measured: with bias 0 the settled bump did not turn below 4-6 rad/s). And a
+rotation cell off the bump must stay silent: ``rotation_bias + velocity_gain * omega < 1``,
+or the whole half fires and pushes the whole ring, which stalls the bump (the first
+defaults, bias 0.3 and gain 0.25, hit that at 2.8 rad/s). The defaults keep the bias at 0.3
+and use gain 0.08 (stall above 8.75 rad/s) and a rotation-to-ring scale of 9: on 120 cells
+(cansim's simulation of the graph, bump settled for 0.5 s, slope over 0.5 s) the bump
+turned at 0.70, 1.19, 2.13, 3.74, 4.93 and 6.31 rad/s for 0.5, 1, 2, 4, 6 and 8 rad/s, and
+at about 2.7 rad/s for 10 rad/s. These were chosen on constant rates only.
+:func:`calibrate_turning` measures that curve on a given ring with cansim's own
+simulation of its graph, and :meth:`TurningCalibration.command` inverts it: the angular
+velocity handed to the graph (:func:`ring_input`) is the command that makes the bump
+turn at the wanted rate, up to the fastest rate measured before the curve falls (the
+command saturates there). The inversion is outside the graph, so every consumer gets the
+same commands.
 
 The graph's input is ``N + 1`` values: an external current per ring cell (threshold
 units) followed by the angular velocity (rad/s); its output is the ring's spikes. All
@@ -44,9 +58,9 @@ node; and snnTorch needs the three-node loop (:mod:`cansim.spiking.nir_io`).
 :class:`cansim.spiking.nir_graph_sim.NIRGraphSimulator` is cansim's own simulation of
 the graph.
 
-The default parameters were chosen on constant turning rates of 0.5, 1 and 2 rad/s with
-the kick protocol of the tests; the sinusoidal turning signal of the tests and the
-recorded rat trajectory were not used for that.
+The default parameters were chosen on constant turning rates of 0.5 to 12 rad/s with the
+kick protocol of the tests; the sinusoidal turning signal of the tests and the recorded
+rat trajectory were not used for that.
 """
 
 from __future__ import annotations
@@ -72,7 +86,14 @@ from cansim.spiking.nir_io import (
 from cansim.spiking.population import SpikingParams
 from whisker_io.validation import checked, validate_fields
 
-__all__ = ["RotationRingParams", "rotation_ring_graph", "ring_input", "ROTATION_RING_FORMAT"]
+__all__ = [
+    "RotationRingParams",
+    "rotation_ring_graph",
+    "ring_input",
+    "TurningCalibration",
+    "calibrate_turning",
+    "ROTATION_RING_FORMAT",
+]
 
 #: value of ``graph.metadata["cansim"]["format"]`` in graphs written by :func:`rotation_ring_graph`
 ROTATION_RING_FORMAT = "cansim.spiking.rotation_ring/1"
@@ -114,8 +135,8 @@ class RotationRingParams:
     global_weight: float = checked(0.1, float, minimum=0)
     rotation_bias: float = checked(0.3, float)
     ring_to_rotation_weight: float = checked(1.0, float, minimum=0)
-    velocity_gain: float = checked(0.25, float, minimum=0)
-    rotation_to_ring_weight: float = checked(6.0, float, minimum=0)
+    velocity_gain: float = checked(0.08, float, minimum=0)
+    rotation_to_ring_weight: float = checked(9.0, float, minimum=0)
     shift_cells: int = 10
 
     def __post_init__(self) -> None:
@@ -239,3 +260,135 @@ def rotation_ring_graph(params: RotationRingParams = RotationRingParams(), *, dt
         ("readout", "output"),
     ]
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata={"cansim": meta})
+
+
+@dataclass(frozen=True)
+class TurningCalibration:
+    """Measured turning rate of the bump against the angular-velocity input, and its inverse.
+
+    Parameters
+    ----------
+    omega_rad_s : tuple of float
+        Inputs (rad/s), ascending, the first 0.
+    bump_rad_s : tuple of float
+        The bump's measured turning rate at each (rad/s), the first 0.
+
+    Only the rising part of the curve (up to its first maximum) is inverted; the ring is
+    mirror-symmetric, so negative rates use the same curve with the sign flipped.
+    """
+
+    omega_rad_s: tuple[float, ...]
+    bump_rad_s: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        om = np.asarray(self.omega_rad_s, dtype=np.float64)
+        sp = np.asarray(self.bump_rad_s, dtype=np.float64)
+        if om.ndim != 1 or om.shape != sp.shape or om.size < 2:
+            raise ConfigError("omega_rad_s and bump_rad_s must be two sequences of the same length >= 2")
+        if not (np.isfinite(om).all() and np.isfinite(sp).all()):
+            raise ConfigError("a turning calibration must be finite (no NaN/inf); re-measure with calibrate_turning")
+        if om[0] != 0.0 or sp[0] != 0.0 or np.any(np.diff(om) <= 0):
+            raise ConfigError("omega_rad_s must start at 0 and ascend, bump_rad_s must start at 0")
+        if sp[1] <= 0:
+            raise ConfigError(f"the bump did not turn at {om[1]} rad/s ({sp[1]} rad/s): nothing to invert")
+
+    def _rising(self) -> tuple[np.ndarray, np.ndarray]:
+        sp = np.asarray(self.bump_rad_s, dtype=np.float64)
+        k = 1
+        while k + 1 < sp.size and sp[k + 1] > sp[k]:
+            k += 1
+        return np.asarray(self.omega_rad_s, dtype=np.float64)[: k + 1], sp[: k + 1]
+
+    @property
+    def max_rad_s(self) -> float:
+        """The fastest turning rate the ring reaches on the rising part of the curve (rad/s)."""
+        return float(self._rising()[1][-1])
+
+    def command(self, omega_rad_s):
+        """The input (rad/s) that turns the bump at ``omega_rad_s`` (scalar or array), saturated at :attr:`max_rad_s`.
+
+        Raises
+        ------
+        InvalidInputError
+            Non-finite rates.
+        """
+        w = np.asarray(omega_rad_s, dtype=np.float64)
+        if not np.isfinite(w).all():
+            raise InvalidInputError("omega_rad_s must be finite (no NaN/inf)")
+        om, sp = self._rising()
+        out = np.sign(w) * np.interp(np.minimum(np.abs(w), sp[-1]), sp, om)
+        return float(out) if out.ndim == 0 else out
+
+
+def _population_vector_rad(counts: np.ndarray) -> float:
+    ang = 2.0 * np.pi * np.arange(counts.size) / counts.size
+    return math.atan2(float(counts @ np.sin(ang)), float(counts @ np.cos(ang)))
+
+
+def calibrate_turning(
+    params: RotationRingParams = RotationRingParams(),
+    omegas_rad_s=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0),
+    *,
+    dt_s: float = NIR_STEP_S,
+    settle_s: float = 0.5,
+    measure_s: float = 0.5,
+) -> TurningCalibration:
+    """Measure the bump's turning rate at constant angular-velocity inputs (cansim's own simulation of the graph).
+
+    For each input: a 100 ms Gaussian kick (sigma 3 cells, 2 threshold units) at 0 deg,
+    ``settle_s`` of turning, then the slope (least squares) of the unwrapped population
+    vector of the spikes (a 50 ms exponential window, read every 2 ms) over ``measure_s``.
+
+    Parameters
+    ----------
+    params : RotationRingParams
+    omegas_rad_s : sequence of float
+        Positive inputs (rad/s), ascending.
+    dt_s, settle_s, measure_s : float
+        Step and durations (s).
+
+    Returns
+    -------
+    TurningCalibration
+
+    Raises
+    ------
+    ConfigError
+        Bad parameters, inputs or durations; a bump that dies during the measurement.
+    """
+    from cansim.spiking.nir_graph_sim import NIRGraphSimulator
+
+    try:
+        oms = [float(o) for o in omegas_rad_s]
+    except (TypeError, ValueError):
+        raise ConfigError("omegas_rad_s must be a sequence of numbers (rad/s)") from None
+    if not oms or not all(math.isfinite(o) and o > 0 for o in oms) or any(b <= a for a, b in zip(oms, oms[1:])):
+        raise ConfigError(f"omegas_rad_s must be positive, finite and ascending, got {omegas_rad_s!r}")
+    for name, v in (("settle_s", settle_s), ("measure_s", measure_s)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"{name} must be a finite number of seconds > 0, got {v!r}")
+    sim = NIRGraphSimulator(rotation_ring_graph(params, dt_s=dt_s), dt_s=dt_s)
+    n = int(params.n_cells)
+    d = (np.arange(n) + n / 2.0) % n - n / 2.0
+    kick = ring_input(2.0 * np.exp(-d * d / 18.0), 0.0, n)
+    kick_steps = int(round(0.1 / dt_s))
+    settle_steps = int(round(settle_s / dt_s))
+    read_every = max(1, int(round(2e-3 / dt_s)))
+    decay = math.exp(-dt_s / 0.05)
+    speeds = []
+    for om in oms:
+        sim.reset()
+        drive = ring_input(0.0, om, n)
+        trace = np.zeros(n)
+        times, heads = [], []
+        for k in range(kick_steps + settle_steps + int(round(measure_s / dt_s))):
+            trace = trace * decay + sim.step(kick if k < kick_steps else drive)
+            if k >= kick_steps + settle_steps and (k + 1) % read_every == 0:
+                if not trace.any():
+                    raise ConfigError(f"the bump died while turning at {om} rad/s; these parameters cannot be calibrated")
+                times.append(k * dt_s)
+                heads.append(_population_vector_rad(trace))
+        if len(times) < 2:
+            raise ConfigError("measure_s is too short for two readings of the heading (every 2 ms)")
+        speeds.append(float(np.polyfit(times, np.unwrap(heads), 1)[0]))
+    return TurningCalibration((0.0, *oms), (0.0, *speeds))

@@ -67,6 +67,23 @@ The held-out seed 2 alone: ring 12.7 -> 5.0 deg/min, sheet 0.070 -> 0.024 m/min.
 spiking ring is *not* re-anchored by this scheme: its drift is the same or worse with
 the views (a current of 5 threshold units neither moves its packet reliably nor, at 10-20,
 avoids pulling it to views learnt from an already drifted packet); left open.
+Two variants are available and measured, off by default: ``spiking_inject_hold_s`` keeps a
+seen view's current on for that long after the rat leaves the disc (a pulse of several
+synaptic time constants), and ``spiking_template_sigma_cells`` smooths the learnt spike
+counts around the ring (Gaussian, cells) before Eq 2.18. On 600 s of Sargolini, seeds 0
+and 1 (drift per minute, no views / views / views + hold 0.2 s / + sigma 4 cells):
+5.8 / 10.7 / 8.6 / 6.4 and 15.5 / 15.7 / 13.4 / 16.2 deg/min: neither re-anchors. Why, from
+seed 0's anchoring episodes (error before, 0.3 s after, and when the view was learnt): a
+template more than ~30 deg from the packet does not move it (at 387 s: 78 deg before,
+74 after, template at -33), and nearer ones move it by a few degrees, not always towards
+the template (at 223 s: -3 -> +8 deg with templates at -26 to -29). The injected current
+does not win against the packet's own recurrent excitation and global inhibition; a
+current strong enough to (15) makes the packet jump to stale templates (17.8 deg/min on
+300 s, seed 0). A third variant, ``spiking_inject_offset``, subtracts a uniform current
+while a view injects (the packet away from the template fades, the template's cells fire):
+with offset 1, sigma 4 cells and the current of 5, seeds 0 and 1 (tuned) go 5.8 -> 3.7 and
+15.5 -> 12.4 deg/min, but the held-out seed 2 goes 14.5 -> 15.4 (RMS 87.7 -> 91.5 deg):
+not a reliable re-anchoring either.
 
 Held-out recording (``--trajectory tanni --duration-s 1800 --no-spiking``, seeds 0-2): the
 landmark scheme as tuned on Sargolini does **not** transfer. The 0.05 m landmark discs in a
@@ -165,6 +182,9 @@ DEFAULTS: dict = {
     "heading_bins": 12,
     "inject_energy": 0.1,
     "spiking_inject_current": 5.0,
+    "spiking_template_sigma_cells": 0.0,
+    "spiking_inject_hold_s": 0.0,
+    "spiking_inject_offset": 0.0,
     "spiking_dt_s": 0.001,
     "quick_calibration": False,
 }
@@ -494,6 +514,16 @@ def spiking_ring_params(p: dict, dt_s: float):
                                    tuple(s * cells_per_deg for s in speeds), dt_s=dt_s, seed=0)
 
 
+def _smooth_on_ring(counts: np.ndarray, sigma_cells: float) -> np.ndarray:
+    """``counts`` (shape ``(n,)``) convolved circularly with a unit-sum Gaussian of ``sigma_cells`` (0: unchanged)."""
+    if sigma_cells <= 0:
+        return counts
+    n = counts.size
+    d = (np.arange(n) + n / 2.0) % n - n / 2.0
+    g = np.exp(-0.5 * (d / sigma_cells) ** 2)
+    return np.real(np.fft.ifft(np.fft.fft(counts) * np.fft.fft(g / g.sum()))).clip(min=0.0)
+
+
 def _simulate_spiking_ring(traj: RatTrajectory, p: dict, omega: np.ndarray, seed: int, calibrated) -> DriftRun:
     from cansim.spiking import SpikeCountDecoder, SpikingParams, SpikingPopulation
 
@@ -515,6 +545,9 @@ def _simulate_spiking_ring(traj: RatTrajectory, p: dict, omega: np.ndarray, seed
     out = np.empty(traj.n_samples)
     anchored = 0
     last = float(decoder.decode()[0])
+    sigma = float(p["spiking_template_sigma_cells"])
+    hold_samples = int(round(p["spiking_inject_hold_s"] / traj.dt_s))
+    held, held_for = None, 0
     t0 = time.perf_counter()
     for k in range(traj.n_samples):
         current = None
@@ -526,7 +559,11 @@ def _simulate_spiking_ring(traj: RatTrajectory, p: dict, omega: np.ndarray, seed
                 current = np.zeros(spk.size)
                 np.add.at(current, idx, val)
                 current *= p["spiking_inject_current"] / float(current.max())
+                current -= p["spiking_inject_offset"]  # a uniform inhibition: the packet away from the template fades
+                held, held_for = current, hold_samples
                 anchored += 1
+        if current is None and held_for > 0:  # a seen view's current lasts spiking_inject_hold_s
+            current, held_for = held, held_for - 1
         w = float(omega[k])
         for _ in range(n_sub):
             decoder.add(spk.step(w, current))
@@ -535,7 +572,7 @@ def _simulate_spiking_ring(traj: RatTrajectory, p: dict, omega: np.ndarray, seed
         except ZeroActivityError:  # the packet died: the estimate stays where it was (counted as error)
             log.warning("spiking ring silent at %.2f s; the estimate is held", traj.time_s[k])
         if new:
-            counts = decoder.counts.astype(np.float64)
+            counts = _smooth_on_ring(decoder.counts.astype(np.float64), sigma)
             if counts.sum() > 0:
                 lv.learn(counts / counts.sum())
         out[k] = last * step
@@ -592,6 +629,12 @@ def check_params(params) -> dict:
     require(0.0 <= p["inject_energy"] <= 10.0, f"rat_trajectories: inject_energy must lie in [0, 10], got {p['inject_energy']}")
     require(0.0 <= p["spiking_inject_current"] <= 100.0,
             f"rat_trajectories: spiking_inject_current must lie in [0, 100], got {p['spiking_inject_current']}")
+    require(0.0 <= p["spiking_template_sigma_cells"] <= 60.0,
+            f"rat_trajectories: spiking_template_sigma_cells must lie in [0, 60], got {p['spiking_template_sigma_cells']}")
+    require(0.0 <= p["spiking_inject_offset"] <= 100.0,
+            f"rat_trajectories: spiking_inject_offset must lie in [0, 100], got {p['spiking_inject_offset']}")
+    require(0.0 <= p["spiking_inject_hold_s"] <= 5.0,
+            f"rat_trajectories: spiking_inject_hold_s must lie in [0, 5] s, got {p['spiking_inject_hold_s']}")
     require(1e-4 <= p["spiking_dt_s"] <= 0.002, f"rat_trajectories: spiking_dt_s must lie in [1e-4, 2e-3] s, got {p['spiking_dt_s']}")
     _ring_params(p).kernels(1)  # kernel widths / sigmas: AttractorParams' own checks
     _sheet_params(p).kernels(2)
