@@ -65,6 +65,7 @@ rat trajectory were not used for that.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
