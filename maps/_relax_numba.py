@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from whisker_io.angles import wrap_scalar
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["relax_links"]
 
@@ -80,3 +81,6 @@ def relax_links(
         if pos == n:
             pos = 0
     return pos
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

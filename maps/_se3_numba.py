@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["relax_links_se3", "accumulate_se3", "compose_se3", "pose_distances_se3", "gate_views_se3"]
 
 
@@ -261,3 +263,6 @@ def gate_views_se3(
             best[v] = c
         consistent[v] = True
     return 0
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

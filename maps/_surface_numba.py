@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["field_distance", "likelihoods", "move", "resample"]
 
 
@@ -124,3 +126,6 @@ def resample(w: np.ndarray, offsets: np.ndarray, rows: np.ndarray) -> np.ndarray
                 c += w[k, i]
             out[r, n] = i
     return out
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -443,3 +443,68 @@ def test_kernel_cache_dir_precedence(monkeypatch, tmp_path):
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert kernel_cache.kernel_cache_dir() == tmp_path / "xdg" / "cansim" / "kernels"
+
+
+def test_every_cached_kernel_of_the_packages_reads_its_cache_tolerantly():
+    """Every ``cache=True`` numba function in cansim, maps and whisker_io has the tolerant reader
+    (a kernel module that forgets ``tolerate_corrupt_cache(__name__)`` fails here)."""
+    import importlib
+    import pkgutil
+    import warnings
+
+    from numba.core.caching import IndexDataCacheFile
+
+    from whisker_io.numba_cache import TolerantIndex
+
+    found, plain = 0, []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # moved-module shims warn on import
+        for pkg in ("cansim", "maps", "whisker_io"):
+            root = importlib.import_module(pkg)
+            for info in pkgutil.walk_packages(root.__path__, pkg + "."):
+                try:
+                    module = importlib.import_module(info.name)
+                except ImportError:  # an optional extra that is not installed
+                    continue
+                for name, value in vars(module).items():
+                    cache_file = getattr(getattr(value, "_cache", None), "_cache_file", None)
+                    if isinstance(cache_file, IndexDataCacheFile) and getattr(value, "__module__", None) == module.__name__:
+                        found += 1
+                        if type(cache_file) is not TolerantIndex:
+                            plain.append(f"{module.__name__}.{name}")
+    assert found > 50
+    assert plain == []
+
+
+CORRUPT_SCRIPT = textwrap.dedent("""\
+    from numba.core import event
+    count = [0]
+    class Count(event.Listener):
+        def on_start(self, ev):
+            pass
+        def on_end(self, ev):
+            count[0] += 1
+    event.register("numba:compile", Count())
+    import numpy as np
+    from whisker_io.contact.detection import prominence_bound
+    print(prominence_bound(np.array([0.0, 1.0, 0.0]), 1.0), count[0])
+    """)
+
+
+@pytest.mark.parametrize("which", ["nbi", "nbc"])
+def test_a_corrupt_numba_cache_file_of_a_library_kernel_recompiles(tmp_path, which):
+    """Issue 26 item 4: garbage in numba's index or data file of an ordinary library kernel (not a
+    generated one): one warning, a fresh compilation, the right result, and the next process loads."""
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    first = _run(CORRUPT_SCRIPT, env).split()
+    assert int(first[-1]) > 0
+    files = list((tmp_path / "numba").rglob(f"*prominence_bound*.{which}"))
+    assert files
+    for f in files:
+        f.write_bytes(b"garbage")
+    out = subprocess.run([sys.executable, "-c", CORRUPT_SCRIPT], env=dict(os.environ, PYTHONPATH=str(ROOT), **env),
+                         cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    again = out.stdout.split()
+    assert again[:-1] == first[:-1] and int(again[-1]) > 0 and "corrupt numba cache" in out.stderr
+    assert _run(CORRUPT_SCRIPT, env).split()[-1] == "0"  # the entry was written anew

@@ -37,6 +37,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 _OPTS = dict(cache=True, fastmath=False, nogil=True)
 
 STATUS_OK = 0
@@ -1083,3 +1085,6 @@ def inject_grid(a, out, inj_idx, inj_val):
             acc += inj_val[order[t]]
             t += 1
         out[i] = acc
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

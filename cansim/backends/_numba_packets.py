@@ -34,6 +34,7 @@ from cansim.backends._numba_kernels import (
     box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
     decode_box, grow_arc, mark_occupancy, paste, place, scatter, split_shift, trig_table, unravel,
 )
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["packets_run", "packets_step", "plan_packets", "separations"]
 
@@ -806,3 +807,6 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
         for i in range(nst):
             place(st[st_off[i]:], st_s[i], st_m[i], out, n)
     return -1
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from cansim.backends._numba_kernels import global_inhibit
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["ring_step", "workspace_size"]
 
@@ -139,3 +140,6 @@ def ring_step(a, out, fi, vals, exc, inh, phi, shift, window, decoded, work):
     idx = m * n / (2.0 * math.pi)
     decoded[0] = idx if idx < n else 0.0
     return True
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -24,6 +24,7 @@ from cansim.backends._numba_kernels import (
     STATUS_OK, box_argmax, box_size, box_step, crop, decode_box, occupied_box, scatter, start_box, trig_table, unravel,
 )
 from cansim.backends._numba_ring import ring_step
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["ring_run", "pipeline_run"]
 
@@ -105,3 +106,6 @@ def pipeline_run(a, a_bits, out, hist, record, ws, n,
             scatter(bufs[cur], s, m, hist[t], n)
     scatter(bufs[cur], s, m, out, n)
     return -1
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

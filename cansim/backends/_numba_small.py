@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 
 from cansim.backends import _numba_kernels as _k
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["MAX_AXIS", "MAX_TAPS", "applies", "small_step", "small_run", "plan_cycles", "condition_lines", "condition_runs"]
 
@@ -487,3 +488,6 @@ def small_run(shape: tuple[int, ...], ew: tuple[int, ...], iw: tuple[int, ...]) 
     when ``record``). Returns -1, or the first step whose dynamics collapsed.
     """
     return _compiled(shape, ew, iw)["run"]
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

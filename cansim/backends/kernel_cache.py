@@ -26,7 +26,7 @@ Design
   atomically by a fresh copy, which numba then compiles and caches again.
 * **Corrupt numba cache files** of a generated module's functions (index or data that
   cannot be read back): numba itself would raise at every call; the functions of a
-  cached module read their cache through :class:`TolerantIndex`, which treats such a
+  cached module read their cache through :class:`whisker_io.numba_cache.TolerantIndex`, which treats such a
   file as a cache miss (one warning), so the function compiles again and its entry is
   written anew.
 * **Read-only or missing folder, or a module that cannot be imported**: the caller
@@ -46,6 +46,8 @@ import threading
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Iterable, Optional
+
+from whisker_io.numba_cache import TolerantIndex, tolerate_corrupt_cache
 
 __all__ = ["kernel_cache_dir", "cached_module", "module_key", "TolerantIndex"]
 
@@ -106,44 +108,6 @@ def _write_atomically(path: Path, data: bytes) -> None:
             os.unlink(tmp)
 
 
-try:  # numba's on-disk cache file (index + data); its reader raises on a corrupt file
-    from numba.core.caching import IndexDataCacheFile as _IndexFile
-except ImportError:  # pragma: no cover - numba's layout changed: no tolerance, numba's own behaviour
-    _IndexFile = None
-
-
-if _IndexFile is not None:
-
-    class TolerantIndex(_IndexFile):  # type: ignore[misc, valid-type]
-        """Numba's cache file, reading a corrupt index or data file as a cache miss (the function recompiles)."""
-
-        def _load_index(self) -> dict:
-            try:
-                return super()._load_index()
-            except Exception as exc:  # noqa: BLE001 - unpickling garbage raises anything
-                log.warning("corrupt numba cache index %s (%s): recompiling", self._index_path, type(exc).__name__)
-                return {}
-
-        def load(self, key: Any) -> Any:
-            try:
-                return super().load(key)
-            except Exception as exc:  # noqa: BLE001
-                log.warning("corrupt numba cache data next to %s (%s): recompiling", self._index_path, type(exc).__name__)
-                return None
-else:  # pragma: no cover
-    TolerantIndex = None  # type: ignore[assignment, misc]
-
-
-def _tolerate_corrupt_cache(module: ModuleType) -> None:
-    """Give every cached numba function of ``module`` the :class:`TolerantIndex` reader."""
-    if TolerantIndex is None:
-        return
-    for value in vars(module).values():
-        cache_file = getattr(getattr(value, "_cache", None), "_cache_file", None)
-        if cache_file is not None and type(cache_file) is _IndexFile:
-            cache_file.__class__ = TolerantIndex
-
-
 def _load(path: Path, name: str) -> ModuleType:
     if name in sys.modules:
         return sys.modules[name]
@@ -157,7 +121,7 @@ def _load(path: Path, name: str) -> ModuleType:
     except BaseException:
         del sys.modules[name]
         raise
-    _tolerate_corrupt_cache(module)
+    tolerate_corrupt_cache(module)
     return module
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["sad_compare"]
 
 
@@ -79,3 +81,6 @@ def sad_compare(
                     min_t = t
                     min_off = 0
     return mindiff, min_t, min_off
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

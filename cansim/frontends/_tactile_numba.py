@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 #: sqrt(k) for every possible |a - b| of two 8-bit pixels
 SQRT_LEVELS = np.sqrt(np.arange(256, dtype=np.float64))
 
@@ -38,3 +40,6 @@ def best_tactile_match(data, n, image, table):
             err = s
             best = r
     return best, err
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

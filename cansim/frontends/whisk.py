@@ -46,6 +46,7 @@ from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_columns, nmse_columns
 from whisker_io.validation import checked, validate_fields
+from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
 
@@ -349,3 +350,6 @@ class WhiskFrontEnd:
         self._sda = _grow(np.ascontiguousarray(got["sda"].T, dtype=np.float64), n)
         self._mask = _grow(np.ascontiguousarray(got["sda_mask"].T, dtype=bool), n)
         self._count = _grow(got["count"].astype(np.int64), n)
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

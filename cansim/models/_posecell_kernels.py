@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 
 @njit(cache=True)
 def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
@@ -213,3 +215,6 @@ def best_sums(
         st1 += sin_th[i] * zs[i]
         st2 += cos_th[i] * zs[i]
     return sx1, sx2, sy1, sy2, st1, st2
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 
 @nb.njit(cache=True, nogil=True)
 def step_kernel(
@@ -74,3 +76,6 @@ def step_kernel(
         else:
             v[c] = vn
     return count
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

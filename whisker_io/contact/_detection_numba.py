@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["prominence_bound", "contact_extent"]
 
 
@@ -98,3 +100,6 @@ def bounded_maxima(y: np.ndarray, sign: float, bound: np.ndarray, min_bound: flo
                 i = i_ahead
         i += 1
     return out[:count]
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["chi2_rows", "nmse_rows", "chi2_columns", "nmse_columns"]
 
 _OPTS = dict(cache=True, error_model="numpy")  # IEEE division (no zero checks): the loops vectorise
@@ -113,3 +115,6 @@ def chi2_rows(q: np.ndarray, v: np.ndarray) -> np.ndarray:  # pragma: no cover -
 def nmse_rows(x: np.ndarray, y: np.ndarray, mask_x: np.ndarray, mask_y: np.ndarray) -> np.ndarray:  # pragma: no cover
     """:func:`nmse_columns` per row of ``y`` (m, N) with the masks ``mask_x`` (N,) and ``mask_y`` (m, N)."""
     return nmse_columns(x, np.ascontiguousarray(y.T), mask_x, np.ascontiguousarray(mask_y.T), y.shape[0], True)
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from whisker_io.numba_cache import tolerate_corrupt_cache
+
 __all__ = ["synthesise_cycle"]
 
 
@@ -103,3 +105,6 @@ def synthesise_cycle(
             x[i, k] = mx
             y[i, k] = my
             th[i, k] = a + angle_noise_std * noise[2, i, k]
+
+
+tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)
