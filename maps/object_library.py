@@ -30,7 +30,7 @@ from typing import BinaryIO
 import numpy as np
 
 from maps.object_map import ObjectMap
-from whisker_io.persistence import read_npz
+from whisker_io.persistence import read_npz, write_npz
 from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
@@ -121,14 +121,7 @@ class ObjectLibrary:
         A file name is written to a temporary name beside it and renamed, so a crash never
         leaves a half-written library under that name; an open binary file is written as is.
         """
-        arrays = self.to_arrays()
-        if not isinstance(path, (str, os.PathLike)):
-            np.savez(path, **arrays)
-            return
-        tmp = os.fspath(path) + ".tmp.npz"
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
+        write_npz(path, self.to_arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] | BinaryIO) -> "ObjectLibrary":

@@ -284,7 +284,8 @@ def test_ratslam_first_step_or_run_warms_up_once_with_the_first_observation(monk
     assert calls == [(slam, 7), (ran, 4)]
 
 
-RATSLAM_WARM_SCRIPT = textwrap.dedent("""\
+#: script prelude: counts numba compilations in ``count[0]``
+COMPILE_COUNTER = textwrap.dedent("""\
     from numba.core import event
     count = [0]
     class Count(event.Listener):
@@ -293,6 +294,10 @@ RATSLAM_WARM_SCRIPT = textwrap.dedent("""\
         def on_end(self, ev):
             count[0] += 1
     event.register("numba:compile", Count())
+    """)
+
+
+RATSLAM_WARM_SCRIPT = COMPILE_COUNTER + textwrap.dedent("""\
     import numpy as np
     from cansim import RatSLAM
     from cansim.frontends.visual import VisualTemplateConfig
@@ -316,15 +321,7 @@ def test_nothing_compiles_in_a_ratslam_loop_after_warm_up_on_a_cold_cache(tmp_pa
     assert int(out[1]) == 0
 
 
-WARM_SCRIPT = textwrap.dedent("""\
-    from numba.core import event
-    count = [0]
-    class Count(event.Listener):
-        def on_start(self, ev):
-            pass
-        def on_end(self, ev):
-            count[0] += 1
-    event.register("numba:compile", Count())
+WARM_SCRIPT = COMPILE_COUNTER + textwrap.dedent("""\
     import numpy as np
     from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
     from maps.odometry import SpatialOdometry
@@ -476,15 +473,7 @@ def test_every_cached_kernel_of_the_packages_reads_its_cache_tolerantly():
     assert plain == []
 
 
-CORRUPT_SCRIPT = textwrap.dedent("""\
-    from numba.core import event
-    count = [0]
-    class Count(event.Listener):
-        def on_start(self, ev):
-            pass
-        def on_end(self, ev):
-            count[0] += 1
-    event.register("numba:compile", Count())
+CORRUPT_SCRIPT = COMPILE_COUNTER + textwrap.dedent("""\
     import numpy as np
     from whisker_io.contact.detection import prominence_bound
     print(prominence_bound(np.array([0.0, 1.0, 0.0]), 1.0), count[0])

@@ -1,15 +1,16 @@
-"""Reading the library's ``.npz`` save files (no pickle) with typed errors."""
+"""The library's ``.npz`` save files (no pickle): written whole or not at all, read with typed errors."""
 
 from __future__ import annotations
 
 import os
 import zipfile
+from typing import Any, BinaryIO, Mapping
 
 import numpy as np
 
 from whisker_io.errors import CorruptFileError
 
-__all__ = ["read_npz"]
+__all__ = ["read_npz", "write_npz"]
 
 
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
@@ -33,3 +34,19 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
             return {k: archive[k] for k in archive.files}
         except Exception as exc:  # zip/CRC/header errors of a damaged member
             raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
+
+
+def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]) -> None:
+    """Write ``arrays`` as an ``.npz`` archive (no pickle).
+
+    A file name is written to a temporary name beside it and renamed (``os.replace``), so a
+    crash never leaves a half-written file under that name; an open binary file (e.g.
+    ``io.BytesIO``) is written as is.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        np.savez(path, **arrays)
+        return
+    tmp = os.fspath(path) + ".tmp.npz"
+    with open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+    os.replace(tmp, path)

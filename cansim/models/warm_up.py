@@ -49,20 +49,27 @@ def warm_up_whisker(model: Any, *, progress: bool = False) -> float:
         Seconds taken (s).
     """
     cfg = model.config
-    scratch = type(model)(cfg)
-    scratch._warm = True  # its own first step must not warm up again
     fe = cfg.frontend
     rng = np.random.default_rng(0)  # the synthetic regions; a private generator
     pfh = rng.dirichlet(np.ones(fe.n_bins), WARM_UP_PLACES)
     sda = rng.normal(0.0, 1.0, (WARM_UP_PLACES, fe.n_whiskers))
     # one cell of translation per whisk around a circle of WARM_UP_PLACES whisks (Eq 5.7 odometry)
     odo = SpatialOdometry(np.array([cfg.cell_size_m, 0.0, 0.0]), np.array([0.0, 0.0, 2.0 * math.pi / WARM_UP_PLACES]), 1.0)
+    return _scripted_laps(model, WARM_UP_PLACES, lambda scratch, k, view: scratch.step(odo, view),
+                          [(pfh[k], sda[k]) for k in range(WARM_UP_PLACES)], progress)
+
+
+def _scripted_laps(model: Any, places: int, step: Any, views: list, progress: bool) -> float:
+    """:data:`WARM_UP_LAPS` laps of ``places`` steps on a fresh model of ``model``'s configuration,
+    ``step(scratch, k, view)`` at place ``k`` with its view (none at the second place of the first
+    lap: a step without contact); timed and announced by :class:`~cansim.warm_up.WarmUp`."""
+    scratch = type(model)(model.config)
+    scratch._warm = True  # its own first step must not warm up again
     with WarmUp(type(model).__name__, progress=progress) as w:
         for lap in range(WARM_UP_LAPS):
             w.stage(f"lap {lap + 1} of {WARM_UP_LAPS}")
-            for k in range(WARM_UP_PLACES):
-                obs = None if (lap, k) == (0, 1) else (pfh[k], sda[k])
-                scratch.step(odo, obs)
+            for k in range(places):
+                step(scratch, k, None if (lap, k) == (0, 1) else views[k])
     return w.elapsed_s
 
 
@@ -113,13 +120,6 @@ def warm_up_ratslam(model: Any, observation: Any = None, *, progress: bool = Fal
         Seconds taken (s).
     """
     cfg = model.config
-    scratch = type(model)(cfg)
-    scratch._warm = True  # its own first step must not warm up again
-    views = _ratslam_views(model, observation, RATSLAM_WARM_UP_PLACES)
-    with WarmUp(type(model).__name__, progress=progress) as w:
-        for lap in range(WARM_UP_LAPS):
-            w.stage(f"lap {lap + 1} of {WARM_UP_LAPS}")
-            for k in range(RATSLAM_WARM_UP_PLACES):
-                view = None if (lap, k) == (0, 1) else views[k]
-                scratch.step(cfg.cell_size_m, 2.0 * math.pi / RATSLAM_WARM_UP_PLACES, 1.0, view)
-    return w.elapsed_s
+    turn = 2.0 * math.pi / RATSLAM_WARM_UP_PLACES
+    return _scripted_laps(model, RATSLAM_WARM_UP_PLACES, lambda scratch, k, view: scratch.step(cfg.cell_size_m, turn, 1.0, view),
+                          _ratslam_views(model, observation, RATSLAM_WARM_UP_PLACES), progress)

@@ -36,7 +36,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
-from whisker_io.persistence import read_npz
+from whisker_io.persistence import read_npz, write_npz
 from whisker_io.validation import finite_scalar, finite_vector, plain_fields
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
@@ -465,15 +465,8 @@ class SpikingPopulation:
             "axes": [{"name": a.name, "size": a.size, "step": a.step, "angular": a.angular} for a in self._axes],
             "params": asdict(self._params), "dt_s": self._dt, "seed": self._seed, "backend": self._backend,
         }
-        arrays = {"spiking_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(description)),
-                  **self.state_arrays("state_")}
-        if not isinstance(path, (str, os.PathLike)):
-            np.savez(path, **arrays)
-            return
-        tmp = os.fspath(path) + ".tmp.npz"
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
+        write_npz(path, {"spiking_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(description)),
+                         **self.state_arrays("state_")})
 
     @classmethod
     def load(cls, path: "str | os.PathLike[str] | BinaryIO") -> "SpikingPopulation":
