@@ -189,6 +189,7 @@ def stand_in_driver(tmp_path_factory):
     return cc.compile_driver(cc.check_checkout(root), root / "build", boost)
 
 
+@pytest.mark.slow  # compiles C++ (fast loop <= 4 min)
 def test_the_driver_makes_the_calls_in_order_and_writes_the_trace_format(stand_in_driver, tmp_path):
     rows = [(1, 0, 0.0, 0.5, 0.25, 1.0), (0, 0, 0.0, 0.25, -0.5, 2.0), (1, 1, 0.0, 0.125, 0.0, 1.0),
             (1, 0, 0.0, 0.0, 1.0, 0.5), (1, 0, 0.0, 1.0, 0.0, 1.0)]
@@ -214,6 +215,7 @@ def test_the_driver_refuses_view_ids_that_skip(stand_in_driver, tmp_path):
         cc.run_cpp(stand_in_driver, ini, inp, tmp_path / "out.csv")
 
 
+@pytest.mark.slow  # compiles C++ (fast loop <= 4 min)
 def test_a_broken_checkout_fails_to_compile_with_the_compiler_message(stand_in_driver, tmp_path):
     root = stand_in_driver.parent.parent
     broken = tmp_path / "broken"

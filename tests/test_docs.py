@@ -47,6 +47,7 @@ def test_every_tutorial_has_code():
         assert rst_python_blocks(page.read_text(encoding="utf-8")), f"{page.name} has no python block"
 
 
+@pytest.mark.slow  # runs whole tutorials (fast loop <= 4 min)
 @pytest.mark.parametrize("page", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs_as_written(page, tmp_path):
     code = "\n".join(rst_python_blocks(page.read_text(encoding="utf-8")))

@@ -59,6 +59,7 @@ COUNTING_SCRIPT = textwrap.dedent("""\
     """)
 
 
+@pytest.mark.slow  # subprocesses that compile (fast loop <= 4 min)
 def test_second_process_compiles_no_generated_kernel(tmp_path):
     """The first process compiles the generated small-grid step; the second loads it: no compilation."""
     env = {"CANSIM_KERNEL_CACHE": str(tmp_path / "kernels")}
@@ -154,6 +155,7 @@ def test_unwritable_folder_falls_back_with_one_warning(tmp_path, monkeypatch, ca
     assert cached_module(SOURCE, "demo", folder=blocker / "kernels") is None
 
 
+@pytest.mark.slow  # subprocesses that compile (fast loop <= 4 min)
 def test_small_grid_step_works_without_a_cache_folder(tmp_path, monkeypatch, caplog):
     """No usable kernel cache: the generated step compiles in memory and gives the cached step's result."""
     from cansim.axes import Axis
@@ -345,6 +347,7 @@ def test_nothing_compiles_in_the_loop_after_warm_up_on_a_cold_cache(tmp_path):
     assert int(out[1]) == 0
 
 
+@pytest.mark.slow  # subprocesses that compile (fast loop <= 4 min)
 @pytest.mark.parametrize("which", ["nbi", "nbc"])
 def test_corrupt_numba_cache_file_of_a_generated_module_recompiles(tmp_path, which, caplog):
     """A corrupt numba index or data file: a warning, a fresh compilation, the right result, a repaired cache."""
@@ -480,6 +483,7 @@ CORRUPT_SCRIPT = COMPILE_COUNTER + textwrap.dedent("""\
     """)
 
 
+@pytest.mark.slow  # subprocesses that compile (fast loop <= 4 min)
 @pytest.mark.parametrize("which", ["nbi", "nbc"])
 def test_a_corrupt_numba_cache_file_of_a_library_kernel_recompiles(tmp_path, which):
     """Issue 26 item 4: garbage in numba's index or data file of an ordinary library kernel (not a

@@ -235,6 +235,7 @@ def _pi_reference() -> tuple:
     return _REF["pi"]
 
 
+@pytest.mark.slow  # seconds of simulated turning (fast loop <= 4 min)
 def test_cansims_rotation_ring_turns_with_the_angular_velocity():
     n = PI_CELLS
     g = rotation_ring_graph(RotationRingParams(n_cells=n))
@@ -259,6 +260,7 @@ def _turned_rad_s(sim, n: int, omega_rad_s: float) -> float:
     return float(np.radians(np.polyfit(times, heads, 1)[0]))
 
 
+@pytest.mark.slow  # seconds of simulated turning (fast loop <= 4 min)
 def test_the_calibrated_ring_turns_at_the_wanted_rate_up_to_5_rad_s():
     """Rates between the calibration's grid points (2.5, 4.5 rad/s) and both signs: the bump turns at the wanted
     rate within 10 %, with its own kick and settling (the calibration measures from 0 deg, this from 90 deg)."""
@@ -326,6 +328,7 @@ TURNING = [
 ]
 
 
+@pytest.mark.slow  # seconds of simulated turning (fast loop <= 4 min)
 @pytest.mark.parametrize("consumer", TURNING)
 def test_consumer_turns_the_bump_like_cansim(consumer):
     _need(consumer)
@@ -462,6 +465,7 @@ def test_a_graph_rockpool_writes_back_is_refused_with_the_lost_edge_named():
     assert from_nir(same, metadata=g.metadata["cansim"]).params == _ring_population(24).params
 
 
+@pytest.mark.slow  # seconds of simulated turning (fast loop <= 4 min)
 def test_the_rat_heading_example_runs_on_a_short_piece(tmp_path):
     pytest.importorskip("ratinabox", reason="the recorded trajectory ships with ratinabox")
     import importlib.util

@@ -191,8 +191,9 @@ KINDS = {
 }
 
 
-#: model kinds whose steps cost ~0.1 s or more (spiking pose cells): in the slow set
-SLOW_KINDS = {"ratslam_spiking"}
+#: model kinds whose round trips take seconds (spiking pose cells; the 6-D WhiskerRatSLAM kinds):
+#: in the slow set (the fast loop keeps every RatSLAM kind and the WhiskerRatSLAM on every backend)
+SLOW_KINDS = {"ratslam_spiking", "whisker_library", "whisker_learnt", "whisker_mapping", "whisker_thesis"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(k, marks=pytest.mark.slow) if k in SLOW_KINDS else k for k in sorted(KINDS)])
