@@ -84,6 +84,7 @@ def test_an_out_of_range_cell_exits_3_before_any_task_runs(tmp_path, param, valu
     assert not (tmp_path / "out" / "parts").exists() or not any((tmp_path / "out" / "parts").iterdir())
 
 
+@pytest.mark.slow  # starts two Dask clusters (fast loop <= 4 min)
 def test_a_sweep_is_quiet_by_default_and_verbose_on_request(tmp_path):
     """Sweeps printed about 33 Dask INFO lines per run (issue 25): none by default, Dask's lines with --verbose."""
     spec = tmp_path / "small.toml"

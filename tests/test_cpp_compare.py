@@ -207,6 +207,7 @@ def test_the_driver_makes_the_calls_in_order_and_writes_the_trace_format(stand_i
     assert got.links.shape == (0, 6)
 
 
+@pytest.mark.slow  # compiles C++ (fast loop <= 4 min)
 def test_the_driver_refuses_view_ids_that_skip(stand_in_driver, tmp_path):
     ini, inp = tmp_path / "s.ini", tmp_path / "in.csv"
     ini.write_text(cc.settings_ini(21, 36, 1.0))

@@ -116,6 +116,7 @@ def test_window_is_clipped_so_no_cell_counts_twice():
 
 
 # ------------------------------------------------------------------ attractor
+@pytest.mark.slow  # 2,000 steps per backend and preset (fast loop <= 4 min)
 @pytest.mark.parametrize("preset", ["openratslam", "whisker6d"])
 def test_single_packet_is_stable_for_2000_steps(backend, preset):
     pop = getattr(Population, preset)(backend=backend)

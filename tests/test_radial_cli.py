@@ -11,6 +11,7 @@ from whisker_io.radial.__main__ import main
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
 
+@pytest.mark.slow  # trains every Table 4.1 model (fast loop <= 4 min)
 def test_train_then_evaluate_writes_one_row_per_model(tmp_path, capsys):
     models = tmp_path / "models"
     assert main(["train", "--models", str(models), "--quick"]) == 0
