@@ -533,6 +533,15 @@ def test_ratslam_demo_figures_read(tmp_path, saved_figures):
     _check_saved(saved_figures, ["ratslam_map.png", "ratslam_experience_ids.png", "ratslam_experience_ids_kidnapped.png"])
 
 
+def test_rat_trajectory_figures_read(tmp_path, saved_figures):
+    """The rat study's two figures (60 s of Sargolini, rate models only: ~3 s)."""
+    pytest.importorskip("ratinabox", reason="ratinabox (extra 'rat') is not installed")
+    from cansim.studies import rat_trajectories
+
+    assert rat_trajectories.main(["--quick", "--duration-s", "60", "--no-spiking", "--out", str(tmp_path)]) == 0
+    _check_saved(saved_figures, ["rat_trajectories_paths.png", "rat_trajectories_errors.png"])
+
+
 # --------------------------------------------------------------- whole quick studies (slow)
 @pytest.mark.slow
 @pytest.mark.parametrize("study, argv, expected", [

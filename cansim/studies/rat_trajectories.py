@@ -708,7 +708,8 @@ def plot_paths(runs: Sequence[DriftRun], ax=None):
                     label=f"rate sheet, {'re-anchored' if r.anchoring else 'path integration only'}")
         lm = sheets[0].landmarks_m
         for j, (x, y) in enumerate(lm):
-            ax.add_patch(plt.Circle((x, y), DEFAULTS["landmark_radius_m"], fill=False, color="k", lw=1.0))
+            ax.add_patch(plt.Circle((x, y), DEFAULTS["landmark_radius_m"], fill=False, color="k", lw=1.0,
+                                    label="landmark (view injected inside)" if j == 0 else None))
             ax.text(x, y + 0.06, f"L{j}", ha="center", va="center", fontsize=8)
     ax.set_aspect("equal")
     ax.set(xlabel="x (m)", ylabel="y (m)", title="recorded vs decoded path (2-D sheet)")
@@ -735,6 +736,8 @@ def plot_errors(runs: Sequence[DriftRun], axes=None):
     for ax in axes:
         ax.legend(fontsize=7, loc="upper left")
     axes[0].set_title("decoded vs recorded: error over time (legend: drift per minute)")
+    axes[0].set_title("head-direction rings", loc="left", fontsize=8)
+    axes[1].set_title("2-D sheet", loc="left", fontsize=8)
     return axes
 
 
