@@ -313,14 +313,13 @@ def detect_contact(
     baseline = float(np.mean(rec.y_counts[-p.baseline_samples :]))
     if abs(y_s[top] - baseline) <= p.confirm_threshold_counts:
         return None
-    y_c = y_s
-    z_top = sign * y_c[top]
+    z_top = sign * y_s[top]
     # runs above the plateau level and half the prominence around the top, and the sign changes of
     # diff(sign * y_s) before the rise (onset) and after the fall (offset), in one compiled scan
     peak, plateau_end, rise_mid, fall_mid, onset, offset = (int(v) for v in contact_extent(
-        y_c, float(sign), int(top), float(z_top - p.plateau_tolerance_counts), float(z_top - 0.5 * prom)))
+        y_s, float(sign), int(top), float(z_top - p.plateau_tolerance_counts), float(z_top - 0.5 * prom)))
     if p.refine_onset:
-        onset = _refine_onset(np.diff(sign * y_c), onset, rise_mid, p.smoothing_span)  # d[k] = z[k+1] - z[k]
+        onset = _refine_onset(np.diff(sign * y_s), onset, rise_mid, p.smoothing_span)  # d[k] = z[k+1] - z[k]
     if p.compensate_lead:
         onset = min(onset + (p.smoothing_span + 1) // 2, peak)
         offset = max(offset - p.smoothing_span // 2, plateau_end)
@@ -366,18 +365,25 @@ def _detect_smoothed(
     p = DetectionParams() if params is None else params
     recs = [_check_record(r) for r in records]
     out: list[DetectedContact | None] = [None] * len(recs)
-    smoothed: list[np.ndarray] = [np.empty(0)] * len(recs)
-    by_len: dict[int, list[int]] = {}
-    for i, r in enumerate(recs):
-        by_len.setdefault(r.n_samples, []).append(i)
-    for idx in by_len.values():
-        ys = moving_average(np.stack([recs[i].y_counts for i in idx]), p.smoothing_span)
-        reach = (ys.max(axis=1) - ys.min(axis=1)) >= p.min_prominence_counts
-        for j, i in enumerate(idx):
-            smoothed[i] = ys[j]
-            if reach[j]:
-                out[i] = detect_contact(recs[i], p, smoothed=ys[j])
+    smoothed = _smooth_by_length([r.y_counts for r in recs], p.smoothing_span)
+    for i, y_s in enumerate(smoothed):
+        if float(y_s.max()) - float(y_s.min()) >= p.min_prominence_counts:
+            out[i] = detect_contact(recs[i], p, smoothed=y_s)
     return out, smoothed
+
+
+def _smooth_by_length(signals: Sequence[np.ndarray], span: int) -> list[np.ndarray]:
+    """:func:`moving_average` of each signal, the signals of equal length in one call (rows of one
+    (n, T) result, returned as views); the same values as one call per signal."""
+    out: list[np.ndarray] = [np.empty(0)] * len(signals)
+    by_len: dict[int, list[int]] = {}
+    for i, sig in enumerate(signals):
+        by_len.setdefault(np.shape(sig)[-1] if np.ndim(sig) else 0, []).append(i)
+    for idx in by_len.values():
+        rows = moving_average(np.stack([signals[i] for i in idx]), span)
+        for j, i in enumerate(idx):
+            out[i] = rows[j]
+    return out
 
 
 def max_angle(record: WhiskRecord) -> float:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from whisker_io.contact.detection import DetectedContact, moving_average
+from whisker_io.contact.detection import DetectedContact, _smooth_by_length, moving_average
 from whisker_io.errors import InvalidInputError
 from whisker_io.records.whisk_record import WhiskRecord
 
@@ -155,20 +155,16 @@ def _slope_distribution_smoothed(
     slopes = np.zeros(n)
     mask = np.zeros(n, dtype=bool)
     hit = [i for i, c in enumerate(contacts) if c is not None]
-    by_len: dict[int, list[int]] = {}
-    for i in hit:
-        by_len.setdefault(records[i].n_samples, []).append(i)
-    for idx in by_len.values():
-        xs = moving_average(np.stack([records[i].x_counts for i in idx]), smoothing_span)
-        for j, i in enumerate(idx):
-            c = contacts[i]
-            lo, hi = c.onset_index, c.peak_index + 1
-            if not (0 <= lo < hi <= records[i].n_samples):
-                raise InvalidInputError(f"contact indices do not fit record {records[i].module} "
-                                        f"of {records[i].n_samples} samples")
-            g = _window_gradient(xs[j, lo:hi], y_smoothed[i][lo:hi], min_x_spread_counts)
-            if g is not None:
-                slopes[i], mask[i] = g, True
+    xs = _smooth_by_length([records[i].x_counts for i in hit], smoothing_span)
+    for i, x_s in zip(hit, xs):
+        c = contacts[i]
+        lo, hi = c.onset_index, c.peak_index + 1
+        if not (0 <= lo < hi <= records[i].n_samples):
+            raise InvalidInputError(f"contact indices do not fit record {records[i].module} "
+                                    f"of {records[i].n_samples} samples")
+        g = _window_gradient(x_s[lo:hi], y_smoothed[i][lo:hi], min_x_spread_counts)
+        if g is not None:
+            slopes[i], mask[i] = g, True
     return SlopeDistribution(slopes=slopes, mask=mask, modules=tuple(r.module for r in records))
 
 

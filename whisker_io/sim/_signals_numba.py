@@ -20,6 +20,16 @@ from whisker_io.numba_cache import tolerate_corrupt_cache
 __all__ = ["synthesise_cycle"]
 
 
+@njit(cache=True, inline="always")
+def _clip(v: float, lim: float) -> float:  # pragma: no cover - compiled
+    """``v`` saturated at +-``lim`` (the ADC range; ``np.clip``'s result, comparisons only)."""
+    if v < -lim:
+        return -lim
+    if v > lim:
+        return lim
+    return v
+
+
 @njit(cache=True)
 def synthesise_cycle(
     angles: np.ndarray,
@@ -72,16 +82,8 @@ def synthesise_cycle(
                 if run >= s:
                     past = 0.0
             d = g * past
-            dx = d * ax
-            dy = d * ay
-            if dx < -lim:
-                dx = -lim
-            elif dx > lim:
-                dx = lim
-            if dy < -lim:
-                dy = -lim
-            elif dy > lim:
-                dy = lim
+            dx = _clip(d * ax, lim)
+            dy = _clip(d * ay, lim)
             if first_past[i] < 0 and a > tc:
                 first_past[i] = k
             ady = abs(dy)
@@ -94,16 +96,8 @@ def synthesise_cycle(
             if quantize:
                 mx = np.rint(mx)
                 my = np.rint(my)
-            if mx < -lim:
-                mx = -lim
-            elif mx > lim:
-                mx = lim
-            if my < -lim:
-                my = -lim
-            elif my > lim:
-                my = lim
-            x[i, k] = mx
-            y[i, k] = my
+            x[i, k] = _clip(mx, lim)
+            y[i, k] = _clip(my, lim)
             th[i, k] = a + angle_noise_std * noise[2, i, k]
 
 
