@@ -271,7 +271,7 @@ def test_ratslam_warm_up_does_not_change_the_run(frontend):
     assert first_step._warm and np.array_equal(first_step.experience_map.poses, cold.experience_map.poses)
 
 
-def test_ratslam_first_step_or_run_warms_up_once_with_the_first_observation(monkeypatch):
+def test_ratslam_first_step_run_or_view_warms_up_once_with_the_first_observation(monkeypatch):
     from cansim import RatSLAM
     from cansim.models import warm_up as wu
 
@@ -283,7 +283,11 @@ def test_ratslam_first_step_or_run_warms_up_once_with_the_first_observation(monk
         slam.step(0.05, 0.1, 1.0, 7 + k)
     ran = RatSLAM(xy_cells=11, heading_cells=12, cell_size_m=0.1)
     ran.run([0.05] * 3, [0.1] * 3, 1.0, [None, 4, 5])
-    assert calls == [(slam, 7), (ran, 4)]
+    replayed = RatSLAM(xy_cells=11, heading_cells=12, cell_size_m=0.1)  # bag replay: on_view / on_odo calls
+    replayed.on_view(9)
+    replayed.on_odo(0.05, 0.1, 1.0)
+    replayed.on_view(3)
+    assert calls == [(slam, 7), (ran, 4), (replayed, 9)]
 
 
 #: script prelude: counts numba compilations in ``count[0]``

@@ -46,6 +46,7 @@ import numpy as np
 from cansim.errors import ConfigError, InvalidInputError
 from cansim.frontends.ids import IdsFrontEnd
 from cansim.frontends.panoramic import HeadingOffset
+from cansim.frontends.store import ViewMatch
 from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
 from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.local_view import LocalViewCells
@@ -153,6 +154,14 @@ class RatSLAM(SlamLoop):
             self.warm_up(observation)
         return super().step(vtrans, vrot, dt, observation)
 
+    def on_view(self, observation: Any) -> ViewMatch:
+        """:meth:`SlamLoop.on_view <cansim.models.slam_loop.SlamLoop.on_view>`, after the warm-up
+        when none has run (a loop of :meth:`on_view` / :meth:`on_odo` calls, e.g. bag replay, warms
+        up at its first view, with that view)."""
+        if not self._warm:
+            self.warm_up(observation)
+        return super().on_view(observation)
+
     def warm_up(self, observation: Any = None, *, progress: bool = False) -> float:
         """Compile (or load from the disk cache) every kernel this configuration uses, now.
 
@@ -160,8 +169,8 @@ class RatSLAM(SlamLoop):
         (:func:`cansim.models.warm_up.warm_up_ratslam`); this model is unchanged. The first
         :meth:`step` or :meth:`run` calls it (with its first observation, so an image front
         end compiles for the images' dtype) when it has not run, so no kernel compiles
-        inside the loop; a loop of :meth:`on_view` / :meth:`on_odo` calls (bag replay)
-        calls it first itself. Logs a line (and with ``progress`` shows one on stderr)
+        inside the loop; so does the first :meth:`on_view` of a loop of :meth:`on_view` /
+        :meth:`on_odo` calls (bag replay). Logs a line (and with ``progress`` shows one on stderr)
         when it takes more than a second.
 
         Parameters

@@ -442,8 +442,6 @@ def _run(reader: Any, conns: list[Any], cfg: RatSLAMConfig, odo_t: str, odo_type
                 except InvalidInputError as exc:
                     raise type(exc)(f"{name}: {topic} message {n_img}: {exc}") from None
                 try:
-                    if n_img == 0 and not getattr(slam, "_warm", True):
-                        slam.warm_up(image)  # compile for this bag's images before the loop's first update
                     slam.on_view(image)
                 except InvalidInputError as exc:
                     raise type(exc)(f"{name}: {topic} message {n_img} (image {image.shape}): {exc}") from None
