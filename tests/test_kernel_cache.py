@@ -505,3 +505,32 @@ def test_a_corrupt_numba_cache_file_of_a_library_kernel_recompiles(tmp_path, whi
     again = out.stdout.split()
     assert again[:-1] == first[:-1] and int(again[-1]) > 0 and "corrupt numba cache" in out.stderr
     assert _run(CORRUPT_SCRIPT, env).split()[-1] == "0"  # the entry was written anew
+
+
+@settings(max_examples=25, deadline=None)
+@given(observation=st.one_of(st.none(), st.integers(-3, 40), st.text(max_size=5), st.booleans(),
+                             st.tuples(st.integers(1, 30), st.integers(1, 70), st.sampled_from(["uint8", "float64", "int64"]))))
+def test_ratslam_first_step_with_any_observation_warms_up_or_refuses_with_the_models_state_unchanged(observation):
+    """A camera RatSLAM's first step: a usable image warms up and steps; anything else raises the
+    project's error, and the model (its saved bytes and its not-yet-warm flag) is unchanged."""
+    import io
+
+    from cansim import RatSLAM
+    from cansim.errors import CansimError
+    from cansim.frontends.visual import VisualTemplateConfig
+
+    if isinstance(observation, tuple):
+        h, w, dtype = observation
+        observation = np.random.default_rng(h * w).integers(0, 256, (h, w)).astype(dtype)
+    slam = RatSLAM(xy_cells=11, heading_cells=12, cell_size_m=0.1,
+                   frontend=VisualTemplateConfig(template_width_blocks=12, template_height_blocks=4, shift_match_blocks=3))
+    before = io.BytesIO()
+    slam.save(before)
+    try:
+        slam.step(0.05, 0.1, 1.0, observation)
+    except CansimError:
+        after = io.BytesIO()
+        slam.save(after)
+        assert after.getvalue() == before.getvalue() and not slam._warm
+    else:
+        assert slam._warm and slam.iteration == 1

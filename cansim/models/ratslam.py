@@ -187,8 +187,9 @@ class RatSLAM(SlamLoop):
         """
         from cansim.models.warm_up import warm_up_ratslam
 
-        self._warm = True
-        return warm_up_ratslam(self, observation, progress=progress)
+        elapsed = warm_up_ratslam(self, observation, progress=progress)
+        self._warm = True  # only once it ran: a refused observation leaves the model as it was
+        return elapsed
 
     def run(self, vtrans: Any, vrot: Any, dt: Any, observations: Any, *, progress: bool = False) -> SlamLog:  # type: ignore[override]
         """:meth:`step` for every row: ``vtrans``, ``vrot`` (n,) m/s and rad/s, ``dt`` s (scalar or (n,))."""
