@@ -41,9 +41,9 @@ import numpy as np
 
 from cansim.axes import Axis
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError, ZeroActivityError
-from cansim.params import AttractorParams
 from cansim.spiking import (
     HD_RING_ATTRACTOR,
+    SHEET_ATTRACTOR,
     SpikeCountDecoder,
     SpikingPopulation,
     calibrate_velocity_lead,
@@ -53,8 +53,6 @@ from whisker_io.validation import checked, config_field, validate_fields
 
 __all__ = ["SpikingPoseCellParams", "SpikingPoseCells"]
 
-#: kernels of the place sheet (2 sheet cells per pose cell): excitation 11 taps sigma 2, inhibition 15 taps sigma 4
-SHEET_ATTRACTOR = AttractorParams(exc_width=11, exc_sigma=2.0, inh_width=15, inh_sigma=4.0)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from cansim.spiking.neurons import NeuronParams, analytic_lif_rate_hz
 from cansim.spiking.population import SPIKING_BACKENDS, SpikingParams, SpikingPopulation
 from cansim.spiking.decoding import SpikeCountDecoder
 from cansim.spiking.calibration import calibrate_velocity_lead, measure_packet_speed
-from cansim.spiking.correspondence import HD_RING_ATTRACTOR, spiking_from_rate, spiking_params_from_rate
+from cansim.spiking.correspondence import HD_RING_ATTRACTOR, SHEET_ATTRACTOR, spiking_from_rate, spiking_params_from_rate
 from cansim.spiking.nir_io import NIR_FORMAT, NIR_STEP_S, from_nir, to_nir
 from cansim.spiking.nir_graph_sim import NIRGraphSimulator
 from cansim.spiking.rotation_ring import (
@@ -39,6 +39,7 @@ __all__ = [
     "calibrate_velocity_lead",
     "measure_packet_speed",
     "HD_RING_ATTRACTOR",
+    "SHEET_ATTRACTOR",
     "spiking_from_rate",
     "spiking_params_from_rate",
     "to_nir",

@@ -40,11 +40,15 @@ from cansim.spiking.calibration import calibrate_velocity_lead
 from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.population import SpikingParams, SpikingPopulation
 
-__all__ = ["HD_RING_ATTRACTOR", "spiking_params_from_rate", "spiking_from_rate"]
+__all__ = ["HD_RING_ATTRACTOR", "SHEET_ATTRACTOR", "spiking_params_from_rate", "spiking_from_rate"]
 
 #: kernels of a 360-cell head-direction ring that both the rate and the spiking model
 #: path-integrate well: excitation 21 taps sigma 4 cells, inhibition 31 taps sigma 8 cells
 HD_RING_ATTRACTOR = AttractorParams(exc_width=21, exc_sigma=4.0, inh_width=31, inh_sigma=8.0)
+
+#: kernels of a spiking 2-D place sheet: excitation 11 taps sigma 2 cells, inhibition 15 taps sigma 4 cells
+#: (the spiking pose cells' sheet, :mod:`cansim.models.spiking_pose_cells`, and :mod:`cansim.spiking.velocity_sheet`)
+SHEET_ATTRACTOR = AttractorParams(exc_width=11, exc_sigma=2.0, inh_width=15, inh_sigma=4.0)
 
 
 def spiking_params_from_rate(

@@ -55,6 +55,8 @@ input onto the rotation cells (``M`` and ``C_E`` as in :mod:`cansim.spiking.nir_
 node only and returns the output of the last node of a depth-first walk from the input,
 so a graph whose input fans out to two populations loses an input or returns the wrong
 node; and snnTorch needs the three-node loop (:mod:`cansim.spiking.nir_io`).
+The graph is written by :func:`cansim.spiking.conjunctive.conjunctive_graph` (shared with
+the 2-D sheet of :mod:`cansim.spiking.velocity_sheet`).
 :class:`cansim.spiking.nir_graph_sim.NIRGraphSimulator` is cansim's own simulation of
 the graph.
 
@@ -75,15 +77,8 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR
 from cansim.spiking.neurons import NeuronParams
-from cansim.spiking.nir_io import (
-    NIR_STEP_S,
-    _nir,
-    circulant,
-    cuba_lif_node,
-    current_gain,
-    factored_recurrent,
-    input_gain,
-)
+from cansim.spiking.conjunctive import conjunctive_graph
+from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
 from cansim.spiking.population import SpikingParams
 from whisker_io.validation import checked, validate_fields
 
@@ -198,36 +193,13 @@ def rotation_ring_graph(params: RotationRingParams = RotationRingParams(), *, dt
     ConfigError
         Bad parameters or step.
     """
-    nir = _nir()
     if not isinstance(params, RotationRingParams):
         raise ConfigError("params must be a cansim.spiking.rotation_ring.RotationRingParams")
     n = int(params.n_cells)
     nrn = params.neurons
     cuba_lif_node(nrn, n, dt_s)  # validates the step
-    ce, m = factored_recurrent(params.ring_params, (n,))
-    c_gain, g_in = current_gain(nrn, dt_s), input_gain(nrn, dt_s)
     exc, _ = params.attractor.kernels(1)
-    taps = exc.dense() / float(np.sum(exc.dense()))
-    eye, zero = np.eye(n), np.zeros((n, n))
-    w_in = np.zeros((3 * n, n + 1))
-    w_in[:n, :n] = g_in * eye
-    w_in[n : 2 * n, n] = g_in * params.velocity_gain
-    w_in[2 * n :, n] = -g_in * params.velocity_gain
-    b_in = g_in * np.concatenate([np.full(n, nrn.bias_current), np.full(2 * n, params.rotation_bias)])
-    # excitation: [C_E z_ring; z_ring; z_rotation] (4N x 3N)
-    w_exc = np.zeros((4 * n, 3 * n))
-    w_exc[:n, :n] = ce
-    w_exc[n : 2 * n, :n] = eye
-    w_exc[2 * n :, n:] = np.eye(2 * n)
-    # inhibition: ring <- M C_E z_ring + rotation -> ring; rotation <- ring one-to-one (3N x 4N)
     s = int(params.shift_cells)
-    w_inh = np.zeros((3 * n, 4 * n))
-    w_inh[:n, :n] = m
-    w_inh[:n, 2 * n : 3 * n] = params.rotation_to_ring_weight * circulant(taps, (n,), (s,))
-    w_inh[:n, 3 * n :] = params.rotation_to_ring_weight * circulant(taps, (n,), (-s,))
-    w_inh[n : 2 * n, n : 2 * n] = params.ring_to_rotation_weight * eye
-    w_inh[2 * n :, n : 2 * n] = params.ring_to_rotation_weight * eye
-    readout = np.hstack([eye, zero, zero])
     meta = {
         "format": ROTATION_RING_FORMAT,
         "nir_step_s": float(dt_s),
@@ -242,25 +214,21 @@ def rotation_ring_graph(params: RotationRingParams = RotationRingParams(), *, dt
         "refractory_s": float(nrn.refractory_s),
         "noise_sigma": float(nrn.noise_sigma),
     }
-    nodes = {
-        "input": nir.Input(input_type={"input": np.array([n + 1])}),
-        "input_map": nir.Affine(weight=w_in, bias=b_in),
-        "cells": cuba_lif_node(nrn, 3 * n, dt_s),
-        "excitation": nir.Linear(weight=w_exc),
-        "inhibition": nir.Linear(weight=w_inh * c_gain),
-        "readout": nir.Linear(weight=readout),
-        "output": nir.Output(output_type={"output": np.array([n])}),
-    }
-    edges = [
-        ("input", "input_map"),
-        ("input_map", "cells"),
-        ("cells", "excitation"),
-        ("excitation", "inhibition"),
-        ("inhibition", "cells"),
-        ("cells", "readout"),
-        ("readout", "output"),
-    ]
-    return nir.NIRGraph(nodes=nodes, edges=edges, metadata={"cansim": meta})
+    return conjunctive_graph(
+        shape=(n,),
+        recurrent=factored_recurrent(params.ring_params, (n,)),
+        excitation_taps=exc.dense() / float(np.sum(exc.dense())),
+        neurons=nrn,
+        attractor_bias=nrn.bias_current,
+        shifts=np.array([[s], [-s]]),
+        velocity_map=np.array([[1.0], [-1.0]]),
+        velocity_gain=params.velocity_gain,
+        direction_bias=params.rotation_bias,
+        attractor_to_direction_weight=params.ring_to_rotation_weight,
+        direction_to_attractor_weight=params.rotation_to_ring_weight,
+        dt_s=dt_s,
+        metadata=meta,
+    )
 
 
 @dataclass(frozen=True)

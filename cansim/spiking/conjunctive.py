@@ -1,0 +1,157 @@
+"""Path integration by conjunctive cells, as one NIR graph: the builder shared by the ring and the sheet.
+
+A continuous attractor moves its bump when cells that are conjunctive for *position and
+direction of motion* push it (Skaggs et al. 1995; Zhang 1996; Burak & Fiete 2009):
+beside the attractor sit ``D`` direction populations, each a copy of the attractor's
+grid. Cell ``j`` of direction population ``d`` gets a one-to-one input from attractor cell
+``j``, a bias, and a current proportional to the velocity component along ``d``; it
+excites the attractor around ``j + shift_d`` through the attractor's (sum-normalised)
+excitation kernel. At rest all directions fire alike and their pushes cancel; motion
+makes the populations along it fire more, and the bump follows.
+
+:func:`conjunctive_graph` writes that network as one CubaLIF node and one chain, the
+layout every consumer of :mod:`cansim.spiking.nir_io` reads (why one node and one chain:
+:mod:`cansim.spiking.rotation_ring`)::
+
+    input -> input_map (Affine) -> cells -> readout (Linear) -> output
+    cells -> excitation (Linear) -> inhibition (Linear) -> cells
+
+The cells are ``[attractor (S); direction 0 (S); ...; direction D-1 (S); pool (P)]``.
+``excitation`` gives ``[C_E z_attractor; z_all]`` and ``inhibition`` maps that to the
+currents: onto the attractor ``M C_E z_attractor`` (its own recurrent matrix, factored as
+:func:`cansim.spiking.nir_io.factored_recurrent` does), the shifted pushes of the
+direction cells and ``-pool_to_attractor_weight`` per pool spike; onto each direction
+population ``attractor_to_direction_weight`` times its attractor cell's spikes; onto each
+pool cell ``attractor_to_pool_weight`` times the attractor's total spikes.
+
+The optional *pool* of ``P`` inhibitory cells holds the bump's rate. Without refractory
+periods (the consumers have none) an LIF cell's rate grows linearly with its current, so
+a recurrent gain strong enough to hold a 2-D bump runs it up to one spike per step, and
+one a little weaker lets it die (measured on a 16 x 16 sheet: recurrent weight 14.7 dies,
+15 fires every few steps); pool cells that fire only once the attractor's total rate
+passes their bias and inhibit every attractor cell make the feedback concave, so the
+bump settles at a moderate rate (:mod:`cansim.spiking.velocity_sheet`). The ring of
+:mod:`cansim.spiking.rotation_ring` needs none (``P = 0``).
+
+Weights are in cansim's units (a current jump per spike, threshold units) and converted
+to the consumers' convention here (:func:`cansim.spiking.nir_io.current_gain`,
+:func:`cansim.spiking.nir_io.input_gain`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cansim.spiking.neurons import NeuronParams
+from cansim.spiking.nir_io import _nir, circulant, cuba_lif_node, current_gain, input_gain
+
+__all__ = ["conjunctive_graph"]
+
+
+def conjunctive_graph(
+    *,
+    shape: tuple[int, ...],
+    recurrent: tuple[np.ndarray, np.ndarray],
+    excitation_taps: np.ndarray,
+    neurons: NeuronParams,
+    attractor_bias: float,
+    shifts: np.ndarray,
+    velocity_map: np.ndarray,
+    velocity_gain: float,
+    direction_bias: float,
+    attractor_to_direction_weight: float,
+    direction_to_attractor_weight: float,
+    pool_cells: int = 0,
+    pool_bias: float = 0.0,
+    attractor_to_pool_weight: float = 0.0,
+    pool_to_attractor_weight: float = 0.0,
+    dt_s: float,
+    metadata: dict,
+) -> Any:
+    """The ``nir.NIRGraph`` of an attractor moved by conjunctive direction populations (module docstring).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The attractor's periodic grid (``S = prod(shape)`` cells).
+    recurrent : (ndarray (S, S), ndarray (S, S))
+        ``(C_E, M)`` of :func:`cansim.spiking.nir_io.factored_recurrent`.
+    excitation_taps : ndarray
+        The excitation kernel's taps, sum 1 (the pushes' profile).
+    neurons : NeuronParams
+        The LIF cells of every population.
+    attractor_bias : float
+        Bias current of the attractor cells (threshold units).
+    shifts : ndarray (D, len(shape)) int
+        Where each direction population pushes, cells per axis.
+    velocity_map : ndarray (D, V)
+        Velocity input component ``v`` reaching direction ``d`` with factor
+        ``velocity_map[d, v] * velocity_gain``.
+    velocity_gain, direction_bias : float
+        Threshold units per unit of velocity input; the direction cells' bias.
+    attractor_to_direction_weight, direction_to_attractor_weight : float
+        Current jump per spike of the one-to-one input and peak scale of the pushes.
+    pool_cells, pool_bias, attractor_to_pool_weight, pool_to_attractor_weight
+        The inhibitory pool (none when ``pool_cells`` is 0).
+    dt_s : float
+        The consumers' step (s).
+    metadata : dict
+        Stored as ``graph.metadata["cansim"]``.
+
+    Returns
+    -------
+    nir.NIRGraph
+        Input ``S + V`` values (attractor currents, then the velocity components);
+        output the attractor's ``S`` spikes.
+    """
+    nir = _nir()
+    s_cells = int(np.prod(shape))
+    shifts = np.asarray(shifts, dtype=np.int64)
+    vmap = np.asarray(velocity_map, dtype=np.float64)
+    n_dir, n_vel = vmap.shape
+    p = int(pool_cells)
+    total = (1 + n_dir) * s_cells + p
+    ce, m = recurrent
+    c_gain, g_in = current_gain(neurons, dt_s), input_gain(neurons, dt_s)
+    eye = np.eye(s_cells)
+    w_in = np.zeros((total, s_cells + n_vel))
+    w_in[:s_cells, :s_cells] = g_in * eye
+    for d in range(n_dir):
+        w_in[(1 + d) * s_cells : (2 + d) * s_cells, s_cells:] = g_in * velocity_gain * vmap[d]
+    b_in = g_in * np.concatenate([np.full(s_cells, attractor_bias), np.full(n_dir * s_cells, direction_bias),
+                                  np.full(p, pool_bias)])
+    w_exc = np.zeros((s_cells + total, total))  # [C_E z_attractor; z_all]
+    w_exc[:s_cells, :s_cells] = ce
+    w_exc[s_cells:] = np.eye(total)
+    w_inh = np.zeros((total, s_cells + total))
+    w_inh[:s_cells, :s_cells] = m
+    z = s_cells  # column of z_all's first cell
+    for d in range(n_dir):
+        cols = slice(z + (1 + d) * s_cells, z + (2 + d) * s_cells)
+        w_inh[:s_cells, cols] = direction_to_attractor_weight * circulant(excitation_taps, tuple(shape), tuple(shifts[d]))
+        w_inh[(1 + d) * s_cells : (2 + d) * s_cells, z : z + s_cells] = attractor_to_direction_weight * eye
+    if p:
+        w_inh[:s_cells, z + (1 + n_dir) * s_cells :] = -pool_to_attractor_weight
+        w_inh[(1 + n_dir) * s_cells :, z : z + s_cells] = attractor_to_pool_weight
+    readout = np.hstack([eye, np.zeros((s_cells, total - s_cells))])
+    nodes = {
+        "input": nir.Input(input_type={"input": np.array([s_cells + n_vel])}),
+        "input_map": nir.Affine(weight=w_in, bias=b_in),
+        "cells": cuba_lif_node(neurons, total, dt_s),
+        "excitation": nir.Linear(weight=w_exc),
+        "inhibition": nir.Linear(weight=w_inh * c_gain),
+        "readout": nir.Linear(weight=readout),
+        "output": nir.Output(output_type={"output": np.array([s_cells])}),
+    }
+    edges = [
+        ("input", "input_map"),
+        ("input_map", "cells"),
+        ("cells", "excitation"),
+        ("excitation", "inhibition"),
+        ("inhibition", "cells"),
+        ("cells", "readout"),
+        ("readout", "output"),
+    ]
+    return nir.NIRGraph(nodes=nodes, edges=edges, metadata={"cansim": dict(metadata)})
