@@ -47,7 +47,7 @@ import numpy as np
 from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.nir_io import _nir, circulant, cuba_lif_node, current_gain, input_gain
 
-__all__ = ["conjunctive_graph"]
+__all__ = ["conjunctive_graph", "invert_speed_curve"]
 
 
 def conjunctive_graph(
@@ -155,3 +155,32 @@ def conjunctive_graph(
         ("readout", "output"),
     ]
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata={"cansim": dict(metadata)})
+
+
+def invert_speed_curve(inputs: Any, speeds: Any, wanted: Any) -> tuple[Any, float]:
+    """The inputs that move a bump at ``wanted`` speeds, from a measured curve; and the fastest speed.
+
+    Only the rising part of the curve (up to its first maximum) is inverted, linearly
+    between the measured points; speeds beyond its top saturate there; the sign of
+    ``wanted`` is kept (the networks are mirror-symmetric).
+
+    Parameters
+    ----------
+    inputs, speeds : sequence of float
+        The measured curve (validated by the calibration classes that hold it), both starting at 0.
+    wanted : float or ndarray
+        Wanted speeds (any sign; ``inf`` reads the top).
+
+    Returns
+    -------
+    (float or ndarray, float)
+        The inputs, shaped as ``wanted``; the top of the rising part.
+    """
+    sp = np.asarray(speeds, dtype=np.float64)
+    k = 1
+    while k + 1 < sp.size and sp[k + 1] > sp[k]:
+        k += 1
+    inp, sp = np.asarray(inputs, dtype=np.float64)[: k + 1], sp[: k + 1]
+    w = np.asarray(wanted, dtype=np.float64)
+    out = np.sign(w) * np.interp(np.minimum(np.abs(w), sp[-1]), sp, inp)
+    return (float(out) if out.ndim == 0 else out), float(sp[-1])

@@ -77,7 +77,7 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR
 from cansim.spiking.neurons import NeuronParams
-from cansim.spiking.conjunctive import conjunctive_graph
+from cansim.spiking.conjunctive import conjunctive_graph, invert_speed_curve
 from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
 from cansim.spiking.population import SpikingParams
 from whisker_io.validation import checked, validate_fields
@@ -261,17 +261,10 @@ class TurningCalibration:
         if sp[1] <= 0:
             raise ConfigError(f"the bump did not turn at {om[1]} rad/s ({sp[1]} rad/s): nothing to invert")
 
-    def _rising(self) -> tuple[np.ndarray, np.ndarray]:
-        sp = np.asarray(self.bump_rad_s, dtype=np.float64)
-        k = 1
-        while k + 1 < sp.size and sp[k + 1] > sp[k]:
-            k += 1
-        return np.asarray(self.omega_rad_s, dtype=np.float64)[: k + 1], sp[: k + 1]
-
     @property
     def max_rad_s(self) -> float:
         """The fastest turning rate the ring reaches on the rising part of the curve (rad/s)."""
-        return float(self._rising()[1][-1])
+        return invert_speed_curve(self.omega_rad_s, self.bump_rad_s, np.inf)[1]
 
     def command(self, omega_rad_s):
         """The input (rad/s) that turns the bump at ``omega_rad_s`` (scalar or array), saturated at :attr:`max_rad_s`.
@@ -284,9 +277,7 @@ class TurningCalibration:
         w = np.asarray(omega_rad_s, dtype=np.float64)
         if not np.isfinite(w).all():
             raise InvalidInputError("omega_rad_s must be finite (no NaN/inf)")
-        om, sp = self._rising()
-        out = np.sign(w) * np.interp(np.minimum(np.abs(w), sp[-1]), sp, om)
-        return float(out) if out.ndim == 0 else out
+        return invert_speed_curve(self.omega_rad_s, self.bump_rad_s, w)[0]
 
 
 def _population_vector_rad(counts: np.ndarray) -> float:
