@@ -3,8 +3,9 @@
 See :mod:`cansim.spiking.population` for the model, :mod:`cansim.spiking.correspondence`
 for what corresponds to what between the rate and the spiking population, and
 :mod:`cansim.spiking.nir_io` for export to / import from NIR (in the conventions snnTorch,
-Norse and Rockpool read), :mod:`cansim.spiking.rotation_ring` for a ring that path-integrates
-with neurons and synapses (expressible in NIR), :mod:`cansim.spiking.nir_graph_sim` for
+Norse and Rockpool read), :mod:`cansim.spiking.rotation_ring` for a ring and
+:mod:`cansim.spiking.velocity_sheet` for a 2-D sheet that path-integrate with neurons and
+synapses (expressible in NIR), :mod:`cansim.spiking.nir_graph_sim` for
 cansim's own simulation of such graphs and :mod:`cansim.spiking.nir_consumers` for running
 them in those toolchains.
 """
@@ -25,6 +26,15 @@ from cansim.spiking.rotation_ring import (
     calibrate_turning,
     ring_input,
     rotation_ring_graph,
+)
+from cansim.spiking.velocity_sheet import (
+    SheetCalibration,
+    VelocitySheetParams,
+    calibrate_sheet_speed,
+    sheet_input,
+    sheet_kick,
+    sheet_position_cells,
+    velocity_sheet_graph,
 )
 
 __all__ = [
@@ -52,4 +62,11 @@ __all__ = [
     "ring_input",
     "TurningCalibration",
     "calibrate_turning",
+    "VelocitySheetParams",
+    "velocity_sheet_graph",
+    "sheet_input",
+    "sheet_kick",
+    "sheet_position_cells",
+    "SheetCalibration",
+    "calibrate_sheet_speed",
 ]
