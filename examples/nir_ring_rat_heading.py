@@ -71,7 +71,8 @@ def rat_heading(
     return t[sel] - t[sel][0], head[sel]
 
 
-def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, **heading) -> dict:
+def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integration: str = "exact",
+        **heading) -> dict:
     """Drive the ring with the rat's angular velocity; returns the RMS heading error and timing."""
     t, head = rat_heading(seconds, **heading)
     omega = np.gradient(head, t)
@@ -80,7 +81,7 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, **head
     command = cal.command(omega) if cal is not None else omega
     g = rotation_ring_graph(params)
     if who == "cansim":
-        step = NIRGraphSimulator(g).step
+        step = NIRGraphSimulator(g, integration=integration).step
     else:
         from cansim.spiking.nir_consumers import ConsumerRunner
 
@@ -100,7 +101,8 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, **head
             out_h.append(math.atan2(trace @ np.sin(ang), trace @ np.cos(ang)))
     err = (np.array(out_h) - np.interp(out_t, t, head) + np.pi) % (2 * np.pi) - np.pi
     return {
-        "who": who, "cells": cells, "seconds": seconds, "calibrated": calibrated, **heading,
+        "who": who, "cells": cells, "seconds": seconds, "calibrated": calibrated,
+        "integration": integration if who == "cansim" else "consumer's own", **heading,
         "rms_heading_error_deg": float(np.degrees(np.sqrt(np.mean(err**2)))),
         "mean_abs_omega_rad_s": float(np.abs(omega).mean()), "max_abs_omega_rad_s": float(np.abs(omega).max()),
         "calibration_max_rad_s": None if cal is None else cal.max_rad_s,
@@ -119,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-speed-m-s", type=float, default=0.03)
     ap.add_argument("--lowpass-s", type=float, default=0.2)
     ap.add_argument("--no-calibration", action="store_true")
+    ap.add_argument("--integration", default="exact", choices=["exact", "euler"],
+                    help="cansim's discretisation (euler: the consumers'; --who cansim only)")
     ap.add_argument("--out", type=Path, default=Path("rat_heading.json"))
     args = ap.parse_args(argv)
     if not (math.isfinite(args.seconds) and 0 < args.seconds <= 590):
@@ -128,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.smooth_s > 0 and args.min_speed_m_s >= 0 and args.lowpass_s >= 0):
         ap.error("--smooth-s must be > 0, --min-speed-m-s and --lowpass-s >= 0")
     res = run(
-        args.who, args.cells, args.seconds, calibrated=not args.no_calibration, start_s=args.start_s, data=args.data,
+        args.who, args.cells, args.seconds, calibrated=not args.no_calibration, integration=args.integration,
+        start_s=args.start_s, data=args.data,
         smooth_s=args.smooth_s, min_speed_m_s=args.min_speed_m_s, lowpass_s=args.lowpass_s,
     )
     print(json.dumps(res))

@@ -40,14 +40,23 @@ to the consumers' convention here (:func:`cansim.spiking.nir_io.current_gain`,
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from cansim.errors import ConfigError
 from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.nir_io import _nir, circulant, cuba_lif_node, current_gain, input_gain
 
-__all__ = ["conjunctive_graph", "invert_speed_curve"]
+__all__ = [
+    "conjunctive_graph",
+    "invert_speed_curve",
+    "check_speed_curve",
+    "check_calibration_arguments",
+    "measure_phase_speed",
+]
 
 
 def conjunctive_graph(
@@ -184,3 +193,76 @@ def invert_speed_curve(inputs: Any, speeds: Any, wanted: Any) -> tuple[Any, floa
     w = np.asarray(wanted, dtype=np.float64)
     out = np.sign(w) * np.interp(np.minimum(np.abs(w), sp[-1]), sp, inp)
     return (float(out) if out.ndim == 0 else out), float(sp[-1])
+
+
+def check_speed_curve(inputs: Any, speeds: Any, names: tuple[str, str], unit: str, remeasure: str) -> None:
+    """Refuse a calibration curve that :func:`invert_speed_curve` cannot invert (ConfigError naming ``names``).
+
+    A curve is two sequences of the same length >= 2, finite, the inputs starting at 0 and
+    ascending, the speeds starting at 0 and positive at the second point.
+    """
+    inp = np.asarray(inputs, dtype=np.float64)
+    sp = np.asarray(speeds, dtype=np.float64)
+    if inp.ndim != 1 or inp.shape != sp.shape or inp.size < 2:
+        raise ConfigError(f"{names[0]} and {names[1]} must be two sequences of the same length >= 2")
+    if not (np.isfinite(inp).all() and np.isfinite(sp).all()):
+        raise ConfigError(f"a calibration must be finite (no NaN/inf); re-measure with {remeasure}")
+    if inp[0] != 0.0 or sp[0] != 0.0 or np.any(np.diff(inp) <= 0):
+        raise ConfigError(f"{names[0]} must start at 0 and ascend, {names[1]} must start at 0")
+    if sp[1] <= 0:
+        raise ConfigError(f"the bump did not move at {inp[1]} {unit} ({sp[1]} {unit}): nothing to invert")
+
+
+def check_calibration_arguments(values: Any, name: str, unit: str, settle_s: Any, measure_s: Any) -> list[float]:
+    """The calibration inputs as floats (positive, finite, ascending) after checking the durations (ConfigError)."""
+    try:
+        out = [float(v) for v in values]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a sequence of numbers ({unit})") from None
+    if not out or not all(math.isfinite(v) and v > 0 for v in out) or any(b <= a for a, b in zip(out, out[1:])):
+        raise ConfigError(f"{name} must be positive, finite and ascending, got {values!r}")
+    for label, v in (("settle_s", settle_s), ("measure_s", measure_s)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"{label} must be a finite number of seconds > 0, got {v!r}")
+    return out
+
+
+def measure_phase_speed(step: Callable[[np.ndarray], np.ndarray], kick: np.ndarray, drive: np.ndarray,
+                        phase: Callable[[np.ndarray], float], *, dt_s: float, settle_s: float, measure_s: float,
+                        read_every_s: float, label: str) -> float:
+    """The slope (rad/s, least squares) of a bump's unwrapped phase under a constant drive, after a 100 ms kick.
+
+    Parameters
+    ----------
+    step : callable
+        One simulation step (input -> output spikes), from a freshly reset simulation.
+    kick, drive : ndarray
+        The graph's input during the kick and afterwards.
+    phase : callable
+        The bump's phase (rad) from the spikes of a 50 ms exponential window.
+    dt_s, settle_s, measure_s, read_every_s : float
+        The step; the time left to settle after the kick; the time measured; how often the phase is read (s).
+    label : str
+        Names the drive in the error.
+
+    Raises
+    ------
+    ConfigError
+        The bump died while measured; fewer than two readings.
+    """
+    kick_steps, settle_steps = int(round(0.1 / dt_s)), int(round(settle_s / dt_s))
+    read_every = max(1, int(round(read_every_s / dt_s)))
+    decay = math.exp(-dt_s / 0.05)
+    trace = np.zeros(0)
+    times, phases = [], []
+    for k in range(kick_steps + settle_steps + int(round(measure_s / dt_s))):
+        out = step(kick if k < kick_steps else drive)
+        trace = out if k == 0 else trace * decay + out
+        if k >= kick_steps + settle_steps and (k + 1) % read_every == 0:
+            if not trace.any():
+                raise ConfigError(f"the bump died while moving at {label}; these parameters cannot be calibrated")
+            times.append(k * dt_s)
+            phases.append(phase(trace))
+    if len(times) < 2:
+        raise ConfigError(f"measure_s is too short for two readings (every {read_every_s * 1e3:g} ms)")
+    return float(np.polyfit(times, np.unwrap(phases), 1)[0])

@@ -77,7 +77,13 @@ from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR
 from cansim.spiking.neurons import NeuronParams
-from cansim.spiking.conjunctive import conjunctive_graph, invert_speed_curve
+from cansim.spiking.conjunctive import (
+    check_calibration_arguments,
+    check_speed_curve,
+    conjunctive_graph,
+    invert_speed_curve,
+    measure_phase_speed,
+)
 from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
 from cansim.spiking.population import SpikingParams
 from whisker_io.validation import checked, validate_fields
@@ -250,16 +256,7 @@ class TurningCalibration:
     bump_rad_s: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        om = np.asarray(self.omega_rad_s, dtype=np.float64)
-        sp = np.asarray(self.bump_rad_s, dtype=np.float64)
-        if om.ndim != 1 or om.shape != sp.shape or om.size < 2:
-            raise ConfigError("omega_rad_s and bump_rad_s must be two sequences of the same length >= 2")
-        if not (np.isfinite(om).all() and np.isfinite(sp).all()):
-            raise ConfigError("a turning calibration must be finite (no NaN/inf); re-measure with calibrate_turning")
-        if om[0] != 0.0 or sp[0] != 0.0 or np.any(np.diff(om) <= 0):
-            raise ConfigError("omega_rad_s must start at 0 and ascend, bump_rad_s must start at 0")
-        if sp[1] <= 0:
-            raise ConfigError(f"the bump did not turn at {om[1]} rad/s ({sp[1]} rad/s): nothing to invert")
+        check_speed_curve(self.omega_rad_s, self.bump_rad_s, ("omega_rad_s", "bump_rad_s"), "rad/s", "calibrate_turning")
 
     @property
     def max_rad_s(self) -> float:
@@ -318,37 +315,15 @@ def calibrate_turning(
     """
     from cansim.spiking.nir_graph_sim import NIRGraphSimulator
 
-    try:
-        oms = [float(o) for o in omegas_rad_s]
-    except (TypeError, ValueError):
-        raise ConfigError("omegas_rad_s must be a sequence of numbers (rad/s)") from None
-    if not oms or not all(math.isfinite(o) and o > 0 for o in oms) or any(b <= a for a, b in zip(oms, oms[1:])):
-        raise ConfigError(f"omegas_rad_s must be positive, finite and ascending, got {omegas_rad_s!r}")
-    for name, v in (("settle_s", settle_s), ("measure_s", measure_s)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
-            raise ConfigError(f"{name} must be a finite number of seconds > 0, got {v!r}")
+    oms = check_calibration_arguments(omegas_rad_s, "omegas_rad_s", "rad/s", settle_s, measure_s)
     sim = NIRGraphSimulator(rotation_ring_graph(params, dt_s=dt_s), dt_s=dt_s)
     n = int(params.n_cells)
     d = (np.arange(n) + n / 2.0) % n - n / 2.0
     kick = ring_input(2.0 * np.exp(-d * d / 18.0), 0.0, n)
-    kick_steps = int(round(0.1 / dt_s))
-    settle_steps = int(round(settle_s / dt_s))
-    read_every = max(1, int(round(2e-3 / dt_s)))
-    decay = math.exp(-dt_s / 0.05)
     speeds = []
     for om in oms:
         sim.reset()
-        drive = ring_input(0.0, om, n)
-        trace = np.zeros(n)
-        times, heads = [], []
-        for k in range(kick_steps + settle_steps + int(round(measure_s / dt_s))):
-            trace = trace * decay + sim.step(kick if k < kick_steps else drive)
-            if k >= kick_steps + settle_steps and (k + 1) % read_every == 0:
-                if not trace.any():
-                    raise ConfigError(f"the bump died while turning at {om} rad/s; these parameters cannot be calibrated")
-                times.append(k * dt_s)
-                heads.append(_population_vector_rad(trace))
-        if len(times) < 2:
-            raise ConfigError("measure_s is too short for two readings of the heading (every 2 ms)")
-        speeds.append(float(np.polyfit(times, np.unwrap(heads), 1)[0]))
+        speeds.append(measure_phase_speed(sim.step, kick, ring_input(0.0, om, n), _population_vector_rad, dt_s=dt_s,
+                                          settle_s=settle_s, measure_s=measure_s, read_every_s=2e-3,
+                                          label=f"{om} rad/s"))
     return TurningCalibration((0.0, *oms), (0.0, *speeds))

@@ -37,7 +37,13 @@ import numpy as np
 
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
-from cansim.spiking.conjunctive import conjunctive_graph, invert_speed_curve
+from cansim.spiking.conjunctive import (
+    check_calibration_arguments,
+    check_speed_curve,
+    conjunctive_graph,
+    invert_speed_curve,
+    measure_phase_speed,
+)
 from cansim.spiking.correspondence import SHEET_ATTRACTOR
 from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
@@ -304,16 +310,7 @@ class SheetCalibration:
     bump_m_s: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        inp = np.asarray(self.input_m_s, dtype=np.float64)
-        sp = np.asarray(self.bump_m_s, dtype=np.float64)
-        if inp.ndim != 1 or inp.shape != sp.shape or inp.size < 2:
-            raise ConfigError("input_m_s and bump_m_s must be two sequences of the same length >= 2")
-        if not (np.isfinite(inp).all() and np.isfinite(sp).all()):
-            raise ConfigError("a sheet calibration must be finite (no NaN/inf); re-measure with calibrate_sheet_speed")
-        if inp[0] != 0.0 or sp[0] != 0.0 or np.any(np.diff(inp) <= 0):
-            raise ConfigError("input_m_s must start at 0 and ascend, bump_m_s must start at 0")
-        if sp[1] <= 0:
-            raise ConfigError(f"the bump did not move at {inp[1]} m/s ({sp[1]} m/s): nothing to invert")
+        check_speed_curve(self.input_m_s, self.bump_m_s, ("input_m_s", "bump_m_s"), "m/s", "calibrate_sheet_speed")
 
     @property
     def max_m_s(self) -> float:
@@ -364,39 +361,17 @@ def calibrate_sheet_speed(
     """
     from cansim.spiking.nir_graph_sim import NIRGraphSimulator
 
-    try:
-        speeds = [float(v) for v in speeds_m_s]
-    except (TypeError, ValueError):
-        raise ConfigError("speeds_m_s must be a sequence of numbers (m/s)") from None
-    if not speeds or not all(math.isfinite(v) and v > 0 for v in speeds) or any(b <= a for a, b in zip(speeds, speeds[1:])):
-        raise ConfigError(f"speeds_m_s must be positive, finite and ascending, got {speeds_m_s!r}")
-    for name, v in (("settle_s", settle_s), ("measure_s", measure_s)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
-            raise ConfigError(f"{name} must be a finite number of seconds > 0, got {v!r}")
+    speeds = check_calibration_arguments(speeds_m_s, "speeds_m_s", "m/s", settle_s, measure_s)
     if not isinstance(params, VelocitySheetParams):
         raise ConfigError("params must be a cansim.spiking.velocity_sheet.VelocitySheetParams")
     n = int(params.n_cells)
     sim = NIRGraphSimulator(velocity_sheet_graph(params, dt_s=dt_s), dt_s=dt_s)
     kick = sheet_input(sheet_kick(n, (n / 2.0, n / 2.0)), (0.0, 0.0), n)
-    kick_steps = int(round(0.1 / dt_s))
-    settle_steps = int(round(settle_s / dt_s))
-    read_every = max(1, int(round(5e-3 / dt_s)))
-    decay = math.exp(-dt_s / 0.05)
     measured = []
     for v in speeds:
         sim.reset()
-        drive = sheet_input(0.0, (v, 0.0), n)
-        trace = np.zeros(n * n)
-        times, xs = [], []
-        for k in range(kick_steps + settle_steps + int(round(measure_s / dt_s))):
-            trace = trace * decay + sim.step(kick if k < kick_steps else drive)
-            if k >= kick_steps + settle_steps and (k + 1) % read_every == 0:
-                if not trace.any():
-                    raise ConfigError(f"the bump died while moving at {v} m/s; these parameters cannot be calibrated")
-                times.append(k * dt_s)
-                xs.append(sheet_position_cells(trace, n)[0] * 2.0 * np.pi / n)
-        if len(times) < 2:
-            raise ConfigError("measure_s is too short for two readings of the position (every 5 ms)")
-        cells_per_s = float(np.polyfit(times, np.unwrap(xs), 1)[0]) * n / (2.0 * np.pi)
-        measured.append(cells_per_s * float(params.cell_size_m))
+        rad_s = measure_phase_speed(sim.step, kick, sheet_input(0.0, (v, 0.0), n),
+                                    lambda counts: sheet_position_cells(counts, n)[0] * 2.0 * np.pi / n, dt_s=dt_s,
+                                    settle_s=settle_s, measure_s=measure_s, read_every_s=5e-3, label=f"{v} m/s")
+        measured.append(rad_s * n / (2.0 * np.pi) * float(params.cell_size_m))
     return SheetCalibration((0.0, *speeds), (0.0, *measured))
