@@ -132,7 +132,8 @@ class SensorProbe:
 
     rate_hz: float = checked(2.0, float, above=0, maximum=10, error=InvalidInputError, reader=finite_scalar,
                              message="{name} must be in (0, 10] Hz, got {value!r}")
-    gain: float = checked(1.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar, label="SensorProbe.gain")
+    gain: float = checked(1.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                          label="SensorProbe.gain")
     span: int = checked(5, int, minimum=1, error=InvalidInputError, reader=whole_number)
     neighbours: int = checked(3, int, minimum=3, error=InvalidInputError, reader=whole_number,
                               message="{name} must be >= 3 (a plane needs 3 points), got {value!r}")

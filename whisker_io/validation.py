@@ -470,7 +470,8 @@ class FieldCheck:
                 raise TypeError("choices need kind str")
             object.__setattr__(self, "choices", tuple(self.choices))
         if not (isinstance(self.error, type) and issubclass(self.error, InvalidInputError)):
-            raise TypeError(f"a checked field raises a whisker_io.errors.InvalidInputError (sub)class, got {self.error!r}")
+            raise TypeError(f"a checked field raises a whisker_io.errors.InvalidInputError (sub)class, "
+                            f"got {self.error!r}")
         if self.reader is not None and (self.reader, self.kind) not in ((finite_scalar, float), (whole_number, int)):
             raise TypeError("reader is finite_scalar (kind float) or whole_number (kind int)")
         if self.label is not None and not isinstance(self.label, str):

@@ -104,7 +104,8 @@ class OdometryNoise:
                                    message="{name} must be >= 0, got {value!r}")
     displacement_std_m: float = checked(0.01, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
                                         message="{name} must be >= 0, got {value!r}")
-    min_dt_s: float = checked(0.01, float, above=0, error=InvalidInputError, reader=finite_scalar, message="{name} must be > 0 s, got {value!r}")
+    min_dt_s: float = checked(0.01, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                              message="{name} must be > 0 s, got {value!r}")
 
     def __post_init__(self) -> None:
         validate_fields(self)

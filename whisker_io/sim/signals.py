@@ -123,14 +123,22 @@ class SignalParams:
         Round deflections to integer counts.
     """
 
-    youngs_modulus_pa: float = checked(3.0e9, float, above=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.youngs_modulus_pa")
-    base_radius_m: float = checked(1.0e-3, float, above=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.base_radius_m")
-    tip_radius_m: float = checked(0.3e-3, float, minimum=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.tip_radius_m")
-    full_scale_moment_nm: float = checked(0.032, float, above=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.full_scale_moment_nm")
-    adc_max_counts: float = checked(2047.0, float, above=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.adc_max_counts")
-    noise_std_counts: float = checked(4.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.noise_std_counts")
-    angle_noise_std_rad: float = checked(math.radians(0.05), float, minimum=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.angle_noise_std_rad")
-    sample_rate_hz: float = checked(SAMPLE_RATE_HZ, float, above=0, error=InvalidInputError, reader=finite_scalar, label="SignalParams.sample_rate_hz")
+    youngs_modulus_pa: float = checked(3.0e9, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                       label="SignalParams.youngs_modulus_pa")
+    base_radius_m: float = checked(1.0e-3, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                   label="SignalParams.base_radius_m")
+    tip_radius_m: float = checked(0.3e-3, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                  label="SignalParams.tip_radius_m")
+    full_scale_moment_nm: float = checked(0.032, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                          label="SignalParams.full_scale_moment_nm")
+    adc_max_counts: float = checked(2047.0, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                    label="SignalParams.adc_max_counts")
+    noise_std_counts: float = checked(4.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                      label="SignalParams.noise_std_counts")
+    angle_noise_std_rad: float = checked(math.radians(0.05), float, minimum=0, error=InvalidInputError,
+                                         reader=finite_scalar, label="SignalParams.angle_noise_std_rad")
+    sample_rate_hz: float = checked(SAMPLE_RATE_HZ, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                    label="SignalParams.sample_rate_hz")
     quantize: bool = True
 
     def __post_init__(self) -> None:

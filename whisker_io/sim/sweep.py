@@ -280,7 +280,8 @@ class SweepParams:
                               message="{name} must be positive, got {value!r}")
     refine: bool = True
     refine_subdivisions: int = checked(32, int, minimum=2, error=InvalidInputError, reader=whole_number)
-    angle_tolerance_rad: float = checked(1e-6, float, above=0, error=InvalidInputError, reader=finite_scalar, message="{name} must be positive, got {value!r}")
+    angle_tolerance_rad: float = checked(1e-6, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                         message="{name} must be positive, got {value!r}")
     tip_chords: bool = True
 
     def __post_init__(self) -> None:
@@ -539,9 +540,10 @@ class ContactNoise:
     position_mode: Literal["shaft", "isotropic"] = checked(
         "shaft", str, choices=("shaft", "isotropic"), error=InvalidInputError,
         message="{name} must be 'shaft' or 'isotropic', got {value!r}")
-    slope_sigma: float = checked(0.33, float, minimum=0, error=InvalidInputError, reader=finite_scalar, message="noise standard deviations must be >= 0")
-    registration_probability: float = checked(0.98, float, minimum=0, maximum=1, error=InvalidInputError, reader=finite_scalar,
-                                              message="{name} must be in [0, 1], got {value!r}")
+    slope_sigma: float = checked(0.33, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                 message="noise standard deviations must be >= 0")
+    registration_probability: float = checked(0.98, float, minimum=0, maximum=1, error=InvalidInputError,
+                                              reader=finite_scalar, message="{name} must be in [0, 1], got {value!r}")
 
     def __post_init__(self) -> None:
         validate_fields(self)
