@@ -8,7 +8,7 @@ from typing import Sequence, Union
 
 from cansim.errors import InvalidInputError
 from cansim.kernels import NORMALISATIONS, SeparableKernel
-from whisker_io.validation import finite_scalar, plain_fields, whole_number
+from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
 
 __all__ = ["AttractorParams"]
 
@@ -57,17 +57,13 @@ class AttractorParams:
     exc_sigma: PerAxis = 1.0
     inh_width: PerAxis = 5
     inh_sigma: PerAxis = 2.0
-    global_inhibition: float = 2e-5
-    kernel_normalisation: str = "sum"
+    global_inhibition: float = checked(2e-5, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                       message="{name} must be finite and >= 0, got {value!r}")
+    kernel_normalisation: str = checked("sum", str, choices=NORMALISATIONS, error=InvalidInputError,
+                                        message=f"{{name}} must be one of {NORMALISATIONS}, got {{value!r}}")
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars, lists -> Python numbers, tuples (equal, hashable, JSON-able)
-        if self.kernel_normalisation not in NORMALISATIONS:
-            raise InvalidInputError(f"kernel_normalisation must be one of {NORMALISATIONS}, got {self.kernel_normalisation!r}")
-        if not finite_scalar(self.global_inhibition, "global_inhibition") >= 0:
-            raise InvalidInputError(
-                f"global_inhibition must be finite and >= 0, got {self.global_inhibition!r}"
-            )
+        validate_fields(self)  # numpy scalars, lists -> Python numbers, tuples (equal, hashable, JSON-able) first
 
     def kernels(self, ndim: int) -> tuple[SeparableKernel, SeparableKernel]:
         """The (excitation, inhibition) separable kernels for an ``ndim``-axis grid."""

@@ -33,7 +33,7 @@ import numpy as np
 from cansim.axes import Axis
 from cansim.errors import InvalidInputError, ShapeError
 from cansim.grid_inputs import MAX_SHIFT_CELLS, check_shift, shift_too_large
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields
 
 __all__ = [
     "split_weights",
@@ -240,11 +240,11 @@ class PlanarMotion(MotionModel):
         i.e. ``(sin th, cos th)``; decoded (x, y) are mirrored against a standard frame.
     """
 
-    frame: str = "standard"
+    frame: str = checked("standard", str, choices=("standard", "openratslam"), error=InvalidInputError,
+                         message="{name} must be 'standard' or 'openratslam', got {value!r}")
 
     def __post_init__(self) -> None:
-        if self.frame not in ("standard", "openratslam"):
-            raise InvalidInputError(f"frame must be 'standard' or 'openratslam', got {self.frame!r}")
+        validate_fields(self)
 
     def check_axes(self, axes):
         if len(axes) != 3 or axes[0].angular or axes[1].angular or not axes[2].angular:

@@ -3,9 +3,11 @@
 Three parts: the validator on small hand-made dataclasses (every option, with the
 messages written out by hand); a property test over every configuration class of the
 packages that declares its checks (found by reading the sources): the defaults build,
-and a drawn wrong-kind or out-of-range value of any declared field raises
-:class:`ConfigError` naming that field; and a guard that no ``__post_init__`` goes back
-to checking a field by hand with ``config_field`` when the check could be declared.
+and a drawn wrong-kind or out-of-range value of any declared field raises the error its
+declaration names (:class:`ConfigError` unless it says otherwise) with its message; and
+a guard that no ``__post_init__`` goes back to checking a field by hand with
+``config_field`` when the check could be declared, nor, in a class that declares its
+checks, with ``finite_scalar`` / ``whole_number``.
 """
 
 from __future__ import annotations
@@ -23,8 +25,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import CHECK_KEY, FieldCheck, checked, field_checks, validate_fields
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
+from whisker_io.validation import (CHECK_KEY, FieldCheck, checked, config_field, field_checks, finite_scalar,
+                                   validate_fields, whole_number)
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("cansim", "maps", "whisker_io")
@@ -122,6 +125,79 @@ def test_the_check_sits_in_the_field_metadata() -> None:
     assert g.metadata["unit"] == "cells" and g.metadata[CHECK_KEY].minimum == 0 and g.compare is False
 
 
+# ------------------------------------------------- the error, label, reader and message options
+@dataclass
+class SensorProbe:
+    """A sensor-stage class: InvalidInputError, its own labels and messages (as whisker_io's classes)."""
+
+    rate_hz: float = checked(2.0, float, above=0, maximum=10, error=InvalidInputError, reader=finite_scalar,
+                             message="{name} must be in (0, 10] Hz, got {value!r}")
+    gain: float = checked(1.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                          label="SensorProbe.gain")
+    span: int = checked(5, int, minimum=1, error=InvalidInputError, reader=whole_number)
+    neighbours: int = checked(3, int, minimum=3, error=InvalidInputError, reader=whole_number,
+                              message="{name} must be >= 3 (a plane needs 3 points), got {value!r}")
+    frame: str = checked("a", str, choices=("a", "b"), error=InvalidInputError, label="probe frame",
+                         message="{name} must be 'a' or 'b', got {value!r}", hint="see the manual")
+    width: int = checked(3, int, minimum=1, error=InvalidInputError, message="{name}: want {want}, not {value}")
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        # reader=finite_scalar: a value that is no number gets finite_scalar's error and message
+        ({"rate_hz": math.nan}, InvalidInputError, "rate_hz must be finite, got nan"),
+        ({"rate_hz": -math.inf}, InvalidInputError, "rate_hz must be finite, got -inf"),
+        ({"rate_hz": "2"}, InvalidInputError, "rate_hz must be real numbers, got '2'"),
+        ({"rate_hz": True}, InvalidInputError, "rate_hz must be real numbers, got True"),
+        ({"rate_hz": [1.0, 2.0]}, ShapeError, "rate_hz must be a single number, got an array of shape (2,)"),
+        # ... and a number out of range the declared message
+        ({"rate_hz": 0}, InvalidInputError, "rate_hz must be in (0, 10] Hz, got 0"),
+        ({"rate_hz": 10.5}, InvalidInputError, "rate_hz must be in (0, 10] Hz, got 10.5"),
+        # label: the name shown, in the reader's message as in the range message (default wording)
+        ({"gain": math.nan}, InvalidInputError, "SensorProbe.gain must be finite, got nan"),
+        ({"gain": -0.5}, InvalidInputError, "SensorProbe.gain must be a finite number >= 0, got -0.5"),
+        # reader=whole_number: whole_number's messages (its minimum message is the default wording)
+        ({"span": 2.5}, InvalidInputError, "span must be a whole number, got 2.5"),
+        ({"span": "5"}, InvalidInputError, "span must be real numbers, got '5'"),
+        ({"span": 0}, InvalidInputError, "span must be an integer >= 1, got 0"),
+        ({"span": -3.0}, InvalidInputError, "span must be an integer >= 1, got -3.0"),
+        ({"neighbours": 2}, InvalidInputError, "neighbours must be >= 3 (a plane needs 3 points), got 2"),
+        # a name with choices: a wrong kind and a wrong name share the message; the hint follows it
+        ({"frame": "c"}, InvalidInputError, "probe frame must be 'a' or 'b', got 'c'; see the manual"),
+        ({"frame": 1}, InvalidInputError, "probe frame must be 'a' or 'b', got 1; see the manual"),
+        # no reader: the kind is config_field's (no 2.0 for an int), the template may use {want} and {value}
+        ({"width": 2.0}, InvalidInputError, "width: want an integer >= 1, not 2.0"),
+        ({"width": 0}, InvalidInputError, "width: want an integer >= 1, not 0"),
+    ],
+)
+def test_a_declared_error_label_reader_and_message_are_used(kwargs: dict[str, Any], error: type,
+                                                            message: str) -> None:
+    with pytest.raises(InvalidInputError) as info:
+        SensorProbe(**kwargs)
+    assert type(info.value) is error, type(info.value)
+    assert str(info.value) == message
+
+
+def test_a_reader_accepts_what_the_shared_validator_accepts_and_keeps_the_value() -> None:
+    p = SensorProbe(rate_hz=10, span=4.0, gain=np.float32(0.5))  # 10 is in (0, 10]; whole_number takes 4.0
+    assert (p.rate_hz, p.span, p.gain) == (10, 4.0, 0.5)
+    assert type(p.rate_hz) is int and type(p.span) is float  # the value given, not the number read
+
+
+def test_config_field_takes_the_same_options() -> None:
+    assert config_field(3, "n", int, minimum=1, reader=whole_number) == 3
+    with pytest.raises(InvalidInputError) as info:
+        config_field(-1.0, "x_m", float, above=0, error=InvalidInputError, reader=finite_scalar,
+                     message="{name} must be positive, got {value!r}")
+    assert type(info.value) is InvalidInputError and str(info.value) == "x_m must be positive, got -1.0"
+    with pytest.raises(ConfigError, match=r"^x_m must be a finite number > 0, got -1.0$"):
+        config_field(-1.0, "x_m", float, above=0)  # the defaults are unchanged
+
+
 @pytest.mark.parametrize(
     "declare",
     [
@@ -130,6 +206,14 @@ def test_the_check_sits_in_the_field_metadata() -> None:
         lambda: checked("a", str, minimum=0),  # bounds on a name
         lambda: checked(1.0, float, odd=True),  # odd on a float
         lambda: checked(1, int, choices=("a",)),  # choices on a number
+        lambda: checked(1.0, float, error=ValueError),  # outside the project's error tree
+        lambda: checked(1.0, float, error="ConfigError"),  # not a class
+        lambda: checked(1.0, float, reader=whole_number),  # whole_number reads ints
+        lambda: checked(1, int, reader=finite_scalar),  # finite_scalar reads floats
+        lambda: checked(1.0, float, reader=float),  # not a shared reader
+        lambda: checked(1.0, float, message="{nme} must be > 0"),  # a field the template does not have
+        lambda: checked(1.0, float, message="{0} must be > 0"),  # a positional field
+        lambda: checked(1.0, float, label=3),  # a label is text
     ],
 )
 def test_a_malformed_declaration_fails_when_the_class_is_written(declare: Any) -> None:
@@ -182,6 +266,10 @@ def test_the_converted_classes_are_found() -> None:
         "TactileTemplateConfig", "TactileSequenceConfig", "VisualTemplateConfig", "WhiskFrontEndConfig",
         "LocalViewParams", "SlamConfig", "RatSLAMConfig", "WhiskerRatSLAMConfig", "SpikingPoseCellParams",
         "ContactSeekingParams", "PlacementParams", "StudyConfig", "NeuronParams", "RotationRingParams",
+        # the sensor stage and the engine, with their own error classes and messages
+        "WhiskPattern", "RCP", "RetractAtMax", "ContactAngleParams", "DetectionParams", "PFHParams",
+        "OdometryNoise", "WhiskSchedule", "SignalParams", "SweepParams", "ContactNoise", "LoopShape",
+        "AttractorParams", "PlanarMotion", "SpikingParams",
     }
     assert expected <= names, expected - names
     for cls in CLASSES:
@@ -226,29 +314,68 @@ def _bad_values(rule: FieldCheck) -> st.SearchStrategy[Any]:
 FIELDS = [(cls, name, rule) for cls in CLASSES for name, rule in field_checks(cls)]
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+def test_the_new_options_are_declared_somewhere() -> None:
+    """The property test below reaches fields with each option (else it would not test them)."""
+    rules = [rule for _, _, rule in FIELDS]
+    assert any(r.error is InvalidInputError for r in rules) and any(r.error is ConfigError for r in rules)
+    assert {r.reader for r in rules} >= {None, finite_scalar, whole_number}
+    assert any(r.label is not None for r in rules) and any(r.message is not None for r in rules)
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 @given(data=st.data())
-def test_a_bad_declared_field_raises_config_error_naming_it(data: st.DataObject) -> None:
+def test_a_bad_declared_field_raises_its_declared_error_naming_it(data: st.DataObject) -> None:
     cls, name, rule = data.draw(st.sampled_from(FIELDS), label="class, field")
     value = data.draw(_bad_values(rule), label=name)
-    with pytest.raises(ConfigError) as info:
+    with pytest.raises(InvalidInputError) as info:  # the one error tree
         _build(cls, **{name: value})
-    assert str(info.value).startswith(f"{name} must be "), (cls, str(info.value))
+    label = name if rule.label is None else rule.label
+    text = str(info.value)
+    shown = tuple(value) if isinstance(value, list) else value  # validate_fields makes a list a tuple first
+    hint = f"; {rule.hint}" if rule.hint else ""
+    declared = None if rule.message is None else rule.message.format(name=label, value=shown, want="") + hint
+    if rule.reader is not None:
+        try:
+            rule.reader(shown, label)
+        except InvalidInputError:  # a value that is no number: the reader's own error and message, naming the field
+            assert text.startswith(f"{label} must be "), (cls, text)
+            return
+    assert type(info.value) is rule.error, (cls, name, type(info.value))
+    if declared is None:
+        assert text.startswith(f"{label} must be "), (cls, text)
+    elif "{want" not in rule.message:
+        assert text == declared, (cls, text)
 
 
 # ------------------------------------------------------------ the old pattern stays out
-def _calls_in_post_init() -> list[tuple[str, str, ast.Call, set[str]]]:
+def _declares_checks(cls: ast.ClassDef) -> bool:
+    return any(isinstance(s, ast.AnnAssign) and isinstance(s.value, ast.Call)
+               and getattr(s.value.func, "id", None) == "checked" for s in cls.body)
+
+
+def _post_init_calls(tree: ast.AST, names: tuple[str, ...], declaring_only: bool
+                     ) -> list[tuple[str, ast.Call, set[str]]]:
+    """(class, call, field names) of every call of ``names`` in a ``__post_init__`` of ``tree``."""
+    out = []
+    for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)):
+        if declaring_only and not _declares_checks(cls):
+            continue
+        fields = {s.target.id for s in cls.body if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)}
+        for fn in cls.body:
+            if isinstance(fn, ast.FunctionDef) and fn.name == "__post_init__":
+                for call in (c for c in ast.walk(fn) if isinstance(c, ast.Call)):
+                    if getattr(call.func, "id", getattr(call.func, "attr", None)) in names:
+                        out.append((cls.name, call, fields))
+    return out
+
+
+def _calls_in_post_init(names: tuple[str, ...] = ("config_field",), declaring_only: bool = False
+                        ) -> list[tuple[str, str, ast.Call, set[str]]]:
     out = []
     for package in PACKAGES:
         for path in sorted((ROOT / package).rglob("*.py")):
             tree = ast.parse(path.read_text(encoding="utf-8"))
-            for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)):
-                fields = {s.target.id for s in cls.body if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)}
-                for fn in cls.body:
-                    if isinstance(fn, ast.FunctionDef) and fn.name == "__post_init__":
-                        for call in (c for c in ast.walk(fn) if isinstance(c, ast.Call)):
-                            if getattr(call.func, "id", getattr(call.func, "attr", None)) == "config_field":
-                                out.append((str(path.relative_to(ROOT)), cls.name, call, fields))
+            out += [(str(path.relative_to(ROOT)), *found) for found in _post_init_calls(tree, names, declaring_only)]
     return out
 
 
@@ -270,3 +397,55 @@ def test_no_post_init_checks_a_field_by_hand_that_could_be_declared() -> None:
         if per_field and not cross_field:
             offenders.append(f"{path}: {cls}: {ast.unparse(call)}")
     assert not offenders, "declare these with checked(...):\n" + "\n".join(offenders)
+
+
+READERS = ("finite_scalar", "whole_number", "config_field")
+
+
+def _reads_one_field_by_hand(call: ast.Call, fields: set[str]) -> bool:
+    value = call.args[0] if call.args else None
+    one_field = (  # self.field, or getattr(self, name) in a loop over field names
+        isinstance(value, ast.Attribute) and isinstance(value.value, ast.Name) and value.value.id == "self"
+        and value.attr in fields
+    ) or (isinstance(value, ast.Call) and getattr(value.func, "id", None) == "getattr" and _mentions_self(value))
+    by_name = len(call.args) > 1 and (isinstance(call.args[1], ast.Name)
+                                      or (isinstance(call.args[1], ast.Constant) and call.args[1].value in fields))
+    cross_field = any(_mentions_self(k.value) for k in call.keywords) or any(_mentions_self(a) for a in call.args[2:])
+    return (one_field or by_name) and not cross_field
+
+
+def test_a_declaring_class_reads_no_field_by_hand_with_the_shared_validators() -> None:
+    """In a class that declares its checks, ``finite_scalar`` / ``whole_number`` (or
+    ``config_field``) on one field in ``__post_init__`` is a check that belongs in the
+    field's declaration (``reader=`` keeps the validator's messages); only a value that
+    is not one field (an entry of a tuple) or that is tied to another field may be read there."""
+    offenders = [f"{path}: {cls}: {ast.unparse(call)}"
+                 for path, cls, call, fields in _calls_in_post_init(READERS, declaring_only=True)
+                 if _reads_one_field_by_hand(call, fields)]
+    assert not offenders, "declare these with checked(..., reader=...):\n" + "\n".join(offenders)
+
+
+def test_the_guard_flags_a_hand_written_read_and_spares_the_rest() -> None:
+    tree = ast.parse(
+        "class Old:\n"
+        "    rate_hz: float = checked(1.0, float)\n"
+        "    gain: float = 1.0\n"
+        "    span: int = 3\n"
+        "    shape: tuple = (1, 2)\n"
+        "    def __post_init__(self):\n"
+        "        validate_fields(self)\n"
+        "        if not finite_scalar(self.gain, 'gain') >= 0:\n"  # flagged: one field
+        "            raise InvalidInputError('gain')\n"
+        "        for name in ('gain', 'span'):\n"
+        "            whole_number(getattr(self, name), name)\n"  # flagged: a loop over fields
+        "        for n in self.shape:\n"
+        "            config_field(n, 'shape entries', int, minimum=1)\n"  # spared: entries of a tuple
+        "        config_field(self.span, 'span', int, maximum=self.rate_hz)\n"  # spared: tied to another field
+        "class Untouched:\n"
+        "    gain: float = 1.0\n"
+        "    def __post_init__(self):\n"
+        "        finite_scalar(self.gain, 'gain')\n")  # spared here: the class declares nothing (yet)
+    found = _post_init_calls(tree, READERS, declaring_only=True)
+    assert [c for c, _, _ in found] == ["Old"] * 4
+    flagged = [ast.unparse(call) for _, call, fields in found if _reads_one_field_by_hand(call, fields)]
+    assert sorted(flagged) == ["finite_scalar(self.gain, 'gain')", "whole_number(getattr(self, name), name)"]

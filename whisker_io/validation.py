@@ -14,7 +14,8 @@ typed error with a message naming the argument, never a NaN result later:
   plain Python numbers and tuples;
 * :func:`checked` - a dataclass field whose constraint (a :class:`FieldCheck`) is
   declared with it, and :func:`validate_fields` - the one validator that reads those
-  declarations (called first by each configuration's ``__post_init__``).
+  declarations (called first by each configuration's ``__post_init__``); a field may
+  declare the error it raises, its name in the message and the message itself.
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
 shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
@@ -29,7 +30,7 @@ import dataclasses
 import functools
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -254,6 +255,9 @@ def config_field(
     choices: Sequence[str] | None = None,
     optional: bool = False,
     hint: str = "",
+    error: type[InvalidInputError] = ConfigError,
+    reader: Callable[[Any, str], float | int] | None = None,
+    message: str | None = None,
 ) -> Any:
     """Check one field of a configuration and return it unchanged.
 
@@ -284,6 +288,20 @@ def config_field(
         ``None`` is allowed too.
     hint : str
         Appended to the message: what to do.
+    error : subclass of InvalidInputError
+        The error raised (default :class:`~whisker_io.errors.ConfigError`); a class of
+        the sensor stage raises :class:`~whisker_io.errors.InvalidInputError`.
+    reader : {finite_scalar, whole_number}, optional
+        Read the number with this shared validator first, so a value that is no number
+        raises its error and message (``"radius_m must be finite, got nan"``, a
+        :class:`~whisker_io.errors.ShapeError` for an array; :func:`whole_number` takes
+        an integral float such as ``2.0``); the bounds are then checked on the number
+        read. Without it the kind is checked here, with the one message of a bad value.
+    message : str, optional
+        The message of a bad value, a :meth:`str.format` template with ``{name}``,
+        ``{value}`` (the value as given: write ``{value!r}``) and ``{want}`` (the
+        allowed values in words, e.g. ``"a finite number > 0"``). Default
+        ``"{name} must be {want}, got {value!r}"``.
 
     Returns
     -------
@@ -294,7 +312,8 @@ def config_field(
     ------
     ConfigError
         The value is of another kind, out of range, even where odd is needed, or not
-        one of ``choices``.
+        one of ``choices`` (``error`` if given; with a ``reader``, a value that is no
+        number raises the reader's error).
 
     Examples
     --------
@@ -307,13 +326,18 @@ def config_field(
     """
     if optional and value is None:
         return value
-    ok = _is_kind(value, kind)
+    if reader is not None:
+        number: Any = reader(value, name)  # a value that is no number: the reader's error and message
+        ok = True
+    else:
+        number = value
+        ok = _is_kind(value, kind)
     if ok and kind in (int, float):
         ok = not (
-            (minimum is not None and value < minimum)
-            or (above is not None and value <= above)
-            or (maximum is not None and value > maximum)
-            or (odd and value % 2 == 0)
+            (minimum is not None and number < minimum)
+            or (above is not None and number <= above)
+            or (maximum is not None and number > maximum)
+            or (odd and number % 2 == 0)
         )
     if ok and choices is not None:
         ok = value in tuple(choices)
@@ -326,7 +350,11 @@ def config_field(
         want = ("an odd integer" if odd else _KIND_NAMES[kind]) + (" " + " and ".join(bounds) if bounds else "")
     if optional:
         want += " or None"
-    raise ConfigError(f"{name} must be {want}, got {value!r}" + (f"; {hint}" if hint else ""))
+    if message is None:
+        text = f"{name} must be {want}, got {value!r}"
+    else:
+        text = message.format(name=name, value=value, want=want)
+    raise error(text + (f"; {hint}" if hint else ""))
 
 
 def _plain(value: Any) -> Any:
@@ -377,7 +405,8 @@ class FieldCheck:
 
     Made by :func:`checked` and stored in the field's metadata; :func:`validate_fields`
     applies it through :func:`config_field`, so the error (a
-    :class:`~whisker_io.errors.ConfigError`) and its message are :func:`config_field`'s.
+    :class:`~whisker_io.errors.ConfigError` unless ``error`` says otherwise) and its
+    message are :func:`config_field`'s.
 
     Parameters
     ----------
@@ -393,13 +422,26 @@ class FieldCheck:
         ``None`` is allowed too.
     hint : str
         What to do, appended to the message.
+    error : subclass of InvalidInputError
+        The error raised (default :class:`~whisker_io.errors.ConfigError`).
+    label : str, optional
+        How the field is named in the message (default its name), e.g.
+        ``"SignalParams.base_radius_m"``.
+    reader : {finite_scalar, whole_number}, optional
+        The shared validator that reads the number first (its errors and messages for a
+        value that is no number); ``finite_scalar`` for kind float, ``whole_number`` for int.
+    message : str, optional
+        The message template of a bad value (``{name}``, ``{value!r}``, ``{want}``; see
+        :func:`config_field`).
 
     Raises
     ------
     TypeError
         A kind other than int, float, bool or str, bounds on a non-number, choices on a
-        non-string, or ``odd`` on a non-integer (a mistake in the declaration, raised when
-        the class is defined).
+        non-string, ``odd`` on a non-integer, an error outside the project's
+        :class:`~whisker_io.errors.InvalidInputError` tree, a reader other than
+        :func:`finite_scalar` (float) or :func:`whole_number` (int), or a message template
+        with other fields (a mistake in the declaration, raised when the class is defined).
     """
 
     kind: type
@@ -410,6 +452,10 @@ class FieldCheck:
     choices: tuple[str, ...] | None = None
     optional: bool = False
     hint: str = ""
+    error: type[InvalidInputError] = ConfigError
+    label: str | None = None
+    reader: Callable[[Any, str], float | int] | None = None
+    message: str | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in _KIND_NAMES:
@@ -423,6 +469,18 @@ class FieldCheck:
             if self.kind is not str:
                 raise TypeError("choices need kind str")
             object.__setattr__(self, "choices", tuple(self.choices))
+        if not (isinstance(self.error, type) and issubclass(self.error, InvalidInputError)):
+            raise TypeError(f"a checked field raises a whisker_io.errors.InvalidInputError (sub)class, "
+                            f"got {self.error!r}")
+        if self.reader is not None and (self.reader, self.kind) not in ((finite_scalar, float), (whole_number, int)):
+            raise TypeError("reader is finite_scalar (kind float) or whole_number (kind int)")
+        if self.label is not None and not isinstance(self.label, str):
+            raise TypeError(f"label must be a str, got {self.label!r}")
+        if self.message is not None:
+            try:
+                self.message.format(name="", value=0, want="")
+            except (AttributeError, KeyError, IndexError, ValueError) as exc:
+                raise TypeError(f"message must be a str.format template of name, value and want: {exc!r}") from None
 
     def check(self, value: Any, name: str) -> Any:
         """Apply the constraint to ``value`` (the field ``name``) and return it unchanged.
@@ -430,10 +488,12 @@ class FieldCheck:
         Raises
         ------
         ConfigError
-            As :func:`config_field`.
+            As :func:`config_field` (``error`` if declared; the field shown as ``label``).
         """
-        return config_field(value, name, self.kind, minimum=self.minimum, above=self.above, maximum=self.maximum,
-                            odd=self.odd, choices=self.choices, optional=self.optional, hint=self.hint)
+        return config_field(value, name if self.label is None else self.label, self.kind, minimum=self.minimum,
+                            above=self.above, maximum=self.maximum, odd=self.odd, choices=self.choices,
+                            optional=self.optional, hint=self.hint, error=self.error, reader=self.reader,
+                            message=self.message)
 
 
 def checked(
@@ -448,6 +508,10 @@ def checked(
     choices: Sequence[str] | None = None,
     optional: bool = False,
     hint: str = "",
+    error: type[InvalidInputError] = ConfigError,
+    label: str | None = None,
+    reader: Callable[[Any, str], float | int] | None = None,
+    message: str | None = None,
     **field_options: Any,
 ) -> Any:
     """A dataclass field that declares its own constraint (read by :func:`validate_fields`).
@@ -466,6 +530,12 @@ def checked(
         Makes the default, as in :func:`dataclasses.field`.
     minimum, above, maximum, odd, choices, optional, hint
         The options of :func:`config_field`.
+    error, label, reader, message
+        What a bad value raises and says (see :class:`FieldCheck`): by default a
+        :class:`~whisker_io.errors.ConfigError` naming the field,
+        ``"{name} must be {want}, got {value!r}"``; a sensor-stage class keeps its own,
+        e.g. ``checked(0.3, float, above=0, error=InvalidInputError, reader=finite_scalar,
+        message="{name} must be positive, got {value!r}")``.
     **field_options
         Passed on to :func:`dataclasses.field` (``repr``, ``compare``, ``metadata`` ...).
 
@@ -498,7 +568,8 @@ def checked(
     if kind is None:
         raise TypeError("checked() needs the field's kind: int, float, bool or str")
     rule = FieldCheck(kind, minimum=minimum, above=above, maximum=maximum, odd=odd,
-                      choices=None if choices is None else tuple(choices), optional=optional, hint=hint)
+                      choices=None if choices is None else tuple(choices), optional=optional, hint=hint,
+                      error=error, label=label, reader=reader, message=message)
     metadata = {**field_options.pop("metadata", {}), CHECK_KEY: rule}
     return dataclasses.field(default=default, default_factory=default_factory, metadata=metadata, **field_options)
 
@@ -554,7 +625,8 @@ def validate_fields(config: Any) -> None:
     ConfigError
         The first declared field (in field order) that is of the wrong kind or out of
         range; the message is :func:`config_field`'s (field name, allowed values, value
-        given, hint).
+        given, hint). A field that declares ``error`` raises that class instead, and one
+        that declares a ``reader`` raises the reader's error for a value that is no number.
 
     Examples
     --------

@@ -37,7 +37,7 @@ from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
 from whisker_io.persistence import read_npz, write_npz
-from whisker_io.validation import finite_scalar, finite_vector, plain_fields
+from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 
@@ -77,24 +77,17 @@ class SpikingParams:
 
     attractor: AttractorParams = AttractorParams()
     neurons: NeuronParams = NeuronParams()
-    recurrent_weight: float = 100.0
-    global_weight: float = 1.0
-    velocity_lead_s: float = 0.01
+    recurrent_weight: float = checked(100.0, float, minimum=0, message="{name} must be finite and >= 0, got {value!r}")
+    global_weight: float = checked(1.0, float, minimum=0, message="{name} must be finite and >= 0, got {value!r}")
+    velocity_lead_s: float = checked(0.01, float, message="{name} must be finite, got {value!r}")
     lead_table: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
-        plain_fields(self)  # numpy scalars -> Python numbers (as every configuration does)
+        validate_fields(self)  # numpy scalars -> Python numbers (as every configuration does), the declared checks
         if not isinstance(self.attractor, AttractorParams):
             raise ConfigError("attractor must be a cansim.AttractorParams")
         if not isinstance(self.neurons, NeuronParams):
             raise ConfigError("neurons must be a cansim.spiking.NeuronParams")
-        for name in ("recurrent_weight", "global_weight"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name} must be finite and >= 0, got {v!r}")
-        v = self.velocity_lead_s
-        if not (isinstance(v, (int, float)) and math.isfinite(v)):
-            raise ConfigError(f"velocity_lead_s must be finite, got {v!r}")
         try:
             table = np.asarray(self.lead_table, dtype=np.float64).reshape(-1, 2)
         except (TypeError, ValueError):

@@ -42,7 +42,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import finite_scalar
+from whisker_io.validation import checked, finite_scalar, validate_fields
 
 __all__ = [
     "MAX_WHISK_FREQUENCY_HZ",
@@ -78,23 +78,20 @@ class WhiskPattern:
         Sampling rate fs, Hz.
     """
 
-    frequency_hz: float = 1.0
-    retraction_rad: float = math.radians(-50.0)
-    protraction_rad: float = math.radians(50.0)
-    sample_rate_hz: float = 2000.0
+    frequency_hz: float = checked(1.0, float, above=0, maximum=MAX_WHISK_FREQUENCY_HZ, error=InvalidInputError,
+                                  reader=finite_scalar,
+                                  message=f"{{name}} must be in (0, {MAX_WHISK_FREQUENCY_HZ}] Hz, got {{value!r}}")
+    retraction_rad: float = checked(math.radians(-50.0), float, error=InvalidInputError, reader=finite_scalar)
+    protraction_rad: float = checked(math.radians(50.0), float, error=InvalidInputError, reader=finite_scalar)
+    sample_rate_hz: float = checked(2000.0, float, error=InvalidInputError, reader=finite_scalar)
 
     def __post_init__(self) -> None:
-        if not 0.0 < finite_scalar(self.frequency_hz, "frequency_hz") <= MAX_WHISK_FREQUENCY_HZ:
-            raise InvalidInputError(
-                f"frequency_hz must be in (0, {MAX_WHISK_FREQUENCY_HZ}] Hz, got {self.frequency_hz!r}"
-            )
-        finite_scalar(self.retraction_rad, "retraction_rad")
-        finite_scalar(self.protraction_rad, "protraction_rad")
+        validate_fields(self)
         if not self.protraction_rad > self.retraction_rad:
             raise InvalidInputError(
                 f"protraction_rad ({self.protraction_rad}) must exceed retraction_rad ({self.retraction_rad})"
             )
-        if not finite_scalar(self.sample_rate_hz, "sample_rate_hz") >= 2 * self.frequency_hz:
+        if not self.sample_rate_hz >= 2 * self.frequency_hz:
             raise InvalidInputError(f"sample_rate_hz must be >= 2 x frequency_hz, got {self.sample_rate_hz!r}")
 
     @property
@@ -230,18 +227,17 @@ class RCP:
     """
 
     pattern: WhiskPattern = field(default_factory=WhiskPattern)
-    threshold_counts: float = 80.0
-    gain_rad_per_count: float = math.radians(50.0) / 2047.0
-    min_amplitude_rad: float = math.radians(10.0)
+    threshold_counts: float = checked(80.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar)
+    gain_rad_per_count: float = checked(math.radians(50.0) / 2047.0, float, minimum=0, error=InvalidInputError,
+                                        reader=finite_scalar)
+    min_amplitude_rad: float = checked(math.radians(10.0), float, minimum=0, error=InvalidInputError,
+                                       reader=finite_scalar)
     amplitudes_rad: np.ndarray | None = field(default=None, init=False)
 
     def __post_init__(self) -> None:
+        validate_fields(self)
         if not isinstance(self.pattern, WhiskPattern):
             raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
-        for name in ("threshold_counts", "gain_rad_per_count", "min_amplitude_rad"):
-            v = getattr(self, name)
-            if not finite_scalar(v, name) >= 0:
-                raise InvalidInputError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.min_amplitude_rad > self.pattern.amplitude_rad:
             raise InvalidInputError("min_amplitude_rad must not exceed the pattern's full amplitude")
 
@@ -287,13 +283,13 @@ class RetractAtMax:
     """
 
     pattern: WhiskPattern = field(default_factory=WhiskPattern)
-    threshold_counts: float = 2000.0
+    threshold_counts: float = checked(2000.0, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                      message="{name} must be > 0, got {value!r}")
 
     def __post_init__(self) -> None:
+        validate_fields(self)
         if not isinstance(self.pattern, WhiskPattern):
             raise InvalidInputError(f"pattern must be a WhiskPattern, got {type(self.pattern).__name__}")
-        if not finite_scalar(self.threshold_counts, "threshold_counts") > 0:
-            raise InvalidInputError(f"threshold_counts must be > 0, got {self.threshold_counts!r}")
 
     def command(self, n_whiskers: int) -> np.ndarray:
         return OpenLoop(self.pattern).command(n_whiskers)

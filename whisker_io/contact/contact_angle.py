@@ -54,7 +54,7 @@ from whisker_io.contact.detection import (
 )
 from whisker_io.errors import InvalidInputError
 from whisker_io.records.whisk_record import WhiskRecord
-from whisker_io.validation import finite_scalar, whole_number
+from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
 
 __all__ = ["CH3_DETECTION", "CONTACT_ANGLE_METHODS", "ContactAngleMethod", "ContactAngleParams", "contact_angle", "contact_angles"]
 
@@ -98,12 +98,16 @@ class ContactAngleParams:
         ``"max_angle"``: trailing raw samples forming the free-whisking baseline (100).
     """
 
-    method: ContactAngleMethod = "onset"
+    method: ContactAngleMethod = checked("onset", str, choices=CONTACT_ANGLE_METHODS, error=InvalidInputError,
+                                         message=f"unknown contact-angle method {{value!r}}; choose one of "
+                                                 f"{list(CONTACT_ANGLE_METHODS)}")
     detection: DetectionParams = field(default_factory=DetectionParams)
-    threshold_counts_per_s: float = 2500.0
-    contact_threshold_counts: float = 80.0
-    smoothing_span: int = 100
-    baseline_samples: int = 100
+    threshold_counts_per_s: float = checked(2500.0, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                            message="{name} must be > 0, got {value!r}")
+    contact_threshold_counts: float = checked(80.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                              message="{name} must be >= 0, got {value!r}")
+    smoothing_span: int = checked(100, int, minimum=1, error=InvalidInputError, reader=whole_number)
+    baseline_samples: int = checked(100, int, minimum=1, error=InvalidInputError, reader=whole_number)
 
     @classmethod
     def ch3(cls, method: ContactAngleMethod) -> "ContactAngleParams":
@@ -111,16 +115,9 @@ class ContactAngleParams:
         return cls(method, detection=CH3_DETECTION)
 
     def __post_init__(self) -> None:
-        if self.method not in CONTACT_ANGLE_METHODS:
-            raise InvalidInputError(f"unknown contact-angle method {self.method!r}; choose one of {list(CONTACT_ANGLE_METHODS)}")
+        validate_fields(self)
         if not isinstance(self.detection, DetectionParams):
             raise InvalidInputError(f"detection must be a DetectionParams, got {type(self.detection).__name__}")
-        if not finite_scalar(self.threshold_counts_per_s, "threshold_counts_per_s") > 0:
-            raise InvalidInputError(f"threshold_counts_per_s must be > 0, got {self.threshold_counts_per_s!r}")
-        if not finite_scalar(self.contact_threshold_counts, "contact_threshold_counts") >= 0:
-            raise InvalidInputError(f"contact_threshold_counts must be >= 0, got {self.contact_threshold_counts!r}")
-        whole_number(self.smoothing_span, "smoothing_span", minimum=1)
-        whole_number(self.baseline_samples, "baseline_samples", minimum=1)
 
 
 def _check(record: object) -> WhiskRecord:

@@ -57,7 +57,7 @@ from scipy.signal import peak_prominences, peak_widths
 
 from whisker_io.contact._detection_numba import bounded_maxima, contact_extent, prominence_bound
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import finite_array, finite_scalar, whole_number
+from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields, whole_number
 from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = [
@@ -101,28 +101,22 @@ class DetectionParams:
         instead of at the sign change itself.
     """
 
-    smoothing_span: int = 100
-    min_width_samples: float = 100.0
-    min_prominence_counts: float = 500.0
-    confirm_threshold_counts: float = 500.0
-    baseline_samples: int = 100
-    plateau_tolerance_counts: float = 20.0
+    smoothing_span: int = checked(100, int, minimum=1, error=InvalidInputError)
+    min_width_samples: float = checked(100.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                       label="DetectionParams.min_width_samples")
+    min_prominence_counts: float = checked(500.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                           label="DetectionParams.min_prominence_counts")
+    confirm_threshold_counts: float = checked(500.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                              label="DetectionParams.confirm_threshold_counts")
+    baseline_samples: int = checked(100, int, minimum=1, error=InvalidInputError)
+    plateau_tolerance_counts: float = checked(20.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                              label="DetectionParams.plateau_tolerance_counts")
     signs: tuple[int, ...] = (1, -1)
     compensate_lead: bool = True
     refine_onset: bool = True
 
     def __post_init__(self) -> None:
-        if isinstance(self.smoothing_span, (bool, np.bool_)) or not (
-                isinstance(self.smoothing_span, (int, np.integer)) and self.smoothing_span >= 1):
-            raise InvalidInputError(f"smoothing_span must be an integer >= 1, got {self.smoothing_span!r}")
-        if isinstance(self.baseline_samples, (bool, np.bool_)) or not (
-                isinstance(self.baseline_samples, (int, np.integer)) and self.baseline_samples >= 1):
-            raise InvalidInputError(f"baseline_samples must be an integer >= 1, got {self.baseline_samples!r}")
-        names = ("min_width_samples", "min_prominence_counts", "confirm_threshold_counts", "plateau_tolerance_counts")
-        for name in names:
-            v = getattr(self, name)
-            if not finite_scalar(v, f"DetectionParams.{name}") >= 0:
-                raise InvalidInputError(f"DetectionParams.{name} must be a finite number >= 0, got {v!r}")
+        validate_fields(self)
         if not isinstance(self.signs, tuple) or not self.signs or any(s not in (1, -1) for s in self.signs):
             raise InvalidInputError(f"signs must be a non-empty tuple of +1/-1, got {self.signs!r}")
 

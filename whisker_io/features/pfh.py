@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import finite_array, finite_scalar, finite_vector, whole_number
+from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = [
     "FEATURE_NAMES",
@@ -87,22 +87,18 @@ class PFHParams:
         "without orientation" case).
     """
 
-    bins_per_feature: int = 3
-    radius_m: float = 0.3
-    normal_neighbours: int = 3
+    bins_per_feature: int = checked(3, int, minimum=1, error=InvalidInputError, reader=whole_number)
+    radius_m: float = checked(0.3, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                              message="{name} must be positive, got {value!r}")
+    normal_neighbours: int = checked(3, int, minimum=3, error=InvalidInputError, reader=whole_number,
+                                     message="{name} must be >= 3 (a plane needs 3 points), got {value!r}")
     orient_to_viewpoint: bool = True
 
     def __post_init__(self) -> None:
-        whole_number(self.bins_per_feature, "bins_per_feature", minimum=1)
-        if self.bins_per_feature > 64:
+        validate_fields(self)
+        if self.bins_per_feature > 64:  # not declared as maximum: its message differs from the minimum's
             raise InvalidInputError(
                 f"bins_per_feature must be <= 64 (the histogram has bins**4 entries), got {self.bins_per_feature!r}")
-        if not finite_scalar(self.radius_m, "radius_m") > 0:
-            raise InvalidInputError(f"radius_m must be positive, got {self.radius_m!r}")
-        if whole_number(self.normal_neighbours, "normal_neighbours") < 3:
-            raise InvalidInputError(
-                f"normal_neighbours must be >= 3 (a plane needs 3 points), got {self.normal_neighbours!r}"
-            )
 
     @property
     def n_bins(self) -> int:

@@ -56,7 +56,7 @@ from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import MAX_STEP_M, finite_scalar, finite_vector
+from whisker_io.validation import MAX_STEP_M, checked, finite_scalar, finite_vector, validate_fields
 
 __all__ = [
     "MAX_SPEED_DRAWS",
@@ -96,21 +96,19 @@ class OdometryNoise:
     :meth:`noise_free` gives the same model with every standard deviation 0.
     """
 
-    angular_speed_mean_rad_s: float = 0.03
-    angular_speed_std_rad_s: float = 0.0087
-    euler_std_rad: float = math.radians(2.5)
-    displacement_std_m: float = 0.01
-    min_dt_s: float = 0.01
+    angular_speed_mean_rad_s: float = checked(0.03, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                              message="{name} must be > 0 rad/s, got {value!r}")
+    angular_speed_std_rad_s: float = checked(0.0087, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                             message="{name} must be >= 0, got {value!r}")
+    euler_std_rad: float = checked(math.radians(2.5), float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                   message="{name} must be >= 0, got {value!r}")
+    displacement_std_m: float = checked(0.01, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                        message="{name} must be >= 0, got {value!r}")
+    min_dt_s: float = checked(0.01, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                              message="{name} must be > 0 s, got {value!r}")
 
     def __post_init__(self) -> None:
-        if not finite_scalar(self.angular_speed_mean_rad_s, "angular_speed_mean_rad_s") > 0:
-            raise InvalidInputError(
-                f"angular_speed_mean_rad_s must be > 0 rad/s, got {self.angular_speed_mean_rad_s!r}")
-        for name in ("angular_speed_std_rad_s", "euler_std_rad", "displacement_std_m"):
-            if not finite_scalar(getattr(self, name), name) >= 0:
-                raise InvalidInputError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        if not finite_scalar(self.min_dt_s, "min_dt_s") > 0:
-            raise InvalidInputError(f"min_dt_s must be > 0 s, got {self.min_dt_s!r}")
+        validate_fields(self)
 
     def noise_free(self) -> OdometryNoise:
         """The same model without noise: ``omega`` = its mean, no rotation or displacement noise."""

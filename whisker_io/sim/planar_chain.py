@@ -70,7 +70,7 @@ from whisker_io.pose import Pose
 from whisker_io.sim.signals import SignalParams, free_whisking_threshold_counts
 from whisker_io.sim.simulator import ArraySimulator, ArrayWhisk
 from whisker_io.sim.sweep import MeshTarget, SweepParams
-from whisker_io.validation import finite_array, finite_scalar
+from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields
 
 __all__ = ["PLANE_HEIGHT_M", "MAX_COORDINATE_M", "Control", "PlanarChain", "WhiskSchedule"]
 
@@ -107,14 +107,13 @@ class WhiskSchedule:
         Whisking rate, Hz (Sec 3.2: 1).
     """
 
-    odometry_rate_hz: float = 1.5
-    whisk_rate_hz: float = 1.0
+    odometry_rate_hz: float = checked(1.5, float, above=0, maximum=1e3, error=InvalidInputError, reader=finite_scalar,
+                                      message="{name} must be in (0, 1000] Hz, got {value!r}")
+    whisk_rate_hz: float = checked(1.0, float, above=0, maximum=1e3, error=InvalidInputError, reader=finite_scalar,
+                                   message="{name} must be in (0, 1000] Hz, got {value!r}")
 
     def __post_init__(self) -> None:
-        for name in ("odometry_rate_hz", "whisk_rate_hz"):
-            v = getattr(self, name)
-            if not 0 < finite_scalar(v, name) <= 1e3:
-                raise InvalidInputError(f"{name} must be in (0, 1000] Hz, got {v!r}")
+        validate_fields(self)
 
     @property
     def iteration_s(self) -> float:

@@ -71,7 +71,7 @@ from numpy.typing import ArrayLike
 
 from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern, contact_threshold_from_noise
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import finite_array, finite_scalar, finite_vector
+from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 #: Longest rod-push recording :func:`simulate_rod_contact` makes (about 83 min at 2 kHz).
@@ -123,26 +123,26 @@ class SignalParams:
         Round deflections to integer counts.
     """
 
-    youngs_modulus_pa: float = 3.0e9
-    base_radius_m: float = 1.0e-3
-    tip_radius_m: float = 0.3e-3
-    full_scale_moment_nm: float = 0.032
-    adc_max_counts: float = 2047.0
-    noise_std_counts: float = 4.0
-    angle_noise_std_rad: float = math.radians(0.05)
-    sample_rate_hz: float = SAMPLE_RATE_HZ
+    youngs_modulus_pa: float = checked(3.0e9, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                       label="SignalParams.youngs_modulus_pa")
+    base_radius_m: float = checked(1.0e-3, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                   label="SignalParams.base_radius_m")
+    tip_radius_m: float = checked(0.3e-3, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                  label="SignalParams.tip_radius_m")
+    full_scale_moment_nm: float = checked(0.032, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                          label="SignalParams.full_scale_moment_nm")
+    adc_max_counts: float = checked(2047.0, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                    label="SignalParams.adc_max_counts")
+    noise_std_counts: float = checked(4.0, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                      label="SignalParams.noise_std_counts")
+    angle_noise_std_rad: float = checked(math.radians(0.05), float, minimum=0, error=InvalidInputError,
+                                         reader=finite_scalar, label="SignalParams.angle_noise_std_rad")
+    sample_rate_hz: float = checked(SAMPLE_RATE_HZ, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                    label="SignalParams.sample_rate_hz")
     quantize: bool = True
 
     def __post_init__(self) -> None:
-        positive = ("youngs_modulus_pa", "base_radius_m", "full_scale_moment_nm", "adc_max_counts", "sample_rate_hz")
-        for name in positive:
-            v = getattr(self, name)
-            if not finite_scalar(v, f"SignalParams.{name}") > 0:
-                raise InvalidInputError(f"SignalParams.{name} must be a finite number > 0, got {v!r}")
-        for name in ("tip_radius_m", "noise_std_counts", "angle_noise_std_rad"):
-            v = getattr(self, name)
-            if not finite_scalar(v, f"SignalParams.{name}") >= 0:
-                raise InvalidInputError(f"SignalParams.{name} must be a finite number >= 0, got {v!r}")
+        validate_fields(self)
         if self.tip_radius_m > self.base_radius_m:
             raise InvalidInputError("SignalParams.tip_radius_m must not exceed base_radius_m")
 

@@ -54,7 +54,7 @@ import trimesh
 from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import finite_scalar, whole_number
+from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
 from whisker_io.pose import PoseLike
@@ -276,20 +276,16 @@ class SweepParams:
         docstring). Default True.
     """
 
-    step_rad: float = float(np.deg2rad(1.0))
+    step_rad: float = checked(float(np.deg2rad(1.0)), float, above=0, error=InvalidInputError, reader=finite_scalar,
+                              message="{name} must be positive, got {value!r}")
     refine: bool = True
-    refine_subdivisions: int = 32
-    angle_tolerance_rad: float = 1e-6
+    refine_subdivisions: int = checked(32, int, minimum=2, error=InvalidInputError, reader=whole_number)
+    angle_tolerance_rad: float = checked(1e-6, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                         message="{name} must be positive, got {value!r}")
     tip_chords: bool = True
 
     def __post_init__(self) -> None:
-        if not finite_scalar(self.step_rad, "step_rad") > 0:
-            raise InvalidInputError(f"step_rad must be positive, got {self.step_rad!r}")
-        whole_number(self.refine_subdivisions, "refine_subdivisions", minimum=2)
-        if not finite_scalar(self.angle_tolerance_rad, "angle_tolerance_rad") > 0:
-            raise InvalidInputError(
-                f"angle_tolerance_rad must be positive, got {self.angle_tolerance_rad!r}"
-            )
+        validate_fields(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -539,23 +535,18 @@ class ContactNoise:
         Probability a contact is registered at all (thesis: 0.98).
     """
 
-    position_sigma_fraction: float = 0.25
-    position_mode: Literal["shaft", "isotropic"] = "shaft"
-    slope_sigma: float = 0.33
-    registration_probability: float = 0.98
+    position_sigma_fraction: float = checked(0.25, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                             message="noise standard deviations must be >= 0")
+    position_mode: Literal["shaft", "isotropic"] = checked(
+        "shaft", str, choices=("shaft", "isotropic"), error=InvalidInputError,
+        message="{name} must be 'shaft' or 'isotropic', got {value!r}")
+    slope_sigma: float = checked(0.33, float, minimum=0, error=InvalidInputError, reader=finite_scalar,
+                                 message="noise standard deviations must be >= 0")
+    registration_probability: float = checked(0.98, float, minimum=0, maximum=1, error=InvalidInputError,
+                                              reader=finite_scalar, message="{name} must be in [0, 1], got {value!r}")
 
     def __post_init__(self) -> None:
-        if self.position_mode not in ("shaft", "isotropic"):
-            raise InvalidInputError(
-                f"position_mode must be 'shaft' or 'isotropic', got {self.position_mode!r}"
-            )
-        if not (finite_scalar(self.position_sigma_fraction, "position_sigma_fraction") >= 0
-                and finite_scalar(self.slope_sigma, "slope_sigma") >= 0):
-            raise InvalidInputError("noise standard deviations must be >= 0")
-        if not 0.0 <= finite_scalar(self.registration_probability, "registration_probability") <= 1.0:
-            raise InvalidInputError(
-                f"registration_probability must be in [0, 1], got {self.registration_probability!r}"
-            )
+        validate_fields(self)
 
     def scaled(self, scale: float) -> ContactNoise:
         """This noise with both standard deviations multiplied by ``scale``.

@@ -76,7 +76,7 @@ from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.pose import Pose
 from whisker_io.sim.sweep import MeshTarget
-from whisker_io.validation import finite_scalar, finite_vector, whole_number
+from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = [
     "FittedSurface",
@@ -166,19 +166,17 @@ class LoopShape:
         Mean elevation, degrees; ``|offset| + amplitude`` must stay below 80 deg.
     """
 
-    azimuth_start_deg: float = 0.0
+    azimuth_start_deg: float = checked(0.0, float, error=InvalidInputError, reader=finite_scalar)
     direction: int = 1
-    elevation_amplitude_deg: float = 25.0
-    elevation_waves: int = 2
-    elevation_phase_deg: float = 0.0
-    elevation_offset_deg: float = 0.0
+    elevation_amplitude_deg: float = checked(25.0, float, error=InvalidInputError, reader=finite_scalar)
+    elevation_waves: int = checked(2, int, minimum=0, error=InvalidInputError, reader=whole_number)
+    elevation_phase_deg: float = checked(0.0, float, error=InvalidInputError, reader=finite_scalar)
+    elevation_offset_deg: float = checked(0.0, float, error=InvalidInputError, reader=finite_scalar)
 
     def __post_init__(self) -> None:
-        for name in ("azimuth_start_deg", "elevation_amplitude_deg", "elevation_phase_deg", "elevation_offset_deg"):
-            finite_scalar(getattr(self, name), name)
-        if self.direction not in (1, -1) or isinstance(self.direction, bool):
+        validate_fields(self)
+        if self.direction not in (1, -1) or isinstance(self.direction, bool):  # a set (1.0 passes), not a kind
             raise ConfigError(f"direction must be +1 or -1, got {self.direction!r}")
-        whole_number(self.elevation_waves, "elevation_waves", minimum=0)
         if not (self.elevation_amplitude_deg >= 0
                 and abs(self.elevation_offset_deg) + self.elevation_amplitude_deg < 80.0):
             raise ConfigError(
