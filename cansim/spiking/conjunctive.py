@@ -47,8 +47,8 @@ from typing import Any
 import numpy as np
 
 from cansim.errors import ConfigError
-from cansim.spiking.neurons import NeuronParams
-from cansim.spiking.nir_io import _nir, circulant, cuba_lif_node, current_gain, input_gain
+from cansim.spiking.nir_io import _nir, circulant, cuba_lif_node, current_gain, factored_recurrent, input_gain
+from cansim.spiking.population import SpikingParams
 
 __all__ = [
     "conjunctive_graph",
@@ -62,10 +62,7 @@ __all__ = [
 def conjunctive_graph(
     *,
     shape: tuple[int, ...],
-    recurrent: tuple[np.ndarray, np.ndarray],
-    excitation_taps: np.ndarray,
-    neurons: NeuronParams,
-    attractor_bias: float,
+    attractor: SpikingParams,
     shifts: np.ndarray,
     velocity_map: np.ndarray,
     velocity_gain: float,
@@ -85,14 +82,11 @@ def conjunctive_graph(
     ----------
     shape : tuple of int
         The attractor's periodic grid (``S = prod(shape)`` cells).
-    recurrent : (ndarray (S, S), ndarray (S, S))
-        ``(C_E, M)`` of :func:`cansim.spiking.nir_io.factored_recurrent`.
-    excitation_taps : ndarray
-        The excitation kernel's taps, sum 1 (the pushes' profile).
-    neurons : NeuronParams
-        The LIF cells of every population.
-    attractor_bias : float
-        Bias current of the attractor cells (threshold units).
+    attractor : SpikingParams
+        The stationary attractor: its kernels (factored as
+        :func:`cansim.spiking.nir_io.factored_recurrent`; the excitation kernel, sum-normalised,
+        is also the pushes' profile), weights and neurons (the LIF cells of every population;
+        their ``bias_current`` is the attractor cells' bias).
     shifts : ndarray (D, len(shape)) int
         Where each direction population pushes, cells per axis.
     velocity_map : ndarray (D, V)
@@ -109,6 +103,11 @@ def conjunctive_graph(
     metadata : dict
         Stored as ``graph.metadata["cansim"]``.
 
+    Raises
+    ------
+    ConfigError
+        A step the neurons cannot use.
+
     Returns
     -------
     nir.NIRGraph
@@ -116,20 +115,24 @@ def conjunctive_graph(
         output the attractor's ``S`` spikes.
     """
     nir = _nir()
+    neurons = attractor.neurons
     s_cells = int(np.prod(shape))
+    cuba_lif_node(neurons, s_cells, dt_s)  # validates the step
+    exc, _ = attractor.attractor.kernels(len(shape))
+    excitation_taps = exc.dense() / float(np.sum(exc.dense()))
     shifts = np.asarray(shifts, dtype=np.int64)
     vmap = np.asarray(velocity_map, dtype=np.float64)
     n_dir, n_vel = vmap.shape
     p = int(pool_cells)
     total = (1 + n_dir) * s_cells + p
-    ce, m = recurrent
+    ce, m = factored_recurrent(attractor, tuple(shape))
     c_gain, g_in = current_gain(neurons, dt_s), input_gain(neurons, dt_s)
     eye = np.eye(s_cells)
     w_in = np.zeros((total, s_cells + n_vel))
     w_in[:s_cells, :s_cells] = g_in * eye
     for d in range(n_dir):
         w_in[(1 + d) * s_cells : (2 + d) * s_cells, s_cells:] = g_in * velocity_gain * vmap[d]
-    b_in = g_in * np.concatenate([np.full(s_cells, attractor_bias), np.full(n_dir * s_cells, direction_bias),
+    b_in = g_in * np.concatenate([np.full(s_cells, neurons.bias_current), np.full(n_dir * s_cells, direction_bias),
                                   np.full(p, pool_bias)])
     w_exc = np.zeros((s_cells + total, total))  # [C_E z_attractor; z_all]
     w_exc[:s_cells, :s_cells] = ce

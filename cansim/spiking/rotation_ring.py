@@ -84,7 +84,7 @@ from cansim.spiking.conjunctive import (
     invert_speed_curve,
     measure_phase_speed,
 )
-from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
+from cansim.spiking.nir_io import NIR_STEP_S
 from cansim.spiking.population import SpikingParams
 from whisker_io.validation import checked, validate_fields
 
@@ -203,8 +203,6 @@ def rotation_ring_graph(params: RotationRingParams = RotationRingParams(), *, dt
         raise ConfigError("params must be a cansim.spiking.rotation_ring.RotationRingParams")
     n = int(params.n_cells)
     nrn = params.neurons
-    cuba_lif_node(nrn, n, dt_s)  # validates the step
-    exc, _ = params.attractor.kernels(1)
     s = int(params.shift_cells)
     meta = {
         "format": ROTATION_RING_FORMAT,
@@ -222,10 +220,7 @@ def rotation_ring_graph(params: RotationRingParams = RotationRingParams(), *, dt
     }
     return conjunctive_graph(
         shape=(n,),
-        recurrent=factored_recurrent(params.ring_params, (n,)),
-        excitation_taps=exc.dense() / float(np.sum(exc.dense())),
-        neurons=nrn,
-        attractor_bias=nrn.bias_current,
+        attractor=params.ring_params,
         shifts=np.array([[s], [-s]]),
         velocity_map=np.array([[1.0], [-1.0]]),
         velocity_gain=params.velocity_gain,

@@ -46,7 +46,7 @@ from cansim.spiking.conjunctive import (
 )
 from cansim.spiking.correspondence import SHEET_ATTRACTOR
 from cansim.spiking.neurons import NeuronParams
-from cansim.spiking.nir_io import NIR_STEP_S, cuba_lif_node, factored_recurrent
+from cansim.spiking.nir_io import NIR_STEP_S
 from cansim.spiking.population import SpikingParams
 from cansim.spiking.rotation_ring import RING_NEURONS
 from whisker_io.validation import checked, validate_fields
@@ -155,8 +155,6 @@ def velocity_sheet_graph(params: VelocitySheetParams = VelocitySheetParams(), *,
         raise ConfigError("params must be a cansim.spiking.velocity_sheet.VelocitySheetParams")
     n = int(params.n_cells)
     nrn = params.neurons
-    cuba_lif_node(nrn, n, dt_s)  # validates the step
-    exc, _ = params.attractor.kernels(2)
     meta = {
         "format": VELOCITY_SHEET_FORMAT,
         "nir_step_s": float(dt_s),
@@ -178,10 +176,7 @@ def velocity_sheet_graph(params: VelocitySheetParams = VelocitySheetParams(), *,
     }
     return conjunctive_graph(
         shape=(n, n),
-        recurrent=factored_recurrent(params.sheet_params, (n, n)),
-        excitation_taps=exc.dense() / float(np.sum(exc.dense())),
-        neurons=nrn,
-        attractor_bias=nrn.bias_current,
+        attractor=params.sheet_params,
         shifts=int(params.shift_cells) * DIRECTIONS,
         velocity_map=DIRECTIONS.astype(np.float64),
         velocity_gain=params.velocity_gain,
