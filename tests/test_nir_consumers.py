@@ -17,7 +17,6 @@ Rockpool); without it they are skipped with the reason, unless
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
@@ -42,21 +41,11 @@ from cansim.spiking import (  # noqa: E402
     rotation_ring_graph,
     to_nir,
 )
-from cansim.spiking.nir_consumers import ConsumerRunner, consumer_status  # noqa: E402
+from cansim.spiking.nir_consumers import ConsumerRunner  # noqa: E402
+from consumers import need as _need  # noqa: E402
 
 DT = 1e-4
 HSET = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
-STATUS = consumer_status()
-
-
-def _need(consumer: str) -> None:
-    usable, reason = STATUS[consumer]
-    if usable:
-        return
-    msg = f"the optional extra nir-consumers is not installed ({reason})"
-    if os.environ.get("CANSIM_REQUIRE_NIR_CONSUMERS") == "1":
-        pytest.fail("CANSIM_REQUIRE_NIR_CONSUMERS=1 but " + msg)
-    pytest.skip(msg + ": pip install 'cansim[nir-consumers]'")
 
 
 FAST = [pytest.param("snntorch"), pytest.param("norse"), pytest.param("rockpool", marks=pytest.mark.slow)]

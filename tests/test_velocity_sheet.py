@@ -8,7 +8,6 @@ the bump's position from the spike counts with a population vector computed here
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
@@ -28,7 +27,8 @@ from cansim.spiking import (  # noqa: E402
     sheet_position_cells,
     velocity_sheet_graph,
 )
-from cansim.spiking.nir_consumers import ConsumerRunner, consumer_status  # noqa: E402
+from cansim.spiking.nir_consumers import ConsumerRunner  # noqa: E402
+from consumers import need as _need  # noqa: E402
 from cansim.spiking.nir_io import current_gain, input_gain  # noqa: E402
 
 HSET = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -247,16 +247,6 @@ def test_the_calibrated_sheet_moves_at_the_wanted_velocity():
         t = 0.05 * np.arange(1, len(path) + 1)
         got = np.array([np.polyfit(t[k:], path[k:, a], 1)[0] for a in range(2)])
         assert np.linalg.norm(got - want) <= 0.15 * np.linalg.norm(want), (want, got)
-
-
-def _need(consumer: str) -> None:
-    usable, reason = consumer_status()[consumer]
-    if usable:
-        return
-    msg = f"the optional extra nir-consumers is not installed ({reason})"
-    if os.environ.get("CANSIM_REQUIRE_NIR_CONSUMERS") == "1":
-        pytest.fail("CANSIM_REQUIRE_NIR_CONSUMERS=1 but " + msg)
-    pytest.skip(msg + ": pip install 'cansim[nir-consumers]'")
 
 
 @pytest.mark.slow  # ~1-2 min per toolchain
