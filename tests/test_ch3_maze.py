@@ -298,6 +298,8 @@ def test_study_quick_mode_writes_the_named_columns(quick_study):
     assert study.main(["--repetitions", "0", "--out", str(tmp_path)]) == 2
     assert study.main(["--no-such-option"]) == 2
     assert study.main(["--recognition", "nothing", "--out", str(tmp_path)]) == 2
+    assert study.main(["--relaxation", "nothing", "--out", str(tmp_path)]) == 2
+    assert "relaxation 'least_squares'" in summary  # the default with sequence recognition
 
 
 def _quick_rows(rows, control, angle, kidnapped):

@@ -205,6 +205,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any, Sequence
 
 import numpy as np
@@ -214,6 +215,7 @@ from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequ
 from cansim.errors import InvalidInputError
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
+from maps.least_squares_relaxation import LeastSquaresConfig, relax_least_squares
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
 from whisker_io._deprecated import renamed_attributes
@@ -242,6 +244,13 @@ SEQUENCE_MATCH_DISTANCE_CELLS = 2.0
 SEQUENCE_LINK_UPDATE = "average"
 """``link_update`` of the sequence recognition's experience map: a link driven again becomes the running mean
 of its traversals (:mod:`maps.link_average`; Table 3.1 / OpenRatSLAM: ``"first"``, the first traversal only)."""
+RELAXATIONS: tuple[str, ...] = ("least_squares", "eq2_25")
+"""How the study relaxes the final experience map before scoring it: ``least_squares`` (default with the
+``sequence`` recognition; :mod:`maps.least_squares_relaxation`: every traversal weighted by its odometry steps,
+experiences of one view tied together) or ``eq2_25`` (the map's own Eq 2.25 relaxation, as the thesis; the
+default with ``thesis_ch3``)."""
+LEAST_SQUARES = LeastSquaresConfig()
+"""Noise model of the ``least_squares`` relaxation: Sec 3.1.2's odometry errors at 1.5 Hz, view ties of 1 cm / 5 deg."""
 SAME_PLACE_M = 0.015
 """Two whisk cycles are at the same place when their poses are within one place (15 mm) and 25 deg."""
 DIFFERENT_PLACE_M = 0.1
@@ -557,14 +566,33 @@ def experience_energy(exp_ids: np.ndarray, map_poses: np.ndarray, truth: np.ndar
     return energy_metric(map_poses[exp_ids[change]], truth[change]).energy
 
 
-def evaluate(recording: Recording, slam: RatSLAM, exp_ids: np.ndarray) -> dict[str, Any]:
-    """ARR, ARCR, EM, map and dead-reckoning errors of one run (iterations with an active experience)."""
+def map_poses(slam: RatSLAM, relaxation: str = "eq2_25") -> np.ndarray:
+    """The relaxed map poses (n, 3) the study scores: the map's own (``"eq2_25"``) or :func:`~maps.least_squares_relaxation.relax_least_squares`.
+
+    Raises
+    ------
+    InvalidInputError
+        An unknown ``relaxation`` (not in :data:`RELAXATIONS`).
+    """
+    if relaxation == "eq2_25":
+        return slam.experience_map.poses
+    if relaxation == "least_squares":
+        return relax_least_squares(slam.experience_map, LEAST_SQUARES)
+    raise InvalidInputError(f"unknown relaxation {relaxation!r}; choose one of {list(RELAXATIONS)}")
+
+
+def evaluate(recording: Recording, slam: RatSLAM, exp_ids: np.ndarray, relaxation: str = "eq2_25") -> dict[str, Any]:
+    """ARR, ARCR, EM, map and dead-reckoning errors of one run (iterations with an active experience).
+
+    EM and the map error read the map poses of :func:`map_poses` (``relaxation``); ARR and ARCR
+    read the experience log only. The result also holds those ``poses``.
+    """
     run = recording.run
     valid = np.flatnonzero(exp_ids >= 0)  # a prefix: no experience before the first image
     ids, truth = exp_ids[valid], run.truth[valid]
     base_end = int(np.count_nonzero(valid < run.n_places + 1))  # the start and the first loop
     exm = experience_metric(ids, truth, base_end)
-    poses = slam.experience_map.poses
+    poses = map_poses(slam, relaxation)
     return {
         "ARR": exm.arr,
         "ARCR": exm.arcr,
@@ -574,6 +602,7 @@ def evaluate(recording: Recording, slam: RatSLAM, exp_ids: np.ndarray) -> dict[s
         "exm": exm,
         "base_end": base_end,
         "valid": valid,
+        "poses": poses,
     }
 
 
@@ -655,7 +684,8 @@ def figure_map(ax: Any, terrain: Any, recording: Recording, slam: RatSLAM, metri
     """
     valid = metrics["valid"]
     run = recording.run
-    plot_experience_map(slam.experience_map, run.truth[valid], run.dead_reckoning[valid], metrics["ids"], ax=ax)
+    scored = SimpleNamespace(poses=metrics["poses"], links=slam.experience_map.links)  # the map's links at the scored poses
+    plot_experience_map(scored, run.truth[valid], run.dead_reckoning[valid], metrics["ids"], ax=ax)
     draw_maze(ax, terrain)
     ax.legend(loc="upper right", fontsize="x-small")
     ax.set_title(f"{title}\nmap error {metrics['map_error_m'] * 100:.1f} cm, dead reckoning {metrics['dr_error_m'] * 100:.1f} cm", fontsize="small")
@@ -867,11 +897,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--recognition", choices=RECOGNITIONS, default="sequence",
                         help="place recognition: 'sequence' (default, sequence matching, threshold calibrated from the "
                              "same/different-place distributions) or 'thesis_ch3' (Table 3.1: one image, grid search)")
+    parser.add_argument("--relaxation", choices=RELAXATIONS, default=None,
+                        help="relaxation of the scored map: 'least_squares' (default with sequence recognition: every "
+                             "traversal, views tied) or 'eq2_25' (the map's own, Table 3.1; default with thesis_ch3)")
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
     settings = QUICK if args.quick else FULL
+    relaxation = args.relaxation or ("least_squares" if args.recognition == "sequence" else "eq2_25")
     if args.repetitions is not None:
         if args.repetitions < 1:
             print("ch3_maze: --repetitions must be >= 1", file=sys.stderr)
@@ -918,13 +952,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             kid_rec, kidnaps = kidnapped(normal_rec, route, settings)
             if control == CONTROLS[0]:  # the odometry depends on the seed only
                 ref_slam, ref_ids = run_slam(normal_rec, CONTACT_ANGLES[0], 0.0, SEQUENCE_INJECT_ENERGY, "true_places")
-                ref = evaluate(normal_rec, ref_slam, ref_ids)
+                ref = evaluate(normal_rec, ref_slam, ref_ids, relaxation)
                 reference[seed] = ref["map_error_m"] / ref["dr_error_m"]
             for m in CONTACT_ANGLES:
                 thr, inj = calibration[(control, m)]
                 for is_kid, rec in ((False, normal_rec), (True, kid_rec)):
                     slam, ids = run_slam(rec, m, thr, inj, args.recognition)
-                    metrics = evaluate(rec, slam, ids)
+                    metrics = evaluate(rec, slam, ids, relaxation)
                     metrics["ids"] = ids[metrics["valid"]]
                     delays = recovery_delays(metrics, kidnaps) if is_kid else []
                     rows.append({"control": control, "contact_angle": m, "kidnapped": is_kid, "recovery": delays,
@@ -985,6 +1019,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                  f"- the same map (link_update {SEQUENCE_LINK_UPDATE!r}: a repeated link "
                  f"{'is the running mean of its traversals' if SEQUENCE_LINK_UPDATE == 'average' else 'keeps its first traversal'}) "
                  "with view ids from the true places: the part of the ratio better recognition cannot remove")
+    lines.append(f"   scored map poses: relaxation {relaxation!r} "
+                 f"({'least squares over every traversal, experiences of one view tied (maps.least_squares_relaxation)' if relaxation == 'least_squares' else 'the map own Eq 2.25 relaxation'})")
     lines.extend(aliasing_lines(aliasing, distributions, settings, args.recognition))
     lines.append("")
     lines.append(f"{'quick' if args.quick else 'full'} study, {time.perf_counter() - t0:.0f} s")
