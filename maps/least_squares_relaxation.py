@@ -33,6 +33,11 @@ places - tuning seeds 1000-1029): map / dead-reckoning error mean 0.268, largest
 is the along-track odometry error of a loop averaged over the four traversals of
 each direction (the two directions meet only where the agent turns).
 
+View ties trust the views: with a front end that aliases places (Table 3.1's one-image
+Eq 3.1 matcher on the Ch.3 maze, 8 anticlockwise loops, seed 1) the ties pull different
+places together - 0.235 m against dead reckoning's 0.338 m, Eq 2.25 0.059 m - while
+``tie_views=False`` gives 0.059 m and ``loss="cauchy"`` 0.033 m.
+
 The map itself is not changed: :func:`relax_least_squares` returns the poses.
 """
 
