@@ -186,22 +186,17 @@ def solve_se2_graph(initial_poses: Any, ends: Any, relative: Any, sigma_m: Any, 
         c, s = np.cos(p[a, 2]), np.sin(p[a, 2])
         dx, dy = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1]
         k = np.arange(m)
-        rows, cols, vals = [], [], []
-
-        def put(r: np.ndarray, col: np.ndarray, v: np.ndarray) -> None:
-            rows.append(r)
-            cols.append(col)
-            vals.append(v)
-
-        # r_x = (c dx + s dy - t_x) w_t
-        put(k, 3 * a, -c * w_t); put(k, 3 * a + 1, -s * w_t); put(k, 3 * b, c * w_t); put(k, 3 * b + 1, s * w_t)  # noqa: E702
-        put(k, 3 * a + 2, (-s * dx + c * dy) * w_t)
-        # r_y = (-s dx + c dy - t_y) w_t
-        put(m + k, 3 * a, s * w_t); put(m + k, 3 * a + 1, -c * w_t); put(m + k, 3 * b, -s * w_t); put(m + k, 3 * b + 1, c * w_t)  # noqa: E702
-        put(m + k, 3 * a + 2, (-c * dx - s * dy) * w_t)
-        # r_theta = (theta_b - theta_a - phi) w_r
-        put(2 * m + k, 3 * a + 2, -w_r); put(2 * m + k, 3 * b + 2, w_r)  # noqa: E702
-        jac = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * m, 3 * n)).tocsc()
+        # (residual row, variable column, derivative) for each non-zero: r_x = (c dx + s dy - t_x) w_t,
+        # r_y = (-s dx + c dy - t_y) w_t, r_theta = (theta_b - theta_a - phi) w_r
+        entries = [
+            (k, 3 * a, -c * w_t), (k, 3 * a + 1, -s * w_t), (k, 3 * b, c * w_t), (k, 3 * b + 1, s * w_t),
+            (k, 3 * a + 2, (-s * dx + c * dy) * w_t),
+            (m + k, 3 * a, s * w_t), (m + k, 3 * a + 1, -c * w_t), (m + k, 3 * b, -s * w_t), (m + k, 3 * b + 1, c * w_t),
+            (m + k, 3 * a + 2, (-c * dx - s * dy) * w_t),
+            (2 * m + k, 3 * a + 2, -w_r), (2 * m + k, 3 * b + 2, w_r),
+        ]
+        rows, cols, vals = (np.concatenate(part) for part in zip(*entries))
+        jac = coo_matrix((vals, (rows, cols)), shape=(3 * m, 3 * n)).tocsc()  # duplicates (a self-loop a == b) add up, as the derivative does
         return jac[:, free]
 
     sol = least_squares(residuals, p0.reshape(-1)[free], jac=jacobian, method="trf", loss=loss, x_scale="jac",
