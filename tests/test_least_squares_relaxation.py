@@ -88,8 +88,14 @@ def test_tying_a_views_two_experiences_brings_them_together():
     tied = relax_least_squares(em)
     assert np.hypot(*(free[3, :2] - free[0, :2])) == pytest.approx(0.2, abs=1e-6)  # the odometry's disagreement
     assert np.hypot(*(tied[3, :2] - tied[0, :2])) < 0.02
-    ends, rel, s_m, _ = map_edges(em)
+    ends, rel, s_m, s_r = map_edges(em)
     assert ends.tolist()[-1] == [0, 3] and rel[-1].tolist() == [0.0, 0.0, 0.0] and s_m[-1] == 0.01
+    # the link 0 -> 1 spans 2 s of odometry (MapConfig's keep_first_accumulator counts the second before the first
+    # experience again) = 3 steps of 2/3 s, one traversal: sigma * sqrt(3); the link 2 -> 3: 1 s, sqrt(1.5)
+    k = ends.tolist().index([0, 1])
+    assert s_m[k] == pytest.approx(0.0166 * math.sqrt(3)) and s_r[k] == pytest.approx(math.radians(0.3) * math.sqrt(3))
+    assert s_m[ends.tolist().index([2, 3])] == pytest.approx(0.0166 * math.sqrt(1.5))
+    np.testing.assert_allclose(rel[k], [1.0, 0.0, 0.0], atol=1e-12)
 
 
 def test_bad_graphs_raise_typed_errors():
