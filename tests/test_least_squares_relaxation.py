@@ -133,3 +133,14 @@ def test_config_refuses_an_unknown_loss_and_too_few_evaluations():
         LeastSquaresConfig(loss="square")
     with pytest.raises(ConfigError):
         LeastSquaresConfig(max_evaluations=0)
+
+
+def test_a_link_driven_twice_counts_as_two_traversals():
+    # view 0, 1 m on to view 1, then back to view 0 at its pose cells: the map averages the return into the link
+    em = ExperienceMap(MapConfig(pc_shape=(30, 30, 36), link_update="average", keep_first_accumulator=False))
+    _drive(em, [(0.0, 0.0, 1.0, (0, 0, 0), 0), (1.0, 0.0, 1.0, (5, 0, 0), 1),
+                (0.0, math.pi, 1.0, (5, 0, 0), 1), (1.0, 0.0, 1.0, (0, 0, 0), 0)])
+    assert em.n_experiences == 2 and em.link_traversals.tolist() == [2]
+    ends, _, s_m, _ = map_edges(em, LeastSquaresConfig(step_s=1.0, tie_views=False))
+    # traversals of 1 s and 2 s: mean 1.5 s = 1.5 steps of 1 s, over 2 traversals: sigma * sqrt(1.5 / 2)
+    assert ends.tolist() == [[0, 1]] and s_m[0] == pytest.approx(0.0166 * math.sqrt(0.75))
