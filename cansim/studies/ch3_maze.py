@@ -157,6 +157,12 @@ out of every choice and looked at once (``cansim study ch3 --quick --repetitions
   dead reckoning 0.099 m) - NOT. 7 of 8 seeds within in every condition, 46 of 48 condition
   runs (Eq 2.25: 4 of 8, 39 of 48); ARCR 0.968-1.0, ARR 0.41-0.57 (thesis 0.18); perfect
   recognition 0.25, 0.44, 0.32, 0.15, 0.37, 0.22, 0.24, 0.19 (Eq 2.25 on seed 11: 0.61);
+* held out afterwards, seeds 13-20 (normal runs, the quick mode's functions and calibration, a
+  scratch script - ``--repetitions 20`` runs the same): 13 0.12-0.18, 14 0.16-0.20,
+  15 0.11-0.17, 16 0.31-0.35, 17 0.21-0.23, 18 0.17-0.28, 19 0.26-0.33 - within;
+  20 0.33-0.51 (RCP threshold 0.51; dead reckoning 0.143 m, perfect recognition 0.42) - NOT;
+  ARCR 0.974-1.0. Seeds 5-20 together: 14 of 16 within in every condition, 93 of 96
+  condition runs;
 * full study (``cansim study ch3``, seeds 1-3, tuning seeds 1000-1001; 304 s wall at load 5):
   0.13-0.27, ARCR 0.990-1.0, ARR 0.43-0.54, a correct re-localisation after all 18 kidnaps.
 
