@@ -174,8 +174,12 @@ perfect recognition; its ties are all within 45 mm of the true place and its err
 spread evenly over the loops (0.046-0.060 m per loop). Part of the gap is the matcher's
 quantisation: a loop is 83.3 whisk cycles, so each pass's cycles lie 7.5 mm behind the
 previous pass's and the matched cycle of another pass is 0 or 7.5 mm ahead (tuning seed 1000:
--7.5 mm in 60-70 % of the matches); ties with the true displacement instead of zero lower the
-ratio by up to 0.05 (tuning seeds 1000-1003). Tying the two directions would average 8
+7.5 mm ahead in 44-71 % of the matches); ties with the true displacement instead of zero lower
+the ratio by 0-0.05 (tuning seeds 1000-1003). Not built, measured on tuning seed 1000: the
+parabola through the sequence dissimilarities of the matched stored cycle and its neighbours
+estimates that offset (rms 6-8 -> 4-6 mm), and dead-reckoning the delay between a whisk and
+the iteration that creates its experience into the tie changes the ratio by < 0.01.
+Tying the two directions would average 8
 traversals (0.027 m) but needs recognising a place from the other direction, which the
 array's 6 columns (not symmetric under a half turn) do not give directly.
 
