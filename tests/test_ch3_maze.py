@@ -221,6 +221,30 @@ def test_reduced_route_through_the_full_chain_closes_the_loop(anticlockwise_run)
     assert exm.n_relocalisations > 20 and exm.arcr > 0.8
 
 
+def test_least_squares_relaxation_of_the_reduced_route_closes_the_loop(anticlockwise_run):
+    """The study's ``least_squares`` relaxation moves the poses only (same map, gauge kept); an unknown relaxation
+    is refused. On this route the views come from Table 3.1's one-image matcher, which aliases places, so tying
+    the experiences of one view (the default, made for the sequence recognition's views) pulls different places
+    together (measured 0.235 m against dead reckoning's 0.338 m), which is why ``thesis_ch3`` keeps Eq 2.25
+    (0.059 m); without the ties, or with a robust loss, the least-squares map is within half of dead reckoning
+    (measured 0.059 m and 0.033 m)."""
+    from maps.least_squares_relaxation import LeastSquaresConfig, relax_least_squares
+
+    study = _load_study()
+    _, run, image_index, images = anticlockwise_run
+    slam, ids, truth, dead_reckoning, _ = _slam(run, image_index, images)
+    own = study.map_poses(slam, "eq2_25")
+    relaxed = study.map_poses(slam, "least_squares")
+    assert relaxed.shape == own.shape and not np.allclose(relaxed, own)
+    np.testing.assert_array_equal(relaxed[0], own[0])  # the gauge: the first experience stays
+    np.testing.assert_array_equal(slam.experience_map.poses, own)  # the map itself is not changed
+    dr_error = absolute_trajectory_error(dead_reckoning, truth).rmse
+    for cfg in (LeastSquaresConfig(tie_views=False), LeastSquaresConfig(loss="cauchy")):
+        assert absolute_trajectory_error(relax_least_squares(slam.experience_map, cfg)[ids], truth).rmse < 0.5 * dr_error, cfg
+    with pytest.raises(InvalidInputError):
+        study.map_poses(slam, "gauss_seidel")
+
+
 def test_kidnapping_lowers_arr(anticlockwise_run):
     route, run, image_index, images = anticlockwise_run
     n = run.n_places
@@ -298,6 +322,8 @@ def test_study_quick_mode_writes_the_named_columns(quick_study):
     assert study.main(["--repetitions", "0", "--out", str(tmp_path)]) == 2
     assert study.main(["--no-such-option"]) == 2
     assert study.main(["--recognition", "nothing", "--out", str(tmp_path)]) == 2
+    assert study.main(["--relaxation", "nothing", "--out", str(tmp_path)]) == 2
+    assert "relaxation 'least_squares'" in summary  # the default with sequence recognition
 
 
 def _quick_rows(rows, control, angle, kidnapped):
@@ -314,9 +340,10 @@ def _reference_ratios(summary: str) -> list[float]:
 @pytest.mark.parametrize("control, angle", [(c, m) for c in ("open_loop", "rcp") for m in ("onset", "max_angle", "threshold")])
 def test_quick_study_map_beats_dead_reckoning_with_correct_relocalisations(quick_study, control, angle):
     """Issue 24's acceptance in every condition and repetition (normal runs) of the run the user gets: ARCR >= 0.9
-    and the relaxed map at most half of dead reckoning's error (seeds 1-2 measured 0.19-0.34, ARCR 0.990-1.0;
-    held-out seeds 5-8 of the same route: 0.30-0.60, see the ch3_maze docstring). Perfect recognition with the same
-    RatSLAM (the summary's reference) is within the bound too: the route itself allows it."""
+    and the relaxed map (least squares over every traversal, the default) at most half of dead reckoning's error
+    (seeds 1-2 measured 0.19-0.30, ARCR 0.990-1.0; held-out seeds 5-12 of the same route: 0.15-0.53, 46 of 48
+    condition runs within - see the ch3_maze docstring). Perfect recognition with the same RatSLAM (the summary's
+    reference) is within the bound too: the route itself allows it."""
     tmp_path, rows = quick_study
     reference = _reference_ratios((tmp_path / "ch3_summary.txt").read_text(encoding="utf-8"))
     normal = _quick_rows(rows, control, angle, False)
@@ -330,8 +357,8 @@ def test_quick_study_map_beats_dead_reckoning_with_correct_relocalisations(quick
 @pytest.mark.slow
 def test_quick_study_map_is_within_half_of_dead_reckoning_in_every_condition(quick_study):
     """Issue 24's bound over all conditions of the quick study's seeds 1-2 on the study's 8-loop route (measured
-    0.19-0.34; on the former 4-loop path 0.29-0.49, and held-out seeds 3-4 missed it there). Held-out seeds 5-8:
-    5 and 8 within, 6 (0.45-0.60) and 7 (up to 0.53) not - see the ch3_maze docstring."""
+    0.19-0.30 with the least-squares relaxation; 0.19-0.34 with Eq 2.25). Held-out seeds 5-12: 7 of 8 within in
+    every condition, seed 11 (dead reckoning 0.099 m) up to 0.53 - see the ch3_maze docstring."""
     _, rows = quick_study
     for c in ("open_loop", "rcp"):
         for m in ("onset", "max_angle", "threshold"):
