@@ -20,11 +20,14 @@ input with cansim's own simulation of the graph
 
 The defaults were chosen on a 16 x 16 sheet with constant velocities along +x (measured
 with cansim's simulation, 0.1 ms step): recurrent weight 14.7 with no pool lets the
-kicked bump die and 15 runs it at ~2.5 kHz per cell; with the pool (8 cells, bias -0.35,
-0.02 per sheet spike in, 1.0 per pool spike out) and recurrent weight 20 the bump holds at
-~500 Hz over ~37 cells, and inputs of 0.24, 0.32 and 0.64 threshold units along x (before
-the gain's choice) moved it at about 4.3, 6 and 11 cells/s, along +x only, and equally
-along both axes for a diagonal input.
+kicked bump die and 15 runs it at ~2.5 kHz per cell (global weights of 0.3-5 and kicks of
+up to 8 threshold units did not help); with the pool (8 cells, bias -0.35, 0.02 per sheet
+spike in, 1.0 per pool spike out) and recurrent weight 20 the bump holds at ~500 Hz over
+~37 cells, and direction currents of 0.24, 0.32 and 0.64 threshold units along x moved it at
+about 4.3, 6 and 11 cells/s, along +x only (0.32 on both axes: equally along both).
+With the defaults, :func:`calibrate_sheet_speed` measured inputs of 0.1, 0.2, 0.4, 0.6,
+0.8, 1.0 and 1.2 m/s moving the bump at 0.03, 0.05, 0.36, 0.58, 0.76, 0.90 and 1.06 m/s:
+below ~0.3 m/s the lattice holds the bump back, which the calibration's inverse makes up for.
 """
 
 from __future__ import annotations
