@@ -38,8 +38,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "config_field", "plain_fields", "FieldCheck",
-           "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
+__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple", "config_field",
+           "plain_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -224,6 +224,54 @@ def whole_number(value: object, name: str, minimum: int | None = None) -> int:
 
 
 _KIND_NAMES = {int: "an integer", float: "a finite number", bool: "a boolean (True or False)", str: "a name"}
+
+
+def number_tuple(value: object, name: str, *, length: int | None = None, minimum: float | None = None,
+                 above: float | None = None, whole: bool = False) -> tuple[float, ...]:
+    """Check a configuration's sequence of numbers (a grid, a range): finite, non-empty, in bounds.
+
+    Parameters
+    ----------
+    value : sequence of numbers
+        The field's value (a tuple, list or 1-D array; not text, not bools).
+    name : str
+        Field name for the message.
+    length : int, optional
+        Required length (a range: 2).
+    minimum, above : float, optional
+        Every entry ``>= minimum`` / ``> above``.
+    whole : bool
+        Every entry a whole number.
+
+    Returns
+    -------
+    tuple of float
+        The entries (ints when ``whole``).
+
+    Raises
+    ------
+    ShapeError
+        Not a flat sequence of the required length.
+    InvalidInputError
+        Empty, text, bools, NaN/inf, fractions where whole numbers are wanted, out of bounds.
+
+    Examples
+    --------
+    >>> number_tuple([0.2, 2.5], "frequency_range_hz", length=2, above=0)
+    (0.2, 2.5)
+    """
+    if isinstance(value, (str, bytes)) or np.ndim(value) == 0 and not isinstance(value, (list, tuple)):
+        raise InvalidInputError(f"{name} must be a sequence of numbers, got {value!r}")
+    arr = finite_vector(value, length, name)
+    if len(arr) == 0:
+        raise InvalidInputError(f"{name} must hold at least one number, got {value!r}")
+    if whole and not all(float(x).is_integer() for x in arr):
+        raise InvalidInputError(f"{name} must hold whole numbers, got {value!r}")
+    if minimum is not None and arr.min() < minimum:
+        raise InvalidInputError(f"{name} must hold numbers >= {minimum}, got {value!r}")
+    if above is not None and arr.min() <= above:
+        raise InvalidInputError(f"{name} must hold numbers > {above}, got {value!r}")
+    return tuple(int(x) for x in arr) if whole else tuple(float(x) for x in arr)
 
 
 def _is_kind(value: object, kind: type) -> bool:

@@ -33,6 +33,7 @@ from typing import Literal
 import numpy as np
 
 from cansim.errors import InvalidInputError
+from whisker_io.validation import checked, validate_fields
 
 __all__ = ["LoopRoute", "Ch3OdometryNoise", "SyntheticRun", "ch3_loops", "dead_reckon", "make_run", "render_view", "scatter_landmarks"]
 
@@ -51,17 +52,14 @@ class Ch3OdometryNoise:
         Sign of the linear error (see the module docstring).
     """
 
-    linear_mu: float = -4.3
-    linear_sigma: float = 0.45
-    angular_mean_deg: float = 8.39e-4
-    angular_std_deg: float = 0.3
-    linear_sign: Literal["random", "positive"] = "random"
+    linear_mu: float = checked(-4.3, float, error=InvalidInputError)
+    linear_sigma: float = checked(0.45, float, minimum=0, error=InvalidInputError)
+    angular_mean_deg: float = checked(8.39e-4, float, error=InvalidInputError)
+    angular_std_deg: float = checked(0.3, float, minimum=0, error=InvalidInputError)
+    linear_sign: Literal["random", "positive"] = checked("random", str, choices=("random", "positive"), error=InvalidInputError)
 
     def __post_init__(self) -> None:
-        if self.linear_sign not in ("random", "positive"):
-            raise InvalidInputError(f"linear_sign must be 'random' or 'positive', got {self.linear_sign!r}")
-        if self.linear_sigma < 0 or self.angular_std_deg < 0:
-            raise InvalidInputError("linear_sigma and angular_std_deg must be >= 0")
+        validate_fields(self)
 
 
 @dataclass(frozen=True)
@@ -79,16 +77,17 @@ class LoopRoute:
         step is ``perimeter / n_places``.
     """
 
-    width_m: float = 2.0
-    height_m: float = 1.2
-    corner_radius_m: float = 0.3
-    step_m: float = 0.05
+    width_m: float = checked(2.0, float, above=0, maximum=1e4, error=InvalidInputError)
+    height_m: float = checked(1.2, float, above=0, maximum=1e4, error=InvalidInputError)
+    corner_radius_m: float = checked(0.3, float, minimum=0, error=InvalidInputError)
+    step_m: float = checked(0.05, float, above=0, error=InvalidInputError)
 
     def __post_init__(self) -> None:
-        if not (self.width_m > 0 and self.height_m > 0 and self.step_m > 0):
-            raise InvalidInputError("width_m, height_m and step_m must be > 0")
+        validate_fields(self)
         if not (0 <= self.corner_radius_m < 0.5 * min(self.width_m, self.height_m)):
             raise InvalidInputError("corner_radius_m must be in [0, min(width, height)/2)")
+        if self.perimeter / self.step_m > 1e6:
+            raise InvalidInputError(f"step_m = {self.step_m} m makes over 10^6 places on this route; use a larger step")
 
     @property
     def perimeter(self) -> float:

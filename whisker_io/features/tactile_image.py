@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError
+from whisker_io.validation import number_tuple
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import contact_points
 from whisker_io.pose import PoseLike
@@ -55,10 +56,11 @@ class TactileImageParams:
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        lo, hi = self.height_range_m
-        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+        lo, hi = number_tuple(self.height_range_m, "height_range_m", length=2)
+        up = number_tuple(self.up, "up", length=3)
+        if not hi > lo:
             raise InvalidInputError(f"height_range_m must be (low, high) with high > low, got {self.height_range_m!r}")
-        if not np.linalg.norm(self.up) > 0:
+        if not np.linalg.norm(up) > 0:
             raise InvalidInputError("up must be a non-zero vector")
 
 

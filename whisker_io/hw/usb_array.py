@@ -69,6 +69,7 @@ import numpy as np
 from whisker_io.errors import (ConnectionFailedError, CRCMismatchError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, SequenceGapError, ShortFrameError, USBFrameError)
 from whisker_io.array.control import WhiskPattern
+from whisker_io.validation import checked, validate_fields
 from whisker_io.hw.optional import require
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
@@ -125,24 +126,22 @@ class FrameLayout:
         Per-module sampling rate (2 kHz).
     """
 
-    vendor_id: int = 0x1209
-    product_id: int = 0x5748
+    vendor_id: int = checked(0x1209, int, minimum=0, maximum=0xFFFF, error=InvalidInputError)
+    product_id: int = checked(0x5748, int, minimum=0, maximum=0xFFFF, error=InvalidInputError)
     modules: tuple[str, ...] = field(default_factory=_thesis_modules)
-    angle_lsb_rad: float = 1e-4
-    samples_per_frame: int = 100
-    interface: int = 0
-    endpoint_in: int = 0x81
-    endpoint_out: int = 0x01
-    sample_rate_hz: float = SAMPLE_RATE_HZ
-    version: int = 1
+    angle_lsb_rad: float = checked(1e-4, float, above=0, error=InvalidInputError)
+    samples_per_frame: int = checked(100, int, minimum=1, maximum=0xFFFF, error=InvalidInputError)
+    interface: int = checked(0, int, minimum=0, maximum=255, error=InvalidInputError)
+    endpoint_in: int = checked(0x81, int, minimum=0, maximum=255, error=InvalidInputError)
+    endpoint_out: int = checked(0x01, int, minimum=0, maximum=255, error=InvalidInputError)
+    sample_rate_hz: float = checked(SAMPLE_RATE_HZ, float, above=0, error=InvalidInputError)
+    version: int = checked(1, int, minimum=0, maximum=255, error=InvalidInputError)
 
     def __post_init__(self) -> None:
-        if not (0 < len(self.modules) < 256):
-            raise InvalidInputError("modules must list 1..255 module names")
-        if not (math.isfinite(self.angle_lsb_rad) and self.angle_lsb_rad > 0):
-            raise InvalidInputError("angle_lsb_rad must be a positive number")
-        if not (0 < self.samples_per_frame <= 0xFFFF):
-            raise InvalidInputError("samples_per_frame must be in 1..65535")
+        validate_fields(self)
+        if not isinstance(self.modules, (tuple, list)) or not (0 < len(self.modules) < 256) or not all(
+                isinstance(m, str) and m for m in self.modules):
+            raise InvalidInputError(f"modules must list 1..255 module names (text), got {self.modules!r}")
 
     @property
     def n_modules(self) -> int:

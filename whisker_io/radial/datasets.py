@@ -48,6 +48,7 @@ from whisker_io.contact.detection import DetectionParams, detect_contacts
 from whisker_io.contact.features import contact_features
 from whisker_io.array.control import RetractAtMax, WhiskPattern
 from whisker_io.errors import InvalidInputError
+from whisker_io.validation import checked, number_tuple, validate_fields
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import whisker_base_transforms
 from whisker_io.radial.features import RadialDataset
@@ -125,6 +126,14 @@ def features_from_records(
 # ---------------------------------------------------------------- training (rod)
 
 
+def _nested(signal: object, detection: object) -> None:
+    """Refuse nested settings of the wrong type (InvalidInputError naming the class wanted)."""
+    if not isinstance(signal, SignalParams):
+        raise InvalidInputError(f"signal must be a SignalParams, got {type(signal).__name__}")
+    if not isinstance(detection, DetectionParams):
+        raise InvalidInputError(f"detection must be a DetectionParams, got {type(detection).__name__}")
+
+
 @dataclass(frozen=True)
 class TrainingSetParams:
     """The rod training set of Sec 4.1.2.1.
@@ -151,21 +160,24 @@ class TrainingSetParams:
     """
 
     lengths_mm: tuple[float, ...] = TRAINING_LENGTHS_MM
-    n_distances: int = 20
-    min_distance_m: float = 0.025
+    n_distances: int = checked(20, int, minimum=1, maximum=100_000, error=InvalidInputError)
+    min_distance_m: float = checked(0.025, float, above=0, error=InvalidInputError)
     frequencies_hz: tuple[float, ...] = (0.2, 0.5, 1.0, 1.5, 2.0, 2.5)
-    whisks_per_setting: int = 2
+    whisks_per_setting: int = checked(2, int, minimum=1, maximum=100_000, error=InvalidInputError)
     contact_angle_deg: tuple[float, float] = (-45.0, 30.0)
-    retract_at_max: bool = True
-    seed: int = 0
+    retract_at_max: bool = checked(True, bool, error=InvalidInputError)
+    seed: int = checked(0, int, minimum=0, error=InvalidInputError)
     signal: SignalParams = field(default_factory=SignalParams)
     detection: DetectionParams = field(default_factory=DetectionParams)
 
     def __post_init__(self) -> None:
-        if not self.lengths_mm or min(self.lengths_mm) * 1e-3 <= self.min_distance_m:
+        validate_fields(self)
+        _nested(self.signal, self.detection)
+        number_tuple(self.lengths_mm, "lengths_mm", above=0)
+        number_tuple(self.frequencies_hz, "frequencies_hz", above=0)
+        number_tuple(self.contact_angle_deg, "contact_angle_deg", length=2)
+        if min(self.lengths_mm) * 1e-3 <= self.min_distance_m:
             raise InvalidInputError("every whisker length must exceed min_distance_m")
-        if self.n_distances < 1 or self.whisks_per_setting < 1 or not self.frequencies_hz:
-            raise InvalidInputError("n_distances, whisks_per_setting and frequencies_hz must be non-empty")
         lo, hi = self.contact_angle_deg
         if not -50.0 <= lo < hi < 50.0:
             raise InvalidInputError(f"contact_angle_deg must lie inside the +-50 deg whisk range, got {self.contact_angle_deg}")
@@ -233,17 +245,21 @@ class EvansSetParams:
     detection : DetectionParams
     """
 
-    whisker_length_m: float = 0.185
+    whisker_length_m: float = checked(0.185, float, above=0, error=InvalidInputError)
     distances_m: tuple[float, float, int] = (0.080, 0.180, 101)
     speeds_m_s: tuple[float, float, int] = (0.036, 0.216, 26)
-    repeats: int = 4
-    seed: int = 2
+    repeats: int = checked(4, int, minimum=1, maximum=100_000, error=InvalidInputError)
+    seed: int = checked(2, int, minimum=0, error=InvalidInputError)
     signal: SignalParams = field(default_factory=SignalParams.evans2013)
     detection: DetectionParams = field(default_factory=DetectionParams)
 
     def __post_init__(self) -> None:
-        if self.repeats < 1 or self.distances_m[2] < 1 or self.speeds_m_s[2] < 1:
-            raise InvalidInputError("repeats and the grid sizes must be >= 1")
+        validate_fields(self)
+        _nested(self.signal, self.detection)
+        for name, grid in (("distances_m", self.distances_m), ("speeds_m_s", self.speeds_m_s)):
+            first, last, n = number_tuple(grid, name, length=3, minimum=0)
+            if not (float(n).is_integer() and 1 <= n <= 100_000):
+                raise InvalidInputError(f"{name}: the number of grid points must be a whole number in [1, 100000], got {grid!r}")
         if not 0 < self.distances_m[0] <= self.distances_m[1] <= self.whisker_length_m:
             raise InvalidInputError("Evans radial distances must lie on the whisker")
 
@@ -325,23 +341,26 @@ class ValidationSetParams:
     detection : DetectionParams
     """
 
-    object_name: str = "box"
+    object_name: str = checked("box", str, error=InvalidInputError)
     lengths_mm: tuple[float, ...] = VALIDATION_LENGTHS_MM
-    n_waypoints: int = 36
-    whisks_per_waypoint: int = 3
+    n_waypoints: int = checked(36, int, minimum=1, maximum=100_000, error=InvalidInputError)
+    whisks_per_waypoint: int = checked(3, int, minimum=1, maximum=100_000, error=InvalidInputError)
     frequency_range_hz: tuple[float, float] = (0.2, 2.5)
     aim_fraction: tuple[float, float] = (0.15, 0.7)
     aim_angle_deg: tuple[float, float] = (-35.0, 35.0)
-    min_base_clearance_m: float = 0.01
-    max_candidates: int = 5000
-    seed: int = 1
+    min_base_clearance_m: float = checked(0.01, float, minimum=0, error=InvalidInputError)
+    max_candidates: int = checked(5000, int, minimum=1, maximum=10_000_000, error=InvalidInputError)
+    seed: int = checked(1, int, minimum=0, error=InvalidInputError)
     signal: SignalParams = field(default_factory=SignalParams)
     detection: DetectionParams = field(default_factory=DetectionParams)
 
     def __post_init__(self) -> None:
-        if self.n_waypoints < 1 or self.whisks_per_waypoint < 1:
-            raise InvalidInputError("n_waypoints and whisks_per_waypoint must be >= 1")
-        lo, hi = self.frequency_range_hz
+        validate_fields(self)
+        _nested(self.signal, self.detection)
+        number_tuple(self.lengths_mm, "lengths_mm", above=0)
+        number_tuple(self.aim_fraction, "aim_fraction", length=2, minimum=0)
+        number_tuple(self.aim_angle_deg, "aim_angle_deg", length=2)
+        lo, hi = number_tuple(self.frequency_range_hz, "frequency_range_hz", length=2)
         if not 0 < lo <= hi:
             raise InvalidInputError(f"frequency_range_hz must be positive and ordered, got {self.frequency_range_hz}")
 

@@ -28,6 +28,7 @@ Hyper-parameters are searched on the training set only (never the validation set
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -47,6 +48,7 @@ from sklearn.svm import SVR
 from threadpoolctl import threadpool_limits
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.validation import checked, number_tuple, validate_fields
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset, feature_indices
@@ -233,9 +235,9 @@ class SearchParams:
         made an MLP fit ~50x slower than single-threaded; ``None`` leaves it alone.
     """
 
-    cv_folds: int = 10
-    seed: int = 0
-    max_search_samples: int | None = 1500
+    cv_folds: int = checked(10, int, minimum=2, maximum=1000, error=InvalidInputError)
+    seed: int = checked(0, int, minimum=0, error=InvalidInputError)
+    max_search_samples: int | None = checked(1500, int, minimum=1, optional=True, error=InvalidInputError)
     svr_kernels: tuple[str, ...] = ("rbf", "linear")
     svr_C: tuple[float, ...] = (1.0, 10.0, 100.0)
     svr_epsilon: tuple[float, ...] = (0.01, 0.05, 0.1)
@@ -244,17 +246,29 @@ class SearchParams:
     poly_degrees: tuple[int, ...] = (2, 3, 4, 5, 6)
     mlp_hidden: tuple[tuple[int, ...], ...] = ((16,), (58,), (16, 16), (58, 58))
     mlp_alpha: tuple[float, ...] = (1e-3,)
-    mlp_max_iter: int = 400
-    n_jobs: int = 1
-    blas_threads: int | None = 1
+    mlp_max_iter: int = checked(400, int, minimum=1, maximum=1_000_000, error=InvalidInputError)
+    n_jobs: int = checked(1, int, minimum=1, maximum=1024, error=InvalidInputError)
+    blas_threads: int | None = checked(1, int, minimum=1, maximum=1024, optional=True, error=InvalidInputError)
 
     def __post_init__(self) -> None:
-        if self.cv_folds < 2:
-            raise InvalidInputError(f"cv_folds must be >= 2, got {self.cv_folds}")
-        if any(len(h) > 2 or max(h) > 58 or min(h) < 1 for h in self.mlp_hidden):
-            raise InvalidInputError("mlp_hidden structures must have 1-2 layers of 1-58 nodes")
-        if any(d < 1 for d in self.poly_degrees):
-            raise InvalidInputError("poly_degrees must be >= 1")
+        validate_fields(self)
+        if not isinstance(self.svr_kernels, (tuple, list)) or not self.svr_kernels or any(
+                k not in ("rbf", "linear", "poly", "sigmoid") for k in self.svr_kernels):
+            raise InvalidInputError(f"svr_kernels must name kernels among rbf, linear, poly, sigmoid, got {self.svr_kernels!r}")
+        for name in ("svr_C", "svr_epsilon", "svr_linear_C"):
+            number_tuple(getattr(self, name), name, above=0)
+        number_tuple(self.mlp_alpha, "mlp_alpha", minimum=0)
+        if not isinstance(self.svr_gamma, (tuple, list)) or not self.svr_gamma or any(
+                g not in ("scale", "auto") and not (isinstance(g, (int, float)) and not isinstance(g, bool)
+                                                    and math.isfinite(g) and g > 0) for g in self.svr_gamma):
+            raise InvalidInputError(f"svr_gamma must hold numbers > 0 or 'scale' / 'auto', got {self.svr_gamma!r}")
+        number_tuple(self.poly_degrees, "poly_degrees", minimum=1, whole=True)
+        if not isinstance(self.mlp_hidden, (tuple, list)) or not self.mlp_hidden:
+            raise InvalidInputError(f"mlp_hidden must list hidden-layer structures, got {self.mlp_hidden!r}")
+        for h in self.mlp_hidden:
+            layers = number_tuple(h, "mlp_hidden", minimum=1, whole=True)
+            if len(layers) > 2 or max(layers) > 58:
+                raise InvalidInputError("mlp_hidden structures must have 1-2 layers of 1-58 nodes")
 
     def quick(self) -> "SearchParams":
         """A reduced copy for tests and smoke runs (3-fold CV, small grids)."""
