@@ -57,8 +57,8 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
                                 for d in range(dim):
                                     o[row + d] += v * w[n + d]
                             else:
-                                for xl in range(i, i + dim):
-                                    o[base + wrap_xy[xl]] += v * w[n + xl - i]
+                                for d in range(dim):
+                                    o[base + wrap_xy[i + d]] += v * w[n + d]
                             n += dim
 
 
