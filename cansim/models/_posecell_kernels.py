@@ -52,10 +52,12 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
                         zo = wrap_th[zl] * plane
                         for yl in range(j, j + dim):
                             base = zo + wrap_xy[yl] * nxy
-                            if straight:
-                                row = base + x0
+                            if straight:  # unsigned indices: no negative-index wrap code in the row
+                                row = np.uint64(base + x0)
+                                nn = np.uint64(n)
                                 for d in range(dim):
-                                    o[row + d] += v * w[n + d]
+                                    du = np.uint64(d)
+                                    o[row + du] += v * w[nn + du]
                             else:
                                 for d in range(dim):
                                     o[base + wrap_xy[i + d]] += v * w[n + d]
