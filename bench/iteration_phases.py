@@ -13,7 +13,7 @@ the generic engine, timing each phase of every step with wrappers around the par
 
 The wrappers add a few microseconds per call (measured: the ``total`` column is the
 wrapped loop; ``bare`` the same loop unwrapped). Optional ``--cprofile`` prints the top
-functions by own time. It imports cansim from the current directory.
+functions by own time. It imports cansim from the current directory (run it from a checkout's root, e.g. an exported older commit, with this script's path).
 
 Usage: ``python bench/iteration_phases.py [--steps 2000] [--grid 21 --grid 61]
 [--routes trace,circle,walk] [--engines openratslam,population] [--cpu] [--cprofile]``
@@ -31,6 +31,8 @@ sys.path.insert(0, os.getcwd())
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import cpp_compare as cc  # noqa: E402
+
+sys.path.insert(0, os.getcwd())  # cpp_compare put its own checkout first: time the current directory's cansim
 
 
 CLOCK = time.perf_counter  # --cpu: time.thread_time (this thread's CPU time, less sensitive to other load)
@@ -51,8 +53,15 @@ def _timed(acc: dict, key: str, fn):
 def run(rows, grid, cell, engine, phases: bool):
     from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 
+    import cansim
+
+    assert os.path.dirname(os.path.dirname(os.path.abspath(cansim.__file__))) == os.getcwd(), cansim.__file__
     slam = RatSLAM(RatSLAMConfig.openratslam(xy_cells=grid, heading_cells=36, cell_size_m=cell, pose_cells=engine))
-    slam.warm_up()
+    if hasattr(slam, "warm_up"):
+        slam.warm_up()
+    else:  # older checkouts: warm the kernels on a throw-away model
+        RatSLAM(RatSLAMConfig.openratslam(xy_cells=grid, heading_cells=36, cell_size_m=cell,
+                                          pose_cells=engine)).step(0.1, 0.0, 1.0, 0)
     acc = dict.fromkeys(("local view", "pose cells", "map update", "relax", "map odo"), 0.0)
     if phases:
         em, pc = slam.experience_map, slam.pose_cells
