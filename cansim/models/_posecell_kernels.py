@@ -17,37 +17,89 @@ from whisker_io.numba_cache import tolerate_corrupt_cache
 
 
 @njit(cache=True)
-def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
-    """``out`` = every non-zero cell's energy spread by the ``dim``^3 weights ``w`` (``excite``/``inhibit`` helpers).
+def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+    """``out`` = every non-zero cell's energy spread by the ``dim``^3 weights ``w``, ``dim = len(width)``.
 
+    ``width`` is a tuple of ``dim`` zeros: its length is a compile-time constant, so each
+    kernel row (``dim`` contiguous targets) compiles to unrolled, vectorised code.
     Sources are visited x outermost, theta innermost and each source's targets in
-    (theta, y, x) kernel order, so every target accumulates in the C++ order.
+    (theta, y, x) kernel order, so every target accumulates in the C++ order; the
+    (y, x) columns without a non-zero cell are found first in memory order and skipped.
     """
+    dim = len(width)
     nth, nxy = p.shape[0], p.shape[1]
     o = out.reshape(-1)
     o[:] = 0.0
     plane = nxy * nxy
-    z_off = wrap_th * plane  # flat offsets of the wrapped target planes / rows
-    y_off = wrap_xy * nxy
+    fp = p.reshape(-1)
+    live = np.zeros(plane, dtype=np.bool_)  # [y, x] column holds a non-zero cell
+    for k in range(nth):
+        base = k * plane
+        for q in range(plane):
+            if fp[base + q] != 0.0:
+                live[q] = True
+    for i in range(nxy):
+        x0 = wrap_xy[i]  # first target column; the row is contiguous unless it wraps
+        straight = x0 + dim <= nxy
+        for j in range(nxy):
+            if not live[j * nxy + i]:
+                continue
+            for k in range(nth):
+                v = p[k, j, i]
+                if v != 0.0:
+                    n = 0
+                    for zl in range(k, k + dim):
+                        zo = wrap_th[zl] * plane
+                        for yl in range(j, j + dim):
+                            base = zo + wrap_xy[yl] * nxy
+                            if straight:  # unsigned indices: no negative-index wrap code in the row
+                                row = np.uint64(base + x0)
+                                nn = np.uint64(n)
+                                for d in range(dim):
+                                    du = np.uint64(d)
+                                    o[row + du] += v * w[nn + du]
+                            else:
+                                for d in range(dim):
+                                    o[base + wrap_xy[i + d]] += v * w[n + d]
+                            n += dim
+
+
+@njit(cache=True)
+def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+    """``excite``/``inhibit`` helper: :func:`_spread_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
+    if dim == 7:
+        _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+    elif dim == 5:
+        _spread_dim(p, w, (0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+    elif dim == 3:
+        _spread_dim(p, w, (0, 0, 0), wrap_xy, wrap_th, out)
+    elif dim == 9:
+        _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+    elif dim == 1:
+        _spread_dim(p, w, (0,), wrap_xy, wrap_th, out)
+    else:
+        _spread_any(p, w, dim, wrap_xy, wrap_th, out)
+
+
+@njit(cache=True)
+def _spread_any(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+    """:func:`_spread_dim` for any kernel width (a run-time ``dim``; the same order, slower rows)."""
+    nth, nxy = p.shape[0], p.shape[1]
+    o = out.reshape(-1)
+    o[:] = 0.0
+    plane = nxy * nxy
     for i in range(nxy):
         for j in range(nxy):
             for k in range(nth):
                 v = p[k, j, i]
                 if v != 0.0:
                     n = 0
-                    x0 = wrap_xy[i]  # first target column; the row is contiguous unless it wraps
-                    straight = x0 + dim <= nxy
                     for zl in range(k, k + dim):
-                        zo = z_off[zl]
+                        zo = wrap_th[zl] * plane
                         for yl in range(j, j + dim):
-                            base = zo + y_off[yl]
-                            if straight:
-                                row = base + x0
-                                for d in range(dim):
-                                    o[row + d] += v * w[n + d]
-                            else:
-                                for xl in range(i, i + dim):
-                                    o[base + wrap_xy[xl]] += v * w[n + xl - i]
+                            base = zo + wrap_xy[yl] * nxy
+                            for xl in range(i, i + dim):
+                                o[base + wrap_xy[xl]] += v * w[n + xl - i]
                             n += dim
 
 
@@ -67,22 +119,23 @@ def dynamics(
 ) -> float:
     """Excite, inhibit, global inhibition and normalisation of ``p`` in place; returns the pre-normalisation total.
 
-    When the total is not positive ``p`` is left un-normalised (the caller restores its copy).
+    ``tmp`` holds the excited activity, ``p`` receives its inhibition, then each cell
+    becomes excited - inhibition - global inhibition (clipped at 0) and the total is
+    summed in cell order - the C++ arithmetic, one pass. When the total is not positive
+    ``p`` is left un-normalised (the caller keeps its own copy).
     """
     _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
-    p[:] = tmp
-    _spread(p, w_inh, i_dim, i_wrap_xy, i_wrap_th, tmp)
+    _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p)
     flat, ftmp = p.reshape(-1), tmp.reshape(-1)
-    for q in range(flat.size):
-        flat[q] -= ftmp[q]
-    for q in range(flat.size):
-        if flat[q] >= global_inhib:
-            flat[q] = flat[q] - global_inhib
-        else:
-            flat[q] = 0.0
     total = 0.0
     for q in range(flat.size):
-        total += flat[q]
+        a = ftmp[q] - flat[q]
+        if a >= global_inhib:
+            a = a - global_inhib
+        else:
+            a = 0.0
+        flat[q] = a
+        total += a
     if total > 0.0:
         for q in range(flat.size):
             flat[q] /= total

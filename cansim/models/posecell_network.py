@@ -168,6 +168,7 @@ class PosecellNetwork:
         self._layer_tables = {add: self._layers(add) for add in (0.0, math.pi)}
         self._p = np.zeros((m, n, n))
         self._tmp = np.empty_like(self._p)
+        self._spare = np.empty_like(self._p)  # the next state is computed here; the two swap after a step
         self._best = np.array([math.floor(n / 2.0), math.floor(n / 2.0), math.floor(m / 2.0)])
         self._p[int(self._best[2]), int(self._best[1]), int(self._best[0])] = 1.0
         self._k: object = None
@@ -222,6 +223,7 @@ class PosecellNetwork:
             raise InvalidInputError("activity must be finite and >= 0")
         self._p = np.ascontiguousarray(arr.transpose(2, 1, 0), dtype=np.float64)
         self._tmp = np.empty_like(self._p)
+        self._spare = np.empty_like(self._p)
 
     @property
     def best(self) -> np.ndarray:
@@ -310,7 +312,8 @@ class PosecellNetwork:
         v, w, t = float(vtrans), float(vrot), float(dt)
         cells = self._injection_cells(injection)
         kern = self._kernels
-        p = self._p.copy()
+        p = self._spare  # a step that raises leaves self._p as it was
+        np.copyto(p, self._p)
         for x, y, th, e in cells:
             p[th, y, x] += e
         total = kern.dynamics(
@@ -343,7 +346,7 @@ class PosecellNetwork:
                 s2 -= self._nth
             kern.rotate_theta(p, self._tmp, s1, s2, weight)
         sums = kern.best_sums(p, self._half, self._a_xy, self._a_th, self._sin_xy, self._cos_xy, self._sin_th, self._cos_th)
-        self._p = p
+        self._p, self._spare = p, self._p
         self._best = np.array([
             self._wrap(math.atan2(sums[0], sums[1]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
             self._wrap(math.atan2(sums[2], sums[3]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
