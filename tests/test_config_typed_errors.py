@@ -38,9 +38,9 @@ FIELDS = [(c, f.name) for c in CLASSES for f in dataclasses.fields(c)]
 def test_a_bad_field_is_refused_with_a_typed_error_or_accepted(where, value):
     cls, name = where
     try:
-        made = cls(**{name: value})
+        cls(**{name: value})
     except InvalidInputError as exc:  # ShapeError is one too
-        assert name in str(exc) or name.split("_")[0] in str(exc) or "must" in str(exc), str(exc)
+        assert any(f.name in str(exc) for f in dataclasses.fields(cls)), str(exc)  # says which field to mend
         return
     # accepted: never a non-finite number, never True for a number (only a bool field takes it)
     kind = {f.name: f.type for f in dataclasses.fields(cls)}[name]

@@ -67,12 +67,12 @@ rat trajectory were not used for that.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from cansim.decoding import circular_mean_index
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.correspondence import HD_RING_ATTRACTOR
@@ -273,8 +273,8 @@ class TurningCalibration:
 
 
 def _population_vector_rad(counts: np.ndarray) -> float:
-    ang = 2.0 * np.pi * np.arange(counts.size) / counts.size
-    return math.atan2(float(counts @ np.sin(ang)), float(counts @ np.cos(ang)))
+    """The ring's heading from its counts, rad in ``[0, 2 pi)`` (:func:`cansim.decoding.circular_mean_index`)."""
+    return circular_mean_index(counts) * 2.0 * np.pi / counts.size
 
 
 def calibrate_turning(

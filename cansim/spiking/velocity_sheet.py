@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from cansim.decoding import circular_mean_index
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.params import AttractorParams
 from cansim.spiking.conjunctive import (
@@ -52,7 +53,7 @@ from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.nir_io import NIR_STEP_S
 from cansim.spiking.population import SpikingParams
 from cansim.spiking.rotation_ring import RING_NEURONS
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import checked, config_field, validate_fields
 
 __all__ = [
     "VelocitySheetParams",
@@ -195,10 +196,9 @@ def velocity_sheet_graph(params: VelocitySheetParams = VelocitySheetParams(), *,
     )
 
 
-def _count(value: Any, name: str, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise InvalidInputError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-    return int(value)
+def _cells(value: Any) -> int:
+    """``n_cells`` of the helper functions: an integer in [1, 4096] (InvalidInputError otherwise)."""
+    return config_field(value, "n_cells", int, minimum=1, maximum=4096, error=InvalidInputError)
 
 
 def sheet_input(current: Any, velocity_m_s: Any, n_cells: int) -> np.ndarray:
@@ -222,7 +222,7 @@ def sheet_input(current: Any, velocity_m_s: Any, n_cells: int) -> np.ndarray:
     ShapeError, InvalidInputError
         Another shape; non-finite values; a bad ``n_cells``.
     """
-    n = _count(n_cells, "n_cells", 1, 4096)
+    n = _cells(n_cells)
     try:
         cur = np.asarray(current, dtype=np.float64)
         vel = np.asarray(velocity_m_s, dtype=np.float64)
@@ -248,7 +248,7 @@ def sheet_kick(n_cells: int, centre_cells: Any, *, peak: float = 2.0, sigma_cell
     InvalidInputError, ShapeError
         A bad size, a centre that is not 2 finite numbers, a non-positive width.
     """
-    n = _count(n_cells, "n_cells", 1, 4096)
+    n = _cells(n_cells)
     c = np.asarray(centre_cells, dtype=np.float64)
     if c.shape != (2,) or not np.isfinite(c).all():
         raise ShapeError(f"centre_cells must be 2 finite numbers (x, y cells), got {centre_cells!r}")
@@ -273,7 +273,7 @@ def sheet_position_cells(counts: Any, n_cells: int) -> np.ndarray:
     ShapeError, InvalidInputError
         Another shape; negative or non-finite counts; no activity at all.
     """
-    n = _count(n_cells, "n_cells", 1, 4096)
+    n = _cells(n_cells)
     c = np.asarray(counts, dtype=np.float64)
     if c.shape not in ((n, n), (n * n,)):
         raise ShapeError(f"counts must have shape ({n}, {n}) or ({n * n},), got {c.shape}")
@@ -282,11 +282,7 @@ def sheet_position_cells(counts: Any, n_cells: int) -> np.ndarray:
         raise InvalidInputError("counts must be finite and >= 0")
     if not c.any():
         raise InvalidInputError("no activity: the sheet has no bump to read")
-    ang = 2.0 * np.pi * np.arange(n) / n
-    out = []
-    for marginal in (c.sum(axis=1), c.sum(axis=0)):
-        out.append((math.atan2(float(marginal @ np.sin(ang)), float(marginal @ np.cos(ang))) / (2.0 * np.pi) * n) % n)
-    return np.array(out)
+    return np.array([circular_mean_index(c.sum(axis=1)), circular_mean_index(c.sum(axis=0))])
 
 
 @dataclass(frozen=True)
@@ -333,8 +329,7 @@ class SheetCalibration:
             raise InvalidInputError("velocity_m_s must be finite (no NaN/inf)")
         speed = np.linalg.norm(v, axis=-1, keepdims=True)
         wanted, _ = invert_speed_curve(self.input_m_s, self.bump_m_s, speed)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(speed > 0, v * (wanted / np.where(speed > 0, speed, 1.0)), 0.0)
+        return v * np.divide(wanted, speed, out=np.zeros_like(speed), where=speed > 0)
 
 
 def calibrate_sheet_speed(
@@ -369,7 +364,8 @@ def calibrate_sheet_speed(
     for v in speeds:
         sim.reset()
         rad_s = measure_phase_speed(sim.step, kick, sheet_input(0.0, (v, 0.0), n),
-                                    lambda counts: sheet_position_cells(counts, n)[0] * 2.0 * np.pi / n, dt_s=dt_s,
+                                    lambda counts: circular_mean_index(counts.reshape(n, n).sum(axis=1)) * 2.0 * np.pi / n,
+                                    dt_s=dt_s,
                                     settle_s=settle_s, measure_s=measure_s, read_every_s=5e-3, label=f"{v} m/s")
         measured.append(rad_s * n / (2.0 * np.pi) * float(params.cell_size_m))
     return SheetCalibration((0.0, *speeds), (0.0, *measured))
