@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from whisker_io.errors import InvalidInputError
+from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.plots.axes import figure_and_axes
+from whisker_io.validation import finite_array
 from maps.experience_map import ExperienceMap
 from maps.metrics import absolute_trajectory_error
 
@@ -30,6 +31,7 @@ def plot_experience_map(
     dead_reckoning: np.ndarray | None = None,
     experience_log: Sequence[int] | np.ndarray | None = None,
     *,
+    poses: np.ndarray | None = None,
     ax: "Axes | None" = None,
 ) -> "Figure":
     """Experience map (nodes and links) over the true path and dead reckoning.
@@ -46,14 +48,24 @@ def plot_experience_map(
         Current experience per iteration. With ``truth`` given, the map and the
         dead reckoning are each rigidly aligned to the truth first (as for the
         absolute trajectory error) so the three can be compared by eye.
+    poses : array (n_experiences, 2+), optional
+        Where to draw the experiences, metres (default the map's own poses), e.g. the
+        poses of :func:`maps.least_squares_relaxation.relax_least_squares`; the links are
+        the map's.
     ax : matplotlib Axes, optional
 
     Returns
     -------
     matplotlib.figure.Figure
     """
+    if poses is None:
+        poses = experience_map.poses[:, :2]
+    else:
+        poses = finite_array(poses, (experience_map.n_experiences, None), "poses")
+        if poses.shape[1] < 2:
+            raise ShapeError(f"poses must have at least 2 columns (x, y m), got shape {poses.shape}")
+        poses = poses[:, :2]
     fig, ax = figure_and_axes(ax, (6.0, 5.0))
-    poses = experience_map.poses[:, :2]
     ends, _ = experience_map.links
     if truth is not None:
         truth = np.asarray(truth, dtype=float)[:, :2]

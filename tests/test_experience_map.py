@@ -281,3 +281,22 @@ def test_plots_return_figures_with_the_map_and_log():
     assert fig2.axes[0].get_xlabel() == "iteration"
     with pytest.raises(InvalidInputError):
         plot_experience_map(em, truth, None, [0, 1, 2, 3, 9])
+
+
+def test_the_map_plot_draws_given_poses_with_the_maps_links():
+    """``poses=`` (e.g. a least-squares relaxation's) places the experiences; the links join them; bad poses are typed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from maps.plot_maps import plot_experience_map
+
+    em = square_map()
+    given_poses = np.array([[5.0, 5.0, 0.0], [6.0, 5.0, 0.0], [6.0, 6.0, 0.0], [5.0, 6.0, 0.0]])
+    ax = plot_experience_map(em, poses=given_poses).axes[0]
+    np.testing.assert_allclose(np.asarray(ax.collections[-1].get_offsets()), given_poses[:, :2])
+    ends, _ = em.links
+    segs = np.asarray(ax.collections[0].get_segments())
+    np.testing.assert_allclose(segs, np.stack([given_poses[ends[:, 0], :2], given_poses[ends[:, 1], :2]], axis=1))
+    for bad in (given_poses[:3], given_poses[:, :1], np.full((4, 3), np.nan), "x"):
+        with pytest.raises(InvalidInputError):  # ShapeError is one
+            plot_experience_map(em, poses=bad)
