@@ -65,6 +65,22 @@ in :mod:`cansim.studies.recognition`):
 * **On accurate surfaces** (contacts felt at the true poses), under the full noise:
   along B 9/12, viewpoints 8/12, 1 wrong decision of 24 (seed 0); the remaining misses are
   the presentation's own dead reckoning (skull, duck) and the bucket.
+* **Why the distorted maps confuse objects** (seed 0, 2 loops of A, offline): the stored
+  surface of one loop lies a median 3.0-4.1 mm (the duck 6.2, the Box 7.2) from the other
+  loop's interpolated surface, against 0.6-1.4 mm with contacts placed at the true poses,
+  while both sit 14-23 mm from the mesh: the maps are *warped* alike in both loops (one
+  drift corrected at the loop closures), not blurred, so no per-object noise width can tell
+  a warped Barrel from another vessel. On the accurate surfaces of the bullet below, 1,000
+  particles instead of 200 give 10/12 and 8/12: the presentation's own dead reckoning
+  limits the headline too.
+* **Tried and not kept: impostor normalisation** (each object's whisk log likelihood lowered
+  by its contacts times the mean log likelihood per contact it gives to the *other*
+  objects' mapping whisks; "Z-norm", mean only; branch ``s32-impostors``). On the study's
+  held-out seeds 1-2, the same whisks with and without it: along A 20 -> 22/24, along B
+  16 -> 18/24, viewpoints 5-10 cm 14 -> 9/24, wrong decisions 11 -> 9 of 72, novel objects
+  undecided 10 -> 13/18: the offsets favour sparse maps (duck, jug, blob: 0.5-0.8 nats per
+  contact) wherever every object fits poorly, as from the viewpoints. Scaling by the
+  impostors' spread as well was worse (seed 0).
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
