@@ -164,3 +164,21 @@ def test_main_refuses_bad_options_with_status_2_before_writing(tmp_path_factory,
     out = tmp_path_factory.mktemp("ch3_bad") / "out"
     assert study.main([*argv, "--out", str(out)]) == 2
     assert not out.exists()
+
+
+# ------------------------------------------------------------------ finding 6's measured gap
+def test_finding_six_gap_against_the_repetitions_spread_by_hand():
+    """Two repetitions per condition: ARR 0.5/0.7 for rcp + onset (mean 0.6, sd 0.1), 0.4/0.4 for rcp + threshold,
+    0.2/0.2 elsewhere (sd 0): gap 0.2, spread the mean sd over the 6 conditions = 0.1 / 6."""
+    rows = []
+    for c in study.CONTROLS:
+        for m in study.CONTACT_ANGLES:
+            values = {("rcp", "onset"): (0.5, 0.7), ("rcp", "threshold"): (0.4, 0.4)}.get((c, m), (0.2, 0.2))
+            rows += [{"control": c, "contact_angle": m, "kidnapped": False, "ARR": v} for v in values]
+    means = {(c, m): study._mean(rows, "ARR", control=c, contact_angle=m, kidnapped=False)
+             for c in study.CONTROLS for m in study.CONTACT_ANGLES}
+    line = study._gap_line(rows, "ARR", means, ("rcp", "onset"), -1.0)
+    assert line.startswith("6 (ARR) measured: rcp + threshold is 0.2000 from the best (rcp + onset), beyond")
+    assert f"({0.1 / 6:.4f}: sd over 2 repetitions" in line
+    one = [r for k, r in enumerate(rows) if k % 2 == 0]  # one repetition: nothing to compare with
+    assert "one repetition" in study._gap_line(one, "ARR", means, ("rcp", "onset"), -1.0)

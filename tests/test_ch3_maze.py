@@ -384,6 +384,18 @@ def test_quick_study_relocalises_as_often_as_the_thesis_and_kidnapping_lowers_ar
     assert got == total == "12"
 
 
+@pytest.mark.slow
+def test_quick_study_explains_every_finding_it_does_not_reproduce(quick_study):
+    """Issue 24: a thesis finding that stays unreproduced has a measured explanation in the summary."""
+    tmp_path, _ = quick_study
+    lines = (tmp_path / "ch3_summary.txt").read_text(encoding="utf-8").splitlines()
+    six = next(s for s in lines if s.startswith("6. "))
+    for key in ("ARR", "EM"):
+        if f"NOT reproduced ({key})" in six:
+            assert any(s.strip().startswith(f"6 ({key}) measured: rcp + threshold is ") and "spread" in s for s in lines), key
+    assert any("ARR follows the matcher's recall" in s for s in lines)
+
+
 # ----------------------------------------------------------------- typed errors of the new entry points (hypothesis)
 finite = st.floats(-10.0, 10.0, allow_nan=False)
 not_finite = st.sampled_from([math.nan, math.inf, -math.inf])

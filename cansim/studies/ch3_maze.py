@@ -867,6 +867,9 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     best_em = min(em_normal, key=lambda k: em_normal[k])
     out.append(f"6. Best overall RCP + contact angle: highest ARR {best[0]} + {best[1]} ({normal[best]:.4f}), lowest EM {best_em[0]} + {best_em[1]} "
                f"({em_normal[best_em]:.4f}): {yes(best == ('rcp', 'threshold'))} (ARR), {yes(best_em == ('rcp', 'threshold'))} (EM)")
+    for key, values, winner, sign in (("ARR", normal, best, -1.0), ("EM", em_normal, best_em, 1.0)):
+        if winner != ("rcp", "threshold"):
+            out.append("   " + _gap_line(rows, key, values, winner, sign))
     out.append("")
     out.append("Per condition (normal runs): ARR, ARCR, EM, map error / dead-reckoning error (m)")
     for control in CONTROLS:
@@ -888,6 +891,20 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     for (control, m), (thr, inj) in calibration.items():
         out.append(f"   {control:9} {m:9}: match_threshold {thr:.4g}, inject_energy {inj:g}")
     return out
+
+
+def _gap_line(rows: list[dict[str, Any]], key: str, values: dict[tuple[str, str], float], winner: tuple[str, str], sign: float) -> str:
+    """Finding 6, measured: how far RCP + contact angle is from the best condition against the repetitions' spread."""
+    gap = sign * (values[("rcp", "threshold")] - values[winner])
+    spreads = [np.std([r[key] for r in rows if r["control"] == c and r["contact_angle"] == m and not r["kidnapped"]])
+               for c in CONTROLS for m in CONTACT_ANGLES]
+    reps = len([r for r in rows if r["control"] == "rcp" and r["contact_angle"] == "threshold" and not r["kidnapped"]])
+    text = f"6 ({key}) measured: rcp + threshold is {gap:.4f} from the best ({winner[0]} + {winner[1]})"
+    if reps < 2:
+        return text + "; one repetition, so no spread to compare it with (run --repetitions 3)"
+    spread = float(np.mean(spreads))
+    verdict = "within" if gap <= spread else "beyond"
+    return text + f", {verdict} the repetitions' spread ({spread:.4f}: sd over {reps} repetitions, mean over conditions)"
 
 
 def acceptance_lines(rows: list[dict[str, Any]]) -> list[str]:
