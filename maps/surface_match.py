@@ -70,7 +70,12 @@ in :mod:`cansim.studies.recognition`):
   loop's interpolated surface, against 0.6-1.4 mm with contacts placed at the true poses,
   while both sit 14-23 mm from the mesh: the maps are *warped* alike in both loops (one
   drift corrected at the loop closures), not blurred, so no per-object noise width can tell
-  a warped Barrel from another vessel. On the accurate surfaces of the bullet below, 1,000
+  a warped Barrel from another vessel. Nor can better loop closures make them accurate
+  with two mapping loops: tying *every* whisk of the second loop to its true twin in the
+  first (a ground-truth diagnostic of perfect closures) leaves the surfaces 8-20 mm from
+  the mesh (from 12-37 mm; two traversals of a random walk of 2.5 deg per Euler angle per
+  whisk, averaged), and the offline replay names 7/12 along B and 7/12 from the viewpoints
+  (from 5/12 and 4/12). On the accurate surfaces of the bullet below, 1,000
   particles instead of 200 give 10/12 and 8/12: the presentation's own dead reckoning
   limits the headline too.
 * **Tried and not kept: impostor normalisation** (each object's whisk log likelihood lowered
