@@ -94,10 +94,11 @@ attractor's bump by a jump, a weak one near it by a shift: Zhang 1996; a visual 
 head-direction ring, Skaggs et al. 1995; Knierim & Zhang 2012). The current is a pulse at
 the view's onset, not held while the view is active: held, it pins the packet while the rat
 turns inside the disc (seeds 0 and 1, drift per minute with the pulse 0.04 / 0.06 / 0.1 /
-0.2 s: 5.7 / 6.1 / 7.3 / 8.1 and 5.4 / 6.3 / 6.2 / 7.9). A uniform inhibition of 60 added to
+0.2 s: 5.7 / 6.4 / 7.3 / 8.6 and 5.4 / 5.7 / 6.7 / 8.0). A uniform inhibition of 60 added to
 a template of 80 for 40 ms (silencing the old packet while seeding the new one, as
-:meth:`cansim.spiking.SpikingPopulation.kick` seeds one at the start) re-anchors no better
-(6.4 and 6.3).
+:meth:`cansim.spiking.SpikingPopulation.kick` seeds one at the start) re-anchored no better
+(6.4 and 6.3, measured with an earlier version of this loop in which a pulse was not
+restarted by an onset during it).
 This replaces the earlier scheme (a current of 5 on every sample a view is active, with
 three off-by-default variants: ``spiking_inject_hold_s``, ``spiking_template_sigma_cells``,
 ``spiking_inject_offset``), which did not re-anchor (11.9 -> 13.8 deg/min; 14.5 -> 15.4 on
