@@ -9,8 +9,8 @@ with ``--lowpass-s``. Its derivative is the angular velocity. The ring
 the angular velocity, with no landmarks, as the command of a turning calibration
 measured on the same ring by cansim's own simulation (``calibrate_turning``; off with
 ``--no-calibration``). The ring runs in cansim's own simulation (``--who cansim``) or in a
-consumer (``--who snntorch|norse|rockpool``, extra ``nir-consumers``), all with the same
-commands. Prints and writes the RMS heading error of the population vector (50 ms spike
+consumer (``--who snntorch|norse|rockpool``, extra ``nir-consumers``; ``--precision float64``
+for the consumer's module in cansim's precision), all with the same commands. Prints and writes the RMS heading error of the population vector (50 ms spike
 window, read every 20 ms) against the heading. The recordings are read from the
 installed ``ratinabox`` package at run time (``ratinabox/data/<name>.npz``).
 
@@ -72,7 +72,7 @@ def rat_heading(
 
 
 def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integration: str = "exact",
-        **heading) -> dict:
+        precision: str = "float32", **heading) -> dict:
     """Drive the ring with the rat's angular velocity; returns the RMS heading error and timing."""
     t, head = rat_heading(seconds, **heading)
     omega = np.gradient(head, t)
@@ -85,7 +85,7 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integr
     else:
         from cansim.spiking.nir_consumers import ConsumerRunner
 
-        step = ConsumerRunner(g, who).step
+        step = ConsumerRunner(g, who, precision=precision).step
     d = (np.arange(cells) - (math.degrees(head[0]) % 360.0) * cells / 360.0 + cells / 2) % cells - cells / 2
     kick = 2.0 * np.exp(-d * d / 18.0)
     ang = 2 * np.pi * np.arange(cells) / cells
@@ -103,6 +103,7 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integr
     return {
         "who": who, "cells": cells, "seconds": seconds, "calibrated": calibrated,
         "integration": integration if who == "cansim" else "consumer's own", **heading,
+        "precision": "float64" if who == "cansim" else precision,
         "rms_heading_error_deg": float(np.degrees(np.sqrt(np.mean(err**2)))),
         "mean_abs_omega_rad_s": float(np.abs(omega).mean()), "max_abs_omega_rad_s": float(np.abs(omega).max()),
         "calibration_max_rad_s": None if cal is None else cal.max_rad_s,
@@ -123,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-calibration", action="store_true")
     ap.add_argument("--integration", default="exact", choices=["exact", "euler"],
                     help="cansim's discretisation (euler: the consumers'; --who cansim only)")
+    ap.add_argument("--precision", default="float32", choices=["float32", "float64"],
+                    help="a consumer's arithmetic (float64: the same as cansim's; --who snntorch|norse|rockpool)")
     ap.add_argument("--out", type=Path, default=Path("rat_heading.json"))
     args = ap.parse_args(argv)
     if not (math.isfinite(args.seconds) and 0 < args.seconds <= 590):
@@ -133,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--smooth-s must be > 0, --min-speed-m-s and --lowpass-s >= 0")
     res = run(
         args.who, args.cells, args.seconds, calibrated=not args.no_calibration, integration=args.integration,
+        precision=args.precision,
         start_s=args.start_s, data=args.data,
         smooth_s=args.smooth_s, min_speed_m_s=args.min_speed_m_s, lowpass_s=args.lowpass_s,
     )

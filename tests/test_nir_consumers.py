@@ -403,6 +403,29 @@ def test_cansims_euler_integration_is_the_consumers_arithmetic(consumer):
     assert abs(heads[-1] - ref[-1]) < 0.1, (consumer, heads[-1], ref[-1])
 
 
+@pytest.mark.parametrize("consumer", ["snntorch", "norse"])
+def test_a_float64_consumer_computes_in_float64(consumer):
+    """``precision="float64"``: every parameter and buffer of the imported module is float64, and the first steps of the
+    kicked ring run (snnTorch's float32 spikes cast at its linear layers) with the same spikes as in float32 over 0.15 s."""
+    _need(consumer)
+    import torch
+
+    g = rotation_ring_graph(RotationRingParams(n_cells=24, shift_cells=3))
+    wide, narrow = ConsumerRunner(g, consumer, precision="float64"), ConsumerRunner(g, consumer)
+    assert wide.precision == "float64" and narrow.precision == "float32"
+    tensors = [*wide._module.parameters(), *wide._module.buffers()]
+    assert tensors and all(t.dtype == torch.float64 for t in tensors if t.is_floating_point())
+    assert any(t.dtype == torch.float32 for t in narrow._module.parameters())
+    kick = _gauss_current(24, 6.0)
+    spikes = 0.0
+    for k in range(1500):  # 0.1 s kick, 0.05 s after
+        x = ring_input(kick if k < 1000 else 0.0, 0.0, 24)
+        a, b = wide.step(x), narrow.step(x)
+        assert a.dtype == np.float64 and np.array_equal(a, b), k
+        spikes += a.sum()
+    assert spikes > 0
+
+
 def test_runner_and_simulator_reject_bad_input():
     g = to_nir(_ring_population(24))
     sim = NIRGraphSimulator(g)
@@ -414,6 +437,9 @@ def test_runner_and_simulator_reject_bad_input():
         sim.run(np.zeros((3, 7)))
     with pytest.raises(ConfigError):
         ConsumerRunner(g, "lava")
+    for precision in ("float16", "double", None, 64):
+        with pytest.raises(ConfigError, match="precision"):
+            ConsumerRunner(g, "norse", precision=precision)
     with pytest.raises(ConfigError):
         sim.spikes("nope")
     with pytest.raises(ShapeError):
