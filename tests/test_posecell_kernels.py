@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from cansim.models import _posecell_kernels as K
-from cansim.models.posecell_network import _wrap_table
+from cansim.models.posecell_network import _gather_table, _wrap_table
 
 
 def _reference_spread(p: np.ndarray, w: np.ndarray, dim: int) -> np.ndarray:
@@ -92,3 +92,95 @@ def test_dynamics_is_excite_inhibit_global_inhibition_and_normalisation(seed):
                    w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), gi)
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+def _reference_dynamics(p: np.ndarray, w_e: np.ndarray, e_dim: int, w_i: np.ndarray, i_dim: int, gi: float):
+    """C++ ``excite``, ``inhibit``, global inhibition and normalisation in plain Python floats."""
+    exc = _reference_spread(p, w_e, e_dim)
+    inh = _reference_spread(exc, w_i, i_dim)
+    cells = []
+    for e, h in zip(exc.ravel().tolist(), inh.ravel().tolist()):
+        a = e - h
+        cells.append(a - gi if a >= gi else 0.0)
+    total = 0.0
+    for a in cells:
+        total += a
+    if not total > 0.0:
+        return total, np.array(cells).reshape(p.shape)
+    return total, np.array([a / total for a in cells]).reshape(p.shape)
+
+
+def test_gather_tables_list_each_targets_sources_ascending_with_their_offsets():
+    # n = 6, dim = 5 (half 2): the scatter sends source s to (s + d - 2) mod 6, so target 0 is
+    # reached from 2 (d=0), 1 (d=1), 0 (d=2), 5 (d=3), 4 (d=4); ascending: 0, 1, 2, 4, 5
+    src, off = _gather_table(6, 5, 1, 1)
+    assert src[0].tolist() == [0, 1, 2, 4, 5] and off[0].tolist() == [2, 1, 0, 4, 3]
+    assert src[3].tolist() == [1, 2, 3, 4, 5] and off[3].tolist() == [4, 3, 2, 1, 0]  # interior: no wrap
+    src, off = _gather_table(6, 5, 10, 7)  # strides scale both columns
+    assert src[0].tolist() == [0, 10, 20, 40, 50] and off[0].tolist() == [14, 7, 0, 28, 21]
+
+
+def _gather_args(nxy: int, nth: int, dim: int) -> tuple:
+    return (*_gather_table(nxy, dim, 1, 1), *_gather_table(nxy, dim, nxy, dim), *_gather_table(nth, dim, nxy * nxy, dim * dim))
+
+
+@pytest.mark.parametrize("e_dim,i_dim", [(7, 5), (5, 3), (3, 7), (5, 9), (3, 1)])
+@pytest.mark.parametrize("seed,density,quantile", [(0, 0.02, 0.5), (1, 0.2, 0.9), (2, 0.05, 0.0), (3, 0.02, 1.0)])
+def test_gathered_inhibition_is_the_cpp_scatter_bit_for_bit(e_dim, i_dim, seed, density, quantile):
+    """``dynamics_gather`` gathers the inhibition only for cells excited to >= global inhibition,
+    four cells at a time: every cell must still equal the C++ scatter's. ``quantile`` puts the
+    global inhibition at that share of the excited cells (0: none skipped; 1: all but the peak)."""
+    rng = np.random.default_rng(seed)
+    nth, nxy = 13, 11
+    p = _field(rng, nth, nxy, density)
+    w_e = rng.random(e_dim ** 3); w_e /= w_e.sum()
+    w_i = rng.random(i_dim ** 3); w_i /= w_i.sum()
+    exc = _reference_spread(p, w_e, e_dim)
+    gi = float(np.quantile(exc[exc > 0], quantile)) * 0.5 if quantile else 0.0
+    total, expected = _reference_dynamics(p, w_e, e_dim, w_i, i_dim, gi)
+    got = p.copy()
+    t = K.dynamics_gather(got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2), _wrap_table(nth, e_dim // 2),
+                          w_i, i_dim, _wrap_table(nxy, i_dim // 2), _wrap_table(nth, i_dim // 2),
+                          *_gather_args(nxy, nth, i_dim), gi)
+    assert t == total
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+def test_a_negative_cell_takes_the_scatter_path_and_still_matches():
+    """With a negative cell an inhibition can be negative, so no cell may be skipped."""
+    rng = np.random.default_rng(5)
+    nth, nxy, gi = 9, 9, 0.05
+    p = _field(rng, nth, nxy, 0.1)
+    p[4, 4, 4] = -30.0  # its neighbours' inhibition turns negative: excited below gi, they still survive
+    w_e = rng.random(7 ** 3); w_e /= w_e.sum()
+    w_i = rng.random(5 ** 3); w_i /= w_i.sum()
+    total, expected = _reference_dynamics(p, w_e, 7, w_i, 5, gi)
+    exc = _reference_spread(p, w_e, 7)
+    assert np.any((exc < gi) & (expected > 0))  # the case a skip would get wrong
+    got = p.copy()
+    t = K.dynamics_gather(got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
+                          w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), *_gather_args(nxy, nth, 5), gi)
+    assert t == total
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+@pytest.mark.parametrize("nxy,nth,cell", [(21, 36, 1.0), (12, 10, 0.3), (5, 5, 0.5)])
+def test_the_network_equals_its_all_scatter_run_cell_for_cell(nxy, nth, cell):
+    """``PosecellNetwork``'s shortcuts (gathered inhibition, skipped empty layers) against the same
+    network on the plain scatter path, 300 steps of random odometry and injections, every cell's bits."""
+    from cansim.models.posecell_network import PosecellNetwork
+
+    fast, plain = PosecellNetwork(nxy, nth, cell), PosecellNetwork(nxy, nth, cell)
+    plain._gather = None
+    assert fast._gather is not None
+    rng = np.random.default_rng(nxy)
+    for step in range(300):
+        v, w = float(rng.uniform(-0.4, 1.0)), float(rng.uniform(-0.6, 0.6))
+        inj = None
+        if step % 7 == 0:
+            idx = rng.integers(0, fast.size, size=int(rng.integers(1, 4)))
+            inj = (idx.astype(np.int64), rng.random(idx.size) * 0.2)
+        a = fast.step(v, w, 1.0, injection=inj)
+        b = plain.step(v, w, 1.0, injection=inj)
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
+        assert np.array_equal(fast.activity.view(np.uint64), plain.activity.view(np.uint64)), step

@@ -17,8 +17,10 @@ from whisker_io.numba_cache import tolerate_corrupt_cache
 
 
 @njit(cache=True)
-def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> bool:
     """``out`` = every non-zero cell's energy spread by the ``dim``^3 weights ``w``, ``dim = len(width)``.
+
+    Returns whether any cell of ``p`` is negative (found by the same scan).
 
     ``width`` is a tuple of ``dim`` zeros: its length is a compile-time constant, so each
     kernel row (``dim`` contiguous targets) compiles to unrolled, vectorised code.
@@ -33,11 +35,15 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
     plane = nxy * nxy
     fp = p.reshape(-1)
     live = np.zeros(plane, dtype=np.bool_)  # [y, x] column holds a non-zero cell
+    negative = False
     for k in range(nth):
         base = k * plane
         for q in range(plane):
-            if fp[base + q] != 0.0:
+            v = fp[base + q]
+            if v != 0.0:
                 live[q] = True
+                if v < 0.0:
+                    negative = True
     for i in range(nxy):
         x0 = wrap_xy[i]  # first target column; the row is contiguous unless it wraps
         straight = x0 + dim <= nxy
@@ -62,37 +68,42 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
                                 for d in range(dim):
                                     o[base + wrap_xy[i + d]] += v * w[n + d]
                             n += dim
+    return negative
 
 
 @njit(cache=True)
-def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
-    """``excite``/``inhibit`` helper: :func:`_spread_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
+def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> bool:
+    """``excite``/``inhibit`` helper: :func:`_spread_dim` with the kernel width ``dim`` (odd, 1..9) as a constant.
+
+    Returns whether any cell of ``p`` is negative."""
     if dim == 7:
-        _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
     elif dim == 5:
-        _spread_dim(p, w, (0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
     elif dim == 3:
-        _spread_dim(p, w, (0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0), wrap_xy, wrap_th, out)
     elif dim == 9:
-        _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
     elif dim == 1:
-        _spread_dim(p, w, (0,), wrap_xy, wrap_th, out)
-    else:
-        _spread_any(p, w, dim, wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0,), wrap_xy, wrap_th, out)
+    return _spread_any(p, w, dim, wrap_xy, wrap_th, out)
 
 
 @njit(cache=True)
-def _spread_any(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> None:
+def _spread_any(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> bool:
     """:func:`_spread_dim` for any kernel width (a run-time ``dim``; the same order, slower rows)."""
     nth, nxy = p.shape[0], p.shape[1]
     o = out.reshape(-1)
     o[:] = 0.0
     plane = nxy * nxy
+    negative = False
     for i in range(nxy):
         for j in range(nxy):
             for k in range(nth):
                 v = p[k, j, i]
                 if v != 0.0:
+                    if v < 0.0:
+                        negative = True
                     n = 0
                     for zl in range(k, k + dim):
                         zo = wrap_th[zl] * plane
@@ -101,6 +112,7 @@ def _spread_any(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wra
                             for xl in range(i, i + dim):
                                 o[base + wrap_xy[xl]] += v * w[n + xl - i]
                             n += dim
+    return negative
 
 
 @njit(cache=True)
@@ -126,6 +138,17 @@ def dynamics(
     """
     _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
     _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p)
+    total = _combine(p, tmp, global_inhib)
+    if total > 0.0:
+        flat = p.reshape(-1)
+        for q in range(flat.size):
+            flat[q] /= total
+    return total
+
+
+@njit(cache=True)
+def _combine(p: np.ndarray, tmp: np.ndarray, global_inhib: float) -> float:
+    """``p`` = ``tmp`` - ``p`` - global inhibition, clipped at 0, per cell; returns the total (cell order)."""
     flat, ftmp = p.reshape(-1), tmp.reshape(-1)
     total = 0.0
     for q in range(flat.size):
@@ -136,7 +159,157 @@ def dynamics(
             a = 0.0
         flat[q] = a
         total += a
+    return total
+
+
+@njit(cache=True)
+def _inhibit_clip_dim(
+    tmp: np.ndarray,
+    p: np.ndarray,
+    w: np.ndarray,
+    width: tuple,
+    gx_src: np.ndarray,
+    gx_w: np.ndarray,
+    gy_src: np.ndarray,
+    gy_w: np.ndarray,
+    gt_src: np.ndarray,
+    gt_w: np.ndarray,
+    global_inhib: float,
+) -> float:
+    """``p`` = excited ``tmp`` - its inhibition - global inhibition, clipped at 0; returns the total.
+
+    The inhibition is gathered, and only for the cells it can matter to: a cell excited
+    below ``global_inhib`` ends at 0 whatever its inhibition (``tmp`` and the weights are
+    >= 0, so the inhibition is >= 0 and ``tmp - inh <= tmp`` under round-to-nearest). Each
+    gathered cell adds its sources' terms in the order the C++ scatter adds them: sources
+    by x, then y, then theta index ascending (the ``g*_src`` tables, one row per target
+    coordinate, sorted so; ``g*_w`` the matching kernel offsets), every source's term
+    ``source * weight`` as in ``inhibit``. A source holding 0 adds ``+0.0``, which leaves
+    a sum of non-negative terms unchanged, so the sum equals the scatter's, which skips it.
+    ``dim = len(width)`` (a compile-time constant); the tables need every axis >= ``dim``
+    (each source reaches a target once). The total is summed in cell order, as the C++ does.
+    """
+    dim = len(width)
+    nth, n = tmp.shape[0], tmp.shape[1]
+    ft, fp = tmp.reshape(-1), p.reshape(-1)
+    pick = np.empty(n + 3, dtype=np.int64)  # the row's gathered x, padded to a multiple of 4
+    inh = np.empty(n)
+    total = 0.0
+    for k in range(nth):
+        for j in range(n):
+            row = (k * n + j) * n
+            m = 0
+            for i in range(n):
+                if ft[row + i] >= global_inhib:
+                    pick[m] = i
+                    m += 1
+            if m:
+                last = pick[m - 1]
+                for r in range(m, m + 3):
+                    pick[r] = last  # padding: computed, not used
+                for g in range(0, m, 4):  # four targets at a time: four independent sums
+                    i0, i1, i2, i3 = pick[g], pick[g + 1], pick[g + 2], pick[g + 3]
+                    s0 = s1 = s2 = s3 = 0.0
+                    for xa in range(dim):
+                        x0, x1, x2, x3 = gx_src[i0, xa], gx_src[i1, xa], gx_src[i2, xa], gx_src[i3, xa]
+                        w0, w1, w2, w3 = gx_w[i0, xa], gx_w[i1, xa], gx_w[i2, xa], gx_w[i3, xa]
+                        for ya in range(dim):
+                            yb = gy_src[j, ya]
+                            yw = gy_w[j, ya]
+                            b0, b1, b2, b3 = yb + x0, yb + x1, yb + x2, yb + x3
+                            c0, c1, c2, c3 = yw + w0, yw + w1, yw + w2, yw + w3
+                            for ta in range(dim):
+                                tb = gt_src[k, ta]
+                                tw = gt_w[k, ta]
+                                s0 += ft[tb + b0] * w[tw + c0]
+                                s1 += ft[tb + b1] * w[tw + c1]
+                                s2 += ft[tb + b2] * w[tw + c2]
+                                s3 += ft[tb + b3] * w[tw + c3]
+                    inh[i0] = s0
+                    inh[i1] = s1
+                    inh[i2] = s2
+                    inh[i3] = s3
+                r = 0
+                for i in range(n):
+                    a = 0.0
+                    if r < m and pick[r] == i:
+                        r += 1
+                        a = ft[row + i] - inh[i]
+                        if a >= global_inhib:
+                            a = a - global_inhib
+                        else:
+                            a = 0.0
+                    fp[row + i] = a
+                    total += a
+            else:
+                for i in range(n):
+                    fp[row + i] = 0.0
+    return total
+
+
+@njit(cache=True)
+def _inhibit_clip(
+    tmp: np.ndarray,
+    p: np.ndarray,
+    w: np.ndarray,
+    dim: int,
+    gx_src: np.ndarray,
+    gx_w: np.ndarray,
+    gy_src: np.ndarray,
+    gy_w: np.ndarray,
+    gt_src: np.ndarray,
+    gt_w: np.ndarray,
+    global_inhib: float,
+) -> float:
+    """:func:`_inhibit_clip_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
+    if dim == 5:
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+    elif dim == 7:
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+    elif dim == 3:
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+    elif dim == 9:
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w,
+                                 global_inhib)
+    return _inhibit_clip_dim(tmp, p, w, (0,), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+
+
+@njit(cache=True)
+def dynamics_gather(
+    p: np.ndarray,
+    tmp: np.ndarray,
+    w_exc: np.ndarray,
+    e_dim: int,
+    e_wrap_xy: np.ndarray,
+    e_wrap_th: np.ndarray,
+    w_inh: np.ndarray,
+    i_dim: int,
+    i_wrap_xy: np.ndarray,
+    i_wrap_th: np.ndarray,
+    gx_src: np.ndarray,
+    gx_w: np.ndarray,
+    gy_src: np.ndarray,
+    gy_w: np.ndarray,
+    gt_src: np.ndarray,
+    gt_w: np.ndarray,
+    global_inhib: float,
+) -> float:
+    """:func:`dynamics` with the inhibition gathered for the cells excited to ``global_inhib`` or more.
+
+    The same result bit for bit (see :func:`_inhibit_clip_dim`); a field with a negative
+    cell (not produced by the model, whose cells stay >= 0) takes :func:`dynamics`'s
+    scatter path, where a cell's inhibition may be negative. ``i_dim`` odd, 1..9, and
+    every axis >= ``i_dim`` (the caller checks; the gather tables come from
+    ``posecell_network._gather_table``).
+    """
+    negative = _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
+    if negative:
+        _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p)
+        total = _combine(p, tmp, global_inhib)
+    else:
+        total = _inhibit_clip(tmp, p, w_inh, i_dim, gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
     if total > 0.0:
+        flat = p.reshape(-1)
         for q in range(flat.size):
             flat[q] /= total
     return total

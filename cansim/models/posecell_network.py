@@ -59,6 +59,24 @@ def _wrap_table(n: int, half: int) -> np.ndarray:
     return np.concatenate([np.arange(n - half, n), np.arange(n), np.arange(half)]).astype(np.int64)
 
 
+def _gather_table(n: int, dim: int, src_stride: int, w_stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each target coordinate's ``dim`` sources on one axis, in the C++ scatter's order (ascending).
+
+    The scatter sends source ``s`` to target ``(s + d - dim // 2) mod n`` with kernel offset
+    ``d``; for target ``t`` the sources are ``(t + dim // 2 - d) mod n``. Returns, shape
+    ``(n, dim)`` uint64 each, the sources sorted ascending times ``src_stride`` and their
+    offsets ``d`` times ``w_stride``. Needs ``n >= dim`` (distinct sources).
+    """
+    half = dim // 2
+    src = np.empty((n, dim), dtype=np.uint64)
+    off = np.empty((n, dim), dtype=np.uint64)
+    for t in range(n):
+        pairs = sorted(((t + half - d) % n, d) for d in range(dim))
+        src[t] = [s * src_stride for s, _ in pairs]
+        off[t] = [d * w_stride for _, d in pairs]
+    return src, off
+
+
 def _kernel_weights(dim: int, var: float) -> np.ndarray:
     """C++ ``norm2d`` over a ``dim``^3 cube (k, j, i order), divided by its sequential sum."""
     c = dim // 2
@@ -160,6 +178,12 @@ class PosecellNetwork:
         self._e_xy, self._e_th = _wrap_table(n, self._e_dim // 2), _wrap_table(m, self._e_dim // 2)
         self._i_xy, self._i_th = _wrap_table(n, self._i_dim // 2), _wrap_table(m, self._i_dim // 2)
         self._a_xy, self._a_th = _wrap_table(n, self._half), _wrap_table(m, self._half)
+        d = self._i_dim
+        # the inhibition is gathered (only where it matters) when each source reaches a target once
+        self._gather = (
+            (*_gather_table(n, d, 1, 1), *_gather_table(n, d, n, d), *_gather_table(m, d, n * n, d * d))
+            if d in (1, 3, 5, 7, 9) and min(n, m) >= d else None
+        )
         self._sin_xy = np.array([math.sin((i + 1) * 2.0 * math.pi / n) for i in range(n)])
         self._cos_xy = np.array([math.cos((i + 1) * 2.0 * math.pi / n) for i in range(n)])
         self._sin_th = np.array([math.sin((i + 1) * 2.0 * math.pi / m) for i in range(m)])
@@ -316,9 +340,16 @@ class PosecellNetwork:
         np.copyto(p, self._p)
         for x, y, th, e in cells:
             p[th, y, x] += e
-        total = kern.dynamics(
-            p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy, self._i_th, self._gi
-        )
+        if self._gather is not None:
+            total = kern.dynamics_gather(
+                p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
+                self._i_th, *self._gather, self._gi
+            )
+        else:
+            total = kern.dynamics(
+                p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
+                self._i_th, self._gi
+            )
         if not total > 0.0:
             raise ZeroActivityError(
                 "global inhibition silenced every pose cell (OpenRatSLAM would abort); state left unchanged - "
