@@ -57,7 +57,7 @@ def test_every_width_spreads_in_the_cpp_order_bit_for_bit(dim, seed, density):
     w /= w.sum()
     half = dim // 2
     out = np.full_like(p, np.nan)  # the kernel must overwrite every cell
-    K._spread(p, w, dim, _wrap_table(nxy, half), _wrap_table(nth, half), out)
+    K._spread(p, w, dim, _wrap_table(nxy, half), _wrap_table(nth, half), out, np.ones(nth, dtype=bool))
     ref = _reference_spread(p, w, dim)
     assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))
 
@@ -65,7 +65,7 @@ def test_every_width_spreads_in_the_cpp_order_bit_for_bit(dim, seed, density):
 def test_an_empty_field_spreads_to_zeros():
     p = np.zeros((6, 7, 7))
     out = np.full_like(p, np.nan)
-    K._spread(p, np.ones(125) / 125, 5, _wrap_table(7, 2), _wrap_table(6, 2), out)
+    K._spread(p, np.ones(125) / 125, 5, _wrap_table(7, 2), _wrap_table(6, 2), out, np.ones(6, dtype=bool))
     assert np.array_equal(out, np.zeros_like(p))
 
 
@@ -141,7 +141,7 @@ def test_gathered_inhibition_is_the_cpp_scatter_bit_for_bit(e_dim, i_dim, seed, 
     got = p.copy()
     t = K.dynamics_gather(got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2), _wrap_table(nth, e_dim // 2),
                           w_i, i_dim, _wrap_table(nxy, i_dim // 2), _wrap_table(nth, i_dim // 2),
-                          *_gather_args(nxy, nth, i_dim), gi)
+                          *_gather_args(nxy, nth, i_dim), gi, np.ones(nth, dtype=bool))
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
 
@@ -159,7 +159,7 @@ def test_a_negative_cell_takes_the_scatter_path_and_still_matches():
     assert np.any((exc < gi) & (expected > 0))  # the case a skip would get wrong
     got = p.copy()
     t = K.dynamics_gather(got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
-                          w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), *_gather_args(nxy, nth, 5), gi)
+                          w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), *_gather_args(nxy, nth, 5), gi, np.ones(nth, dtype=bool))
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
 
@@ -184,3 +184,37 @@ def test_the_network_equals_its_all_scatter_run_cell_for_cell(nxy, nth, cell):
         b = plain.step(v, w, 1.0, injection=inj)
         assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
         assert np.array_equal(fast.activity.view(np.uint64), plain.activity.view(np.uint64)), step
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_skipping_empty_layers_changes_no_bit(seed):
+    """``translate``, ``rotate_theta`` and ``best_sums`` given which layers hold only +0.0 (the rest
+    skipped) against the same kernels told every layer may be live; the flags they return are exact."""
+    from cansim.models.posecell_network import PosecellNetwork
+
+    rng = np.random.default_rng(seed)
+    pc = PosecellNetwork(15, 36)
+    p = np.zeros((36, 15, 15))
+    live = rng.random(36) < 0.3
+    live[0] = live[35] = True  # the theta wrap
+    for k in np.flatnonzero(live):
+        p[k] = rng.random((15, 15)) * (rng.random((15, 15)) < 0.2)
+    p[int(np.flatnonzero(live)[0]), 0, 0] = 0.0  # a live flag on zeros is allowed
+    for add in (0.0, np.pi):
+        rot, cs, sn = pc._layer_tables[add]
+        a, b = p.copy(), p.copy()
+        flags = live.copy()
+        K.translate(a, rot, cs, sn, 0.8, flags)
+        K.translate(b, rot, cs, sn, 0.8, np.ones(36, dtype=bool))
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64)) and np.array_equal(flags, live)
+    for s1, s2, weight in ((-1, -2, 0.3), (-35, -35, 1.0), (-3, -4, 0.999), (0, -1, 0.5)):
+        a, b = p.copy(), p.copy()
+        flags = live.copy()
+        K.rotate_theta(a, np.full_like(a, np.nan), s1, s2, weight, flags)
+        K.rotate_theta(b, np.empty_like(b), s1, s2, weight, np.ones(36, dtype=bool))
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
+        assert not np.any(b.any(axis=(1, 2)) & ~flags)  # every layer holding a non-zero cell is flagged
+        args = (pc._half, pc._a_xy, pc._a_th, pc._sin_xy, pc._cos_xy, pc._sin_th, pc._cos_th)
+        got = K.best_sums(a, *args, flags)
+        ref = K.best_sums(b, *args, np.ones(36, dtype=bool))
+        assert np.array_equal(np.array(got).view(np.uint64), np.array(ref).view(np.uint64))

@@ -17,10 +17,13 @@ from whisker_io.numba_cache import tolerate_corrupt_cache
 
 
 @njit(cache=True)
-def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> bool:
+def _spread_dim(
+    p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray, layers: np.ndarray
+) -> bool:
     """``out`` = every non-zero cell's energy spread by the ``dim``^3 weights ``w``, ``dim = len(width)``.
 
-    Returns whether any cell of ``p`` is negative (found by the same scan).
+    Returns whether any cell of ``p`` is negative (found by the same scan). ``layers[k]``
+    False promises that theta layer ``k`` of ``p`` holds only zeros (it is not scanned).
 
     ``width`` is a tuple of ``dim`` zeros: its length is a compile-time constant, so each
     kernel row (``dim`` contiguous targets) compiles to unrolled, vectorised code.
@@ -37,6 +40,8 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
     live = np.zeros(plane, dtype=np.bool_)  # [y, x] column holds a non-zero cell
     negative = False
     for k in range(nth):
+        if not layers[k]:
+            continue
         base = k * plane
         for q in range(plane):
             v = fp[base + q]
@@ -72,20 +77,22 @@ def _spread_dim(p: np.ndarray, w: np.ndarray, width: tuple, wrap_xy: np.ndarray,
 
 
 @njit(cache=True)
-def _spread(p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray) -> bool:
+def _spread(
+    p: np.ndarray, w: np.ndarray, dim: int, wrap_xy: np.ndarray, wrap_th: np.ndarray, out: np.ndarray, layers: np.ndarray
+) -> bool:
     """``excite``/``inhibit`` helper: :func:`_spread_dim` with the kernel width ``dim`` (odd, 1..9) as a constant.
 
-    Returns whether any cell of ``p`` is negative."""
+    Returns whether any cell of ``p`` is negative; ``layers`` as in :func:`_spread_dim`."""
     if dim == 7:
-        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out, layers)
     elif dim == 5:
-        return _spread_dim(p, w, (0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0), wrap_xy, wrap_th, out, layers)
     elif dim == 3:
-        return _spread_dim(p, w, (0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0), wrap_xy, wrap_th, out, layers)
     elif dim == 9:
-        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), wrap_xy, wrap_th, out, layers)
     elif dim == 1:
-        return _spread_dim(p, w, (0,), wrap_xy, wrap_th, out)
+        return _spread_dim(p, w, (0,), wrap_xy, wrap_th, out, layers)
     return _spread_any(p, w, dim, wrap_xy, wrap_th, out)
 
 
@@ -136,8 +143,9 @@ def dynamics(
     summed in cell order - the C++ arithmetic, one pass. When the total is not positive
     ``p`` is left un-normalised (the caller keeps its own copy).
     """
-    _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
-    _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p)
+    every = np.ones(p.shape[0], dtype=np.bool_)
+    _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, every)
+    _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p, every)
     total = _combine(p, tmp, global_inhib)
     if total > 0.0:
         flat = p.reshape(-1)
@@ -175,8 +183,12 @@ def _inhibit_clip_dim(
     gt_src: np.ndarray,
     gt_w: np.ndarray,
     global_inhib: float,
+    layers: np.ndarray,
 ) -> float:
     """``p`` = excited ``tmp`` - its inhibition - global inhibition, clipped at 0; returns the total.
+
+    ``layers[k]`` is set to whether theta layer ``k`` of the result holds a non-zero cell
+    (every other cell is ``+0.0``).
 
     The inhibition is gathered, and only for the cells it can matter to: a cell excited
     below ``global_inhib`` ends at 0 whatever its inhibition (``tmp`` and the weights are
@@ -196,6 +208,7 @@ def _inhibit_clip_dim(
     inh = np.empty(n)
     total = 0.0
     for k in range(nth):
+        live = False
         for j in range(n):
             row = (k * n + j) * n
             m = 0
@@ -237,6 +250,8 @@ def _inhibit_clip_dim(
                         a = ft[row + i] - inh[i]
                         if a >= global_inhib:
                             a = a - global_inhib
+                            if a != 0.0:
+                                live = True
                         else:
                             a = 0.0
                     fp[row + i] = a
@@ -244,6 +259,7 @@ def _inhibit_clip_dim(
             else:
                 for i in range(n):
                     fp[row + i] = 0.0
+        layers[k] = live
     return total
 
 
@@ -260,18 +276,19 @@ def _inhibit_clip(
     gt_src: np.ndarray,
     gt_w: np.ndarray,
     global_inhib: float,
+    layers: np.ndarray,
 ) -> float:
     """:func:`_inhibit_clip_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
     if dim == 5:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
     elif dim == 7:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
     elif dim == 3:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
     elif dim == 9:
         return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w,
-                                 global_inhib)
-    return _inhibit_clip_dim(tmp, p, w, (0,), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+                                 global_inhib, layers)
+    return _inhibit_clip_dim(tmp, p, w, (0,), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
 
 
 @njit(cache=True)
@@ -293,8 +310,13 @@ def dynamics_gather(
     gt_src: np.ndarray,
     gt_w: np.ndarray,
     global_inhib: float,
+    layers: np.ndarray,
 ) -> float:
     """:func:`dynamics` with the inhibition gathered for the cells excited to ``global_inhib`` or more.
+
+    ``layers`` (bool, one per theta layer), in: False promises the layer of ``p`` holds only
+    ``+0.0``; out: whether the layer of the result holds a non-zero cell (the others hold
+    ``+0.0``: a clipped cell is written ``0.0``, a kept one ``a - global_inhib >= +0.0``).
 
     The same result bit for bit (see :func:`_inhibit_clip_dim`); a field with a negative
     cell (not produced by the model, whose cells stay >= 0) takes :func:`dynamics`'s
@@ -302,16 +324,26 @@ def dynamics_gather(
     every axis >= ``i_dim`` (the caller checks; the gather tables come from
     ``posecell_network._gather_table``).
     """
-    negative = _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp)
+    negative = _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, layers)
+    nth, plane = p.shape[0], p.shape[1] * p.shape[2]
+    flat = p.reshape(-1)
     if negative:
-        _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p)
+        _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p, np.ones(nth, dtype=np.bool_))
         total = _combine(p, tmp, global_inhib)
+        for k in range(nth):
+            live = False
+            for q in range(k * plane, (k + 1) * plane):
+                if flat[q] != 0.0:
+                    live = True
+                    break
+            layers[k] = live
     else:
-        total = _inhibit_clip(tmp, p, w_inh, i_dim, gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib)
+        total = _inhibit_clip(tmp, p, w_inh, i_dim, gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
     if total > 0.0:
-        flat = p.reshape(-1)
-        for q in range(flat.size):
-            flat[q] /= total
+        for k in range(nth):
+            if layers[k]:  # the other layers hold +0.0, and +0.0 / total is +0.0
+                for q in range(k * plane, (k + 1) * plane):
+                    flat[q] /= total
     return total
 
 
@@ -336,12 +368,15 @@ def _rotate(src: np.ndarray, rot: int, dst: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def translate(p: np.ndarray, rot: np.ndarray, cos90: np.ndarray, sin90: np.ndarray, vtrans: float) -> None:
+def translate(p: np.ndarray, rot: np.ndarray, cos90: np.ndarray, sin90: np.ndarray, vtrans: float, layers: np.ndarray) -> None:
     """Translational path integration of every theta layer by ``vtrans`` cells (<= 1) along its direction.
 
     Each layer is turned by ``rot[k]`` quarter turns, shifted towards +x/+y by the
     four bilinear weights of the residual angle (``cos90``/``sin90`` of it), the
-    overflow row/column wrapped to the opposite edge, and turned back.
+    overflow row/column wrapped to the opposite edge, and turned back. A layer with
+    ``layers[k]`` False (only ``+0.0``) is left as it is: each of its cells would be
+    ``+0.0 * w`` summed over four weights of which one at least is positive (they sum to
+    1), which is ``+0.0``.
     """
     nth, n = p.shape[0], p.shape[1]
     d = n + 2
@@ -349,6 +384,8 @@ def translate(p: np.ndarray, rot: np.ndarray, cos90: np.ndarray, sin90: np.ndarr
     b = np.empty((d, d))
     lay = np.empty((n, n))
     for k in range(nth):
+        if not layers[k]:
+            continue
         c, s = cos90[k], sin90[k]
         w_sw = vtrans * vtrans * c * s
         w_se = vtrans * s * (1.0 - vtrans * c)
@@ -381,15 +418,32 @@ def translate(p: np.ndarray, rot: np.ndarray, cos90: np.ndarray, sin90: np.ndarr
 
 
 @njit(cache=True)
-def rotate_theta(p: np.ndarray, tmp: np.ndarray, shift1: int, shift2: int, weight: float) -> None:
-    """Rotational path integration: ``p[k] = p[k - shift1] (1 - weight) + p[k - shift2] weight`` (shifts <= 0)."""
+def rotate_theta(p: np.ndarray, tmp: np.ndarray, shift1: int, shift2: int, weight: float, layers: np.ndarray) -> None:
+    """Rotational path integration: ``p[k] = p[k - shift1] (1 - weight) + p[k - shift2] weight`` (shifts <= 0).
+
+    ``layers`` (in: False promises a layer of only ``+0.0``) is updated to the result's. A
+    layer whose two sources hold only ``+0.0`` is ``+0.0`` (``weight`` in (0, 1], so both
+    factors are >= 0): it is written as zeros, or left when it is zeros already.
+    """
     nth = p.shape[0]
-    tmp[:] = p
+    before = layers.copy()
+    for k in range(nth):
+        if before[k]:
+            tmp[k] = p[k]
+        else:
+            tmp[k] = 0.0
     keep = 1.0 - weight
     for k in range(nth):
-        a = tmp[(k - shift1) % nth]
-        b = tmp[(k - shift2) % nth]
+        ka, kb = (k - shift1) % nth, (k - shift2) % nth
         out = p[k]
+        if not (before[ka] or before[kb]):
+            if before[k]:
+                out[:, :] = 0.0
+            layers[k] = False
+            continue
+        layers[k] = True
+        a = tmp[ka]
+        b = tmp[kb]
         for j in range(p.shape[1]):
             for i in range(p.shape[2]):
                 out[j, i] = a[j, i] * keep + b[j, i] * weight
@@ -405,12 +459,18 @@ def best_sums(
     cos_xy: np.ndarray,
     sin_th: np.ndarray,
     cos_th: np.ndarray,
+    layers: np.ndarray,
 ) -> tuple[float, float, float, float, float, float]:
-    """``find_best`` up to the ``atan2``: the six sine/cosine sums of the +-``half`` box around the maximum."""
+    """``find_best`` up to the ``atan2``: the six sine/cosine sums of the +-``half`` box around the maximum.
+
+    The maximum is searched in the layers with ``layers[k]`` True (the others hold ``+0.0``,
+    which never beats the search's start, 0)."""
     nth, n = p.shape[0], p.shape[1]
     mx = 0.0
     x = y = th = 0
     for k in range(nth):
+        if not layers[k]:
+            continue
         for j in range(n):
             for i in range(n):
                 if p[k, j, i] > mx:

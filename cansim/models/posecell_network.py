@@ -195,6 +195,11 @@ class PosecellNetwork:
         self._spare = np.empty_like(self._p)  # the next state is computed here; the two swap after a step
         self._best = np.array([math.floor(n / 2.0), math.floor(n / 2.0), math.floor(m / 2.0)])
         self._p[int(self._best[2]), int(self._best[1]), int(self._best[0])] = 1.0
+        # theta layers of self._p that may hold a non-zero cell (False: only +0.0); the kernels
+        # skip the others. Conservative: a True layer may be all zeros.
+        self._live = np.zeros(m, dtype=np.bool_)
+        self._live[int(self._best[2])] = True
+        self._live_spare = self._live.copy()
         self._k: object = None
 
     def _layers(self, angle_to_add: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -248,6 +253,8 @@ class PosecellNetwork:
         self._p = np.ascontiguousarray(arr.transpose(2, 1, 0), dtype=np.float64)
         self._tmp = np.empty_like(self._p)
         self._spare = np.empty_like(self._p)
+        self._live = np.ones(self._nth, dtype=np.bool_)  # a given activity may hold -0.0: no layer is skipped
+        self._live_spare = self._live.copy()
 
     @property
     def best(self) -> np.ndarray:
@@ -336,20 +343,24 @@ class PosecellNetwork:
         v, w, t = float(vtrans), float(vrot), float(dt)
         cells = self._injection_cells(injection)
         kern = self._kernels
-        p = self._spare  # a step that raises leaves self._p as it was
+        p = self._spare  # a step that raises leaves self._p (and self._live) as they were
         np.copyto(p, self._p)
+        live = self._live_spare
+        live[:] = self._live
         for x, y, th, e in cells:
             p[th, y, x] += e
+            live[th] = True
         if self._gather is not None:
             total = kern.dynamics_gather(
                 p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
-                self._i_th, *self._gather, self._gi
+                self._i_th, *self._gather, self._gi, live
             )
         else:
             total = kern.dynamics(
                 p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
                 self._i_th, self._gi
             )
+            live[:] = True
         if not total > 0.0:
             raise ZeroActivityError(
                 "global inhibition silenced every pose cell (OpenRatSLAM would abort); state left unchanged - "
@@ -361,7 +372,7 @@ class PosecellNetwork:
         if v < 0:
             v, add = -v, math.pi
         rot, cs, sn = self._layer_tables[add]
-        kern.translate(p, rot, cs, sn, v)
+        kern.translate(p, rot, cs, sn, v, live)
         if w != 0:
             weight = abs(w) / self._c_size_th
             while weight > 1:
@@ -375,9 +386,12 @@ class PosecellNetwork:
                 s1 -= self._nth
             while s2 > 0:
                 s2 -= self._nth
-            kern.rotate_theta(p, self._tmp, s1, s2, weight)
-        sums = kern.best_sums(p, self._half, self._a_xy, self._a_th, self._sin_xy, self._cos_xy, self._sin_th, self._cos_th)
+            kern.rotate_theta(p, self._tmp, s1, s2, weight, live)
+        sums = kern.best_sums(
+            p, self._half, self._a_xy, self._a_th, self._sin_xy, self._cos_xy, self._sin_th, self._cos_th, live
+        )
         self._p, self._spare = p, self._p
+        self._live, self._live_spare = live, self._live
         self._best = np.array([
             self._wrap(math.atan2(sums[0], sums[1]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
             self._wrap(math.atan2(sums[2], sums[3]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
