@@ -198,6 +198,10 @@ def _inhibit_clip_dim(
     coordinate, sorted so; ``g*_w`` the matching kernel offsets), every source's term
     ``source * weight`` as in ``inhibit``. A source holding 0 adds ``+0.0``, which leaves
     a sum of non-negative terms unchanged, so the sum equals the scatter's, which skips it.
+    The weights must be >= 0 too: then every partial sum is <= the whole (adding a term
+    >= 0 never lowers a rounded sum), so once ``tmp - partial < global_inhib`` for the four
+    cells summed together, each ends at 0 and the sums stop there (the partial sum is kept:
+    the clip then gives the same 0).
     ``dim = len(width)`` (a compile-time constant); the tables need every axis >= ``dim``
     (each source reaches a target once). The total is summed in cell order, as the C++ does.
     """
@@ -222,7 +226,9 @@ def _inhibit_clip_dim(
                     pick[r] = last  # padding: computed, not used
                 for g in range(0, m, 4):  # four targets at a time: four independent sums
                     i0, i1, i2, i3 = pick[g], pick[g + 1], pick[g + 2], pick[g + 3]
+                    e0, e1, e2, e3 = ft[row + i0], ft[row + i1], ft[row + i2], ft[row + i3]
                     s0 = s1 = s2 = s3 = 0.0
+                    dead = False
                     for xa in range(dim):
                         x0, x1, x2, x3 = gx_src[i0, xa], gx_src[i1, xa], gx_src[i2, xa], gx_src[i3, xa]
                         w0, w1, w2, w3 = gx_w[i0, xa], gx_w[i1, xa], gx_w[i2, xa], gx_w[i3, xa]
@@ -238,6 +244,14 @@ def _inhibit_clip_dim(
                                 s1 += ft[tb + b1] * w[tw + c1]
                                 s2 += ft[tb + b2] * w[tw + c2]
                                 s3 += ft[tb + b3] * w[tw + c3]
+                            # a partial sum of terms >= 0 is <= the whole sum (rounding is monotone),
+                            # so a cell already below global inhibition ends at 0: stop when all four are
+                            if (e0 - s0 < global_inhib and e1 - s1 < global_inhib and e2 - s2 < global_inhib
+                                    and e3 - s3 < global_inhib):
+                                dead = True
+                                break
+                        if dead:
+                            break
                     inh[i0] = s0
                     inh[i1] = s1
                     inh[i2] = s2
@@ -320,7 +334,7 @@ def dynamics_gather(
 
     The same result bit for bit (see :func:`_inhibit_clip_dim`); a field with a negative
     cell (not produced by the model, whose cells stay >= 0) takes :func:`dynamics`'s
-    scatter path, where a cell's inhibition may be negative. ``i_dim`` odd, 1..9, and
+    scatter path, where a cell's inhibition may be negative. ``i_dim`` odd, 1..9, ``w_inh >= 0``, and
     every axis >= ``i_dim`` (the caller checks; the gather tables come from
     ``posecell_network._gather_table``).
     """

@@ -26,8 +26,13 @@ This engine performs the C++ arithmetic in the C++ order:
   is wider than the grid, as in C++), population vector with the ``(i + 1)``
   angle tables, ``- 1`` and the ``[0, n]`` wrap loops.
 
-Trigonometric and exponential functions come from Python's :mod:`math`, i.e. the
-C library, as in the C++ build. The result equals OpenRatSLAM's on identical
+Two shortcuts skip only work whose result is known bit for bit (see
+:mod:`cansim.models._posecell_kernels`): the inhibition is gathered, in the
+scatter's order per cell, only for cells excited to at least the global
+inhibition (the others end at 0 whatever their inhibition), and theta layers
+holding only ``+0.0`` are not translated, rotated or searched. Trigonometric
+and exponential functions come from Python's :mod:`math`, i.e. the C library,
+as in the C++ build. The result equals OpenRatSLAM's on identical
 inputs; this was checked against the C++ core driven the way its ROS nodes
 drive it (see ``bench/README.md``), and the tests pin each rule on hand-made
 cases.
@@ -182,7 +187,7 @@ class PosecellNetwork:
         # the inhibition is gathered (only where it matters) when each source reaches a target once
         self._gather = (
             (*_gather_table(n, d, 1, 1), *_gather_table(n, d, n, d), *_gather_table(m, d, n * n, d * d))
-            if d in (1, 3, 5, 7, 9) and min(n, m) >= d else None
+            if d in (1, 3, 5, 7, 9) and min(n, m) >= d and self._w_inh.min() >= 0.0 else None
         )
         self._sin_xy = np.array([math.sin((i + 1) * 2.0 * math.pi / n) for i in range(n)])
         self._cos_xy = np.array([math.cos((i + 1) * 2.0 * math.pi / n) for i in range(n)])
