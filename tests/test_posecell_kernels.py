@@ -138,10 +138,12 @@ def test_gathered_inhibition_is_the_cpp_scatter_bit_for_bit(e_dim, i_dim, seed, 
     exc = _reference_spread(p, w_e, e_dim)
     gi = float(np.quantile(exc[exc > 0], quantile)) * 0.5 if quantile else 0.0
     total, expected = _reference_dynamics(p, w_e, e_dim, w_i, i_dim, gi)
-    got = p.copy()
-    t = K.dynamics_gather(got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2), _wrap_table(nth, e_dim // 2),
+    got = np.full_like(p, np.nan)  # every cell must be written
+    src = p.copy()
+    t = K.dynamics_gather(src, got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2), _wrap_table(nth, e_dim // 2),
                           w_i, i_dim, _wrap_table(nxy, i_dim // 2), _wrap_table(nth, i_dim // 2),
                           *_gather_args(nxy, nth, i_dim), gi, np.ones(nth, dtype=bool))
+    assert np.array_equal(src.view(np.uint64), p.view(np.uint64))  # the source is only read
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
 
@@ -157,8 +159,8 @@ def test_a_negative_cell_takes_the_scatter_path_and_still_matches():
     total, expected = _reference_dynamics(p, w_e, 7, w_i, 5, gi)
     exc = _reference_spread(p, w_e, 7)
     assert np.any((exc < gi) & (expected > 0))  # the case a skip would get wrong
-    got = p.copy()
-    t = K.dynamics_gather(got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
+    got = np.full_like(p, np.nan)  # every cell must be written
+    t = K.dynamics_gather(p.copy(), got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
                           w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), *_gather_args(nxy, nth, 5), gi, np.ones(nth, dtype=bool))
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
@@ -218,3 +220,27 @@ def test_skipping_empty_layers_changes_no_bit(seed):
         got = K.best_sums(a, *args, flags)
         ref = K.best_sums(b, *args, np.ones(36, dtype=bool))
         assert np.array_equal(np.array(got).view(np.uint64), np.array(ref).view(np.uint64))
+
+
+def test_a_collapsing_step_with_an_injection_leaves_the_network_as_it_was():
+    """The gathered step reads the state in place (the injection added, then undone): a step that
+    global inhibition silences must leave every bit, and the next steps, as without it."""
+    from cansim.errors import ZeroActivityError
+    from cansim.models.posecell_network import PosecellNetwork
+    from cansim.params import AttractorParams
+
+    params = AttractorParams(global_inhibition=0.004)
+    a, b = PosecellNetwork(params=params), PosecellNetwork(params=params)
+    for pc in (a, b):
+        pc.step(0.3, 0.1, 1.0, injection=(np.array([1234], dtype=np.int64), np.array([0.5])))
+    before = a.activity
+    flat = int(np.argmax(before))
+    with pytest.raises(ZeroActivityError):  # global inhibition 1 silences every cell
+        a._gi = 1.0
+        a.step(0.3, 0.1, 1.0, injection=(np.array([flat, flat, 77], dtype=np.int64), np.array([0.25, 0.5, 0.125])))
+    a._gi = b._gi
+    assert np.array_equal(a.activity.view(np.uint64), before.view(np.uint64))
+    for _ in range(5):
+        x, y = a.step(0.4, -0.2, 1.0), b.step(0.4, -0.2, 1.0)
+        assert np.array_equal(x.view(np.uint64), y.view(np.uint64))
+        assert np.array_equal(a.activity.view(np.uint64), b.activity.view(np.uint64))

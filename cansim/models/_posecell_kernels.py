@@ -307,6 +307,7 @@ def _inhibit_clip(
 
 @njit(cache=True)
 def dynamics_gather(
+    src: np.ndarray,
     p: np.ndarray,
     tmp: np.ndarray,
     w_exc: np.ndarray,
@@ -326,9 +327,10 @@ def dynamics_gather(
     global_inhib: float,
     layers: np.ndarray,
 ) -> float:
-    """:func:`dynamics` with the inhibition gathered for the cells excited to ``global_inhib`` or more.
+    """:func:`dynamics` of ``src`` into ``p`` (every cell written; ``src`` is not changed), with the
+    inhibition gathered for the cells excited to ``global_inhib`` or more.
 
-    ``layers`` (bool, one per theta layer), in: False promises the layer of ``p`` holds only
+    ``layers`` (bool, one per theta layer), in: False promises the layer of ``src`` holds only
     ``+0.0``; out: whether the layer of the result holds a non-zero cell (the others hold
     ``+0.0``: a clipped cell is written ``0.0``, a kept one ``a - global_inhib >= +0.0``).
 
@@ -338,7 +340,7 @@ def dynamics_gather(
     every axis >= ``i_dim`` (the caller checks; the gather tables come from
     ``posecell_network._gather_table``).
     """
-    negative = _spread(p, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, layers)
+    negative = _spread(src, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, layers)
     nth, plane = p.shape[0], p.shape[1] * p.shape[2]
     flat = p.reshape(-1)
     if negative:

@@ -348,19 +348,25 @@ class PosecellNetwork:
         v, w, t = float(vtrans), float(vrot), float(dt)
         cells = self._injection_cells(injection)
         kern = self._kernels
-        p = self._spare  # a step that raises leaves self._p (and self._live) as they were
-        np.copyto(p, self._p)
+        p = self._spare  # the next state; a step that raises leaves self._p (and self._live) as they were
         live = self._live_spare
         live[:] = self._live
-        for x, y, th, e in cells:
-            p[th, y, x] += e
-            live[th] = True
         if self._gather is not None:
+            src = self._p  # read, not written: the injection is added here and undone on failure
+            undo = [(x, y, th, src[th, y, x]) for x, y, th, _ in cells]
+            for x, y, th, e in cells:
+                src[th, y, x] += e
+                live[th] = True
             total = kern.dynamics_gather(
-                p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
-                self._i_th, *self._gather, self._gi, live
+                src, p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim,
+                self._i_xy, self._i_th, *self._gather, self._gi, live
             )
+            for x, y, th, old in reversed(undo):  # the old values (bits), in reverse for repeated cells
+                src[th, y, x] = old
         else:
+            np.copyto(p, self._p)
+            for x, y, th, e in cells:
+                p[th, y, x] += e
             total = kern.dynamics(
                 p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
                 self._i_th, self._gi
