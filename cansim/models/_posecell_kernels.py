@@ -202,77 +202,79 @@ def _inhibit_clip_dim(
     >= 0 never lowers a rounded sum), so once ``tmp - partial < global_inhib`` for the four
     cells summed together, each ends at 0 and the sums stop there (the partial sum is kept:
     the clip then gives the same 0).
+    The four cells summed together are the next four gathered cells of a theta layer.
     ``dim = len(width)`` (a compile-time constant); the tables need every axis >= ``dim``
     (each source reaches a target once). The total is summed in cell order, as the C++ does.
     """
     dim = len(width)
     nth, n = tmp.shape[0], tmp.shape[1]
     ft, fp = tmp.reshape(-1), p.reshape(-1)
-    pick = np.empty(n + 3, dtype=np.int64)  # the row's gathered x, padded to a multiple of 4
-    inh = np.empty(n)
+    plane = n * n
+    pick = np.empty(plane + 3, dtype=np.int64)  # the layer's gathered cells (y n + x), padded to a multiple of 4
+    inh = np.empty(plane)
     total = 0.0
     for k in range(nth):
+        lay = k * plane
+        m = 0
+        for q in range(plane):
+            if ft[lay + q] >= global_inhib:
+                pick[m] = q
+                m += 1
+        if m == 0:
+            for q in range(plane):
+                fp[lay + q] = 0.0
+            layers[k] = False
+            continue
+        last = pick[m - 1]
+        for r in range(m, m + 3):
+            pick[r] = last  # padding: computed, not used
+        for g in range(0, m, 4):  # four cells of the layer at a time: four independent sums
+            q0, q1, q2, q3 = pick[g], pick[g + 1], pick[g + 2], pick[g + 3]
+            j0, j1, j2, j3 = q0 // n, q1 // n, q2 // n, q3 // n
+            i0, i1, i2, i3 = q0 - j0 * n, q1 - j1 * n, q2 - j2 * n, q3 - j3 * n
+            e0, e1, e2, e3 = ft[lay + q0], ft[lay + q1], ft[lay + q2], ft[lay + q3]
+            s0 = s1 = s2 = s3 = 0.0
+            dead = False
+            for xa in range(dim):
+                x0, x1, x2, x3 = gx_src[i0, xa], gx_src[i1, xa], gx_src[i2, xa], gx_src[i3, xa]
+                w0, w1, w2, w3 = gx_w[i0, xa], gx_w[i1, xa], gx_w[i2, xa], gx_w[i3, xa]
+                for ya in range(dim):
+                    b0, b1, b2, b3 = gy_src[j0, ya] + x0, gy_src[j1, ya] + x1, gy_src[j2, ya] + x2, gy_src[j3, ya] + x3
+                    c0, c1, c2, c3 = gy_w[j0, ya] + w0, gy_w[j1, ya] + w1, gy_w[j2, ya] + w2, gy_w[j3, ya] + w3
+                    for ta in range(dim):
+                        tb = gt_src[k, ta]
+                        tw = gt_w[k, ta]
+                        s0 += ft[tb + b0] * w[tw + c0]
+                        s1 += ft[tb + b1] * w[tw + c1]
+                        s2 += ft[tb + b2] * w[tw + c2]
+                        s3 += ft[tb + b3] * w[tw + c3]
+                    # a partial sum of terms >= 0 is <= the whole sum (rounding is monotone),
+                    # so a cell already below global inhibition ends at 0: stop when all four are
+                    if (e0 - s0 < global_inhib and e1 - s1 < global_inhib and e2 - s2 < global_inhib
+                            and e3 - s3 < global_inhib):
+                        dead = True
+                        break
+                if dead:
+                    break
+            inh[q0] = s0
+            inh[q1] = s1
+            inh[q2] = s2
+            inh[q3] = s3
         live = False
-        for j in range(n):
-            row = (k * n + j) * n
-            m = 0
-            for i in range(n):
-                if ft[row + i] >= global_inhib:
-                    pick[m] = i
-                    m += 1
-            if m:
-                last = pick[m - 1]
-                for r in range(m, m + 3):
-                    pick[r] = last  # padding: computed, not used
-                for g in range(0, m, 4):  # four targets at a time: four independent sums
-                    i0, i1, i2, i3 = pick[g], pick[g + 1], pick[g + 2], pick[g + 3]
-                    e0, e1, e2, e3 = ft[row + i0], ft[row + i1], ft[row + i2], ft[row + i3]
-                    s0 = s1 = s2 = s3 = 0.0
-                    dead = False
-                    for xa in range(dim):
-                        x0, x1, x2, x3 = gx_src[i0, xa], gx_src[i1, xa], gx_src[i2, xa], gx_src[i3, xa]
-                        w0, w1, w2, w3 = gx_w[i0, xa], gx_w[i1, xa], gx_w[i2, xa], gx_w[i3, xa]
-                        for ya in range(dim):
-                            yb = gy_src[j, ya]
-                            yw = gy_w[j, ya]
-                            b0, b1, b2, b3 = yb + x0, yb + x1, yb + x2, yb + x3
-                            c0, c1, c2, c3 = yw + w0, yw + w1, yw + w2, yw + w3
-                            for ta in range(dim):
-                                tb = gt_src[k, ta]
-                                tw = gt_w[k, ta]
-                                s0 += ft[tb + b0] * w[tw + c0]
-                                s1 += ft[tb + b1] * w[tw + c1]
-                                s2 += ft[tb + b2] * w[tw + c2]
-                                s3 += ft[tb + b3] * w[tw + c3]
-                            # a partial sum of terms >= 0 is <= the whole sum (rounding is monotone),
-                            # so a cell already below global inhibition ends at 0: stop when all four are
-                            if (e0 - s0 < global_inhib and e1 - s1 < global_inhib and e2 - s2 < global_inhib
-                                    and e3 - s3 < global_inhib):
-                                dead = True
-                                break
-                        if dead:
-                            break
-                    inh[i0] = s0
-                    inh[i1] = s1
-                    inh[i2] = s2
-                    inh[i3] = s3
-                r = 0
-                for i in range(n):
+        r = 0
+        for q in range(plane):
+            a = 0.0
+            if r < m and pick[r] == q:
+                r += 1
+                a = ft[lay + q] - inh[q]
+                if a >= global_inhib:
+                    a = a - global_inhib
+                    if a != 0.0:
+                        live = True
+                else:
                     a = 0.0
-                    if r < m and pick[r] == i:
-                        r += 1
-                        a = ft[row + i] - inh[i]
-                        if a >= global_inhib:
-                            a = a - global_inhib
-                            if a != 0.0:
-                                live = True
-                        else:
-                            a = 0.0
-                    fp[row + i] = a
-                    total += a
-            else:
-                for i in range(n):
-                    fp[row + i] = 0.0
+            fp[lay + q] = a
+            total += a
         layers[k] = live
     return total
 
