@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from cansim.models import _posecell_kernels as K
-from cansim.models.posecell_network import _wrap_table
+from cansim.models.posecell_network import _gather_table, _wrap_table
 
 
 def _reference_spread(p: np.ndarray, w: np.ndarray, dim: int) -> np.ndarray:
@@ -57,7 +57,7 @@ def test_every_width_spreads_in_the_cpp_order_bit_for_bit(dim, seed, density):
     w /= w.sum()
     half = dim // 2
     out = np.full_like(p, np.nan)  # the kernel must overwrite every cell
-    K._spread(p, w, dim, _wrap_table(nxy, half), _wrap_table(nth, half), out)
+    K._spread(p, w, dim, _wrap_table(nxy, half), _wrap_table(nth, half), out, np.ones(nth, dtype=bool))
     ref = _reference_spread(p, w, dim)
     assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))
 
@@ -65,7 +65,7 @@ def test_every_width_spreads_in_the_cpp_order_bit_for_bit(dim, seed, density):
 def test_an_empty_field_spreads_to_zeros():
     p = np.zeros((6, 7, 7))
     out = np.full_like(p, np.nan)
-    K._spread(p, np.ones(125) / 125, 5, _wrap_table(7, 2), _wrap_table(6, 2), out)
+    K._spread(p, np.ones(125) / 125, 5, _wrap_table(7, 2), _wrap_table(6, 2), out, np.ones(6, dtype=bool))
     assert np.array_equal(out, np.zeros_like(p))
 
 
@@ -92,3 +92,155 @@ def test_dynamics_is_excite_inhibit_global_inhibition_and_normalisation(seed):
                    w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), gi)
     assert t == total
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+def _reference_dynamics(p: np.ndarray, w_e: np.ndarray, e_dim: int, w_i: np.ndarray, i_dim: int, gi: float):
+    """C++ ``excite``, ``inhibit``, global inhibition and normalisation in plain Python floats."""
+    exc = _reference_spread(p, w_e, e_dim)
+    inh = _reference_spread(exc, w_i, i_dim)
+    cells = []
+    for e, h in zip(exc.ravel().tolist(), inh.ravel().tolist()):
+        a = e - h
+        cells.append(a - gi if a >= gi else 0.0)
+    total = 0.0
+    for a in cells:
+        total += a
+    if not total > 0.0:
+        return total, np.array(cells).reshape(p.shape)
+    return total, np.array([a / total for a in cells]).reshape(p.shape)
+
+
+def test_gather_tables_list_each_targets_sources_ascending_with_their_offsets():
+    # n = 6, dim = 5 (half 2): the scatter sends source s to (s + d - 2) mod 6, so target 0 is
+    # reached from 2 (d=0), 1 (d=1), 0 (d=2), 5 (d=3), 4 (d=4); ascending: 0, 1, 2, 4, 5
+    src, off = _gather_table(6, 5, 1, 1)
+    assert src[0].tolist() == [0, 1, 2, 4, 5] and off[0].tolist() == [2, 1, 0, 4, 3]
+    assert src[3].tolist() == [1, 2, 3, 4, 5] and off[3].tolist() == [4, 3, 2, 1, 0]  # interior: no wrap
+    src, off = _gather_table(6, 5, 10, 7)  # strides scale both columns
+    assert src[0].tolist() == [0, 10, 20, 40, 50] and off[0].tolist() == [14, 7, 0, 28, 21]
+
+
+def _gather_args(nxy: int, nth: int, dim: int) -> tuple:
+    return (*_gather_table(nxy, dim, 1, 1), *_gather_table(nxy, dim, nxy, dim), *_gather_table(nth, dim, nxy * nxy, dim * dim))
+
+
+@pytest.mark.parametrize("e_dim,i_dim", [(7, 5), (5, 3), (3, 7), (5, 9), (3, 1)])
+@pytest.mark.parametrize("seed,density,quantile", [(0, 0.02, 0.5), (1, 0.2, 0.9), (2, 0.05, 0.0), (3, 0.02, 1.0)])
+def test_gathered_inhibition_is_the_cpp_scatter_bit_for_bit(e_dim, i_dim, seed, density, quantile):
+    """``dynamics_gather`` gathers the inhibition only for cells excited to >= global inhibition,
+    four cells at a time: every cell must still equal the C++ scatter's. ``quantile`` puts the
+    global inhibition at that share of the excited cells (0: none skipped; 1: all but the peak)."""
+    rng = np.random.default_rng(seed)
+    nth, nxy = 13, 11
+    p = _field(rng, nth, nxy, density)
+    w_e = rng.random(e_dim ** 3); w_e /= w_e.sum()
+    w_i = rng.random(i_dim ** 3); w_i /= w_i.sum()
+    exc = _reference_spread(p, w_e, e_dim)
+    gi = float(np.quantile(exc[exc > 0], quantile)) * 0.5 if quantile else 0.0
+    total, expected = _reference_dynamics(p, w_e, e_dim, w_i, i_dim, gi)
+    got = np.full_like(p, np.nan)  # every cell must be written
+    src = p.copy()
+    t = K.dynamics_gather(src, got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2), _wrap_table(nth, e_dim // 2),
+                          w_i, i_dim, _wrap_table(nxy, i_dim // 2), _wrap_table(nth, i_dim // 2),
+                          *_gather_args(nxy, nth, i_dim), gi, np.ones(nth, dtype=bool))
+    assert np.array_equal(src.view(np.uint64), p.view(np.uint64))  # the source is only read
+    assert t == total
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+def test_a_negative_cell_takes_the_scatter_path_and_still_matches():
+    """With a negative cell an inhibition can be negative, so no cell may be skipped."""
+    rng = np.random.default_rng(5)
+    nth, nxy, gi = 9, 9, 0.05
+    p = _field(rng, nth, nxy, 0.1)
+    p[4, 4, 4] = -30.0  # its neighbours' inhibition turns negative: excited below gi, they still survive
+    w_e = rng.random(7 ** 3); w_e /= w_e.sum()
+    w_i = rng.random(5 ** 3); w_i /= w_i.sum()
+    total, expected = _reference_dynamics(p, w_e, 7, w_i, 5, gi)
+    exc = _reference_spread(p, w_e, 7)
+    assert np.any((exc < gi) & (expected > 0))  # the case a skip would get wrong
+    got = np.full_like(p, np.nan)  # every cell must be written
+    t = K.dynamics_gather(p.copy(), got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
+                          w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), *_gather_args(nxy, nth, 5), gi, np.ones(nth, dtype=bool))
+    assert t == total
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+@pytest.mark.parametrize("nxy,nth,cell", [(21, 36, 1.0), (12, 10, 0.3), (5, 5, 0.5)])
+def test_the_network_equals_its_all_scatter_run_cell_for_cell(nxy, nth, cell):
+    """``PosecellNetwork``'s shortcuts (gathered inhibition, skipped empty layers) against the same
+    network on the plain scatter path, 300 steps of random odometry and injections, every cell's bits."""
+    from cansim.models.posecell_network import PosecellNetwork
+
+    fast, plain = PosecellNetwork(nxy, nth, cell), PosecellNetwork(nxy, nth, cell)
+    plain._gather = None
+    assert fast._gather is not None
+    rng = np.random.default_rng(nxy)
+    for step in range(300):
+        v, w = float(rng.uniform(-0.4, 1.0)), float(rng.uniform(-0.6, 0.6))
+        inj = None
+        if step % 7 == 0:
+            idx = rng.integers(0, fast.size, size=int(rng.integers(1, 4)))
+            inj = (idx.astype(np.int64), rng.random(idx.size) * 0.2)
+        a = fast.step(v, w, 1.0, injection=inj)
+        b = plain.step(v, w, 1.0, injection=inj)
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
+        assert np.array_equal(fast.activity.view(np.uint64), plain.activity.view(np.uint64)), step
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_skipping_empty_layers_changes_no_bit(seed):
+    """``translate``, ``rotate_theta`` and ``best_sums`` given which layers hold only +0.0 (the rest
+    skipped) against the same kernels told every layer may be live; the flags they return are exact."""
+    from cansim.models.posecell_network import PosecellNetwork
+
+    rng = np.random.default_rng(seed)
+    pc = PosecellNetwork(15, 36)
+    p = np.zeros((36, 15, 15))
+    live = rng.random(36) < 0.3
+    live[0] = live[35] = True  # the theta wrap
+    for k in np.flatnonzero(live):
+        p[k] = rng.random((15, 15)) * (rng.random((15, 15)) < 0.2)
+    p[int(np.flatnonzero(live)[0]), 0, 0] = 0.0  # a live flag on zeros is allowed
+    for add in (0.0, np.pi):
+        rot, cs, sn = pc._layer_tables[add]
+        a, b = p.copy(), p.copy()
+        flags = live.copy()
+        K.translate(a, rot, cs, sn, 0.8, flags)
+        K.translate(b, rot, cs, sn, 0.8, np.ones(36, dtype=bool))
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64)) and np.array_equal(flags, live)
+    for s1, s2, weight in ((-1, -2, 0.3), (-35, -35, 1.0), (-3, -4, 0.999), (0, -1, 0.5)):
+        a, b = p.copy(), p.copy()
+        flags = live.copy()
+        K.rotate_theta(a, np.full_like(a, np.nan), s1, s2, weight, flags)
+        K.rotate_theta(b, np.empty_like(b), s1, s2, weight, np.ones(36, dtype=bool))
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
+        assert not np.any(b.any(axis=(1, 2)) & ~flags)  # every layer holding a non-zero cell is flagged
+        args = (pc._half, pc._a_xy, pc._a_th, pc._sin_xy, pc._cos_xy, pc._sin_th, pc._cos_th)
+        got = K.best_sums(a, *args, flags)
+        ref = K.best_sums(b, *args, np.ones(36, dtype=bool))
+        assert np.array_equal(np.array(got).view(np.uint64), np.array(ref).view(np.uint64))
+
+
+def test_a_collapsing_step_with_an_injection_leaves_the_network_as_it_was():
+    """The gathered step reads the state in place (the injection added, then undone): a step that
+    global inhibition silences must leave every bit, and the next steps, as without it."""
+    from cansim.errors import ZeroActivityError
+    from cansim.models.posecell_network import PosecellNetwork
+    from cansim.params import AttractorParams
+
+    params = AttractorParams(global_inhibition=0.004)
+    a, b = PosecellNetwork(params=params), PosecellNetwork(params=params)
+    for pc in (a, b):
+        pc.step(0.3, 0.1, 1.0, injection=(np.array([1234], dtype=np.int64), np.array([0.5])))
+    before = a.activity
+    flat = int(np.argmax(before))
+    with pytest.raises(ZeroActivityError):  # global inhibition 1 silences every cell
+        a._gi = 1.0
+        a.step(0.3, 0.1, 1.0, injection=(np.array([flat, flat, 77], dtype=np.int64), np.array([0.25, 0.5, 0.125])))
+    a._gi = b._gi
+    assert np.array_equal(a.activity.view(np.uint64), before.view(np.uint64))
+    for _ in range(5):
+        x, y = a.step(0.4, -0.2, 1.0), b.step(0.4, -0.2, 1.0)
+        assert np.array_equal(x.view(np.uint64), y.view(np.uint64))
+        assert np.array_equal(a.activity.view(np.uint64), b.activity.view(np.uint64))

@@ -95,9 +95,9 @@ def test_one_cell_translation_along_the_cpp_frame():
     p[18, 4, 7] = 2.0
     p[9, 4, 7] = 3.0
     q = p.copy()
-    k.translate(q, rot, cs, sn, 0.0)
+    k.translate(q, rot, cs, sn, 0.0, np.ones(36, dtype=bool))
     assert np.array_equal(q, p)
-    k.translate(q, rot, cs, sn, 1.0)
+    k.translate(q, rot, cs, sn, 1.0, np.ones(36, dtype=bool))
     assert q[0, 5, 7] == 1.0 and q[18, 3, 7] == 2.0 and q[0].sum() == 1.0 and q[18].sum() == 2.0
     assert q[9].sum() == pytest.approx(3.0, abs=1e-12) and q[9, 4, 7] < 1e-12  # 90 deg leaves along x
 
@@ -114,11 +114,11 @@ def test_translation_conserves_mass_except_the_cpp_corner_leak():
     assert rot[layer] == 0
     p = np.zeros((36, 9, 9))
     p[layer, 4, 4] = 1.0
-    k.translate(p, rot, cs, sn, v)
+    k.translate(p, rot, cs, sn, v, np.ones(36, dtype=bool))
     assert p[layer].sum() == pytest.approx(1.0, abs=1e-15)
     p = np.zeros((36, 9, 9))
     p[layer, 0, 8] = 1.0  # row 0, last column
-    k.translate(p, rot, cs, sn, v)
+    k.translate(p, rot, cs, sn, v, np.ones(36, dtype=bool))
     assert p[layer].sum() == pytest.approx(1.0 - v * math.sin(a) * (1.0 - v * math.cos(a)), abs=1e-15)
     assert p[layer, 1, 0] == pytest.approx(v * v * math.cos(a) * math.sin(a), abs=1e-15)  # the diagonal share wraps
 
@@ -127,7 +127,7 @@ def test_whole_cell_rotation_is_an_exact_roll():
     pc = PosecellNetwork()
     pc.activity = np.random.default_rng(1).random(pc.shape)
     before = pc._p.copy()
-    pc._kernels.rotate_theta(pc._p, pc._tmp, -35, -35, 1.0)  # what vrot * dt = +2 pi / 36 produces
+    pc._kernels.rotate_theta(pc._p, pc._tmp, -35, -35, 1.0, np.ones(36, dtype=bool))  # what vrot * dt = +2 pi / 36 produces
     assert np.array_equal(pc._p, np.roll(before, 1, axis=0))
 
 

@@ -26,8 +26,13 @@ This engine performs the C++ arithmetic in the C++ order:
   is wider than the grid, as in C++), population vector with the ``(i + 1)``
   angle tables, ``- 1`` and the ``[0, n]`` wrap loops.
 
-Trigonometric and exponential functions come from Python's :mod:`math`, i.e. the
-C library, as in the C++ build. The result equals OpenRatSLAM's on identical
+Two shortcuts skip only work whose result is known bit for bit (see
+:mod:`cansim.models._posecell_kernels`): the inhibition is gathered, in the
+scatter's order per cell, only for cells excited to at least the global
+inhibition (the others end at 0 whatever their inhibition), and theta layers
+holding only ``+0.0`` are not translated, rotated or searched. Trigonometric
+and exponential functions come from Python's :mod:`math`, i.e. the C library,
+as in the C++ build. The result equals OpenRatSLAM's on identical
 inputs; this was checked against the C++ core driven the way its ROS nodes
 drive it (see ``bench/README.md``), and the tests pin each rule on hand-made
 cases.
@@ -57,6 +62,24 @@ __all__ = ["PosecellNetwork"]
 def _wrap_table(n: int, half: int) -> np.ndarray:
     """C++ ``generate_wrap``: ``[n-half .. n-1, 0 .. n-1, 0 .. half-1]``."""
     return np.concatenate([np.arange(n - half, n), np.arange(n), np.arange(half)]).astype(np.int64)
+
+
+def _gather_table(n: int, dim: int, src_stride: int, w_stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each target coordinate's ``dim`` sources on one axis, in the C++ scatter's order (ascending).
+
+    The scatter sends source ``s`` to target ``(s + d - dim // 2) mod n`` with kernel offset
+    ``d``; for target ``t`` the sources are ``(t + dim // 2 - d) mod n``. Returns, shape
+    ``(n, dim)`` uint64 each, the sources sorted ascending times ``src_stride`` and their
+    offsets ``d`` times ``w_stride``. Needs ``n >= dim`` (distinct sources).
+    """
+    half = dim // 2
+    src = np.empty((n, dim), dtype=np.uint64)
+    off = np.empty((n, dim), dtype=np.uint64)
+    for t in range(n):
+        pairs = sorted(((t + half - d) % n, d) for d in range(dim))
+        src[t] = [s * src_stride for s, _ in pairs]
+        off[t] = [d * w_stride for _, d in pairs]
+    return src, off
 
 
 def _kernel_weights(dim: int, var: float) -> np.ndarray:
@@ -160,6 +183,12 @@ class PosecellNetwork:
         self._e_xy, self._e_th = _wrap_table(n, self._e_dim // 2), _wrap_table(m, self._e_dim // 2)
         self._i_xy, self._i_th = _wrap_table(n, self._i_dim // 2), _wrap_table(m, self._i_dim // 2)
         self._a_xy, self._a_th = _wrap_table(n, self._half), _wrap_table(m, self._half)
+        d = self._i_dim
+        # the inhibition is gathered (only where it matters) when each source reaches a target once
+        self._gather = (
+            (*_gather_table(n, d, 1, 1), *_gather_table(n, d, n, d), *_gather_table(m, d, n * n, d * d))
+            if d in (1, 3, 5, 7, 9) and min(n, m) >= d and self._w_inh.min() >= 0.0 else None
+        )
         self._sin_xy = np.array([math.sin((i + 1) * 2.0 * math.pi / n) for i in range(n)])
         self._cos_xy = np.array([math.cos((i + 1) * 2.0 * math.pi / n) for i in range(n)])
         self._sin_th = np.array([math.sin((i + 1) * 2.0 * math.pi / m) for i in range(m)])
@@ -171,6 +200,11 @@ class PosecellNetwork:
         self._spare = np.empty_like(self._p)  # the next state is computed here; the two swap after a step
         self._best = np.array([math.floor(n / 2.0), math.floor(n / 2.0), math.floor(m / 2.0)])
         self._p[int(self._best[2]), int(self._best[1]), int(self._best[0])] = 1.0
+        # theta layers of self._p that may hold a non-zero cell (False: only +0.0); the kernels
+        # skip the others. Conservative: a True layer may be all zeros.
+        self._live = np.zeros(m, dtype=np.bool_)
+        self._live[int(self._best[2])] = True
+        self._live_spare = self._live.copy()
         self._k: object = None
 
     def _layers(self, angle_to_add: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -224,6 +258,8 @@ class PosecellNetwork:
         self._p = np.ascontiguousarray(arr.transpose(2, 1, 0), dtype=np.float64)
         self._tmp = np.empty_like(self._p)
         self._spare = np.empty_like(self._p)
+        self._live = np.ones(self._nth, dtype=np.bool_)  # a given activity may hold -0.0: no layer is skipped
+        self._live_spare = self._live.copy()
 
     @property
     def best(self) -> np.ndarray:
@@ -312,13 +348,30 @@ class PosecellNetwork:
         v, w, t = float(vtrans), float(vrot), float(dt)
         cells = self._injection_cells(injection)
         kern = self._kernels
-        p = self._spare  # a step that raises leaves self._p as it was
-        np.copyto(p, self._p)
-        for x, y, th, e in cells:
-            p[th, y, x] += e
-        total = kern.dynamics(
-            p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy, self._i_th, self._gi
-        )
+        p = self._spare  # the next state; a step that raises leaves self._p (and self._live) as they were
+        live = self._live_spare
+        live[:] = self._live
+        if self._gather is not None:
+            src = self._p  # read, not written: the injection is added here and undone on failure
+            undo = [(x, y, th, src[th, y, x]) for x, y, th, _ in cells]
+            for x, y, th, e in cells:
+                src[th, y, x] += e
+                live[th] = True
+            total = kern.dynamics_gather(
+                src, p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim,
+                self._i_xy, self._i_th, *self._gather, self._gi, live
+            )
+            for x, y, th, old in reversed(undo):  # the old values (bits), in reverse for repeated cells
+                src[th, y, x] = old
+        else:
+            np.copyto(p, self._p)
+            for x, y, th, e in cells:
+                p[th, y, x] += e
+            total = kern.dynamics(
+                p, self._tmp, self._w_exc, self._e_dim, self._e_xy, self._e_th, self._w_inh, self._i_dim, self._i_xy,
+                self._i_th, self._gi
+            )
+            live[:] = True
         if not total > 0.0:
             raise ZeroActivityError(
                 "global inhibition silenced every pose cell (OpenRatSLAM would abort); state left unchanged - "
@@ -330,7 +383,7 @@ class PosecellNetwork:
         if v < 0:
             v, add = -v, math.pi
         rot, cs, sn = self._layer_tables[add]
-        kern.translate(p, rot, cs, sn, v)
+        kern.translate(p, rot, cs, sn, v, live)
         if w != 0:
             weight = abs(w) / self._c_size_th
             while weight > 1:
@@ -344,9 +397,12 @@ class PosecellNetwork:
                 s1 -= self._nth
             while s2 > 0:
                 s2 -= self._nth
-            kern.rotate_theta(p, self._tmp, s1, s2, weight)
-        sums = kern.best_sums(p, self._half, self._a_xy, self._a_th, self._sin_xy, self._cos_xy, self._sin_th, self._cos_th)
+            kern.rotate_theta(p, self._tmp, s1, s2, weight, live)
+        sums = kern.best_sums(
+            p, self._half, self._a_xy, self._a_th, self._sin_xy, self._cos_xy, self._sin_th, self._cos_th, live
+        )
         self._p, self._spare = p, self._p
+        self._live, self._live_spare = live, self._live
         self._best = np.array([
             self._wrap(math.atan2(sums[0], sums[1]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
             self._wrap(math.atan2(sums[2], sums[3]) * self._nxy / (2.0 * math.pi) - 1.0, self._nxy),
