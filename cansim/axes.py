@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
 from cansim.errors import InvalidInputError
-from whisker_io.validation import finite_scalar
+from whisker_io.validation import checked, finite_scalar, validate_fields
 
 __all__ = ["Axis"]
 
@@ -31,19 +32,16 @@ class Axis:
     """
 
     name: str
-    size: int
-    step: float
+    size: int = checked(kind=int, minimum=1, maximum=sys.float_info.max, error=InvalidInputError,
+                        label="axis {config.name!r}", message="{name}: size must be a positive integer, got {value!r}")
+    step: float = checked(kind=float, above=0, error=InvalidInputError, reader=finite_scalar,
+                          label="axis {config.name!r} step",
+                          message="axis {config.name!r}: step must be a finite positive number "
+                                  "(metres or radians per cell), got {value!r}")
     angular: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.size, (int,)):
-            raise InvalidInputError(f"axis {self.name!r}: size must be a positive integer, got {self.size!r}")
-        _cells(self.name, self.size)
-        if not finite_scalar(self.step, f"axis {self.name!r} step") > 0:
-            raise InvalidInputError(
-                f"axis {self.name!r}: step must be a finite positive number "
-                f"(metres or radians per cell), got {self.step!r}"
-            )
+        validate_fields(self)  # size: an int the decoders can use as a float (2 pi / size)
 
     @classmethod
     def linear(cls, name: str, size: int, step: float) -> "Axis":

@@ -82,3 +82,67 @@ def test_number_tuple_by_hand():
                     ([-1.0], dict(minimum=0)), ([1.0, 2.0, 3.0], dict(length=2)), ([[1.0]], {})]:
         with pytest.raises(InvalidInputError):
             number_tuple(bad, "f", **kw)
+
+
+# ------------------------------------------- the readers that now use the one field check (issue 21)
+@pytest.mark.parametrize("key", ["low", "high"])
+@pytest.mark.parametrize("value", [10**400, -(10**400)])
+def test_a_sweep_specs_integer_too_large_for_a_float_is_a_config_error(key, value):
+    """TOML integers have no size limit: a huge one raised a bare OverflowError before."""
+    from cansim.errors import ConfigError
+    from cansim.tools.sweep import parse_spec
+
+    spec = {"experiment": "bump", "metrics": ["x"],
+            "random": {"n_samples": 2, "b": {"distribution": "uniform", "low": 0.0, "high": 1.0, key: value}}}
+    with pytest.raises(ConfigError) as info:
+        parse_spec(spec)
+    assert str(info.value) == f"random.b.{key}: expected a finite number, got {value!r}"
+
+
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("n_seeds", 0, "n_seeds: expected an integer >= 1, got 0"),
+    ("n_seeds", 2.0, "n_seeds: expected an integer >= 1, got 2.0"),
+    ("base_seed", True, "base_seed: expected an integer >= 0, got True"),
+    ("base_seed", -1, "base_seed: expected an integer >= 0, got -1"),
+])
+def test_a_sweep_specs_counts_keep_their_messages(key, value, message):
+    from cansim.errors import ConfigError
+    from cansim.tools.sweep import parse_spec
+
+    with pytest.raises(ConfigError) as info:
+        parse_spec({"experiment": "bump", "metrics": ["x"], key: value})
+    assert str(info.value) == message
+
+
+@settings(max_examples=100, deadline=None)
+@given(value=st.one_of(st.sampled_from([math.nan, math.inf, -math.inf, 10**400, "x", True, None, [1.0]]),
+                       st.text(max_size=3)))
+def test_an_experiment_parameter_of_a_wrong_kind_is_refused_naming_it(value):
+    from cansim.experiments.params import resolve
+
+    defaults = {"count": 3, "rate_hz": 1.0, "on": True, "mode": "a"}
+    wants = {"count": "an integer", "rate_hz": "a finite number", "on": "true or false"}
+    for key, want in wants.items():
+        if (key == "on" and isinstance(value, bool)) or (key == "count" and isinstance(value, int)
+                                                          and not isinstance(value, bool)):
+            continue  # what the parameter takes (an integer of any size is a count)
+        with pytest.raises(InvalidInputError) as info:
+            resolve({key: value}, defaults, name="exp")
+        assert str(info.value) == f"exp: {key} must be {want}, got {value!r}"
+
+
+def test_an_experiment_parameter_is_kept_as_its_defaults_type():
+    from cansim.experiments.params import checked_seed, resolve
+
+    out = resolve({"count": 4.0, "rate_hz": 2, "on": np.bool_(False)}, {"count": 3, "rate_hz": 1.0, "on": True},
+                  name="exp")
+    assert (out, [type(v) for v in out.values()]) == ({"count": 4, "rate_hz": 2.0, "on": False}, [int, float, bool])
+    assert checked_seed(np.int64(7)) == 7 and type(checked_seed(np.int64(7))) is int
+
+
+def test_a_slip_angle_too_large_for_a_float_is_refused_typed():
+    from whisker_io.sim.signals import WhiskContact
+
+    with pytest.raises(InvalidInputError, match="^slip_rad must be a float .*too large for a float$"):
+        WhiskContact(0.1, 0.05, 0.1, slip_rad=10**400)
+    assert WhiskContact(0.1, 0.05, 0.1, slip_rad=3).slip_rad == 3.0

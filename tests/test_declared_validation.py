@@ -16,6 +16,7 @@ import ast
 import dataclasses
 import importlib
 import math
+import types
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -198,6 +199,65 @@ def test_config_field_takes_the_same_options() -> None:
         config_field(-1.0, "x_m", float, above=0)  # the defaults are unchanged
 
 
+# ------------------------------------- the store, reader_message and {config.<field>} options
+@dataclass(frozen=True)
+class RecordProbe:
+    """A record that keeps the number read and names another field in its messages (as Axis, SafetyEnvelope)."""
+
+    name: str = "p"
+    length_m: float = checked(1.0, float, above=0, store=True, label="probe {config.name!r}: length_m")
+    count: int = checked(2, int, minimum=1, reader=whole_number, store=True, reader_message="RecordProbe: {error}")
+    step: float = checked(0.5, float, above=0, error=InvalidInputError, reader=finite_scalar, store=True,
+                          message="probe {config.name!r}: step must be positive, got {value!r}")
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        # {config.name!r} in a label: the other field's value, in the default wording
+        ({"length_m": 0}, ConfigError, "probe 'p': length_m must be a finite number > 0, got 0"),
+        ({"name": "C2", "length_m": "1"}, ConfigError, "probe 'C2': length_m must be a finite number > 0, got '1'"),
+        # ... and in a message template
+        ({"name": "q", "step": -1}, InvalidInputError, "probe 'q': step must be positive, got -1"),
+        ({"step": math.nan}, InvalidInputError, "step must be finite, got nan"),  # the reader's own message
+        # reader_message: what the reader refuses is the declared error, its message wrapped
+        ({"count": 2.5}, ConfigError, "RecordProbe: count must be a whole number, got 2.5"),
+        ({"count": [1, 2]}, ConfigError, "RecordProbe: count must be a single number, got an array of shape (2,)"),
+        ({"count": "2"}, ConfigError, "RecordProbe: count must be real numbers, got '2'"),
+        ({"count": 0}, ConfigError, "count must be an integer >= 1, got 0"),  # a number out of range: not wrapped
+    ],
+)
+def test_a_template_names_another_field_and_a_reader_refusal_is_rewrapped(kwargs: dict[str, Any], error: type,
+                                                                           message: str) -> None:
+    with pytest.raises(InvalidInputError) as info:
+        RecordProbe(**kwargs)
+    assert type(info.value) is error, type(info.value)
+    assert str(info.value) == message
+
+
+def test_store_keeps_the_number_read() -> None:
+    p = RecordProbe(length_m=1, count=3.0, step=np.float32(0.25))
+    assert (type(p.length_m), type(p.count), type(p.step)) == (float, int, float)
+    assert (p.length_m, p.count, p.step) == (1.0, 3, 0.25)
+    assert type(RecordProbe(step=2).step) is float
+
+
+@settings(max_examples=200, deadline=None)
+@given(name=st.text(max_size=6), length=st.one_of(st.integers(1, 10**6), st.floats(1e-9, 1e6)),
+       count=st.integers(1, 10**9), as_float=st.booleans())
+def test_stored_values_equal_the_given_numbers_and_templates_name_the_field(name: str, length: float, count: int,
+                                                                           as_float: bool) -> None:
+    p = RecordProbe(name=name, length_m=length, count=float(count) if as_float else count, step=length)
+    assert type(p.length_m) is float and p.length_m == float(length) and p.step == float(length)
+    assert type(p.count) is int and p.count == count
+    with pytest.raises(ConfigError) as info:
+        RecordProbe(name=name, length_m=-length)
+    assert str(info.value) == f"probe {name!r}: length_m must be a finite number > 0, got {-length!r}"
+
+
 @pytest.mark.parametrize(
     "declare",
     [
@@ -214,6 +274,12 @@ def test_config_field_takes_the_same_options() -> None:
         lambda: checked(1.0, float, message="{nme} must be > 0"),  # a field the template does not have
         lambda: checked(1.0, float, message="{0} must be > 0"),  # a positional field
         lambda: checked(1.0, float, label=3),  # a label is text
+        lambda: checked(1.0, float, label="axis {config.name!r"),  # an unclosed field
+        lambda: checked(1.0, float, label="axis {name}"),  # a label names the configuration's fields only
+        lambda: checked(1.0, float, reader_message="wrapped: {error}"),  # no reader to wrap
+        lambda: checked(1.0, float, reader=finite_scalar, reader_message="wrapped: {err}"),  # not the reader's error
+        lambda: checked("a", str, store=True),  # only a number is read and stored
+        lambda: checked(True, bool, store=True),
     ],
 )
 def test_a_malformed_declaration_fails_when_the_class_is_written(declare: Any) -> None:
@@ -248,6 +314,9 @@ CLASSES = [_load(m, n) for m, n in _declaring_classes()]
 REQUIRED: dict[str, dict[str, Any]] = {
     "cansim.studies.ch5_object_maps.StudyConfig": {
         "n_loops": 1, "noise_scale": 0.3, "thresholds": {"svr": (0.4, 0.5)}, "radial_model": None, "seed": 0},
+    "cansim.axes.Axis": {"name": "x", "size": 4, "step": 0.1},
+    "whisker_io.array.geometry.WhiskerModule": {"name": "C2", "column": "C", "row": 2,
+                                                "base_position_m": (0.01, 0.02, 0.0), "length_m": 0.1},
 }
 
 
@@ -270,6 +339,8 @@ def test_the_converted_classes_are_found() -> None:
         "WhiskPattern", "RCP", "RetractAtMax", "ContactAngleParams", "DetectionParams", "PFHParams",
         "OdometryNoise", "WhiskSchedule", "SignalParams", "SweepParams", "ContactNoise", "LoopShape",
         "AttractorParams", "PlanarMotion", "SpikingParams",
+        # messages naming another field ({config.name!r}), reader errors re-wrapped, numbers stored back
+        "Axis", "WhiskerModule", "SafetyEnvelope", "MazeRoute",
     }
     assert expected <= names, expected - names
     for cls in CLASSES:
@@ -280,7 +351,7 @@ def test_the_converted_classes_are_found() -> None:
 def test_the_defaults_build_and_pass_their_declared_checks(cls: type) -> None:
     config = _build(cls)
     for name, rule in field_checks(cls):
-        assert rule.check(getattr(config, name), name) is getattr(config, name)
+        assert rule.check(getattr(config, name), name, config) is getattr(config, name)
 
 
 def _bad_values(rule: FieldCheck) -> st.SearchStrategy[Any]:
@@ -320,6 +391,8 @@ def test_the_new_options_are_declared_somewhere() -> None:
     assert any(r.error is InvalidInputError for r in rules) and any(r.error is ConfigError for r in rules)
     assert {r.reader for r in rules} >= {None, finite_scalar, whole_number}
     assert any(r.label is not None for r in rules) and any(r.message is not None for r in rules)
+    assert any(r.reader_message is not None for r in rules) and any(r.store for r in rules)
+    assert any("{config." in (r.label or "") for r in rules) and any("{config." in (r.message or "") for r in rules)
 
 
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
@@ -329,16 +402,24 @@ def test_a_bad_declared_field_raises_its_declared_error_naming_it(data: st.DataO
     value = data.draw(_bad_values(rule), label=name)
     with pytest.raises(InvalidInputError) as info:  # the one error tree
         _build(cls, **{name: value})
-    label = name if rule.label is None else rule.label
+    good = _build(cls)  # the other fields, as a template names them ({config.name!r})
+    config = types.SimpleNamespace(**{f.name: getattr(good, f.name) for f in dataclasses.fields(cls)})
+    label = name if rule.label is None else rule.label.format(config=config)
     text = str(info.value)
     shown = tuple(value) if isinstance(value, list) else value  # validate_fields makes a list a tuple first
     hint = f"; {rule.hint}" if rule.hint else ""
-    declared = None if rule.message is None else rule.message.format(name=label, value=shown, want="") + hint
+    declared = (None if rule.message is None
+                else rule.message.format(name=label, value=shown, want="", config=config) + hint)
     if rule.reader is not None:
         try:
             rule.reader(shown, label)
-        except InvalidInputError:  # a value that is no number: the reader's own error and message, naming the field
-            assert text.startswith(f"{label} must be "), (cls, text)
+        except InvalidInputError as exc:  # a value that is no number: the reader's error and message, naming the field
+            if rule.reader_message is None:
+                assert type(info.value) is type(exc) and text == str(exc), (cls, text)
+            else:  # ... re-raised as the declared error
+                assert type(info.value) is rule.error, (cls, name, type(info.value))
+                assert text == rule.reader_message.format(error=exc, config=config), (cls, text)
+            assert label in text, (cls, text)
             return
     assert type(info.value) is rule.error, (cls, name, type(info.value))
     if declared is None:

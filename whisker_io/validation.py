@@ -306,6 +306,7 @@ def config_field(
     error: type[InvalidInputError] = ConfigError,
     reader: Callable[[Any, str], float | int] | None = None,
     message: str | None = None,
+    reader_message: str | None = None,
 ) -> Any:
     """Check one field of a configuration and return it unchanged.
 
@@ -350,6 +351,10 @@ def config_field(
         ``{value}`` (the value as given: write ``{value!r}``) and ``{want}`` (the
         allowed values in words, e.g. ``"a finite number > 0"``). Default
         ``"{name} must be {want}, got {value!r}"``.
+    reader_message : str, optional
+        With a ``reader``: a value the reader refuses raises ``error`` (not the reader's
+        own class) with this :meth:`str.format` template of ``{error}``, the reader's
+        message (e.g. ``"SafetyEnvelope: {error}"``). Default: the reader's error as it is.
 
     Returns
     -------
@@ -372,10 +377,26 @@ def config_field(
     ...
     whisker_io.errors.ConfigError: exc_width must be an odd integer >= 1, got 4
     """
+    _read_field(value, name, kind, minimum, above, maximum, odd, choices, optional, hint, error, reader, message,
+                reader_message)
+    return value
+
+
+def _read_field(value: Any, name: str, kind: type, minimum: float | None, above: float | None,
+                maximum: float | None, odd: bool, choices: Sequence[str] | None, optional: bool, hint: str,
+                error: type[InvalidInputError], reader: Callable[[Any, str], float | int] | None,
+                message: str | None, reader_message: str | None, config: Any = None) -> Any:
+    """:func:`config_field`'s check; returns the number read (the reader's result, else ``value``)."""
     if optional and value is None:
         return value
     if reader is not None:
-        number: Any = reader(value, name)  # a value that is no number: the reader's error and message
+        if reader_message is None:
+            number: Any = reader(value, name)  # a value that is no number: the reader's error and message
+        else:
+            try:
+                number = reader(value, name)
+            except InvalidInputError as exc:
+                raise error(reader_message.format(error=exc, config=config)) from None
         ok = True
     else:
         number = value
@@ -390,7 +411,7 @@ def config_field(
     if ok and choices is not None:
         ok = value in tuple(choices)
     if ok:
-        return value
+        return number
     if choices is not None:
         want = "one of " + ", ".join(repr(c) for c in choices)
     else:
@@ -401,7 +422,7 @@ def config_field(
     if message is None:
         text = f"{name} must be {want}, got {value!r}"
     else:
-        text = message.format(name=name, value=value, want=want)
+        text = message.format(name=name, value=value, want=want, config=config)
     raise error(text + (f"; {hint}" if hint else ""))
 
 
@@ -435,11 +456,22 @@ def plain_fields(config: Any) -> None:
     config : dataclass instance
         A (frozen) configuration dataclass; changed in place.
     """
-    for f in dataclasses.fields(config):
-        value = getattr(config, f.name)
+    for name in _field_names(type(config)):
+        value = getattr(config, name)
+        if type(value) in _PLAIN_TYPES:  # already plain (the common case): nothing to convert
+            continue
         plain = _plain(value)
         if plain is not value:
-            object.__setattr__(config, f.name, plain)
+            object.__setattr__(config, name, plain)
+
+
+#: values :func:`_plain` returns unchanged (checked by type first: a record is built per sample)
+_PLAIN_TYPES = frozenset({float, int, str, bool, type(None)})
+
+
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls))
 
 
 # ------------------------------------------------------------ declared field checks
@@ -481,6 +513,17 @@ class FieldCheck:
     message : str, optional
         The message template of a bad value (``{name}``, ``{value!r}``, ``{want}``; see
         :func:`config_field`).
+    reader_message : str, optional
+        A value the reader refuses raises ``error`` with this template of ``{error}``
+        (the reader's message), e.g. ``"SafetyEnvelope: {error}"`` (see :func:`config_field`).
+    store : bool
+        Store the number read back into the field: the reader's result (``float`` /
+        ``int``), else ``float(value)`` / ``int(value)`` (a record that keeps the
+        converted number, e.g. ``length_m=1`` -> ``1.0``).
+
+    ``label``, ``message`` and ``reader_message`` may name the configuration's other
+    fields as ``{config.<field>}`` (e.g. ``label="axis {config.name!r}: size"``), so a
+    message can say which module or axis the bad value belongs to.
 
     Raises
     ------
@@ -488,8 +531,9 @@ class FieldCheck:
         A kind other than int, float, bool or str, bounds on a non-number, choices on a
         non-string, ``odd`` on a non-integer, an error outside the project's
         :class:`~whisker_io.errors.InvalidInputError` tree, a reader other than
-        :func:`finite_scalar` (float) or :func:`whole_number` (int), or a message template
-        with other fields (a mistake in the declaration, raised when the class is defined).
+        :func:`finite_scalar` (float) or :func:`whole_number` (int), a template with other
+        fields, a ``reader_message`` without a reader, or ``store`` on a non-number (a
+        mistake in the declaration, raised when the class is defined).
     """
 
     kind: type
@@ -504,6 +548,8 @@ class FieldCheck:
     label: str | None = None
     reader: Callable[[Any, str], float | int] | None = None
     message: str | None = None
+    reader_message: str | None = None
+    store: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in _KIND_NAMES:
@@ -524,24 +570,76 @@ class FieldCheck:
             raise TypeError("reader is finite_scalar (kind float) or whole_number (kind int)")
         if self.label is not None and not isinstance(self.label, str):
             raise TypeError(f"label must be a str, got {self.label!r}")
-        if self.message is not None:
-            try:
-                self.message.format(name="", value=0, want="")
-            except (AttributeError, KeyError, IndexError, ValueError) as exc:
-                raise TypeError(f"message must be a str.format template of name, value and want: {exc!r}") from None
+        for option, fields in (("label", {}), ("message", {"name": "", "value": 0, "want": ""}),
+                               ("reader_message", {"error": ""})):
+            template = getattr(self, option)
+            if template is not None:
+                try:
+                    template.format(config=_ANY_CONFIG, **fields)
+                except (AttributeError, KeyError, IndexError, ValueError, TypeError) as exc:
+                    raise TypeError(f"{option} must be a str.format template of {', '.join([*fields, 'config'])}: "
+                                    f"{exc!r}") from None
+        if self.reader_message is not None and self.reader is None:
+            raise TypeError("reader_message needs a reader")
+        if self.store and self.kind not in (int, float):
+            raise TypeError("store needs kind int or float")
+        # validate_fields' valid path of a field read by a reader, its label fixed (no template), no choices:
+        # (reader, label, lowest, above, highest, store), the bounds as numbers (a per-sample record is built per step)
+        fast = None
+        if self.reader is not None and not self.odd and (self.label is None or "{" not in self.label):
+            fast = (self.reader, self.label, -math.inf if self.minimum is None else self.minimum,
+                    -math.inf if self.above is None else self.above, math.inf if self.maximum is None else self.maximum,
+                    self.store)
+        object.__setattr__(self, "_fast", fast)
 
-    def check(self, value: Any, name: str) -> Any:
+    def check(self, value: Any, name: str, config: Any = None) -> Any:
         """Apply the constraint to ``value`` (the field ``name``) and return it unchanged.
+
+        Parameters
+        ----------
+        value : object
+            The field's value.
+        name : str
+            The field's name.
+        config : dataclass instance, optional
+            The configuration the field belongs to; needed when a template names its
+            fields (``{config.<field>}``).
 
         Raises
         ------
         ConfigError
             As :func:`config_field` (``error`` if declared; the field shown as ``label``).
         """
-        return config_field(value, name if self.label is None else self.label, self.kind, minimum=self.minimum,
-                            above=self.above, maximum=self.maximum, odd=self.odd, choices=self.choices,
-                            optional=self.optional, hint=self.hint, error=self.error, reader=self.reader,
-                            message=self.message)
+        self.read(value, name, config)
+        return value
+
+    def read(self, value: Any, name: str, config: Any = None) -> Any:
+        """Apply the constraint and return the value to keep: the number read when ``store``, else ``value``.
+
+        Raises
+        ------
+        ConfigError
+            As :meth:`check`.
+        """
+        label = name if self.label is None else self.label if "{" not in self.label else self.label.format(config=config)
+        number = _read_field(value, label, self.kind, self.minimum, self.above, self.maximum, self.odd, self.choices,
+                             self.optional, self.hint, self.error, self.reader, self.message, self.reader_message,
+                             config)
+        if not self.store or number is None:
+            return value
+        if self.reader is not None:
+            return number
+        return float(number) if self.kind is float else int(number)
+
+
+class _AnyFields:
+    """Stands for a configuration when a template is checked at declaration: every field is ``""``."""
+
+    def __getattr__(self, name: str) -> str:
+        return ""
+
+
+_ANY_CONFIG = _AnyFields()
 
 
 def checked(
@@ -560,6 +658,8 @@ def checked(
     label: str | None = None,
     reader: Callable[[Any, str], float | int] | None = None,
     message: str | None = None,
+    reader_message: str | None = None,
+    store: bool = False,
     **field_options: Any,
 ) -> Any:
     """A dataclass field that declares its own constraint (read by :func:`validate_fields`).
@@ -583,7 +683,11 @@ def checked(
         :class:`~whisker_io.errors.ConfigError` naming the field,
         ``"{name} must be {want}, got {value!r}"``; a sensor-stage class keeps its own,
         e.g. ``checked(0.3, float, above=0, error=InvalidInputError, reader=finite_scalar,
-        message="{name} must be positive, got {value!r}")``.
+        message="{name} must be positive, got {value!r}")``; the templates may name
+        other fields as ``{config.<field>}``.
+    reader_message, store
+        A reader's refusal re-raised as ``error`` with this template of ``{error}``; the
+        number read stored back into the field (see :class:`FieldCheck`).
     **field_options
         Passed on to :func:`dataclasses.field` (``repr``, ``compare``, ``metadata`` ...).
 
@@ -617,7 +721,8 @@ def checked(
         raise TypeError("checked() needs the field's kind: int, float, bool or str")
     rule = FieldCheck(kind, minimum=minimum, above=above, maximum=maximum, odd=odd,
                       choices=None if choices is None else tuple(choices), optional=optional, hint=hint,
-                      error=error, label=label, reader=reader, message=message)
+                      error=error, label=label, reader=reader, message=message, reader_message=reader_message,
+                      store=store)
     metadata = {**field_options.pop("metadata", {}), CHECK_KEY: rule}
     return dataclasses.field(default=default, default_factory=default_factory, metadata=metadata, **field_options)
 
@@ -674,7 +779,9 @@ def validate_fields(config: Any) -> None:
         The first declared field (in field order) that is of the wrong kind or out of
         range; the message is :func:`config_field`'s (field name, allowed values, value
         given, hint). A field that declares ``error`` raises that class instead, and one
-        that declares a ``reader`` raises the reader's error for a value that is no number.
+        that declares a ``reader`` raises the reader's error for a value that is no number
+        (``error`` with ``reader_message`` if declared). A field declared with ``store``
+        keeps the number read (``float`` / ``int``).
 
     Examples
     --------
@@ -692,6 +799,33 @@ def validate_fields(config: Any) -> None:
     ...
     whisker_io.errors.ConfigError: stop_s must be a finite number >= 0, got -1.0
     """
-    plain_fields(config)
-    for name, rule in field_checks(type(config)):
-        rule.check(getattr(config, name), name)
+    for name, rule in _plan(type(config)):  # plain_fields and the checks in one pass over the fields
+        value = getattr(config, name)
+        if type(value) not in _PLAIN_TYPES:
+            plain = _plain(value)
+            if plain is not value:
+                object.__setattr__(config, name, plain)
+                value = plain
+        if rule is None:
+            continue
+        fast = rule._fast
+        if fast is not None and value is not None:  # the valid path of a number read by a reader, inline
+            reader, label, lowest, above, highest, store = fast
+            try:
+                number = reader(value, name if label is None else label)
+            except InvalidInputError:
+                number = None  # rule.read raises the declared error and message
+            if number is not None and lowest <= number <= highest and number > above:
+                if store and number is not value:
+                    object.__setattr__(config, name, number)
+                continue
+        kept = rule.read(value, name, config)  # a bad value raises here; other kinds are checked here
+        if kept is not value:  # a field declared with store=True: the number read
+            object.__setattr__(config, name, kept)
+
+
+@functools.cache
+def _plan(cls: type) -> tuple[tuple[str, FieldCheck | None], ...]:
+    """Every field of ``cls`` with its declared check (None for an unchecked field), in field order."""
+    rules = dict(field_checks(cls))
+    return tuple((name, rules.get(name)) for name in _field_names(cls))

@@ -9,13 +9,14 @@ fails with a message instead of a NaN in the results table.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from numbers import Integral, Real
 from typing import Any, Optional, Sequence
 
+import numpy as np
+
 from cansim.errors import ConfigError, InvalidInputError
-from whisker_io.validation import finite_scalar
+from whisker_io.validation import config_field
 
 __all__ = ["resolve", "require", "checked_seed"]
 
@@ -57,29 +58,32 @@ def resolve(params: Any, defaults: Mapping[str, Any], *, name: str,
     out = dict(defaults)
     for key, value in params.items():
         default = defaults[key]
-        if isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise InvalidInputError(f"{name}: {key} must be true or false, got {value!r}")
-        elif isinstance(default, int):
-            if isinstance(value, bool) or not isinstance(value, Integral):
-                if isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(float(value)) \
-                        and float(value).is_integer():
-                    value = int(value)
-                else:
-                    raise InvalidInputError(f"{name}: {key} must be an integer, got {value!r}")
-            value = int(value)
-        elif isinstance(default, float):
-            if isinstance(value, bool) or not isinstance(value, Real):
-                raise InvalidInputError(f"{name}: {key} must be a number, got {value!r}")
-            value = finite_scalar(value, f"{name}: {key}")  # NaN, inf and ints too large for a float
-        elif isinstance(default, str):
-            if not isinstance(value, str):
-                raise InvalidInputError(f"{name}: {key} must be a string, got {value!r}")
+        kind = next((k for k in (bool, int, float, str) if isinstance(default, k)), None)  # bool before int
+        if kind is int and _integral_float(value):
+            value = int(value)  # 3.0 from a TOML file or a float grid is the count 3
+        if kind is not None:  # the one field check, with the message of a sweep cell's parameter
+            value = config_field(value, f"{name}: {key}", kind, error=InvalidInputError, message=_MESSAGES[kind])
+            value = kind(value)  # np.int64 -> int, np.bool_ -> bool (what a default of that type is)
         out[key] = value
     for key, allowed in (choices or {}).items():
         if out[key] not in allowed:
             raise InvalidInputError(f"{name}: {key} must be one of {list(allowed)}, got {out[key]!r}")
     return out
+
+
+#: the message of a parameter value of the wrong kind, by the kind of its default
+_MESSAGES = {bool: "{name} must be true or false, got {value!r}", int: "{name} must be an integer, got {value!r}",
+             float: "{name} must be a finite number, got {value!r}", str: "{name} must be a string, got {value!r}"}
+
+
+def _integral_float(value: object) -> bool:
+    """A real number that is not an integer type but has an integral finite value (``3.0``)."""
+    if isinstance(value, (Integral, bool, np.bool_)) or not isinstance(value, Real):
+        return False
+    try:
+        return float(value).is_integer()  # False for NaN and inf
+    except OverflowError:  # pragma: no cover - a Real too large for a float that is no int
+        return False
 
 
 def require(condition: bool, message: str) -> None:
@@ -96,6 +100,4 @@ def checked_seed(seed: object) -> int:
     ConfigError
         A bool, a float, a string, a negative number (the message says what to give).
     """
-    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
-        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
-    return int(seed)
+    return int(config_field(seed, "seed", int, minimum=0, message="{name} must be a non-negative integer, got {value!r}"))

@@ -86,6 +86,7 @@ from typing import Any
 import numpy as np
 
 from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
+from whisker_io.validation import config_field
 
 __all__ = [
     "check_parameters",
@@ -226,16 +227,17 @@ def _one_kind(key: str, values: tuple[Scalar, ...]) -> tuple[Scalar, ...]:
     return values
 
 
+#: the message of a malformed number of the spec (config_field's template: key, allowed values, value given)
+_EXPECTED = "{name}: expected {want}, got {value!r}"
+
+
 def _int(key: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ConfigError(f"{key}: expected an integer >= {minimum}, got {value!r}")
-    return value
+    return int(config_field(value, key, int, minimum=minimum, message=_EXPECTED))
 
 
 def _number(key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{key}: expected a finite number, got {value!r}")
-    return float(value)
+    # an integer too large for a float is refused here too (TOML integers have no size limit)
+    return float(config_field(value, key, float, message=_EXPECTED))
 
 
 def _table(key: str, value: Any) -> Mapping[str, Any]:

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import config_field, finite_array, finite_scalar, finite_vector
+from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields
 
 __all__ = [
     "COLUMNS",
@@ -135,21 +135,23 @@ class WhiskerModule:
 
     name: str
     column: str
-    row: int
+    row: int = checked(kind=int, label="module {config.name!r}: row", hint="rows are numbered 1, 2, ... from rostral")
     base_position_m: NDArray[np.float64]
-    length_m: float
+    length_m: float = checked(kind=float, above=0, label="module {config.name!r}: length_m", hint="give metres",
+                              store=True)
     base_rotation: NDArray[np.float64] | Rotation | None = None
 
     def __post_init__(self) -> None:
+        given_position, given_rotation = self.base_position_m, self.base_rotation  # as given, for the messages
+        validate_fields(self)  # row, length_m; the vector and the rotation below
         try:
             pos = finite_vector(self.base_position_m, 3, "base_position_m")
         except InvalidInputError:
             raise ConfigError(
                 f"module {self.name!r}: base_position_m must be 3 finite numbers (metres), "
-                f"got {self.base_position_m!r}"
+                f"got {given_position!r}"
             ) from None
-        config_field(self.row, f"module {self.name!r}: row", int, hint="rows are numbered 1, 2, ... from rostral")
-        length = float(config_field(self.length_m, f"module {self.name!r}: length_m", float, above=0, hint="give metres"))
+        length = self.length_m
         rot = self.base_rotation
         if rot is None:
             mat = radial_base_rotation(pos)
@@ -161,7 +163,7 @@ class WhiskerModule:
             except InvalidInputError:
                 raise ConfigError(
                     f"module {self.name!r}: base_rotation must be a 3x3 matrix of finite numbers or a "
-                    f"scipy Rotation, got {rot!r}"
+                    f"scipy Rotation, got {given_rotation!r}"
                 ) from None
             if (
                 not np.allclose(mat.T @ mat, np.eye(3), atol=1e-6)

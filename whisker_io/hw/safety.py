@@ -21,7 +21,7 @@ base, the tool pointing down within 90 degrees, 0.1 m/s TCP speed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from whisker_io.errors import ConfigError, InvalidInputError, SafetyViolationError, StaleStateError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import finite_scalar, finite_vector
+from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = ["SafetyEnvelope", "HARD_CEILINGS"]
 
@@ -53,6 +53,15 @@ _PATH_SAMPLES = 8
 
 
 _VECTOR_FIELDS = frozenset({"workspace_min", "workspace_max", "tool_reference_axis"})
+#: the declared check of every scalar limit (read by whisker_io.validation.validate_fields): a finite
+#: number > 0 (a limit given as a sequence would skip every check), kept as float / int; the reader's
+#: refusal (NaN, text, an array) re-raised as a ConfigError
+_LIMIT = dict(above=0, store=True, reader_message="SafetyEnvelope: {error}",
+              message="{name} must be {want}, got {value!r}")
+#: a limit with a hard ceiling (HARD_CEILINGS) as its maximum
+_CEILING = dict(_LIMIT, message="{name} must be {want} (its hard ceiling: the safety envelope cannot be widened "
+                                "beyond it), got {value!r}")
+_CEILED = dict(_CEILING, reader=finite_scalar)
 
 
 def _command_scalar(value, name: str) -> float:
@@ -128,45 +137,31 @@ class SafetyEnvelope:
     workspace_min: tuple[float, float, float] = (-0.5, -0.5, 0.05)
     workspace_max: tuple[float, float, float] = (0.5, 0.5, 0.7)
     tool_reference_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
-    max_tool_tilt: float = math.pi / 2
-    max_tcp_speed: float = 0.1
-    max_tcp_acceleration: float = 0.5
-    max_joint_speed: float = 0.1
-    max_joint_acceleration: float = 0.5
-    max_servo_step: float = 0.002
-    max_servo_rotation_step: float = math.radians(1.0)
-    min_servo_period: float = 0.002
-    max_servo_period: float = 0.1
-    max_deflection: float = 2000.0
-    overload_samples: int = 200
-    staleness_timeout: float = 0.25
-    joint_speed_tolerance: float = 1.25
+    max_tool_tilt: float = checked(math.pi / 2, float, maximum=HARD_CEILINGS["max_tool_tilt"], **_CEILED)
+    max_tcp_speed: float = checked(0.1, float, maximum=HARD_CEILINGS["max_tcp_speed"], **_CEILED)
+    max_tcp_acceleration: float = checked(0.5, float, maximum=HARD_CEILINGS["max_tcp_acceleration"], **_CEILED)
+    max_joint_speed: float = checked(0.1, float, maximum=HARD_CEILINGS["max_joint_speed"], **_CEILED)
+    max_joint_acceleration: float = checked(0.5, float, maximum=HARD_CEILINGS["max_joint_acceleration"], **_CEILED)
+    max_servo_step: float = checked(0.002, float, maximum=HARD_CEILINGS["max_servo_step"], **_CEILED)
+    max_servo_rotation_step: float = checked(math.radians(1.0), float,
+                                             maximum=HARD_CEILINGS["max_servo_rotation_step"], **_CEILED)
+    min_servo_period: float = checked(0.002, float, reader=finite_scalar, **_LIMIT)
+    max_servo_period: float = checked(0.1, float, maximum=HARD_CEILINGS["max_servo_period"], **_CEILED)
+    max_deflection: float = checked(2000.0, float, maximum=HARD_CEILINGS["max_deflection"], **_CEILED)
+    overload_samples: int = checked(200, int, maximum=HARD_CEILINGS["overload_samples"], reader=whole_number,
+                                    **_CEILING)
+    staleness_timeout: float = checked(0.25, float, maximum=HARD_CEILINGS["staleness_timeout"], **_CEILED)
+    joint_speed_tolerance: float = checked(1.25, float, reader=finite_scalar, **dict(_LIMIT, above=None, minimum=1.0))
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
+        vectors = {name: getattr(self, name) for name in _VECTOR_FIELDS}  # as given (validate_fields makes lists tuples)
+        validate_fields(self)  # every scalar limit: finite, > 0, under its ceiling; stored as float / int
+        for name in ("workspace_min", "workspace_max", "tool_reference_axis"):
             try:
-                if f.name in _VECTOR_FIELDS:
-                    checked = tuple(float(v) for v in finite_vector(value, 3, f.name))
-                else:
-                    # a scalar limit given as a sequence would skip every limit check
-                    checked = finite_scalar(value, f.name)
+                corner = tuple(float(v) for v in finite_vector(vectors[name], 3, name))
             except InvalidInputError as exc:
                 raise ConfigError(f"SafetyEnvelope: {exc}") from None
-            if f.name == "overload_samples":
-                if isinstance(value, bool) or not float(value).is_integer():
-                    raise ConfigError("overload_samples must be an integer number of samples; "
-                                      f"got {value!r}")
-                checked = int(checked)
-            object.__setattr__(self, f.name, checked)
-            if f.name not in _VECTOR_FIELDS:
-                if checked <= 0:
-                    raise ConfigError(f"{f.name} must be > 0; got {value}")
-                ceiling = HARD_CEILINGS.get(f.name)
-                if ceiling is not None and checked > ceiling:
-                    raise ConfigError(
-                        f"{f.name}={value} exceeds its hard ceiling {ceiling}; "
-                        "the safety envelope cannot be widened beyond it")
+            object.__setattr__(self, name, corner)
         if not all(lo < hi for lo, hi in zip(self.workspace_min, self.workspace_max)):
             raise ConfigError("workspace_min must be < workspace_max on every axis; got "
                                     f"{self.workspace_min} / {self.workspace_max}")
@@ -174,8 +169,6 @@ class SafetyEnvelope:
             raise ConfigError("tool_reference_axis must be a non-zero vector")
         if self.min_servo_period > self.max_servo_period:
             raise ConfigError("min_servo_period must be <= max_servo_period")
-        if self.joint_speed_tolerance < 1.0:
-            raise ConfigError("joint_speed_tolerance must be >= 1")
 
     # ------------------------------------------------------------------ poses
     def _tilt(self, rotation: Rotation) -> np.ndarray:

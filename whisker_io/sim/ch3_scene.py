@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import make_maze
 from whisker_io.sim.planar_chain import MAX_COORDINATE_M
-from whisker_io.validation import finite_array, finite_scalar
+from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields
 
 __all__ = ["CH3_MAZE_WAYPOINTS_M", "CH3_OBSTACLE_HEIGHT_M", "MAX_PLACES", "MazeRoute", "ch3_terrain"]
 
@@ -114,11 +114,15 @@ class MazeRoute:
     """
 
     waypoints_m: tuple[tuple[float, float], ...] = CH3_MAZE_WAYPOINTS_M
-    corner_radius_m: float = 0.08
-    step_m: float = 0.015
+    corner_radius_m: float = checked(0.08, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                                     message="{name} must be > 0, got {value!r}", store=True)
+    step_m: float = checked(0.015, float, above=0, error=InvalidInputError, reader=finite_scalar,
+                            message="{name} must be > 0, got {value!r}", store=True)
 
     def __post_init__(self) -> None:
-        wp = finite_array(self.waypoints_m, (None, 2), "waypoints_m")
+        given_waypoints = self.waypoints_m  # as given, for the message (validate_fields makes a list a tuple)
+        validate_fields(self)  # the radius and the step; the route's shape below
+        wp = finite_array(given_waypoints, (None, 2), "waypoints_m")
         if wp.shape[0] < 3:
             raise InvalidInputError(f"waypoints_m needs at least 3 corners of a closed route, got {wp.shape[0]}")
         if np.any(np.abs(wp) > MAX_COORDINATE_M):
@@ -130,9 +134,7 @@ class MazeRoute:
         area = 0.5 * float(np.sum(wp[:, 0] * np.roll(wp[:, 1], -1) - np.roll(wp[:, 0], -1) * wp[:, 1]))
         if not area > 0:
             raise InvalidInputError("waypoints_m must run counter-clockwise (positive signed area); reverse the list")
-        r = finite_scalar(self.corner_radius_m, "corner_radius_m")
-        if not r > 0:
-            raise InvalidInputError(f"corner_radius_m must be > 0, got {self.corner_radius_m!r}")
+        r = self.corner_radius_m
         turns = self._turns(wp)
         if np.any(np.abs(turns) > math.pi - 1e-6):
             raise InvalidInputError("a corner of waypoints_m turns back on itself (180 deg); add a corner")
@@ -144,12 +146,8 @@ class MazeRoute:
                 f"corner_radius_m {r} is too large: the arcs at corners {i} and {(i + 1) % len(wp)} need "
                 f"{need[i]:.3f} m of a {lengths[i]:.3f} m leg; use a smaller radius"
             )
-        step = finite_scalar(self.step_m, "step_m")
-        if not step > 0:
-            raise InvalidInputError(f"step_m must be > 0, got {self.step_m!r}")
+        step = self.step_m
         object.__setattr__(self, "waypoints_m", tuple((float(x), float(y)) for x, y in wp))
-        object.__setattr__(self, "corner_radius_m", r)
-        object.__setattr__(self, "step_m", step)
         places = self.perimeter_m / step
         if not 4 <= places <= MAX_PLACES:
             raise InvalidInputError(

@@ -297,8 +297,13 @@ class WhiskContact:
         if isinstance(slip, (str, bytes, bool)) or not (isinstance(slip, (int, float, np.floating, np.integer))
                                                         and slip > 0):
             raise InvalidInputError(f"slip_rad must be > 0 (inf for no slip), got {self.slip_rad!r}")
+        try:
+            slip = float(slip)
+        except OverflowError:  # an int too large for a float: refused like finite_scalar does, not a bare error
+            raise InvalidInputError("slip_rad must be a float (inf for no slip), got an integer too large for a float"
+                                    ) from None
         n.setflags(write=False)
-        object.__setattr__(self, "slip_rad", float(slip))
+        object.__setattr__(self, "slip_rad", slip)
         object.__setattr__(self, "angle_rad", angle)
         object.__setattr__(self, "radial_distance_m", a)
         object.__setattr__(self, "whisker_length_m", L)
