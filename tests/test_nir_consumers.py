@@ -152,6 +152,7 @@ def test_cansims_simulation_of_the_graph_is_the_population_it_was_exported_from(
 
 
 # ------------------------------------------------------------------ item 1: the stationary ring
+@pytest.mark.slow  # 1.1 s of spiking in a torch module, ~4 s per toolchain (fast loop <= 4 min)
 @pytest.mark.parametrize("consumer", FAST)
 def test_consumer_holds_the_kicked_bump_like_cansim(consumer):
     _need(consumer)

@@ -186,8 +186,22 @@ def _linear_mean(a: np.ndarray, axis: int, ref: float) -> float:
     return ref + float(np.dot(prof, d) / prof.sum())
 
 
-@pytest.mark.parametrize("orientation", [(0, 0, 0), (0, 0, 1), (1, 2, 0), (3, 1, 4)])
-def test_6d_translation_follows_the_voxel_orientation(backend, orientation):
+ORIENTATIONS = [(0, 0, 0), (0, 0, 1), (1, 2, 0), (3, 1, 4)]
+
+
+@pytest.mark.parametrize("orientation", ORIENTATIONS)
+def test_6d_translation_follows_the_voxel_orientation(orientation):
+    """The check below on the numba backend (the default); every backend in the slow set."""
+    _check_6d_translation("numba", orientation)
+
+
+@pytest.mark.slow  # 100 steps of 1.2 M cells per orientation, ~2.5 s each on numpy and OpenCL (fast loop <= 4 min)
+@pytest.mark.parametrize("orientation", ORIENTATIONS)
+def test_6d_translation_follows_the_voxel_orientation_on_every_backend(backend, orientation):
+    _check_6d_translation(backend, orientation)
+
+
+def _check_6d_translation(backend, orientation):
     """0.3 cells/step along a sensor-frame diagonal (x, y and z at once) moves the activity by R(roll, pitch, yaw) v.
 
     A 21-cell translational grid (5 cells per angle as in the thesis) so the packet,

@@ -444,6 +444,7 @@ def test_bad_lead_table_and_model_are_config_errors():
 
 
 # ------------------------------------------------------------------ demo
+@pytest.mark.slow  # the whole demo, ~3 s (fast loop <= 4 min)
 def test_spiking_ring_demo_quick(tmp_path):
     spec = importlib.util.spec_from_file_location("spiking_ring", EXAMPLES / "spiking_ring.py")
     mod = importlib.util.module_from_spec(spec)

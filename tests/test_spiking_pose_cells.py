@@ -112,6 +112,7 @@ def _route():
     return CONFIG, make_run(ROUTE, loops=(1,) * 5, seed=0)
 
 
+@pytest.mark.slow  # two spiking populations warmed up and stepped 65 times, ~5 s (fast loop <= 4 min)
 def test_save_and_load_round_trip_the_spiking_state(tmp_path):
     """A loaded model continues exactly as the uninterrupted one (spikes, noise stream, decoder windows)."""
     from dataclasses import replace
