@@ -9,8 +9,9 @@ with ``--lowpass-s``. Its derivative is the angular velocity. The ring
 the angular velocity, with no landmarks, as the command of a turning calibration
 measured on the same ring by cansim's own simulation (``calibrate_turning``; off with
 ``--no-calibration``). The ring runs in cansim's own simulation (``--who cansim``) or in a
-consumer (``--who snntorch|norse|rockpool``, extra ``nir-consumers``; ``--precision float64``
-for the consumer's module in cansim's precision), all with the same commands. Prints and writes the RMS heading error of the population vector (50 ms spike
+consumer (``--who snntorch|norse|rockpool``, extra ``nir-consumers``; ``--precision
+float64`` runs snnTorch's or Norse's module in cansim's precision), all with the same
+commands. Prints and writes the RMS heading error of the population vector (50 ms spike
 window, read every 20 ms) against the heading. The recordings are read from the
 installed ``ratinabox`` package at run time (``ratinabox/data/<name>.npz``).
 

@@ -441,6 +441,8 @@ def test_runner_and_simulator_reject_bad_input():
     for precision in ("float16", "double", None, 64):
         with pytest.raises(ConfigError, match="precision"):
             ConsumerRunner(g, "norse", precision=precision)
+    with pytest.raises(ConfigError, match="float32 only"):
+        ConsumerRunner(g, "rockpool", precision="float64")
     with pytest.raises(ConfigError):
         sim.spikes("nope")
     with pytest.raises(ShapeError):
