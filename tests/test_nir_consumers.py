@@ -427,6 +427,14 @@ def test_a_float64_consumer_computes_in_float64(consumer):
     assert spikes > 0
 
 
+@settings(max_examples=40, **HSET)
+@given(precision=st.one_of(st.text(max_size=8), st.integers(), st.floats(), st.none(), st.just(["float64"]))
+       .filter(lambda p: p not in ("float32", "float64")))
+def test_a_bad_precision_is_a_config_error_before_any_import(precision):
+    with pytest.raises(ConfigError, match="precision must be one of"):
+        ConsumerRunner(to_nir(_ring_population(12)), "norse", precision=precision)
+
+
 def test_runner_and_simulator_reject_bad_input():
     g = to_nir(_ring_population(24))
     sim = NIRGraphSimulator(g)
