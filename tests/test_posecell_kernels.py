@@ -77,16 +77,7 @@ def test_dynamics_is_excite_inhibit_global_inhibition_and_normalisation(seed):
     p = _field(rng, nth, nxy, 0.2)
     w_e = rng.random(7 ** 3); w_e /= w_e.sum()
     w_i = rng.random(5 ** 3); w_i /= w_i.sum()
-    exc = _reference_spread(p, w_e, 7)
-    inh = _reference_spread(exc, w_i, 5)
-    cells = []
-    for e, h in zip(exc.ravel().tolist(), inh.ravel().tolist()):
-        a = e - h
-        cells.append(a - gi if a >= gi else 0.0)
-    total = 0.0
-    for a in cells:
-        total += a
-    expected = np.array([a / total for a in cells]).reshape(p.shape)
+    total, expected = _reference_dynamics(p, w_e, 7, w_i, 5, gi)
     got = p.copy()
     t = K.dynamics(got, np.empty_like(got), w_e, 7, _wrap_table(nxy, 3), _wrap_table(nth, 3),
                    w_i, 5, _wrap_table(nxy, 2), _wrap_table(nth, 2), gi)
