@@ -75,12 +75,12 @@ in :mod:`cansim.studies.recognition`):
   first (a ground-truth diagnostic of perfect closures) leaves the surfaces 8-20 mm from
   the mesh (from 12-37 mm; two traversals of a random walk of 2.5 deg per Euler angle per
   whisk, averaged), and the offline replay names 7/12 along B and 7/12 from the viewpoints
-  (from 5/12 and 4/12). On the accurate surfaces of the bullet below, 1,000
+  (from 5/12 and 4/12). On the accurate surfaces of the bullet above, 1,000
   particles instead of 200 give 10/12 and 8/12: the presentation's own dead reckoning
   limits the headline too.
 * **Tried and not kept: impostor normalisation** (each object's whisk log likelihood lowered
   by its contacts times the mean log likelihood per contact it gives to the *other*
-  objects' mapping whisks; "Z-norm", mean only; branch ``s32-impostors``). On the study's
+  objects' mapping whisks; "Z-norm", mean only; not in the library). On the study's
   held-out seeds 1-2, the same whisks with and without it: along A 20 -> 22/24, along B
   16 -> 18/24, viewpoints 5-10 cm 14 -> 9/24, wrong decisions 11 -> 9 of 72, novel objects
   undecided 10 -> 13/18: the offsets favour sparse maps (duck, jug, blob: 0.5-0.8 nats per
