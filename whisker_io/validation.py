@@ -457,12 +457,17 @@ def plain_fields(config: Any) -> None:
         A (frozen) configuration dataclass; changed in place.
     """
     for name in _field_names(type(config)):
-        value = getattr(config, name)
-        if type(value) in _PLAIN_TYPES:  # already plain (the common case): nothing to convert
-            continue
-        plain = _plain(value)
-        if plain is not value:
-            object.__setattr__(config, name, plain)
+        _plain_field(config, name, getattr(config, name))
+
+
+def _plain_field(config: Any, name: str, value: Any) -> Any:
+    """``value`` (the field ``name`` of ``config``) made plain and stored back if that changed it; returns it."""
+    if type(value) in _PLAIN_TYPES:  # already plain (the common case): nothing to convert
+        return value
+    plain = _plain(value)
+    if plain is not value:
+        object.__setattr__(config, name, plain)
+    return plain
 
 
 #: values :func:`_plain` returns unchanged (checked by type first: a record is built per sample)
@@ -800,12 +805,7 @@ def validate_fields(config: Any) -> None:
     whisker_io.errors.ConfigError: stop_s must be a finite number >= 0, got -1.0
     """
     for name, rule in _plan(type(config)):  # plain_fields and the checks in one pass over the fields
-        value = getattr(config, name)
-        if type(value) not in _PLAIN_TYPES:
-            plain = _plain(value)
-            if plain is not value:
-                object.__setattr__(config, name, plain)
-                value = plain
+        value = _plain_field(config, name, getattr(config, name))
         if rule is None:
             continue
         fast = rule._fast
