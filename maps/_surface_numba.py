@@ -5,7 +5,7 @@ describes, in one pass without temporaries: :func:`likelihoods` places a whisk's
 by every hypothesis of every object, reads its distance to the object's stored surface
 from the object's signed-distance grid (:mod:`maps.surface_field`) and returns the log
 likelihood and the residuals; :func:`field_distance` is that read for given points; :func:`move`
-applies one odometry step with the noise undone; :func:`resample` is systematic resampling.
+applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling.
 ``tests/test_surface_match.py`` holds them to the numpy expressions they replace.
 """
 
@@ -18,7 +18,7 @@ from numba import njit
 
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
-__all__ = ["field_distance", "likelihoods", "move", "resample"]
+__all__ = ["field_distance", "likelihoods", "move", "resample_in_place"]
 
 
 @njit(cache=True, inline="always")
@@ -54,50 +54,76 @@ def field_distance(x: np.ndarray, obj: np.ndarray, lo: np.ndarray, shape: np.nda
     return out
 
 
+@njit(cache=True, inline="always")
+def _likelihoods_row(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray,
+                      start: np.ndarray, values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float,
+                      rows: np.ndarray, ll: np.ndarray, res: np.ndarray, i: int) -> None:  # pragma: no cover - compiled
+    """Fill ``ll[i]`` (N,) and ``res[i]`` (N, m) for the object ``rows[i]`` (:func:`likelihoods`)."""
+    k = rows[i]
+    N, m = R.shape[1], pts.shape[0]
+    inv2s2 = 0.5 / (sigma * sigma)
+    at_cap = math.log(outlier + math.exp(-cap * cap * inv2s2))  # the same expression for r == cap, evaluated once
+    for n in range(N):
+        acc = 0.0
+        for j in range(m):
+            px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
+            x = R[k, n, 0, 0] * px + R[k, n, 0, 1] * py + R[k, n, 0, 2] * pz + t[k, n, 0]
+            y = R[k, n, 1, 0] * px + R[k, n, 1, 1] * py + R[k, n, 1, 2] * pz + t[k, n, 1]
+            z = R[k, n, 2, 0] * px + R[k, n, 2, 1] * py + R[k, n, 2, 2] * pz + t[k, n, 2]
+            r = _field_at(x, y, z, k, lo, shape, start, values, cell, cap)
+            if r == cap:  # off the grid or capped: the common case on the wrong objects
+                acc += at_cap
+            else:
+                acc += math.log(outlier + math.exp(-r * r * inv2s2))
+            res[i, n, j] = r
+        ll[i, n] = acc
+
+
 @njit(cache=True)
 def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
                 values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float,
                 rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Log likelihood (K, N) of the contacts ``pts`` (m, 3) under hypotheses ``R`` (K, N, 3, 3), ``t`` (K, N, 3),
-    and each contact's residual (K, N, m), for the objects ``rows`` (the other rows are 0).
+    """Log likelihood (len(rows), N) of the contacts ``pts`` (m, 3) under the hypotheses ``R`` (K, N, 3, 3),
+    ``t`` (K, N, 3) of the objects ``rows``, and each contact's residual (len(rows), N, m).
 
     A contact's residual ``r`` is its distance to the object's stored surface (the grid's
-    ``|f|``, at most ``cap``); its likelihood is ``outlier + exp(-r^2 / (2 sigma^2))``.
+    ``|f|``, at most ``cap``); its likelihood is ``outlier + exp(-r^2 / (2 sigma^2))``; a
+    hypothesis' log likelihood is the sum of its contacts' logarithms in contact order.
     """
-    K, N = R.shape[0], R.shape[1]
-    m = pts.shape[0]
-    ll = np.zeros((K, N))
-    res = np.zeros((K, N, m))
-    inv2s2 = 0.5 / (sigma * sigma)
-    for r_ in range(rows.shape[0]):
-        k = rows[r_]
-        for n in range(N):
-            acc = 0.0
-            for j in range(m):
-                px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
-                x = R[k, n, 0, 0] * px + R[k, n, 0, 1] * py + R[k, n, 0, 2] * pz + t[k, n, 0]
-                y = R[k, n, 1, 0] * px + R[k, n, 1, 1] * py + R[k, n, 1, 2] * pz + t[k, n, 1]
-                z = R[k, n, 2, 0] * px + R[k, n, 2, 1] * py + R[k, n, 2, 2] * pz + t[k, n, 2]
-                r = _field_at(x, y, z, k, lo, shape, start, values, cell, cap)
-                acc += math.log(outlier + math.exp(-r * r * inv2s2))
-                res[k, n, j] = r
-            ll[k, n] = acc
+    ll = np.empty((rows.shape[0], R.shape[1]))
+    res = np.empty((rows.shape[0], R.shape[1], pts.shape[0]))
+    for i in range(rows.shape[0]):
+        _likelihoods_row(R, t, pts, lo, shape, start, values, cell, sigma, outlier, cap, rows, ll, res, i)
     return ll, res
 
 
 @njit(cache=True)
-def move(R: np.ndarray, t: np.ndarray, step: np.ndarray, delta: np.ndarray, undo: np.ndarray,
+def move(R: np.ndarray, t: np.ndarray, step: np.ndarray, delta: np.ndarray, cos: np.ndarray, sin: np.ndarray,
          scale: np.ndarray, rows: np.ndarray) -> None:  # pragma: no cover - compiled
-    """In place: ``t += R @ (delta * scale)``, then ``R = R @ step @ undo`` for every hypothesis of the objects ``rows``.
+    """In place: ``t += R @ (delta * scale)``, then ``R = R @ step @ E.T`` for every hypothesis of the objects ``rows``.
 
-    ``R`` (K, N, 3, 3), ``t`` (K, N, 3), ``step`` (3, 3), ``delta`` (3,), ``undo`` (K, N, 3, 3),
-    ``scale`` (K, N).
+    ``E`` is the rotation of the extrinsic x-y-z Euler angles whose cosines and sines are
+    ``cos``, ``sin`` (K, N, 3) (``maps.surface_match._euler_xyz``, the same products in the
+    same order); ``E.T`` undoes it. ``R`` (K, N, 3, 3), ``t`` (K, N, 3), ``step`` (3, 3),
+    ``delta`` (3,), ``scale`` (K, N).
     """
     N = R.shape[1]
     tmp = np.empty((3, 3))
+    e = np.empty((3, 3))
     for r_ in range(rows.shape[0]):
         k = rows[r_]
         for n in range(N):
+            cx, cy, cz = cos[k, n, 0], cos[k, n, 1], cos[k, n, 2]
+            sx, sy, sz = sin[k, n, 0], sin[k, n, 1], sin[k, n, 2]
+            e[0, 0] = cy * cz
+            e[0, 1] = sx * sy * cz - cx * sz
+            e[0, 2] = cx * sy * cz + sx * sz
+            e[1, 0] = cy * sz
+            e[1, 1] = sx * sy * sz + cx * cz
+            e[1, 2] = cx * sy * sz - sx * cz
+            e[2, 0] = -sy
+            e[2, 1] = sx * cy
+            e[2, 2] = cx * cy
             s = scale[k, n]
             for a in range(3):
                 t[k, n, a] += (R[k, n, a, 0] * delta[0] + R[k, n, a, 1] * delta[1] + R[k, n, a, 2] * delta[2]) * s
@@ -106,26 +132,33 @@ def move(R: np.ndarray, t: np.ndarray, step: np.ndarray, delta: np.ndarray, undo
                     tmp[a, b] = R[k, n, a, 0] * step[0, b] + R[k, n, a, 1] * step[1, b] + R[k, n, a, 2] * step[2, b]
             for a in range(3):
                 for b in range(3):
-                    R[k, n, a, b] = tmp[a, 0] * undo[k, n, 0, b] + tmp[a, 1] * undo[k, n, 1, b] + tmp[a, 2] * undo[k, n, 2, b]
+                    R[k, n, a, b] = tmp[a, 0] * e[b, 0] + tmp[a, 1] * e[b, 1] + tmp[a, 2] * e[b, 2]
 
 
 @njit(cache=True)
-def resample(w: np.ndarray, offsets: np.ndarray, rows: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """Systematic resampling indices (len(rows), N) of the rows ``rows`` of the weights ``w`` (K, N),
-    each row's comb offset by ``offsets[row]`` in [0, 1)."""
-    N = w.shape[1]
-    out = np.empty((rows.shape[0], N), dtype=np.int64)
-    for r in range(rows.shape[0]):
-        k = rows[r]
-        c = w[k, 0]
+def resample_in_place(R: np.ndarray, t: np.ndarray, w: np.ndarray, low: np.ndarray, rows: np.ndarray,
+                      offsets: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Systematic resampling, in place, of the hypotheses ``R`` (K, N, 3, 3), ``t`` (K, N, 3) of the objects
+    ``rows[low]`` by their weights ``w[low]`` (``w`` (len(rows), N)), the comb of object ``k`` offset by
+    ``offsets[k]`` in [0, 1): hypothesis ``n`` becomes the first ``i`` whose cumulative weight reaches
+    ``(offsets[k] + n) / N``."""
+    N = R.shape[1]
+    R_old = np.empty((N, 3, 3))
+    t_old = np.empty((N, 3))
+    for q in range(low.shape[0]):
+        i_ = low[q]
+        k = rows[i_]
+        R_old[:] = R[k]
+        t_old[:] = t[k]
+        c = w[i_, 0]
         i = 0
         for n in range(N):
             u = (offsets[k] + n) / N
             while c < u and i < N - 1:
                 i += 1
-                c += w[k, i]
-            out[r, n] = i
-    return out
+                c += w[i_, i]
+            R[k, n] = R_old[i]
+            t[k, n] = t_old[i]
 
 
 tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

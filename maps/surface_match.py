@@ -413,14 +413,13 @@ class SurfaceMatcher:
         step = Rotation.from_rotvec(w * dt).as_matrix()
         delta = v * dt
         size = float(np.linalg.norm(delta))
-        undo = np.ascontiguousarray(np.transpose(
-            _euler_xyz(self._rng.normal(0.0, math.radians(cfg.rotation_sigma_deg), (K * N, 3))), (0, 2, 1)))
+        angles = self._rng.normal(0.0, math.radians(cfg.rotation_sigma_deg), (K * N, 3))  # the rotation noise to undo
         if size > 0.0:
             scale = np.maximum(size + self._rng.normal(0.0, cfg.displacement_sigma_m, K * N), 0.0) / size
         else:
             scale = np.zeros(K * N)
-        _kernels().move(self._R, self._t, step, delta, undo.reshape(K, N, 3, 3), scale.reshape(K, N),
-                        np.flatnonzero(self.active))
+        _kernels().move(self._R, self._t, step, delta, np.cos(angles).reshape(K, N, 3), np.sin(angles).reshape(K, N, 3),
+                        scale.reshape(K, N), np.flatnonzero(self.active))
 
     def step(self, odometry: SpatialOdometry | None, contact_points_m: Any) -> np.ndarray:
         """One whisk: move the hypotheses by ``odometry``, weigh them by the contacts, return the impulses.
@@ -460,7 +459,7 @@ class SurfaceMatcher:
         logw = self._logw[rows]
         prior = logw - logw.max(axis=1, keepdims=True)
         prior -= np.log(np.exp(prior).sum(axis=1, keepdims=True))
-        post = prior + ll[rows]
+        post = prior + ll
         top = post.max(axis=1, keepdims=True)
         w = np.exp(post - top)
         total = w.sum(axis=1)
@@ -468,7 +467,7 @@ class SurfaceMatcher:
         whisk_ll[rows] = top[:, 0] + np.log(total)  # log of the mean likelihood under the prior
         w /= total[:, None]
         contact_r = np.full((K, len(pts)), np.inf)
-        contact_r[rows] = np.einsum("kn,knm->km", w, res[rows])  # each contact's residual under the posterior
+        contact_r[rows] = np.einsum("kn,knm->km", w, res)  # each contact's residual under the posterior
         self.last_scores_m = np.sqrt(np.mean(contact_r**2, axis=1))
         self._logw[rows] = np.log(np.maximum(w, 1e-300))
         self._resample(w, rows)
@@ -493,14 +492,9 @@ class SurfaceMatcher:
         """Systematic resampling of the objects ``rows`` (weights ``w``, (len(rows), N)) whose effective sample size fell under half."""
         K, N = self._logw.shape
         low = np.flatnonzero(1.0 / np.sum(w**2, axis=1) < N / 2)
-        rows = rows[low]
-        if len(rows):
-            full = np.zeros((K, N))
-            full[rows] = w[low]
-            idx = _kernels().resample(full, self._rng.random(K), rows)  # (len(rows), N)
-            self._R[rows] = np.take_along_axis(self._R[rows], idx[:, :, None, None], axis=1)
-            self._t[rows] = np.take_along_axis(self._t[rows], idx[:, :, None], axis=1)
-            self._logw[rows] = -math.log(N)
+        if len(low):
+            _kernels().resample_in_place(self._R, self._t, w, low, rows, self._rng.random(K))
+            self._logw[rows[low]] = -math.log(N)
 
 
 def _kernels() -> Any:

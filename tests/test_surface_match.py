@@ -395,12 +395,162 @@ def test_move_and_resample_kernels_by_hand() -> None:
     R = np.tile(np.eye(3), (1, 2, 1, 1))
     t = np.zeros((1, 2, 3))
     quarter = Rotation.from_rotvec([0.0, 0.0, np.pi / 2]).as_matrix()
-    undo = np.tile(np.eye(3), (1, 2, 1, 1))
-    undo[0, 1] = quarter.T  # the second hypothesis undoes the turn
-    _surface_numba.move(R, t, quarter, np.array([0.1, 0.0, 0.0]), undo, np.array([[1.0, 0.5]]), np.array([0]))
+    angles = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, np.pi / 2]]])  # the second hypothesis undoes the turn
+    _surface_numba.move(R, t, quarter, np.array([0.1, 0.0, 0.0]), np.cos(angles), np.sin(angles), np.array([[1.0, 0.5]]),
+                        np.array([0]))
     np.testing.assert_allclose(t[0], [[0.1, 0.0, 0.0], [0.05, 0.0, 0.0]], atol=1e-15)
     np.testing.assert_allclose(R[0, 0], quarter, atol=1e-15)
     np.testing.assert_allclose(R[0, 1], np.eye(3), atol=1e-15)
-    w = np.array([[0.0, 0.5, 0.5, 0.0], [1.0, 0.0, 0.0, 0.0]])
-    idx = _surface_numba.resample(w, np.array([0.1, 0.7]), np.array([0, 1]))
-    assert idx.tolist() == [[1, 1, 2, 2], [0, 0, 0, 0]]  # comb at 0.025, 0.275, 0.525, 0.775 over cumsum 0, .5, 1, 1
+    # systematic resampling of objects 0 and 2 (rows 0 and 1 of the weights; row 1 left alone)
+    R = np.arange(3 * 4 * 9, dtype=float).reshape(3, 4, 3, 3)
+    t = np.arange(3 * 4 * 3, dtype=float).reshape(3, 4, 3)
+    R0, t0 = R.copy(), t.copy()
+    w = np.array([[0.0, 0.5, 0.5, 0.0], [1.0, 0.0, 0.0, 0.0], [0.25, 0.25, 0.25, 0.25]])
+    _surface_numba.resample_in_place(R, t, w, np.array([0, 1]), np.array([0, 2, 1]), np.array([0.1, 0.3, 0.7]))
+    # object 0: comb at 0.025, 0.275, 0.525, 0.775 over cumsum 0, .5, 1, 1; object 2: everything from hypothesis 0
+    for k, idx in ((0, [1, 1, 2, 2]), (2, [0, 0, 0, 0])):
+        assert np.array_equal(R[k], R0[k, idx]) and np.array_equal(t[k], t0[k, idx])
+    assert np.array_equal(R[1], R0[1]) and np.array_equal(t[1], t0[1])
+
+
+def test_move_kernel_equals_the_numpy_expression() -> None:
+    """maps._surface_numba.move against ``t + R (delta s)`` and ``R step E(angles).T`` in numpy, for a subset of objects."""
+    from maps import _surface_numba
+    from maps.surface_match import _euler_xyz
+
+    rng = np.random.default_rng(11)
+    K, N = 3, 40
+    R = Rotation.from_rotvec(rng.normal(0, 1.0, (K * N, 3))).as_matrix().reshape(K, N, 3, 3)
+    t = rng.normal(0, 0.1, (K, N, 3))
+    step = Rotation.from_rotvec(rng.normal(0, 0.1, 3)).as_matrix()
+    delta, scale = rng.normal(0, 0.01, 3), rng.uniform(0, 2, (K, N))
+    angles = rng.normal(0, 0.05, (K * N, 3))
+    rows = np.array([0, 2])
+    R1, t1 = R.copy(), t.copy()
+    _surface_numba.move(R1, t1, step, delta, np.cos(angles).reshape(K, N, 3), np.sin(angles).reshape(K, N, 3), scale, rows)
+    undo = np.transpose(_euler_xyz(angles), (0, 2, 1)).reshape(K, N, 3, 3)
+    np.testing.assert_allclose(t1[rows], t[rows] + np.einsum("knij,j->kni", R[rows], delta) * scale[rows][:, :, None],
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(R1[rows], R[rows] @ step @ undo[rows], rtol=0, atol=1e-14)
+    assert np.array_equal(R1[1], R[1]) and np.array_equal(t1[1], t[1])  # not in rows: untouched
+    assert np.allclose(np.swapaxes(R1, 2, 3) @ R1, np.eye(3), atol=1e-12)  # still rotations
+
+
+# --------------------------------------------------------------------------- the matcher against a per-object reference
+class _PerObjectReference:
+    """The matcher of the module docstring written out plainly, one object at a time: scipy rotations and
+    trilinear interpolation, Python loops; the same random draws in the same order as SurfaceMatcher."""
+
+    def __init__(self, lib: SurfaceLibrary, start: np.ndarray, cfg: SurfaceMatchConfig) -> None:
+        from scipy.interpolate import RegularGridInterpolator
+
+        self.cfg, self.K, self.N = cfg, lib.n_objects, cfg.particles
+        self.rng = np.random.default_rng(cfg.seed)
+        K, N, f = self.K, self.N, lib.fields
+        turn = Rotation.from_euler("xyz", self.rng.normal(0.0, math.radians(cfg.initial_sigma_deg), (K * N, 3))).as_matrix()
+        t = start[:3] + self.rng.normal(0.0, cfg.initial_sigma_m, (K * N, 3))
+        R0 = Rotation.from_quat(start[3:]).as_matrix()
+        self.R = [R0 @ turn[k * N:(k + 1) * N] for k in range(K)]
+        self.t = [t[k * N:(k + 1) * N].copy() for k in range(K)]
+        self.logw = [np.zeros(N) for _ in range(K)]
+        self.active = [True] * K
+        self.window: list[tuple[list[float], list[np.ndarray], int]] = []
+        self.cap = min(cfg.cap_m, f.config.cap_m)
+        self.fields = []
+        for k in range(K):
+            axes = [f.lo[k, i] + f.config.cell_m * np.arange(f.shape[k, i]) for i in range(3)]
+            grid = f.values[f.start[k]:f.start[k] + np.prod(f.shape[k])].reshape(f.shape[k])
+            self.fields.append(RegularGridInterpolator(axes, grid, bounds_error=False, fill_value=np.nan))
+
+    def distance(self, k: int, x: np.ndarray) -> np.ndarray:
+        v = np.abs(self.fields[k](x))
+        return np.minimum(np.where(np.isnan(v), self.cap, v), self.cap)
+
+    def step(self, odometry: SpatialOdometry | None, pts: np.ndarray) -> np.ndarray:
+        cfg, K, N = self.cfg, self.K, self.N
+        if odometry is not None:
+            angles = self.rng.normal(0.0, math.radians(cfg.rotation_sigma_deg), (K * N, 3))
+            delta = np.asarray(odometry.v) * odometry.dt
+            size = float(np.linalg.norm(delta))
+            scale = (np.maximum(size + self.rng.normal(0.0, cfg.displacement_sigma_m, K * N), 0.0) / size if size > 0
+                     else np.zeros(K * N))
+            step = Rotation.from_rotvec(np.asarray(odometry.omega) * odometry.dt).as_matrix()
+            for k in range(K):
+                if self.active[k]:
+                    undo = Rotation.from_euler("xyz", angles[k * N:(k + 1) * N]).inv().as_matrix()
+                    self.t[k] = self.t[k] + self.R[k] @ delta * scale[k * N:(k + 1) * N, None]
+                    self.R[k] = self.R[k] @ step @ undo
+        impulses = np.zeros(K, dtype=bool)
+        if pts is None or len(pts) < cfg.min_contacts:
+            return impulses
+        whisk_ll, contact_r, resample = [-np.inf] * K, [np.full(len(pts), np.inf) for _ in range(K)], []
+        for k in range(K):
+            if not self.active[k]:
+                continue
+            x = np.einsum("nij,mj->nmi", self.R[k], pts) + self.t[k][:, None, :]
+            r = self.distance(k, x.reshape(-1, 3)).reshape(N, len(pts))
+            ll = np.log(cfg.outlier_weight + np.exp(-0.5 * (r / cfg.contact_sigma_m) ** 2)).sum(axis=1)
+            prior = np.exp(self.logw[k] - self.logw[k].max())
+            prior /= prior.sum()
+            like = prior * np.exp(ll)
+            whisk_ll[k] = math.log(like.sum())
+            w = like / like.sum()
+            contact_r[k] = w @ r
+            self.logw[k] = np.log(np.maximum(w, 1e-300))
+            if 1.0 / np.sum(w**2) < N / 2:
+                resample.append((k, w))
+        if resample:
+            comb = self.rng.random(K)
+            for k, w in resample:
+                idx = np.minimum(np.searchsorted(np.cumsum(w), (comb[k] + np.arange(N)) / N), N - 1)
+                self.R[k], self.t[k], self.logw[k] = self.R[k][idx], self.t[k][idx], np.full(N, -math.log(N))
+        self.window = (self.window + [(whisk_ll, contact_r, len(pts))])[-cfg.window_whisks:]
+        self.log_evidence = np.array([sum(e[k] for e, _, _ in self.window) for k in range(K)])
+        self.evidence_m = np.array([np.median(np.concatenate([r[k] for _, r, _ in self.window])) if self.active[k]
+                                    else np.inf for k in range(K)])
+        best = int(np.argmax(self.log_evidence))
+        if len(self.window) == cfg.window_whisks:
+            self.active = [bool(self.log_evidence[k] >= self.log_evidence[best] - cfg.prune_margin) for k in range(K)]
+        others = np.delete(self.log_evidence, best)
+        if (sum(c for _, _, c in self.window) >= cfg.min_window_contacts
+                and (len(others) == 0 or self.log_evidence[best] - others.max() >= cfg.margin)
+                and self.evidence_m[best] <= cfg.tolerance_m):
+            impulses[best] = True
+        return impulses
+
+
+@pytest.mark.parametrize("prune_margin", [8.0, 1e9])
+def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) -> None:
+    """SurfaceMatcher (all objects' hypotheses in one array, numba kernels) against the per-object
+    reference above over 24 whisks with odometry (turning, stepping, standing still), whisks of
+    1-6 contacts and none, objects dropped (prune margin 8 nats) or all kept: the same evidence
+    to rounding, the same objects dropped, the same impulses."""
+    surfaces = [_sphere(0.10, seed=1), _sphere(0.12, seed=2), _plane(0.0, half=0.15), _sphere(0.09, seed=3) + [0.0, 0.0, 0.02]]
+    lib = SurfaceLibrary(surfaces, ["a", "b", "c", "d"], [s * 2.0 for s in surfaces])
+    cfg = SurfaceMatchConfig(particles=24, initial_sigma_m=0.004, initial_sigma_deg=2.0, window_whisks=6,
+                             min_window_contacts=6, prune_margin=prune_margin, seed=5, margin=1.0, tolerance_m=0.01)
+    start = np.array([0.0, 0.0, 0.0, 0.0, 0.0, math.sin(0.1), math.cos(0.1)])
+    batched, reference = SurfaceMatcher(lib, start, cfg), _PerObjectReference(lib, start, cfg)
+    rng = np.random.default_rng(6)
+    pose = Rotation.from_quat(start[3:])
+    impulses, dropped = 0, False
+    for i in range(24):
+        odo = None if i == 0 else SpatialOdometry(rng.normal(0, 0.005, 3) * (i % 5 != 2), rng.normal(0, 0.03, 3), 1.0)
+        if odo is not None:
+            pose = pose * Rotation.from_rotvec(np.array(odo.omega))
+        n = i % 7
+        felt = surfaces[0][rng.choice(len(surfaces[0]), n, replace=False)] + rng.normal(0, 0.002, (n, 3))
+        pts = None if n == 0 else pose.inv().apply(felt)  # contacts of object 0 in the (turned) end-effector frame
+        got, want = batched.step(odo, pts), reference.step(odo, pts)
+        assert np.array_equal(got, want), i
+        assert batched.active.tolist() == reference.active, i
+        if n:
+            np.testing.assert_allclose(batched.log_evidence, reference.log_evidence, rtol=1e-9, atol=1e-9)
+            np.testing.assert_allclose(batched.evidence_m, reference.evidence_m, rtol=1e-9, atol=1e-12)
+        impulses += int(got.sum())
+        dropped |= not batched.active.all()
+    for k in range(4):
+        if batched.active[k]:
+            np.testing.assert_allclose(batched._R[k], reference.R[k], atol=1e-12)
+            np.testing.assert_allclose(batched._t[k], reference.t[k], atol=1e-12)
+    assert impulses > 0 and dropped == (prune_margin < 100)  # the run exercises the impulses and the pruning
