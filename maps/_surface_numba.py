@@ -102,19 +102,19 @@ def move(R: np.ndarray, t: np.ndarray, step: np.ndarray, delta: np.ndarray, cos:
          scale: np.ndarray, rows: np.ndarray) -> None:  # pragma: no cover - compiled
     """In place: ``t += R @ (delta * scale)``, then ``R = R @ step @ E.T`` for every hypothesis of the objects ``rows``.
 
-    ``E`` is the rotation of the extrinsic x-y-z Euler angles whose cosines and sines are
-    ``cos``, ``sin`` (K, N, 3) (``maps.surface_match._euler_xyz``, the same products in the
-    same order); ``E.T`` undoes it. ``R`` (K, N, 3, 3), ``t`` (K, N, 3), ``step`` (3, 3),
-    ``delta`` (3,), ``scale`` (K, N).
+    ``R`` (K, N, 3, 3), ``t`` (K, N, 3), ``step`` (3, 3), ``delta`` (3,); per object in
+    ``rows``: ``scale`` (len(rows), N) and the cosines and sines ``cos``, ``sin``
+    (len(rows), N, 3) of the extrinsic x-y-z Euler angles of ``E``
+    (``maps.surface_match._euler_xyz``, the same products in the same order); ``E.T`` undoes it.
     """
     N = R.shape[1]
     tmp = np.empty((3, 3))
     e = np.empty((3, 3))
-    for r_ in range(rows.shape[0]):
-        k = rows[r_]
+    for i in range(rows.shape[0]):
+        k = rows[i]
         for n in range(N):
-            cx, cy, cz = cos[k, n, 0], cos[k, n, 1], cos[k, n, 2]
-            sx, sy, sz = sin[k, n, 0], sin[k, n, 1], sin[k, n, 2]
+            cx, cy, cz = cos[i, n, 0], cos[i, n, 1], cos[i, n, 2]
+            sx, sy, sz = sin[i, n, 0], sin[i, n, 1], sin[i, n, 2]
             e[0, 0] = cy * cz
             e[0, 1] = sx * sy * cz - cx * sz
             e[0, 2] = cx * sy * cz + sx * sz
@@ -124,7 +124,7 @@ def move(R: np.ndarray, t: np.ndarray, step: np.ndarray, delta: np.ndarray, cos:
             e[2, 0] = -sy
             e[2, 1] = sx * cy
             e[2, 2] = cx * cy
-            s = scale[k, n]
+            s = scale[i, n]
             for a in range(3):
                 t[k, n, a] += (R[k, n, a, 0] * delta[0] + R[k, n, a, 1] * delta[1] + R[k, n, a, 2] * delta[2]) * s
             for a in range(3):

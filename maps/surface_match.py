@@ -418,8 +418,9 @@ class SurfaceMatcher:
             scale = np.maximum(size + self._rng.normal(0.0, cfg.displacement_sigma_m, K * N), 0.0) / size
         else:
             scale = np.zeros(K * N)
-        _kernels().move(self._R, self._t, step, delta, np.cos(angles).reshape(K, N, 3), np.sin(angles).reshape(K, N, 3),
-                        scale.reshape(K, N), np.flatnonzero(self.active))
+        rows = np.flatnonzero(self.active)  # all objects' noise is drawn (the same draws whichever are in question)
+        mine = angles.reshape(K, N, 3)[rows]
+        _kernels().move(self._R, self._t, step, delta, np.cos(mine), np.sin(mine), scale.reshape(K, N)[rows], rows)
 
     def step(self, odometry: SpatialOdometry | None, contact_points_m: Any) -> np.ndarray:
         """One whisk: move the hypotheses by ``odometry``, weigh them by the contacts, return the impulses.
