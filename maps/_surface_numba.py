@@ -2,7 +2,7 @@
 
 Each kernel does for every hypothesis what :class:`maps.surface_match.SurfaceMatcher`
 describes, in one pass without temporaries: :func:`likelihoods` places a whisk's contacts
-by every hypothesis of every object, reads its distance to the object's stored surface
+by every hypothesis of every object in question, reads its distance to the object's stored surface
 from the object's signed-distance grid (:mod:`maps.surface_field`) and returns the log
 likelihood and the residuals; :func:`field_distance` is that read for given points; :func:`move`
 applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling.

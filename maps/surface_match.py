@@ -93,10 +93,12 @@ in :mod:`cansim.studies.recognition`):
   memory), margins of 10 and 20 nats and a best-to-runner-up residual ratio of 1.3-1.6
   (no fewer wrong decisions under the full noise).
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`):
-  once the library is narrowed down 0.58 / 1.17 / 1.92 ms per whisk at 12 / 25 / 50 objects
-  (minimum, machine load 4); while every object is still in question (the first
-  ``window_whisks`` whisks) 1.6 / 9.5 / 21 ms. The grids take about 1.4 MB per object
-  (7.5-mm cells, float64; 72 MB at 50 objects) and 0.34 s per object to build.
+  once the library is narrowed down 0.29 / 0.66 / 0.74 ms per whisk at 12 / 25 / 50 objects
+  (minimum CPU time, machine load 8); while every object is still in question (the first
+  ``window_whisks`` whisks) 1.3 / 2.6 / 6.8 ms, over the issue's 2 ms at 50 objects: most of it
+  is one ``exp``, one ``log`` and one trilinear read per contact and hypothesis (80,000 a
+  whisk at 50 objects). The grids take about 1.4 MB per object (7.5-mm cells, float64;
+  72 MB at 50 objects) and 0.34 s per object to build.
 """
 
 from __future__ import annotations
