@@ -337,7 +337,7 @@ class ExperienceMap:
         """Map pose of the current experience (all NaN while the map is empty)."""
         if self._n_exp == 0:
             return (math.nan,) * self.geometry.pose_width
-        return tuple(float(v) for v in self._a.pose[self.current_id])
+        return tuple(self._a.pose[self.current_id].tolist())  # Python floats, as float(v) of each
 
     def dead_reckoned_pose(self) -> tuple[float, ...]:
         """The current experience's map pose plus the odometry accumulated since it."""
@@ -386,7 +386,9 @@ class ExperienceMap:
     def _check_update(self, best_pc: Sequence[float], view_id: int, offset_cells: Any) -> tuple[list[float], int, np.ndarray | None]:
         nd = len(self.config.pc_shape)
         try:
-            best = [float(v) for v in best_pc]
+            # a float64 vector (the SLAM loop's packet): tolist gives float(v) of each, faster
+            best = best_pc.tolist() if type(best_pc) is np.ndarray and best_pc.dtype == np.float64 and best_pc.ndim == 1 \
+                else [float(v) for v in best_pc]
         except (TypeError, ValueError):
             raise InvalidInputError(f"best_pc must be {nd} real pose-cell coordinates, got {best_pc!r}") from None
         if len(best) != nd or not all(math.isfinite(v) for v in best):
