@@ -233,8 +233,10 @@ class _Arrays:
     pose: np.ndarray
     ends: np.ndarray
     links: np.ndarray
-    order: np.ndarray = field(default_factory=lambda: np.zeros(16, dtype=np.int64))  # first n_links entries: link ids in relaxation order
-    next_same: np.ndarray = field(default_factory=lambda: np.full(16, -1, dtype=np.int64))  # next experience of the same view (-1: none)
+    # the first n_links entries: link ids in relaxation order
+    order: np.ndarray = field(default_factory=lambda: np.zeros(16, dtype=np.int64))
+    # per experience, the next experience of the same view (-1: none)
+    next_same: np.ndarray = field(default_factory=lambda: np.full(16, -1, dtype=np.int64))
 
 
 class ExperienceMap:
@@ -568,7 +570,8 @@ class ExperienceMap:
         if n_updates <= 0:
             return 0
         a = self._a
-        self._cursor = self.geometry.relax(a.order[:m], a.ends, a.links, a.pose, float(self.config.correction), int(n_updates), int(start))
+        self._cursor = self.geometry.relax(a.order[:m], a.ends, a.links, a.pose, float(self.config.correction), int(n_updates),
+                                           int(start))
         self.last_relax_updates = int(n_updates)
         return int(n_updates)
 

@@ -302,9 +302,11 @@ def _inhibit_clip(
 ) -> float:
     """:func:`_inhibit_clip_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
     if dim == 5:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib,
+                                 layers, excited)
     elif dim == 7:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib,
+                                 layers, excited)
     elif dim == 3:
         return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
     elif dim == 9:
