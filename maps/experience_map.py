@@ -73,6 +73,7 @@ prefixed, inside a saved SLAM model) and :meth:`~ExperienceMap.to_networkx` dele
 
 from __future__ import annotations
 
+import bisect
 import math
 import os
 from collections.abc import Mapping
@@ -108,7 +109,6 @@ __all__ = [
     "signed_delta_rad",
 ]
 
-_FEW_IDS = 3  # _delta_pc computes this many distances or fewer without numpy (faster for a handful)
 Geometry = Union[SE2Geometry, SE3Geometry]
 
 
@@ -233,8 +233,10 @@ class _Arrays:
     pose: np.ndarray
     ends: np.ndarray
     links: np.ndarray
-    order: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    order_key: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    # the first n_links entries: link ids in relaxation order
+    order: np.ndarray = field(default_factory=lambda: np.zeros(16, dtype=np.int64))
+    # per experience, the next experience of the same view (-1: none)
+    next_same: np.ndarray = field(default_factory=lambda: np.full(16, -1, dtype=np.int64))
 
 
 class ExperienceMap:
@@ -267,6 +269,9 @@ class ExperienceMap:
             ends=np.zeros((16, 2), dtype=np.int64), links=np.zeros((16, g.link_width + 1)),
         )
         self._vt_exps: dict[int, list[int]] = {}
+        self._order_keys: list[int] = []  # relaxation order's sort keys (from id * 2**32 + link id), ascending
+        self._shape_f = np.array(self.config.pc_shape, dtype=np.float64)
+        self._nearest: Any = None  # maps.experience_map_numba.nearest_of_view, imported at the first search
         self._out: dict[int, set[int]] = {}
         self._n_links_of: dict[int, int] = {}
         self._link_of: dict[tuple[int, int], int] = {}  # (from, to) -> link index
@@ -334,7 +339,7 @@ class ExperienceMap:
         """Map pose of the current experience (all NaN while the map is empty)."""
         if self._n_exp == 0:
             return (math.nan,) * self.geometry.pose_width
-        return tuple(float(v) for v in self._a.pose[self.current_id])
+        return tuple(self._a.pose[self.current_id].tolist())  # Python floats, as float(v) of each
 
     def dead_reckoned_pose(self) -> tuple[float, ...]:
         """The current experience's map pose plus the odometry accumulated since it."""
@@ -366,8 +371,8 @@ class ExperienceMap:
         self.accum_time_s += odo.dt
 
     # ------------------------------------------------------- action (get_action)
-    def _delta_pc(self, best: Sequence[float], ids: np.ndarray) -> np.ndarray:
-        """Wrapped pose-cell distances (cells) between the packet and experiences ``ids``."""
+    def _corrected(self, best: Sequence[float]) -> list[float]:
+        """The packet corrected by the view offset on ``offset_axes`` and wrapped once (as the C++ does)."""
         shape = self.config.pc_shape
         corr = list(best)
         for ax in self.config.offset_axes:
@@ -378,28 +383,14 @@ class ExperienceMap:
             if c >= n:
                 c = c - n
             corr[ax] = c
-        if len(ids) <= _FEW_IDS:  # the usual one or few: the same operations on Python floats (same bits)
-            out = []
-            for row in self._a.pc[ids].tolist():
-                total = 0.0  # + the first square: exact
-                for c, v, n in zip(corr, row, shape):
-                    e = abs(c - v)
-                    e = min(e, n - e)
-                    total += e * e
-                out.append(math.sqrt(total))
-            return np.array(out)
-        d = np.abs(np.array(corr) - self._a.pc[ids])
-        d = np.minimum(d, np.array(shape, dtype=np.float64) - d)  # wrapped, Eq 2.22
-        d *= d
-        total = d[:, 0]
-        for k in range(1, d.shape[1]):
-            total = total + d[:, k]
-        return np.sqrt(total)
+        return corr
 
     def _check_update(self, best_pc: Sequence[float], view_id: int, offset_cells: Any) -> tuple[list[float], int, np.ndarray | None]:
         nd = len(self.config.pc_shape)
         try:
-            best = [float(v) for v in best_pc]
+            # a float64 vector (the SLAM loop's packet): tolist gives float(v) of each, faster
+            best = best_pc.tolist() if type(best_pc) is np.ndarray and best_pc.dtype == np.float64 and best_pc.ndim == 1 \
+                else [float(v) for v in best_pc]
         except (TypeError, ValueError):
             raise InvalidInputError(f"best_pc must be {nd} real pose-cell coordinates, got {best_pc!r}") from None
         if len(best) != nd or not all(math.isfinite(v) for v in best):
@@ -449,16 +440,19 @@ class ExperienceMap:
             self._create(best, vt_id)
             result = ExperienceUpdate(Action.CREATE_NODE, self.current_id, src, False, self._n_exp > 1)
         else:
-            delta = float(self._delta_pc(best, np.array([self.current_id]))[0])
+            # the distance to the current experience and the nearest other experience of the
+            # view in one compiled pass (Eq 2.22; on ties the lowest id)
+            nearest = self._nearest
+            if nearest is None:
+                from maps.experience_map_numba import nearest_of_view as nearest
+
+                self._nearest = nearest
+            delta, matched, d_matched = nearest(self._a.pc, self._a.next_same, exps[0], self.current_id,
+                                                np.array(self._corrected(best)), self._shape_f)
             if not (delta > thr or vt_id != int(prev_view_id)):
                 return ExperienceUpdate(Action.NO_ACTION, self.current_id, src, False, False)
-            ids = np.array([e for e in exps if e != self.current_id], dtype=np.int64)
-            matched = -1
-            if ids.size:
-                deltas = self._delta_pc(best, ids)
-                k = int(np.argmin(deltas))
-                if deltas[k] < thr:
-                    matched = int(ids[k])
+            if not d_matched < thr:  # none closer than the threshold (or no other experience: -1, inf)
+                matched = -1
             if matched == -1:
                 self._create(best, vt_id)
                 result = ExperienceUpdate(Action.CREATE_NODE, self.current_id, src, False, True)
@@ -473,11 +467,16 @@ class ExperienceMap:
         """OpenRatSLAM ``create_experience`` + ``on_create_experience`` + ``on_set_experience(new, 0)``."""
         n, a = self._n_exp, self._a
         a.pc, a.vt, a.pose = _grow(a.pc, n + 1), _grow(a.vt, n + 1), _grow(a.pose, n + 1)
+        a.next_same = _grow(a.next_same, n + 1)
         a.pose[n] = self.geometry.new_pose(a.pose[self.current_id] if n else None, self._acc)
         a.pc[n] = best
         a.vt[n] = vt_id
+        a.next_same[n] = -1
         self._n_exp = n + 1
-        self._vt_exps.setdefault(vt_id, []).append(n)
+        same = self._vt_exps.setdefault(vt_id, [])
+        if same:
+            a.next_same[same[-1]] = n
+        same.append(n)
         if self._graph is not None:
             self._graph.add_node(n, view_id=vt_id, pc_cells=tuple(best))
         if n:
@@ -507,10 +506,14 @@ class ExperienceMap:
         self._link_of[(id_from, id_to)] = m
         for e in (id_from, id_to):
             self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
-        key = id_from * (1 << 32) + m
-        pos = int(np.searchsorted(a.order_key, key))
-        a.order_key = np.insert(a.order_key, pos, key)
-        a.order = np.insert(a.order, pos, m)
+        key = id_from * (1 << 32) + m  # relaxation order: by source, then creation
+        keys = self._order_keys
+        pos = bisect.bisect_left(keys, key)
+        keys.insert(pos, key)
+        a.order = order = _grow(a.order, m + 1)
+        if pos < m:
+            order[pos + 1 : m + 1] = order[pos:m]  # overlapping copy: numpy buffers it
+        order[pos] = m
         if self._graph is not None:
             self._graph_link(m)
         return True
@@ -567,7 +570,8 @@ class ExperienceMap:
         if n_updates <= 0:
             return 0
         a = self._a
-        self._cursor = self.geometry.relax(a.order, a.ends, a.links, a.pose, float(self.config.correction), int(n_updates), int(start))
+        self._cursor = self.geometry.relax(a.order[:m], a.ends, a.links, a.pose, float(self.config.correction), int(n_updates),
+                                           int(start))
         self.last_relax_updates = int(n_updates)
         return int(n_updates)
 
@@ -668,8 +672,12 @@ class ExperienceMap:
         a.pc, a.vt = _grow(np.array(saved.exp_pc, dtype=np.float64), n), _grow(np.array(exp_vt, dtype=np.int64), n)
         a.pose = _grow(np.array(saved.exp_pose, dtype=np.float64), n)
         a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(saved.link_data, dtype=np.float64), m)
+        a.next_same = np.full(max(n, 16), -1, dtype=np.int64)
         for i, v in enumerate(exp_vt.tolist()):
-            self._vt_exps.setdefault(v, []).append(i)
+            same = self._vt_exps.setdefault(v, [])
+            if same:
+                a.next_same[same[-1]] = i
+            same.append(i)
         self._traversals = _grow(np.ones(m, dtype=np.int64) if saved.link_traversals is None
                                  else np.array(saved.link_traversals, dtype=np.int64), m)
         for k, (f, t) in enumerate(link_ends.tolist()):  # no duplicates: read_map_body refused them
@@ -678,8 +686,9 @@ class ExperienceMap:
             for e in (f, t):
                 self._n_links_of[e] = self._n_links_of.get(e, 0) + 1
         keys = link_ends[:, 0].astype(np.int64) * (1 << 32) + np.arange(m, dtype=np.int64)
-        a.order = np.argsort(keys, kind="stable").astype(np.int64)
-        a.order_key = keys[a.order]
+        order = np.argsort(keys, kind="stable").astype(np.int64)
+        a.order = _grow(order, m)
+        self._order_keys = keys[order].tolist()
         w = self.geometry.accum_width
         state_f = saved.state_f
         self._acc = [float(v) for v in state_f[:w]]

@@ -119,3 +119,66 @@ def test_scalar_kernel_array_path_and_compiled_kernel_agree(angles):
         assert kernel == [_relax_numba._wrap(a, lower, closed) for a in angles]
     assert [_relax_numba._clip180(a) for a in angles if abs(a) <= LOOP_TURNS * TWO_PI] == [
         clip_rad_180(a) for a in angles if abs(a) <= LOOP_TURNS * TWO_PI]
+
+
+_EDGES = [0.0, -0.0, PI, -PI, TWO_PI, -TWO_PI, 3 * PI, -3 * PI, 1e-300, -1e-300]
+_EDGES += [math.nextafter(a, d) for a in (PI, -PI, TWO_PI, 0.0, -TWO_PI) for d in (-math.inf, math.inf)]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(near_angle, min_size=1, max_size=8))
+def test_relaxation_clips_equal_the_cpp_loops_bit_for_bit(angles):
+    # the relaxation kernel's clips return an angle already in range unchanged and wrap
+    # the others; both must give the C++ loops' bits, at the range ends and inside
+    from maps import _relax_numba
+
+    for a in _EDGES + angles:
+        assert math.copysign(1.0, _relax_numba._clip180(a)) == math.copysign(1.0, clip_rad_180(a))
+        assert _relax_numba._clip180(a) == clip_rad_180(a), a
+        assert _relax_numba._clip360(a) == clip_rad_360(a), a
+        assert math.copysign(1.0, _relax_numba._clip360(a)) == math.copysign(1.0, clip_rad_360(a))
+
+
+def _cpp_iterate(order, ends, ldata, pose, c, n_updates):
+    """OpenRatSLAM's ``ExperienceMap::iterate`` body for the link ids in ``order``, in plain Python."""
+    for j in range(n_updates):
+        k = order[j % len(order)]
+        f, t = ends[k]
+        d, heading, facing = ldata[k, 0], ldata[k, 1], ldata[k, 2]
+        lx = pose[f][0] + d * math.cos(pose[f][2] + heading)
+        ly = pose[f][1] + d * math.sin(pose[f][2] + heading)
+        pose[f][0] += (pose[t][0] - lx) * c
+        pose[f][1] += (pose[t][1] - ly) * c
+        pose[t][0] -= (pose[t][0] - lx) * c
+        pose[t][1] -= (pose[t][1] - ly) * c
+        a1, a2 = pose[f][2] + facing, pose[t][2]  # get_signed_delta_rad(a1, a2)
+        direction = clip_rad_180(a2 - a1)
+        delta = abs(clip_rad_360(a1) - clip_rad_360(a2))
+        if delta < TWO_PI - delta:
+            df = delta if direction > 0 else -delta
+        else:
+            df = TWO_PI - delta if direction > 0 else -(TWO_PI - delta)
+        pose[f][2] = clip_rad_180(pose[f][2] + df * c)
+        pose[t][2] = clip_rad_180(pose[t][2] - df * c)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 12), st.integers(1, 30))
+def test_relax_links_equals_openratslam_iterate_bit_for_bit(seed, n_exp, n_links):
+    # random maps whose facings and link angles sit near +-pi and 0 / 2 pi (both the
+    # in-range shortcut and the wrap of the clips are taken), against the C++ transcription
+    from maps._relax_numba import relax_links
+
+    rng = np.random.default_rng(seed)
+    ends = np.stack([rng.integers(0, n_exp, n_links), rng.integers(0, n_exp - 1, n_links)], axis=1)
+    ends[:, 1] += ends[:, 1] >= ends[:, 0]  # no self-links (the map never makes one)
+    angle = lambda n: rng.choice([-PI, PI, 0.0, TWO_PI], n) + rng.normal(0, 1e-3, n) * rng.integers(0, 2, n)  # noqa: E731
+    ldata = np.stack([rng.uniform(0, 5, n_links), angle(n_links), angle(n_links), rng.uniform(0, 3, n_links)], axis=1)
+    pose = np.stack([rng.normal(0, 10, n_exp), rng.normal(0, 10, n_exp), np.clip(angle(n_exp), -PI + 1e-12, PI)], axis=1)
+    order = np.argsort(ends[:, 0] * (1 << 32) + np.arange(n_links), kind="stable").astype(np.int64)
+    n_updates = 10 * n_links
+    want = pose.tolist()
+    _cpp_iterate(order.tolist(), ends.tolist(), ldata, want, 0.5, n_updates)
+    got = pose.copy()
+    assert relax_links(order, ends.astype(np.int64), ldata, got, 0.5, n_updates, 0) == n_updates % n_links
+    assert got.tobytes() == np.array(want).tobytes()

@@ -300,3 +300,67 @@ def test_the_map_plot_draws_given_poses_with_the_maps_links():
     for bad in (given_poses[:3], given_poses[:, :1], np.full((4, 3), np.nan), "x"):
         with pytest.raises(InvalidInputError):  # ShapeError is one
             plot_experience_map(em, poses=bad)
+
+
+def test_relaxation_order_stays_by_source_then_creation_over_many_links():
+    # links are inserted into the relaxation order one by one; the order must stay the
+    # sort by (source id, creation) - here recomputed from scratch - also after a reload
+    em = ExperienceMap(MapConfig(match_distance_cells=6.0, relax_budget=None, relax_passes=1))
+    random_drive(em, np.random.default_rng(3), 300)
+    ends, _ = em.links
+    m = len(ends)
+    assert m > 100 and len(set(ends[:, 0].tolist())) > 20
+    want = np.lexsort((np.arange(m), ends[:, 0]))
+    assert em._a.order[:m].tolist() == want.tolist()
+    again = ExperienceMap.from_arrays(em.to_arrays())
+    assert again._a.order[:m].tolist() == want.tolist()
+    random_drive(em, np.random.default_rng(4), 50)
+    random_drive(again, np.random.default_rng(4), 50)
+    assert again.poses.tobytes() == em.poses.tobytes() and again.links[0].tolist() == em.links[0].tolist()
+
+
+def _view0_map(positions):
+    """Experiences 0.. of view 0 at ``positions`` (cells, 21 x 21 x 36), each made under view 0, then view 1 current."""
+    em = ExperienceMap(MapConfig(match_distance_cells=2.0, pc_shape=(21, 21, 36)))
+    for k, p in enumerate(positions):
+        em.update(p, 0, 0 if k == 0 else 1)  # a view change each time: with no close experience, create
+        em.update(p, 1, 0)  # far from every view-1 experience except its own
+    return em
+
+
+def test_relocalisation_picks_the_nearest_experience_of_the_view_hand_computed():
+    # view-0 experiences at even ids; from the packet (0.5, 10, 35): exp 2 (2.3, 10, 35) is
+    # 1.8 cells away, exp 4 (0.5, 10.9, 0.6) sqrt(0.9^2 + 1.6^2) = 1.84 (theta across the
+    # wrap: 36 - 34.4), exp 6 (20, 10, 35) 1.5 (x across the wrap: 21 - 19.5) - the nearest,
+    # though not the first within the 2-cell threshold; the rest are far
+    pos = [(10, 10, 18), (2.3, 10, 35), (0.5, 10.9, 0.6), (20, 10, 35), (5, 5, 5), (15, 15, 30)]
+    em = _view0_map(pos)
+    assert em.experiences_of_view(0) == [0, 2, 4, 6, 8, 10]
+    r = em.update((0.5, 10, 35), 0, 1)
+    assert r.action == Action.CREATE_EDGE and r.exp_id == 6 and r.relocalised
+
+
+def test_relocalisation_tie_goes_to_the_lower_id_and_the_threshold_is_strict():
+    # two view-0 experiences 1 cell either side of the packet: the first made wins
+    em = _view0_map([(10, 10, 18), (10, 12, 18), (10, 14, 18), (4, 4, 4)])
+    r = em.update((10, 13, 18), 0, 1)
+    assert r.action == Action.CREATE_EDGE and r.exp_id == 2  # exps 2 (y 12) and 4 (y 14) tie at 1.0
+    # exactly the threshold (2.0 cells) away from the nearest: not a match, a new experience
+    em = _view0_map([(10, 10, 18), (4, 4, 4), (16, 16, 16), (1, 18, 30)])
+    r = em.update((10, 12, 18), 0, 1)
+    assert r.action == Action.CREATE_NODE and r.exp_id == 8
+
+
+def test_the_current_experience_is_not_a_relocalisation_target():
+    # the packet sits on the current experience (exp 2, view 0) but moved from it per the
+    # view change; the only other view-0 experience (exp 0) is 1 cell away: link to it
+    em = ExperienceMap(MapConfig(match_distance_cells=2.0, pc_shape=(21, 21, 36)))
+    em.update((10, 10, 18), 0, 0)
+    em.update((10, 15, 18), 1, 0)
+    em.update((10, 11, 18), 0, 1)  # 1 cell from exp 0 of view 0: relocalises to exp 0
+    assert em.current_id == 0
+    em.update((10, 15, 18), 1, 0)  # back to exp 1
+    em.update((3, 3, 3), 0, 1)  # far from exp 0: a new view-0 experience, exp 2
+    assert em.current_id == 2 and em.experiences_of_view(0) == [0, 2]
+    r = em.update((3, 3, 3), 0, 2)  # view changed, packet on exp 2 itself; exp 0 far: create
+    assert r.action == Action.CREATE_NODE and r.exp_id == 3

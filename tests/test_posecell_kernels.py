@@ -139,6 +139,37 @@ def test_gathered_inhibition_is_the_cpp_scatter_bit_for_bit(e_dim, i_dim, seed, 
     assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
 
 
+@pytest.mark.parametrize("e_dim,i_dim", [(7, 5), (5, 3), (3, 7)])
+@pytest.mark.parametrize("live_layers", [(0,), (5,), (12,), (3, 9)])
+def test_only_the_layers_the_live_layers_excite_are_gathered_bit_for_bit(e_dim, i_dim, live_layers):
+    """With few live layers the inhibition scans only the excited field's layers within the
+    excitation's theta reach (e_dim // 2 either side, across the wrap); cells excited above
+    the global inhibition in the outermost reached layers must still be gathered and kept."""
+    rng = np.random.default_rng(e_dim * 100 + sum(live_layers))
+    nth, nxy = 13, 11
+    p = np.zeros((nth, nxy, nxy))
+    for k in live_layers:
+        p[k] = rng.random((nxy, nxy)) * (rng.random((nxy, nxy)) < 0.3)
+    w_e = rng.random(e_dim ** 3) + 0.5; w_e /= w_e.sum()  # no small weight: the far layers are excited too
+    w_i = rng.random(i_dim ** 3); w_i /= w_i.sum()
+    exc = _reference_spread(p, w_e, e_dim)
+    gi = float(np.quantile(exc[exc > 0], 0.3)) * 0.2
+    reached = {(k + d) % nth for k in live_layers for d in range(-(e_dim // 2), e_dim // 2 + 1)}
+    outer = {(k + d) % nth for k in live_layers for d in (-(e_dim // 2), e_dim // 2)} - {k % nth for k in live_layers}
+    total, expected = _reference_dynamics(p, w_e, e_dim, w_i, i_dim, gi)
+    assert {int(k) for k in np.flatnonzero(exc.reshape(nth, -1).max(axis=1) > 0)} == reached
+    assert all(expected[k].max() > 0 for k in outer)  # the reach's end layers keep cells
+    flags = np.zeros(nth, dtype=bool)
+    flags[list(live_layers)] = True
+    got = np.full_like(p, np.nan)  # every cell must be written
+    t = K.dynamics_gather(p.copy(), got, np.empty_like(got), w_e, e_dim, _wrap_table(nxy, e_dim // 2),
+                          _wrap_table(nth, e_dim // 2), w_i, i_dim, _wrap_table(nxy, i_dim // 2), _wrap_table(nth, i_dim // 2),
+                          *_gather_args(nxy, nth, i_dim), gi, flags)
+    assert t == total
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+    assert flags.tolist() == [bool(expected[k].max() > 0) for k in range(nth)]
+
+
 def test_a_negative_cell_takes_the_scatter_path_and_still_matches():
     """With a negative cell an inhibition can be negative, so no cell may be skipped."""
     rng = np.random.default_rng(5)

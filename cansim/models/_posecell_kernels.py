@@ -184,11 +184,14 @@ def _inhibit_clip_dim(
     gt_w: np.ndarray,
     global_inhib: float,
     layers: np.ndarray,
+    excited: np.ndarray,
 ) -> float:
     """``p`` = excited ``tmp`` - its inhibition - global inhibition, clipped at 0; returns the total.
 
     ``layers[k]`` is set to whether theta layer ``k`` of the result holds a non-zero cell
-    (every other cell is ``+0.0``).
+    (every other cell is ``+0.0``). ``excited[k]`` False promises that layer ``k`` of
+    ``tmp`` holds only ``+0.0``: with ``global_inhib > 0`` none of its cells is gathered,
+    so it is not scanned.
 
     The inhibition is gathered, and only for the cells it can matter to: a cell excited
     below ``global_inhib`` ends at 0 whatever its inhibition (``tmp`` and the weights are
@@ -213,13 +216,15 @@ def _inhibit_clip_dim(
     pick = np.empty(plane + 3, dtype=np.int64)  # the layer's gathered cells (y n + x), padded to a multiple of 4
     inh = np.empty(plane)
     total = 0.0
+    skip = global_inhib > 0.0
     for k in range(nth):
         lay = k * plane
         m = 0
-        for q in range(plane):
-            if ft[lay + q] >= global_inhib:
-                pick[m] = q
-                m += 1
+        if excited[k] or not skip:
+            for q in range(plane):
+                if ft[lay + q] >= global_inhib:
+                    pick[m] = q
+                    m += 1
         if m == 0:
             for q in range(plane):
                 fp[lay + q] = 0.0
@@ -260,21 +265,21 @@ def _inhibit_clip_dim(
             inh[q1] = s1
             inh[q2] = s2
             inh[q3] = s3
-        live = False
-        r = 0
+        # every cell not gathered, or clipped, is +0.0, which adds nothing to the total (a sum
+        # of terms >= +0.0 starting at +0.0): the layer is zeroed, then the kept cells are
+        # written and summed in cell order (pick is ascending)
         for q in range(plane):
-            a = 0.0
-            if r < m and pick[r] == q:
-                r += 1
-                a = ft[lay + q] - inh[q]
-                if a >= global_inhib:
-                    a = a - global_inhib
-                    if a != 0.0:
-                        live = True
-                else:
-                    a = 0.0
-            fp[lay + q] = a
-            total += a
+            fp[lay + q] = 0.0
+        live = False
+        for r in range(m):
+            q = pick[r]
+            a = ft[lay + q] - inh[q]
+            if a >= global_inhib:
+                a = a - global_inhib
+                if a != 0.0:
+                    live = True
+                    fp[lay + q] = a
+                    total += a
         layers[k] = live
     return total
 
@@ -293,18 +298,21 @@ def _inhibit_clip(
     gt_w: np.ndarray,
     global_inhib: float,
     layers: np.ndarray,
+    excited: np.ndarray,
 ) -> float:
     """:func:`_inhibit_clip_dim` with the kernel width ``dim`` (odd, 1..9) as a constant."""
     if dim == 5:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib,
+                                 layers, excited)
     elif dim == 7:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib,
+                                 layers, excited)
     elif dim == 3:
-        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
+        return _inhibit_clip_dim(tmp, p, w, (0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
     elif dim == 9:
         return _inhibit_clip_dim(tmp, p, w, (0, 0, 0, 0, 0, 0, 0, 0, 0), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w,
-                                 global_inhib, layers)
-    return _inhibit_clip_dim(tmp, p, w, (0,), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
+                                 global_inhib, layers, excited)
+    return _inhibit_clip_dim(tmp, p, w, (0,), gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
 
 
 @njit(cache=True)
@@ -342,8 +350,13 @@ def dynamics_gather(
     every axis >= ``i_dim`` (the caller checks; the gather tables come from
     ``posecell_network._gather_table``).
     """
-    negative = _spread(src, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, layers)
     nth, plane = p.shape[0], p.shape[1] * p.shape[2]
+    excited = np.zeros(nth, dtype=np.bool_)  # layers of the excited field the live layers reach
+    for k in range(nth):
+        if layers[k]:
+            for zl in range(k, k + e_dim):
+                excited[e_wrap_th[zl]] = True
+    negative = _spread(src, w_exc, e_dim, e_wrap_xy, e_wrap_th, tmp, layers)
     flat = p.reshape(-1)
     if negative:
         _spread(tmp, w_inh, i_dim, i_wrap_xy, i_wrap_th, p, np.ones(nth, dtype=np.bool_))
@@ -356,7 +369,7 @@ def dynamics_gather(
                     break
             layers[k] = live
     else:
-        total = _inhibit_clip(tmp, p, w_inh, i_dim, gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers)
+        total = _inhibit_clip(tmp, p, w_inh, i_dim, gx_src, gx_w, gy_src, gy_w, gt_src, gt_w, global_inhib, layers, excited)
     if total > 0.0:
         for k in range(nth):
             if layers[k]:  # the other layers hold +0.0, and +0.0 / total is +0.0
