@@ -761,19 +761,27 @@ def decode_box(buf, s, m, n, centre, window, res, trig):
             res[k] = circular_mean_index(prof[k], n[k])
 
 
-_NO_TRIG = np.empty((0, 2, 1), np.float64)
+@njit(**_OPTS)
+def no_trig():
+    """The empty sine/cosine table: :func:`decode_box` without :func:`trig_table` (computes the sines itself).
+
+    A fresh (writable) array, not a module constant: numba types a global array as
+    read-only, which would compile every function taking it a second time for the
+    writable tables of :func:`trig_table`.
+    """
+    return np.empty((0, 2, 1), np.float64)
 
 
 @njit(**_OPTS)
 def decode_window(grid, n, centre, window, res):
     """Population vector (Eq 5.11-5.12) of the flat grid around the cell ``centre`` into ``res``."""
-    decode_box(grid, np.zeros(n.shape[0], np.int64), n, n, centre, window, res, _NO_TRIG)
+    decode_box(grid, np.zeros(n.shape[0], np.int64), n, n, centre, window, res, no_trig())
 
 
 @njit(**_OPTS)
 def decode_grid(grid, n, window, res):
     """Decode a whole flat grid: first argmax in C order, then :func:`decode_window`."""
-    best = 0
+    best = np.int64(0)
     for i in range(grid.shape[0]):
         if grid[i] > grid[best]:
             best = i
@@ -1059,14 +1067,14 @@ def pipeline(
         if do_decode:
             decode_grid(out, n, window, decoded)
         return STATUS_OK
-    status, cur = box_step(bufs, 0, s, m, n, inj_idx, inj_val, do_dyn, exc, exc_w, inh, inh_w, phi,
+    status, cur = box_step(bufs, np.int64(0), s, m, n, inj_idx, inj_val, do_dyn, exc, exc_w, inh, inh_w, phi,
                            do_cond, cmask, cond_tab, do_uni, uni, proto, dense, par_work, nthreads)
     if status != STATUS_OK:
         return status
     scatter(bufs[cur], s, m, out, n)
     # 7. decoding
     if do_decode:
-        decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, _NO_TRIG)
+        decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, no_trig())
     return STATUS_OK
 
 

@@ -32,7 +32,7 @@ from numba import njit
 from cansim.backends._numba_kernels import (
     STATUS_COLLAPSE, STATUS_OK, _advance, _offset_tables, arc_from_occupancy, box_argmax, box_inject_excite_inhibit,
     box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
-    decode_box, grow_arc, mark_occupancy, paste, place, scatter, split_shift, trig_table, unravel,
+    decode_box, grow_arc, mark_occupancy, no_trig, paste, place, scatter, split_shift, trig_table, unravel,
 )
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
@@ -43,8 +43,6 @@ _OPTS = dict(cache=True, fastmath=False, nogil=True)
 #: Most packets (regions of a box, injected cells) one step keeps apart; with more the step
 #: runs on one box holding them all (the one-box step).
 MAX_ITEMS = 32
-
-_NO_TRIG = np.empty((0, 2, 1), np.float64)
 
 
 # ------------------------------------------------------------------------ margins
@@ -511,7 +509,7 @@ def multi_step(data, src_off, src_s, src_m, nsrc, n, k_cl, cl_s, cl_m, union_occ
                 ii[cnt] = inj_idx[t]
                 iv[cnt] = inj_val[t]
                 cnt += 1
-        ci, _ = box_inject_excite_inhibit(bufs, 0, s[i], m[i], n, ii, iv, exc, exc_w, inh, inh_w, phi, proto,
+        ci, _ = box_inject_excite_inhibit(bufs, np.int64(0), s[i], m[i], n, ii, iv, exc, exc_w, inh, inh_w, phi, proto,
                                           par_work, nthreads)
         cur[i] = ci
     # 2. the total in the one-box step's order: C order of the union's excitation box
@@ -567,7 +565,7 @@ def multi_step(data, src_off, src_s, src_m, nsrc, n, k_cl, cl_s, cl_m, union_occ
         base = slot[i]
         bb = bound[i]
         bufs = (ws[base:base + bb], ws[base + bb:base + 2 * bb], ws[base + 2 * bb:base + 3 * bb])
-        occupied, c = box_normalise(bufs, cur[i], s[i], m[i], n, total, proto, False)
+        occupied, c = box_normalise(bufs, cur[i], s[i], m[i], n, total, proto, np.bool_(False))
         if not occupied:
             continue
         c = box_shift(bufs, c, s[i], m[i], n, do_cond, cmask, cond_tab, do_uni, uni, proto, par_work, nthreads)
@@ -608,7 +606,7 @@ def packets_step(
     else:
         separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
         union_occ[:] = 0
-        k_cl = plan_packets(a_bits, src_off, src_s, src_m, 1, n, inj_idx, gap, cl_s, cl_m, union_occ)
+        k_cl = plan_packets(a_bits, src_off, src_s, src_m, np.int64(1), n, inj_idx, gap, cl_s, cl_m, union_occ)
     if k_cl == 0:
         return STATUS_COLLAPSE
     proto = out[:1].copy()
@@ -616,7 +614,7 @@ def packets_step(
         res_off = np.empty(k_cl, np.int64)
         res_s = np.empty((k_cl, d), np.int64)
         res_m = np.empty((k_cl, d), np.int64)
-        status, nres = multi_step(a, src_off, src_s, src_m, 1, n, k_cl, cl_s, cl_m, union_occ, spread,
+        status, nres = multi_step(a, src_off, src_s, src_m, np.int64(1), n, k_cl, cl_s, cl_m, union_occ, spread,
                                   inj_idx, inj_val, exc, exc_w, inh, inh_w, phi,
                                   do_cond, cmask, cond_tab, do_uni, uni, proto, ws, par_work, nthreads,
                                   res_off, res_s, res_m)
@@ -627,7 +625,7 @@ def packets_step(
             for i in range(nres):
                 place(ws[res_off[i]:], res_s[i], res_m[i], out, n)
             centre = unravel(argmax_boxes(ws, res_off, res_s, res_m, nres, n), n)
-            decode_boxes(ws, res_off, res_s, res_m, nres, n, centre, window, decoded, _NO_TRIG)
+            decode_boxes(ws, res_off, res_s, res_m, nres, n, centre, window, decoded, no_trig())
             return STATUS_OK
         for k in range(d):  # the packets do not fit: one box
             a0, l0 = arc_from_occupancy(union_occ[k], n[k])
@@ -638,12 +636,12 @@ def packets_step(
     s = cl_s[0].copy()
     m = cl_m[0].copy()
     crop(a, zero, n, bufs[0], s, m, n)
-    status, cur = box_step(bufs, 0, s, m, n, inj_idx, inj_val, True, exc, exc_w, inh, inh_w, phi,
-                           do_cond, cmask, cond_tab, do_uni, uni, proto, False, par_work, nthreads)
+    status, cur = box_step(bufs, np.int64(0), s, m, n, inj_idx, inj_val, np.bool_(True), exc, exc_w, inh, inh_w, phi,
+                           do_cond, cmask, cond_tab, do_uni, uni, proto, np.bool_(False), par_work, nthreads)
     if status != STATUS_OK:
         return status
     scatter(bufs[cur], s, m, out, n)
-    decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, _NO_TRIG)
+    decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, no_trig())
     return STATUS_OK
 
 
@@ -687,9 +685,9 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
     res_s = np.empty((MAX_ITEMS, d), np.int64)
     res_m = np.empty((MAX_ITEMS, d), np.int64)
     st_bits = st.view(np.uint64)
-    nst = 0
+    nst = np.int64(0)
     mode = 0  # 0: the grid a; 1: one box bufs[cur] (s, m); 2: nst boxes in st
-    cur = 0
+    cur = np.int64(0)
     s = np.zeros(d, np.int64)
     m = n.copy()
     for t in range(decoded.shape[0]):
@@ -710,11 +708,11 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
             union_occ[:] = 0
             if mode == 0:
                 one_off[1] = size
-                k_cl = plan_packets(a_bits, one_off, grid_s, grid_m, 1, n, inj, gap, cl_s, cl_m, union_occ)
+                k_cl = plan_packets(a_bits, one_off, grid_s, grid_m, np.int64(1), n, inj, gap, cl_s, cl_m, union_occ)
             elif mode == 1:
                 one_off[1] = box_size(m)
                 k_cl = plan_packets(bufs[cur][:box_size(m)].view(np.uint64), one_off, s.reshape(1, d),
-                                    m.reshape(1, d), 1, n, inj, gap, cl_s, cl_m, union_occ)
+                                    m.reshape(1, d), np.int64(1), n, inj, gap, cl_s, cl_m, union_occ)
             else:
                 k_cl = plan_packets(st_bits, st_off, st_s, st_m, nst, n, inj, gap, cl_s, cl_m, union_occ)
         if k_cl == 0:
@@ -731,7 +729,7 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
                 mode = 2
             if mode == 0:
                 one_off[1] = size
-                status, nres = multi_step(a, one_off, grid_s, grid_m, 1, n, k_cl, cl_s, cl_m, union_occ, spread,
+                status, nres = multi_step(a, one_off, grid_s, grid_m, np.int64(1), n, k_cl, cl_s, cl_m, union_occ, spread,
                                           inj, ival, exc, exc_w, inh, inh_w, phi,
                                           has_cond[t], cmask, cond_tabs[t], has_uni[t], unis[t], proto, ws,
                                           par_work, nthreads, res_off, res_s, res_m)
@@ -769,7 +767,7 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
         tm = cl_m[0]
         if mode == 0:
             crop(a, zero, n, bufs[0], ts, tm, n)
-            cur = 0
+            cur = np.int64(0)
         elif mode == 1:
             same = True
             for k in range(d):
@@ -783,17 +781,17 @@ def packets_run(a, a_bits, out, hist, record, ws, st, n,
             b0[:] = 0.0
             for j in range(nst):
                 paste(st[st_off[j]:st_off[j + 1]], st_s[j], st_m[j], b0, ts, tm, n)
-            cur = 0
+            cur = np.int64(0)
         s[:] = ts
         m[:] = tm
         mode = 1
         status, cur = box_step(
             bufs, cur, s, m, n,
             inj, ival,
-            True, exc, exc_w, inh, inh_w, phi,
+            np.bool_(True), exc, exc_w, inh, inh_w, phi,
             has_cond[t], cmask, cond_tabs[t],
             has_uni[t], unis[t],
-            proto, False, par_work, nthreads,
+            proto, np.bool_(False), par_work, nthreads,
         )
         if status != STATUS_OK:
             return t

@@ -74,7 +74,7 @@ def pipeline_run(a, a_bits, out, hist, record, ws, n,
     ts = np.empty(d, np.int64)
     tm = np.empty(d, np.int64)
     trig = trig_table(n)
-    cur = 0
+    cur = np.int64(0)
     for t in range(decoded.shape[0]):
         lo = inj_off[t]
         hi = inj_off[t + 1]
@@ -94,7 +94,7 @@ def pipeline_run(a, a_bits, out, hist, record, ws, n,
         status, cur = box_step(
             bufs, cur, s, m, n,
             inj, inj_val[lo:hi],
-            True, exc, exc_w, inh, inh_w, phi,
+            np.bool_(True), exc, exc_w, inh, inh_w, phi,
             has_cond[t], cmask, cond_tabs[t],
             has_uni[t], unis[t],
             proto, dense, par_work, nthreads,

@@ -1,5 +1,9 @@
 """Numba kernel of one spiking-population step; the same arithmetic, in the same order, as
-``cansim.spiking.population._step_numpy`` (the reference), so both give identical spikes."""
+``cansim.spiking.population._step_numpy`` (the reference), so both give identical spikes.
+
+The kernel's weights come flat (C order) with their extent per grid axis (``kw``, 1 past
+the weights' own axes), so one compiled specialisation serves populations of any number
+of axes."""
 
 from __future__ import annotations
 
@@ -11,18 +15,15 @@ from whisker_io.numba_cache import tolerate_corrupt_cache
 
 @nb.njit(cache=True, nogil=True)
 def step_kernel(
-    v, i_syn, ref, pre, n_pre, weights, offset, shape, strides, rec,
+    v, i_syn, ref, pre, n_pre, wflat, kw, offset, shape, strides, rec,
     a_syn, b_syn, ext, g, v_rest, resistance, bias, a_mem, noise, noise_scale,
     v_threshold, v_reset, n_ref, poisson, gain_dt, out_spikes,
 ):  # pragma: no cover - compiled
     n = v.shape[0]
     nd = shape.shape[0]
-    kw = np.empty(nd, dtype=np.int64)
     ksize = 1
     for a in range(nd):
-        kw[a] = weights.shape[a] if a < weights.ndim else 1
         ksize *= kw[a]
-    wflat = weights.ravel()
     for c in range(n):
         rec[c] = 0.0
     coord = np.empty(nd, dtype=np.int64)

@@ -356,8 +356,12 @@ class SpikingPopulation:
         from cansim.spiking._numba_spiking import step_kernel
 
         nrn = self._params.neurons
+        w = kernel.weights
+        nd = self._shape_arr.shape[0]
+        kw = np.ones(nd, dtype=np.int64)  # the weights' extent per grid axis (1 past their own axes)
+        kw[:min(nd, w.ndim)] = w.shape[:nd]
         count = step_kernel(
-            self._v, self._i, self._ref, self._spk, len(self._spk), kernel.weights,
+            self._v, self._i, self._ref, self._spk, len(self._spk), w.reshape(-1), kw,
             np.asarray(kernel.offset, dtype=np.int64), self._shape_arr, self._strides, self._rec,
             self._a_syn, 1.0 - self._a_syn, ext if ext is not None else self._empty, g,
             nrn.v_rest, nrn.resistance, nrn.bias_current, self._a_mem, noise, self._noise_scale,

@@ -114,7 +114,7 @@ def chi2_rows(q: np.ndarray, v: np.ndarray) -> np.ndarray:  # pragma: no cover -
 @njit(**_OPTS)
 def nmse_rows(x: np.ndarray, y: np.ndarray, mask_x: np.ndarray, mask_y: np.ndarray) -> np.ndarray:  # pragma: no cover
     """:func:`nmse_columns` per row of ``y`` (m, N) with the masks ``mask_x`` (N,) and ``mask_y`` (m, N)."""
-    return nmse_columns(x, np.ascontiguousarray(y.T), mask_x, np.ascontiguousarray(mask_y.T), y.shape[0], True)
+    return nmse_columns(x, np.ascontiguousarray(y.T), mask_x, np.ascontiguousarray(mask_y.T), y.shape[0], np.bool_(True))
 
 
 tolerate_corrupt_cache(__name__)  # a corrupt numba cache file recompiles (whisker_io.numba_cache)

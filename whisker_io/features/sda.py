@@ -226,5 +226,7 @@ def nmse(
         raise InvalidInputError("SDA entries must be finite where valid; mask out undefined slopes")
     from whisker_io.features._distances_numba import nmse_rows
 
-    out = nmse_rows(np.ascontiguousarray(xa), np.ascontiguousarray(y2), np.ascontiguousarray(mx), np.ascontiguousarray(my))
+    # C-contiguous and writable (a read-only input is copied): numba compiles a separate
+    # specialisation for every mix of read-only and writable arrays
+    out = nmse_rows(*(np.require(a, requirements=("C", "W")) for a in (xa, y2, mx, my)))
     return float(out[0]) if single else out
