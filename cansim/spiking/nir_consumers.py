@@ -23,9 +23,13 @@ their weights' precision). Norse then runs the arithmetic of
 ``NIRGraphSimulator(graph, integration="euler")`` up to the order of its sums: its headings
 stay within 0.32 deg of cansim's for Sargolini's whole first minute (the same RMS error,
 21.28 deg) and for 32 s of a held-out minute (300-360 s), then part (32.7 against 27.2
-deg). snnTorch does not: its reader stores the decay ``1 - dt/tau`` and the threshold as
-float32 tensors, which ``double()`` widens but cannot restore, and its float64 run parts
-from cansim's after 1.7 s like a float32 one. Rockpool's module does not run in float64
+deg). snnTorch does not: its float64 run parts from cansim's after 1.7 s like a float32 one.
+Not because its reader stores the decay ``1 - dt/tau`` and the threshold as float32
+tensors (which ``double()`` widens but cannot restore): read under torch's default dtype
+float64, so that every constant is float64 from the start, it parts at the same 1.74 s of
+Sargolini's turning. Its reader divides the threshold by ``w_in * dt / tau_syn`` instead of
+scaling the input, i.e. it runs the whole state rescaled, which rounds differently from
+the graph's arithmetic - the likely cause (not isolated), and no precision option undoes it. Rockpool's module does not run in float64
 (its state stays float32), so it is refused.
 """
 
