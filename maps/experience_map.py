@@ -463,6 +463,15 @@ class ExperienceMap:
         self.iterate()
         return result
 
+    def _index_view(self, vt_id: int, exp_id: int) -> None:
+        """Append experience ``exp_id`` (the newest) to view ``vt_id``'s list and to its chain (``next_same``)."""
+        a = self._a
+        a.next_same[exp_id] = -1
+        same = self._vt_exps.setdefault(vt_id, [])
+        if same:
+            a.next_same[same[-1]] = exp_id
+        same.append(exp_id)
+
     def _create(self, best: list[float], vt_id: int) -> None:
         """OpenRatSLAM ``create_experience`` + ``on_create_experience`` + ``on_set_experience(new, 0)``."""
         n, a = self._n_exp, self._a
@@ -471,12 +480,8 @@ class ExperienceMap:
         a.pose[n] = self.geometry.new_pose(a.pose[self.current_id] if n else None, self._acc)
         a.pc[n] = best
         a.vt[n] = vt_id
-        a.next_same[n] = -1
         self._n_exp = n + 1
-        same = self._vt_exps.setdefault(vt_id, [])
-        if same:
-            a.next_same[same[-1]] = n
-        same.append(n)
+        self._index_view(vt_id, n)
         if self._graph is not None:
             self._graph.add_node(n, view_id=vt_id, pc_cells=tuple(best))
         if n:
@@ -674,10 +679,7 @@ class ExperienceMap:
         a.ends, a.links = _grow(np.array(link_ends, dtype=np.int64), m), _grow(np.array(saved.link_data, dtype=np.float64), m)
         a.next_same = np.full(max(n, 16), -1, dtype=np.int64)
         for i, v in enumerate(exp_vt.tolist()):
-            same = self._vt_exps.setdefault(v, [])
-            if same:
-                a.next_same[same[-1]] = i
-            same.append(i)
+            self._index_view(v, i)
         self._traversals = _grow(np.ones(m, dtype=np.int64) if saved.link_traversals is None
                                  else np.array(saved.link_traversals, dtype=np.int64), m)
         for k, (f, t) in enumerate(link_ends.tolist()):  # no duplicates: read_map_body refused them
