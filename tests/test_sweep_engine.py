@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -411,3 +412,25 @@ def test_load_spec_reads_any_text_or_raises_config_error(tmp_path, text):
         assert str(exc).startswith(str(path))
         return
     assert spec.name == "any" and len(sweep.expand(spec)) == spec.n_tasks
+
+
+def test_a_busy_dashboard_port_is_not_reported_to_the_user(tmp_path):
+    """The local cluster's scheduler serves HTTP on a free local port, not on Dask's 8787:
+    with 8787 taken (another sweep or a Dask cluster running) nothing is warned about."""
+    import socket
+
+    holder = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        holder.bind(("0.0.0.0", 8787))
+        holder.listen(1)
+    except OSError:
+        pass  # already taken by someone else: just as busy
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = sweep.run(SPEC, out=tmp_path, workers=1, progress=False)
+    finally:
+        holder.close()
+    assert res.ran == 8
+    busy = [str(w.message) for w in caught if "already in use" in str(w.message)]
+    assert not busy, busy

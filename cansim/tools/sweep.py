@@ -851,6 +851,9 @@ def _client(address: str | None, workers: int | None, connect_timeout_s: float) 
         cluster = LocalCluster(
             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR,
             env={"NUMBA_NUM_THREADS": "1"},  # one process per core: no nested thread pools
+            # no dashboard; the scheduler's HTTP server (always started) on a free local port,
+            # not Dask's 8787: with 8787 taken (another sweep, a Dask cluster) it warned on stderr
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
         )
     return Client(cluster), cluster
 
