@@ -244,3 +244,25 @@ def test_quick_study_writes_its_figures_and_reanchoring_lowers_the_drift(tmp_pat
     for model in rt.MODELS:
         assert rows[(model, True)]["drift_per_min"] < 0.7 * rows[(model, False)]["drift_per_min"], model
         assert rows[(model, True)]["n_views"] > 0 and rows[(model, False)]["n_views"] == 0
+
+
+def test_the_errors_figure_draws_every_seed_as_median_and_range():
+    """Two seeds of one model: one line at the per-sample median of the two, a band between them."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.arange(5) * 0.5 * 60.0  # s
+    runs = [rt.DriftRun("rate_ring", False, t, np.zeros(5), np.zeros(5), np.array(e, float), "deg")
+            for e in ([0, 1, 2, 3, 4], [0, 3, 2, 1, 8], [0, 2, 5, 2, 6])]
+    fig, axes = plt.subplots(2, 1)
+    rt.plot_errors(runs, axes)
+    lines = axes[0].get_lines()
+    assert len(lines) == 1  # one line for the three seeds, not one per seed
+    np.testing.assert_array_equal(lines[0].get_xdata(), [0, 0.5, 1, 1.5, 2])  # minutes
+    np.testing.assert_array_equal(lines[0].get_ydata(), [0, 2, 2, 2, 6])  # the median by hand
+    band = axes[0].collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == 0 and band.max() == 8  # the range by hand
+    assert "3 seeds" in lines[0].get_label()
+    plt.close(fig)

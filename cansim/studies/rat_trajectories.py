@@ -733,24 +733,40 @@ def plot_paths(runs: Sequence[DriftRun], ax=None):
 
 
 def plot_errors(runs: Sequence[DriftRun], axes=None):
-    """Error against time: heading error of the rings (deg, top) and position error of the sheet (m, bottom)."""
+    """Error against time: heading error of the rings (deg, top) and position error of the sheet (m, bottom).
+
+    Every seed is drawn: per model and anchoring, the median error over the seeds' runs at each
+    sample (line) and, with two seeds or more, their range (band); the legend gives the mean drift
+    per minute over the seeds. Returns the axes.
+    """
     import matplotlib.pyplot as plt
 
     if axes is None:
         _, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     colors = {"rate_ring": "tab:orange", "spiking_ring": "tab:purple", "rate_sheet": "tab:blue"}
+    groups: dict = {}
     for r in runs:
-        ax = axes[0] if r.unit == "deg" else axes[1]
-        ax.plot(r.time_s / 60.0, r.error, lw=0.7 if r.anchoring else 0.9, ls="-" if r.anchoring else "--",
-                color=colors[r.model],
-                label=f"{r.model.replace('_', ' ')}, {'re-anchored' if r.anchoring else 'no landmarks'}: "
-                      f"{r.drift_per_min:.3g} {r.unit}/min")
+        groups.setdefault((r.model, r.anchoring), []).append(r)
+    for (model, anchoring), group in groups.items():
+        ax = axes[0] if group[0].unit == "deg" else axes[1]
+        n = min(len(r.error) for r in group)
+        t_min = group[0].time_s[:n] / 60.0
+        errors = np.stack([r.error[:n] for r in group])
+        drift = float(np.mean([r.drift_per_min for r in group]))
+        seeds = f", {len(group)} seeds (median, range)" if len(group) > 1 else ""
+        ax.plot(t_min, np.median(errors, axis=0), lw=0.7 if anchoring else 0.9, ls="-" if anchoring else "--",
+                color=colors[model],
+                label=f"{model.replace('_', ' ')}, {'re-anchored' if anchoring else 'no landmarks'}: "
+                      f"{drift:.3g} {group[0].unit}/min{seeds}")
+        if len(group) > 1:
+            ax.fill_between(t_min, errors.min(axis=0), errors.max(axis=0), color=colors[model],
+                            alpha=0.12 if anchoring else 0.08, lw=0)
     axes[0].set_ylabel("heading error (deg)")
     axes[1].set_ylabel("position error (m)")
     axes[1].set_xlabel("time (min)")
     for ax in axes:
         ax.legend(fontsize=7, loc="upper left")
-    axes[0].set_title("decoded vs recorded: error over time (legend: drift per minute)")
+    axes[0].set_title("decoded vs recorded: error over time (legend: mean drift per minute)")
     axes[0].set_title("head-direction rings", loc="left", fontsize=8)
     axes[1].set_title("2-D sheet", loc="left", fontsize=8)
     return axes
@@ -830,7 +846,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     fig.savefig(args.out / "rat_trajectories_paths.png", dpi=120)
     plt.close(fig)
     fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
-    plot_errors(first, axes)
+    plot_errors(runs, axes)  # every seed
     fig.tight_layout()
     fig.savefig(args.out / "rat_trajectories_errors.png", dpi=120)
     plt.close(fig)
