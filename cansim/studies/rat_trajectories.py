@@ -765,7 +765,8 @@ def plot_errors(runs: Sequence[DriftRun], axes=None):
     axes[1].set_ylabel("position error (m)")
     axes[1].set_xlabel("time (min)")
     for ax in axes:
-        ax.legend(fontsize=7, loc="upper left")
+        if ax.get_legend_handles_labels()[0]:  # an axis without runs (e.g. --no-spiking, rings only) gets none
+            ax.legend(fontsize=7, loc="upper left")
     axes[0].set_title("decoded vs recorded: error over time (legend: mean drift per minute)")
     axes[0].set_title("head-direction rings", loc="left", fontsize=8)
     axes[1].set_title("2-D sheet", loc="left", fontsize=8)
