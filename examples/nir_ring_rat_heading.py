@@ -73,7 +73,7 @@ def rat_heading(
 
 
 def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integration: str = "exact",
-        precision: str = "float32", **heading) -> dict:
+        precision: str = "float32", keep_trace: bool = False, **heading) -> dict:
     """Drive the ring with the rat's angular velocity; returns the RMS heading error and timing."""
     t, head = rat_heading(seconds, **heading)
     omega = np.gradient(head, t)
@@ -109,6 +109,7 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integr
         "mean_abs_omega_rad_s": float(np.abs(omega).mean()), "max_abs_omega_rad_s": float(np.abs(omega).max()),
         "calibration_max_rad_s": None if cal is None else cal.max_rad_s,
         "wall_s": time.perf_counter() - t0,
+        **({"time_s": [round(v, 4) for v in out_t], "decoded_heading_rad": out_h} if keep_trace else {}),
     }
 
 
@@ -127,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="cansim's discretisation (euler: the consumers'; --who cansim only)")
     ap.add_argument("--precision", default="float32", choices=["float32", "float64"],
                     help="a consumer's arithmetic (float64: the same as cansim's; --who snntorch|norse|rockpool)")
+    ap.add_argument("--trace", action="store_true",
+                    help="also write the decoded heading every 20 ms (time_s, decoded_heading_rad) to --out")
     ap.add_argument("--out", type=Path, default=Path("rat_heading.json"))
     args = ap.parse_args(argv)
     if not (math.isfinite(args.seconds) and 0 < args.seconds <= 590):
@@ -137,11 +140,11 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--smooth-s must be > 0, --min-speed-m-s and --lowpass-s >= 0")
     res = run(
         args.who, args.cells, args.seconds, calibrated=not args.no_calibration, integration=args.integration,
-        precision=args.precision,
+        precision=args.precision, keep_trace=args.trace,
         start_s=args.start_s, data=args.data,
         smooth_s=args.smooth_s, min_speed_m_s=args.min_speed_m_s, lowpass_s=args.lowpass_s,
     )
-    print(json.dumps(res))
+    print(json.dumps({k: v for k, v in res.items() if k not in ("time_s", "decoded_heading_rad")}))
     args.out.write_text(json.dumps(res, indent=1) + "\n")
     return 0
 

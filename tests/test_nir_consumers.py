@@ -427,6 +427,52 @@ def test_a_float64_consumer_computes_in_float64(consumer):
     assert spikes > 0
 
 
+def test_a_float64_snntorch_module_holds_the_graphs_numbers():
+    """snnTorch's reader, run with ``precision="float64"``, keeps the graph's float64 values: every linear layer's
+    weights and bias equal the graph's, and the neurons' decays are ``1 - dt/tau`` computed here in float64 (the
+    reader's nirtorch call would round them all to float32: ``alpha`` 0.98000002, whose ``1 - alpha`` is 1e-6 off)."""
+    _need("snntorch")
+    import torch
+
+    g = rotation_ring_graph(RotationRingParams(n_cells=24, shift_cells=3))
+    mod = ConsumerRunner(g, "snntorch", precision="float64")._module
+    layers = {k: m for k, m in mod.named_modules() if isinstance(m, torch.nn.Linear)}
+    assert set(layers) == {"input_map", "excitation", "inhibition", "readout"}
+    for name, layer in layers.items():
+        assert np.array_equal(layer.weight.detach().numpy(), g.nodes[name].weight), name
+        if layer.bias is not None:
+            assert np.array_equal(layer.bias.detach().numpy(), g.nodes[name].bias), name
+    cells = g.nodes["cells"]
+    assert mod.cells.alpha.item() == 1.0 - 1e-4 / float(cells.tau_syn[0])  # 0.98 in float64
+    assert mod.cells.beta.item() == 1.0 - 1e-4 / float(cells.tau_mem[0])  # 0.995
+    assert torch.get_default_dtype() == torch.float32  # the reader's float64 setting did not leak out
+
+
+@pytest.mark.slow  # ~1 min
+def test_a_float64_snntorch_runs_cansims_euler_arithmetic():
+    """On the 1.4 s turning protocol, snnTorch in float64 and cansim's Euler simulation of the same graph fire the
+    same cells at every step, and their membrane potentials end within 1e-9 (with the float32 constants of snnTorch's
+    reader as it calls nirtorch: the same spikes here, but potentials 2.4e-6 apart, and the spikes part 1.67 s into
+    Sargolini's turning)."""
+    _need("snntorch")
+    g, command, _ = _pi_reference()
+    sim = NIRGraphSimulator(g, integration="euler")
+    runner = ConsumerRunner(g, "snntorch", precision="float64")
+    parted = []
+
+    def both(x):  # the ring cells' spikes of this step (cansim's Output reads them one step later)
+        sim.step(x)
+        a, b = sim.spikes("cells")[:PI_CELLS], runner.step(x)
+        if not np.array_equal(a, b):
+            parted.append(len(parted))
+        return b
+
+    _turn_run(both, PI_CELLS, command, PI_SECONDS)
+    assert not parted, len(parted)
+    gap = np.abs(runner._module.cells.mem.detach().numpy()[0] - sim._v["cells"])
+    assert gap.max() < 1e-9, gap.max()
+
+
 @settings(max_examples=40, **HSET)
 @given(precision=st.one_of(st.text(max_size=8), st.integers(), st.floats(), st.none(), st.just(["float64"]))
        .filter(lambda p: p not in ("float32", "float64")))

@@ -19,24 +19,43 @@ Sargolini's rat, Norse in float32 against cansim's Euler simulation in float64, 
 decoded headings > 1 deg apart after 2.7 s and 6 deg after 10 s). ``precision="float64"``
 converts the imported module to float64 (``module.double()``; snnTorch's neurons emit their
 0/1 spikes as float32, exact in any precision, so its linear layers cast their input to
-their weights' precision). Norse then runs the arithmetic of
-``NIRGraphSimulator(graph, integration="euler")`` up to the order of its sums: its headings
-stay within 0.32 deg of cansim's for Sargolini's whole first minute (the same RMS error,
-21.28 deg) and for 32 s of a held-out minute (300-360 s), then part (32.7 against 27.2
-deg). snnTorch does not: its float64 run parts from cansim's after 1.7 s like a float32 one.
-Not because its reader stores the decay ``1 - dt/tau`` and the threshold as float32
-tensors (which ``double()`` widens but cannot restore): read under torch's default dtype
-float64, so that every constant is float64 from the start, it parts at the same 1.74 s of
-Sargolini's turning. Its reader divides the threshold by ``w_in * dt / tau_syn`` instead of
-scaling the input, i.e. it runs the whole state rescaled, which rounds differently from
-the graph's arithmetic - the likely cause (not isolated), and no precision option undoes it. Rockpool's module does not run in float64
-(its state stays float32), so it is refused.
+their weights' precision). That widens the constants the reader wrote but cannot restore
+digits it rounded away:
+
+* snnTorch's ``import_from_nir`` hands its modules to ``nirtorch.nir_to_torch`` without
+  that function's ``dtype`` argument, whose default (float32) rounds every weight and neuron
+  constant, among them the decays ``alpha = 1 - dt/tau_syn`` (0.98 -> 0.98000002) and
+  ``beta = 1 - dt/tau_mem`` (0.995 -> 0.99500000477): ``1 - alpha`` and ``1 - beta`` come
+  out 9.5e-7 (relative) short, i.e. time constants 1e-6 longer than the graph's. With
+  them, snnTorch's float64 run parts from cansim's Euler simulation 1.67 s into Sargolini's
+  first minute (a cell at 0.99999946 in cansim fires in snnTorch); with the float32 weights
+  but float64 decays it does not part within 5.1 s (potentials within 2e-7). (snnTorch's
+  reader also divides the threshold by ``w_in dt / tau_syn`` when that is not 1; for the
+  graphs cansim writes it is exactly 1.0, ``50 * (1e-4 / 0.005)``, so nothing is rescaled.)
+  For ``precision="float64"`` the runner calls the reader unmodified with
+  ``nirtorch.nir_to_torch`` given ``dtype=torch.float64`` and torch's default dtype float64
+  for the duration of the call (:func:`_snntorch_reads_float64`; a warning is logged if a
+  layer then lacks the graph's weights). The module then holds the graph's values bit for
+  bit and runs the arithmetic of ``NIRGraphSimulator(graph, integration="euler")`` up to
+  rounding (cansim computes ``i <- a i + ((1 - a) w_in) x``, whose ``(1 - a) w_in`` is
+  1.0000000000000009; snnTorch ``i <- alpha i + x``): no spike
+  differs from cansim's over the first 5.1 s of Sargolini (potentials within 2.2e-14).
+* Norse's reader rounds the linear layers' weights to float32 (``1e-4 -> 9.99999975e-5``)
+  but its neuron constants (``1/tau`` = 200 and 50 s^-1, ``w_in``, ``r``, the threshold)
+  are exact in float32; in float64 its headings stay within 0.32 deg of cansim's for
+  Sargolini's whole first minute and for 32 s of a held-out minute (300-360 s).
+* Rockpool's module does not run in float64 (its state stays float32), so it is refused.
+
+Measured with ``python examples/nir_ring_rat_heading.py --cells 120 --seconds 60 --trace
+[--start-s 300]`` run as ``--who cansim --integration euler`` and as ``--who snntorch|norse
+--precision float64``, the two ``--out`` files' ``decoded_heading_rad`` (every 20 ms) compared.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import importlib
 import io
 import logging
@@ -61,6 +80,28 @@ NIR_CONSUMERS = {"snntorch": "snntorch.import_nir", "norse": "norse.torch", "roc
 def _to_weight_dtype(layer: Any, args: tuple) -> tuple:
     """Forward pre-hook: a linear layer's inputs in its weights' precision (spikes are 0/1: exact either way)."""
     return tuple(a.to(layer.weight.dtype) if hasattr(a, "to") else a for a in args)
+
+
+@contextlib.contextmanager
+def _snntorch_reads_float64(torch: Any) -> Any:
+    """While open, snnTorch's reader builds its module in float64 (module docstring, *Precision*).
+
+    snnTorch's ``import_from_nir`` hands its modules to ``nirtorch.nir_to_torch`` without
+    that function's ``dtype`` argument, whose default (``torch.float32``) casts every weight
+    and every neuron constant to float32. Here that function takes ``dtype=torch.float64``
+    and torch's default dtype is float64 (snnTorch builds its tensors with ``torch.Tensor``),
+    so the constants keep the graph's float64 values; both are restored on exit.
+    """
+    import nirtorch
+
+    reader, default = nirtorch.nir_to_torch, torch.get_default_dtype()
+    nirtorch.nir_to_torch = functools.partial(reader, dtype=torch.float64)
+    torch.set_default_dtype(torch.float64)
+    try:
+        yield
+    finally:
+        nirtorch.nir_to_torch = reader
+        torch.set_default_dtype(default)
 
 
 def consumer_status() -> dict[str, tuple[bool, str]]:
@@ -117,7 +158,9 @@ class ConsumerRunner:
             with contextlib.redirect_stdout(sink), torch.no_grad():
                 mod = importlib.import_module(NIR_CONSUMERS[consumer])
                 if consumer == "snntorch":
-                    self._module = mod.import_from_nir(g)
+                    wide = _snntorch_reads_float64(torch) if precision == "float64" else contextlib.nullcontext()
+                    with wide:
+                        self._module = mod.import_from_nir(g)
                 elif consumer == "norse":
                     self._module = mod.from_nir(g, dt=float(dt_s))
                 else:
@@ -130,9 +173,13 @@ class ConsumerRunner:
         self._dtype = torch.float64 if precision == "float64" else torch.float32
         if precision == "float64":
             self._module = self._module.double()
-            for layer in self._module.modules():  # 0/1 spikes emitted as float32 meet float64 weights
+            for name, layer in self._module.named_modules():  # 0/1 spikes emitted as float32 meet float64 weights
                 if isinstance(layer, torch.nn.Linear):
                     layer.register_forward_pre_hook(_to_weight_dtype)
+                    node = graph.nodes.get(name) if consumer == "snntorch" else None
+                    if node is not None and not np.array_equal(layer.weight.detach().cpu().numpy(), np.asarray(node.weight)):
+                        log.warning("snnTorch's layer %r does not hold the graph's float64 weights (a reader that "
+                                    "no longer goes through nirtorch.nir_to_torch?): its run will part from cansim's", name)
         self._reshape: Callable[[Any], Any] = (lambda t: t[None, None]) if consumer == "rockpool" else (lambda t: t[None])
         self._n_in = self._input_size(graph)
         self._state = None
