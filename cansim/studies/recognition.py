@@ -106,6 +106,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from maps.recognition import MATCHERS  # thesis | surface
 
 logger = logging.getLogger(__name__)
 
@@ -117,9 +118,6 @@ VIEWPOINT_BINS: tuple[tuple[str, tuple[float, float], tuple[float, float]], ...]
     ("vp 5-10 cm", (0.05, 0.10), (5.0, 15.0)),
     ("vp 10-15 cm", (0.10, 0.15), (15.0, 25.0)),
 )
-#: Matchers: ``thesis`` (Eq 5.5 region match of the appended library) and ``surface``
-#: (:class:`maps.surface_match.SurfaceMatcher` against the stored surfaces, module docstring).
-MATCHERS = ("thesis", "surface")
 #: The matchers a run uses unless told (``--matchers``).
 DEFAULT_MATCHERS = ("thesis", "surface")
 COLUMNS = ("seed", "library_size", "matcher", "presented", "novel", "presentation", "distance_bin",
