@@ -427,6 +427,19 @@ def test_a_float64_consumer_computes_in_float64(consumer):
     assert spikes > 0
 
 
+def _holds_the_graphs_weights(module, graph):
+    """The module's linear layers, each holding its graph node's weights and bias bit for bit; returns them by name."""
+    import torch
+
+    layers = {k: m for k, m in module.named_modules() if isinstance(m, torch.nn.Linear)}
+    assert set(layers) == {"input_map", "excitation", "inhibition", "readout"}
+    for name, layer in layers.items():
+        assert np.array_equal(layer.weight.detach().numpy(), graph.nodes[name].weight), name
+        if layer.bias is not None:
+            assert np.array_equal(layer.bias.detach().numpy(), graph.nodes[name].bias), name
+    return layers
+
+
 def test_a_float64_snntorch_module_holds_the_graphs_numbers():
     """snnTorch's reader, run with ``precision="float64"``, keeps the graph's float64 values: every linear layer's
     weights and bias equal the graph's, and the neurons' decays are ``1 - dt/tau`` computed here in float64 (the
@@ -436,12 +449,7 @@ def test_a_float64_snntorch_module_holds_the_graphs_numbers():
 
     g = rotation_ring_graph(RotationRingParams(n_cells=24, shift_cells=3))
     mod = ConsumerRunner(g, "snntorch", precision="float64")._module
-    layers = {k: m for k, m in mod.named_modules() if isinstance(m, torch.nn.Linear)}
-    assert set(layers) == {"input_map", "excitation", "inhibition", "readout"}
-    for name, layer in layers.items():
-        assert np.array_equal(layer.weight.detach().numpy(), g.nodes[name].weight), name
-        if layer.bias is not None:
-            assert np.array_equal(layer.bias.detach().numpy(), g.nodes[name].bias), name
+    layers = _holds_the_graphs_weights(mod, g)
     cells = g.nodes["cells"]
     assert mod.cells.alpha.item() == 1.0 - 1e-4 / float(cells.tau_syn[0])  # 0.98 in float64
     assert mod.cells.beta.item() == 1.0 - 1e-4 / float(cells.tau_mem[0])  # 0.995
@@ -459,12 +467,7 @@ def test_a_float64_norse_module_holds_the_graphs_numbers():
     reader = import_nir._to_tensor
     g = rotation_ring_graph(RotationRingParams(n_cells=24, shift_cells=3))
     mod = ConsumerRunner(g, "norse", precision="float64")._module
-    layers = {k: m for k, m in mod.named_modules() if isinstance(m, torch.nn.Linear)}
-    assert set(layers) == {"input_map", "excitation", "inhibition", "readout"}
-    for name, layer in layers.items():
-        assert np.array_equal(layer.weight.detach().numpy(), g.nodes[name].weight), name
-        if layer.bias is not None:
-            assert np.array_equal(layer.bias.detach().numpy(), g.nodes[name].bias), name
+    layers = _holds_the_graphs_weights(mod, g)
     assert any(not np.array_equal(g.nodes[n].weight, g.nodes[n].weight.astype(np.float32)) for n in layers)  # can fail
     cells = g.nodes["cells"]
     assert np.array_equal(mod.cells.synapse.p.tau_mem_inv.numpy(), 1.0 / np.asarray(cells.tau_syn, dtype=np.float64))
