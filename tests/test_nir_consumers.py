@@ -461,7 +461,6 @@ def test_a_float64_norse_module_holds_the_graphs_numbers():
     ``.float()``: ``1e-4`` would become 9.99999975e-5) and its neurons' inverse time constants are ``1/tau`` in float64;
     the reader's own tensor function is back in place afterwards."""
     _need("norse")
-    import torch
     from norse.torch.utils import import_nir
 
     reader = import_nir._to_tensor
