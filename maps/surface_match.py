@@ -211,6 +211,22 @@ class SurfaceMatchConfig:
         still in question, not the library's size.
     seed : int
         Seed of the hypotheses' sampling (deterministic runs).
+    refine_iterations : int
+        Registration-refined proposal (0: off, the blind odometry proposal alone): after
+        the odometry move, every hypothesis of an object in question is corrected toward
+        the whisk's contacts by this many Levenberg-Marquardt steps on their signed
+        distances to the object's stored surface (the grid's trilinear gradient; robust
+        weights of the likelihood above), the body-frame correction penalised by a
+        Gaussian prior of ``refine_prior_scale`` times the odometry noise per whisk
+        (``displacement_sigma_m`` per axis, ``rotation_sigma_deg`` per rotation-vector
+        component), so that few contacts move only the directions they constrain. The
+        refined hypothesis is weighed by the Laplace approximation of the likelihood
+        integrated over that prior (the likelihood at the refined pose, times the prior
+        of the correction, over the square root of the whitened Gauss-Newton Hessian's
+        determinant), so that an object that a few points can be fitted to gains no more
+        than the fit's volume allows.
+    refine_prior_scale : float
+        Scale of the refinement's prior on the odometry noise (> 0).
     """
 
     cap_m: float = checked(0.03, float, above=0)
@@ -228,6 +244,8 @@ class SurfaceMatchConfig:
     tolerance_m: float = checked(0.008, float, above=0)
     prune_margin: float = checked(30.0, float, above=0)
     seed: int = checked(0, int, minimum=0)
+    refine_iterations: int = checked(0, int, minimum=0, maximum=50)
+    refine_prior_scale: float = checked(1.0, float, above=0, maximum=100.0)
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -497,8 +515,14 @@ class SurfaceMatcher:
             return impulses
         f = self.library.fields
         rows = np.flatnonzero(self.active)
-        ll, res = _kernels().likelihoods(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
-                                         cfg.contact_sigma_m, cfg.outlier_weight, min(cfg.cap_m, f.config.cap_m), rows)
+        cap = min(cfg.cap_m, f.config.cap_m)
+        if cfg.refine_iterations > 0:
+            sd = cfg.refine_prior_scale * np.array([cfg.displacement_sigma_m] * 3 + [math.radians(cfg.rotation_sigma_deg)] * 3)
+            ll, res = _kernels().refine(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
+                                        cfg.contact_sigma_m, cfg.outlier_weight, cap, rows, sd, cfg.refine_iterations)
+        else:
+            ll, res = _kernels().likelihoods(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
+                                             cfg.contact_sigma_m, cfg.outlier_weight, cap, rows)
         logw = self._logw[rows]
         prior = logw - logw.max(axis=1, keepdims=True)
         prior -= np.log(np.exp(prior).sum(axis=1, keepdims=True))
