@@ -36,6 +36,7 @@ from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.validation import checked, validate_fields
 
 __all__ = [
+    "MATCHERS",
     "LeakyIntegrator",
     "RecognitionResult",
     "relocalisation_targets",
@@ -47,6 +48,11 @@ __all__ = [
     "decide",
     "recognise",
 ]
+
+#: Where the impulses come from: ``thesis``, a re-localisation to an object's map (Eq 5.5's
+#: region match, this module's docstring); ``surface``, :class:`maps.surface_match.SurfaceMatcher`
+#: on the objects' stored surfaces (issue 22: identification from a path the map never took).
+MATCHERS = ("thesis", "surface")
 
 
 @dataclass(frozen=True)

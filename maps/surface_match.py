@@ -126,6 +126,16 @@ in :mod:`cansim.studies.recognition`):
     same seeds' maps give (2 loops, 200 particles, three matcher seeds) B + viewpoints 81
     instead of 67 of 144 and 35 instead of 54 of 216 wrong decisions, at the same median
     distance to the mesh (seed 1 19.9 against 19.1 mm).
+  - Tried and not kept: thresholds pooled over five calibration seeds that the study never
+    maps (``--calibration pooled`` of :mod:`cansim.studies.recognition`; 0.80 quantile of
+    478 same-pose pairs, 1.010 / 0.325; k and quantile chosen on seeds 0-1). On held-out
+    seeds 3-5, three matcher seeds (of 108 / 216 / 324 / 81): seed 0's thresholds A 93, B +
+    viewpoints 96, wrong 93, novel undecided 47; pooled 89, 100, 95, 43 - not better. Pools
+    of other calibration seeds move the held-out B + viewpoints by 4 of 72 and the wrong
+    decisions by 4 of 108 (one matcher seed), and seed 1's thresholds, the better ones on
+    seeds 1-2, are the worse ones on seeds 3-5 (B + viewpoints 26 against 31 of 72): the
+    thresholds are a source of seed noise in these figures, not a lever found so far
+    (the study's Status has the numbers and the command).
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the

@@ -152,6 +152,50 @@ def test_settings_refuse_an_uncalibrated_contact_model() -> None:
         dataclasses.replace(s, matching="pose")
 
 
+# ----------------------------------------------------------------- calibration
+_GOOD_SEEDS = st.one_of(st.integers(0, 2**40), st.lists(st.integers(-5, 2**40), min_size=1, max_size=4, unique=True))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.one_of(
+    _GOOD_SEEDS,
+    st.lists(st.integers(0, 3), min_size=2, max_size=4).filter(lambda s: len(set(s)) < len(s)),  # repeated seeds
+    st.just([]), st.just(()), st.booleans(), st.floats(allow_nan=True), st.text(max_size=3), st.none(),
+    st.lists(st.one_of(st.floats(), st.booleans(), st.text(max_size=2), st.none()), min_size=1, max_size=3),
+    st.lists(st.integers(0, 9), min_size=1, max_size=3).map(lambda s: [*s, 1.5]),
+))
+def test_calibrate_refuses_bad_seeds(seed: object) -> None:
+    ints = isinstance(seed, int) and not isinstance(seed, bool)
+    seq = (isinstance(seed, (list, tuple)) and len(seed) > 0
+           and all(isinstance(x, int) and not isinstance(x, bool) for x in seed) and len(set(seed)) == len(seed))
+    if ints or seq:  # valid: read as the seeds to pool, in order (calibrating them is the slow test's)
+        assert ch5_study._calibration_seeds(seed) == ((seed,) if ints else tuple(seed))
+    else:
+        with pytest.raises(InvalidInputError, match="seed"):
+            ch5_study.calibrate(0.3, 0.75, seed)  # type: ignore[arg-type]
+
+
+@settings(max_examples=20, deadline=None)
+@given(noise=st.one_of(st.floats(max_value=-1e-9), st.just(float("nan")), st.just(float("inf")), st.booleans(),
+                       st.text(max_size=2), st.none()))
+def test_calibrate_refuses_bad_noise_scale(noise: object) -> None:
+    with pytest.raises(InvalidInputError, match="noise_scale"):
+        ch5_study.calibrate(noise, 0.75, 0)  # type: ignore[arg-type]
+
+
+@pytest.mark.slow
+def test_calibrate_pools_the_seeds_same_pose_distances() -> None:
+    one = {s: ch5_study.calibrate(0.3, 0.75, s, "tip") for s in (0, 1)}
+    assert ch5_study.calibrate(0.3, 0.75, [0], "tip") == one[0]  # a one-seed pool is that seed's calibration
+    ab, ba = (ch5_study.calibrate(0.3, 0.75, s, "tip") for s in ([0, 1], [1, 0]))
+    assert ab["n_pairs"] == ba["n_pairs"] == one[0]["n_pairs"] + one[1]["n_pairs"]
+    for key in ("pfh_threshold", "sda_threshold"):
+        assert ab[key] == pytest.approx(ba[key], rel=1e-12)  # a quantile of the pooled distances: order-free
+        # the quantile of a mixture lies between its parts' quantiles
+        lo, hi = sorted(one[s][key] for s in (0, 1))
+        assert lo - 1e-9 <= ab[key] <= hi + 1e-9, (key, lo, ab[key], hi)
+
+
 # ----------------------------------------------------------------- the --quick study
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:

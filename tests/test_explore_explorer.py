@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from cansim.errors import CansimError
+from cansim.errors import CansimError, ConfigError
 from cansim.explore.explorer import ic_metrics
 
 
@@ -37,6 +37,7 @@ from hypothesis import example, given, settings, strategies as st  # noqa: E402
 
 from cansim.explore.explorer import Explorer, build_object_model  # noqa: E402
 from cansim.explore.placement import PlacementParams  # noqa: E402
+from maps.surface_match import SurfaceMatchConfig  # noqa: E402
 from cansim.explore.search import DefaultSearch  # noqa: E402
 from whisker_io.errors import SafetyViolationError  # noqa: E402
 
@@ -282,3 +283,80 @@ def test_any_distance_bad_shapes_typed(shape):
 
     with pytest.raises(CansimError):
         any_distance_cells(shape)
+
+
+# ------------------------------------------------------------ the surface matcher as the impulse source (issue 22)
+def test_stored_surface_with_exact_odometry_and_true_contacts_lies_on_the_object():
+    """Mapped with noiseless odometry and noiseless true contacts, the stored surface is the mesh: every point within
+    1 mm of it (the pose graph keeps the dead-reckoned poses, which are the true ones), one point per contact felt,
+    and each felt from outside the object (its viewpoint farther from the centre than the point)."""
+    import trimesh
+
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.odometry_noise import OdometryNoise, noisy_odometry
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    mesh = make_object("mug")
+    chain = WhiskChain(mesh, contact_model="truth", contact_noise=None)
+    rng, exact = np.random.default_rng(0), OdometryNoise(euler_std_rad=0.0, displacement_std_m=0.0)
+    k = build_object_model("mug", object_trajectory(mesh, "A", n_loops=1)[:20], lambda p: chain.features(p, rng),
+                           lambda a, b: noisy_odometry(a, b, rng, exact), placement=None, model=_model())
+    points, seen = k.stored_surface()
+    felt = sum(len(c) for c in k.mapping_log["contacts"] if c is not None)
+    assert points.shape == seen.shape == (felt, 3) and felt > 50
+    _, d, _ = trimesh.proximity.closest_point(mesh, points)
+    assert d.max() < 1e-3, d.max()
+    centre = mesh.bounds.mean(axis=0)
+    assert np.all(np.linalg.norm(seen - centre, axis=1) > np.linalg.norm(points - centre, axis=1))
+    assert k.stored_surface()[0] is points  # computed once
+
+
+def test_a_known_object_without_a_mapping_log_has_no_stored_surface(world):
+    from cansim.explore.explorer import KnownObject
+
+    known, _ = world
+    bare = KnownObject("box", known[0].model, known[0].n_built, known[0].n_built_regions, known[0].n_history, known[0].poses)
+    with pytest.raises(ConfigError, match="mapping log"):
+        bare.stored_surface()
+    with pytest.raises(ConfigError, match="mapping log"):
+        Explorer([bare], None, None, None, DefaultSearch((0, 0, 0), 0.3), matcher="surface")
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(st.text(max_size=8), st.integers(), st.none(), st.just(["surface"])).filter(lambda m: m not in ("thesis", "surface")),
+       st.one_of(st.none(), st.integers(), st.text(max_size=3), st.just({"particles": 10})))
+def test_explorer_bad_matcher_or_surface_config_is_a_config_error(world, matcher, config):
+    known, _ = world
+    with pytest.raises(ConfigError, match="matcher"):
+        Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), matcher=matcher)
+    if config is not None:
+        with pytest.raises(ConfigError, match="surface_config"):
+            Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), matcher="surface", surface_config=config)
+
+
+def test_surface_matcher_names_each_object_along_its_mapping_poses_with_exact_odometry():
+    """End to end through the explorer's frames (map anchors, the matcher's start pose, the odometry's sense): a Box and
+    a Mug mapped with noiseless odometry, each whisked again at its mapping poses (new contact noise) with noiseless
+    odometry. With ``matcher="surface"`` there are impulses and every one names the presented object."""
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.odometry_noise import OdometryNoise, noisy_odometry
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    exact = OdometryNoise(euler_std_rad=0.0, displacement_std_m=0.0)
+    rng = np.random.default_rng(3)
+    odometry = lambda a, b: noisy_odometry(a, b, rng, exact)  # noqa: E731
+    known, chains = [], {}
+    for name in ("box", "mug"):
+        mesh = make_object(name)
+        chain = WhiskChain(mesh, contact_model="tip")
+        known.append(build_object_model(name, object_trajectory(mesh, "A", n_loops=1), lambda p, c=chain: c.features(p, rng),
+                                        odometry, placement=None, model=_model()))
+        chains[name] = chain
+    for k, obj in enumerate(known):
+        cycles = [(p, chains[obj.name].features(p, rng)) for p in obj.poses]
+        surf = Explorer(known, None, None, odometry, DefaultSearch((0, 0, 0.17), 0.3), matcher="surface",
+                        surface_config=SurfaceMatchConfig(seed=k, rotation_sigma_deg=0.5, displacement_sigma_m=0.002)
+                        ).replay(cycles)
+        assert surf.impulses[:, k].sum() >= 10 and surf.impulses[:, 1 - k].sum() == 0, (obj.name, surf.impulses.sum(axis=0))

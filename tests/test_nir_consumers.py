@@ -448,6 +448,30 @@ def test_a_float64_snntorch_module_holds_the_graphs_numbers():
     assert torch.get_default_dtype() == torch.float32  # the reader's float64 setting did not leak out
 
 
+def test_a_float64_norse_module_holds_the_graphs_numbers():
+    """Norse's reader, run with ``precision="float64"``, keeps the graph's float64 weights (its ``_to_tensor`` calls
+    ``.float()``: ``1e-4`` would become 9.99999975e-5) and its neurons' inverse time constants are ``1/tau`` in float64;
+    the reader's own tensor function is back in place afterwards."""
+    _need("norse")
+    import torch
+    from norse.torch.utils import import_nir
+
+    reader = import_nir._to_tensor
+    g = rotation_ring_graph(RotationRingParams(n_cells=24, shift_cells=3))
+    mod = ConsumerRunner(g, "norse", precision="float64")._module
+    layers = {k: m for k, m in mod.named_modules() if isinstance(m, torch.nn.Linear)}
+    assert set(layers) == {"input_map", "excitation", "inhibition", "readout"}
+    for name, layer in layers.items():
+        assert np.array_equal(layer.weight.detach().numpy(), g.nodes[name].weight), name
+        if layer.bias is not None:
+            assert np.array_equal(layer.bias.detach().numpy(), g.nodes[name].bias), name
+    assert any(not np.array_equal(g.nodes[n].weight, g.nodes[n].weight.astype(np.float32)) for n in layers)  # can fail
+    cells = g.nodes["cells"]
+    assert np.array_equal(mod.cells.synapse.p.tau_mem_inv.numpy(), 1.0 / np.asarray(cells.tau_syn, dtype=np.float64))
+    assert np.array_equal(mod.cells.lif.p.tau_mem_inv.numpy(), 1.0 / np.asarray(cells.tau_mem, dtype=np.float64))
+    assert import_nir._to_tensor is reader
+
+
 @pytest.mark.slow  # ~1 min
 def test_a_float64_snntorch_runs_cansims_euler_arithmetic():
     """On the 1.4 s turning protocol, snnTorch in float64 and cansim's Euler simulation of the same graph fire the

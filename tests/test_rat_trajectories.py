@@ -266,3 +266,21 @@ def test_the_errors_figure_draws_every_seed_as_median_and_range():
     assert band.min() == 0 and band.max() == 8  # the range by hand
     assert "3 seeds" in lines[0].get_label()
     plt.close(fig)
+
+
+@needs_data
+def test_the_landmark_radius_flag_reaches_every_run_and_the_metrics(tmp_path):
+    """``--landmark-radius-m``: larger discs are entered on more samples (the flag reaches the simulation), the
+    metrics record the radius, and a radius outside (0, 1] m is refused before any run."""
+    args = ["--duration-s", "60", "--seeds", "1", "--no-spiking"]
+    assert rt.main([*args, "--out", str(tmp_path / "default")]) == 0
+    assert rt.main([*args, "--landmark-radius-m", "0.2", "--out", str(tmp_path / "wide")]) == 0
+    default, wide = (json.loads((tmp_path / d / "rat_trajectories_metrics.json").read_text()) for d in ("default", "wide"))
+    assert default["landmark_radius_m"] == 0.05 and wide["landmark_radius_m"] == 0.2
+    inside = {d["landmark_radius_m"]: [r["anchor_samples"] for r in d["runs"] if r["anchoring"]] for d in (default, wide)}
+    assert all(w > n for w, n in zip(inside[0.2], inside[0.05])), inside
+    for bad in ("0", "-0.1", "1.5", "nan"):
+        with pytest.raises(SystemExit) as stop:
+            rt.main([*args, "--landmark-radius-m", bad, "--out", str(tmp_path / "bad")])
+        assert stop.value.code == 2
+    assert not (tmp_path / "bad").exists()

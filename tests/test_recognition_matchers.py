@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim.errors import ConfigError
+from cansim.errors import ConfigError, InvalidInputError
 from cansim.studies import recognition
 from maps.odometry import SpatialOdometry
 from whisker_io.pose import Pose
@@ -28,6 +28,65 @@ def test_unknown_matchers_are_refused_before_any_work(tmp_path_factory, matchers
     with pytest.raises(ConfigError):
         recognition.run(out, objects=["mug"], novel=[], matchers=matchers, progress=False)
     assert not out.exists()
+
+
+_RULES = st.text(max_size=12).filter(lambda r: r not in recognition.CALIBRATIONS)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.one_of(_RULES, st.sampled_from(["Pooled", "first_seed", "first-seed ", "seed0"])))
+def test_unknown_calibration_rules_are_refused_before_any_work(tmp_path_factory, rule) -> None:
+    out = tmp_path_factory.mktemp("rec") / "out"
+    with pytest.raises(ConfigError, match="calibration"):
+        recognition.run(out, objects=["mug"], novel=[], calibration=rule, progress=False)
+    assert not out.exists()
+    with pytest.raises(ConfigError, match="calibration"):
+        recognition.calibrated_thresholds(rule, (0,))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.one_of(st.just([]), st.just(()), st.lists(st.integers(0, 3), min_size=2, max_size=4).filter(lambda s: len(set(s)) < len(s)),
+                 st.lists(st.one_of(st.floats(), st.booleans(), st.text(max_size=2)), min_size=1, max_size=3)))
+def test_bad_calibration_seeds_raise_typed_errors(seeds) -> None:
+    with pytest.raises(InvalidInputError, match="seed"):
+        recognition.calibrated_thresholds(seeds, (0,))
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.one_of(st.floats(max_value=0.0), st.floats(min_value=1.0, exclude_min=True), st.just(float("nan"))))
+def test_bad_calibration_quantiles_raise_typed_errors(q) -> None:
+    with pytest.raises(InvalidInputError, match="quantile"):
+        recognition.calibrated_thresholds("pooled", (0,), quantile=q)
+
+
+def test_first_seed_calibration_needs_a_seed() -> None:
+    with pytest.raises(InvalidInputError, match="first-seed"):
+        recognition.calibrated_thresholds("first-seed", ())
+
+
+@settings(max_examples=30, deadline=None)
+@given(k=st.one_of(st.integers(-3, 0), st.floats(allow_nan=True), st.booleans(), st.text(max_size=2), st.none()),
+       base=st.one_of(st.integers(-5, 5), st.floats(), st.booleans(), st.none()))
+def test_calibration_seeds_refuse_bad_input(k, base) -> None:
+    with pytest.raises(InvalidInputError):
+        recognition.calibration_seeds(k, 0)
+    if not (isinstance(base, int) and not isinstance(base, bool)):
+        with pytest.raises(InvalidInputError, match="base"):
+            recognition.calibration_seeds(3, base)
+
+
+def test_calibration_seeds_are_fixed_and_not_study_seeds() -> None:
+    """SHA-256 of repr((0, ("calibration", i))), first 4 bytes little-endian (cansim.seeding), by hand."""
+    import hashlib
+
+    def by_hand(i: int) -> int:
+        return int.from_bytes(hashlib.sha256(repr((0, ("calibration", i))).encode()).digest()[:4], "little")
+
+    seeds = recognition.calibration_seeds()
+    assert len(seeds) == recognition.CALIBRATION_SEEDS
+    assert seeds == tuple(by_hand(i) for i in range(recognition.CALIBRATION_SEEDS))
+    assert len(set(seeds)) == len(seeds) and not set(seeds) & set(range(100))  # no seed a study maps or presents
+    assert recognition.calibration_seeds(2) == seeds[:2]  # a prefix: more seeds pool more, never other ones
 
 
 def _grid(z: float, n: int = 21, half: float = 0.15) -> np.ndarray:

@@ -74,6 +74,8 @@ def wrap_scalar(angle_rad: float, lower_rad: float, closed_above: bool) -> float
     upper = lower_rad + TWO_PI  # exact for lower in {-pi, 0}
     r = angle_rad
     if closed_above:
+        if lower_rad < r <= upper:  # in range: the loops below would not move it
+            return r
         for _ in range(LOOP_TURNS):
             if r > upper:
                 r -= TWO_PI
@@ -83,6 +85,8 @@ def wrap_scalar(angle_rad: float, lower_rad: float, closed_above: bool) -> float
         if lower_rad < r <= upper:
             return r
     else:
+        if lower_rad <= r < upper:
+            return r
         for _ in range(LOOP_TURNS):
             if r < lower_rad:
                 r += TWO_PI

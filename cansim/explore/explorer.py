@@ -79,7 +79,8 @@ from cansim.explore.search import (
 )
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
-from maps.recognition import LeakyIntegrator, first_crossing, leaky_step
+from maps.recognition import MATCHERS, LeakyIntegrator, first_crossing, leaky_step
+from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 from whisker_io.errors import SafetyViolationError
 from whisker_io.pose import Pose
 from whisker_io.validation import config_field
@@ -104,6 +105,9 @@ class KnownObject:
         Experiences, regions and history length after mapping.
     poses : list of Pose
         The true whisk poses of the mapping run (world).
+    mapping_log : dict or None
+        What :func:`build_object_model` recorded of each mapping whisk (``odometry``,
+        ``exp_ids``, ``relocalised``, ``contacts``): the input of :meth:`stored_surface`.
     """
 
     name: str
@@ -112,7 +116,32 @@ class KnownObject:
     n_built_regions: int
     n_history: int
     poses: list[Pose] = field(default_factory=list)
+    mapping_log: dict[str, list] | None = field(default=None, repr=False)
     _snapshot: dict[str, np.ndarray] | None = field(default=None, repr=False)
+    _surface: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+
+    def stored_surface(self) -> tuple[np.ndarray, np.ndarray]:
+        """What mapping felt, in the world frame: contact points and where each was felt from, (n, 3) m each.
+
+        The mapping whisks' poses are optimised as a pose graph from their odometry and the
+        map's own re-localisations (:func:`maps.pose_graph.whisk_surface`) and anchored at
+        the first mapping pose (the arm's pose when mapping began). Computed once.
+
+        Raises
+        ------
+        ConfigError
+            The object was not mapped by :func:`build_object_model` (no mapping log).
+        """
+        if self._surface is None:
+            from maps.pose_graph import whisk_surface
+
+            log = self.mapping_log
+            if log is None or not self.poses:
+                raise ConfigError(f"{self.name}: no mapping log to place a stored surface by; map it with build_object_model")
+            points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"],
+                                         with_viewpoints=True)
+            self._surface = (self.poses[0].apply(points), self.poses[0].apply(seen))
+        return self._surface
 
     def fresh_model(self) -> WhiskerRatSLAM:
         """An independent copy of the model as mapping left it (through its ``.npz`` save format)."""
@@ -198,12 +227,17 @@ def build_object_model(
     slam = model if model is not None else WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
     prev: Pose | None = None
     visited: list[Pose] = []
+    log: dict[str, list] = {"odometry": [], "exp_ids": [], "relocalised": [], "contacts": []}
 
     def whisk(pose: Pose) -> object:
         nonlocal prev
         obs = sensor(pose)
         odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0) if prev is None else SpatialOdometry(*odometry(prev, pose))
-        slam.step(odo, obs)
+        st = slam.step(odo, obs)
+        log["odometry"].append(odo)
+        log["exp_ids"].append(int(st.exp_id))
+        log["relocalised"].append(bool(st.relocalised))
+        log["contacts"].append(_contacts(obs))
         prev = pose
         visited.append(pose)
         return obs
@@ -219,7 +253,16 @@ def build_object_model(
             pose = goal
             obs = whisk(pose)
     om = slam.object_map
-    return KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited)
+    return KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log)
+
+
+def _contacts(obs: object) -> np.ndarray | None:
+    """A whisk's contact points in the end-effector frame, (k, 3) m (also below a region's ``mu``), or None."""
+    pts = getattr(obs, "contact_points_m", None)
+    if pts is None:
+        return None
+    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    return pts if len(pts) else None
 
 
 @dataclass(frozen=True)
@@ -278,7 +321,8 @@ class ExplorationResult:
     confidence, ic : ndarray (n, n_objects)
         Raw and integrated confidence per iteration.
     impulses : ndarray (n, n_objects) bool
-        Re-localisations to each object's built map.
+        Re-localisations to each object's built map (``matcher="surface"``: the surface
+        matcher's impulses).
     poses : list of Pose
         End-effector pose of every whisk.
     strategies : list of str
@@ -350,6 +394,18 @@ class Explorer:
         the IC 300 decision (:mod:`cansim.explore.contact_seeking` for the measurements).
         Every goal it plans, whatever proposed it, is kept clear of the whisk's contacts
         (:func:`cansim.explore.contact_seeking.clear_of_contacts`).
+    matcher : {"thesis", "surface"}
+        Where the impulses into the leaky integrators come from. ``"thesis"`` (default): a
+        re-localisation of object ``k``'s model to an experience of its built map (step 3
+        above, Eq 5.5's region match). ``"surface"``: a
+        :class:`maps.surface_match.SurfaceMatcher` on the known objects' stored surfaces
+        (:meth:`KnownObject.stored_surface`), started at the arm's pose of the first whisk
+        and moved by the same odometry: it compares each whisk's contacts with the surface
+        the map felt at every pose hypothesis, so a path the map never took can name the
+        object (issue 22). The models still step: FEH and LSR take their targets from them.
+    surface_config : SurfaceMatchConfig, optional
+        The surface matcher's parameters (``matcher="surface"``; default
+        ``SurfaceMatchConfig()``, whose motion model is Eq 6.4-6.11's noise).
     """
 
     def __init__(
@@ -370,7 +426,13 @@ class Explorer:
         max_replans: int = 3,
         strategy_options: dict[str, object] | None = None,
         contact_seeking: ContactSeekingParams | None = None,
+        matcher: str = "thesis",
+        surface_config: SurfaceMatchConfig | None = None,
     ) -> None:
+        if matcher not in MATCHERS:
+            raise ConfigError(f"unknown matcher {matcher!r}; use one of {MATCHERS}")
+        if surface_config is not None and not isinstance(surface_config, SurfaceMatchConfig):
+            raise ConfigError(f"surface_config must be a SurfaceMatchConfig or None, got {type(surface_config).__name__}")
         if strategy not in STRATEGIES:
             raise ConfigError(f"unknown strategy {strategy!r}; use one of {STRATEGIES}")
         if contact_seeking is not None and not isinstance(contact_seeking, ContactSeekingParams):
@@ -386,6 +448,13 @@ class Explorer:
             if v != math.inf:  # inf: no such limit
                 config_field(v, name, float, above=0, hint="or math.inf for no limit")
         self.models = [k.exploring_model() for k in known]
+        self.matcher = matcher
+        self._surfaces: SurfaceLibrary | None = None
+        self._surface_config = surface_config if surface_config is not None else SurfaceMatchConfig()
+        self._surface_matcher: SurfaceMatcher | None = None
+        if matcher == "surface":
+            stored = [k.stored_surface() for k in known]
+            self._surfaces = SurfaceLibrary([pts for pts, _ in stored], [k.name for k in known], [seen for _, seen in stored])
         self.views = [ObjectView(m.object_map, m.frontend, k.n_built, k.n_built_regions, k.n_history)
                       for m, k in zip(self.models, known)]
         self.sensor, self.arm, self.odometry = sensor, arm, odometry
@@ -431,6 +500,13 @@ class Explorer:
                 reloc.append((k, int(st.exp_id)))
                 v.last_relocalised = int(st.exp_id)
                 imp[k] = True
+        if self._surfaces is not None:
+            if self._surface_matcher is None:  # the first whisk: the hypotheses start at the arm's pose
+                self._surface_matcher = SurfaceMatcher(self._surfaces, np.r_[pose.position_m, pose.quaternion_xyzw],
+                                                       self._surface_config)
+                imp = self._surface_matcher.step(None, _contacts(observation))
+            else:
+                imp = self._surface_matcher.step(odo, _contacts(observation))
         self._level = leaky_step(self._level, imp, self.integrator)
         self._ic = self._ic + self._level * self.integrator.dt
         self._c.append(self._level.copy())

@@ -43,10 +43,16 @@ digits it rounded away:
   over its whole first minute the decoded headings stay within 0.32 deg of cansim's (RMS
   error 21.280 against 21.281 deg; before, the run parted at 1.67 s), as over the held-out
   minute 300-360 s (27.240 against 27.241 deg, at most 0.32 deg apart).
-* Norse's reader rounds the linear layers' weights to float32 (``1e-4 -> 9.99999975e-5``)
-  but its neuron constants (``1/tau`` = 200 and 50 s^-1, ``w_in``, ``r``, the threshold)
-  are exact in float32; in float64 its headings stay within 0.32 deg of cansim's for
-  Sargolini's whole first minute and for 32 s of a held-out minute (300-360 s).
+* Norse's reader turns every array into a tensor with its ``_to_tensor``, which calls
+  ``.float()``: the linear layers' weights are rounded to float32 (``1e-4 ->
+  9.99999975e-5``; its neuron constants, ``1/tau`` = 200 and 50 s^-1, ``w_in``, ``r`` and
+  the threshold, are exact either way). With them, Norse's float64 run parted from
+  cansim's Euler simulation 32 s into a held-out minute of Sargolini (300-360 s; RMS
+  heading error 32.7 against 27.2 deg). For ``precision="float64"`` the runner calls the
+  reader unmodified with that function keeping float64 for the duration of the call
+  (:func:`_norse_reads_float64`); the module then holds the graph's weights bit for bit
+  and over the held-out minute the headings stay within 0.32 deg of cansim's (RMS 27.240
+  against 27.241 deg).
 * Rockpool's module does not run in float64 (its state stays float32), so it is refused.
 
 Measured with ``python examples/nir_ring_rat_heading.py --cells 120 --seconds 60 --trace
@@ -107,6 +113,35 @@ def _snntorch_reads_float64(torch: Any) -> Any:
         torch.set_default_dtype(default)
 
 
+@contextlib.contextmanager
+def _norse_reads_float64(torch: Any) -> Any:
+    """While open, Norse's reader builds its module in float64 (module docstring, *Precision*).
+
+    Norse's ``from_nir`` turns every array of the graph into a tensor with its module's
+    ``_to_tensor``, which calls ``.float()`` (numbers: ``dtype=torch.float32``): the
+    linear layers' weights are rounded to float32 (``1e-4 -> 9.99999975e-5``). Here that
+    function keeps float64 instead; it is restored on exit. The reader itself runs as
+    written.
+    """
+    from norse.torch.utils import import_nir
+
+    def to_float64(tensor: Any) -> Any:
+        if isinstance(tensor, torch.Tensor):
+            return tensor
+        return torch.as_tensor(np.asarray(tensor, dtype=np.float64), dtype=torch.float64)
+
+    reader = import_nir._to_tensor
+    import_nir._to_tensor = to_float64
+    try:
+        yield
+    finally:
+        import_nir._to_tensor = reader
+
+
+#: how each consumer's reader is made to keep the graph's float64 numbers (``precision="float64"``)
+_FLOAT64_READERS = {"snntorch": _snntorch_reads_float64, "norse": _norse_reads_float64}
+
+
 def consumer_status() -> dict[str, tuple[bool, str]]:
     """``{name: (usable, reason)}`` for every consumer in :data:`NIR_CONSUMERS` (imports each once)."""
     out = {}
@@ -160,14 +195,14 @@ class ConsumerRunner:
         try:
             with contextlib.redirect_stdout(sink), torch.no_grad():
                 mod = importlib.import_module(NIR_CONSUMERS[consumer])
-                if consumer == "snntorch":
-                    wide = _snntorch_reads_float64(torch) if precision == "float64" else contextlib.nullcontext()
-                    with wide:
+                wide = _FLOAT64_READERS[consumer](torch) if precision == "float64" else contextlib.nullcontext()
+                with wide:
+                    if consumer == "snntorch":
                         self._module = mod.import_from_nir(g)
-                elif consumer == "norse":
-                    self._module = mod.from_nir(g, dt=float(dt_s))
-                else:
-                    self._module = mod.from_nir(g)
+                    elif consumer == "norse":
+                        self._module = mod.from_nir(g, dt=float(dt_s))
+                    else:
+                        self._module = mod.from_nir(g)
         except ImportError as exc:
             raise ConfigError(f"{consumer} cannot be imported: {exc}; pip install 'cansim[nir-consumers]'") from exc
         if sink.getvalue():
@@ -179,10 +214,11 @@ class ConsumerRunner:
             for name, layer in self._module.named_modules():  # 0/1 spikes emitted as float32 meet float64 weights
                 if isinstance(layer, torch.nn.Linear):
                     layer.register_forward_pre_hook(_to_weight_dtype)
-                    node = graph.nodes.get(name) if consumer == "snntorch" else None
+                    node = graph.nodes.get(name)
                     if node is not None and not np.array_equal(layer.weight.detach().cpu().numpy(), np.asarray(node.weight)):
-                        log.warning("snnTorch's layer %r does not hold the graph's float64 weights (a reader that "
-                                    "no longer goes through nirtorch.nir_to_torch?): its run will part from cansim's", name)
+                        log.warning("%s's layer %r does not hold the graph's float64 weights (a reader that no longer "
+                                    "builds them as it did when cansim was written?): its run will part from cansim's",
+                                    consumer, name)
         self._reshape: Callable[[Any], Any] = (lambda t: t[None, None]) if consumer == "rockpool" else (lambda t: t[None])
         self._n_in = self._input_size(graph)
         self._state = None

@@ -439,27 +439,92 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
 
 
 # --------------------------------------------------------------------------- calibration
-def calibrate(noise_scale: float, quantile: float, seed: int, contact_model: str = "tip",
+def calibrate(noise_scale: float, quantile: float, seed: int | Sequence[int], contact_model: str = "tip",
               radial_model: str | None = None) -> dict[str, Any]:
-    """T_pfh, T_sda of one contact model from same-pose whisk pairs on one loop of A around the Mug.
+    """T_pfh, T_sda of one contact model from same-pose whisk pairs on trajectory A around the Mug.
 
     The whisks come from the chain the localisation runs use for ``contact_model`` (the
     SVR estimate runs on the signal path, whose slopes are another measurement than the
-    sweep path's, so its SDA distances differ; module docstring). The
-    ``ch5_calibration.csv`` row: the contact model, the noise scale, then
-    :meth:`whisker_io.features.match_thresholds.ThresholdCalibration.as_row`.
+    sweep path's, so its SDA distances differ; module docstring): two at every pose of
+    :data:`CALIBRATION_LOOPS` loops, with a generator seeded by
+    ``derive_seed(seed, "calibrate", noise_scale, contact_model)``.
+
+    Parameters
+    ----------
+    noise_scale : float
+        Contact-noise scale of the chain (multiple of Sec 6.1.3.1.2's).
+    quantile : float
+        In (0, 1]: the fraction of same-pose pairs under the thresholds.
+    seed : int or sequence of int
+        One seed (the Ch.5 study's ``--seed``), or several distinct seeds whose
+        same-pose distances are pooled: every seed whisks the same
+        :data:`CALIBRATION_LOOPS` loops with its own noise and the thresholds are the
+        ``quantile`` quantile of all of them (``[s]`` gives exactly what ``s`` gives;
+        ``n_pairs`` is the sum over the seeds). A single seed's thresholds vary with the
+        seed more than the study figures they feed tolerate
+        (:mod:`cansim.studies.recognition`, Status).
+    contact_model : str, default "tip"
+        ``tip``, ``svr`` or ``truth``.
+    radial_model : str, optional
+        The SVR model file (``svr`` only).
+
+    Returns
+    -------
+    dict
+        The ``ch5_calibration.csv`` row: ``contact_model``, ``noise_scale``, then
+        :meth:`whisker_io.features.match_thresholds.ThresholdCalibration.as_row`
+        (``pfh_threshold`` and ``sda_threshold`` dimensionless).
+
+    Raises
+    ------
+    InvalidInputError
+        ``seed`` neither an integer nor a non-empty sequence of distinct integers, or a
+        bad ``quantile`` (:func:`~whisker_io.features.match_thresholds.calibrate_match_thresholds`).
     """
+    from whisker_io.errors import InvalidInputError
     from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
     from whisker_io.sim.trajectories import object_trajectory
 
+    seeds = _calibration_seeds(seed)
+    if not isinstance(noise_scale, (int, float, np.integer, np.floating)) or isinstance(noise_scale, (bool, np.bool_)) \
+            or not math.isfinite(float(noise_scale)) or float(noise_scale) < 0.0:
+        raise InvalidInputError(f"noise_scale must be a finite number >= 0 (a multiple of the Sec 6.1.3.1.2 contact "
+                                f"noise), got {noise_scale!r}")
     mesh = make_object("mug")
     chain = _chain(mesh, contact_model, noise_scale, radial_model)
-    rng = np.random.default_rng(derive_seed(seed, "calibrate", noise_scale, contact_model))
+    rngs = [np.random.default_rng(derive_seed(s, "calibrate", noise_scale, contact_model)) for s in seeds]
     step_m, step_deg = step_of("mug")
     poses = object_trajectory(mesh, "A", CALIBRATION_LOOPS, step_m=step_m, step_deg=step_deg)
-    cal = calibrate_match_thresholds(lambda p: chain.features(p, rng), poses, quantile)
+    # each seed's loops in turn, its own generator drawn in the single-seed order (pose 0 twice, pose 1 twice, ...)
+    pooled = [(k, p) for k in range(len(seeds)) for p in poses]
+    cal = calibrate_match_thresholds(lambda kp: chain.features(kp[1], rngs[kp[0]]), pooled, quantile)
     return {"contact_model": contact_model, "noise_scale": noise_scale, **cal.as_row()}
+
+
+def _calibration_seeds(seed: Any) -> tuple[int, ...]:
+    """``seed`` as a tuple of distinct ints (:func:`calibrate`)."""
+    from whisker_io.errors import InvalidInputError
+
+    def is_int(x: Any) -> bool:
+        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+    if is_int(seed):
+        return (int(seed),)
+    if isinstance(seed, (str, bytes)) or not isinstance(seed, Sequence) and not isinstance(seed, np.ndarray):
+        raise InvalidInputError(f"seed must be an int or a sequence of ints (calibration seeds to pool), got "
+                                f"{type(seed).__name__}")
+    seeds = list(seed)
+    if not seeds:
+        raise InvalidInputError("seed is an empty sequence; give at least one calibration seed")
+    bad = [s for s in seeds if not is_int(s)]
+    if bad:
+        raise InvalidInputError(f"calibration seeds must be ints, got {bad[0]!r} ({type(bad[0]).__name__})")
+    ints = tuple(int(s) for s in seeds)
+    if len(set(ints)) != len(ints):
+        raise InvalidInputError(f"calibration seeds must be distinct (a repeated seed repeats the same noise), got "
+                                f"{list(ints)}")
+    return ints
 
 
 def _calibrate_job(job: tuple[float, float, int, str, str | None]) -> dict[str, Any]:

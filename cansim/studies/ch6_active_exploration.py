@@ -198,6 +198,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from maps.recognition import MATCHERS
 
 logger = logging.getLogger("ch6_active_exploration")
 
@@ -369,7 +370,8 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
-                 arm: Any = None, stop_threshold: float = math.inf, mesh: Any = None) -> tuple[Any, Any, list[tuple[Any, Any]]]:
+                 arm: Any = None, stop_threshold: float = math.inf, mesh: Any = None,
+                 matcher: str = "thesis", placement_sd: tuple[float, float] = (0.0, 0.0)) -> tuple[Any, Any, list[tuple[Any, Any]]]:
     """An Explorer on the simulated ``presented`` object; returns (explorer, arm, recorded cycles).
 
     The default search visits the faces of a sphere around the :func:`believed_volume`
@@ -379,6 +381,11 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     moves it). The sensor appends every ``(pose, features)`` it produces to the returned
     list (a recorded session for :meth:`Explorer.replay`); the odometry noise has its own
     generator seeded from ``seed``, so a replay with :func:`replay_odometry` sees the same noise.
+    ``matcher`` is the explorer's impulse source (:class:`cansim.explore.explorer.Explorer`):
+    ``"thesis"`` (re-localisations) or ``"surface"`` (the stored surfaces; its hypotheses
+    seeded from ``seed`` and the run's identity, spread round the arm's first pose by
+    ``placement_sd``: the s.d. of the object's placement on the table, m and deg, that the
+    explorer is told - never the placement itself).
     """
     from cansim.explore.explorer import Explorer
     from cansim.explore.search import DefaultSearch
@@ -402,9 +409,14 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
 
     from cansim.explore.contact_seeking import ContactSeekingParams
 
+    from maps.surface_match import SurfaceMatchConfig
+
     ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
-                  contact_seeking=ContactSeekingParams() if setup.contact_seeking else None)
+                  contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
+                  surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", presented, strategy, spc),
+                                                    initial_sigma_m=float(placement_sd[0]),
+                                                    initial_sigma_deg=float(placement_sd[1])))
     return ex, arm, cycles
 
 
@@ -437,10 +449,11 @@ def outside_envelope(arm: Any) -> int:
 
 
 def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
-            offset_m: float = 0.0, yaw_deg: float = 0.0) -> dict[str, Any]:
-    """One exploration run and its traces (the object moved by :func:`presented_mesh`)."""
+            offset_m: float = 0.0, yaw_deg: float = 0.0, matcher: str = "thesis") -> dict[str, Any]:
+    """One exploration run and its traces (the object moved by :func:`presented_mesh`; ``matcher`` as :func:`explorer_for`)."""
     mesh = presented_mesh(presented, seed, offset_m, yaw_deg)
-    ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh)
+    ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh, matcher=matcher,
+                                   placement_sd=(offset_m, yaw_deg))
     res = ex.run()
     return {"seed": seed, "presented": presented, "strategy": strategy, "spc": "on" if spc else "off", "result": res,
             "correct": setup.objects.index(presented), "objects": setup.objects, "outside": outside_envelope(arm),
@@ -562,7 +575,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
               f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)"),
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
              f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
-             f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg",
+             f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher",
              "maps: " + ", ".join(f"{k.name} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -675,6 +688,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--believed-scale", type=float, default=1.0,
                     help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
                          "larger, issue 22)")
+    ap.add_argument("--matcher", choices=MATCHERS, default="thesis",
+                    help="impulse source: thesis (re-localisations, Eq 5.5) or surface (the stored surfaces, "
+                         "maps.surface_match; issue 22) (default thesis)")
     ap.add_argument("--contact-seeking", action="store_true",
                     help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn, "
                          "keep every goal clear of the contacts felt")
@@ -709,7 +725,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
             r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
         else:
-            r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg)
+            r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg, args.matcher)
         (runs if study == "strategy" else spc_runs).append(r)
         for row in run_rows(r):
             row["study"] = study
