@@ -5,8 +5,11 @@ describes, in one pass without temporaries: :func:`likelihoods` places a whisk's
 by every hypothesis of every object in question, reads its distance to the object's stored surface
 from the object's signed-distance grid (:mod:`maps.surface_field`) and returns the log
 likelihood and the residuals; :func:`field_distance` is that read for given points; :func:`move`
-applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling.
-``tests/test_surface_match.py`` holds them to the numpy expressions they replace.
+applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling;
+:func:`refine` is the registration-refined proposal (Levenberg-Marquardt steps of every hypothesis on
+its contacts' signed distances, read with the grid's trilinear gradient, and Laplace weights).
+``tests/test_surface_match.py`` holds them to the numpy expressions they replace
+(``tests/test_surface_match_refine.py`` the refinement).
 """
 
 from __future__ import annotations
