@@ -10,11 +10,16 @@ of 15 contacts each, 200 hypotheses per object), K = 12, 25, 50 distinct objects
   presentation pays per whisk once the library has been narrowed down.
 * ``all_active``: the same with pruning off (``prune_margin`` huge): every object's filter
   runs, the cost of the first ``window_whisks`` whisks of a presentation.
+* ``refine`` 0 / 1: without / with the registration-refined proposal
+  (``SurfaceMatchConfig.refine_iterations=1, refine_prior_scale=4``: one Levenberg-Marquardt
+  step per hypothesis and whisk).
 
 Run: ``python -m pytest bench/test_bench_recognition.py --benchmark-only --benchmark-columns=min,median,rounds``
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -38,12 +43,20 @@ def _library(n_objects: int) -> tuple[SurfaceLibrary, np.ndarray]:
     return lib, axes
 
 
+_LIBRARIES: dict[int, tuple[SurfaceLibrary, np.ndarray]] = {}
+
+
+@pytest.mark.parametrize("refine", [0, 1])
 @pytest.mark.parametrize("mode", ["steady", "all_active"])
 @pytest.mark.parametrize("n_objects", [12, 25, 50])
-def test_surface_matcher_step_per_whisk(benchmark, n_objects, mode):
-    lib, axes = _library(n_objects)
+def test_surface_matcher_step_per_whisk(benchmark, n_objects, mode, refine):
+    if n_objects not in _LIBRARIES:
+        _LIBRARIES[n_objects] = _library(n_objects)
+    lib, axes = _LIBRARIES[n_objects]
     rng = np.random.default_rng(1)
-    cfg = SurfaceMatchConfig() if mode == "steady" else SurfaceMatchConfig(prune_margin=1e9)
+    cfg = SurfaceMatchConfig(refine_iterations=refine, refine_prior_scale=4.0)
+    if mode == "all_active":
+        cfg = replace(cfg, prune_margin=1e9)
     start = np.array([0.0, -0.3, 0.175, 0.0, 0.0, 0.0, 1.0])
     matcher = SurfaceMatcher(lib, start, cfg)
     still = SpatialOdometry([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.0)

@@ -5,8 +5,11 @@ describes, in one pass without temporaries: :func:`likelihoods` places a whisk's
 by every hypothesis of every object in question, reads its distance to the object's stored surface
 from the object's signed-distance grid (:mod:`maps.surface_field`) and returns the log
 likelihood and the residuals; :func:`field_distance` is that read for given points; :func:`move`
-applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling.
-``tests/test_surface_match.py`` holds them to the numpy expressions they replace.
+applies one odometry step with the noise undone; :func:`resample_in_place` is systematic resampling;
+:func:`refine` is the registration-refined proposal (Levenberg-Marquardt steps of every hypothesis on
+its contacts' signed distances, read with the grid's trilinear gradient, and Laplace weights).
+``tests/test_surface_match.py`` holds them to the numpy expressions they replace
+(``tests/test_surface_match_refine.py`` the refinement).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from numba import njit
 
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
-__all__ = ["field_distance", "likelihoods", "move", "resample_in_place"]
+__all__ = ["field_distance", "likelihoods", "move", "refine", "resample_in_place"]
 
 
 @njit(cache=True, inline="always")
@@ -94,6 +97,235 @@ def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, s
     res = np.empty((rows.shape[0], R.shape[1], pts.shape[0]))
     for i in range(rows.shape[0]):
         _likelihoods_row(R, t, pts, lo, shape, start, values, cell, sigma, outlier, cap, rows, ll, res, i)
+    return ll, res
+
+
+@njit(cache=True, inline="always")
+def _field_grad(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+                values: np.ndarray, cell: float, g: np.ndarray) -> tuple[float, bool]:  # pragma: no cover - compiled
+    """Signed ``f`` of object ``k``'s grid at (x, y, z) and its gradient into ``g`` (3,), trilinear; (0, False) off the grid."""
+    u = (x - lo[k, 0]) / cell
+    v = (y - lo[k, 1]) / cell
+    w = (z - lo[k, 2]) / cell
+    i = int(math.floor(u))
+    j = int(math.floor(v))
+    l_ = int(math.floor(w))
+    sx, sy, sz = shape[k, 0], shape[k, 1], shape[k, 2]
+    if i < 0 or j < 0 or l_ < 0 or i >= sx - 1 or j >= sy - 1 or l_ >= sz - 1:
+        return 0.0, False
+    fu, fv, fw = u - i, v - j, w - l_
+    base = start[k] + (i * sy + j) * sz + l_
+    a0, a1 = values[base], values[base + 1]
+    b0, b1 = values[base + sz], values[base + sz + 1]
+    c0, c1 = values[base + sy * sz], values[base + sy * sz + 1]
+    d0, d1 = values[base + sy * sz + sz], values[base + sy * sz + sz + 1]
+    c00 = a0 * (1.0 - fw) + a1 * fw
+    c01 = b0 * (1.0 - fw) + b1 * fw
+    c10 = c0 * (1.0 - fw) + c1 * fw
+    c11 = d0 * (1.0 - fw) + d1 * fw
+    lo_u = c00 * (1.0 - fv) + c01 * fv
+    hi_u = c10 * (1.0 - fv) + c11 * fv
+    g[0] = (hi_u - lo_u) / cell
+    g[1] = ((c01 - c00) * (1.0 - fu) + (c11 - c10) * fu) / cell
+    g[2] = (((a1 - a0) * (1.0 - fv) + (b1 - b0) * fv) * (1.0 - fu) + ((c1 - c0) * (1.0 - fv) + (d1 - d0) * fv) * fu) / cell
+    return lo_u * (1.0 - fu) + hi_u * fu, True
+
+
+@njit(cache=True, inline="always")
+def _fit_pass(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, lo: np.ndarray, shape: np.ndarray,
+              start: np.ndarray, values: np.ndarray, cell: float, inv2s2: float, outlier: float, cap: float,
+              at_cap: float, sd: np.ndarray, Jw: np.ndarray, H: np.ndarray, gv: np.ndarray, res_out: np.ndarray,
+              g: np.ndarray) -> float:  # pragma: no cover - compiled
+    """Log likelihood of the contacts at the pose ``R`` (3, 3), ``t`` (3,); fills the whitened Gauss-Newton
+    system ``H`` (6, 6) (without the prior's identity) and gradient ``gv`` (6,) of the robust cost, and the
+    contacts' residuals ``res_out`` (m,); ``Jw`` (6,) and ``g`` (3,) are scratch."""
+    for a in range(6):
+        gv[a] = 0.0
+        for b in range(6):
+            H[a, b] = 0.0
+    acc = 0.0
+    for j in range(pts.shape[0]):
+        px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
+        x = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz + t[0]
+        y = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz + t[1]
+        z = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz + t[2]
+        f, ok = _field_grad(x, y, z, k, lo, shape, start, values, cell, g)
+        r = abs(f)
+        if not ok or r >= cap:
+            acc += at_cap
+            res_out[j] = cap
+            continue
+        res_out[j] = r
+        e = math.exp(-r * r * inv2s2)
+        acc += math.log(outlier + e)
+        wgt = 2.0 * inv2s2 * e / (outlier + e)  # d(-log(outlier + e)) / d(f) = wgt * f: the robust (IRLS) weight
+        # the gradient in the body frame, and the Jacobian of f over (u, omega): [gb, p x gb], whitened by sd
+        gbx = R[0, 0] * g[0] + R[1, 0] * g[1] + R[2, 0] * g[2]
+        gby = R[0, 1] * g[0] + R[1, 1] * g[1] + R[2, 1] * g[2]
+        gbz = R[0, 2] * g[0] + R[1, 2] * g[1] + R[2, 2] * g[2]
+        Jw[0] = gbx * sd[0]
+        Jw[1] = gby * sd[1]
+        Jw[2] = gbz * sd[2]
+        Jw[3] = (py * gbz - pz * gby) * sd[3]
+        Jw[4] = (pz * gbx - px * gbz) * sd[4]
+        Jw[5] = (px * gby - py * gbx) * sd[5]
+        for a in range(6):
+            gv[a] += wgt * f * Jw[a]
+            for b in range(a + 1):
+                H[a, b] += wgt * Jw[a] * Jw[b]
+    for a in range(6):
+        for b in range(a):
+            H[b, a] = H[a, b]
+    return acc
+
+
+@njit(cache=True, inline="always")
+def _cholesky_solve(A: np.ndarray, b: np.ndarray, L: np.ndarray, x: np.ndarray) -> float:  # pragma: no cover - compiled
+    """Solve the symmetric positive-definite ``A`` (6, 6) x = ``b`` in place of ``x``; returns log det A."""
+    logdet = 0.0
+    for i in range(6):
+        for j in range(i + 1):
+            s = A[i, j]
+            for q in range(j):
+                s -= L[i, q] * L[j, q]
+            if i == j:
+                s = max(s, 1e-300)
+                L[i, i] = math.sqrt(s)
+                logdet += math.log(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for i in range(6):
+        s = b[i]
+        for q in range(i):
+            s -= L[i, q] * x[q]
+        x[i] = s / L[i, i]
+    for i in range(5, -1, -1):
+        s = x[i]
+        for q in range(i + 1, 6):
+            s -= L[q, i] * x[q]
+        x[i] = s / L[i, i]
+    return logdet
+
+
+@njit(cache=True, inline="always")
+def _compose(R: np.ndarray, t: np.ndarray, step: np.ndarray, Rout: np.ndarray, tout: np.ndarray,
+             tmp: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``tout = t + R u``, ``Rout = R Exp(omega)`` for the body-frame step (u, omega) ``step`` (6,)."""
+    for a in range(3):
+        tout[a] = t[a] + R[a, 0] * step[0] + R[a, 1] * step[1] + R[a, 2] * step[2]
+    wx, wy, wz = step[3], step[4], step[5]
+    th = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if th < 1e-12:
+        s_, c_ = 1.0, 0.5
+    else:
+        s_, c_ = math.sin(th) / th, (1.0 - math.cos(th)) / (th * th)
+    # Rodrigues: E = I + s K + c K^2, K = [omega]x
+    tmp[0, 0] = 1.0 - c_ * (wy * wy + wz * wz)
+    tmp[0, 1] = -s_ * wz + c_ * wx * wy
+    tmp[0, 2] = s_ * wy + c_ * wx * wz
+    tmp[1, 0] = s_ * wz + c_ * wx * wy
+    tmp[1, 1] = 1.0 - c_ * (wx * wx + wz * wz)
+    tmp[1, 2] = -s_ * wx + c_ * wy * wz
+    tmp[2, 0] = -s_ * wy + c_ * wx * wz
+    tmp[2, 1] = s_ * wx + c_ * wy * wz
+    tmp[2, 2] = 1.0 - c_ * (wx * wx + wy * wy)
+    for a in range(3):
+        for b in range(3):
+            Rout[a, b] = R[a, 0] * tmp[0, b] + R[a, 1] * tmp[1, b] + R[a, 2] * tmp[2, b]
+
+
+@njit(cache=True)
+def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+           values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
+           sd: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Registration-refined hypotheses, in place, and their Laplace log marginal likelihoods.
+
+    Every hypothesis ``R[k, n]``, ``t[k, n]`` of the objects ``rows`` is corrected by a body-frame
+    step ``delta = sd * eta`` (``sd`` (6,): the prior's standard deviations of the displacement, m,
+    and of the rotation vector, rad) that lowers ``E(eta) = -sum_j log(outlier + exp(-r_j^2 / 2 sigma^2))
+    + |eta|^2 / 2``: ``iterations`` Levenberg-Marquardt steps on the Gauss-Newton system of the
+    contacts' signed distances (an uphill step is refused and the damping raised). Returns the log
+    marginal likelihood ``-E(eta*) - log det(H) / 2`` (``H`` the whitened Gauss-Newton Hessian at the
+    refined pose, identity included: the Laplace approximation of the likelihood integrated over
+    the prior of the correction), (len(rows), N), and each contact's residual at the refined pose,
+    (len(rows), N, m), as :func:`likelihoods`.
+    """
+    N, m = R.shape[1], pts.shape[0]
+    ll = np.empty((rows.shape[0], N))
+    res = np.empty((rows.shape[0], N, m))
+    inv2s2 = 0.5 / (sigma * sigma)
+    at_cap = math.log(outlier + math.exp(-cap * cap * inv2s2))
+    H = np.empty((6, 6))
+    gv = np.empty(6)
+    H2 = np.empty((6, 6))
+    gv2 = np.empty(6)
+    A = np.empty((6, 6))
+    L = np.empty((6, 6))
+    rhs = np.empty(6)
+    d_eta = np.empty(6)
+    eta = np.empty(6)
+    eta2 = np.empty(6)
+    step = np.empty(6)
+    Rc = np.empty((3, 3))
+    tc = np.empty(3)
+    Rt = np.empty((3, 3))
+    tt = np.empty(3)
+    tmp = np.empty((3, 3))
+    g = np.empty(3)
+    Jw = np.empty(6)
+    r_cur = np.empty(m)
+    r_try = np.empty(m)
+    for i in range(rows.shape[0]):
+        k = rows[i]
+        for n in range(N):
+            Rc[:] = R[k, n]
+            tc[:] = t[k, n]
+            eta[:] = 0.0
+            lik = _fit_pass(Rc, tc, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd, Jw,
+                            H, gv, r_cur, g)
+            cost = -lik
+            lam = 1e-3
+            for _ in range(iterations):
+                for a in range(6):
+                    for b in range(6):
+                        A[a, b] = H[a, b]
+                    A[a, a] += 1.0 + lam * (H[a, a] + 1.0)
+                    rhs[a] = -(gv[a] + eta[a])
+                _cholesky_solve(A, rhs, L, d_eta)
+                for a in range(6):
+                    eta2[a] = eta[a] + d_eta[a]
+                    step[a] = sd[a] * d_eta[a]
+                _compose(Rc, tc, step, Rt, tt, tmp)
+                lik2 = _fit_pass(Rt, tt, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
+                                 Jw, H2, gv2, r_try, g)
+                prior2 = 0.0
+                prior1 = 0.0
+                for a in range(6):
+                    prior2 += 0.5 * eta2[a] * eta2[a]
+                    prior1 += 0.5 * eta[a] * eta[a]
+                if -lik2 + prior2 < cost + prior1:
+                    Rc[:] = Rt
+                    tc[:] = tt
+                    eta[:] = eta2
+                    H[:] = H2
+                    gv[:] = gv2
+                    r_cur[:] = r_try
+                    cost = -lik2
+                    lam *= 0.1
+                else:
+                    lam *= 10.0
+            prior = 0.0
+            for a in range(6):
+                prior += 0.5 * eta[a] * eta[a]
+                for b in range(6):
+                    A[a, b] = H[a, b]
+                A[a, a] += 1.0
+                rhs[a] = 0.0
+            logdet = _cholesky_solve(A, rhs, L, d_eta)
+            ll[i, n] = -cost - prior - 0.5 * logdet
+            res[i, n] = r_cur
+            R[k, n] = Rc
+            t[k, n] = tc
     return ll, res
 
 

@@ -528,7 +528,7 @@ def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) 
     to rounding, the same objects dropped, the same impulses."""
     surfaces = [_sphere(0.10, seed=1), _sphere(0.12, seed=2), _plane(0.0, half=0.15), _sphere(0.09, seed=3) + [0.0, 0.0, 0.02]]
     lib = SurfaceLibrary(surfaces, ["a", "b", "c", "d"], [s * 2.0 for s in surfaces])
-    cfg = SurfaceMatchConfig(particles=24, initial_sigma_m=0.004, initial_sigma_deg=2.0, window_whisks=6,
+    cfg = SurfaceMatchConfig(particles=24, initial_sigma_m=0.004, initial_sigma_deg=2.0, window_whisks=6, refine_iterations=0,
                              min_window_contacts=6, prune_margin=prune_margin, seed=5, margin=1.0, tolerance_m=0.01)
     start = np.array([0.0, 0.0, 0.0, 0.0, 0.0, math.sin(0.1), math.cos(0.1)])
     batched, reference = SurfaceMatcher(lib, start, cfg), _PerObjectReference(lib, start, cfg)
@@ -576,7 +576,7 @@ def test_the_batched_matcher_equals_the_reference_for_any_setting(particles: int
     """As above for drawn particle counts (1 included), seeds, prune margins, noise and steps: the same
     impulses and objects dropped whisk by whisk, the same evidence to rounding."""
     lib = _reference_library()
-    cfg = SurfaceMatchConfig(particles=particles, seed=seed, prune_margin=prune_margin, window_whisks=4,
+    cfg = SurfaceMatchConfig(particles=particles, seed=seed, prune_margin=prune_margin, window_whisks=4, refine_iterations=0,
                              min_window_contacts=4, rotation_sigma_deg=rotation_deg, displacement_sigma_m=step_m / 2,
                              initial_sigma_m=0.002, margin=1.0, tolerance_m=0.01)
     batched, reference = SurfaceMatcher(lib, IDENTITY, cfg), _PerObjectReference(lib, np.array(IDENTITY), cfg)
