@@ -50,6 +50,15 @@ WhiskerRatSLAM, surfaces from the pose graph of :mod:`maps.pose_graph`; chosen o
 0, seeds 1-2 held out; offline replays of the study's whisks, numbers of the study itself
 in :mod:`cansim.studies.recognition`):
 
+* **The registration-refined proposal** (``refine_iterations`` 1, ``refine_prior_scale`` 4;
+  default since 2026-12-04; :class:`SurfaceMatchConfig`): after the odometry move each
+  hypothesis takes one Levenberg-Marquardt step onto the whisk's contacts under a prior of 4
+  x the odometry noise and is weighted by the Laplace marginal. Chosen on seed 0 (three
+  matcher seeds: wrong decisions 23 -> 6 of 108, B 15 -> 22 and viewpoints 19 -> 21 of 36),
+  held out seeds 1-2 (three matcher seeds): A 60 -> 66, B 38 -> 43, viewpoints 29 -> 33 of
+  72, wrong 54 -> 25 of 216, novel undecided 32 -> 39 of 54. ``cansim study recognition
+  --quick``: along B 5 -> 8/12, wrong 6 -> 2/36. Cost per whisk 3.5-3.7 x per object in
+  question (``bench/README.md``). The bullets below were measured without it.
 * **A quarter of the Eq 6.4-6.11 odometry noise** (``--odometry-noise 0.25``: 0.6 deg per
   Euler angle and 2.5 mm per whisk; stored surfaces 3-9 mm from the mesh): along B 10/12
   on seed 0 (was 5/12) and 21/24 on the held-out seeds 1-2; viewpoints 5-10 cm 11/12 (was
@@ -142,7 +151,10 @@ in :mod:`cansim.studies.recognition`):
   nearest other object. Tried and not kept: a 5-mm grid (no better than 7.5 mm, 3.4 x the
   memory), margins of 10 and 20 nats and a best-to-runner-up residual ratio of 1.3-1.6
   (no fewer wrong decisions under the full noise).
-* **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`):
+* **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
+  With the refined proposal (the default; minimum CPU ms per whisk, load 3.0-3.6): narrowed
+  down 1.17 / 2.40 / 4.81 at 12 / 25 / 50 objects, every object in question 4.37 / 9.34 /
+  20.4 - further over the issue's 2 ms. Without it (``refine_iterations=0``):
   once the library is narrowed down 0.29 / 0.66 / 0.74 ms per whisk at 12 / 25 / 50 objects
   (minimum CPU time, machine load 8); while every object is still in question (the first
   ``window_whisks`` whisks) 1.3 / 2.6 / 6.8 ms, over the issue's 2 ms at 50 objects: most of it
