@@ -25,9 +25,10 @@ __all__ = ["field_distance", "likelihoods", "move", "refine", "resample_in_place
 
 
 @njit(cache=True, inline="always")
-def _field_at(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
-              values: np.ndarray, cell: float, cap: float) -> float:  # pragma: no cover - compiled
-    """``|f|`` of object ``k``'s grid at (x, y, z), trilinear; ``cap`` off the grid (never more than ``cap``)."""
+def _cell_of(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+             cell: float) -> tuple[int, float, float, float]:  # pragma: no cover - compiled
+    """The flat index of the grid corner below (x, y, z) on object ``k``'s grid and the fractions along each axis;
+    index -1 when the point's cell is not inside the grid."""
     u = (x - lo[k, 0]) / cell
     v = (y - lo[k, 1]) / cell
     w = (z - lo[k, 2]) / cell
@@ -36,9 +37,18 @@ def _field_at(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.nd
     l_ = int(math.floor(w))
     sx, sy, sz = shape[k, 0], shape[k, 1], shape[k, 2]
     if i < 0 or j < 0 or l_ < 0 or i >= sx - 1 or j >= sy - 1 or l_ >= sz - 1:
+        return -1, 0.0, 0.0, 0.0
+    return start[k] + (i * sy + j) * sz + l_, u - i, v - j, w - l_
+
+
+@njit(cache=True, inline="always")
+def _field_at(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+              values: np.ndarray, cell: float, cap: float) -> float:  # pragma: no cover - compiled
+    """``|f|`` of object ``k``'s grid at (x, y, z), trilinear; ``cap`` off the grid (never more than ``cap``)."""
+    base, fu, fv, fw = _cell_of(x, y, z, k, lo, shape, start, cell)
+    if base < 0:
         return cap
-    fu, fv, fw = u - i, v - j, w - l_
-    base = start[k] + (i * sy + j) * sz + l_
+    sy, sz = shape[k, 1], shape[k, 2]
     c00 = values[base] * (1.0 - fw) + values[base + 1] * fw
     c01 = values[base + sz] * (1.0 - fw) + values[base + sz + 1] * fw
     c10 = values[base + sy * sz] * (1.0 - fw) + values[base + sy * sz + 1] * fw
@@ -104,17 +114,10 @@ def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, s
 def _field_grad(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
                 values: np.ndarray, cell: float, g: np.ndarray) -> tuple[float, bool]:  # pragma: no cover - compiled
     """Signed ``f`` of object ``k``'s grid at (x, y, z) and its gradient into ``g`` (3,), trilinear; (0, False) off the grid."""
-    u = (x - lo[k, 0]) / cell
-    v = (y - lo[k, 1]) / cell
-    w = (z - lo[k, 2]) / cell
-    i = int(math.floor(u))
-    j = int(math.floor(v))
-    l_ = int(math.floor(w))
-    sx, sy, sz = shape[k, 0], shape[k, 1], shape[k, 2]
-    if i < 0 or j < 0 or l_ < 0 or i >= sx - 1 or j >= sy - 1 or l_ >= sz - 1:
+    base, fu, fv, fw = _cell_of(x, y, z, k, lo, shape, start, cell)
+    if base < 0:
         return 0.0, False
-    fu, fv, fw = u - i, v - j, w - l_
-    base = start[k] + (i * sy + j) * sz + l_
+    sy, sz = shape[k, 1], shape[k, 2]
     a0, a1 = values[base], values[base + 1]
     b0, b1 = values[base + sz], values[base + sz + 1]
     c0, c1 = values[base + sy * sz], values[base + sy * sz + 1]

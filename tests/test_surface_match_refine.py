@@ -24,18 +24,7 @@ from maps.odometry import SpatialOdometry
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 from whisker_io.errors import ConfigError
 
-IDENTITY = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
-
-
-def _plane(z: float, n: int = 11, half: float = 0.1) -> np.ndarray:
-    u = np.linspace(-half, half, n)
-    x, y = np.meshgrid(u, u)
-    return np.column_stack([x.ravel(), y.ravel(), np.full(x.size, z)])
-
-
-def _sphere(r: float, n: int = 400, seed: int = 0) -> np.ndarray:
-    d = np.random.default_rng(seed).normal(size=(n, 3))
-    return r * d / np.linalg.norm(d, axis=1)[:, None]
+from test_surface_match import IDENTITY, _plane, _sphere  # noqa: E402  (the same test surfaces)
 
 
 _LIBS: dict[str, SurfaceLibrary] = {}
