@@ -198,6 +198,8 @@ these runs):
   4 of 8 (4; the torus is taken for the snowman in every run, 570-630 impulses to 0),
   against 0 of 8 and 1 of 8 for the thesis' re-localisations, which rarely happen on a path
   the map never took (9-30 impulses a run). The issue's 80 % is not reached.
+* Tried and not kept: more mapping loops (``prepare(..., n_loops=3 / 4)``, refined
+  matcher): duck / bear 7 / 5 of 8, snowman / torus 4 / 4 of 8 (the torus never named).
 * Tried in a scratch study and not kept: free-space evidence (a penalty for the swept
   points of whiskers that touched nothing lying inside a hypothesis' stored surface):
   duck / bear 7 of 8, snowman / torus 5 of 8 (the torus once), Box / Box-Stack 7 of 8 -
