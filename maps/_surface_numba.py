@@ -17,7 +17,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
@@ -312,6 +315,46 @@ def _compose(R: np.ndarray, t: np.ndarray, step: np.ndarray, Rout: np.ndarray, t
             Rout[a, b] = R[a, 0] * tmp[0, b] + R[a, 1] * tmp[1, b] + R[a, 2] * tmp[2, b]
 
 
+@intrinsic
+def _prefetch(typingctx, arr, idx):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    """``llvm.prefetch`` (read, high locality) of ``arr[idx]`` of a 1-d array: a hint that changes no value and
+    never faults (an address outside the array is not read)."""
+    sig = types.void(arr, idx)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                            "llvm.prefetch.p0")
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def _prefetch_cells(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, n: int, lo: np.ndarray, shape: np.ndarray,
+                    start: np.ndarray, values: np.ndarray, cell: float) -> None:  # pragma: no cover - compiled
+    """Prefetch the grid cells that the contacts ``pts`` placed by hypothesis ``R[k, n]``, ``t[k, n]`` read on
+    object ``k``'s grid (the four z-pairs of each cell's corners), so that they arrive while another
+    hypothesis is refined. Changes nothing."""
+    sy, sz = shape[k, 1], shape[k, 2]
+    for j in range(pts.shape[0]):
+        px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
+        x = R[k, n, 0, 0] * px + R[k, n, 0, 1] * py + R[k, n, 0, 2] * pz + t[k, n, 0]
+        y = R[k, n, 1, 0] * px + R[k, n, 1, 1] * py + R[k, n, 1, 2] * pz + t[k, n, 1]
+        z = R[k, n, 2, 0] * px + R[k, n, 2, 1] * py + R[k, n, 2, 2] * pz + t[k, n, 2]
+        base, _, _, _ = _cell_of(x, y, z, k, lo, shape, start, cell)
+        if base >= 0:
+            _prefetch(values, base)
+            _prefetch(values, base + sz)
+            _prefetch(values, base + sy * sz)
+            _prefetch(values, base + sy * sz + sz)
+
+
 @njit(cache=True)
 def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
            values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
@@ -355,6 +398,10 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
     for i in range(rows.shape[0]):
         k = rows[i]
         for n in range(N):
+            if n + 1 < N:  # the next hypothesis' grid cells, read while this one is refined
+                _prefetch_cells(R, t, pts, k, n + 1, lo, shape, start, values, cell)
+            elif i + 1 < rows.shape[0]:
+                _prefetch_cells(R, t, pts, rows[i + 1], 0, lo, shape, start, values, cell)
             for a in range(3):
                 for b in range(3):
                     Rc[a, b] = R[k, n, a, b]
