@@ -9,7 +9,9 @@ applies one odometry step with the noise undone; :func:`resample_in_place` is sy
 :func:`refine` is the registration-refined proposal (Levenberg-Marquardt steps of every hypothesis on
 its contacts' signed distances, read with the grid's trilinear gradient, and Laplace weights).
 ``tests/test_surface_match.py`` holds them to the numpy expressions they replace
-(``tests/test_surface_match_refine.py`` the refinement).
+(``tests/test_surface_match_refine.py`` the refinement). A change made for speed must leave every
+output bit as it was: ``bench/surface_kernels_equal.py`` replays whisks through the matcher with a
+reference copy of this module and with this one and compares every output with ``np.array_equal``.
 """
 
 from __future__ import annotations
@@ -181,6 +183,7 @@ def _fit_pass(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, lo: np.ndar
         j3 = (py * gbz - pz * gby) * s3
         j4 = (pz * gbx - px * gbz) * s4
         j5 = (px * gby - py * gbx) * s5
+        # the array version's products in its order: gv[a] += (wgt * f) * J[a], H[a, b] += (wgt * J[a]) * J[b]
         wf = wgt * f
         g0 += wf * j0
         w0 = wgt * j0
@@ -370,6 +373,10 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
     refined pose, identity included: the Laplace approximation of the likelihood integrated over
     the prior of the correction), (len(rows), N), and each contact's residual at the refined pose,
     (len(rows), N, m), as :func:`likelihoods`.
+
+    A hypothesis none of whose contacts is on the grid under the cap keeps its pose (its system is
+    zero, so is every step) and gets its log likelihood; while one hypothesis is refined the grid
+    cells of the next are prefetched.
     """
     N, m = R.shape[1], pts.shape[0]
     ll = np.empty((rows.shape[0], N))
