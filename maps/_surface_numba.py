@@ -9,7 +9,9 @@ applies one odometry step with the noise undone; :func:`resample_in_place` is sy
 :func:`refine` is the registration-refined proposal (Levenberg-Marquardt steps of every hypothesis on
 its contacts' signed distances, read with the grid's trilinear gradient, and Laplace weights).
 ``tests/test_surface_match.py`` holds them to the numpy expressions they replace
-(``tests/test_surface_match_refine.py`` the refinement).
+(``tests/test_surface_match_refine.py`` the refinement). A change made for speed must leave every
+output bit as it was: ``bench/surface_kernels_equal.py`` replays whisks through the matcher with a
+reference copy of this module and with this one and compares every output with ``np.array_equal``.
 """
 
 from __future__ import annotations
@@ -17,7 +19,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
@@ -112,11 +117,12 @@ def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, s
 
 @njit(cache=True, inline="always")
 def _field_grad(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
-                values: np.ndarray, cell: float, g: np.ndarray) -> tuple[float, bool]:  # pragma: no cover - compiled
-    """Signed ``f`` of object ``k``'s grid at (x, y, z) and its gradient into ``g`` (3,), trilinear; (0, False) off the grid."""
+                values: np.ndarray, cell: float) -> tuple[float, bool, float, float, float]:  # pragma: no cover - compiled
+    """Signed ``f`` of object ``k``'s grid at (x, y, z) and its gradient (gx, gy, gz), trilinear: (f, True, gx, gy, gz);
+    (0, False, 0, 0, 0) off the grid."""
     base, fu, fv, fw = _cell_of(x, y, z, k, lo, shape, start, cell)
     if base < 0:
-        return 0.0, False
+        return 0.0, False, 0.0, 0.0, 0.0
     sy, sz = shape[k, 1], shape[k, 2]
     a0, a1 = values[base], values[base + 1]
     b0, b1 = values[base + sz], values[base + sz + 1]
@@ -128,58 +134,133 @@ def _field_grad(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.
     c11 = d0 * (1.0 - fw) + d1 * fw
     lo_u = c00 * (1.0 - fv) + c01 * fv
     hi_u = c10 * (1.0 - fv) + c11 * fv
-    g[0] = (hi_u - lo_u) / cell
-    g[1] = ((c01 - c00) * (1.0 - fu) + (c11 - c10) * fu) / cell
-    g[2] = (((a1 - a0) * (1.0 - fv) + (b1 - b0) * fv) * (1.0 - fu) + ((c1 - c0) * (1.0 - fv) + (d1 - d0) * fv) * fu) / cell
-    return lo_u * (1.0 - fu) + hi_u * fu, True
+    gx = (hi_u - lo_u) / cell
+    gy = ((c01 - c00) * (1.0 - fu) + (c11 - c10) * fu) / cell
+    gz = (((a1 - a0) * (1.0 - fv) + (b1 - b0) * fv) * (1.0 - fu) + ((c1 - c0) * (1.0 - fv) + (d1 - d0) * fv) * fu) / cell
+    return lo_u * (1.0 - fu) + hi_u * fu, True, gx, gy, gz
 
 
 @njit(cache=True, inline="always")
 def _fit_pass(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, lo: np.ndarray, shape: np.ndarray,
               start: np.ndarray, values: np.ndarray, cell: float, inv2s2: float, outlier: float, cap: float,
-              at_cap: float, sd: np.ndarray, Jw: np.ndarray, H: np.ndarray, gv: np.ndarray, res_out: np.ndarray,
-              g: np.ndarray) -> float:  # pragma: no cover - compiled
-    """Log likelihood of the contacts at the pose ``R`` (3, 3), ``t`` (3,); fills the whitened Gauss-Newton
-    system ``H`` (6, 6) (without the prior's identity) and gradient ``gv`` (6,) of the robust cost, and the
-    contacts' residuals ``res_out`` (m,); ``Jw`` (6,) and ``g`` (3,) are scratch."""
-    for a in range(6):
-        gv[a] = 0.0
-        for b in range(6):
-            H[a, b] = 0.0
+              at_cap: float, sd: np.ndarray, H: np.ndarray, gv: np.ndarray,
+              res_out: np.ndarray) -> tuple[float, int]:  # pragma: no cover - compiled
+    """Log likelihood of the contacts at the pose ``R`` (3, 3), ``t`` (3,) and how many of them are on the grid
+    and under the cap (the others add nothing to the system); fills the whitened Gauss-Newton system ``H`` (6, 6)
+    (without the prior's identity) and gradient ``gv`` (6,) of the robust cost, and the contacts' residuals
+    ``res_out`` (m,). The sums run in local scalars, contact by contact."""
+    used = 0
+    g0 = g1 = g2 = g3 = g4 = g5 = 0.0
+    h00 = h10 = h11 = h20 = h21 = h22 = h30 = h31 = h32 = h33 = 0.0
+    h40 = h41 = h42 = h43 = h44 = h50 = h51 = h52 = h53 = h54 = h55 = 0.0
+    s0, s1, s2, s3, s4, s5 = sd[0], sd[1], sd[2], sd[3], sd[4], sd[5]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2]
+    t0, t1, t2 = t[0], t[1], t[2]
     acc = 0.0
     for j in range(pts.shape[0]):
         px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
-        x = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz + t[0]
-        y = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz + t[1]
-        z = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz + t[2]
-        f, ok = _field_grad(x, y, z, k, lo, shape, start, values, cell, g)
+        x = r00 * px + r01 * py + r02 * pz + t0
+        y = r10 * px + r11 * py + r12 * pz + t1
+        z = r20 * px + r21 * py + r22 * pz + t2
+        f, ok, gx, gy, gz = _field_grad(x, y, z, k, lo, shape, start, values, cell)
         r = abs(f)
         if not ok or r >= cap:
             acc += at_cap
             res_out[j] = cap
             continue
         res_out[j] = r
+        used += 1
         e = math.exp(-r * r * inv2s2)
         acc += math.log(outlier + e)
         wgt = 2.0 * inv2s2 * e / (outlier + e)  # d(-log(outlier + e)) / d(f) = wgt * f: the robust (IRLS) weight
         # the gradient in the body frame, and the Jacobian of f over (u, omega): [gb, p x gb], whitened by sd
-        gbx = R[0, 0] * g[0] + R[1, 0] * g[1] + R[2, 0] * g[2]
-        gby = R[0, 1] * g[0] + R[1, 1] * g[1] + R[2, 1] * g[2]
-        gbz = R[0, 2] * g[0] + R[1, 2] * g[1] + R[2, 2] * g[2]
-        Jw[0] = gbx * sd[0]
-        Jw[1] = gby * sd[1]
-        Jw[2] = gbz * sd[2]
-        Jw[3] = (py * gbz - pz * gby) * sd[3]
-        Jw[4] = (pz * gbx - px * gbz) * sd[4]
-        Jw[5] = (px * gby - py * gbx) * sd[5]
-        for a in range(6):
-            gv[a] += wgt * f * Jw[a]
-            for b in range(a + 1):
-                H[a, b] += wgt * Jw[a] * Jw[b]
-    for a in range(6):
-        for b in range(a):
-            H[b, a] = H[a, b]
-    return acc
+        gbx = r00 * gx + r10 * gy + r20 * gz
+        gby = r01 * gx + r11 * gy + r21 * gz
+        gbz = r02 * gx + r12 * gy + r22 * gz
+        j0 = gbx * s0
+        j1 = gby * s1
+        j2 = gbz * s2
+        j3 = (py * gbz - pz * gby) * s3
+        j4 = (pz * gbx - px * gbz) * s4
+        j5 = (px * gby - py * gbx) * s5
+        # the array version's products in its order: gv[a] += (wgt * f) * J[a], H[a, b] += (wgt * J[a]) * J[b]
+        wf = wgt * f
+        g0 += wf * j0
+        w0 = wgt * j0
+        h00 += w0 * j0
+        g1 += wf * j1
+        w1 = wgt * j1
+        h10 += w1 * j0
+        h11 += w1 * j1
+        g2 += wf * j2
+        w2 = wgt * j2
+        h20 += w2 * j0
+        h21 += w2 * j1
+        h22 += w2 * j2
+        g3 += wf * j3
+        w3 = wgt * j3
+        h30 += w3 * j0
+        h31 += w3 * j1
+        h32 += w3 * j2
+        h33 += w3 * j3
+        g4 += wf * j4
+        w4 = wgt * j4
+        h40 += w4 * j0
+        h41 += w4 * j1
+        h42 += w4 * j2
+        h43 += w4 * j3
+        h44 += w4 * j4
+        g5 += wf * j5
+        w5 = wgt * j5
+        h50 += w5 * j0
+        h51 += w5 * j1
+        h52 += w5 * j2
+        h53 += w5 * j3
+        h54 += w5 * j4
+        h55 += w5 * j5
+    gv[0] = g0
+    gv[1] = g1
+    gv[2] = g2
+    gv[3] = g3
+    gv[4] = g4
+    gv[5] = g5
+    H[0, 0] = h00
+    H[1, 0] = h10
+    H[0, 1] = h10
+    H[1, 1] = h11
+    H[2, 0] = h20
+    H[0, 2] = h20
+    H[2, 1] = h21
+    H[1, 2] = h21
+    H[2, 2] = h22
+    H[3, 0] = h30
+    H[0, 3] = h30
+    H[3, 1] = h31
+    H[1, 3] = h31
+    H[3, 2] = h32
+    H[2, 3] = h32
+    H[3, 3] = h33
+    H[4, 0] = h40
+    H[0, 4] = h40
+    H[4, 1] = h41
+    H[1, 4] = h41
+    H[4, 2] = h42
+    H[2, 4] = h42
+    H[4, 3] = h43
+    H[3, 4] = h43
+    H[4, 4] = h44
+    H[5, 0] = h50
+    H[0, 5] = h50
+    H[5, 1] = h51
+    H[1, 5] = h51
+    H[5, 2] = h52
+    H[2, 5] = h52
+    H[5, 3] = h53
+    H[3, 5] = h53
+    H[5, 4] = h54
+    H[4, 5] = h54
+    H[5, 5] = h55
+    return acc, used
 
 
 @njit(cache=True, inline="always")
@@ -237,6 +318,46 @@ def _compose(R: np.ndarray, t: np.ndarray, step: np.ndarray, Rout: np.ndarray, t
             Rout[a, b] = R[a, 0] * tmp[0, b] + R[a, 1] * tmp[1, b] + R[a, 2] * tmp[2, b]
 
 
+@intrinsic
+def _prefetch(typingctx, arr, idx):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    """``llvm.prefetch`` (read, high locality) of ``arr[idx]`` of a 1-d array: a hint that changes no value and
+    never faults (an address outside the array is not read)."""
+    sig = types.void(arr, idx)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                            "llvm.prefetch.p0")
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def _prefetch_cells(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, n: int, lo: np.ndarray, shape: np.ndarray,
+                    start: np.ndarray, values: np.ndarray, cell: float) -> None:  # pragma: no cover - compiled
+    """Prefetch the grid cells that the contacts ``pts`` placed by hypothesis ``R[k, n]``, ``t[k, n]`` read on
+    object ``k``'s grid (the four z-pairs of each cell's corners), so that they arrive while another
+    hypothesis is refined. Changes nothing."""
+    sy, sz = shape[k, 1], shape[k, 2]
+    for j in range(pts.shape[0]):
+        px, py, pz = pts[j, 0], pts[j, 1], pts[j, 2]
+        x = R[k, n, 0, 0] * px + R[k, n, 0, 1] * py + R[k, n, 0, 2] * pz + t[k, n, 0]
+        y = R[k, n, 1, 0] * px + R[k, n, 1, 1] * py + R[k, n, 1, 2] * pz + t[k, n, 1]
+        z = R[k, n, 2, 0] * px + R[k, n, 2, 1] * py + R[k, n, 2, 2] * pz + t[k, n, 2]
+        base, _, _, _ = _cell_of(x, y, z, k, lo, shape, start, cell)
+        if base >= 0:
+            _prefetch(values, base)
+            _prefetch(values, base + sz)
+            _prefetch(values, base + sy * sz)
+            _prefetch(values, base + sy * sz + sz)
+
+
 @njit(cache=True)
 def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
            values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
@@ -252,12 +373,17 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
     refined pose, identity included: the Laplace approximation of the likelihood integrated over
     the prior of the correction), (len(rows), N), and each contact's residual at the refined pose,
     (len(rows), N, m), as :func:`likelihoods`.
+
+    A hypothesis none of whose contacts is on the grid under the cap keeps its pose (its system is
+    zero, so is every step) and gets its log likelihood; while one hypothesis is refined the grid
+    cells of the next are prefetched.
     """
     N, m = R.shape[1], pts.shape[0]
     ll = np.empty((rows.shape[0], N))
     res = np.empty((rows.shape[0], N, m))
     inv2s2 = 0.5 / (sigma * sigma)
     at_cap = math.log(outlier + math.exp(-cap * cap * inv2s2))
+    # scratch allocated once per call; the current and the trial state swap buffers instead of copying
     H = np.empty((6, 6))
     gv = np.empty(6)
     H2 = np.empty((6, 6))
@@ -274,20 +400,33 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
     Rt = np.empty((3, 3))
     tt = np.empty(3)
     tmp = np.empty((3, 3))
-    g = np.empty(3)
-    Jw = np.empty(6)
     r_cur = np.empty(m)
     r_try = np.empty(m)
     for i in range(rows.shape[0]):
         k = rows[i]
         for n in range(N):
-            Rc[:] = R[k, n]
-            tc[:] = t[k, n]
-            eta[:] = 0.0
-            lik = _fit_pass(Rc, tc, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd, Jw,
-                            H, gv, r_cur, g)
+            if n + 1 < N:  # the next hypothesis' grid cells, read while this one is refined
+                _prefetch_cells(R, t, pts, k, n + 1, lo, shape, start, values, cell)
+            elif i + 1 < rows.shape[0]:
+                _prefetch_cells(R, t, pts, rows[i + 1], 0, lo, shape, start, values, cell)
+            for a in range(3):
+                for b in range(3):
+                    Rc[a, b] = R[k, n, a, b]
+                tc[a] = t[k, n, a]
+            for a in range(6):
+                eta[a] = 0.0
+            lik, used = _fit_pass(Rc, tc, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
+                                  H, gv, r_cur)
+            if used == 0:
+                # no contact on the grid under the cap: H = 0 and the gradient is 0, so every step is exactly zero, the
+                # trial pose is this pose (R Exp(0) = R bit for bit) and is refused; E = -lik and log det(I) = 0
+                ll[i, n] = lik
+                for j in range(m):
+                    res[i, n, j] = r_cur[j]
+                continue
             cost = -lik
             lam = 1e-3
+            moved = False
             for _ in range(iterations):
                 for a in range(6):
                     for b in range(6):
@@ -299,22 +438,23 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
                     eta2[a] = eta[a] + d_eta[a]
                     step[a] = sd[a] * d_eta[a]
                 _compose(Rc, tc, step, Rt, tt, tmp)
-                lik2 = _fit_pass(Rt, tt, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
-                                 Jw, H2, gv2, r_try, g)
+                lik2, _ = _fit_pass(Rt, tt, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
+                                 H2, gv2, r_try)
                 prior2 = 0.0
                 prior1 = 0.0
                 for a in range(6):
                     prior2 += 0.5 * eta2[a] * eta2[a]
                     prior1 += 0.5 * eta[a] * eta[a]
-                if -lik2 + prior2 < cost + prior1:
-                    Rc[:] = Rt
-                    tc[:] = tt
-                    eta[:] = eta2
-                    H[:] = H2
-                    gv[:] = gv2
-                    r_cur[:] = r_try
+                if -lik2 + prior2 < cost + prior1:  # accepted: the trial state becomes the current one
+                    Rc, Rt = Rt, Rc
+                    tc, tt = tt, tc
+                    eta, eta2 = eta2, eta
+                    H, H2 = H2, H
+                    gv, gv2 = gv2, gv
+                    r_cur, r_try = r_try, r_cur
                     cost = -lik2
                     lam *= 0.1
+                    moved = True
                 else:
                     lam *= 10.0
             prior = 0.0
@@ -326,9 +466,13 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
                 rhs[a] = 0.0
             logdet = _cholesky_solve(A, rhs, L, d_eta)
             ll[i, n] = -cost - prior - 0.5 * logdet
-            res[i, n] = r_cur
-            R[k, n] = Rc
-            t[k, n] = tc
+            for j in range(m):
+                res[i, n, j] = r_cur[j]
+            if moved:
+                for a in range(3):
+                    for b in range(3):
+                        R[k, n, a, b] = Rc[a, b]
+                    t[k, n, a] = tc[a]
     return ll, res
 
 
