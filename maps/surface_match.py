@@ -152,9 +152,10 @@ in :mod:`cansim.studies.recognition`):
   memory), margins of 10 and 20 nats and a best-to-runner-up residual ratio of 1.3-1.6
   (no fewer wrong decisions under the full noise).
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
-  With the refined proposal (the default; minimum CPU ms per whisk, load 3.0-3.6): narrowed
-  down 1.17 / 2.40 / 4.81 at 12 / 25 / 50 objects, every object in question 4.37 / 9.34 /
-  20.4 - further over the issue's 2 ms. Without it (``refine_iterations=0``):
+  With the refined proposal (the default; minimum CPU ms per whisk, load 0.7-1.0, after the
+  kernel's bit-identical tuning of 2026-12-04, ``bench/README.md``): narrowed down 1.20 /
+  2.40 / 4.85 at 12 / 25 / 50 objects, every object in question 4.49 / 9.21 / 18.9 - further
+  over the issue's 2 ms. Without it (``refine_iterations=0``):
   once the library is narrowed down 0.29 / 0.66 / 0.74 ms per whisk at 12 / 25 / 50 objects
   (minimum CPU time, machine load 8); while every object is still in question (the first
   ``window_whisks`` whisks) 1.3 / 2.6 / 6.8 ms, over the issue's 2 ms at 50 objects: most of it
