@@ -75,6 +75,7 @@ from scipy.spatial.transform import Rotation
 from maps.odometry import SpatialOdometry
 from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
+from whisker_io.pose import as_pose
 from whisker_io.validation import checked, config_field, finite_array, validate_fields
 
 __all__ = ["PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
@@ -305,8 +306,8 @@ def whisk_graph_edges(odometry: Sequence[SpatialOdometry | None], experience_ids
 
 def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: Any, relocalised: Any,
                   contacts_m: Sequence[Any], config: WhiskGraphConfig = WhiskGraphConfig(),
-                  max_evaluations: int = 200, with_viewpoints: bool = False) -> Any:
-    """What a mapping run felt, placed by its optimised whisk poses, in the first whisk's frame.
+                  max_evaluations: int = 200, with_viewpoints: bool = False, anchor: Any = None) -> Any:
+    """What a mapping run felt, placed by its optimised whisk poses, in the first whisk's frame (or ``anchor``'s).
 
     The whisk graph (:func:`whisk_graph_edges`) is optimised from dead reckoning
     (:func:`optimise_pose_graph`, the first whisk fixed at the identity) and each whisk's
@@ -322,6 +323,10 @@ def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: An
         As :func:`optimise_pose_graph`.
     with_viewpoints : bool
         Also return where each contact was felt from.
+    anchor : Pose or pose-like, optional
+        The first whisk's pose in the frame wanted (e.g. the arm's, where mapping began):
+        points and viewpoints are returned in that frame (``anchor.apply``); default the
+        first whisk's own frame.
 
     Returns
     -------
@@ -333,8 +338,10 @@ def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: An
     Raises
     ------
     InvalidInputError, ShapeError
-        As :func:`whisk_graph_edges`; a contact list of another length; malformed points.
+        As :func:`whisk_graph_edges`; a contact list of another length; malformed points;
+        an ``anchor`` that is not a pose.
     """
+    frame = None if anchor is None else as_pose(anchor)
     contacts = list(contacts_m)
     odo = list(odometry)
     if len(contacts) != len(odo):
@@ -349,4 +356,7 @@ def whisk_surface(odometry: Sequence[SpatialOdometry | None], experience_ids: An
         if len(p):
             out.append(poses[k, :3] + Rotation.from_quat(poses[k, 3:]).apply(np.array(p, dtype=np.float64)))
             seen.append(np.repeat(poses[k, None, :3], len(p), axis=0))
-    return (np.concatenate(out), np.concatenate(seen)) if with_viewpoints else np.concatenate(out)
+    points, where = np.concatenate(out), np.concatenate(seen)
+    if frame is not None:
+        points, where = frame.apply(points), frame.apply(where)
+    return (points, where) if with_viewpoints else points

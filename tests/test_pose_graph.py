@@ -200,3 +200,18 @@ def test_whisk_surface_says_where_each_contact_was_felt_from() -> None:
     np.testing.assert_allclose(points, [[0.1, 0, 0], [2.1, 0, 0], [2.0, 0.2, 0]], atol=1e-9)
     np.testing.assert_allclose(seen, [[0, 0, 0], [2, 0, 0], [2, 0, 0]], atol=1e-9)
     np.testing.assert_allclose(whisk_surface(odo, [0, 1, 2], [False] * 3, contacts), points, atol=0)
+
+
+def test_whisk_surface_in_an_anchors_frame() -> None:
+    """``anchor``: the same three whisks with the first whisk at (1, 2, 3) m turned 90 deg about z - hand-placed:
+    a point (x, y, z) of the first whisk's frame is at (1 - y, 2 + x, 3 + z); the viewpoints move alike."""
+    odo = [None, _odo([1, 0, 0]), _odo([1, 0, 0])]
+    contacts = [np.array([[0.1, 0.0, 0.0]]), None, np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])]
+    anchor = ([1.0, 2.0, 3.0], Rotation.from_euler("z", 90, degrees=True).as_quat())
+    points, seen = whisk_surface(odo, [0, 1, 2], [False] * 3, contacts, with_viewpoints=True, anchor=anchor)
+    np.testing.assert_allclose(points, [[1.0, 2.1, 3], [1.0, 4.1, 3], [0.8, 4.0, 3]], atol=1e-9)
+    np.testing.assert_allclose(seen, [[1, 2, 3], [1, 4, 3], [1, 4, 3]], atol=1e-9)
+    np.testing.assert_allclose(whisk_surface(odo, [0, 1, 2], [False] * 3, contacts, anchor=anchor), points, atol=0)
+    for bad in ("pose", [1.0, 2.0], np.full((4, 4), np.nan)):
+        with pytest.raises((InvalidInputError, ShapeError)):
+            whisk_surface(odo, [0, 1, 2], [False] * 3, contacts, anchor=bad)

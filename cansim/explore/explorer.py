@@ -138,9 +138,8 @@ class KnownObject:
             log = self.mapping_log
             if log is None or not self.poses:
                 raise ConfigError(f"{self.name}: no mapping log to place a stored surface by; map it with build_object_model")
-            points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"],
-                                         with_viewpoints=True)
-            self._surface = (self.poses[0].apply(points), self.poses[0].apply(seen))
+            self._surface = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"],
+                                          with_viewpoints=True, anchor=self.poses[0])
         return self._surface
 
     def fresh_model(self) -> WhiskerRatSLAM:

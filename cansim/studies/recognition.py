@@ -281,9 +281,10 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     path.parent.mkdir(parents=True, exist_ok=True)
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP)
     slam.save(path)
-    points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], with_viewpoints=True)
+    points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], with_viewpoints=True,
+                                 anchor=poses[0])
     surface_path = path.with_name(path.stem + "_surface.npz")
-    np.savez_compressed(surface_path, points_m=poses[0].apply(points), viewpoints_m=poses[0].apply(seen))
+    np.savez_compressed(surface_path, points_m=points, viewpoints_m=seen)
     return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences}
 
 
