@@ -169,7 +169,7 @@ import numpy as np
 
 from cansim.seeding import derive_seed
 from whisker_io._deprecated import renamed_attributes
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import checked, config_field, validate_fields
 
 logger = logging.getLogger("ch5_study")
 
@@ -487,10 +487,8 @@ def calibrate(noise_scale: float, quantile: float, seed: int | Sequence[int], co
     from whisker_io.sim.trajectories import object_trajectory
 
     seeds = _calibration_seeds(seed)
-    if not isinstance(noise_scale, (int, float, np.integer, np.floating)) or isinstance(noise_scale, (bool, np.bool_)) \
-            or not math.isfinite(float(noise_scale)) or float(noise_scale) < 0.0:
-        raise InvalidInputError(f"noise_scale must be a finite number >= 0 (a multiple of the Sec 6.1.3.1.2 contact "
-                                f"noise), got {noise_scale!r}")
+    config_field(noise_scale, "noise_scale", float, minimum=0.0, error=InvalidInputError,
+                 hint="a multiple of the Sec 6.1.3.1.2 contact noise")
     mesh = make_object("mug")
     chain = _chain(mesh, contact_model, noise_scale, radial_model)
     rngs = [np.random.default_rng(derive_seed(s, "calibrate", noise_scale, contact_model)) for s in seeds]

@@ -465,10 +465,10 @@ def calibration_seeds(k: int = CALIBRATION_SEEDS, base: int = 0) -> tuple[int, .
         ``k`` not an integer >= 1, or ``base`` not an integer.
     """
     from cansim.errors import InvalidInputError
+    from whisker_io.validation import config_field
 
-    for name, v, least in (("k", k, 1), ("base", base, None)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, (bool, np.bool_)) or (least is not None and v < least):
-            raise InvalidInputError(f"{name} must be an integer{f' >= {least}' if least is not None else ''}, got {v!r}")
+    config_field(k, "k", int, minimum=1, error=InvalidInputError)
+    config_field(base, "base", int, error=InvalidInputError)
     return tuple(derive_seed(int(base), "calibration", i) for i in range(int(k)))
 
 
@@ -574,18 +574,16 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     matchers = tuple(dict.fromkeys(matchers))
     if not matchers or any(m not in MATCHERS for m in matchers):
         raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
-    if isinstance(calibration, str) and calibration not in CALIBRATIONS:
-        raise ConfigError(f"calibration must be one of {CALIBRATIONS} or a sequence of seeds, got {calibration!r}")
     config_field(odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
                  hint="a multiple of the Eq 6.4-6.11 odometry noise")
-    out.mkdir(parents=True, exist_ok=True)
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
     novel = list(novel) if novel is not None else list(novel_names(3))
     for spec in (*everything, *novel):
         resolve_object(spec)  # a bad name or mesh fails before any work
     chosen = [b for b in VIEWPOINT_BINS if bins is None or b[0] in bins]
-    thresholds = calibrated_thresholds(calibration, seeds, calibration_quantile)
+    thresholds = calibrated_thresholds(calibration, seeds, calibration_quantile)  # a bad rule, seed or quantile: before any file
+    out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     for seed in seeds:
         setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
