@@ -5,10 +5,14 @@ The explorer of :mod:`cansim.explore.explorer` drives a :class:`~whisker_io.hw.a
 with the Ch.6 settings: the array whisks with RCP retract-at-maximum, each cycle is
 recorded (CSV + pose log, :class:`~whisker_io.hw.recorder.Recorder`) and turned into
 region features by :class:`~whisker_io.sim.whisk_chain.RecordedChain` with an SVR radial
-model (``svr10`` of Table 4.1, ``--radial-model``). The known objects are WhiskerRatSLAM
-models saved with ``WhiskerRatSLAM.save`` (``--map NAME=PATH``, at least one). The
+model (``svr10`` of Table 4.1, ``--radial-model``). The known objects are mapped objects
+saved with ``KnownObject.save`` or bare WhiskerRatSLAM models saved with
+``WhiskerRatSLAM.save`` (``--map NAME=PATH``, at least one). The
 default search visits the faces of a sphere of ``--object-radius`` around
-``--object-centre`` (base frame). Odometry is the arm's (exact). The run stops at the IC
+``--object-centre`` (base frame). ``--matcher surface`` takes its impulses from the
+known objects' stored surfaces (:class:`maps.surface_match.SurfaceMatcher`) instead of the
+thesis' region match; it needs maps saved with ``KnownObject.save`` (the model and its
+mapping log; the object where it was mapped), bare model files are refused (status 2). Odometry is the arm's (exact). The run stops at the IC
 threshold or after ``--iterations`` whisks; ``exploration.csv`` in ``--out`` holds the
 per-whisk raw and integrated confidence of every known object.
 Needs the ``hw`` extra: ``pip install cansim[hw]``.
@@ -68,18 +72,16 @@ def exact_odometry() -> Callable[[Any, Any], tuple[np.ndarray, np.ndarray, float
 
 
 def load_known(specs: Sequence[str]) -> list[Any]:
-    """``NAME=PATH`` -> :class:`~cansim.explore.explorer.KnownObject` (a saved WhiskerRatSLAM)."""
+    """``NAME=PATH`` -> :class:`~cansim.explore.explorer.KnownObject` (:meth:`KnownObject.load`: a mapped object
+    saved with ``KnownObject.save``, or a bare ``WhiskerRatSLAM.save`` model)."""
     from cansim.explore.explorer import KnownObject
-    from cansim.models.whisker_ratslam import WhiskerRatSLAM
 
     known = []
     for spec in specs:
         name, sep, path = spec.partition("=")
         if not sep or not name or not path:
             raise ValueError(f"--map takes NAME=PATH, got {spec!r}")
-        m = WhiskerRatSLAM.load(path)
-        om = m.object_map
-        known.append(KnownObject(name, m, om.n_experiences, len(m.frontend), len(om.history)))
+        known.append(KnownObject.load(path, name=name))
     return known
 
 
@@ -99,6 +101,8 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--object-centre", type=float, nargs=3, default=(0.4, 0.0, 0.2), help="base frame, m")
     ap.add_argument("--object-radius", type=float, default=0.15, help="default-search sphere radius, m")
     ap.add_argument("--strategy", choices=("default", "feh", "lsr"), default="lsr")
+    ap.add_argument("--matcher", choices=("thesis", "surface"), default="thesis",
+                    help="impulse source: the thesis' region match, or the stored surfaces (maps saved with KnownObject.save)")
     ap.add_argument("--spc", choices=("on", "off"), default="on")
     ap.add_argument("--threshold", type=float, default=300.0, help="IC threshold")
     ap.add_argument("--iterations", type=int, default=300)
@@ -142,6 +146,11 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
         known = load_known(args.map)
     except (ValueError, OSError, CansimError) as exc:
         return fail(EXIT_USAGE, f"invalid --map: {exc}")
+    if args.matcher == "surface":
+        bare = [k.name for k in known if k.mapping_log is None]
+        if bare:
+            return fail(EXIT_USAGE, f"--matcher surface needs maps saved with KnownObject.save (a mapping log); "
+                                    f"bare models: {', '.join(bare)}")
     try:
         chain = RecordedChain(contact_model="svr", radial_model=args.radial_model)
     except (OSError, CansimError) as exc:
@@ -151,7 +160,8 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
 
     def make_explorer(sensor: Any, arm: Any) -> Explorer:
         return Explorer(known, sensor, arm, exact_odometry(), search, strategy=args.strategy, placement=placement,
-                        stop_threshold=args.threshold, max_iterations=args.iterations, time_limit_s=args.time_limit)
+                        stop_threshold=args.threshold, max_iterations=args.iterations, time_limit_s=args.time_limit,
+                        matcher=args.matcher)
 
     names = [k.name for k in known]
     if args.replay is not None:

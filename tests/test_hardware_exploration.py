@@ -36,6 +36,7 @@ def assets(tmp_path_factory):
     k = build_object_model("box", object_trajectory(mesh, "A", n_loops=1)[:20], lambda p: chain.features(p, rng),
                            hx.exact_odometry(), placement=None)
     k.model.save(d / "box.npz")
+    k.save(d / "box_known.npz")  # the model with its mapping log (the surface matcher's input)
     n = 200
     wl = rng.choice([0.065, 0.087, 0.137], n)
     s, av = rng.uniform(0.2, 1.0, n), rng.uniform(0.5, 4.0, n)
@@ -110,3 +111,9 @@ def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
     with open(out / "exploration_replay.csv", newline="") as f:
         rep = list(csv.DictReader(f))
     assert [r["ic_box"] for r in rep] == [r["ic_box"] for r in live]
+    # the surface matcher replays the session from a map saved with its mapping log; a bare model is refused (usage)
+    surface = ["--replay", str(out), "--radial-model", str(assets / "svr10.skops"), "--matcher", "surface"]
+    assert hx.main(surface + ["--map", f"box={assets / 'box_known.npz'}"]) == 0
+    with open(out / "exploration_replay.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) == len(live)
+    assert hx.main(surface + ["--map", f"box={assets / 'box.npz'}"]) == hx.EXIT_USAGE

@@ -63,13 +63,15 @@ from __future__ import annotations
 import io
 import logging
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from cansim.errors import ConfigError, InvalidInputError
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
 from cansim.explore.contact_seeking import (
     ContactSeekingParams, clear_of_contacts, contact_range_m, held_face_pose, seek_contact,
 )
@@ -82,6 +84,7 @@ from maps.odometry import SpatialOdometry
 from maps.recognition import MATCHERS, LeakyIntegrator, first_crossing, leaky_step
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 from whisker_io.errors import SafetyViolationError
+from whisker_io.persistence import read_npz, write_npz
 from whisker_io.pose import Pose
 from whisker_io.validation import config_field
 
@@ -108,6 +111,9 @@ class KnownObject:
     mapping_log : dict or None
         What :func:`build_object_model` recorded of each mapping whisk (``odometry``,
         ``exp_ids``, ``relocalised``, ``contacts``): the input of :meth:`stored_surface`.
+
+    :meth:`save` writes all of it to one ``.npz`` file and :meth:`load` reads it back (or
+    a bare model file, without poses and log).
     """
 
     name: str
@@ -142,15 +148,89 @@ class KnownObject:
                                           with_viewpoints=True, anchor=self.poses[0])
         return self._surface
 
-    def fresh_model(self) -> WhiskerRatSLAM:
-        """An independent copy of the model as mapping left it (through its ``.npz`` save format)."""
+    def _model_arrays(self) -> dict[str, np.ndarray]:
+        """The model's ``.npz`` members as mapping left it (taken once)."""
         if self._snapshot is None:
             buf = io.BytesIO()
             self.model.save(buf)  # type: ignore[arg-type]
             buf.seek(0)
             with np.load(buf, allow_pickle=False) as z:
                 self._snapshot = {k: z[k] for k in z.files}
-        return WhiskerRatSLAM.from_arrays(self._snapshot)  # type: ignore[return-value]
+        return self._snapshot
+
+    def fresh_model(self) -> WhiskerRatSLAM:
+        """An independent copy of the model as mapping left it (through its ``.npz`` save format)."""
+        return WhiskerRatSLAM.from_arrays(self._model_arrays())  # type: ignore[return-value]
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Save the mapped object - its model, mapping poses and mapping log - to one ``.npz`` file.
+
+        The file is a :meth:`WhiskerRatSLAM.save` file (``WhiskerRatSLAM.load`` reads its
+        model) with the object's own members beside the model's (prefix ``known_``):
+        ``known_name``, ``known_sizes`` (``n_built``, ``n_built_regions``, ``n_history``),
+        ``known_poses`` (n, 7: position m, quaternion x, y, z, w), and, when the object
+        was mapped by :func:`build_object_model`, its mapping log: ``known_odometry``
+        (n, 7: v m/s, omega rad/s, dt s), ``known_exp_ids`` (n,), ``known_relocalised``
+        (n,), ``known_contact_counts`` (n,; -1 for a whisk without a contact array) and
+        ``known_contacts`` (sum of the counts, 3; m, end-effector frame). :meth:`load`
+        gives back an object whose :meth:`stored_surface` and :meth:`fresh_model` are
+        those of this one. Written to a temporary name and renamed (no half-written file).
+        No pickle.
+        """
+        arrays: dict[str, np.ndarray] = dict(self._model_arrays())
+        arrays["known_format"] = np.int64(_KNOWN_FORMAT)
+        arrays["known_name"] = np.array(str(self.name))
+        arrays["known_sizes"] = np.array([self.n_built, self.n_built_regions, self.n_history], dtype=np.int64)
+        arrays["known_poses"] = np.array([np.r_[p.position_m, p.quaternion_xyzw] for p in self.poses],
+                                         dtype=np.float64).reshape(-1, 7)
+        log = self.mapping_log
+        if log is not None:
+            odo = [np.r_[o.v, o.omega, o.dt] for o in log["odometry"]]
+            contacts = [None if c is None else np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in log["contacts"]]
+            arrays["known_odometry"] = np.array(odo, dtype=np.float64).reshape(-1, 7)
+            arrays["known_exp_ids"] = np.asarray(log["exp_ids"], dtype=np.int64).reshape(-1)
+            arrays["known_relocalised"] = np.asarray(log["relocalised"], dtype=bool).reshape(-1)
+            arrays["known_contact_counts"] = np.array([-1 if c is None else len(c) for c in contacts], dtype=np.int64)
+            arrays["known_contacts"] = np.concatenate([np.zeros((0, 3))] + [c for c in contacts if c is not None])
+        write_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], name: str | None = None) -> "KnownObject":
+        """A mapped object from :meth:`save`'s file, or from a bare :meth:`WhiskerRatSLAM.save` file.
+
+        Parameters
+        ----------
+        path : path
+        name : str, optional
+            The object's name (default: the saved one; required for a bare model file).
+
+        Returns
+        -------
+        KnownObject
+            From a bare model file: no mapping poses and no mapping log (:meth:`stored_surface`
+            then raises ConfigError; ``matcher="surface"`` needs a file written by :meth:`save`).
+
+        Raises
+        ------
+        CorruptFileError
+            Unreadable file, a missing or malformed member (named in the error).
+        InvalidInputError
+            A bare model file without ``name``.
+        """
+        arrays = read_npz(path)
+        model = WhiskerRatSLAM.from_arrays(arrays)
+        if not isinstance(model, WhiskerRatSLAM):
+            raise CorruptFileError(f"holds a {type(model).__name__}, not a WhiskerRatSLAM", path=path, field="model")
+        om = model.object_map
+        if not any(k.startswith("known_") for k in arrays):
+            if name is None:
+                raise InvalidInputError(f"{path}: a bare model file; give the object's name (load(path, name=...))")
+            return cls(str(name), model, om.n_experiences, len(model.frontend), len(om.history))
+        fields = _known_fields(arrays, path)
+        obj = cls(str(fields["name"]) if name is None else str(name), model, *fields["sizes"], fields["poses"],
+                  fields["log"])
+        obj._snapshot = {k: v for k, v in arrays.items() if not k.startswith("known_")}
+        return obj
 
     def exploring_model(self) -> WhiskerRatSLAM:
         """The model that recognises this object while an unknown object is explored (module docstring).
@@ -165,6 +245,68 @@ class KnownObject:
         m = self.fresh_model()
         cfg = replace(m.config, match_distance_cells=any_distance_cells(m.config.shape))
         return WhiskerRatSLAM.library([m], [self.name], cfg)[0]
+
+
+#: Layout version of the ``known_`` members of :meth:`KnownObject.save`.
+_KNOWN_FORMAT = 1
+#: The members of a saved mapping log (:meth:`KnownObject.save`).
+_LOG_MEMBERS = ("known_odometry", "known_exp_ids", "known_relocalised", "known_contact_counts", "known_contacts")
+
+
+def _known_fields(arrays: dict[str, np.ndarray], path: Any) -> dict[str, Any]:
+    """The ``known_`` members of a :meth:`KnownObject.save` file, checked (CorruptFileError naming the member)."""
+
+    def need(key: str) -> np.ndarray:
+        if key not in arrays:
+            raise CorruptFileError("missing", path=path, field=key)
+        return np.asarray(arrays[key])
+
+    fmt = need("known_format")
+    if fmt.shape != () or fmt.dtype.kind != "i" or int(fmt) != _KNOWN_FORMAT:
+        raise CorruptFileError(f"layout {fmt.tolist()!r}, this version reads {_KNOWN_FORMAT}", path=path, field="known_format")
+    name = need("known_name")
+    if name.shape != () or name.dtype.kind != "U":
+        raise CorruptFileError("expected one string", path=path, field="known_name")
+    sizes = need("known_sizes")
+    if sizes.shape != (3,) or sizes.dtype.kind != "i" or sizes.min() < 0:
+        raise CorruptFileError("expected 3 counts >= 0", path=path, field="known_sizes")
+    raw = need("known_poses")
+    if raw.ndim != 2 or raw.shape[1] != 7 or raw.dtype.kind != "f":
+        raise CorruptFileError(f"expected (n, 7) floats, got {raw.shape} {raw.dtype}", path=path, field="known_poses")
+    try:
+        poses = [Pose(r[:3], r[3:]) for r in raw]
+    except (InvalidInputError, ValueError) as exc:
+        raise CorruptFileError(str(exc), path=path, field="known_poses") from exc
+    log = None
+    if any(k in arrays for k in _LOG_MEMBERS):  # a log is all of its members or none
+        n = len(poses)
+        odo = need("known_odometry")
+        if odo.shape != (n, 7) or odo.dtype.kind != "f":
+            raise CorruptFileError(f"expected ({n}, 7) floats (one per mapping pose), got {odo.shape}", path=path,
+                                   field="known_odometry")
+        try:
+            odometry = [SpatialOdometry(r[:3], r[3:6], float(r[6])) for r in odo]
+        except (InvalidInputError, ValueError) as exc:
+            raise CorruptFileError(str(exc), path=path, field="known_odometry") from exc
+        ids, rel, counts = need("known_exp_ids"), need("known_relocalised"), need("known_contact_counts")
+        for key, a, kind in (("known_exp_ids", ids, "i"), ("known_relocalised", rel, "b"), ("known_contact_counts", counts, "i")):
+            if a.shape != (n,) or a.dtype.kind != kind:
+                raise CorruptFileError(f"expected {n} values of kind {kind!r}, got {a.shape} {a.dtype}", path=path, field=key)
+        pts = need("known_contacts")
+        if counts.size and counts.min() < -1:
+            raise CorruptFileError("counts must be >= -1 (-1: no contact array)", path=path, field="known_contact_counts")
+        total = int(np.sum(np.maximum(counts, 0)))
+        if pts.shape != (total, 3) or pts.dtype.kind != "f" or not np.isfinite(pts).all():
+            raise CorruptFileError(f"expected ({total}, 3) finite floats (the counts' sum), got {pts.shape}", path=path,
+                                   field="known_contacts")
+        contacts: list[np.ndarray | None] = []
+        at = 0
+        for c in counts.tolist():
+            contacts.append(None if c < 0 else pts[at:at + c].copy())
+            at += max(c, 0)
+        log = {"odometry": odometry, "exp_ids": [int(v) for v in ids], "relocalised": [bool(v) for v in rel],
+               "contacts": contacts}
+    return {"name": str(name), "sizes": [int(v) for v in sizes], "poses": poses, "log": log}
 
 
 def any_distance_cells(shape: Sequence[int]) -> float:
