@@ -159,3 +159,25 @@ def test_bad_surface_files_raise_typed_errors(tmp_path_factory, kind) -> None:
         np.savez_compressed(f, points_m=np.zeros((5, 2)))
     with pytest.raises((InvalidInputError, CorruptFileError, ShapeError)):
         recognition.load_surface_library([f], ["x"])
+
+
+def test_unmapped_contact_fraction_counts_contacts_where_the_map_felt_nothing(tmp_path: Path) -> None:
+    """A plate mapped over x, y in [-0.15, 0.15] m at z = 0; the arm 0.2 m above the origin looking down. Of 4 whisks,
+    two feel the mapped plate (6 contacts), one feels the plate's continuation 0.3 m away (3 contacts, no stored
+    point within reach), one has no contact array: 3 unmapped of 9. Contacts are given in the end-effector frame and
+    placed by the true poses (the library's frame)."""
+    f = tmp_path / "plate.npz"
+    np.savez_compressed(f, points_m=_grid(0.0))
+    library = recognition.load_surface_library([f], ["plate"])
+    down = Pose.from_rotvec([0.0, 0.0, 0.2], [np.pi, 0.0, 0.0])
+    mapped = np.array([[0.0, 0.0, 0.0], [0.02, -0.03, 0.0], [-0.05, 0.04, 0.0]])
+    beyond = mapped + [0.3, 0.0, 0.0]
+    contacts = [down.inverse().apply(mapped), None, down.inverse().apply(beyond), down.inverse().apply(mapped[::-1])]
+    p = np.tile(down.position_m, (4, 1))
+    q = np.tile(down.quaternion_xyzw, (4, 1))
+    assert recognition.unmapped_contact_fraction(library, 0, p, q, contacts) == pytest.approx(3 / 9)
+    assert recognition.unmapped_contact_fraction(library, 0, p[:1], q[:1], contacts[:1]) == 0.0
+    assert recognition.unmapped_contact_fraction(library, 0, p[:2], q[:2], [None, np.zeros((0, 3))]) == 0.0
+    # the same whisks from poses 0.3 m to the other side: the continuation is now on the plate, the rest is not
+    side = np.tile(down.position_m - [0.3, 0.0, 0.0], (4, 1))
+    assert recognition.unmapped_contact_fraction(library, 0, side, q, contacts) == pytest.approx(6 / 9)

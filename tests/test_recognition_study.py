@@ -48,6 +48,15 @@ def test_outputs_and_columns(quick):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text
+    # what the maps never felt: a share for every library presentation, blank for novel objects; none along A's own
+    # path is near the share from the viewpoints (the mapping path felt where A goes)
+    assert all(r["unmapped_contact_fraction"] == "" for r in novel)
+    share = {(r["presented"], r["presentation"]): float(r["unmapped_contact_fraction"]) for r in library}
+    assert all(0.0 <= v <= 1.0 for v in share.values())
+    along_a = np.median([v for (n, p), v in share.items() if p == "A"])
+    from_vp = np.median([v for (n, p), v in share.items() if p == "viewpoints"])
+    assert along_a < from_vp, (along_a, from_vp)
+    assert "own map felt nothing" in text
     surfaces = sorted((out / "maps" / "seed0").glob("*_surface.npz"))  # the stored surfaces of the surface matcher
     assert len(surfaces) == 12
     for f in surfaces:
