@@ -145,6 +145,29 @@ in :mod:`cansim.studies.recognition`):
     seeds 1-2, are the worse ones on seeds 3-5 (B + viewpoints 26 against 31 of 72): the
     thresholds are a source of seed noise in these figures, not a lever found so far
     (the study's Status has the numbers and the command).
+* **Tried and not kept (2026-12-05): credit for contacts where a map is silent.** Maps felt
+  at the true poses, with exact odometry, still leave the duck, jug, Blob and Skull unnamed
+  from trajectory B and the viewpoints: their contacts fall where the own map felt nothing
+  (:func:`cansim.studies.recognition.unmapped_contact_fraction`) and each costs
+  ``log(outlier_weight)``. Such contacts were given a likelihood ``U`` of a perfect fit
+  instead (seed 0, offline replays of the study's whisks, refined proposal, three matcher
+  seeds; correct along A / B / viewpoints of 36, wrong of 108, novel objects undecided of
+  27; today 31 / 22 / 21, 6, 20): every capped or off-grid contact, U = 0.15 / 0.35: along A
+  22 / 0; only on-grid cells with no stored point within 2h, U = 0.1: 32 / 17 / 12, 3, 22,
+  U = 0.2: 16 / 3 / 0; those only on the outer side of their nearest stored tangent plane,
+  U = 0.1: 31 / 19 / 15, 3, 21, U = 0.07: 31 / 22 / 17, 7, 22; the credit limited to as many
+  contacts as the whisk has within 2 sigma of the surface, U = 0.1: 31 / 20 / 14, 4, 22. Any
+  credit lowers B and the viewpoints, more credit more: it goes to every object, the
+  evidence gaps shrink and fewer impulses fire (the hypotheses drift to where their map is
+  silent). Also not kept: 600 hypotheses (33 / 21 / 17, 5, 21) and 400-whisk presentations
+  (31 / 24 / 23, but 23 wrong: the wrong objects' impulses reach IC 300 too).
+* **Found, not changed: a phantom inner shell in the grids.** Cells farther than 2h from
+  every stored point hold ``+cap`` on either side of the surface, so 43-53 % of each grid's
+  zero crossings (seed 0) lie between a near cell inside the object (f < 0) and a far cell:
+  a steep false surface about 2h inside every stored surface and beyond the edges of
+  mapped patches. Far cells on the inner side of their nearest stored tangent plane holding
+  ``-cap`` remove it; over six matcher seeds on seed 0: B + viewpoints 84 against 82 of
+  144, wrong 11 against 14, but novel objects undecided 25 against 31 of 36 - not adopted.
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
