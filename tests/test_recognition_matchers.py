@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim.errors import ConfigError, InvalidInputError
+from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from cansim.studies import recognition
 from maps.odometry import SpatialOdometry
 from whisker_io.pose import Pose
@@ -181,3 +181,25 @@ def test_unmapped_contact_fraction_counts_contacts_where_the_map_felt_nothing(tm
     # the same whisks from poses 0.3 m to the other side: the continuation is now on the plate, the rest is not
     side = np.tile(down.position_m - [0.3, 0.0, 0.0], (4, 1))
     assert recognition.unmapped_contact_fraction(library, 0, side, q, contacts) == pytest.approx(6 / 9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["library", "index", "index_bool", "p_shape", "p_nan", "q_len", "q_not_unit", "c_len", "c_shape",
+                        "c_nan"]))
+def test_unmapped_contact_fraction_refuses_bad_input_with_typed_errors(tmp_path_factory, bad) -> None:
+    d = tmp_path_factory.mktemp("unm")
+    np.savez_compressed(d / "plate.npz", points_m=_grid(0.0))
+    library = recognition.load_surface_library([d / "plate.npz"], ["plate"])
+    down = Pose.from_rotvec([0.0, 0.0, 0.2], [np.pi, 0.0, 0.0])
+    p, q = np.tile(down.position_m, (2, 1)), np.tile(down.quaternion_xyzw, (2, 1))
+    c = [np.zeros((3, 3)), None]
+    args = dict(library=library, index=0, true_p=p, true_q=q, contacts=c)
+    assert recognition.unmapped_contact_fraction(**args) == 1.0  # the good call: 3 contacts at the tool, 0.2 m above the plate
+    args.update({
+        "library": dict(library="plate"), "index": dict(index=1), "index_bool": dict(index=True),
+        "p_shape": dict(true_p=p[:, :2]), "p_nan": dict(true_p=np.where([[True, False, False], [False] * 3], np.nan, p)),
+        "q_len": dict(true_q=q[:1]), "q_not_unit": dict(true_q=q * 2.0), "c_len": dict(contacts=c[:1]),
+        "c_shape": dict(contacts=[np.zeros((3, 2)), None]), "c_nan": dict(contacts=[np.full((1, 3), np.inf), None]),
+    }[bad])
+    with pytest.raises((InvalidInputError, ShapeError)):
+        recognition.unmapped_contact_fraction(args["library"], args["index"], args["true_p"], args["true_q"], args["contacts"])

@@ -413,14 +413,35 @@ def unmapped_contact_fraction(library: Any, index: int, true_p: Any, true_q: Any
     -------
     float
         In [0, 1]; 0 for a presentation without contacts.
+
+    Raises
+    ------
+    InvalidInputError, ShapeError
+        Not a surface library, an index outside it, poses or contacts of other shapes or
+        lengths, non-finite values, quaternions that are not unit.
     """
     from scipy.spatial.transform import Rotation
 
-    felt = [np.asarray(p, dtype=np.float64) + Rotation.from_quat(q).apply(np.asarray(c, dtype=np.float64).reshape(-1, 3))
-            for p, q, c in zip(true_p, true_q, contacts) if c is not None and len(c)]
-    if not felt:
+    from maps.surface_match import SurfaceLibrary
+    from whisker_io.errors import InvalidInputError, ShapeError
+    from whisker_io.validation import finite_array
+
+    if not isinstance(library, SurfaceLibrary):
+        raise InvalidInputError(f"library must be a SurfaceLibrary (load_surface_library), got {type(library).__name__}")
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < library.n_objects:
+        raise InvalidInputError(f"index must be an object of the library, 0..{library.n_objects - 1}; got {index!r}")
+    p = finite_array(true_p, (None, 3), "true_p")
+    q = finite_array(true_q, (len(p), 4), "true_q")
+    cs = list(contacts)
+    if len(cs) != len(p):
+        raise ShapeError(f"need one contact array (or None) per pose ({len(p)}), got {len(cs)}")
+    if len(q) and np.any(np.abs(np.linalg.norm(q, axis=1) - 1.0) > 1e-6):
+        raise InvalidInputError("true_q must hold unit quaternions (x, y, z, w)")
+    felt = [p[k] + Rotation.from_quat(q[k]).apply(finite_array(c, (None, 3), f"contacts[{k}]"))
+            for k, c in enumerate(cs) if c is not None]
+    x = np.concatenate([np.zeros((0, 3))] + felt)
+    if not len(x):
         return 0.0
-    x = np.concatenate(felt)
     fields = library.fields
     d = fields.distance(x, np.full(len(x), int(index), dtype=np.int64))
     return float(np.mean(d >= fields.config.cap_m))
