@@ -495,3 +495,33 @@ def saved_box(world):
     buf.seek(0)
     with np.load(buf, allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.sampled_from(["short", "long_ids", "no_key", "odometry_type", "contact_shape", "contact_nan"]))
+def test_a_known_object_that_could_not_load_back_is_not_saved(world, tmp_path, bad):
+    """An inconsistent mapping log is refused by save with a typed error and no file is written."""
+    from cansim.explore.explorer import KnownObject
+    from whisker_io.errors import ShapeError
+
+    known, _ = world
+    good = known[0]
+    log = {k: list(v) for k, v in good.mapping_log.items()}
+    poses = list(good.poses)
+    if bad == "short":
+        poses = poses[:-1]
+    elif bad == "long_ids":
+        log["exp_ids"] = log["exp_ids"] + [0]
+    elif bad == "no_key":
+        del log["relocalised"]
+    elif bad == "odometry_type":
+        log["odometry"][1] = (np.zeros(3), np.zeros(3), 1.0)
+    elif bad == "contact_shape":
+        log["contacts"][0] = np.zeros((2, 6))
+    else:
+        log["contacts"][0] = np.full((1, 3), np.nan)
+    obj = KnownObject(good.name, good.model, good.n_built, good.n_built_regions, good.n_history, poses, log)
+    path = tmp_path / f"{bad}.npz"
+    with pytest.raises((InvalidInputError, ShapeError)):
+        obj.save(path)
+    assert not path.exists()

@@ -86,7 +86,7 @@ from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatche
 from whisker_io.errors import SafetyViolationError
 from whisker_io.persistence import read_npz, write_npz
 from whisker_io.pose import Pose
-from whisker_io.validation import config_field
+from whisker_io.validation import config_field, finite_array
 
 __all__ = ["KnownObject", "any_distance_cells", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
 
@@ -176,17 +176,35 @@ class KnownObject:
         gives back an object whose :meth:`stored_surface` and :meth:`fresh_model` are
         those of this one. Written to a temporary name and renamed (no half-written file).
         No pickle.
+
+        Raises
+        ------
+        InvalidInputError, ShapeError
+            A mapping log that is not one entry per mapping pose, odometry that is not
+            SpatialOdometry, malformed contact points (nothing is written).
         """
+        log = self.mapping_log
+        contacts: list[np.ndarray | None] = []
+        if log is not None:  # checked before anything is written: a file that could not be loaded back is never made
+            try:
+                lengths = {key: len(log[key]) for key in ("odometry", "exp_ids", "relocalised", "contacts")}
+            except (KeyError, TypeError) as exc:
+                raise InvalidInputError(f"{self.name}: mapping_log needs odometry, exp_ids, relocalised and contacts lists ({exc})") from None
+            if set(lengths.values()) != {len(self.poses)}:
+                raise InvalidInputError(f"{self.name}: the mapping log needs one entry per mapping pose ({len(self.poses)}), "
+                                        f"got {lengths}")
+            if not all(isinstance(o, SpatialOdometry) for o in log["odometry"]):
+                raise InvalidInputError(f"{self.name}: mapping_log['odometry'] must hold SpatialOdometry samples")
+            contacts = [None if c is None else finite_array(c, (None, 3), f"mapping_log['contacts'][{k}]")
+                        for k, c in enumerate(log["contacts"])]
         arrays: dict[str, np.ndarray] = dict(self._model_arrays())
         arrays["known_format"] = np.int64(_KNOWN_FORMAT)
         arrays["known_name"] = np.array(str(self.name))
         arrays["known_sizes"] = np.array([self.n_built, self.n_built_regions, self.n_history], dtype=np.int64)
         arrays["known_poses"] = np.array([np.r_[p.position_m, p.quaternion_xyzw] for p in self.poses],
                                          dtype=np.float64).reshape(-1, 7)
-        log = self.mapping_log
         if log is not None:
             odo = [np.r_[o.v, o.omega, o.dt] for o in log["odometry"]]
-            contacts = [None if c is None else np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in log["contacts"]]
             arrays["known_odometry"] = np.array(odo, dtype=np.float64).reshape(-1, 7)
             arrays["known_exp_ids"] = np.asarray(log["exp_ids"], dtype=np.int64).reshape(-1)
             arrays["known_relocalised"] = np.asarray(log["relocalised"], dtype=bool).reshape(-1)
