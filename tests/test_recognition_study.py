@@ -44,7 +44,8 @@ def test_outputs_and_columns(quick):
     assert len(rows) == (12 + 3) * 3 * len(recognition.DEFAULT_MATCHERS)
     assert {r["matcher"] for r in rows} == set(recognition.DEFAULT_MATCHERS) == {"thesis", "surface"}
     for name in ("recognition_confusion.png", "recognition_accuracy_vs_distance.png",
-                 "recognition_accuracy_vs_library.png", "recognition_confusion_surface.png"):
+                 "recognition_accuracy_vs_library.png", "recognition_confusion_surface.png", "recognition_unmapped.png",
+                 "recognition_unmapped_surface.png"):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text

@@ -53,6 +53,9 @@ Outputs (``--out``)
 * ``recognition_accuracy_vs_distance.png`` - correct decisions vs viewpoint distance;
 * ``recognition_accuracy_vs_library.png`` - correct decisions vs library size
   (full mode: 12, 25, 50 objects);
+* ``recognition_unmapped.png`` - per presentation of a library object, the share of its
+  contacts where the own map felt nothing against the own object's impulses, correct and
+  missed runs marked;
 * ``recognition_summary.txt`` - the issue's acceptance figures, each held or not, and
   the thesis' Fig 5.17 findings against the measured ones.
 
@@ -68,8 +71,9 @@ it is not - the region features of Eq 5.5 match the poses visited, not the surfa
 interpolated between the contacts; :mod:`maps.surface_match`, :mod:`maps.surface_field`)
 identifies from new paths when the stored surfaces are accurate, and the surfaces are as
 accurate as the odometry lets the maps be.
-``cansim study recognition --quick`` (both matchers, 12 objects, seed 0, 3.6-4.5 min at
-load 2-4), correct IC decisions thesis / surface:
+``cansim study recognition --quick`` (both matchers, 12 objects, seed 0; 35 s wall with
+warm caches and 53 s with empty ones on a quiet machine, 2026-12-05; 3.6-4.5 min at load
+2-4), correct IC decisions thesis / surface:
 
 * Eq 6.4-6.11's odometry noise (the default): along A 9/12 / 10/12, along B 0/12 / 8/12,
   viewpoints 0/12 / 7/12, novel objects without a decision 9/9 / 6/9, wrong decisions
@@ -706,7 +710,7 @@ def accuracy(rows: Sequence[dict[str, Any]], novel: bool) -> dict[str, tuple[int
 
 
 def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
-    """The confusion matrices, accuracy vs viewpoint distance and vs library size.
+    """The confusion matrices, accuracy vs viewpoint distance and vs library size, and what the maps never felt.
 
     One set per matcher: the first matcher of the rows gets the plain file names, the
     others the suffix ``_<matcher>``.
@@ -797,6 +801,28 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     files.append(out / f"recognition_accuracy_vs_library{suffix}.png")
     fig.savefig(files[-1], dpi=110)
     plt.close(fig)
+    # what the own map never felt against the own impulses (library objects, every presentation)
+    mapped = [r for r in base if not bool(r["novel"]) and r.get("unmapped_contact_fraction", "") != ""]
+    if mapped:
+        fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        for j, lab in enumerate(labels):
+            colour = f"C{j}"
+            for right, marker in ((True, "o"), (False, "x")):
+                sel = [r for r in mapped if _label(r) == lab and bool(r["correct"]) == right]
+                if sel:
+                    ax.scatter([100 * float(r["unmapped_contact_fraction"]) for r in sel],
+                               [int(r["impulses_own"]) / max(int(r["whisks"]), 1) for r in sel],
+                               marker=marker, color=colour, s=28,
+                               label=f"{lab}: {'correct' if right else 'missed'} ({len(sel)})")
+        ax.set_xlabel("contacts where the own map felt nothing (%, at their true poses)")
+        ax.set_ylabel("own impulses per whisk")
+        ax.set_ylim(-0.05, 1.05)
+        ax.legend(fontsize=7)
+        ax.set_title("What the map never felt vs the own object's impulses")
+        fig.tight_layout()
+        files.append(out / f"recognition_unmapped{suffix}.png")
+        fig.savefig(files[-1], dpi=110)
+        plt.close(fig)
     return files
 
 
