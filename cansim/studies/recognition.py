@@ -777,10 +777,7 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     ax.set_ylim(-0.08, 1.08)
     ax.legend(fontsize=7, loc="center right")
     ax.set_title("Accuracy vs viewpoint distance (dots: single runs)")
-    fig.tight_layout()
-    files.append(out / f"recognition_accuracy_vs_distance{suffix}.png")
-    fig.savefig(files[-1], dpi=110)
-    plt.close(fig)
+    files.append(_saved(fig, out / f"recognition_accuracy_vs_distance{suffix}.png"))
     # accuracy vs library size (trajectory B)
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     sizes = sorted({r["library_size"] for r in rows})
@@ -797,10 +794,7 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     ax.set_xticks(sizes)
     ax.legend(fontsize=8)
     ax.set_title("Accuracy vs library size")
-    fig.tight_layout()
-    files.append(out / f"recognition_accuracy_vs_library{suffix}.png")
-    fig.savefig(files[-1], dpi=110)
-    plt.close(fig)
+    files.append(_saved(fig, out / f"recognition_accuracy_vs_library{suffix}.png"))
     # what the own map never felt against the own impulses (library objects, every presentation)
     mapped = [r for r in base if not bool(r["novel"]) and r.get("unmapped_contact_fraction", "") != ""]
     if mapped:
@@ -819,11 +813,18 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
         ax.set_ylim(-0.05, 1.05)
         ax.legend(fontsize=7)
         ax.set_title("What the map never felt vs the own object's impulses")
-        fig.tight_layout()
-        files.append(out / f"recognition_unmapped{suffix}.png")
-        fig.savefig(files[-1], dpi=110)
-        plt.close(fig)
+        files.append(_saved(fig, out / f"recognition_unmapped{suffix}.png"))
     return files
+
+
+def _saved(fig: Any, path: Path) -> Path:
+    """``fig`` laid out, written to ``path`` (110 dpi) and closed; the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 _MATCHER_LABEL = {"thesis": "thesis (Eq 5.5 region match)", "surface": "surface (maps.surface_match on the stored surfaces)"}
