@@ -498,7 +498,7 @@ def saved_box(world):
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.sampled_from(["short", "long_ids", "no_key", "odometry_type", "contact_shape", "contact_nan"]))
+@given(st.sampled_from(["short", "long_ids", "no_key", "odometry_type", "contact_shape", "contact_nan", "size", "pose"]))
 def test_a_known_object_that_could_not_load_back_is_not_saved(world, tmp_path, bad):
     """An inconsistent mapping log is refused by save with a typed error and no file is written."""
     from cansim.explore.explorer import KnownObject
@@ -518,9 +518,12 @@ def test_a_known_object_that_could_not_load_back_is_not_saved(world, tmp_path, b
         log["odometry"][1] = (np.zeros(3), np.zeros(3), 1.0)
     elif bad == "contact_shape":
         log["contacts"][0] = np.zeros((2, 6))
-    else:
+    elif bad == "contact_nan":
         log["contacts"][0] = np.full((1, 3), np.nan)
-    obj = KnownObject(good.name, good.model, good.n_built, good.n_built_regions, good.n_history, poses, log)
+    elif bad == "pose":
+        poses[2] = np.r_[poses[2].position_m, poses[2].quaternion_xyzw]
+    sizes = (good.n_built, -1 if bad == "size" else good.n_built_regions, good.n_history)
+    obj = KnownObject(good.name, good.model, *sizes, poses, log)
     path = tmp_path / f"{bad}.npz"
     with pytest.raises((InvalidInputError, ShapeError)):
         obj.save(path)

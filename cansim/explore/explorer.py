@@ -66,8 +66,8 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -180,9 +180,15 @@ class KnownObject:
         Raises
         ------
         InvalidInputError, ShapeError
-            A mapping log that is not one entry per mapping pose, odometry that is not
-            SpatialOdometry, malformed contact points (nothing is written).
+            Sizes that are not counts, poses that are not Pose objects, a mapping log that
+            is not one entry per mapping pose, odometry that is not SpatialOdometry,
+            malformed contact points (nothing is written).
         """
+        sizes = (self.n_built, self.n_built_regions, self.n_history)
+        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0 for v in sizes):
+            raise InvalidInputError(f"{self.name}: n_built, n_built_regions and n_history must be counts >= 0, got {sizes}")
+        if not all(isinstance(p, Pose) for p in self.poses):
+            raise InvalidInputError(f"{self.name}: poses must be Pose objects")
         log = self.mapping_log
         contacts: list[np.ndarray | None] = []
         if log is not None:  # checked before anything is written: a file that could not be loaded back is never made
@@ -200,7 +206,7 @@ class KnownObject:
         arrays: dict[str, np.ndarray] = dict(self._model_arrays())
         arrays["known_format"] = np.int64(_KNOWN_FORMAT)
         arrays["known_name"] = np.array(str(self.name))
-        arrays["known_sizes"] = np.array([self.n_built, self.n_built_regions, self.n_history], dtype=np.int64)
+        arrays["known_sizes"] = np.array(sizes, dtype=np.int64)
         arrays["known_poses"] = np.array([np.r_[p.position_m, p.quaternion_xyzw] for p in self.poses],
                                          dtype=np.float64).reshape(-1, 7)
         if log is not None:
