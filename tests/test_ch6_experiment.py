@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -63,6 +64,19 @@ def test_csv_has_the_columns_and_one_row_per_run_and_threshold(reduced):
         if r["correct_first"] == "True":
             assert r["identity"] == r["presented"]
         assert float(r["mean_correct_confidence"]) >= 0 and float(r["mean_incorrect_confidence"]) >= 0
+
+
+def test_the_known_objects_maps_are_written_with_their_mapping_logs(reduced):
+    """The study leaves each known object's map in ``maps/``: KnownObject.load reads it back with its mapping log, and
+    its stored surface (what the mapping run felt) holds points."""
+    from cansim.explore.explorer import KnownObject
+
+    out, _ = reduced
+    for name in ("box", "box_stack"):
+        k = KnownObject.load(out / "maps" / f"{name}.npz")
+        assert k.name == name and k.mapping_log is not None and len(k.poses) == len(k.mapping_log["odometry"]) > 10
+        points, seen = k.stored_surface()
+        assert points.shape == seen.shape and len(points) > 50 and np.isfinite(points).all()
 
 
 def test_thresholds_are_evaluated_on_one_trace(reduced):

@@ -374,3 +374,14 @@ def test_registered_object_comes_back_from_a_millimetre_y_up_file(tmp_path, fmt)
     tree_out, tree_expected = cKDTree(obj.mesh.triangles_center), cKDTree(expected_centres)
     assert tree_out.query(expected_centres)[0].max() < 1e-6
     assert tree_expected.query(obj.mesh.triangles_center)[0].max() < 1e-6
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(max_size=20))
+def test_object_file_names_are_safe_stems(name):
+    """Only letters, digits, '-' and '_' (never a separator or a dot), never empty; a plain name is kept as it is."""
+    from whisker_io.sim.catalogue import object_file_name
+
+    out = object_file_name(name)
+    assert out and all(c.isalnum() or c in "-_" for c in out)
+    assert object_file_name("/data/my mug.obj") == "my_mug" and object_file_name("box_stack") == "box_stack"

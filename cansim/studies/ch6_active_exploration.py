@@ -40,8 +40,11 @@ Steps:
 
 Outputs (working directory or ``--out``): ``ch6_runs.csv`` (one row per run and
 threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_spc.png``,
-``fig6_7_im_threshold.png``, ``fig6_8_im_strategy.png``, ``fig6_9_srt_strategy.png`` and
-``ch6_summary.txt`` (each thesis finding, the measured figure, reproduced or not).
+``fig6_7_im_threshold.png``, ``fig6_8_im_strategy.png``, ``fig6_9_srt_strategy.png``,
+``ch6_summary.txt`` (each thesis finding, the measured figure, reproduced or not) and
+``maps/<object>.npz``, each known object's map with its mapping log
+(:meth:`cansim.explore.explorer.KnownObject.save`; e.g. the ``--map`` files of
+``examples/hardware_exploration.py``).
 
 Settings (this project's choices where the thesis is silent): contact estimate
 ``tip`` (``--contact-model``; the hardware path uses an SVR model); the SPC defaults of
@@ -742,6 +745,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         resolve_object(spec)
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
                     believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
+    from whisker_io.sim.catalogue import object_file_name
+
+    (args.out / "maps").mkdir(exist_ok=True)
+    for k in setup.known:  # the maps the runs recognise by, with their mapping logs (KnownObject.load reads them)
+        k.save(args.out / "maps" / f"{object_file_name(k.name)}.npz")
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []

@@ -310,7 +310,9 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
 
 
 def _file_name(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_" else "_" for c in Path(name).stem) or "object"
+    from whisker_io.sim.catalogue import object_file_name
+
+    return object_file_name(name)
 
 
 def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple[float, float]] | None,

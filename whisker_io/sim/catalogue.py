@@ -20,7 +20,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import MESH_SUFFIXES, OBJECT_NAMES, LoadedObject, load_object, make_object
 from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
 
-__all__ = ["resolve_object"]
+__all__ = ["object_file_name", "resolve_object"]
 
 
 def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None, up_axis: str = "z") -> LoadedObject:
@@ -65,3 +65,17 @@ def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m
             return LoadedObject(mesh, name, source, "+z", np.eye(3), 1.0, np.zeros(3), mesh.extents)
         return dataclasses.replace(load_object(mesh, scale_to_m=scale_to_m, up_axis=up_axis, name=name), source=source)
     return load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis)
+
+
+def object_file_name(spec: str | os.PathLike[str]) -> str:
+    """A file-name stem for an object name or mesh path: its stem with every character but letters,
+    digits, ``-`` and ``_`` replaced by ``_`` (``"object"`` if nothing is left).
+
+    >>> object_file_name("/data/my mug.obj")
+    'my_mug'
+    >>> object_file_name("torus_upright")
+    'torus_upright'
+    """
+    from pathlib import Path
+
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in Path(spec).stem) or "object"
