@@ -49,17 +49,11 @@ def _cell_of(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.nda
 @njit(cache=True, inline="always")
 def _field_at(x: float, y: float, z: float, k: int, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
               values: np.ndarray, cell: float, cap: float) -> float:  # pragma: no cover - compiled
-    """``|f|`` of object ``k``'s grid at (x, y, z), trilinear; ``cap`` off the grid (never more than ``cap``)."""
-    base, fu, fv, fw = _cell_of(x, y, z, k, lo, shape, start, cell)
-    if base < 0:
-        return cap
-    sy, sz = shape[k, 1], shape[k, 2]
-    c00 = values[base] * (1.0 - fw) + values[base + 1] * fw
-    c01 = values[base + sz] * (1.0 - fw) + values[base + sz + 1] * fw
-    c10 = values[base + sy * sz] * (1.0 - fw) + values[base + sy * sz + 1] * fw
-    c11 = values[base + sy * sz + sz] * (1.0 - fw) + values[base + sy * sz + sz + 1] * fw
-    f = (c00 * (1.0 - fv) + c01 * fv) * (1.0 - fu) + (c10 * (1.0 - fv) + c11 * fv) * fu
-    return min(abs(f), cap)
+    """``|f|`` of object ``k``'s grid at (x, y, z), trilinear; ``cap`` off the grid (never more than ``cap``).
+
+    The value of :func:`_field_grad` (inlined: the gradient it does not use is not computed)."""
+    f, ok, _, _, _ = _field_grad(x, y, z, k, lo, shape, start, values, cell)
+    return min(abs(f), cap) if ok else cap
 
 
 @njit(cache=True)
