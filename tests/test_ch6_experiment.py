@@ -151,9 +151,10 @@ def test_users_mesh_files_run_through_the_explorer_with_one_flag(tmp_path):
     from whisker_io.sim.objects import make_object
 
     files = []
-    for name, suffix in (("box", ".obj"), ("box_stack", ".stl")):
+    for name, folder, suffix in (("box", "a", ".obj"), ("box_stack", "b", ".stl")):
         mesh = make_object(name)
-        path = tmp_path / f"my_{name}{suffix}"
+        (tmp_path / folder).mkdir()
+        path = tmp_path / folder / f"my_object{suffix}"  # one file name in two folders
         mesh.export(path)  # in metres, z up: the conventions, so no flag beyond --objects
         files.append(str(path))
     out = tmp_path / "out"
@@ -162,6 +163,11 @@ def test_users_mesh_files_run_through_the_explorer_with_one_flag(tmp_path):
         rows = list(csv.DictReader(f))
     assert {r["presented"] for r in rows} == set(files)
     assert all(r["identity"] in ("", *files) for r in rows)
+    # both maps kept although the files share a name: numbered, each loading back as its own object
+    from cansim.explore.explorer import KnownObject
+
+    assert sorted(p.name for p in (out / "maps").iterdir()) == ["my_object_1.npz", "my_object_2.npz"]
+    assert [KnownObject.load(out / "maps" / f"my_object_{i}.npz").name for i in (1, 2)] == files
     with pytest.raises(InvalidInputError, match="neither a registered object"):
         ch6.main(["--quick", "--out", str(out), "--objects", "box", "teapot"])
 

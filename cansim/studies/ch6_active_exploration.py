@@ -748,8 +748,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from whisker_io.sim.catalogue import object_file_name
 
     (args.out / "maps").mkdir(exist_ok=True)
-    for k in setup.known:  # the maps the runs recognise by, with their mapping logs (KnownObject.load reads them)
-        k.save(args.out / "maps" / f"{object_file_name(k.name)}.npz")
+    stems = [object_file_name(k.name) for k in setup.known]
+    if len(set(stems)) < len(stems):  # two mesh files of one name: numbered, so that no map overwrites the other
+        stems = [f"{stem}_{i + 1}" for i, stem in enumerate(stems)]
+    for k, stem in zip(setup.known, stems):  # the maps the runs recognise by, with their mapping logs (KnownObject.load)
+        k.save(args.out / "maps" / f"{stem}.npz")
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []
