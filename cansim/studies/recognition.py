@@ -295,10 +295,11 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     it for the ``surface`` matcher.
     """
     from maps.pose_graph import whisk_surface
+    from whisker_io.sim.catalogue import object_file_name
 
     ch5 = _ch5()
     name, setup = job
-    path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{_file_name(name)}.npz"
+    path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{object_file_name(name)}.npz"
     path.parent.mkdir(parents=True, exist_ok=True)
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP)
     slam.save(path)
@@ -307,12 +308,6 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     surface_path = path.with_name(path.stem + "_surface.npz")
     np.savez_compressed(surface_path, points_m=points, viewpoints_m=seen)
     return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences}
-
-
-def _file_name(name: str) -> str:
-    from whisker_io.sim.catalogue import object_file_name
-
-    return object_file_name(name)
 
 
 def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple[float, float]] | None,
