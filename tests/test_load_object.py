@@ -385,3 +385,11 @@ def test_object_file_names_are_safe_stems(name):
     out = object_file_name(name)
     assert out and all(c.isalnum() or c in "-_" for c in out)
     assert object_file_name("/data/my mug.obj") == "my_mug" and object_file_name("box_stack") == "box_stack"
+
+
+def test_object_file_names_number_every_object_when_two_would_collide():
+    from whisker_io.sim.catalogue import object_file_names
+
+    assert object_file_names(["a/mug.obj", "b/mug.stl", "box"]) == ["mug_1", "mug_2", "box_3"]
+    assert object_file_names(["box", "/x/my mug.obj"]) == ["box", "my_mug"]
+    assert object_file_names([]) == []

@@ -745,14 +745,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         resolve_object(spec)
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
                     believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
-    from whisker_io.sim.catalogue import object_file_name
+    from whisker_io.sim.catalogue import object_file_names
 
     (args.out / "maps").mkdir(exist_ok=True)
-    stems = [object_file_name(k.name) for k in setup.known]
-    if len(set(stems)) < len(stems):  # two mesh files of one name: numbered, so that no map overwrites the other
-        stems = [f"{stem}_{i + 1}" for i, stem in enumerate(stems)]
-    for k, stem in zip(setup.known, stems):  # the maps the runs recognise by, with their mapping logs (KnownObject.load)
-        k.save(args.out / "maps" / f"{stem}.npz")
+    for k, stem in zip(setup.known, object_file_names([k.name for k in setup.known])):  # the maps the runs recognise
+        k.save(args.out / "maps" / f"{stem}.npz")  # by, with their mapping logs (KnownObject.load reads them)
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []

@@ -285,8 +285,13 @@ def _settings(setup: Setup) -> Any:
                         odometry_scale=setup.odometry_scale)
 
 
-def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
+def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
     """Map one library object along trajectory A; the saved model's path and its stored surface's.
+
+    ``job`` is ``(name, setup)`` or ``(name, setup, stem)``: the files are
+    ``maps/seed<seed>/<stem>.npz`` and ``<stem>_surface.npz``, the stem by default
+    :func:`whisker_io.sim.catalogue.object_file_name` of the name (:func:`run` passes
+    :func:`~whisker_io.sim.catalogue.object_file_names` of the whole library, distinct).
 
     The model is :func:`cansim.studies.ch5_object_maps.map_object`'s, as the Ch.5 study
     builds it (same seed, same whisks). Its stored surface (what was felt, placed by the whisk poses of
@@ -298,8 +303,9 @@ def map_job(job: tuple[str, Setup]) -> dict[str, Any]:
     from whisker_io.sim.catalogue import object_file_name
 
     ch5 = _ch5()
-    name, setup = job
-    path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{object_file_name(name)}.npz"
+    name, setup = job[0], job[1]
+    stem = job[2] if len(job) > 2 else object_file_name(name)
+    path = Path(setup.out) / "maps" / f"seed{setup.seed}" / f"{stem}.npz"
     path.parent.mkdir(parents=True, exist_ok=True)
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP)
     slam.save(path)
@@ -650,7 +656,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     cansim.errors.InvalidInputError
         Bad calibration seeds or quantile.
     """
-    from whisker_io.sim.catalogue import resolve_object
+    from whisker_io.sim.catalogue import object_file_names, resolve_object
     from whisker_io.sim.shapes import library_names, novel_names
 
     from cansim.errors import ConfigError
@@ -673,7 +679,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     for seed in seeds:
         setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
                       odometry_scale=float(odometry_scale))
-        maps = _pool_map(map_job, [(n, setup) for n in everything], workers, f"mapping (seed {seed})", progress)
+        stems = object_file_names(everything)  # distinct: mesh files of one name do not overwrite each other's maps
+        maps = _pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
+                         progress)
         paths = {m["name"]: m["path"] for m in maps}
         surface_paths = {m["name"]: m["surface"] for m in maps}
         jobs = []

@@ -9,6 +9,8 @@ which states and applies the conventions: metres, z up, resting on z = 0, centre
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import dataclasses
 import os
 from pathlib import Path
@@ -20,7 +22,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import MESH_SUFFIXES, OBJECT_NAMES, LoadedObject, load_object, make_object
 from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
 
-__all__ = ["object_file_name", "resolve_object"]
+__all__ = ["object_file_name", "object_file_names", "resolve_object"]
 
 
 def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None, up_axis: str = "z") -> LoadedObject:
@@ -79,3 +81,19 @@ def object_file_name(spec: str | os.PathLike[str]) -> str:
     from pathlib import Path
 
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in Path(spec).stem) or "object"
+
+
+def object_file_names(specs: "Sequence[str | os.PathLike[str]]") -> list[str]:
+    """:func:`object_file_name` of each of several objects, distinct: when two would be equal (mesh files of one
+    name in different folders) every one is numbered by its place, ``<stem>_1``, ``<stem>_2``, ..., so that no
+    object's file overwrites another's.
+
+    >>> object_file_names(["a/mug.obj", "b/mug.stl"])
+    ['mug_1', 'mug_2']
+    >>> object_file_names(["box", "box_stack"])
+    ['box', 'box_stack']
+    """
+    stems = [object_file_name(s) for s in specs]
+    if len(set(stems)) < len(stems):
+        stems = [f"{stem}_{i + 1}" for i, stem in enumerate(stems)]
+    return stems
