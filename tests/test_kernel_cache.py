@@ -507,6 +507,77 @@ def test_a_corrupt_numba_cache_file_of_a_library_kernel_recompiles(tmp_path, whi
     assert _run(CORRUPT_SCRIPT, env).split()[-1] == "0"  # the entry was written anew
 
 
+def _kernel_package(folder: Path, callee_value: int) -> None:
+    """A package ``kp`` of two kernel modules: ``kp.b.g`` (cached) calls ``kp.a.f`` (cached) in another file."""
+    (folder / "kp").mkdir(exist_ok=True)
+    (folder / "kp" / "__init__.py").write_text("")
+    (folder / "kp" / "a.py").write_text(textwrap.dedent(f"""\
+        from numba import njit
+        from whisker_io.numba_cache import tolerate_corrupt_cache
+
+        @njit(cache=True)
+        def f():
+            return {callee_value}
+
+        tolerate_corrupt_cache(__name__)
+        """))
+    (folder / "kp" / "b.py").write_text(textwrap.dedent("""\
+        from numba import njit
+        from kp.a import f
+        from whisker_io.numba_cache import tolerate_corrupt_cache
+
+        @njit(cache=True)
+        def g():
+            return f() + 10
+
+        tolerate_corrupt_cache(__name__)
+        """))
+
+
+def test_a_cached_kernel_recompiles_when_a_kernel_it_calls_in_another_file_changes(tmp_path):
+    """Numba stamps a function's cache with its own file only: without the kernel-source digest the
+    second process returns 11 (the old callee compiled into ``g``) although ``f`` now returns 2."""
+    _kernel_package(tmp_path, 1)
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    script = "from kp.b import g; from kp.a import f; print(g(), f())"
+
+    def run() -> str:
+        out = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=600,
+                             env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(tmp_path)]), **env))
+        assert out.returncode == 0, out.stderr
+        return out.stdout.strip()
+
+    assert run() == "11 1"
+    assert list((tmp_path / "numba").rglob("*.nbi"))  # cached
+    _kernel_package(tmp_path, 2)  # only kp/a.py changes
+    assert run() == "12 2"
+
+
+def test_the_kernel_digest_follows_kernel_files_only(tmp_path):
+    from whisker_io.numba_cache import _kernel_sources_digest
+
+    _kernel_package(tmp_path, 1)
+    roots = (str(tmp_path / "kp"),)
+    first = _kernel_sources_digest(roots)
+    (tmp_path / "kp" / "notes.py").write_text("X = 1  # no compiled code here\n")
+    _kernel_sources_digest.cache_clear()
+    assert _kernel_sources_digest(roots) == first  # a file without numba does not key the kernels
+    _kernel_package(tmp_path, 3)
+    _kernel_sources_digest.cache_clear()
+    assert _kernel_sources_digest(roots) != first
+    _kernel_package(tmp_path, 1)
+    _kernel_sources_digest.cache_clear()
+    assert _kernel_sources_digest(roots) == first  # the contents, not the files' times
+
+
+def test_library_kernels_are_stamped_with_the_kernel_digest():
+    from cansim.backends import _numba_kernels, _numba_packets
+
+    for fn in (_numba_kernels.rot_lines, _numba_packets.packets_step):
+        stamp = fn._cache._cache_file._source_stamp
+        assert isinstance(stamp, tuple) and len(stamp) == 2 and isinstance(stamp[1], str) and len(stamp[1]) == 64
+
+
 @settings(max_examples=25, deadline=None)
 @given(observation=st.one_of(st.none(), st.integers(-3, 40), st.text(max_size=5), st.booleans(),
                              st.tuples(st.integers(1, 30), st.integers(1, 70), st.sampled_from(["uint8", "float64", "int64"]))))
