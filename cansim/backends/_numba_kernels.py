@@ -309,19 +309,71 @@ def round_to(buf, size, proto):
 _CHUNK = 256  # cells of one accumulation block (stays in L1)
 
 
+@njit(inline="always", **_OPTS)
+def _all_taps(tab, p, nw):
+    """Whether every tap of output row ``p`` reads a source row (none outside the box, none zero)."""
+    for j in range(nw):
+        if tab[p, j] < 0:
+            return False
+    return True
+
+
+@njit(**_OPTS)
+def _sum5(tmp, src, tab, w, p, rest, r0, rc):
+    """``tmp[:rc]`` = row ``p``'s 5 taps summed in one loop, in tap order from the first product (:func:`rot_lines`)."""
+    a0 = src[tab[p, 0] * rest + r0: tab[p, 0] * rest + r0 + rc]
+    a1 = src[tab[p, 1] * rest + r0: tab[p, 1] * rest + r0 + rc]
+    a2 = src[tab[p, 2] * rest + r0: tab[p, 2] * rest + r0 + rc]
+    a3 = src[tab[p, 3] * rest + r0: tab[p, 3] * rest + r0 + rc]
+    a4 = src[tab[p, 4] * rest + r0: tab[p, 4] * rest + r0 + rc]
+    w0, w1, w2, w3, w4 = w[0], w[1], w[2], w[3], w[4]
+    for i in range(rc):
+        tmp[i] = (((w0 * a0[i] + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]
+
+
+@njit(**_OPTS)
+def _sum7(tmp, src, tab, w, p, rest, r0, rc):
+    """``tmp[:rc]`` = row ``p``'s 7 taps summed in one loop, in tap order from the first product (:func:`rot_lines`)."""
+    a0 = src[tab[p, 0] * rest + r0: tab[p, 0] * rest + r0 + rc]
+    a1 = src[tab[p, 1] * rest + r0: tab[p, 1] * rest + r0 + rc]
+    a2 = src[tab[p, 2] * rest + r0: tab[p, 2] * rest + r0 + rc]
+    a3 = src[tab[p, 3] * rest + r0: tab[p, 3] * rest + r0 + rc]
+    a4 = src[tab[p, 4] * rest + r0: tab[p, 4] * rest + r0 + rc]
+    a5 = src[tab[p, 5] * rest + r0: tab[p, 5] * rest + r0 + rc]
+    a6 = src[tab[p, 6] * rest + r0: tab[p, 6] * rest + r0 + rc]
+    w0, w1, w2, w3, w4, w5, w6 = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
+    for i in range(rc):
+        tmp[i] = (((((w0 * a0[i] + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]) + w5 * a5[i]) + w6 * a6[i]
+
+
 @njit(**_OPTS)
 def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
     """A pass along the leading axis that rotates the layout: ``src`` is (m_in, rest), ``dst`` is (rest, mo).
 
     ``dst[r, p] = sum_j w[j] src[tab[p, j], r]`` for r in [r_lo, r_hi): the sums run over
     contiguous rows (vectorised), and after one pass per axis the layout is back in C order.
-    (Slices instead of offset indexing let numba drop its negative-index checks.)
+    A block of up to :data:`_CHUNK` cells of every output row is summed first, then written
+    out cell by cell (``dst`` is contiguous over a block's cells: the transposed store
+    walks the block, not ``dst`` at a stride of ``mo``). A row whose 5 (or 3) taps all
+    read the box is summed in one loop, the partial sum in a register; others tap by tap
+    through the block. Both evaluate ``((w0 x0 + w1 x1) + w2 x2) + ...`` from the first
+    product in tap order (``fastmath`` off: no contraction), so every cell has the same
+    bits as summing tap after tap. (Slices instead of offset indexing let numba drop
+    its negative-index checks.)
     """
     nw = w.shape[0]
-    tmp = np.empty(_CHUNK, np.float64)
-    for r0 in range(r_lo, r_hi, _CHUNK):
-        rc = min(_CHUNK, r_hi - r0)
+    ch = _CHUNK
+    blk = np.empty((mo, ch), np.float64)
+    for r0 in range(r_lo, r_hi, ch):
+        rc = min(ch, r_hi - r0)
         for p in range(mo):
+            tmp = blk[p]
+            if nw == 5 and _all_taps(tab, p, nw):
+                _sum5(tmp, src, tab, w, p, rest, r0, rc)
+                continue
+            if nw == 7 and _all_taps(tab, p, nw):
+                _sum7(tmp, src, tab, w, p, rest, r0, rc)
+                continue
             first = True  # the first tap assigns (0 + x == x): one pass less over tmp
             for j in range(nw):
                 q = tab[p, j]
@@ -338,9 +390,10 @@ def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
             if first:
                 for i in range(rc):
                     tmp[i] = 0.0
-            col = dst[r0 * mo + p:]
-            for i in range(rc):
-                col[i * mo] = tmp[i]
+        out = dst[r0 * mo:(r0 + rc) * mo]
+        for i in range(rc):
+            for p in range(mo):
+                out[i * mo + p] = blk[p, i]
 
 
 _BLOCK = 2048  # cells of one block of short lines (16 kB of float64: stays in L1)
