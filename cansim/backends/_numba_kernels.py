@@ -318,14 +318,19 @@ def _all_taps(tab, p, nw):
     return True
 
 
+@njit(inline="always", **_OPTS)
+def _tap_row(src, tab, p, j, rest, r0, rc):
+    """The ``rc`` cells from ``r0`` of the source row that tap ``j`` of output row ``p`` reads."""
+    q = tab[p, j] * rest + r0
+    return src[q:q + rc]
+
+
 @njit(**_OPTS)
 def _sum5(tmp, src, tab, w, p, rest, r0, rc):
     """``tmp[:rc]`` = row ``p``'s 5 taps summed in one loop, in tap order from the first product (:func:`rot_lines`)."""
-    a0 = src[tab[p, 0] * rest + r0: tab[p, 0] * rest + r0 + rc]
-    a1 = src[tab[p, 1] * rest + r0: tab[p, 1] * rest + r0 + rc]
-    a2 = src[tab[p, 2] * rest + r0: tab[p, 2] * rest + r0 + rc]
-    a3 = src[tab[p, 3] * rest + r0: tab[p, 3] * rest + r0 + rc]
-    a4 = src[tab[p, 4] * rest + r0: tab[p, 4] * rest + r0 + rc]
+    a0, a1 = _tap_row(src, tab, p, 0, rest, r0, rc), _tap_row(src, tab, p, 1, rest, r0, rc)
+    a2, a3 = _tap_row(src, tab, p, 2, rest, r0, rc), _tap_row(src, tab, p, 3, rest, r0, rc)
+    a4 = _tap_row(src, tab, p, 4, rest, r0, rc)
     w0, w1, w2, w3, w4 = w[0], w[1], w[2], w[3], w[4]
     for i in range(rc):
         tmp[i] = (((w0 * a0[i] + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]
@@ -334,13 +339,10 @@ def _sum5(tmp, src, tab, w, p, rest, r0, rc):
 @njit(**_OPTS)
 def _sum7(tmp, src, tab, w, p, rest, r0, rc):
     """``tmp[:rc]`` = row ``p``'s 7 taps summed in one loop, in tap order from the first product (:func:`rot_lines`)."""
-    a0 = src[tab[p, 0] * rest + r0: tab[p, 0] * rest + r0 + rc]
-    a1 = src[tab[p, 1] * rest + r0: tab[p, 1] * rest + r0 + rc]
-    a2 = src[tab[p, 2] * rest + r0: tab[p, 2] * rest + r0 + rc]
-    a3 = src[tab[p, 3] * rest + r0: tab[p, 3] * rest + r0 + rc]
-    a4 = src[tab[p, 4] * rest + r0: tab[p, 4] * rest + r0 + rc]
-    a5 = src[tab[p, 5] * rest + r0: tab[p, 5] * rest + r0 + rc]
-    a6 = src[tab[p, 6] * rest + r0: tab[p, 6] * rest + r0 + rc]
+    a0, a1 = _tap_row(src, tab, p, 0, rest, r0, rc), _tap_row(src, tab, p, 1, rest, r0, rc)
+    a2, a3 = _tap_row(src, tab, p, 2, rest, r0, rc), _tap_row(src, tab, p, 3, rest, r0, rc)
+    a4, a5 = _tap_row(src, tab, p, 4, rest, r0, rc), _tap_row(src, tab, p, 5, rest, r0, rc)
+    a6 = _tap_row(src, tab, p, 6, rest, r0, rc)
     w0, w1, w2, w3, w4, w5, w6 = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
     for i in range(rc):
         tmp[i] = (((((w0 * a0[i] + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]) + w5 * a5[i]) + w6 * a6[i]
