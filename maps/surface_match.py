@@ -171,6 +171,20 @@ in :mod:`cansim.studies.recognition`):
   mapped patches. Far cells on the inner side of their nearest stored tangent plane holding
   ``-cap`` remove it; over six matcher seeds on seed 0: B + viewpoints 84 against 82 of
   144, wrong 11 against 14, but novel objects undecided 25 against 31 of 36 - not adopted.
+* **What limits identification from a new path: coverage, measured (2026-12-05).** Library
+  surfaces built from contacts at their *true* poses (seed 1's presentations, so no mapping
+  warp), the seed-0 whisks along B and from the viewpoints replayed under the full odometry noise
+  (three matcher seeds; correct of 36, wrong, novel objects undecided of 9): felt along A only,
+  B 21, viewpoints 21 (the study's warped maps: 22, 21); along A and B, **B 33 (92 %), 0 wrong,
+  novel 9/9**, viewpoints 26; along A and a jittered twin of every A pose (5-10 cm, 5-15 deg),
+  B 28, viewpoints 33, 0 wrong, novel 6/9 and 3/9. With the presented regions felt, this matcher
+  reaches the issue's bar along B. The mapping cannot simply visit more poses, though: maps built
+  by WhiskerRatSLAM under the noise along A with a jittered twin after every A pose (2 loops, 160
+  whisks) or one loop of A and one of the twins drift where the twins never re-localise (A / B /
+  viewpoints 19 / 12 / 9 and 26 / 6 / 10 of 36, 28 and 32 wrong). Coverage needs closures the
+  region match does not give (e.g. registering whisks on the map's own stored surface while
+  mapping). A finer step along A (5.5 cm / 6 deg or 2.75 cm / 3 deg: 2x / 4x the whisks) is
+  worse for the same reason (A 22 / 9, B 13 / 4 of 36): Eq 6.4-6.11's noise is per whisk.
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
