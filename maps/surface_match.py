@@ -182,8 +182,13 @@ in :mod:`cansim.studies.recognition`):
   by WhiskerRatSLAM under the noise along A with a jittered twin after every A pose (2 loops, 160
   whisks) or one loop of A and one of the twins drift where the twins never re-localise (A / B /
   viewpoints 19 / 12 / 9 and 26 / 6 / 10 of 36, 28 and 32 wrong). Coverage needs closures the
-  region match does not give (e.g. registering whisks on the map's own stored surface while
-  mapping). A finer step along A (5.5 cm / 6 deg or 2.75 cm / 3 deg: 2x / 4x the whisks) is
+  region match does not give. Tried for that and not kept (seed 0, median distance of the stored
+  surfaces to the meshes over the 12 objects; the study's maps 19.7 mm): registering each mapping
+  whisk point-to-plane on the points placed so far (prior 1-4 x the odometry noise) drifts
+  further (Mug 33-71, Box 37-47 mm against 16 and 21: the second loop's dead reckoning lies more
+  than 3 cm from the first loop's points, so it rarely registers); a Cauchy loss on the pose
+  graph's edges (scale 3 sigma) discards the true closures that correct a loop's drift (30.0 mm;
+  the jittered mapping 29.9 -> 48.0). A finer step along A (5.5 cm / 6 deg or 2.75 cm / 3 deg: 2x / 4x the whisks) is
   worse for the same reason (A 22 / 9, B 13 / 4 of 36): Eq 6.4-6.11's noise is per whisk.
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
