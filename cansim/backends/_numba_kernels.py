@@ -356,18 +356,17 @@ def rot_lines(src, dst, mo, rest, tab, w, r_lo, r_hi):
     contiguous rows (vectorised), and after one pass per axis the layout is back in C order.
     A block of up to :data:`_CHUNK` cells of every output row is summed first, then written
     out cell by cell (``dst`` is contiguous over a block's cells: the transposed store
-    walks the block, not ``dst`` at a stride of ``mo``). A row whose 5 (or 3) taps all
-    read the box is summed in one loop, the partial sum in a register; others tap by tap
-    through the block. Both evaluate ``((w0 x0 + w1 x1) + w2 x2) + ...`` from the first
+    walks the block, not ``dst`` at a stride of ``mo``). A row whose 5 (or 7) taps all
+    read the box is summed in one loop, the partial sum in a register (:func:`_sum5`,
+    :func:`_sum7`); others tap by tap through the block. Both evaluate ``((w0 x0 + w1 x1) + w2 x2) + ...`` from the first
     product in tap order (``fastmath`` off: no contraction), so every cell has the same
     bits as summing tap after tap. (Slices instead of offset indexing let numba drop
     its negative-index checks.)
     """
     nw = w.shape[0]
-    ch = _CHUNK
-    blk = np.empty((mo, ch), np.float64)
-    for r0 in range(r_lo, r_hi, ch):
-        rc = min(ch, r_hi - r0)
+    blk = np.empty((mo, _CHUNK), np.float64)
+    for r0 in range(r_lo, r_hi, _CHUNK):
+        rc = min(_CHUNK, r_hi - r0)
         for p in range(mo):
             tmp = blk[p]
             if nw == 5 and _all_taps(tab, p, nw):
