@@ -4,7 +4,9 @@ Times ``Population.whisker6d(10, 0.02, backend="numba").step`` (the generic N-D 
 ``bench/test_bench_step.py``'s 10^6 case: a settled packet, injection at the centre,
 translation and rotation alternating in sign) and a STREAM-like copy, alternately in one
 process: ``ROUNDS`` rounds of (``COPIES`` copies, ``STEPS`` steps), the minimum of each per
-round. Not collected by pytest (no ``test_`` prefix).
+round. Not collected by pytest (no ``test_`` prefix). It imports cansim from the current
+directory (run it from a checkout's root to time that checkout, as ``packets_loop.py`` and
+``iteration_phases.py`` do).
 
 Bytes per step are counted from the kernel's passes (``cansim/backends/_numba_kernels.py``,
 ``pipeline``): every pass streams its input box in and its output box out, float64 in the
@@ -37,11 +39,14 @@ Usage: ``python bench/step_bandwidth.py`` (env ``ROUNDS`` default 7, ``STEPS`` 2
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 import numpy as np
 
-from cansim.population import Population
+sys.path.insert(0, os.getcwd())  # the checkout this is run from, not the installed one
+
+from cansim.population import Population  # noqa: E402
 
 ROUNDS = int(os.environ.get("ROUNDS", "7"))
 STEPS = int(os.environ.get("STEPS", "20"))
