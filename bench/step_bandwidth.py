@@ -46,6 +46,11 @@ import numpy as np
 
 sys.path.insert(0, os.getcwd())  # the checkout this is run from, not the installed one
 
+import cansim  # noqa: E402
+
+assert os.path.dirname(os.path.dirname(os.path.abspath(cansim.__file__))) == os.getcwd(), (
+    f"run this from a checkout's root: cansim was imported from {cansim.__file__}")
+
 from cansim.population import Population  # noqa: E402
 
 ROUNDS = int(os.environ.get("ROUNDS", "7"))

@@ -74,9 +74,13 @@ else:  # pragma: no cover
 def _kernel_sources_digest(roots: tuple[str, ...]) -> str:
     """SHA-256 (hex) of the path and contents of every ``.py`` file under ``roots`` that mentions numba.
 
-    Memoised per process (the sources do not change under a running process; one
-    read of the package files, 2-6 ms here). A root that cannot be read (a zip
-    import) adds nothing.
+    Memoised per process (one read of the package files, 2-6 ms here): a kernel module
+    edited and reloaded (``importlib.reload``) in a running process still finds the
+    digest of the sources the process started with - call ``cache_clear()`` first, or
+    start a new process. A root that cannot be read (a zip import) adds nothing.
+    Every file mentioning numba counts, not only those defining kernels (a plain
+    function compiled by a kernel module elsewhere, e.g. ``whisker_io.angles``, is a
+    kernel source too): editing such a file recompiles its package's kernels.
     """
     h = hashlib.sha256()
     for root in roots:
