@@ -39,6 +39,7 @@ from maps.odometry import SpatialOdometry
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 from whisker_io.pose import Pose
 from whisker_io.sim.odometry_noise import noisy_odometry
+from whisker_io.sim.trajectories import facing_pose
 
 PRESENTATION_WHISKS = 60
 
@@ -84,15 +85,12 @@ def test_surface_matcher_step_per_whisk(benchmark, n_objects, mode, refine):
 
 
 def _loop_poses(n: int, centre: np.ndarray, radius_m: float = 0.32) -> list[Pose]:
-    """``n`` end-effector poses on a loop round ``centre`` (17 per turn, elevation +-20 deg), +y toward the centre."""
+    """``n`` end-effector poses on a loop round ``centre`` (17 per turn, elevation +-20 deg), facing it (+y)."""
     poses = []
     for i in range(n):
         az, el = 2.0 * np.pi * i / 17.0, np.radians(20.0 * np.sin(2.0 * np.pi * i / 23.0))
-        p = centre + radius_m * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
-        y = (centre - p) / np.linalg.norm(centre - p)
-        z = np.array([0.0, 0.0, 1.0]) - y[2] * y
-        z /= np.linalg.norm(z)
-        poses.append(Pose(p, Rotation.from_matrix(np.stack([np.cross(y, z), y, z], axis=1)).as_quat()))
+        out = np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        poses.append(facing_pose(centre, -out, radius_m))
     return poses
 
 

@@ -676,10 +676,10 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     thresholds = calibrated_thresholds(calibration, seeds, calibration_quantile)  # a bad rule, seed or quantile: before any file
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
+    stems = object_file_names(everything)  # distinct: mesh files of one name do not overwrite each other's maps
     for seed in seeds:
         setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
                       odometry_scale=float(odometry_scale))
-        stems = object_file_names(everything)  # distinct: mesh files of one name do not overwrite each other's maps
         maps = _pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
                          progress)
         paths = {m["name"]: m["path"] for m in maps}

@@ -9,10 +9,9 @@ which states and applies the conventions: metres, z up, resting on z = 0, centre
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import dataclasses
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -78,12 +77,10 @@ def object_file_name(spec: str | os.PathLike[str]) -> str:
     >>> object_file_name("torus_upright")
     'torus_upright'
     """
-    from pathlib import Path
-
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in Path(spec).stem) or "object"
 
 
-def object_file_names(specs: "Sequence[str | os.PathLike[str]]") -> list[str]:
+def object_file_names(specs: Sequence[str | os.PathLike[str]]) -> list[str]:
     """:func:`object_file_name` of each of several objects, distinct: when two would be equal (mesh files of one
     name in different folders) every one is numbered by its place, ``<stem>_1``, ``<stem>_2``, ..., so that no
     object's file overwrites another's.
