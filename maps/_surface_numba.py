@@ -18,15 +18,16 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
-__all__ = ["field_distance", "likelihoods", "move", "refine", "resample_in_place"]
+__all__ = ["field_distance", "likelihoods", "move", "refine", "refine_chunks", "resample_in_place"]
 
 
 @njit(cache=True, inline="always")
@@ -352,32 +353,23 @@ def _prefetch_cells(R: np.ndarray, t: np.ndarray, pts: np.ndarray, k: int, n: in
             _prefetch(values, base + sy * sz + sz)
 
 
-@njit(cache=True)
-def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
-           values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
-           sd: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Registration-refined hypotheses, in place, and their Laplace log marginal likelihoods.
+def refine_chunks(pairs: int) -> int:
+    """How many runs :func:`refine` splits ``pairs`` (object, hypothesis) pairs into: one per numba thread
+    (``numba.get_num_threads()``), at most one per pair, at least one."""
+    return max(1, min(int(pairs), numba.get_num_threads()))
 
-    Every hypothesis ``R[k, n]``, ``t[k, n]`` of the objects ``rows`` is corrected by a body-frame
-    step ``delta = sd * eta`` (``sd`` (6,): the prior's standard deviations of the displacement, m,
-    and of the rotation vector, rad) that lowers ``E(eta) = -sum_j log(outlier + exp(-r_j^2 / 2 sigma^2))
-    + |eta|^2 / 2``: ``iterations`` Levenberg-Marquardt steps on the Gauss-Newton system of the
-    contacts' signed distances (an uphill step is refused and the damping raised). Returns the log
-    marginal likelihood ``-E(eta*) - log det(H) / 2`` (``H`` the whitened Gauss-Newton Hessian at the
-    refined pose, identity included: the Laplace approximation of the likelihood integrated over
-    the prior of the correction), (len(rows), N), and each contact's residual at the refined pose,
-    (len(rows), N, m), as :func:`likelihoods`.
 
-    A hypothesis none of whose contacts is on the grid under the cap keeps its pose (its system is
-    zero, so is every step) and gets its log likelihood; while one hypothesis is refined the grid
-    cells of the next are prefetched.
-    """
+@njit(cache=True, inline="always")
+def _refine_range(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+                  values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
+                  sd: np.ndarray, iterations: int, q0: int, q1: int, ll: np.ndarray,
+                  res: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`refine` of the (object, hypothesis) pairs ``q0 <= q < q1`` (pair ``q``: ``rows[q // N]``,
+    hypothesis ``q % N``), into ``ll`` and ``res``; its own scratch."""
     N, m = R.shape[1], pts.shape[0]
-    ll = np.empty((rows.shape[0], N))
-    res = np.empty((rows.shape[0], N, m))
     inv2s2 = 0.5 / (sigma * sigma)
     at_cap = math.log(outlier + math.exp(-cap * cap * inv2s2))
-    # scratch allocated once per call; the current and the trial state swap buffers instead of copying
+    # scratch allocated once per run; the current and the trial state swap buffers instead of copying
     H = np.empty((6, 6))
     gv = np.empty(6)
     H2 = np.empty((6, 6))
@@ -396,77 +388,107 @@ def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape:
     tmp = np.empty((3, 3))
     r_cur = np.empty(m)
     r_try = np.empty(m)
-    for i in range(rows.shape[0]):
+    for q in range(q0, q1):
+        i, n = q // N, q % N
         k = rows[i]
-        for n in range(N):
-            if n + 1 < N:  # the next hypothesis' grid cells, read while this one is refined
-                _prefetch_cells(R, t, pts, k, n + 1, lo, shape, start, values, cell)
-            elif i + 1 < rows.shape[0]:
-                _prefetch_cells(R, t, pts, rows[i + 1], 0, lo, shape, start, values, cell)
-            for a in range(3):
-                for b in range(3):
-                    Rc[a, b] = R[k, n, a, b]
-                tc[a] = t[k, n, a]
-            for a in range(6):
-                eta[a] = 0.0
-            lik, used = _fit_pass(Rc, tc, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
-                                  H, gv, r_cur)
-            if used == 0:
-                # no contact on the grid under the cap: H = 0 and the gradient is 0, so every step is exactly zero, the
-                # trial pose is this pose (R Exp(0) = R bit for bit) and is refused; E = -lik and log det(I) = 0
-                ll[i, n] = lik
-                for j in range(m):
-                    res[i, n, j] = r_cur[j]
-                continue
-            cost = -lik
-            lam = 1e-3
-            moved = False
-            for _ in range(iterations):
-                for a in range(6):
-                    for b in range(6):
-                        A[a, b] = H[a, b]
-                    A[a, a] += 1.0 + lam * (H[a, a] + 1.0)
-                    rhs[a] = -(gv[a] + eta[a])
-                _cholesky_solve(A, rhs, L, d_eta)
-                for a in range(6):
-                    eta2[a] = eta[a] + d_eta[a]
-                    step[a] = sd[a] * d_eta[a]
-                _compose(Rc, tc, step, Rt, tt, tmp)
-                lik2, _ = _fit_pass(Rt, tt, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
-                                 H2, gv2, r_try)
-                prior2 = 0.0
-                prior1 = 0.0
-                for a in range(6):
-                    prior2 += 0.5 * eta2[a] * eta2[a]
-                    prior1 += 0.5 * eta[a] * eta[a]
-                if -lik2 + prior2 < cost + prior1:  # accepted: the trial state becomes the current one
-                    Rc, Rt = Rt, Rc
-                    tc, tt = tt, tc
-                    eta, eta2 = eta2, eta
-                    H, H2 = H2, H
-                    gv, gv2 = gv2, gv
-                    r_cur, r_try = r_try, r_cur
-                    cost = -lik2
-                    lam *= 0.1
-                    moved = True
-                else:
-                    lam *= 10.0
-            prior = 0.0
-            for a in range(6):
-                prior += 0.5 * eta[a] * eta[a]
-                for b in range(6):
-                    A[a, b] = H[a, b]
-                A[a, a] += 1.0
-                rhs[a] = 0.0
-            logdet = _cholesky_solve(A, rhs, L, d_eta)
-            ll[i, n] = -cost - prior - 0.5 * logdet
+        if q + 1 < q1:  # the next hypothesis' grid cells, read while this one is refined
+            _prefetch_cells(R, t, pts, rows[(q + 1) // N], (q + 1) % N, lo, shape, start, values, cell)
+        for a in range(3):
+            for b in range(3):
+                Rc[a, b] = R[k, n, a, b]
+            tc[a] = t[k, n, a]
+        for a in range(6):
+            eta[a] = 0.0
+        lik, used = _fit_pass(Rc, tc, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
+                              H, gv, r_cur)
+        if used == 0:
+            # no contact on the grid under the cap: H = 0 and the gradient is 0, so every step is exactly zero, the
+            # trial pose is this pose (R Exp(0) = R bit for bit) and is refused; E = -lik and log det(I) = 0
+            ll[i, n] = lik
             for j in range(m):
                 res[i, n, j] = r_cur[j]
-            if moved:
-                for a in range(3):
-                    for b in range(3):
-                        R[k, n, a, b] = Rc[a, b]
-                    t[k, n, a] = tc[a]
+            continue
+        cost = -lik
+        lam = 1e-3
+        moved = False
+        for _ in range(iterations):
+            for a in range(6):
+                for b in range(6):
+                    A[a, b] = H[a, b]
+                A[a, a] += 1.0 + lam * (H[a, a] + 1.0)
+                rhs[a] = -(gv[a] + eta[a])
+            _cholesky_solve(A, rhs, L, d_eta)
+            for a in range(6):
+                eta2[a] = eta[a] + d_eta[a]
+                step[a] = sd[a] * d_eta[a]
+            _compose(Rc, tc, step, Rt, tt, tmp)
+            lik2, _ = _fit_pass(Rt, tt, pts, k, lo, shape, start, values, cell, inv2s2, outlier, cap, at_cap, sd,
+                             H2, gv2, r_try)
+            prior2 = 0.0
+            prior1 = 0.0
+            for a in range(6):
+                prior2 += 0.5 * eta2[a] * eta2[a]
+                prior1 += 0.5 * eta[a] * eta[a]
+            if -lik2 + prior2 < cost + prior1:  # accepted: the trial state becomes the current one
+                Rc, Rt = Rt, Rc
+                tc, tt = tt, tc
+                eta, eta2 = eta2, eta
+                H, H2 = H2, H
+                gv, gv2 = gv2, gv
+                r_cur, r_try = r_try, r_cur
+                cost = -lik2
+                lam *= 0.1
+                moved = True
+            else:
+                lam *= 10.0
+        prior = 0.0
+        for a in range(6):
+            prior += 0.5 * eta[a] * eta[a]
+            for b in range(6):
+                A[a, b] = H[a, b]
+            A[a, a] += 1.0
+            rhs[a] = 0.0
+        logdet = _cholesky_solve(A, rhs, L, d_eta)
+        ll[i, n] = -cost - prior - 0.5 * logdet
+        for j in range(m):
+            res[i, n, j] = r_cur[j]
+        if moved:
+            for a in range(3):
+                for b in range(3):
+                    R[k, n, a, b] = Rc[a, b]
+                t[k, n, a] = tc[a]
+
+
+
+@njit(cache=True, parallel=True)
+def refine(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
+           values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float, rows: np.ndarray,
+           sd: np.ndarray, iterations: int, nchunks: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Registration-refined hypotheses, in place, and their Laplace log marginal likelihoods.
+
+    Every hypothesis ``R[k, n]``, ``t[k, n]`` of the objects ``rows`` is corrected by a body-frame
+    step ``delta = sd * eta`` (``sd`` (6,): the prior's standard deviations of the displacement, m,
+    and of the rotation vector, rad) that lowers ``E(eta) = -sum_j log(outlier + exp(-r_j^2 / 2 sigma^2))
+    + |eta|^2 / 2``: ``iterations`` Levenberg-Marquardt steps on the Gauss-Newton system of the
+    contacts' signed distances (an uphill step is refused and the damping raised). Returns the log
+    marginal likelihood ``-E(eta*) - log det(H) / 2`` (``H`` the whitened Gauss-Newton Hessian at the
+    refined pose, identity included: the Laplace approximation of the likelihood integrated over
+    the prior of the correction), (len(rows), N), and each contact's residual at the refined pose,
+    (len(rows), N, m), as :func:`likelihoods`.
+
+    A hypothesis none of whose contacts is on the grid under the cap keeps its pose (its system is
+    zero, so is every step) and gets its log likelihood; while one hypothesis is refined the grid
+    cells of the next are prefetched. The hypotheses are split into ``nchunks`` runs of consecutive
+    (object, hypothesis) pairs refined in parallel: each is refined alone, so the results do not
+    depend on ``nchunks``.
+    """
+    N, m = R.shape[1], pts.shape[0]
+    ll = np.empty((rows.shape[0], N))
+    res = np.empty((rows.shape[0], N, m))
+    total = rows.shape[0] * N
+    for c in prange(nchunks):
+        _refine_range(R, t, pts, lo, shape, start, values, cell, sigma, outlier, cap, rows, sd, iterations,
+                      total * c // nchunks, total * (c + 1) // nchunks, ll, res)
     return ll, res
 
 

@@ -614,8 +614,10 @@ class SurfaceMatcher:
         cap = min(cfg.cap_m, f.config.cap_m)
         if cfg.refine_iterations > 0:
             sd = cfg.refine_prior_scale * np.array([cfg.displacement_sigma_m] * 3 + [math.radians(cfg.rotation_sigma_deg)] * 3)
-            ll, res = _kernels().refine(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
-                                        cfg.contact_sigma_m, cfg.outlier_weight, cap, rows, sd, cfg.refine_iterations)
+            kernels = _kernels()
+            ll, res = kernels.refine(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
+                                     cfg.contact_sigma_m, cfg.outlier_weight, cap, rows, sd, cfg.refine_iterations,
+                                     kernels.refine_chunks(len(rows) * cfg.particles))
         else:
             ll, res = _kernels().likelihoods(self._R, self._t, pts, f.lo, f.shape, f.start, f.values, f.config.cell_m,
                                              cfg.contact_sigma_m, cfg.outlier_weight, cap, rows)

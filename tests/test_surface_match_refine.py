@@ -120,7 +120,7 @@ def test_the_refinement_kernel_equals_the_numpy_levenberg_marquardt(iterations: 
     sd = np.array([0.01, 0.01, 0.01, math.radians(2.5), math.radians(2.5), math.radians(2.5)]) * 2.0
     sigma, outlier, cap = 0.006, 0.05, 0.03
     R_k, t_k = R.copy(), t.copy()
-    ll, res = _surface_numba.refine(R_k, t_k, pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64), sd, iterations)
+    ll, res = _surface_numba.refine(R_k, t_k, pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64), sd, iterations, 1)
     moved = 0
     for n in range(N):
         R_n, t_n, ll_n = _numpy_refine(lib, R[0, n], t[0, n], pts, sd, sigma, outlier, cap, iterations)
@@ -132,6 +132,32 @@ def test_the_refinement_kernel_equals_the_numpy_levenberg_marquardt(iterations: 
     # the residuals returned are those of the refined poses (the likelihood kernel's)
     _, res_at = _surface_numba.likelihoods(R_k, t_k, pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64))
     np.testing.assert_allclose(res, res_at, atol=1e-12)
+
+
+def test_the_refinement_does_not_depend_on_how_the_hypotheses_are_split_into_parallel_runs() -> None:
+    """Two objects' 13 hypotheses each (some on the ball, some on the plate, some off both grids),
+    refined in 1, 2, 3, 7 and 26 runs: every pose, weight and residual bit for bit the same."""
+    ball, plate = _sphere(0.10, n=1500, seed=1), _plane(0.0, n=21, half=0.25)
+    lib = SurfaceLibrary([ball, plate], ["ball", "plate"], [ball * 2.0, _plane(0.3, n=21, half=0.25)])
+    rng = np.random.default_rng(11)
+    N = 13
+    pts = _sphere(0.1, n=7, seed=5) + rng.normal(0, 0.002, (7, 3))
+    R = Rotation.from_rotvec(rng.normal(0, 0.05, (2 * N, 3))).as_matrix().reshape(2, N, 3, 3)
+    t = rng.normal(0, 0.015, (2, N, 3))
+    t[:, ::4] += 3.0  # every fourth hypothesis off both grids
+    sd = np.array([0.01, 0.01, 0.01, math.radians(2.5), math.radians(2.5), math.radians(2.5)]) * 4.0
+    rows = np.array([0, 1], dtype=np.int64)
+    outputs = []
+    for runs in (1, 2, 3, 7, 2 * N):
+        R_k, t_k = R.copy(), t.copy()
+        ll, res = _surface_numba.refine(R_k, t_k, pts, *_args(lib), 0.006, 0.05, 0.03, rows, sd, 2, runs)
+        outputs.append((R_k, t_k, ll, res))
+    assert not np.array_equal(outputs[0][1], t)  # hypotheses were moved
+    for other in outputs[1:]:
+        for a, b in zip(outputs[0], other):
+            assert np.array_equal(a, b)
+    assert _surface_numba.refine_chunks(1) == 1 and _surface_numba.refine_chunks(0) == 1
+    assert 1 <= _surface_numba.refine_chunks(10_000) <= 10_000
 
 
 def test_the_laplace_weight_is_the_likelihood_integrated_over_the_prior() -> None:
@@ -148,7 +174,7 @@ def test_the_laplace_weight_is_the_likelihood_integrated_over_the_prior() -> Non
         R0 = Rotation.from_rotvec([tilt, 0.0, 0.0]).as_matrix()
         t0 = np.array([0.01, -0.02, dz])
         R, t = R0[None, None].copy(), t0[None, None].copy()
-        ll, _ = _surface_numba.refine(R, t, pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64), sd, 5)
+        ll, _ = _surface_numba.refine(R, t, pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64), sd, 5, 1)
         Rs = R0 @ Rotation.from_rotvec(draws[:, 3:]).as_matrix()
         ts = t0 + draws[:, :3] @ R0.T
         lik, _ = _surface_numba.likelihoods(Rs[None], ts[None], pts, *_args(lib), sigma, outlier, cap, np.zeros(1, np.int64))
