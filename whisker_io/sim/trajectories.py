@@ -219,6 +219,9 @@ def _frames(y_axes: NDArray[np.float64], up: NDArray[np.float64],
     return np.stack([np.cross(y_axes, z), y_axes, z], axis=2)
 
 
+_TINY_AXIS = 1e-150  # an axis shorter than this loses precision in its norm (squares below 1e-300)
+
+
 def facing_pose(
     surface_point_m: ArrayLike,
     axis: ArrayLike,
@@ -249,9 +252,13 @@ def facing_pose(
     """
     s = finite_vector(surface_point_m, 3, "surface_point_m")
     y = finite_vector(axis, 3, "axis")
-    n = float(np.linalg.norm(y))
-    if not n > 0:
+    largest = float(np.abs(y).max())
+    if not largest > 0:
         raise InvalidInputError("axis must be a non-zero vector")
+    n = float(np.linalg.norm(y))
+    if n < _TINY_AXIS:  # its squares underflow (the norm of 3e-170 is 0): scale it to its largest component first
+        y = y / largest
+        n = float(np.linalg.norm(y))
     y = y / n
     g = finite_vector(up, 3, "up")
     g = g / np.linalg.norm(g)
