@@ -158,9 +158,7 @@ import argparse
 import csv
 import logging
 import math
-import sys
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -168,6 +166,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.process_pool import pool_map
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.validation import checked, config_field, validate_fields
 
@@ -530,15 +529,6 @@ def _calibrate_job(job: tuple[float, float, int, str, str | None]) -> dict[str, 
 
 
 # --------------------------------------------------------------------------- the study
-def _pool_map(fn: Any, jobs: Sequence[Any], workers: int, desc: str) -> list[Any]:
-    from tqdm import tqdm
-
-    if workers <= 1:
-        return [fn(j) for j in tqdm(jobs, desc=desc, file=sys.stderr)]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(tqdm(pool.map(fn, jobs), total=len(jobs), desc=desc, file=sys.stderr))
-
-
 def _ensure_radial_model(path: str | None, out: Path) -> str:
     if path:
         return path
@@ -929,7 +919,7 @@ def main(argv: list[str] | None = None) -> int:
     if id_cfg not in configs:
         id_cfg = configs[-1]
     radial = _ensure_radial_model(a.radial_model, out) if "svr" in contacts else None
-    cals = _pool_map(_calibrate_job, [(a.noise_scale, a.calibration_quantile, a.seed, c, radial) for c in contacts],
+    cals = pool_map(_calibrate_job, [(a.noise_scale, a.calibration_quantile, a.seed, c, radial) for c in contacts],
                      a.workers, "ch5 thresholds")
     _write_csv(out / "ch5_calibration.csv", cals, list(cals[0]))
     thresholds = {r["contact_model"]: (r["pfh_threshold"] if a.pfh_threshold is None else a.pfh_threshold,
@@ -942,13 +932,13 @@ def main(argv: list[str] | None = None) -> int:
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
     if not a.no_compare:
         jobs += [(o, c, other, None) for o in objects for c in configs]
-    runs = _pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)")
+    runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)")
     builds = [b for b in runs if b["matching"] == matching]
     compare = [b for b in runs if b["matching"] != matching]
     _write_csv(out / "ch5_localisation.csv", localisation_rows(runs), LOC_COLUMNS)
     paths = [str(maps_dir / f"{o}.npz") for o in objects]
     id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, a.novel)]
-    ids = _pool_map(identify_job, id_jobs, a.workers, "ch5 identification")
+    ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification")
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", id_rows, ID_COLUMNS)
     figures(out, builds, ids, id_rows, id_cfg)

@@ -151,10 +151,8 @@ import argparse
 import csv
 import logging
 import math
-import sys
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -162,6 +160,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
 logger = logging.getLogger(__name__)
@@ -522,15 +521,6 @@ def surface_targets(library: Any, start_pose: Any, odometry: Sequence[Any], cont
     return out
 
 
-def _pool_map(fn: Any, jobs: Sequence[Any], workers: int, desc: str, progress: bool) -> list[Any]:
-    from tqdm import tqdm
-
-    if workers <= 1:
-        return [fn(j) for j in tqdm(jobs, desc=desc, file=sys.stderr, disable=not progress)]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(tqdm(pool.map(fn, jobs), total=len(jobs), desc=desc, file=sys.stderr, disable=not progress))
-
-
 # ------------------------------------------------------------------ the study
 def calibration_seeds(k: int = CALIBRATION_SEEDS, base: int = 0) -> tuple[int, ...]:
     """The seeds whose same-pose distances the ``pooled`` calibration pools.
@@ -680,7 +670,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     for seed in seeds:
         setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
                       odometry_scale=float(odometry_scale))
-        maps = _pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
+        maps = pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
                          progress)
         paths = {m["name"]: m["path"] for m in maps}
         surface_paths = {m["name"]: m["surface"] for m in maps}
@@ -693,7 +683,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
             for presentation, vp in kinds:
                 jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
                 jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
-        rows += [r for rs in _pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
+        rows += [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
     with open(out / "recognition_runs.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
         w.writeheader()

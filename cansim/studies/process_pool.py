@@ -1,0 +1,62 @@
+"""Worker processes for the studies' independent jobs, one numba thread each.
+
+A study maps objects, presents them and calibrates thresholds as independent jobs; with
+``workers > 1`` they run in that many processes (one per core by default). Some kernels
+split their work over numba's threads (the surface matcher's refinement,
+``maps._surface_numba.refine``); in a worker process that would put ``workers x threads``
+busy threads on ``workers`` cores, so each worker runs its kernels on one thread (the same
+rule as the Dask sweeps, :mod:`cansim.tools.sweep`). Results do not depend on it: those
+kernels give the same bits on any number of threads.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, TypeVar
+
+__all__ = ["pool_map"]
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+def _one_numba_thread() -> None:
+    """Worker initialiser: this process's parallel kernels on one thread."""
+    try:
+        import numba
+    except ImportError:  # pragma: no cover - numba is a core dependency
+        return
+    numba.set_num_threads(1)
+
+
+def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, progress: bool = True) -> list[R]:
+    """``[fn(j) for j in jobs]`` in order, in ``workers`` processes when ``workers > 1``.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it is pickled to the workers).
+    jobs : sequence
+        Its arguments, one per call.
+    workers : int
+        Worker processes (<= 1: in this process, on its own numba threads).
+    desc : str
+        The progress bar's label (tqdm, on stderr).
+    progress : bool
+        Show the progress bar.
+
+    Returns
+    -------
+    list
+        The results in the order of ``jobs``.
+    """
+    from tqdm import tqdm
+
+    if workers <= 1:
+        return [fn(j) for j in tqdm(jobs, desc=desc, file=sys.stderr, disable=not progress)]
+    with ProcessPoolExecutor(max_workers=workers, initializer=_one_numba_thread) as pool:
+        results: list[Any] = list(tqdm(pool.map(fn, jobs), total=len(jobs), desc=desc, file=sys.stderr,
+                                       disable=not progress))
+    return results
