@@ -92,7 +92,7 @@ def _likelihoods_row(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarr
         ll[i, n] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, shape: np.ndarray, start: np.ndarray,
                 values: np.ndarray, cell: float, sigma: float, outlier: float, cap: float,
                 rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
@@ -102,10 +102,12 @@ def likelihoods(R: np.ndarray, t: np.ndarray, pts: np.ndarray, lo: np.ndarray, s
     A contact's residual ``r`` is its distance to the object's stored surface (the grid's
     ``|f|``, at most ``cap``); its likelihood is ``outlier + exp(-r^2 / (2 sigma^2))``; a
     hypothesis' log likelihood is the sum of its contacts' logarithms in contact order.
+    The objects are shared among numba's threads (each is computed alone: the same bits on
+    any number of threads).
     """
     ll = np.empty((rows.shape[0], R.shape[1]))
     res = np.empty((rows.shape[0], R.shape[1], pts.shape[0]))
-    for i in range(rows.shape[0]):
+    for i in prange(rows.shape[0]):
         _likelihoods_row(R, t, pts, lo, shape, start, values, cell, sigma, outlier, cap, rows, ll, res, i)
     return ll, res
 

@@ -589,3 +589,34 @@ def test_the_batched_matcher_equals_the_reference_for_any_setting(particles: int
         assert batched.active.tolist() == reference.active, i
         np.testing.assert_allclose(batched.log_evidence, reference.log_evidence, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(batched.evidence_m, reference.evidence_m, rtol=1e-9, atol=1e-12)
+
+
+def test_the_kernels_give_the_same_bits_on_one_thread_and_on_all() -> None:
+    """Five objects' 40 hypotheses each, 9 contacts: the likelihoods and the refinement (whose work is
+    shared among numba's threads) return the same arrays with one thread as with every thread."""
+    import numba
+
+    from maps import _surface_numba as kernels
+
+    lib = SurfaceLibrary([_sphere(r, n=600, seed=i) for i, r in enumerate((0.08, 0.1, 0.12, 0.09, 0.11))],
+                         [f"o{i}" for i in range(5)])
+    f = lib.fields
+    rng = np.random.default_rng(3)
+    R = Rotation.from_rotvec(rng.normal(0, 0.05, (200, 3))).as_matrix().reshape(5, 40, 3, 3)
+    t = rng.normal(0, 0.01, (5, 40, 3))
+    pts = _sphere(0.1, n=9, seed=9) + rng.normal(0, 0.002, (9, 3))
+    rows = np.array([0, 1, 3, 4], dtype=np.int64)
+    sd = np.array([0.04, 0.04, 0.04, 0.17, 0.17, 0.17])
+    args = (pts, f.lo, f.shape, f.start, f.values, f.config.cell_m, 0.006, 0.05, 0.03, rows)
+    before = numba.get_num_threads()
+    out = []
+    try:
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            Rk, tk = R.copy(), t.copy()
+            out.append((*kernels.likelihoods(R, t, *args), *kernels.refine(Rk, tk, *args, sd, 1, kernels.refine_chunks(160)),
+                        Rk, tk))
+    finally:
+        numba.set_num_threads(before)
+    for a, b in zip(*out):
+        assert np.array_equal(a, b)
