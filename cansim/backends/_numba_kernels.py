@@ -401,45 +401,6 @@ _BLOCK = 2048  # cells of one block of short lines (16 kB of float64: stays in L
 _SHORT = 64  # lines shorter take rot_short_lines (measured: ~2.5x faster at 12 cells, even at ~80, slower from ~100)
 
 
-@njit(inline="always", **_OPTS)
-def _consecutive_run(tab, p, p1, nw):
-    """The end ``e`` of the run of output rows ``p <= e' < e <= p1`` whose every tap reads the source row after
-    the one it read for the row before (all taps inside the box): ``e == p`` when row ``p``'s taps do not all read it."""
-    if not _all_taps(tab, p, nw):
-        return p
-    e = p + 1
-    while e < p1 and _all_taps(tab, e, nw):
-        for j in range(nw):
-            if tab[e, j] != tab[p, j] + (e - p):
-                return e
-        e += 1
-    return e
-
-
-@njit(**_OPTS)
-def _sum5_from_zero(acc, src, tab, w, p, rest, n):
-    """``acc[:n]`` = the 5 taps of the consecutive rows from ``p`` summed in one loop from 0.0 in tap order
-    (:func:`rot_short_lines`: the same operations as adding tap after tap to a zeroed block)."""
-    a0, a1 = _tap_row(src, tab, p, 0, rest, 0, n), _tap_row(src, tab, p, 1, rest, 0, n)
-    a2, a3 = _tap_row(src, tab, p, 2, rest, 0, n), _tap_row(src, tab, p, 3, rest, 0, n)
-    a4 = _tap_row(src, tab, p, 4, rest, 0, n)
-    w0, w1, w2, w3, w4 = w[0], w[1], w[2], w[3], w[4]
-    for i in range(n):
-        acc[i] = ((((0.0 + w0 * a0[i]) + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]
-
-
-@njit(**_OPTS)
-def _sum7_from_zero(acc, src, tab, w, p, rest, n):
-    """:func:`_sum5_from_zero` for 7 taps."""
-    a0, a1 = _tap_row(src, tab, p, 0, rest, 0, n), _tap_row(src, tab, p, 1, rest, 0, n)
-    a2, a3 = _tap_row(src, tab, p, 2, rest, 0, n), _tap_row(src, tab, p, 3, rest, 0, n)
-    a4, a5 = _tap_row(src, tab, p, 4, rest, 0, n), _tap_row(src, tab, p, 5, rest, 0, n)
-    a6 = _tap_row(src, tab, p, 6, rest, 0, n)
-    w0, w1, w2, w3, w4, w5, w6 = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
-    for i in range(n):
-        acc[i] = ((((((0.0 + w0 * a0[i]) + w1 * a1[i]) + w2 * a2[i]) + w3 * a3[i]) + w4 * a4[i]) + w5 * a5[i]) + w6 * a6[i]
-
-
 @njit(**_OPTS)
 def rot_short_lines(src, dst, mo, rest, tab, w):
     """:func:`rot_lines` over all lines when the lines are short (``rest < _SHORT``).
@@ -449,13 +410,9 @@ def rot_short_lines(src, dst, mo, rest, tab, w):
     blocks of about :data:`_BLOCK` cells and summed tap after tap: for one tap, output
     rows ``p, p + 1, ...`` whose source rows ``tab[p, j], tab[p, j] + 1, ...`` are
     consecutive are one contiguous run of cells in ``src`` and in the block, so each tap
-    is a few long vectorised loops. A run of output rows whose 5 (or 7) taps all read
-    consecutive source rows is summed in one loop over the run, every tap at once, the
-    partial sum in a register (:func:`_sum5_from_zero`, :func:`_sum7_from_zero`: the same
-    additions from 0.0 in tap order); the other rows tap after tap into the zeroed block.
-    Every cell sums the same products in the same tap order from 0.0 as :func:`rot_lines`
-    (which assigns the first product: the same value for the non-negative activity), so
-    the two give the same bits.
+    is a few long vectorised loops. Every cell sums the same products in the same tap
+    order from 0.0 as :func:`rot_lines` (which assigns the first product: the same value
+    for the non-negative activity), so the two give the same bits.
     """
     nw = w.shape[0]
     pb = max(1, _BLOCK // max(rest, 1))
@@ -463,41 +420,24 @@ def rot_short_lines(src, dst, mo, rest, tab, w):
     for p0 in range(0, mo, pb):
         p1 = min(mo, p0 + pb)
         blk = tmp[:(p1 - p0) * rest]
-        p = p0
-        while p < p1:  # runs of output rows whose taps all read consecutive source rows: summed in one loop
-            fused = nw == 5 or nw == 7
-            e = _consecutive_run(tab, p, p1, nw) if fused else p
-            if e > p:
+        for i in range(blk.shape[0]):
+            blk[i] = 0.0
+        for j in range(nw):
+            wj = w[j]
+            p = p0
+            while p < p1:
+                q = tab[p, j]
+                if q < 0:
+                    p += 1
+                    continue
+                e = p + 1
+                while e < p1 and tab[e, j] == q + (e - p):
+                    e += 1
                 acc = blk[(p - p0) * rest:(e - p0) * rest]
-                if nw == 5:
-                    _sum5_from_zero(acc, src, tab, w, p, rest, (e - p) * rest)
-                else:
-                    _sum7_from_zero(acc, src, tab, w, p, rest, (e - p) * rest)
+                row = src[q * rest:(q + e - p) * rest]
+                for i in range(acc.shape[0]):
+                    acc[i] += wj * row[i]
                 p = e
-                continue
-            e = p + 1 if fused else p1  # the others tap by tap, into zeroed rows
-            while e < p1 and _consecutive_run(tab, e, e + 1, nw) == e:
-                e += 1
-            zero = blk[(p - p0) * rest:(e - p0) * rest]
-            for i in range(zero.shape[0]):
-                zero[i] = 0.0
-            for j in range(nw):
-                wj = w[j]
-                pj = p
-                while pj < e:
-                    q = tab[pj, j]
-                    if q < 0:
-                        pj += 1
-                        continue
-                    f = pj + 1
-                    while f < e and tab[f, j] == q + (f - pj):
-                        f += 1
-                    acc = blk[(pj - p0) * rest:(f - p0) * rest]
-                    row = src[q * rest:(q + f - pj) * rest]
-                    for i in range(acc.shape[0]):
-                        acc[i] += wj * row[i]
-                    pj = f
-            p = e
         for r in range(rest):
             out = dst[r * mo + p0:r * mo + p1]
             for pp in range(p1 - p0):
