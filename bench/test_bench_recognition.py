@@ -23,6 +23,10 @@ of 15 contacts each, 200 hypotheses per object), K = 12, 25, 50 distinct objects
   (``SurfaceMatchConfig.refine_iterations=1, refine_prior_scale=4``: one Levenberg-Marquardt
   step per hypothesis and whisk).
 
+The kernels share the hypotheses among numba's threads (every core by default;
+``NUMBA_NUM_THREADS`` sets it), so the default timer (wall clock) is what a user waits;
+``--benchmark-timer=time.process_time`` gives the CPU time of all threads.
+
 Run: ``python -m pytest bench/test_bench_recognition.py --benchmark-only --benchmark-columns=min,median,rounds``
 """
 

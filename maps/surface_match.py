@@ -192,6 +192,28 @@ in :mod:`cansim.studies.recognition`):
   graph's edges (scale 3 sigma) discards the true closures that correct a loop's drift (30.0 mm;
   the jittered mapping 29.9 -> 48.0). A finer step along A (5.5 cm / 6 deg or 2.75 cm / 3 deg: 2x / 4x the whisks) is
   worse for the same reason (A 22 / 9, B 13 / 4 of 36): Eq 6.4-6.11's noise is per whisk.
+* **...and the maps' accuracy: a few millimetres, which the odometry graph cannot give
+  (2026-12-05).** Closures are not what the pose graph lacks: the study's re-localisations along
+  A are right (seed 0, 5-34 per map, median 0 cm / 0 deg from the pose of the whisk whose
+  experience they matched), and tying *every* second-loop whisk to its first-loop twin (a
+  perfect re-localisation at each of them) leaves the stored surfaces 12.6 mm from the meshes
+  (median over the 12 objects; the study's 19.7; the torus 37 -> 13, the Kettle 18 -> 8, the
+  Blob and the Plane 20 mm) and moves identification little (seed 0, three matcher seeds:
+  B 22 -> 25, viewpoints 19 -> 18, A 31 -> 30 of 36, wrong 7 -> 6; a scratch
+  replay of the study's functions): what remains is each loop's odometry, averaged. Nor does feeling
+  more of the object help on such maps (scratch replays; seed 0, nine
+  matcher seeds, correct of 108 along B / viewpoints / A, wrong, novel undecided of 81; the
+  study's maps 61 / 62 / 96, 21, 63): a third pass of jittered twins of the A poses, each whisk
+  placed by this matcher tracking the arm on the object's own stored surface, gives 62 / 47 / 90,
+  26, 52 - on a warped map the tracker loses the arm (its points lie 32-85 mm from where the
+  map's own frame puts the felt surface) - and no gate on the added points helps beyond the
+  seeds' spread (+-4 on B + viewpoints with three matcher seeds); even contacts placed at their
+  true poses warped into each map's frame buy only 72 / 62 / 97, 12, 59. On surfaces felt at the
+  true poses the same localised pass stays on them (added points 6.6 mm off) and lifts 65 / 67 /
+  100, 17, 63 to 78 / 83 / 99, 2, 50 (true-pose pass: 99 / 97 / 99, 3, 62). So new viewpoints
+  need maps accurate to a few millimetres *and* covering what they touch; under Eq 6.4-6.11's
+  per-whisk noise that takes registration of the contacts themselves, which the attempts above
+  have not yet made work.
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
@@ -199,7 +221,11 @@ in :mod:`cansim.studies.recognition`):
   memory), margins of 10 and 20 nats and a best-to-runner-up residual ratio of 1.3-1.6
   (no fewer wrong decisions under the full noise).
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
-  With the refined proposal (the default; minimum CPU ms per whisk, load 0.7-1.0, after the
+  Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
+  any number): a whole moving 60-whisk presentation costs 4.7-5.1 ms per whisk at 50 objects on
+  2 cores, wall clock (10.0-10.3 before), 1.3 at 12 objects - still over the issue's 2 ms and
+  3.7x from 12 to 50 objects (``bench/README.md``). The figures below are CPU time (unchanged
+  by the threads). With the refined proposal (the default; minimum CPU ms per whisk, load 0.7-1.0, after the
   kernel's bit-identical tuning of 2026-12-04, ``bench/README.md``): narrowed down 1.20 /
   2.40 / 4.85 at 12 / 25 / 50 objects, every object in question 4.49 / 9.21 / 18.9 - further
   over the issue's 2 ms. Without it (``refine_iterations=0``):
