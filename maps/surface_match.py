@@ -530,6 +530,10 @@ class SurfaceMatcher:
     is the whisk's likelihood under the object; its logarithm summed over the last
     ``window_whisks`` whisks is the object's log evidence.
 
+    The weighing runs on numba's threads (every core by default; ``numba.set_num_threads``
+    or ``NUMBA_NUM_THREADS`` limits it, e.g. when several matchers run in parallel
+    processes); the results are the same bits on any number of threads.
+
     Parameters
     ----------
     library : SurfaceLibrary
