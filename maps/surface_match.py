@@ -222,8 +222,8 @@ in :mod:`cansim.studies.recognition`):
   (no fewer wrong decisions under the full noise).
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
   Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
-  any number): a whole moving 60-whisk presentation costs 4.7-5.1 ms per whisk at 50 objects on
-  2 cores, wall clock (10.0-10.3 before), 1.3 at 12 objects - still over the issue's 2 ms and
+  any number): a whole moving 60-whisk presentation costs 4.7-5.9 ms per whisk at 50 objects on
+  2 cores, wall clock (half of before), 1.3-1.6 at 12 objects - still over the issue's 2 ms and
   3.7x from 12 to 50 objects (``bench/README.md``). The figures below are CPU time (unchanged
   by the threads). With the refined proposal (the default; minimum CPU ms per whisk, load 0.7-1.0, after the
   kernel's bit-identical tuning of 2026-12-04, ``bench/README.md``): narrowed down 1.20 /
