@@ -213,7 +213,16 @@ in :mod:`cansim.studies.recognition`):
   100, 17, 63 to 78 / 83 / 99, 2, 50 (true-pose pass: 99 / 97 / 99, 3, 62). So new viewpoints
   need maps accurate to a few millimetres *and* covering what they touch; under Eq 6.4-6.11's
   per-whisk noise that takes registration of the contacts themselves, which the attempts above
-  have not yet made work.
+  have not yet made work. What "accurate" means, measured with synthetic warps of surfaces felt
+  at the true poses along A (seed 0, three matcher seeds, of 36 / 36 / 36, wrong, novel undecided
+  of 27; unwarped, 0.9 mm: B 23, viewpoints 22, A 33, 4, 21): a warp that is the same on every
+  loop (a Brownian bridge over one loop's whisks, rotation about the object's centre and
+  translation, s x the odometry noise per whisk) costs little while only A is felt - 3.2 / 6.1 /
+  10.9 / 18.7 mm median from the meshes: B 24 / 24 / 22 / 17, viewpoints 21 / 20 / 20 / 15, A
+  32 / 33 / 33 / 28, wrong 8 / 5 / 7 / 21 - while a warp that differs between loops (one bridge
+  over all the whisks) ruins it at a few millimetres (5.7 / 11.3 mm: B 21 / 15, viewpoints 17 /
+  6, wrong 18 / 29). A map must above all be consistent with itself; the passes added to a warped
+  map above are not, because nothing ties them to it.
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
