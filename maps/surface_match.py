@@ -221,8 +221,11 @@ in :mod:`cansim.studies.recognition`):
   10.9 / 18.7 mm median from the meshes: B 24 / 24 / 22 / 17, viewpoints 21 / 20 / 20 / 15, A
   32 / 33 / 33 / 28, wrong 8 / 5 / 7 / 21 - while a warp that differs between loops (one bridge
   over all the whisks) ruins it at a few millimetres (5.7 / 11.3 mm: B 21 / 15, viewpoints 17 /
-  6, wrong 18 / 29). A map must above all be consistent with itself; the passes added to a warped
-  map above are not, because nothing ties them to it.
+  6, wrong 18 / 29). With the jittered twin pass felt too and warped consistently with A (each
+  of its contacts as the A contact nearest it), 3.1 / 6.2 / 10.8 / 18.8 mm give B 28 / 28 / 24 /
+  17, viewpoints 33 / 32 / 24 / 12, wrong 1 / 0 / 3 / 16 (unwarped: 31 / 32, 1). So coverage pays
+  when the map is consistent with itself and within about 6 mm of the object; the passes added
+  to the study's maps above are neither (nothing ties them to the map).
 * Measured what the interpolation buys: contacts felt along B lie a median 13-21 mm from
   the nearest stored contact of their own object (2 loops of A) but read 2.2-2.3 mm on its
   interpolated surface (Mug, Kettle, Blob; the duck 7.3 mm), against 11-17 mm on the
