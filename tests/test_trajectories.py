@@ -185,6 +185,10 @@ def test_bad_input_raises_typed_errors(box):
         facing_pose([0, 0, 0], [0, 0, 0], 0.2)
     with pytest.raises(InvalidInputError):
         facing_pose([0, 0, np.nan], [0, 1, 0], 0.2)
+    with pytest.raises(InvalidInputError, match="up"):
+        facing_pose([0, 0, 0], [0, 1, 0], 0.2, up=[0, 0, 0])
+    with pytest.raises(InvalidInputError, match="previous_z"):
+        facing_pose([0, 0, 0], [0, 0, 1], 0.2, previous_z=[0, 0, 0])
 
 
 # ------------------------------------------------------------- properties
@@ -241,3 +245,26 @@ def test_fitted_surface_encloses_the_box(extents, centre):
         inside = np.sum(((mesh.vertices - e.centre_m) / e.semi_axes_m) ** 2, axis=1)
         assert np.all(inside <= 1.0 + 1e-9)  # every vertex inside or on the surface
         assert np.max(inside) == pytest.approx(1.0)  # and the corners on it
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=3, max_size=3), st.lists(st.floats(-1, 1), min_size=3, max_size=3),
+       st.one_of(st.none(), st.lists(st.floats(-1, 1), min_size=3, max_size=3)))
+@example([0.0, 0.0, 1.0], [0.0, 0.0, 1e-170], None)  # an up whose squares underflow
+@example([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 2.0])  # vertical axis, previous z along it
+def test_facing_pose_any_up_and_previous_z_give_a_rotation_or_a_typed_error(axis, up, previous_z):
+    """A vertical axis takes its roll from ``previous_z`` (or x when that lies along the axis); any
+    non-zero up and previous z give a proper rotation whose y is the axis; zero ones a typed error."""
+    a = np.asarray(axis)
+    try:
+        p = facing_pose([0.0, 0.0, 0.0], axis, 0.3, previous_z, up)
+    except CansimError as exc:
+        assert isinstance(exc, InvalidInputError)
+        assert not np.any(a) or not np.any(up) or (previous_z is not None and not np.any(previous_z))
+        return
+    R = p.rotation.as_matrix()
+    assert np.all(np.isfinite(R))
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-9)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    y = a / np.abs(a).max()
+    np.testing.assert_allclose(R[:, 1], y / np.linalg.norm(y), atol=1e-9)

@@ -213,13 +213,31 @@ def _frames(y_axes: NDArray[np.float64], up: NDArray[np.float64],
     norm = np.linalg.norm(z, axis=1)
     for i in np.flatnonzero(norm < 1e-6):  # axis vertical: keep the previous roll
         prev = z[i - 1] if i > 0 else (previous_z if previous_z is not None else np.array([1.0, 0.0, 0.0]))
-        z[i] = prev - (prev @ y_axes[i]) * y_axes[i]
-        norm[i] = np.linalg.norm(z[i])
+        for ref in (prev, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):  # a previous z along y: x instead
+            z[i] = ref - (ref @ y_axes[i]) * y_axes[i]
+            norm[i] = np.linalg.norm(z[i])
+            if norm[i] > 1e-6 * np.linalg.norm(ref):
+                break
     z = z / norm[:, None]
     return np.stack([np.cross(y_axes, z), y_axes, z], axis=2)
 
 
-_TINY_AXIS = 1e-150  # an axis shorter than this loses precision in its norm (squares below 1e-300)
+_TINY_AXIS = 1e-150  # a vector shorter than this loses precision in its norm (squares below 1e-300)
+
+
+def _unit_vector(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` (3,) scaled to length 1; InvalidInputError when it is not finite or is zero. A vector
+    shorter than 1e-150, whose squares underflow (the norm of (3e-170, -4e-170, 0) is 0), is scaled to
+    its largest component first; longer ones are divided by their norm."""
+    v = finite_vector(value, 3, name)
+    largest = float(np.abs(v).max())
+    if not largest > 0:
+        raise InvalidInputError(f"{name} must be a non-zero vector")
+    n = float(np.linalg.norm(v))
+    if n < _TINY_AXIS:
+        v = v / largest
+        n = float(np.linalg.norm(v))
+    return v / n
 
 
 def facing_pose(
@@ -240,7 +258,8 @@ def facing_pose(
     standoff_m : float
         Distance from the end-effector origin to the surface point along the axis, m.
     previous_z : array_like (3,), optional
-        The previous pose's z-axis, kept when ``axis`` is vertical.
+        The previous pose's z-axis, kept when ``axis`` is vertical (one along the axis: the x-axis
+        made perpendicular instead).
     up : array_like (3,)
         World up direction (Alg 8's ``g``).
 
@@ -251,18 +270,11 @@ def facing_pose(
         axis allows, ``x = y x z``.
     """
     s = finite_vector(surface_point_m, 3, "surface_point_m")
-    y = finite_vector(axis, 3, "axis")
-    largest = float(np.abs(y).max())
-    if not largest > 0:
-        raise InvalidInputError("axis must be a non-zero vector")
-    n = float(np.linalg.norm(y))
-    if n < _TINY_AXIS:  # its squares underflow (the norm of 3e-170 is 0): scale it to its largest component first
-        y = y / largest
-        n = float(np.linalg.norm(y))
-    y = y / n
-    g = finite_vector(up, 3, "up")
-    g = g / np.linalg.norm(g)
-    pz = None if previous_z is None else finite_vector(previous_z, 3, "previous_z")
+    y = _unit_vector(axis, "axis")
+    g = _unit_vector(up, "up")
+    pz = None if previous_z is None else finite_vector(previous_z, 3, "previous_z")  # used as given (bits kept)
+    if pz is not None and not np.abs(pz).max() > 0:
+        raise InvalidInputError("previous_z must be a non-zero vector (the previous pose's z-axis)")
     d = finite_scalar(standoff_m, "standoff_m")
     R = _frames(y[None], g, pz)[0]
     return Pose.from_rotation(s - d * y, Rotation.from_matrix(R))
@@ -375,10 +387,7 @@ def object_trajectory(
         raise InvalidInputError(f"step_m and step_deg must be > 0, got {step_m!r} and {step_deg!r}")
     if not 0 <= clearance <= 1.0:
         raise InvalidInputError(f"clearance_m must be in [0, 1] m, got {clearance_m!r}")
-    g = finite_vector(up, 3, "up")
-    if not np.linalg.norm(g) > 0:
-        raise InvalidInputError("up must be a non-zero vector")
-    g = g / np.linalg.norm(g)
+    g = _unit_vector(up, "up")
     arr = WhiskerArray.thesis() if array is None else array
     if not isinstance(arr, WhiskerArray):
         raise InvalidInputError(f"array must be a WhiskerArray, got {type(arr).__name__}")
