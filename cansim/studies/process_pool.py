@@ -24,10 +24,8 @@ R = TypeVar("R")
 
 def _one_numba_thread() -> None:
     """Worker initialiser: this process's parallel kernels on one thread."""
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numba is a core dependency
-        return
+    import numba
+
     numba.set_num_threads(1)
 
 
