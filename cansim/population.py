@@ -117,6 +117,7 @@ class Population:
         self._backend = get_backend(backend)
         self._a = np.zeros(self.shape, dtype=dt)
         self._spare = np.zeros(self.shape, dtype=dt)
+        self._regions = self._new_regions()
         self.reset_cell([a.size // 2 for a in axes])
         self._last_decoded: Optional[np.ndarray] = None
 
@@ -249,6 +250,25 @@ class Population:
     def set_backend(self, backend: str | Backend) -> None:
         """Switch backend; the activity is kept."""
         self._backend = get_backend(backend)
+        self._regions = self._new_regions()
+
+    def _new_regions(self) -> Optional[np.ndarray]:
+        """Where the two grids can be non-zero, for a backend whose step takes it
+        (``regions`` of :meth:`cansim.backends.numba_backend.NumbaBackend.step`): row 0 the
+        activity's region, row 1 the spare grid's, row 2 the step's result; each per axis an
+        arc (starts; lengths). Starts as the whole grid (not known); None for other backends."""
+        if not getattr(self._backend, "tracks_regions", False):
+            return None
+        r = np.zeros((3, 2, self.ndim), dtype=np.int64)
+        r[:, 1] = self.shape
+        return r
+
+    def _forget_regions(self) -> None:
+        """The grids were written by something that does not report where: the whole grid."""
+        r = self._regions
+        if r is not None:
+            r[:2, 0] = 0
+            r[:2, 1] = self.shape
 
     @property
     def activity(self) -> np.ndarray:
@@ -266,6 +286,7 @@ class Population:
             raise InvalidInputError("activity must be >= 0")
         self._a = arr.astype(self._dtype, copy=True, order="C")
         self._last_decoded = None
+        self._forget_regions()
 
     @property
     def total(self) -> float:
@@ -286,6 +307,7 @@ class Population:
         a[idx] = 1.0
         self._a = a
         self._last_decoded = None
+        self._forget_regions()
 
     def reset_gaussian(self, center: Sequence[float], sigma: float | Sequence[float] = 1.0) -> None:
         """Set a periodic Gaussian packet at fractional cell ``center``, normalised to sum 1.
@@ -305,6 +327,7 @@ class Population:
             a = np.multiply.outer(a, np.exp(-(d * d) / (2.0 * s[ax] ** 2)))
         self._a = (a / a.sum()).astype(self._dtype)
         self._last_decoded = None
+        self._forget_regions()
 
     # ----------------------------------------------------------------- dynamics
     def _commit(self, new: np.ndarray) -> None:
@@ -312,6 +335,7 @@ class Population:
             self._spare = self._a
         self._a = new
         self._last_decoded = None
+        self._forget_regions()
 
     def inject(self, index: IndexLike, energy: float) -> None:
         """Add ``energy`` (>= 0) to one cell (wrapped index)."""
@@ -338,6 +362,7 @@ class Population:
         """
         new = self._backend.dynamics(self._a, self._exc, self._inh, self._phi, out=self._spare)
         if new is None:
+            self._forget_regions()  # the spare grid may have been written
             raise ZeroActivityError(
                 "all activity fell below the global inhibition threshold; state left unchanged "
                 "(re-seed with reset_cell/reset_gaussian or inject energy)"
@@ -460,25 +485,33 @@ class Population:
         fi = vals = None
         if injection is not None:
             fi, vals = checked_injection(*injection, self._size)
-        new, decoded = self._backend.step(
-            self._a,
-            flat_index=fi,
-            values=vals,
-            exc=self._exc,
-            inh=self._inh,
-            phi=self._phi,
-            shift_axes=ms.shift_axes,
-            cond_shifts=ms.cond_shifts,
-            uniform_shifts=ms.uniform,
-            window=self._window,
-            out=self._spare,
-        )
+        regions = self._regions
+        if regions is None:
+            new, decoded = self._backend.step(
+                self._a, flat_index=fi, values=vals, exc=self._exc, inh=self._inh, phi=self._phi,
+                shift_axes=ms.shift_axes, cond_shifts=ms.cond_shifts, uniform_shifts=ms.uniform,
+                window=self._window, out=self._spare,
+            )
+        else:
+            new, decoded = self._backend.step(
+                self._a, flat_index=fi, values=vals, exc=self._exc, inh=self._inh, phi=self._phi,
+                shift_axes=ms.shift_axes, cond_shifts=ms.cond_shifts, uniform_shifts=ms.uniform,
+                window=self._window, out=self._spare, regions=regions,
+            )
         if new is None:
+            if regions is not None:  # the spare grid may have been written
+                regions[1, 0] = 0
+                regions[1, 1] = self.shape
             raise ZeroActivityError(
                 "all activity fell below the global inhibition threshold; state left unchanged "
                 "(re-seed with reset_cell/reset_gaussian or inject energy)"
             )
-        self._commit(new)
+        if regions is not None and new is self._spare:  # the grids swap, and so do their regions
+            self._spare, self._a = self._a, new
+            regions[1] = regions[0]
+            regions[0] = regions[2]
+        else:
+            self._commit(new)
         self._last_decoded = decoded
         return decoded.copy()
 
@@ -501,6 +534,10 @@ class Population:
 
         scratch = copy.copy(self)  # shares the backend (its kernel caches), not the activity
         scratch._a, scratch._spare = self._a.copy(), np.empty_like(self._spare)
+        scratch._regions = None if self._regions is None else self._regions.copy()
+        if scratch._regions is not None:
+            scratch._regions[1, 0] = 0  # the scratch spare grid is uninitialised
+            scratch._regions[1, 1] = self.shape
         with WarmUp(f"population {'x'.join(map(str, self.shape))}", progress=progress) as w:
             w.stage("step")
             scratch.step(velocity, omega, dt, injection=(np.zeros(1, np.int64), np.ones(1)))
@@ -583,6 +620,7 @@ class Population:
             new = new.copy()
         self._a = np.ascontiguousarray(new, dtype=self._dtype)
         self._last_decoded = res.decoded[-1].copy()
+        self._forget_regions()
         if record_activity:
             return res.decoded, res.history
         return res.decoded

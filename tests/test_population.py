@@ -480,3 +480,76 @@ def test_a_grid_over_the_cell_limit_is_refused_before_allocating(make):
 
     with pytest.raises(InvalidInputError, match=str(MAX_CELLS)):
         make()
+
+
+_OPS = st.lists(
+    st.tuples(st.sampled_from(["step", "step", "step", "inject", "set", "gauss", "dynamics", "shift", "warm_up",
+                               "run", "numpy step"]),
+              st.integers(0, 2**31 - 1)),
+    min_size=1, max_size=12,
+)
+
+
+@settings(max_examples=25, deadline=None)
+@given(ops=_OPS)
+def test_the_regions_a_population_keeps_give_the_same_bits_through_any_sequence(ops):
+    """The numba step is told where the two grids of the population can be non-zero
+    (``Population._regions``); whatever wrote them last (a step, an injection, a reset,
+    a run, another backend), every result equals the same population's without them."""
+    pytest.importorskip("numba")
+    tracked = Population.openratslam(21, 36, 0.25, backend="numba")
+    plain = Population.openratslam(21, 36, 0.25, backend="numba")
+    plain._regions = None
+    assert tracked._regions is not None
+    narrowed = False
+    for op, seed in [("step", 0), *ops, ("step", 1), ("step", 2)]:
+        rng = np.random.default_rng(seed)
+        v, w = float(rng.uniform(-2.0, 2.0)), float(rng.uniform(-1.0, 1.0))  # up to 8 cells, 10 deg a step
+        idx = rng.integers(0, tracked.size, int(rng.integers(1, 4)))
+        vals = rng.uniform(0.0, 0.3, len(idx))
+        cell = [int(rng.integers(n)) for n in tracked.shape]
+        inj = (idx, vals) if rng.random() < 0.5 else None
+        for pop in (tracked, plain):
+            if op == "step":
+                pop.step(v, w, 1.0, injection=inj)
+            elif op == "inject":
+                pop.inject(cell, 0.4)
+            elif op == "set":
+                g = np.zeros(pop.shape)
+                g[tuple(cell)] = 1.0
+                pop.activity = g
+            elif op == "gauss":
+                pop.reset_gaussian(cell, 1.5)
+            elif op == "dynamics":
+                pop.dynamics()
+            elif op == "shift":
+                pop.shift([v * 3, w * 3, 2.5])
+            elif op == "warm_up":
+                pop.warm_up(v, w)
+            elif op == "run":
+                pop.run([v] * 3, [w] * 3, [1.0] * 3, [(idx, vals), None, None])
+            else:  # a step on another backend, then back
+                pop.set_backend("numpy")
+                pop.step(v, w, 1.0)
+                pop.set_backend("numba")
+        np.testing.assert_array_equal(tracked.activity, plain.activity)
+        np.testing.assert_array_equal(tracked.decode(), plain.decode())
+        narrowed |= bool(np.any(tracked._regions[0, 1] < tracked.shape))
+    assert narrowed  # the steps did run on the regions
+
+
+def test_a_warm_up_between_steps_leaves_the_regions_true():
+    """warm_up steps a scratch copy; the population's own grids (and where they are
+    non-zero) must not follow it."""
+    pytest.importorskip("numba")
+    tracked = Population.openratslam(21, 36, 0.25, backend="numba")
+    plain = Population.openratslam(21, 36, 0.25, backend="numba")
+    plain._regions = None
+    for pop in (tracked, plain):
+        for _ in range(5):
+            pop.step(1.0, 0.2, 1.0)
+        pop.warm_up(2.0, 0.5)  # the scratch step lands elsewhere than the next real one
+        for _ in range(3):
+            pop.step(1.0, 0.2, 1.0)
+    assert np.any(tracked._regions[0, 1] < tracked.shape)
+    np.testing.assert_array_equal(tracked.activity, plain.activity)

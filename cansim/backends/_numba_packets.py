@@ -32,7 +32,7 @@ from numba import njit
 from cansim.backends._numba_kernels import (
     STATUS_COLLAPSE, STATUS_OK, _advance, _offset_tables, arc_from_occupancy, box_argmax, box_inject_excite_inhibit,
     box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
-    decode_box, grow_arc, mark_occupancy, no_trig, paste, place, scatter, split_shift, trig_table, unravel,
+    decode_box, grow_arc, is_full, mark_occupancy, no_trig, paste, place, scatter, split_shift, trig_table, unravel,
 )
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
@@ -577,6 +577,47 @@ def multi_step(data, src_off, src_s, src_m, nsrc, n, k_cl, cl_s, cl_m, union_occ
 
 
 @njit(**_OPTS)
+def _clear(out, s, m, n):
+    """Zero the region ``(s, m)`` (arc starts; lengths) of the flat grid ``out``; all of it when the
+    region is the whole grid."""
+    if is_full(m, n):
+        out[:] = 0
+        return
+    d = n.shape[0]
+    zero = np.zeros(d, np.int64)
+    off = _offset_tables(zero, n, s, m, n)  # region index -> grid offset
+    last = d - 1
+    ml = m[last]
+    if ml == 0:
+        return
+    nrows = box_size(m) // ml
+    idx = np.zeros(d, np.int64)
+    for r in range(nrows):
+        b = 0
+        for k in range(last):
+            b += off[k, idx[k]]
+        for p in range(ml):
+            out[b + off[last, p]] = 0.0
+        _advance(idx, m, last - 1)
+
+
+@njit(**_OPTS)
+def _regions_union(bs, bm, nb, n, res):
+    """The smallest region (per axis the smallest arc, :func:`arc_from_occupancy`) holding the
+    ``nb`` boxes ``(bs[i], bm[i])``: ``res[0]`` its arc starts, ``res[1]`` its lengths."""
+    d = n.shape[0]
+    occ = np.zeros(n.max(), np.uint8)
+    for k in range(d):
+        occ[:] = 0
+        for i in range(nb):
+            for p in range(bm[i, k]):
+                occ[(bs[i, k] + p) % n[k]] = 1
+        a0, l0 = arc_from_occupancy(occ, n[k])
+        res[0, k] = a0
+        res[1, k] = l0
+
+
+@njit(**_OPTS)
 def packets_step(
     a, a_bits, out, ws, n,
     inj_idx, inj_val,
@@ -585,28 +626,49 @@ def packets_step(
     do_uni, uni,
     window, decoded,
     par_work, nthreads,
+    boxes, st, st_bits,
 ):
     """The fused step of :func:`cansim.backends._numba_kernels.pipeline` (dynamics and decoding on)
     with one box per packet; the same arguments and the same bits. One packet (or packets too
-    close to keep apart) runs the one-box step itself."""
+    close to keep apart) runs the one-box step itself.
+
+    ``boxes`` (int64, shape (3, 2, d)) lets a caller that knows where its grids can be
+    non-zero skip the passes over the whole grid: ``boxes[0]`` the region (arc starts;
+    lengths) outside which every cell of ``a`` is zero, ``boxes[1]`` the same of ``out``'s
+    current content (lengths ``n``: not known, the whole grid). On success ``boxes[2]`` is
+    written: a region outside which every cell of the result is zero. ``st`` (``a``'s dtype,
+    at least ``a.size`` cells; ``st_bits`` the same memory viewed as ``a_bits``) holds ``a``'s
+    region while the step reads it (a region of more than half the grid is read in ``a``). The cells read and the sums are the same either way:
+    the same bits as with whole-grid regions, as long as the regions given are true.
+    """
     d = n.shape[0]
-    size = a.shape[0]
     gap = np.empty(d, np.int64)
     spread = np.empty(d, np.int64)
     zero = np.zeros(d, np.int64)
-    src_off = np.array([0, size], np.int64)
-    src_s = zero.reshape(1, d)
-    src_m = n.copy().reshape(1, d)
+    s0 = boxes[0, 0].copy()
+    m0 = boxes[0, 1].copy()
+    if 2 * box_size(m0) > a.shape[0]:  # most of the grid: read a itself rather than a copy of it
+        s0[:] = 0
+        m0[:] = n
+        data = a
+        bits = a_bits
+    else:  # only a's region can be non-zero: copy it out and read that
+        crop(a, zero, n, st, s0, m0, n)
+        data = st
+        bits = st_bits
+    src_off = np.array([0, box_size(m0)], np.int64)
+    src_s = s0.reshape(1, d)
+    src_m = m0.reshape(1, d)
     cl_s = np.empty((MAX_ITEMS, d), np.int64)
     cl_m = np.empty((MAX_ITEMS, d), np.int64)
     union_occ = np.zeros((d, n.max()), np.uint8)
     least_gaps(exc_w, inh_w, gap)
-    if _one_packet(a_bits, zero, n, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    if _one_packet(bits, s0, m0, n, inj_idx, gap, cl_s, cl_m, union_occ):
         k_cl = 1
     else:
         separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
         union_occ[:] = 0
-        k_cl = plan_packets(a_bits, src_off, src_s, src_m, np.int64(1), n, inj_idx, gap, cl_s, cl_m, union_occ)
+        k_cl = plan_packets(bits, src_off, src_s, src_m, np.int64(1), n, inj_idx, gap, cl_s, cl_m, union_occ)
     if k_cl == 0:
         return STATUS_COLLAPSE
     proto = out[:1].copy()
@@ -614,16 +676,17 @@ def packets_step(
         res_off = np.empty(k_cl, np.int64)
         res_s = np.empty((k_cl, d), np.int64)
         res_m = np.empty((k_cl, d), np.int64)
-        status, nres = multi_step(a, src_off, src_s, src_m, np.int64(1), n, k_cl, cl_s, cl_m, union_occ, spread,
+        status, nres = multi_step(data, src_off, src_s, src_m, np.int64(1), n, k_cl, cl_s, cl_m, union_occ, spread,
                                   inj_idx, inj_val, exc, exc_w, inh, inh_w, phi,
                                   do_cond, cmask, cond_tab, do_uni, uni, proto, ws, par_work, nthreads,
                                   res_off, res_s, res_m)
         if status >= 0:
             if status != STATUS_OK:
                 return status
-            out[:] = 0
+            _clear(out, boxes[1, 0], boxes[1, 1], n)
             for i in range(nres):
                 place(ws[res_off[i]:], res_s[i], res_m[i], out, n)
+            _regions_union(res_s, res_m, nres, n, boxes[2])
             centre = unravel(argmax_boxes(ws, res_off, res_s, res_m, nres, n), n)
             decode_boxes(ws, res_off, res_s, res_m, nres, n, centre, window, decoded, no_trig())
             return STATUS_OK
@@ -632,15 +695,22 @@ def packets_step(
             cl_s[0, k] = a0
             cl_m[0, k] = l0
     # one box: the step of pipeline()
+    size = a.shape[0]
     bufs = (ws[:size], ws[size:2 * size], ws[2 * size:3 * size])
     s = cl_s[0].copy()
     m = cl_m[0].copy()
-    crop(a, zero, n, bufs[0], s, m, n)
+    crop(data, s0, m0, bufs[0], s, m, n)
     status, cur = box_step(bufs, np.int64(0), s, m, n, inj_idx, inj_val, np.bool_(True), exc, exc_w, inh, inh_w, phi,
                            do_cond, cmask, cond_tab, do_uni, uni, proto, np.bool_(False), par_work, nthreads)
     if status != STATUS_OK:
         return status
-    scatter(bufs[cur], s, m, out, n)
+    if is_full(m, n):
+        scatter(bufs[cur], s, m, out, n)
+    else:
+        _clear(out, boxes[1, 0], boxes[1, 1], n)
+        place(bufs[cur], s, m, out, n)
+    boxes[2, 0] = s
+    boxes[2, 1] = m
     decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, no_trig())
     return STATUS_OK
 

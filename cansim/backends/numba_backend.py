@@ -122,10 +122,27 @@ class NumbaBackend(Backend):
             self._masks[key] = arr
         return arr
 
-    def _run(self, a, out, *, inj=None, dyn=None, cond=None, uniform=None, window=None):
-        """One pipeline call; returns (out or None, decoded or None)."""
+    def _staging(self, size: int, dtype: np.dtype) -> np.ndarray:
+        st = getattr(self._local, "st", None)
+        if st is None or st.shape[0] < size or st.dtype != dtype:
+            st = np.empty(size, dtype=dtype)
+            self._local.st = st
+        return st
+
+    def _full_regions(self, n: np.ndarray) -> np.ndarray:
+        r = np.zeros((3, 2, n.shape[0]), dtype=np.int64)
+        r[:, 1] = n
+        return r
+
+    def _run(self, a, out, *, inj=None, dyn=None, cond=None, uniform=None, window=None, regions=None):
+        """One pipeline call; returns (out or None, decoded or None).
+
+        ``regions`` (int64, shape (3, 2, ndim), see :meth:`step`) is used by the fused step
+        on one box per packet; every other path writes the whole grid as the result's region.
+        """
         if not a.flags.c_contiguous:
             a = np.ascontiguousarray(a)
+            regions = None
         if out is not None and not out.flags.c_contiguous:
             res, dec = self._run(a, None, inj=inj, dyn=dyn, cond=cond, uniform=uniform, window=window)
             if res is not None:
@@ -155,6 +172,9 @@ class NumbaBackend(Backend):
             uni = np.ascontiguousarray(uniform, dtype=np.float64).reshape(-1)
         decoded = np.empty(a.ndim, dtype=np.float64) if window is not None else _NO_DECODE
         if dyn is not None and window is not None and not self._dense:  # the fused step: one box per packet
+            if regions is None:
+                regions = self._full_regions(n)
+            st = self._staging(flat.shape[0], flat.dtype)
             status = _p.packets_step(
                 flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
                 fi, vals,
@@ -163,10 +183,14 @@ class NumbaBackend(Backend):
                 uni.shape[0] > 0, uni,
                 int(window), decoded,
                 self._par_work, self._nthreads(),
+                regions, st, st.view(bits.dtype),
             )
             if status != _k.STATUS_OK:
                 return None, None
             return out, decoded
+        if regions is not None:
+            regions[2, 0] = 0
+            regions[2, 1] = n
         status = _k.pipeline(
             flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
             fi, vals,
@@ -208,20 +232,38 @@ class NumbaBackend(Backend):
         _k.decode_grid(a.reshape(-1), self._shape(a.shape), int(window), res)
         return res
 
+    #: :meth:`step` takes ``regions``: where the activity can be non-zero (see there)
+    tracks_regions = True
+
     def step(self, a, *, flat_index, values, exc, inh, phi, shift_axes, cond_shifts,
-             uniform_shifts, window, out=None):
-        """Fused step (Alg 3-5, OpenRatSLAM's step order): one compiled call for injection to decoding."""
+             uniform_shifts, window, out=None, regions=None):
+        """Fused step (Alg 3-5, OpenRatSLAM's step order): one compiled call for injection to decoding.
+
+        ``regions`` (optional; int64, shape (3, 2, ndim)) spares the passes over the whole
+        grid when the caller knows where its arrays can be non-zero: ``regions[0]`` is a
+        region (per axis an arc: row 0 the starts, row 1 the lengths, in cells) outside
+        which every cell of ``a`` is zero, ``regions[1]`` the same of ``out``'s current
+        content (lengths equal to the shape: not known). A step that returns an activity
+        writes into ``regions[2]`` a region outside which the result is zero (the whole
+        grid where the kernel does not know better). Same bits as without, as long as the
+        regions given are true; :class:`cansim.population.Population` keeps them for its two
+        grids.
+        """
         if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
-            return self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
-        if self._small and a.flags.c_contiguous:
-            small = self._small_plan(a.shape, exc, inh)
-            if small is not None:
-                return self._small_step(a, small, flat_index, values, phi, shift_axes, cond_shifts,
-                                        uniform_shifts, window, out)
-        inj = _injection_arrays(flat_index, values)
-        cond = (shift_axes, cond_shifts) if cond_shifts is not None else None
-        # zero shifts (uniform or per condition) are skipped inside the kernel
-        return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window)
+            res = self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
+        elif self._small and a.flags.c_contiguous and (small := self._small_plan(a.shape, exc, inh)) is not None:
+            res = self._small_step(a, small, flat_index, values, phi, shift_axes, cond_shifts,
+                                   uniform_shifts, window, out)
+        else:
+            inj = _injection_arrays(flat_index, values)
+            cond = (shift_axes, cond_shifts) if cond_shifts is not None else None
+            # zero shifts (uniform or per condition) are skipped inside the kernel
+            return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window,
+                             regions=regions)
+        if regions is not None:
+            regions[2, 0] = 0
+            regions[2, 1] = a.shape
+        return res
 
     def run(self, a, inputs: RunInputs, *, exc, inh, phi, window, record_activity=False) -> RunResult:
         """T fused steps in one compiled call (:mod:`cansim.backends._numba_run`).
