@@ -491,14 +491,14 @@ _OPS = st.lists(
 
 
 @settings(max_examples=25, deadline=None)
-@given(ops=_OPS)
-def test_the_regions_a_population_keeps_give_the_same_bits_through_any_sequence(ops):
+@given(ops=_OPS, dtype=st.sampled_from([np.float32, np.float64]))
+def test_the_regions_a_population_keeps_give_the_same_bits_through_any_sequence(ops, dtype):
     """The numba step is told where the two grids of the population can be non-zero
     (``Population._regions``); whatever wrote them last (a step, an injection, a reset,
     a run, another backend), every result equals the same population's without them."""
     pytest.importorskip("numba")
-    tracked = Population.openratslam(21, 36, 0.25, backend="numba")
-    plain = Population.openratslam(21, 36, 0.25, backend="numba")
+    tracked = Population.openratslam(21, 36, 0.25, backend="numba", dtype=dtype)
+    plain = Population.openratslam(21, 36, 0.25, backend="numba", dtype=dtype)
     plain._regions = None
     assert tracked._regions is not None
     narrowed = False
