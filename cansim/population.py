@@ -254,21 +254,17 @@ class Population:
 
     def _new_regions(self) -> Optional[np.ndarray]:
         """Where the two grids can be non-zero, for a backend whose step takes it
-        (``regions`` of :meth:`cansim.backends.numba_backend.NumbaBackend.step`): row 0 the
-        activity's region, row 1 the spare grid's, row 2 the step's result; each per axis an
-        arc (starts; lengths). Starts as the whole grid (not known); None for other backends."""
+        (``regions`` of :meth:`cansim.backends.numba_backend.NumbaBackend.step`): list 0 the
+        activity's boxes, list 1 the spare grid's, list 2 the step's result. Starts as the
+        whole grid (not known); None for other backends."""
         if not getattr(self._backend, "tracks_regions", False):
             return None
-        r = np.zeros((3, 2, self.ndim), dtype=np.int64)
-        r[:, 1] = self.shape
-        return r
+        return self._backend.new_regions(self.shape)
 
     def _forget_regions(self) -> None:
         """The grids were written by something that does not report where: the whole grid."""
-        r = self._regions
-        if r is not None:
-            r[:2, 0] = 0
-            r[:2, 1] = self.shape
+        if self._regions is not None:
+            self._backend.forget_regions(self._regions, slice(0, 2), self.shape)
 
     @property
     def activity(self) -> np.ndarray:
@@ -500,8 +496,7 @@ class Population:
             )
         if new is None:
             if regions is not None:  # the spare grid may have been written
-                regions[1, 0] = 0
-                regions[1, 1] = self.shape
+                self._backend.forget_regions(regions, 1, self.shape)
             raise ZeroActivityError(
                 "all activity fell below the global inhibition threshold; state left unchanged "
                 "(re-seed with reset_cell/reset_gaussian or inject energy)"
@@ -535,9 +530,8 @@ class Population:
         scratch = copy.copy(self)  # shares the backend (its kernel caches), not the activity
         scratch._a, scratch._spare = self._a.copy(), np.empty_like(self._spare)
         scratch._regions = None if self._regions is None else self._regions.copy()
-        if scratch._regions is not None:
-            scratch._regions[1, 0] = 0  # the scratch spare grid is uninitialised
-            scratch._regions[1, 1] = self.shape
+        if scratch._regions is not None:  # the scratch spare grid is uninitialised
+            scratch._backend.forget_regions(scratch._regions, 1, self.shape)
         with WarmUp(f"population {'x'.join(map(str, self.shape))}", progress=progress) as w:
             w.stage("step")
             scratch.step(velocity, omega, dt, injection=(np.zeros(1, np.int64), np.ones(1)))

@@ -248,7 +248,7 @@ def test_random_packets_per_packet_step_equals_one_box_step(shape, seed, n_packe
 
 # ------------------------------------------------------------ regions (where a grid can be non-zero)
 def _region_mask(shape, starts, lengths):
-    """Boolean grid: the cells of the region (per axis the arc ``start .. start + length - 1``, wrapping)."""
+    """Boolean grid: the cells of one box (per axis the arc ``start .. start + length - 1``, wrapping)."""
     mask = np.ones(shape, dtype=bool)
     for k, (n, s0, m0) in enumerate(zip(shape, starts, lengths)):
         on = np.zeros(n, dtype=bool)
@@ -257,11 +257,23 @@ def _region_mask(shape, starts, lengths):
     return mask
 
 
-def _random_region(shape, rng):
-    """Per axis a random arc (sometimes the whole axis)."""
-    starts = [int(rng.integers(n)) for n in shape]
-    lengths = [n if rng.random() < 0.2 else int(rng.integers(1, n + 1)) for n in shape]
-    return starts, lengths
+def _list_mask(shape, boxes):
+    """Boolean grid: the cells of a region list (shape (R, 2, d); boxes of no cells unused)."""
+    mask = np.zeros(shape, dtype=bool)
+    for b in boxes:
+        if np.prod(b[1]) > 0:
+            mask |= _region_mask(shape, b[0], b[1])
+    return mask
+
+
+def _random_list(shape, rng):
+    """A region list of 1-3 random boxes (per axis a random arc, sometimes the whole axis)."""
+    r = NumbaBackend.new_regions(shape)[0]
+    r[0, 1] = 0
+    for j in range(int(rng.integers(1, 4))):
+        r[j, 0] = [int(rng.integers(n)) for n in shape]
+        r[j, 1] = [n if rng.random() < 0.2 else int(rng.integers(1, n + 1)) for n in shape]
+    return r
 
 
 @settings(max_examples=40, deadline=None)
@@ -272,22 +284,22 @@ def _random_region(shape, rng):
     dtype=st.sampled_from([np.float32, np.float64]),
 )
 def test_a_step_told_where_the_grids_are_non_zero_gives_the_same_bits(shape, seed, n_packets, dtype):
-    """``regions`` (the input's and the output buffer's non-zero regions) spare the whole-grid
-    passes; the result equals the one-box step's bit for bit, and the reported region holds
-    every non-zero cell of it."""
+    """``regions`` (boxes holding the input's and the output buffer's non-zero cells) spare
+    the whole-grid passes; the result equals the one-box step's bit for bit, and the boxes
+    reported hold every non-zero cell of it."""
     rng = np.random.default_rng(seed)
     centres = [tuple(int(rng.integers(n)) for n in shape) for _ in range(n_packets)]
-    a_starts, a_lengths = _random_region(shape, rng)
+    regions = NumbaBackend.new_regions(shape)
+    regions[0] = _random_list(shape, rng)
+    regions[1] = _random_list(shape, rng)
     a = _packets(shape, centres, dtype, half=int(rng.integers(0, 3)), seed=seed)
-    a[~_region_mask(shape, a_starts, a_lengths)] = 0  # a is zero outside its region
+    a[~_list_mask(shape, regions[0])] = 0  # a is zero outside its boxes
     if not a.any():
-        a[tuple(a_starts)] = 1
+        a[tuple(regions[0, 0, 0])] = 1
     kw = _step_kwargs(shape, rng, scale=float(rng.choice([0.3, 1.0])))
-    o_starts, o_lengths = _random_region(shape, rng)
     out = np.zeros(shape, dtype=dtype)
-    o_mask = _region_mask(shape, o_starts, o_lengths)
-    out[o_mask] = rng.uniform(0.0, 1.0, int(o_mask.sum()))  # a previous grid's leftovers, inside its region
-    regions = np.array([[a_starts, a_lengths], [o_starts, o_lengths], [[0] * len(shape), shape]], dtype=np.int64)
+    o_mask = _list_mask(shape, regions[1])
+    out[o_mask] = rng.uniform(0.0, 1.0, int(o_mask.sum()))  # a previous grid's leftovers, inside its boxes
     want_a, want_d = _one_box_step(a, kw)
     got_a, got_d = NumbaBackend().step(a, out=out, regions=regions, **kw)
     if want_a is None:
@@ -296,26 +308,29 @@ def test_a_step_told_where_the_grids_are_non_zero_gives_the_same_bits(shape, see
     assert got_a is out
     np.testing.assert_array_equal(got_a, want_a)
     np.testing.assert_array_equal(got_d, want_d)
-    assert not got_a[~_region_mask(shape, regions[2, 0], regions[2, 1])].any()
+    assert not got_a[~_list_mask(shape, regions[2])].any()
 
 
 @pytest.mark.parametrize("layout", ["three far apart, 61x61x36", "two on 21x21x36, apart on theta"])
 def test_a_step_reads_only_the_region_it_is_told(layout):
-    """The region is used, not checked: a packet left outside the input's region is not
-    stepped, and an output buffer's leftovers outside its region stay (so the equality
-    above is a test of the region path, and a caller must give true regions)."""
-    shape, centres, _ = LAYOUTS[layout]
+    """The regions are used, not checked: a packet left outside the input's boxes is not
+    stepped, and an output buffer's leftovers outside its boxes stay (so the equality above
+    is a test of the region path, and a caller must give true regions); the result's
+    boxes are one per packet."""
+    shape, centres, n_boxes = LAYOUTS[layout]
     a = _packets(shape, centres, np.float64)
     kw = _step_kwargs(shape, np.random.default_rng(1), inject=False)
-    c = centres[0]
-    region = np.array([[[ci - 2 for ci in c], [5] * len(shape)], [[0] * 3, shape], [[0] * 3, shape]], np.int64)
-    region[0, 0] %= np.array(shape)
-    got, _ = NumbaBackend().step(a, regions=region, **kw)
-    whole, _ = NumbaBackend().step(a, **kw)
+    regions = NumbaBackend.new_regions(shape)
+    regions[0, 0] = [[(ci - 2) % n for ci, n in zip(centres[0], shape)], [5] * len(shape)]
+    got, _ = NumbaBackend().step(a, regions=regions, **kw)
+    regions = NumbaBackend.new_regions(shape)
+    whole, _ = NumbaBackend().step(a, regions=regions, **kw)
+    assert np.count_nonzero(np.prod(regions[2, :, 1], axis=1)) == n_boxes
     assert got.sum() == pytest.approx(1.0) and whole.sum() == pytest.approx(1.0)
     far = _region_mask(shape, [(ci - 8) % n for ci, n in zip(centres[1], shape)], [17] * 3)
     assert whole[far].sum() > 0.1 and not got[far].any()
     out = np.full(shape, 7.0)
-    region = np.array([[[0] * 3, shape], [[0] * 3, [1, 1, 1]], [[0] * 3, shape]], np.int64)
-    got, _ = NumbaBackend().step(a, out=out, regions=region, **kw)
+    regions = NumbaBackend.new_regions(shape)
+    regions[1, 0, 1] = 1
+    got, _ = NumbaBackend().step(a, out=out, regions=regions, **kw)
     assert np.count_nonzero(got == 7.0) > 0.9 * got.size

@@ -44,6 +44,10 @@ _OPTS = dict(cache=True, fastmath=False, nogil=True)
 #: runs on one box holding them all (the one-box step).
 MAX_ITEMS = 32
 
+#: Boxes a region list of :func:`packets_step` holds (a grid's non-zero cells, one box per
+#: packet); more packets are held by one box round them all.
+MAX_REGIONS = 8
+
 
 # ------------------------------------------------------------------------ margins
 @njit(**_OPTS)
@@ -602,10 +606,28 @@ def _clear(out, s, m, n):
 
 
 @njit(**_OPTS)
-def _regions_union(bs, bm, nb, n, res):
-    """The smallest region (per axis the smallest arc, :func:`arc_from_occupancy`) holding the
-    ``nb`` boxes ``(bs[i], bm[i])``: ``res[0]`` its arc starts, ``res[1]`` its lengths."""
+def _clear_regions(out, reg, n):
+    """Zero the boxes of the region list ``reg`` (shape (R, 2, d), see :func:`packets_step`) in
+    the flat grid ``out``."""
+    for j in range(reg.shape[0]):
+        if box_size(reg[j, 1]) > 0:
+            _clear(out, reg[j, 0], reg[j, 1], n)
+            if is_full(reg[j, 1], n):
+                return
+
+
+@njit(**_OPTS)
+def _set_regions(reg, bs, bm, nb, n):
+    """Write the ``nb`` boxes ``(bs[i], bm[i])`` as the region list ``reg`` (shape (R, 2, d)); more
+    than R boxes become one: per axis the smallest arc holding them all."""
     d = n.shape[0]
+    nr = reg.shape[0]
+    reg[:, 1, :] = 0
+    if nb <= nr:
+        for i in range(nb):
+            reg[i, 0] = bs[i]
+            reg[i, 1] = bm[i]
+        return
     occ = np.zeros(n.max(), np.uint8)
     for k in range(d):
         occ[:] = 0
@@ -613,8 +635,8 @@ def _regions_union(bs, bm, nb, n, res):
             for p in range(bm[i, k]):
                 occ[(bs[i, k] + p) % n[k]] = 1
         a0, l0 = arc_from_occupancy(occ, n[k])
-        res[0, k] = a0
-        res[1, k] = l0
+        reg[0, 0, k] = a0
+        reg[0, 1, k] = l0
 
 
 @njit(**_OPTS)
@@ -626,49 +648,67 @@ def packets_step(
     do_uni, uni,
     window, decoded,
     par_work, nthreads,
-    boxes, st, st_bits,
+    regions, st, st_bits,
 ):
     """The fused step of :func:`cansim.backends._numba_kernels.pipeline` (dynamics and decoding on)
     with one box per packet; the same arguments and the same bits. One packet (or packets too
     close to keep apart) runs the one-box step itself.
 
-    ``boxes`` (int64, shape (3, 2, d)) lets a caller that knows where its grids can be
-    non-zero skip the passes over the whole grid: ``boxes[0]`` the region (arc starts;
-    lengths) outside which every cell of ``a`` is zero, ``boxes[1]`` the same of ``out``'s
-    current content (lengths ``n``: not known, the whole grid). On success ``boxes[2]`` is
-    written: a region outside which every cell of the result is zero. ``st`` (``a``'s dtype,
-    at least ``a.size`` cells; ``st_bits`` the same memory viewed as ``a_bits``) holds ``a``'s
-    region while the step reads it (a region of more than half the grid is read in ``a``). The cells read and the sums are the same either way:
-    the same bits as with whole-grid regions, as long as the regions given are true.
+    ``regions`` (int64, shape (3, R, 2, d)) lets a caller that knows where its grids can be
+    non-zero skip the passes over the whole grid. ``regions[i]`` is a list of up to R boxes
+    (box j: arc starts ``regions[i, j, 0]``, lengths ``regions[i, j, 1]``; a box of no cells
+    is an unused entry): ``regions[0]`` holds every non-zero cell of ``a``, ``regions[1]``
+    every non-zero cell of ``out``'s current content (a box of the whole grid: not known).
+    On success ``regions[2]`` is written: boxes holding every non-zero cell of the result
+    (one per packet; more packets than R: one box round them all). ``st`` (``a``'s dtype, at
+    least ``a.size`` cells; ``st_bits`` the same memory viewed as ``a_bits``) holds the
+    boxes of ``a`` while the step reads them (boxes of more than half the grid in all are
+    read in ``a`` itself). The cells read and the sums are the same either way: the same
+    bits as with the whole grid, as long as the regions given are true.
     """
     d = n.shape[0]
+    size = a.shape[0]
     gap = np.empty(d, np.int64)
     spread = np.empty(d, np.int64)
     zero = np.zeros(d, np.int64)
-    s0 = boxes[0, 0].copy()
-    m0 = boxes[0, 1].copy()
-    if 2 * box_size(m0) > a.shape[0]:  # most of the grid: read a itself rather than a copy of it
-        s0[:] = 0
-        m0[:] = n
+    nr = regions.shape[1]
+    # the input: a's boxes copied one after another into st, or a itself (one box, the grid)
+    src_off = np.zeros(nr + 1, np.int64)
+    src_s = np.zeros((nr, d), np.int64)
+    src_m = np.zeros((nr, d), np.int64)
+    nsrc = 0
+    whole = False
+    for j in range(nr):
+        bs = box_size(regions[0, j, 1])
+        if bs > 0:
+            src_s[nsrc] = regions[0, j, 0]
+            src_m[nsrc] = regions[0, j, 1]
+            src_off[nsrc + 1] = src_off[nsrc] + bs
+            nsrc += 1
+    if nsrc == 0 or 2 * src_off[nsrc] > size:
+        whole = True
+    if whole:  # most of the grid: read a itself rather than a copy of it
+        nsrc = 1
+        src_s[0] = zero
+        src_m[0] = n
+        src_off[1] = size
         data = a
         bits = a_bits
-    else:  # only a's region can be non-zero: copy it out and read that
-        crop(a, zero, n, st, s0, m0, n)
+    else:
+        for j in range(nsrc):
+            crop(a, zero, n, st[src_off[j]:src_off[j + 1]], src_s[j], src_m[j], n)
         data = st
         bits = st_bits
-    src_off = np.array([0, box_size(m0)], np.int64)
-    src_s = s0.reshape(1, d)
-    src_m = m0.reshape(1, d)
     cl_s = np.empty((MAX_ITEMS, d), np.int64)
     cl_m = np.empty((MAX_ITEMS, d), np.int64)
     union_occ = np.zeros((d, n.max()), np.uint8)
     least_gaps(exc_w, inh_w, gap)
-    if _one_packet(bits, s0, m0, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    if nsrc == 1 and _one_packet(bits, src_s[0], src_m[0], n, inj_idx, gap, cl_s, cl_m, union_occ):
         k_cl = 1
     else:
         separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
         union_occ[:] = 0
-        k_cl = plan_packets(bits, src_off, src_s, src_m, np.int64(1), n, inj_idx, gap, cl_s, cl_m, union_occ)
+        k_cl = plan_packets(bits, src_off, src_s, src_m, np.int64(nsrc), n, inj_idx, gap, cl_s, cl_m, union_occ)
     if k_cl == 0:
         return STATUS_COLLAPSE
     proto = out[:1].copy()
@@ -676,17 +716,17 @@ def packets_step(
         res_off = np.empty(k_cl, np.int64)
         res_s = np.empty((k_cl, d), np.int64)
         res_m = np.empty((k_cl, d), np.int64)
-        status, nres = multi_step(data, src_off, src_s, src_m, np.int64(1), n, k_cl, cl_s, cl_m, union_occ, spread,
-                                  inj_idx, inj_val, exc, exc_w, inh, inh_w, phi,
+        status, nres = multi_step(data, src_off, src_s, src_m, np.int64(nsrc), n, k_cl, cl_s, cl_m, union_occ,
+                                  spread, inj_idx, inj_val, exc, exc_w, inh, inh_w, phi,
                                   do_cond, cmask, cond_tab, do_uni, uni, proto, ws, par_work, nthreads,
                                   res_off, res_s, res_m)
         if status >= 0:
             if status != STATUS_OK:
                 return status
-            _clear(out, boxes[1, 0], boxes[1, 1], n)
+            _clear_regions(out, regions[1], n)
             for i in range(nres):
                 place(ws[res_off[i]:], res_s[i], res_m[i], out, n)
-            _regions_union(res_s, res_m, nres, n, boxes[2])
+            _set_regions(regions[2], res_s, res_m, nres, n)
             centre = unravel(argmax_boxes(ws, res_off, res_s, res_m, nres, n), n)
             decode_boxes(ws, res_off, res_s, res_m, nres, n, centre, window, decoded, no_trig())
             return STATUS_OK
@@ -695,11 +735,16 @@ def packets_step(
             cl_s[0, k] = a0
             cl_m[0, k] = l0
     # one box: the step of pipeline()
-    size = a.shape[0]
     bufs = (ws[:size], ws[size:2 * size], ws[2 * size:3 * size])
     s = cl_s[0].copy()
     m = cl_m[0].copy()
-    crop(data, s0, m0, bufs[0], s, m, n)
+    if nsrc == 1:
+        crop(data, src_s[0], src_m[0], bufs[0], s, m, n)
+    else:
+        b0 = bufs[0][:box_size(m)]
+        b0[:] = 0.0
+        for j in range(nsrc):
+            paste(data[src_off[j]:src_off[j + 1]], src_s[j], src_m[j], b0, s, m, n)
     status, cur = box_step(bufs, np.int64(0), s, m, n, inj_idx, inj_val, np.bool_(True), exc, exc_w, inh, inh_w, phi,
                            do_cond, cmask, cond_tab, do_uni, uni, proto, np.bool_(False), par_work, nthreads)
     if status != STATUS_OK:
@@ -707,10 +752,9 @@ def packets_step(
     if is_full(m, n):
         scatter(bufs[cur], s, m, out, n)
     else:
-        _clear(out, boxes[1, 0], boxes[1, 1], n)
+        _clear_regions(out, regions[1], n)
         place(bufs[cur], s, m, out, n)
-    boxes[2, 0] = s
-    boxes[2, 1] = m
+    _set_regions(regions[2], s.reshape(1, d), m.reshape(1, d), 1, n)
     decode_box(bufs[cur], s, m, n, unravel(box_argmax(bufs[cur], s, m, n), n), window, decoded, no_trig())
     return STATUS_OK
 

@@ -129,20 +129,38 @@ class NumbaBackend(Backend):
             self._local.st = st
         return st
 
-    def _full_regions(self, n: np.ndarray) -> np.ndarray:
-        r = np.zeros((3, 2, n.shape[0]), dtype=np.int64)
-        r[:, 1] = n
+    @staticmethod
+    def new_regions(shape: tuple[int, ...]) -> np.ndarray:
+        """A ``regions`` array for :meth:`step` on grids of ``shape``, every list the whole grid (not known).
+
+        Returns
+        -------
+        ndarray, int64, shape (3, R, 2, ndim)
+            Three lists of up to R = ``_numba_packets.MAX_REGIONS`` boxes (see :meth:`step`).
+        """
+        r = np.zeros((3, _p.MAX_REGIONS, 2, len(shape)), dtype=np.int64)
+        r[:, 0, 1] = shape
         return r
+
+    @staticmethod
+    def forget_regions(regions: np.ndarray, which: slice | int, shape: tuple[int, ...]) -> None:
+        """Set the lists ``regions[which]`` to the whole grid (nothing known)."""
+        r = regions[which]
+        r[..., 1, :] = 0
+        r[..., 0, :, :] = 0
+        r[..., 0, 1, :] = shape
 
     def _run(self, a, out, *, inj=None, dyn=None, cond=None, uniform=None, window=None, regions=None):
         """One pipeline call; returns (out or None, decoded or None).
 
-        ``regions`` (int64, shape (3, 2, ndim), see :meth:`step`) is used by the fused step
-        on one box per packet; every other path writes the whole grid as the result's region.
+        ``regions`` (see :meth:`step`) is used by the fused step on one box per packet; every
+        other path writes the whole grid as the result's region.
         """
+        if regions is not None and not (a.flags.c_contiguous and (out is None or out.flags.c_contiguous)):
+            self.forget_regions(regions, 2, a.shape)
+            regions = None
         if not a.flags.c_contiguous:
             a = np.ascontiguousarray(a)
-            regions = None
         if out is not None and not out.flags.c_contiguous:
             res, dec = self._run(a, None, inj=inj, dyn=dyn, cond=cond, uniform=uniform, window=window)
             if res is not None:
@@ -173,7 +191,7 @@ class NumbaBackend(Backend):
         decoded = np.empty(a.ndim, dtype=np.float64) if window is not None else _NO_DECODE
         if dyn is not None and window is not None and not self._dense:  # the fused step: one box per packet
             if regions is None:
-                regions = self._full_regions(n)
+                regions = self.new_regions(a.shape)
             st = self._staging(flat.shape[0], flat.dtype)
             status = _p.packets_step(
                 flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
@@ -189,8 +207,7 @@ class NumbaBackend(Backend):
                 return None, None
             return out, decoded
         if regions is not None:
-            regions[2, 0] = 0
-            regions[2, 1] = n
+            self.forget_regions(regions, 2, a.shape)
         status = _k.pipeline(
             flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
             fi, vals,
@@ -239,15 +256,16 @@ class NumbaBackend(Backend):
              uniform_shifts, window, out=None, regions=None):
         """Fused step (Alg 3-5, OpenRatSLAM's step order): one compiled call for injection to decoding.
 
-        ``regions`` (optional; int64, shape (3, 2, ndim)) spares the passes over the whole
-        grid when the caller knows where its arrays can be non-zero: ``regions[0]`` is a
-        region (per axis an arc: row 0 the starts, row 1 the lengths, in cells) outside
-        which every cell of ``a`` is zero, ``regions[1]`` the same of ``out``'s current
-        content (lengths equal to the shape: not known). A step that returns an activity
-        writes into ``regions[2]`` a region outside which the result is zero (the whole
-        grid where the kernel does not know better). Same bits as without, as long as the
-        regions given are true; :class:`cansim.population.Population` keeps them for its two
-        grids.
+        ``regions`` (optional; int64, shape (3, R, 2, ndim), from :meth:`new_regions`) spares
+        the passes over the whole grid when the caller knows where its arrays can be non-zero.
+        Each ``regions[i]`` is a list of up to R boxes, box j per axis an arc (row 0 the
+        starts, row 1 the lengths, in cells; a box of no cells is an unused entry):
+        ``regions[0]`` holds every non-zero cell of ``a``, ``regions[1]`` every non-zero cell
+        of ``out``'s current content (one box of the whole grid: not known). A step that
+        returns an activity writes into ``regions[2]`` boxes holding every non-zero cell of the
+        result (one per packet; the whole grid where the kernel does not know better). Same
+        bits as without, as long as the regions given are true;
+        :class:`cansim.population.Population` keeps them for its two grids.
         """
         if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
             res = self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
@@ -261,8 +279,7 @@ class NumbaBackend(Backend):
             return self._run(a, out, inj=inj, dyn=(exc, inh, phi), cond=cond, uniform=uniform_shifts, window=window,
                              regions=regions)
         if regions is not None:
-            regions[2, 0] = 0
-            regions[2, 1] = a.shape
+            self.forget_regions(regions, 2, a.shape)
         return res
 
     def run(self, a, inputs: RunInputs, *, exc, inh, phi, window, record_activity=False) -> RunResult:
