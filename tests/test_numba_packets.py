@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip("numba")
 
-from cansim import available_backends  # noqa: E402
+from cansim import InvalidInputError, available_backends  # noqa: E402
 from cansim.backends import get_backend  # noqa: E402
 from cansim.backends import _numba_kernels as _k  # noqa: E402
 from cansim.backends import _numba_packets as _p  # noqa: E402
@@ -334,3 +334,39 @@ def test_a_step_reads_only_the_region_it_is_told(layout):
     regions[1, 0, 1] = 1
     got, _ = NumbaBackend().step(a, out=out, regions=regions, **kw)
     assert np.count_nonzero(got == 7.0) > 0.9 * got.size
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    kind=st.sampled_from(["start", "length", "dtype", "shape", "list"]),
+    value=st.integers(-5, 80),
+    which=st.integers(0, 1),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_bad_regions_raise_the_typed_error_and_touch_nothing(kind, value, which, seed):
+    shape = (21, 21, 36)
+    rng = np.random.default_rng(seed)
+    a = _packets(shape, [(10, 10, 18)], np.float64)
+    kw = _step_kwargs(shape, rng)
+    regions = NumbaBackend.new_regions(shape)
+    k = int(rng.integers(3))
+    if kind == "start":
+        if 0 <= value < shape[k]:
+            value = -1 - value % 3
+        regions[which, 0, 0, k] = value
+    elif kind == "length":
+        if 0 <= value <= shape[k]:
+            value = shape[k] + 1 + value % 3
+        regions[which, 0, 1, k] = value
+    elif kind == "dtype":
+        regions = regions.astype(np.float64)
+    elif kind == "shape":
+        regions = regions[:, : 1 + value % 7]
+    else:
+        regions = regions.tolist()
+    out = np.full(shape, 3.0)
+    before_a, before_out = a.copy(), out.copy()
+    with pytest.raises(InvalidInputError, match="regions"):
+        NumbaBackend().step(a, out=out, regions=regions, **kw)
+    np.testing.assert_array_equal(a, before_a)
+    np.testing.assert_array_equal(out, before_out)

@@ -48,6 +48,23 @@ MAX_ITEMS = 32
 #: packet); more packets are held by one box round them all.
 MAX_REGIONS = 8
 
+#: :func:`packets_step`'s status for a region list with a start outside ``[0, n)`` or a
+#: length outside ``[0, n]`` on some axis (nothing was read or written).
+STATUS_BAD_REGIONS = 7
+
+
+@njit(**_OPTS)
+def _regions_valid(regions, n):
+    """Whether every box of ``regions[0]`` and ``regions[1]`` has its starts in ``[0, n)`` and its
+    lengths in ``[0, n]``."""
+    d = n.shape[0]
+    for i in range(2):
+        for j in range(regions.shape[1]):
+            for k in range(d):
+                if not (0 <= regions[i, j, 0, k] < n[k] and 0 <= regions[i, j, 1, k] <= n[k]):
+                    return False
+    return True
+
 
 # ------------------------------------------------------------------------ margins
 @njit(**_OPTS)
@@ -664,8 +681,11 @@ def packets_step(
     least ``a.size`` cells; ``st_bits`` the same memory viewed as ``a_bits``) holds the
     boxes of ``a`` while the step reads them (boxes of more than half the grid in all are
     read in ``a`` itself). The cells read and the sums are the same either way: the same
-    bits as with the whole grid, as long as the regions given are true.
+    bits as with the whole grid, as long as the regions given are true. A start or a length
+    out of range returns :data:`STATUS_BAD_REGIONS` before anything is read.
     """
+    if not _regions_valid(regions, n):
+        return STATUS_BAD_REGIONS
     d = n.shape[0]
     size = a.shape[0]
     gap = np.empty(d, np.int64)

@@ -28,6 +28,7 @@ import numpy as np
 from cansim.backends import _numba_kernels as _k
 from cansim.backends import _numba_packets as _p
 from cansim.backends.base import Backend, RunInputs, RunResult
+from cansim.errors import InvalidInputError
 
 __all__ = ["NumbaBackend"]
 
@@ -143,6 +144,15 @@ class NumbaBackend(Backend):
         return r
 
     @staticmethod
+    def _check_regions(regions, ndim: int) -> None:
+        if (type(regions) is not np.ndarray or regions.dtype != np.int64 or not regions.flags.c_contiguous
+                or not regions.flags.writeable or regions.shape != (3, _p.MAX_REGIONS, 2, ndim)):
+            raise InvalidInputError(
+                f"regions must be a writable C-contiguous int64 array of shape (3, {_p.MAX_REGIONS}, 2, {ndim}) "
+                "(NumbaBackend.new_regions(shape) makes one), got "
+                f"{getattr(regions, 'dtype', type(regions).__name__)} {getattr(regions, 'shape', '')}")
+
+    @staticmethod
     def forget_regions(regions: np.ndarray, which: slice | int, shape: tuple[int, ...]) -> None:
         """Set the lists ``regions[which]`` to the whole grid (nothing known)."""
         r = regions[which]
@@ -203,6 +213,10 @@ class NumbaBackend(Backend):
                 self._par_work, self._nthreads(),
                 regions, st, st.view(bits.dtype),
             )
+            if status == _p.STATUS_BAD_REGIONS:
+                raise InvalidInputError(
+                    f"regions out of range for a grid of shape {a.shape}: every box's starts must lie in [0, n) "
+                    "and its lengths in [0, n] per axis (NumbaBackend.forget_regions resets a list to the whole grid)")
             if status != _k.STATUS_OK:
                 return None, None
             return out, decoded
@@ -266,7 +280,15 @@ class NumbaBackend(Backend):
         result (one per packet; the whole grid where the kernel does not know better). Same
         bits as without, as long as the regions given are true;
         :class:`cansim.population.Population` keeps them for its two grids.
+
+        Raises
+        ------
+        InvalidInputError
+            ``regions`` of another shape or dtype, or a box whose starts are not in ``[0, n)``
+            or whose lengths are not in ``[0, n]`` (nothing is read or written).
         """
+        if regions is not None:
+            self._check_regions(regions, a.ndim)
         if a.ndim == 1 and cond_shifts is None and a.flags.c_contiguous:
             res = self._ring_step(a, flat_index, values, exc, inh, phi, uniform_shifts, window, out)
         elif self._small and a.flags.c_contiguous and (small := self._small_plan(a.shape, exc, inh)) is not None:
