@@ -213,6 +213,44 @@ def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
 
 
 @njit(**_OPTS)
+def _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    """:func:`_one_packet` for the non-zero cells of ``nsrc`` boxes (laid out as in
+    :func:`plan_packets`): the same test on the union of their occupied cells."""
+    d = n.shape[0]
+    loc = np.zeros((d, n.max()), np.uint8)
+    marks = 0
+    for j in range(nsrc):
+        loc[:] = 0
+        if mark_occupancy(bits[src_off[j]:src_off[j + 1]], src_m[j], loc) == 0:
+            continue
+        marks += 1
+        for k in range(d):
+            for p in range(src_m[j, k]):
+                if loc[k, p] != 0:
+                    union_occ[k, (src_s[j, k] + p) % n[k]] = 1
+    if marks == 0:
+        return False
+    for k in range(d):
+        a0, l0 = arc_from_occupancy(union_occ[k], n[k])
+        cl_s[0, k] = a0
+        cl_m[0, k] = l0
+        if l0 < n[k] and l0 > gap[k] and _has_gap(union_occ[k], a0, l0, n[k], gap[k]):
+            return False
+    for t in range(inj_idx.shape[0]):
+        r = inj_idx[t]
+        for k in range(d - 1, -1, -1):
+            if (r % n[k] - cl_s[0, k]) % n[k] >= cl_m[0, k]:
+                return False
+            r //= n[k]
+    for t in range(inj_idx.shape[0]):  # inside the arcs: they do not change them
+        r = inj_idx[t]
+        for k in range(d - 1, -1, -1):
+            union_occ[k, r % n[k]] = 1
+            r //= n[k]
+    return True
+
+
+@njit(**_OPTS)
 def _has_gap(occ_k, start, length, nk, gap_k):
     """Whether the arc ``(start, length)`` holds a run of at least ``gap_k`` unmarked cells of ``occ_k``."""
     run = 0
@@ -686,8 +724,8 @@ def packets_step(
     On success ``regions[2]`` is written: boxes holding every non-zero cell of the result
     (one per packet; more packets than R: one box round them all). ``st`` (``a``'s dtype, at
     least ``a.size`` cells; ``st_bits`` the same memory viewed as ``a_bits``) holds the
-    boxes of ``a`` while the step reads them (boxes of more than half the grid in all are
-    read in ``a`` itself). The cells read and the sums are the same either way: the same
+    boxes of ``a`` while the step reads them (boxes of more than a quarter of the grid in all
+    are read in ``a`` itself). The cells read and the sums are the same either way: the same
     bits as with the whole grid, as long as the regions given are true. A start or a length
     out of range returns :data:`STATUS_BAD_REGIONS` before anything is read.
     """
@@ -712,9 +750,9 @@ def packets_step(
             src_m[nsrc] = regions[0, j, 1]
             src_off[nsrc + 1] = src_off[nsrc] + bs
             nsrc += 1
-    if nsrc == 0 or 2 * src_off[nsrc] > size:
+    if nsrc == 0 or 4 * src_off[nsrc] > size:
         whole = True
-    if whole:  # most of the grid: read a itself rather than a copy of it
+    if whole:  # a large part of the grid: read a itself rather than a copy of it
         nsrc = 1
         src_s[0] = zero
         src_m[0] = n
@@ -731,6 +769,8 @@ def packets_step(
     union_occ = np.zeros((d, n.max()), np.uint8)
     least_gaps(exc_w, inh_w, gap)
     if nsrc == 1 and _one_packet(bits, src_s[0], src_m[0], n, inj_idx, gap, cl_s, cl_m, union_occ):
+        k_cl = 1
+    elif nsrc > 1 and _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
         k_cl = 1
     else:
         separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)
