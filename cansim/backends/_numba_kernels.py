@@ -277,14 +277,17 @@ def scatter(src, s, m, out, n):
     place(src, s, m, out, n)
 
 
-@njit(**_OPTS)
-def place(src, s, m, out, n):
-    """Write box buffer ``src`` (box ``s, m``) into the flat grid ``out`` (other cells untouched)."""
+@njit(inline="always", **_OPTS)
+def _put_box(src, from_src, s, m, out, n):
+    """Write the box ``s, m`` of the flat grid ``out``: box buffer ``src``'s cells when
+    ``from_src`` (a constant at each call), else zeros; other cells untouched."""
     d = n.shape[0]
+    ml = m[d - 1]
+    if ml == 0:
+        return
     zero = np.zeros(d, np.int64)
     off = _offset_tables(zero, n, s, m, n)  # box index -> grid offset
     last = d - 1
-    ml = m[last]
     nrows = box_size(m) // ml
     idx = np.zeros(d, np.int64)
     for r in range(nrows):
@@ -292,9 +295,25 @@ def place(src, s, m, out, n):
         for k in range(last):
             b += off[k, idx[k]]
         base = r * ml
-        for p in range(ml):
-            out[b + off[last, p]] = src[base + p]
+        if from_src:
+            for p in range(ml):
+                out[b + off[last, p]] = src[base + p]
+        else:
+            for p in range(ml):
+                out[b + off[last, p]] = 0.0
         _advance(idx, m, last - 1)
+
+
+@njit(**_OPTS)
+def place(src, s, m, out, n):
+    """Write box buffer ``src`` (box ``s, m``) into the flat grid ``out`` (other cells untouched)."""
+    _put_box(src, True, s, m, out, n)
+
+
+@njit(**_OPTS)
+def clear_box(s, m, out, n):
+    """Zero the box ``s, m`` (arc starts; lengths) of the flat grid ``out``; other cells untouched."""
+    _put_box(out, False, s, m, out, n)
 
 
 @njit(**_OPTS)

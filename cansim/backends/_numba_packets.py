@@ -31,7 +31,7 @@ from numba import njit
 
 from cansim.backends._numba_kernels import (
     STATUS_COLLAPSE, STATUS_OK, _advance, _offset_tables, arc_from_occupancy, box_argmax, box_inject_excite_inhibit,
-    box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, crop,
+    box_normalise, box_shift, box_size, box_step, circular_mean_index, circular_mean_index_table, clear_box, crop,
     decode_box, grow_arc, is_full, mark_occupancy, no_trig, paste, place, scatter, split_shift, trig_table, unravel,
 )
 from whisker_io.numba_cache import tolerate_corrupt_cache
@@ -180,18 +180,11 @@ def _segments(occ_k, start, length, nk, gap_k, seg_s, seg_m):
 
 
 @njit(**_OPTS)
-def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
-    """The common case of :func:`plan_packets`, decided without its tables: one box whose occupied
-    cells leave no gap to cut at, and every injected cell inside their arcs. Then writes the
-    one box (the union's arcs) and returns True; otherwise False (``union_occ`` is dirty)."""
+def _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ):
+    """The rest of :func:`_one_packet` once ``union_occ`` holds the occupied grid indices: their
+    arcs leave no gap to cut at and every injected cell lies inside them. Then writes the one
+    box (the arcs) and marks the injected cells; returns whether it is one box."""
     d = n.shape[0]
-    loc = np.zeros((d, n.max()), np.uint8)
-    if mark_occupancy(bits, m, loc) == 0:
-        return False
-    for k in range(d):
-        for p in range(m[k]):
-            if loc[k, p] != 0:
-                union_occ[k, (s[k] + p) % n[k]] = 1
     for k in range(d):
         a0, l0 = arc_from_occupancy(union_occ[k], n[k])
         cl_s[0, k] = a0
@@ -213,6 +206,22 @@ def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
 
 
 @njit(**_OPTS)
+def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    """The common case of :func:`plan_packets`, decided without its tables: one box whose occupied
+    cells leave no gap to cut at, and every injected cell inside their arcs. Then writes the
+    one box (the union's arcs) and returns True; otherwise False (``union_occ`` is dirty)."""
+    d = n.shape[0]
+    loc = np.zeros((d, n.max()), np.uint8)
+    if mark_occupancy(bits, m, loc) == 0:
+        return False
+    for k in range(d):
+        for p in range(m[k]):
+            if loc[k, p] != 0:
+                union_occ[k, (s[k] + p) % n[k]] = 1
+    return _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ)
+
+
+@njit(**_OPTS)
 def _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
     """:func:`_one_packet` for the non-zero cells of ``nsrc`` boxes (laid out as in
     :func:`plan_packets`): the same test on the union of their occupied cells."""
@@ -230,24 +239,7 @@ def _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s
                     union_occ[k, (src_s[j, k] + p) % n[k]] = 1
     if marks == 0:
         return False
-    for k in range(d):
-        a0, l0 = arc_from_occupancy(union_occ[k], n[k])
-        cl_s[0, k] = a0
-        cl_m[0, k] = l0
-        if l0 < n[k] and l0 > gap[k] and _has_gap(union_occ[k], a0, l0, n[k], gap[k]):
-            return False
-    for t in range(inj_idx.shape[0]):
-        r = inj_idx[t]
-        for k in range(d - 1, -1, -1):
-            if (r % n[k] - cl_s[0, k]) % n[k] >= cl_m[0, k]:
-                return False
-            r //= n[k]
-    for t in range(inj_idx.shape[0]):  # inside the arcs: they do not change them
-        r = inj_idx[t]
-        for k in range(d - 1, -1, -1):
-            union_occ[k, r % n[k]] = 1
-            r //= n[k]
-    return True
+    return _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ)
 
 
 @njit(**_OPTS)
@@ -636,31 +628,6 @@ def multi_step(data, src_off, src_s, src_m, nsrc, n, k_cl, cl_s, cl_m, union_occ
 
 
 @njit(**_OPTS)
-def _clear(out, s, m, n):
-    """Zero the region ``(s, m)`` (arc starts; lengths) of the flat grid ``out``; all of it when the
-    region is the whole grid."""
-    if is_full(m, n):
-        out[:] = 0
-        return
-    d = n.shape[0]
-    zero = np.zeros(d, np.int64)
-    off = _offset_tables(zero, n, s, m, n)  # region index -> grid offset
-    last = d - 1
-    ml = m[last]
-    if ml == 0:
-        return
-    nrows = box_size(m) // ml
-    idx = np.zeros(d, np.int64)
-    for r in range(nrows):
-        b = 0
-        for k in range(last):
-            b += off[k, idx[k]]
-        for p in range(ml):
-            out[b + off[last, p]] = 0.0
-        _advance(idx, m, last - 1)
-
-
-@njit(**_OPTS)
 def _clear_regions(out, reg, n):
     """Zero the boxes of the region list ``reg`` (shape (R, 2, d), see :func:`packets_step`) in
     the flat grid ``out`` (all of it when they cover more than a quarter of it: one contiguous
@@ -672,10 +639,7 @@ def _clear_regions(out, reg, n):
         out[:] = 0
         return
     for j in range(reg.shape[0]):
-        if box_size(reg[j, 1]) > 0:
-            _clear(out, reg[j, 0], reg[j, 1], n)
-            if is_full(reg[j, 1], n):
-                return
+        clear_box(reg[j, 0], reg[j, 1], out, n)
 
 
 @njit(**_OPTS)
