@@ -370,3 +370,24 @@ def test_bad_regions_raise_the_typed_error_and_touch_nothing(kind, value, which,
         NumbaBackend().step(a, out=out, regions=regions, **kw)
     np.testing.assert_array_equal(a, before_a)
     np.testing.assert_array_equal(out, before_out)
+
+
+@settings(max_examples=30, deadline=None)
+@given(shape=st.lists(st.integers(1, 70), min_size=1, max_size=6).map(tuple), which=st.sampled_from([0, 1, 2]),
+       seed=st.integers(0, 2**31 - 1))
+def test_new_regions_are_the_whole_grid_and_forget_resets_only_its_list(shape, which, seed):
+    r = NumbaBackend.new_regions(shape)
+    assert r.shape == (3, _p.MAX_REGIONS, 2, len(shape)) and r.dtype == np.int64
+    for i in range(3):  # box 0 the whole grid, every other box empty
+        np.testing.assert_array_equal(r[i, 0, 0], 0)
+        np.testing.assert_array_equal(r[i, 0, 1], shape)
+        assert not np.prod(r[i, 1:, 1], axis=1).any()
+    rng = np.random.default_rng(seed)
+    r[:] = rng.integers(0, 5, r.shape)
+    before = r.copy()
+    NumbaBackend.forget_regions(r, which, shape)
+    np.testing.assert_array_equal(r[which, 0, 0], 0)
+    np.testing.assert_array_equal(r[which, 0, 1], shape)
+    assert not r[which, 1:, 1].any()
+    others = [i for i in range(3) if i != which]
+    np.testing.assert_array_equal(r[others], before[others])
