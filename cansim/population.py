@@ -482,18 +482,11 @@ class Population:
         if injection is not None:
             fi, vals = checked_injection(*injection, self._size)
         regions = self._regions
-        if regions is None:
-            new, decoded = self._backend.step(
-                self._a, flat_index=fi, values=vals, exc=self._exc, inh=self._inh, phi=self._phi,
-                shift_axes=ms.shift_axes, cond_shifts=ms.cond_shifts, uniform_shifts=ms.uniform,
-                window=self._window, out=self._spare,
-            )
-        else:
-            new, decoded = self._backend.step(
-                self._a, flat_index=fi, values=vals, exc=self._exc, inh=self._inh, phi=self._phi,
-                shift_axes=ms.shift_axes, cond_shifts=ms.cond_shifts, uniform_shifts=ms.uniform,
-                window=self._window, out=self._spare, regions=regions,
-            )
+        new, decoded = self._backend.step(
+            self._a, flat_index=fi, values=vals, exc=self._exc, inh=self._inh, phi=self._phi,
+            shift_axes=ms.shift_axes, cond_shifts=ms.cond_shifts, uniform_shifts=ms.uniform,
+            window=self._window, out=self._spare, **({} if regions is None else {"regions": regions}),
+        )
         if new is None:
             if regions is not None:  # the spare grid may have been written
                 self._backend.forget_regions(regions, 1, self.shape)
@@ -529,9 +522,7 @@ class Population:
 
         scratch = copy.copy(self)  # shares the backend (its kernel caches), not the activity
         scratch._a, scratch._spare = self._a.copy(), np.empty_like(self._spare)
-        scratch._regions = None if self._regions is None else self._regions.copy()
-        if scratch._regions is not None:  # the scratch spare grid is uninitialised
-            scratch._backend.forget_regions(scratch._regions, 1, self.shape)
+        scratch._regions = scratch._new_regions()  # its own, the whole grid: nothing shared with self
         with WarmUp(f"population {'x'.join(map(str, self.shape))}", progress=progress) as w:
             w.stage("step")
             scratch.step(velocity, omega, dt, injection=(np.zeros(1, np.int64), np.ones(1)))

@@ -206,18 +206,28 @@ def _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ):
 
 
 @njit(**_OPTS)
+def _mark_grid(bits, s, m, n, loc, occ):
+    """Mark in ``occ[k, g]`` the grid index g of axis k of every occupied cell of the box buffer
+    ``bits`` (box ``s, m``, viewed as unsigned integers; :func:`mark_occupancy`, ``loc`` its
+    box-local scratch, zeroed here). Returns whether any cell is occupied."""
+    loc[:] = 0
+    if mark_occupancy(bits, m, loc) == 0:
+        return False
+    for k in range(n.shape[0]):
+        for p in range(m[k]):
+            if loc[k, p] != 0:
+                occ[k, (s[k] + p) % n[k]] = 1
+    return True
+
+
+@njit(**_OPTS)
 def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
     """The common case of :func:`plan_packets`, decided without its tables: one box whose occupied
     cells leave no gap to cut at, and every injected cell inside their arcs. Then writes the
     one box (the union's arcs) and returns True; otherwise False (``union_occ`` is dirty)."""
-    d = n.shape[0]
-    loc = np.zeros((d, n.max()), np.uint8)
-    if mark_occupancy(bits, m, loc) == 0:
+    loc = np.empty((n.shape[0], n.max()), np.uint8)
+    if not _mark_grid(bits, s, m, n, loc, union_occ):
         return False
-    for k in range(d):
-        for p in range(m[k]):
-            if loc[k, p] != 0:
-                union_occ[k, (s[k] + p) % n[k]] = 1
     return _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ)
 
 
@@ -225,19 +235,12 @@ def _one_packet(bits, s, m, n, inj_idx, gap, cl_s, cl_m, union_occ):
 def _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
     """:func:`_one_packet` for the non-zero cells of ``nsrc`` boxes (laid out as in
     :func:`plan_packets`): the same test on the union of their occupied cells."""
-    d = n.shape[0]
-    loc = np.zeros((d, n.max()), np.uint8)
-    marks = 0
+    loc = np.empty((n.shape[0], n.max()), np.uint8)
+    occupied = False
     for j in range(nsrc):
-        loc[:] = 0
-        if mark_occupancy(bits[src_off[j]:src_off[j + 1]], src_m[j], loc) == 0:
-            continue
-        marks += 1
-        for k in range(d):
-            for p in range(src_m[j, k]):
-                if loc[k, p] != 0:
-                    union_occ[k, (src_s[j, k] + p) % n[k]] = 1
-    if marks == 0:
+        if _mark_grid(bits[src_off[j]:src_off[j + 1]], src_s[j], src_m[j], n, loc, union_occ):
+            occupied = True
+    if not occupied:
         return False
     return _one_box_of(n, inj_idx, gap, cl_s, cl_m, union_occ)
 
@@ -284,6 +287,7 @@ def plan_packets(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m,
     seg_s = np.empty(nmax, np.int64)
     seg_m = np.empty(nmax, np.int64)
     occ = np.zeros((d, nmax), np.uint8)
+    loc = np.empty((d, nmax), np.uint8)
     ts = np.empty(d, np.int64)
     tm = np.empty(d, np.int64)
     for j in range(nsrc):
@@ -291,14 +295,9 @@ def plan_packets(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m,
         s = src_s[j]
         m = src_m[j]
         # the whole box: mark_occupancy (box-local), mapped to the grid
-        loc = np.zeros((d, nmax), np.uint8)
-        if mark_occupancy(sb, m, loc) == 0:
-            continue
         occ[:] = 0
-        for k in range(d):
-            for p in range(m[k]):
-                if loc[k, p] != 0:
-                    occ[k, (s[k] + p) % n[k]] = 1
+        if not _mark_grid(sb, s, m, n, loc, occ):
+            continue
         nst = 0
         first = True
         while True:
@@ -706,7 +705,6 @@ def packets_step(
     src_s = np.zeros((nr, d), np.int64)
     src_m = np.zeros((nr, d), np.int64)
     nsrc = 0
-    whole = False
     for j in range(nr):
         bs = box_size(regions[0, j, 1])
         if bs > 0:
@@ -714,9 +712,7 @@ def packets_step(
             src_m[nsrc] = regions[0, j, 1]
             src_off[nsrc + 1] = src_off[nsrc] + bs
             nsrc += 1
-    if nsrc == 0 or 4 * src_off[nsrc] > size:
-        whole = True
-    if whole:  # a large part of the grid: read a itself rather than a copy of it
+    if nsrc == 0 or 4 * src_off[nsrc] > size:  # a large part of the grid: read a itself, not a copy
         nsrc = 1
         src_s[0] = zero
         src_m[0] = n
@@ -732,9 +728,7 @@ def packets_step(
     cl_m = np.empty((MAX_ITEMS, d), np.int64)
     union_occ = np.zeros((d, n.max()), np.uint8)
     least_gaps(exc_w, inh_w, gap)
-    if nsrc == 1 and _one_packet(bits, src_s[0], src_m[0], n, inj_idx, gap, cl_s, cl_m, union_occ):
-        k_cl = 1
-    elif nsrc > 1 and _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
+    if _one_packet_sources(bits, src_off, src_s, src_m, nsrc, n, inj_idx, gap, cl_s, cl_m, union_occ):
         k_cl = 1
     else:
         separations(exc_w, inh_w, n, do_cond, cmask, cond_tab, do_uni, uni, gap, spread)

@@ -123,10 +123,13 @@ class NumbaBackend(Backend):
             self._masks[key] = arr
         return arr
 
-    def _staging(self, size: int, dtype: np.dtype) -> np.ndarray:
+    def _staging(self, size: int, bits_dtype: np.dtype, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
+        """This thread's staging buffer of at least ``size`` cells of ``dtype`` and the same memory
+        viewed as ``bits_dtype`` (kept between calls)."""
         st = getattr(self._local, "st", None)
-        if st is None or st.shape[0] < size or st.dtype != dtype:
-            st = np.empty(size, dtype=dtype)
+        if st is None or st[0].shape[0] < size or st[0].dtype != dtype:
+            buf = np.empty(size, dtype=dtype)
+            st = (buf, buf.view(bits_dtype))
             self._local.st = st
         return st
 
@@ -202,7 +205,7 @@ class NumbaBackend(Backend):
         if dyn is not None and window is not None and not self._dense:  # the fused step: one box per packet
             if regions is None:
                 regions = self.new_regions(a.shape)
-            st = self._staging(flat.shape[0], flat.dtype)
+            st, st_bits = self._staging(flat.shape[0], bits.dtype, flat.dtype)
             status = _p.packets_step(
                 flat, bits, out.reshape(-1), self._workspace(flat.shape[0]), n,
                 fi, vals,
@@ -211,7 +214,7 @@ class NumbaBackend(Backend):
                 uni.shape[0] > 0, uni,
                 int(window), decoded,
                 self._par_work, self._nthreads(),
-                regions, st, st.view(bits.dtype),
+                regions, st, st_bits,
             )
             if status == _p.STATUS_BAD_REGIONS:
                 raise InvalidInputError(
