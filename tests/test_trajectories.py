@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import CansimError, ConfigError, InvalidInputError
+from whisker_io.pose import Pose
 from whisker_io.sim.objects import make_object
 from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
 from whisker_io.sim.trajectories import (
@@ -153,6 +154,73 @@ def test_sphere_loops_touch_too(box):
     contacts = np.array([sum(c is not None for c in sweep_array(ARRAY, target, p, COUNT))
                          for p in poses])
     assert np.mean(contacts >= 3) >= 0.8
+
+
+def _touching(target, pose):
+    return sum(c is not None for c in sweep_array(ARRAY, target, pose, COUNT))
+
+
+def _bases_cross(target, origin, rotation):
+    """Does a segment from the end-effector origin to a whisker base cross the mesh? (ray casts of the test's own)"""
+    bases = ARRAY.positions_m @ rotation.as_matrix().T
+    length = np.linalg.norm(bases, axis=1)
+    dist, _, _ = target.first_hits(np.repeat(origin[None], len(bases), axis=0), bases / length[:, None], length)
+    return bool(np.isfinite(dist).any())
+
+
+@pytest.mark.parametrize("name", ["duck", "blob"])
+def test_reaching_for_contact_follows_its_rule_and_touches_more(name):
+    """Module docstring item 6, checked pose by pose against rigid sweeps along each pose's own axis."""
+    from whisker_io.sim.catalogue import resolve_object
+
+    mesh = resolve_object(name).mesh
+    target = MeshTarget(mesh)
+    fixed = object_trajectory(mesh, "A", n_loops=1)
+    reached = object_trajectory(mesh, "A", n_loops=2, reach_contacts=3, max_advance_m=0.12)
+    assert len(reached) == 2 * len(fixed) and reached[:len(fixed)] == reached[len(fixed):]
+    before, after = [], []
+    for p, q in zip(fixed, reached):
+        np.testing.assert_array_equal(q.quaternion_xyzw, p.quaternion_xyzw)  # orientations unchanged
+        move = q.position_m - p.position_m
+        along = float(move @ _axis(p))
+        np.testing.assert_allclose(move, along * _axis(p), atol=1e-12)  # along its own axis only
+        k = round(along / 0.01)
+        assert abs(along - 0.01 * k) < 1e-9 and 0 <= k <= 12  # whole 1-cm steps, at most 12 cm
+        n0 = _touching(target, p)
+        counts = [n0]
+        for j in range(1, k + 1):  # every step up to the chosen one: bases clear, fewer than 3 touching before it
+            o = p.position_m + 0.01 * j * _axis(p)
+            assert not _bases_cross(target, o, p.rotation)
+            counts.append(_touching(target, Pose(o, p.quaternion_xyzw)))
+        assert all(c < 3 for c in counts[:-1])
+        if counts[-1] < 3:  # not reached: the most-touching step (nearest of equals), no step beyond touches more
+            assert counts[-1] == max(counts) and counts.index(max(counts)) == k
+            j = k + 1
+            while j <= 12:
+                o = p.position_m + 0.01 * j * _axis(p)
+                if _bases_cross(target, o, p.rotation):
+                    break
+                assert _touching(target, Pose(o, p.quaternion_xyzw)) <= counts[-1]
+                j += 1
+        before.append(n0)
+        after.append(counts[-1])
+    before, after = np.array(before), np.array(after)
+    assert np.all(after >= before)
+    assert np.mean(after >= 3) >= np.mean(before >= 3) + 0.3, (np.mean(before >= 3), np.mean(after >= 3))
+
+
+def test_reaching_for_no_contact_is_the_fixed_standoff(mug_a, mug):
+    assert object_trajectory(mug, "A", n_loops=2, reach_contacts=0) == mug_a
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.integers(max_value=-1), st.integers(min_value=65), st.just(1.5), st.just(float("nan")), st.just("3")),
+       st.one_of(st.floats(max_value=-1e-9), st.floats(min_value=1.0001), st.just(float("nan")), st.just(float("inf"))))
+def test_bad_reach_settings_raise_typed_errors(box, reach, advance):
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, reach_contacts=reach)
+    with pytest.raises(InvalidInputError):
+        object_trajectory(box, reach_contacts=3, max_advance_m=advance)
 
 
 # ------------------------------------------------------------- bad input

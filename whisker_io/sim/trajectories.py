@@ -55,6 +55,24 @@ Construction (decisions)
    (item 3) can exceed it by the back-off. Where the nearest surface point
    jumps (from a handle to the body) the interpolated poses bridge the jump.
    The loop is then repeated ``n_loops`` times (revisits).
+6. **Reaching the surface** (optional, ``reach_contacts``): the thesis array's whiskers
+   splay outward, so the space straight ahead of its front bases is swept by none; a
+   part of the object narrower than that space (a duck's head, a handle, a blob's
+   waist) faced at the standoff of item 3 is touched by no whisker, or by one or two.
+   With ``reach_contacts = k > 0`` every whisk pose whose rigid sweep
+   (:func:`whisker_io.sim.sweep.sweep_array`, no refinement) touches with fewer than
+   ``k`` whiskers moves forward along its own axis in 1-cm steps until ``k`` touch, at
+   most ``max_advance_m``, and never to where a segment from the origin to a whisker
+   base would cross the mesh (item 3's check); it stops at the first step with ``k``
+   touching, else at the step with the most (the nearest of equals; none more: the pose
+   stays). Orientations are unchanged, so the steps' rotations keep their bound and an
+   advanced pose's translation may exceed ``step_m`` by its advance (as a backed-off
+   pose's does). Share of the whisks of one loop touching with 3 whiskers or more, fixed
+   standoff -> ``reach_contacts=3`` (rigid sweeps, thesis step, A / B): duck 0.17 / 0.38
+   -> 0.66 / 0.69, blob 0.57 / 0.44 -> 0.92 / 0.92, skull 0.65 / 0.62 -> 0.95 / 0.90,
+   upright torus 0.57 / 0.47 -> 0.79 / 0.73, jug 0.74 / 0.78 -> 1.00 / 0.95, Mug 0.89 /
+   0.89 -> 1.00 / 1.00, Box 0.93 / 0.95 -> 1.00 / 1.00; the held-out knot 0.50 / 0.58 ->
+   0.70 / 0.77 and mushroom 0.30 / 0.00 -> 0.79 / 0.66 (a median advance of 2 cm).
 
 All poses are :class:`~whisker_io.pose.Pose` s of the end-effector frame in the
 mesh's (world) frame, metres.
@@ -75,7 +93,7 @@ from scipy.spatial.transform import Rotation
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.pose import Pose
-from whisker_io.sim.sweep import MeshTarget
+from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
 from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = [
@@ -292,6 +310,37 @@ def _bases_blocked(
     return np.isfinite(dist).reshape(n, m).any(axis=1)
 
 
+_ADVANCE_STEP_M = 0.01  # step of item 6's advance, m
+_MAX_REACH_CONTACTS = 64
+_RIGID = SweepParams(refine=False)  # which whiskers touch, not where: no refinement of the contact angle
+
+
+def _advance_to_contact(target: MeshTarget, arr: WhiskerArray, origin: NDArray[np.float64], R: NDArray[np.float64],
+                        wanted: int, max_advance_m: float) -> None:
+    """Item 6 of the module docstring, in place on ``origin`` (n, 3); ``R`` (n, 3, 3) the poses' rotations."""
+
+    def touching(o: NDArray[np.float64], r: NDArray[np.float64]) -> int:
+        pose = Pose(o, Rotation.from_matrix(r).as_quat())
+        return sum(c is not None for c in sweep_array(arr, target, pose, _RIGID))
+
+    steps = int(math.floor(max_advance_m / _ADVANCE_STEP_M + 1e-9))
+    for i in range(len(origin)):
+        best = touching(origin[i], R[i])
+        if best >= wanted:
+            continue
+        best_o = origin[i].copy()
+        for k in range(1, steps + 1):
+            o = origin[i] + k * _ADVANCE_STEP_M * R[i, :, 1]
+            if _bases_blocked(target, o[None], R[i][None], arr.positions_m)[0]:
+                break
+            c = touching(o, R[i])
+            if c > best:
+                best, best_o = c, o
+            if c >= wanted:
+                break
+        origin[i] = best_o
+
+
 def _smoothed_axes(directions: NDArray[np.float64], window: int) -> NDArray[np.float64]:
     """Unit directions averaged over a centred circular window of ``window`` dense samples."""
     d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
@@ -325,6 +374,8 @@ def object_trajectory(
     up: ArrayLike = (0.0, 0.0, 1.0),
     roll_deg: float = 90.0,
     smoothing_deg: float = 20.0,
+    reach_contacts: int = 0,
+    max_advance_m: float = 0.12,
 ) -> list[Pose]:
     """Whisk poses of ``n_loops`` loops around ``mesh`` (see the module docstring).
 
@@ -355,6 +406,12 @@ def object_trajectory(
     smoothing_deg : float, default 20
         Width of the loop window (degrees of the loop parameter, 0-180) over which
         the facing directions are averaged (module docstring, item 3).
+    reach_contacts : int, default 0
+        Whiskers a whisk should touch with (0-64): a pose touching with fewer moves
+        forward along its axis until that many touch (module docstring, item 6). 0: the
+        fixed standoff of item 3.
+    max_advance_m : float, default 0.12
+        Farthest such a move goes, m (0-1).
 
     Returns
     -------
@@ -397,6 +454,12 @@ def object_trajectory(
     smoothing = finite_scalar(smoothing_deg, "smoothing_deg")
     if not 0 <= smoothing <= 180:
         raise InvalidInputError(f"smoothing_deg must be in [0, 180], got {smoothing_deg!r}")
+    reach = whole_number(reach_contacts, "reach_contacts", minimum=0)
+    if reach > _MAX_REACH_CONTACTS:
+        raise InvalidInputError(f"reach_contacts must be in [0, {_MAX_REACH_CONTACTS}] whiskers, got {reach_contacts!r}")
+    advance = finite_scalar(max_advance_m, "max_advance_m")
+    if not 0 <= advance <= 1.0:
+        raise InvalidInputError(f"max_advance_m must be in [0, 1] m, got {max_advance_m!r}")
     far = 2.0 * float(np.linalg.norm(surface.semi_axes_m))
     roll = Rotation.from_rotvec([0.0, math.radians(finite_scalar(roll_deg, "roll_deg")), 0.0]).as_matrix()
 
@@ -448,6 +511,8 @@ def object_trajectory(
     pos = origin[seg] + frac[:, None] * (origin[nxt[seg]] - origin[seg])
     rots = (rot[seg] * Rotation.from_rotvec(frac[:, None] * turn[seg].as_rotvec())).as_matrix()  # slerp
     back_off(pos, rots)
+    if reach > 0:
+        _advance_to_contact(target, arr, pos, rots, reach, advance)
     quats = Rotation.from_matrix(rots).as_quat()
     one_loop = [Pose(pos[i], quats[i]) for i in range(n_steps)]
     return one_loop * loops
