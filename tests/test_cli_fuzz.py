@@ -166,6 +166,8 @@ commands = {
         st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--loops", "--id-loops"]), not_positive).map(list),
         st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--seed", "--workers"]), negative).map(list),
         st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks"]), not_positive).map(list),
+        st.tuples(st.just("recognition"), st.just("--quick"), st.just("--reach-contacts"),
+                  st.one_of(negative, st.integers(65, 10**6).map(str), not_an_int)).map(list),
     ),
     "top": st.one_of(st.just([]), st.tuples(names.map(lambda s: f"zz{s}")).map(list), st.tuples(unknown_option).map(list)),
 }

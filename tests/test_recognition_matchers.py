@@ -131,6 +131,20 @@ def test_bad_odometry_scales_are_refused_before_any_work(tmp_path_factory, scale
         ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, odometry_scale=scale)
 
 
+@settings(max_examples=20, deadline=None)
+@given(st.one_of(st.integers(max_value=-1), st.integers(min_value=65), st.just(1.5), st.just(float("nan")), st.just(True),
+                 st.just("3")))
+def test_bad_reach_contacts_are_refused_before_any_work(tmp_path_factory, reach) -> None:
+    from cansim.studies import ch5_object_maps
+
+    out = tmp_path_factory.mktemp("rec") / "out"
+    with pytest.raises(ConfigError):
+        recognition.run(out, objects=["mug"], novel=[], reach_contacts=reach, progress=False)
+    assert not out.exists()
+    with pytest.raises(ConfigError):
+        ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, reach_contacts=reach)
+
+
 def test_odometry_noise_scales_the_thesis_model() -> None:
     """Scale 1 is Eq 6.4-6.11's noise exactly (2.5 deg per Euler angle, 1 cm); 0.25 a quarter of each."""
     import math

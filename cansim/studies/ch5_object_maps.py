@@ -225,7 +225,9 @@ class StudyConfig:
     ``thresholds`` maps a contact model to its (T_pfh, T_sda); ``matching`` is
     ``"mapping"`` (:meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping`) or
     ``"thesis"`` (Eq 5.5 alone); ``id_whisks`` is the least number of whisks of an
-    identification run (whole loops, at least ``id_loops``).
+    identification run (whole loops, at least ``id_loops``); ``reach_contacts`` is passed
+    to :func:`whisker_io.sim.trajectories.object_trajectory` for the maps (0, the
+    default: the fixed standoff; the recognition study reaches for 3 whiskers).
     """
 
     n_loops: int
@@ -237,6 +239,7 @@ class StudyConfig:
     matching: str = "mapping"
     id_whisks: int = 0
     odometry_scale: float = checked(1.0, float, minimum=0.0, maximum=10.0, hint="a multiple of the Eq 6.4-6.11 odometry noise")
+    reach_contacts: int = checked(0, int, minimum=0, maximum=64, hint="whiskers the mapping poses reach for")
 
     def __post_init__(self) -> None:
         from cansim.errors import ConfigError
@@ -348,7 +351,7 @@ def map_object(name: str, cfg: Config, s: StudyConfig,
 
     mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name) if step is None else step
-    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg)
+    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=s.reach_contacts)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng, s.odometry_scale)
