@@ -19,6 +19,13 @@ of 15 contacts each, 200 hypotheses per object), K = 12, 25, 50 distinct objects
   ``window_whisks`` whisks with every object in question included. Unlike ``steady``,
   whose repeated whisk from one standing pose can be fitted by every look-alike, the
   moving arm lets the filters of objects that do not fit fall behind.
+* ``study_library``: the recognition study's own 50-object library (the project's objects and
+  procedural shapes, maps built by the study's ``map_job`` on seed 0, as its full mode builds
+  them; about half a minute, not timed), its first 12 / 25 / 50 objects, and one presentation
+  along B (whole loops, at least 200 whisks, as the study presents) of two project objects, two
+  freeform shapes and a novel one, replayed through the study's own
+  ``cansim.studies.recognition.surface_targets``: what the study pays per whisk (the time / the
+  whisks, ``extra_info``) on real shapes, which prune faster than look-alike ellipsoids.
 * ``refine`` 0 / 1: without / with the registration-refined proposal
   (``SurfaceMatchConfig.refine_iterations=1, refine_prior_scale=4``: one Levenberg-Marquardt
   step per hypothesis and whisk).
@@ -32,6 +39,7 @@ Run: ``python -m pytest bench/test_bench_recognition.py --benchmark-only --bench
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -145,3 +153,65 @@ def test_surface_matcher_presentation(benchmark, n_objects, refine):
     assert sum(w is not None for w in whisks) >= PRESENTATION_WHISKS // 2  # the loop touches the object
     benchmark.extra_info["whisks"] = PRESENTATION_WHISKS
     benchmark.extra_info["active_objects_at_end"] = int(matcher.active.sum())
+
+
+# ------------------------------------------------------------- the recognition study's own library
+#: Presented along trajectory B against the study's library: two of the project's objects, two freeform
+#: shapes and a novel one (never mapped)
+STUDY_PRESENTED = ("mug", "kettle", "duck", "blob", "knot-h0")
+
+
+@pytest.fixture(scope="module")
+def study_library(tmp_path_factory):
+    """The recognition study's maps of its 50-object library (seed 0), built by its own ``map_job`` as its
+    full mode builds them (thresholds calibrated on seed 0; not timed, about half a minute), and the
+    whisks of a presentation along B of each of :data:`STUDY_PRESENTED` (as the study presents: whole
+    loops of its trajectory with the study's reach, at least 200 whisks, the ``tip`` contacts at the
+    study's contact noise, Eq 6.4-6.11 odometry)."""
+    from cansim.studies import recognition as rec
+    from whisker_io.sim.catalogue import object_file_names, resolve_object
+    from whisker_io.sim.odometry_noise import noisy_odometry as noisy
+    from whisker_io.sim.shapes import library_names
+    from whisker_io.sim.sweep import ContactNoise
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    out = tmp_path_factory.mktemp("study")
+    names = list(library_names(50))
+    setup = rec.Setup(seed=0, map_loops=2, whisks=200, thresholds=rec.calibrated_thresholds("first-seed", (0,), None),
+                      out=str(out), matchers=("surface",))
+    surfaces = [rec.map_job((n, setup, f))["surface"] for n, f in zip(names, object_file_names(names))]
+    presentations = {}
+    for i, name in enumerate(STUDY_PRESENTED):
+        mesh = resolve_object(name).mesh
+        loop = object_trajectory(mesh, "B", 1, reach_contacts=rec.REACH_CONTACTS)
+        poses = loop * math.ceil(setup.whisks / len(loop))  # whole loops, at least the study's 200 whisks
+        chain = WhiskChain(mesh, signals=False, contact_model=rec.CONTACT_MODEL,
+                           contact_noise=ContactNoise().scaled(rec.NOISE_SCALE))
+        rng = np.random.default_rng(100 + i)
+        contacts = []
+        for p in poses:
+            pts = getattr(chain.features(p, rng), "contact_points_m", None)
+            contacts.append(None if pts is None else np.asarray(pts, dtype=np.float64))
+        odometry = [None] + [SpatialOdometry(*noisy(a, b, rng)) for a, b in zip(poses[:-1], poses[1:])]
+        presentations[name] = (poses[0], odometry, contacts)
+    return names, surfaces, presentations
+
+
+@pytest.mark.parametrize("presented", STUDY_PRESENTED)
+@pytest.mark.parametrize("n_objects", [12, 25, 50])
+def test_study_library_presentation(benchmark, study_library, n_objects, presented):
+    """One presentation along B through :func:`cansim.studies.recognition.surface_targets` (the study's
+    matcher, default settings) against the first ``n_objects`` of the study's library: what the study
+    pays per whisk (the time / the whisks) on libraries of real shapes, not look-alike ellipsoids."""
+    from cansim.studies import recognition as rec
+
+    names, surfaces, presentations = study_library
+    library = rec.load_surface_library(surfaces[:n_objects], names[:n_objects])
+    start, odometry, contacts = presentations[presented]
+    rec.surface_targets(library, start, odometry[:3], contacts[:3])  # compiled outside the timing
+    targets = benchmark.pedantic(rec.surface_targets, args=(library, start, odometry, contacts), rounds=3, iterations=1)
+    assert len(targets) == len(contacts)
+    benchmark.extra_info["whisks"] = len(contacts)
+    benchmark.extra_info["own_impulses"] = int(np.sum(targets == names.index(presented))) if presented in names[:n_objects] else 0
+    benchmark.extra_info["other_impulses"] = int(np.sum(targets >= 0)) - benchmark.extra_info["own_impulses"]
