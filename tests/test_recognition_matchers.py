@@ -118,31 +118,27 @@ def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
     assert np.sum(targets == 0) >= 10  # after the window fills, every whisk
 
 
-@settings(max_examples=20, deadline=None)
-@given(st.one_of(st.just(-0.1), st.just(10.5), st.just(float("nan")), st.just(float("inf")), st.just(True), st.just("1")))
-def test_bad_odometry_scales_are_refused_before_any_work(tmp_path_factory, scale) -> None:
-    from cansim.studies import ch5_object_maps
-
-    out = tmp_path_factory.mktemp("rec") / "out"
-    with pytest.raises(ConfigError):
-        recognition.run(out, objects=["mug"], novel=[], odometry_scale=scale, progress=False)
-    assert not out.exists()
-    with pytest.raises(ConfigError):
-        ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, odometry_scale=scale)
+_BAD_SETTINGS = {
+    "odometry_scale": st.one_of(st.just(-0.1), st.just(10.5), st.just(float("nan")), st.just(float("inf")), st.just(True),
+                                st.just("1")),
+    "reach_contacts": st.one_of(st.integers(max_value=-1), st.integers(min_value=65), st.just(1.5), st.just(float("nan")),
+                                st.just(True), st.just("3")),
+}
 
 
 @settings(max_examples=20, deadline=None)
-@given(st.one_of(st.integers(max_value=-1), st.integers(min_value=65), st.just(1.5), st.just(float("nan")), st.just(True),
-                 st.just("3")))
-def test_bad_reach_contacts_are_refused_before_any_work(tmp_path_factory, reach) -> None:
+@given(st.sampled_from(sorted(_BAD_SETTINGS)).flatmap(lambda k: st.tuples(st.just(k), _BAD_SETTINGS[k])))
+def test_bad_study_settings_are_refused_before_any_work(tmp_path_factory, setting) -> None:
+    """A bad odometry scale or reach (``run`` and the Ch.5 ``StudyConfig`` its maps use): ConfigError, no file written."""
     from cansim.studies import ch5_object_maps
 
+    name, value = setting
     out = tmp_path_factory.mktemp("rec") / "out"
     with pytest.raises(ConfigError):
-        recognition.run(out, objects=["mug"], novel=[], reach_contacts=reach, progress=False)
+        recognition.run(out, objects=["mug"], novel=[], progress=False, **{name: value})
     assert not out.exists()
     with pytest.raises(ConfigError):
-        ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, reach_contacts=reach)
+        ch5_object_maps.StudyConfig(2, 0.3, {}, None, 0, **{name: value})
 
 
 def test_odometry_noise_scales_the_thesis_model() -> None:
