@@ -235,7 +235,7 @@ class Setup:
     out: str
     matchers: tuple[str, ...] = ("thesis",)
     odometry_scale: float = 1.0
-    reach_contacts: int = 3
+    reach_contacts: int = REACH_CONTACTS
 
 
 # ------------------------------------------------------------------ viewpoints
