@@ -22,6 +22,7 @@ beside ``exp_object``, ``names`` (a unicode array) and ``history_object``.
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,6 +35,8 @@ from whisker_io.persistence import read_npz, write_npz
 from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -152,10 +155,17 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     -------
     ObjectLibrary
 
+    Notes
+    -----
+    A map with no experience (an object whose exploration observed no region, e.g. a flat
+    object felt by fewer than 3 whiskers at every whisk) is kept under its name with no
+    experience: nothing can re-localise into it, so it never gets an impulse (a warning
+    is logged).
+
     Raises
     ------
     InvalidInputError
-        No map, lengths that disagree, a map that is not an ObjectMap or is empty,
+        No map, lengths that disagree, a map that is not an ObjectMap, every map empty,
         maps with different configurations, repeated names, bad offsets.
     """
     maps, names, offs = list(maps), [str(n) for n in names], list(view_offsets)
@@ -168,14 +178,18 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     for k, (m, o) in enumerate(zip(maps, offs)):
         if not isinstance(m, ObjectMap):
             raise InvalidInputError(f"map {k} is a {type(m).__name__}, not an ObjectMap")
-        if m.n_experiences == 0:
-            raise InvalidInputError(f"map {k} ({names[k]}) has no experience: explore the object first")
         if isinstance(o, bool) or not isinstance(o, (int, np.integer)) or o < 0:
             raise InvalidInputError(f"view_offsets must be integers >= 0, got {o!r}")
         if m.config != maps[0].config:
             raise InvalidInputError(f"map {k} ({names[k]}) has another configuration than map 0; build all maps with one model configuration")
     if any(b < a for a, b in zip(offs, offs[1:])):
         raise InvalidInputError(f"view_offsets must be non-decreasing, got {offs}")
+    empty = [n for m, n in zip(maps, names) if m.n_experiences == 0]
+    if len(empty) == len(maps):
+        raise InvalidInputError(f"every map is empty ({names}): explore the objects first (no experience to append)")
+    if empty:
+        logger.warning("%d object map(s) without an experience appended (nothing can be recognised as them): %s",
+                       len(empty), ", ".join(empty))
     parts = [m.to_arrays() for m in maps]
     out = dict(ObjectMap(maps[0].config, maps[0].geometry).to_arrays())  # fresh accumulators and state
     n_exp = [len(p["exp_vt"]) for p in parts]
