@@ -544,7 +544,9 @@ class SurfaceMatcher:
 
     The weighing runs on numba's threads (every core by default; ``numba.set_num_threads``
     or ``NUMBA_NUM_THREADS`` limits it, e.g. when several matchers run in parallel
-    processes); the results are the same bits on any number of threads.
+    processes, or when another process keeps a core busy: each whisk then waits for the
+    second thread to be scheduled, 6-7 ms a whisk at any library size against 1-2.5 ms on
+    one thread, ``bench/README.md``); the results are the same bits on any number of threads.
 
     Parameters
     ----------
