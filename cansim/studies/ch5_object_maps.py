@@ -421,9 +421,9 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
     presented, family, paths, names, cfg, s = job
     mesh = resolve_object(presented).mesh
     step_m, step_deg = step_of(presented)
-    per_loop = len(object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg))
-    n_loops = max(s.id_loops, math.ceil(s.id_whisks / per_loop))
-    poses = object_trajectory(mesh, family, n_loops, step_m=step_m, step_deg=step_deg)
+    loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg)
+    n_loops = max(s.id_loops, math.ceil(s.id_whisks / len(loop)))
+    poses = loop * n_loops  # whole loops (object_trajectory repeats one loop)
     slam, lib = library_model(paths, names, cell_size_m=step_m)
     n_lib_hist = len(lib.history_object)
     rng = np.random.default_rng(derive_seed(s.seed, "identify", presented, family, cfg.label))

@@ -79,7 +79,7 @@ it is not - the region features of Eq 5.5 match the poses visited, not the surfa
 interpolated between the contacts; :mod:`maps.surface_match`, :mod:`maps.surface_field`)
 identifies from new paths when the stored surfaces are accurate, and the surfaces are as
 accurate as the odometry lets the maps be.
-``cansim study recognition --quick`` (both matchers, 12 objects, seed 0; 57 s wall with
+``cansim study recognition --quick`` (both matchers, 12 objects, seed 0; 38 s wall with
 warm caches on a quiet machine, 2026-12-05 - 35 s with warm and 53 s with empty caches
 before the poses reached for contact; 3.6-4.5 min at load 2-4), correct IC decisions thesis / surface:
 
@@ -370,13 +370,12 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     step_m, step_deg = ch5.STEP  # the same step for every object, the Box too (module docstring)
     family = "B" if presentation == "B" else "A"
     reach = setup.reach_contacts
-    per_loop = len(object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach))
-    n_loops = max(1, math.ceil(setup.whisks / per_loop))
-    poses = object_trajectory(mesh, family, n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=reach)
+    loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach)
+    poses = loop * max(1, math.ceil(setup.whisks / len(loop)))  # whole loops (object_trajectory repeats one loop)
     rng = np.random.default_rng(derive_seed(setup.seed, "present", presented, presentation,
                                             vp_bin[0] if vp_bin else ""))
-    mapping = poses[:per_loop] if family == "A" else object_trajectory(mesh, "A", 1, step_m=step_m, step_deg=step_deg,
-                                                                          reach_contacts=reach)
+    mapping = loop if family == "A" else object_trajectory(mesh, "A", 1, step_m=step_m, step_deg=step_deg,
+                                                           reach_contacts=reach)
     if vp_bin is not None:
         centre = np.asarray(mesh.bounding_box.centroid, dtype=float)
         poses = viewpoint_set(poses, centre, rng, vp_bin[1], vp_bin[2])
