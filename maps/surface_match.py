@@ -22,7 +22,10 @@ identified. This module identifies the *surface* instead of the *view*:
    ``particles`` hypotheses moved by each whisk's odometry (Eq 5.7, body frame) with the
    noise model of Eq 6.4-6.11 inverted (the reported rotation with a rotation drawn from
    the Euler noise undone, the displacement's magnitude redrawn), so the hypotheses spread
-   exactly as the arm's dead reckoning may have erred.
+   exactly as the arm's dead reckoning may have erred. Each object's filter draws from a
+   random stream of its own (the seed's ``SeedSequence`` keyed by the CRC-32 of the
+   object's name), and only while the object is in question: a filter runs the same
+   whatever else the library holds and in whatever order.
 3. **Likelihood.** A whisk's contacts are placed by every hypothesis; a contact's residual
    ``r`` is its distance to the object's interpolated surface (read from the grid, at most
    ``cap_m``; off the grid, where nothing was felt, ``cap_m``); its likelihood is
@@ -232,6 +235,20 @@ in :mod:`cansim.studies.recognition`):
   nearest other object. Tried and not kept: a 5-mm grid (no better than 7.5 mm, 3.4 x the
   memory), margins of 10 and 20 nats and a best-to-runner-up residual ratio of 1.3-1.6
   (no fewer wrong decisions under the full noise).
+* **One random stream per object** (2026-12-05). Before, every object's noise came from one
+  stream and was drawn for all objects at every whisk, whether in question or not (0.4 of a
+  0.6-ms whisk with one object left at 50 objects), and an object's filter changed whenever
+  the library grew. Per whisk on the study's own 50-object library (seed 0; mug, kettle,
+  duck, blob and the novel knot along B, 225-234 whisks each; 2 threads, quiet machine, two
+  alternated rounds): mean 1.68 -> 1.26 ms, the slowest presentation (duck) 2.22 -> 1.92;
+  at 12 / 25 objects 0.73 / 1.04 -> 0.61 / 0.82 (``bench/README.md``). Identification is
+  unchanged within the matcher's seed spread: the study's whisks of seeds 0-2 replayed
+  with three matcher seeds each (nine runs; of 108 along A / B / viewpoints, wrong of 324,
+  novel undecided of 81), one stream -> per object: A 107 -> 108, B 72 -> 73, viewpoints
+  59 -> 57, wrong 31 -> 35, novel 53 -> 54; single runs move by 2-4 either way, as they do
+  with another matcher seed (the bench's Mug along B: 193 own and 6 other impulses, now 116
+  and 54). ``cansim study recognition --quick`` (seed 0): surface A 12/12, B 8/12,
+  viewpoints 8 -> 7/12, wrong 1 -> 3/36, novel undecided 6 -> 7/9.
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
   Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
   any number): a whole moving 60-whisk presentation costs 4.7-5.9 ms per whisk at 50 objects on
@@ -252,6 +269,7 @@ in :mod:`cansim.studies.recognition`):
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -318,7 +336,8 @@ class SurfaceMatchConfig:
         hypotheses stop; it gets no impulse): the cost per whisk follows the objects
         still in question, not the library's size.
     seed : int
-        Seed of the hypotheses' sampling (deterministic runs).
+        Seed of the hypotheses' sampling (deterministic runs); each object draws from its
+        own stream of it, keyed by its name (module docstring, item 2).
     refine_iterations : int
         Registration-refined proposal (0: off, the blind odometry proposal alone): after
         the odometry move, every hypothesis of an object in question is corrected toward
@@ -580,12 +599,15 @@ class SurfaceMatcher:
             raise InvalidInputError(f"config must be a SurfaceMatchConfig, got {type(config).__name__}")
         self.library, self.config = library, config
         start = _pose7(start_pose, "start_pose")
-        self._rng = np.random.default_rng(config.seed)
         K, N = library.n_objects, config.particles
+        # one random stream per object, keyed by the seed and the object's name: an object's filter draws only
+        # while it is in question, and runs the same whatever else the library holds, in any order
+        self._rngs = [np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(zlib.crc32(name.encode()),)))
+                      for name in library.names]
         R0 = Rotation.from_quat(start[3:]).as_matrix()
-        turn = _euler_xyz(self._rng.normal(0.0, math.radians(config.initial_sigma_deg), (K * N, 3)))
+        turn = _euler_xyz(self._normal(range(K), math.radians(config.initial_sigma_deg), (N, 3)).reshape(K * N, 3))
         self._R = np.einsum("ij,njk->nik", R0, turn).reshape(K, N, 3, 3)
-        self._t = (start[:3] + self._rng.normal(0.0, config.initial_sigma_m, (K * N, 3))).reshape(K, N, 3)
+        self._t = start[:3] + self._normal(range(K), config.initial_sigma_m, (N, 3))
         self._logw = np.zeros((K, N))
         self.active = np.ones(K, dtype=bool)
         self._window: list[tuple[np.ndarray, np.ndarray, int]] = []  # (log likelihood (K,), residuals (K, m), contacts m)
@@ -607,20 +629,28 @@ class SurfaceMatcher:
 
     def _move(self, odometry: SpatialOdometry) -> None:
         cfg = self.config
-        K, N = self._logw.shape
+        N = self._logw.shape[1]
         v, w, dt = (np.asarray(odometry.v, dtype=np.float64), np.asarray(odometry.omega, dtype=np.float64),
                     float(odometry.dt))
         step = Rotation.from_rotvec(w * dt).as_matrix()
         delta = v * dt
         size = float(np.linalg.norm(delta))
-        angles = self._rng.normal(0.0, math.radians(cfg.rotation_sigma_deg), (K * N, 3))  # the rotation noise to undo
+        rows = np.flatnonzero(self.active)  # only the objects in question draw their noise
+        angles = self._normal(rows, math.radians(cfg.rotation_sigma_deg), (N, 3))  # the rotation noise to undo
         if size > 0.0:
-            scale = np.maximum(size + self._rng.normal(0.0, cfg.displacement_sigma_m, K * N), 0.0) / size
+            scale = np.maximum(size + self._normal(rows, cfg.displacement_sigma_m, (N,)), 0.0) / size
         else:
-            scale = np.zeros(K * N)
-        rows = np.flatnonzero(self.active)  # all objects' noise is drawn (the same draws whichever are in question)
-        mine = angles.reshape(K, N, 3)[rows]
-        _kernels().move(self._R, self._t, step, delta, np.cos(mine), np.sin(mine), scale.reshape(K, N)[rows], rows)
+            scale = np.zeros((len(rows), N))
+        _kernels().move(self._R, self._t, step, delta, np.cos(angles), np.sin(angles), scale, rows)
+
+    def _normal(self, rows: Any, sigma: float, shape: tuple[int, ...]) -> np.ndarray:
+        """Zero-mean normal draws of standard deviation ``sigma``, ``shape`` from each object of ``rows``'
+        own stream, stacked: (len(rows), *shape)."""
+        out = np.empty((len(rows), *shape))
+        for j, k in enumerate(rows):
+            self._rngs[k].standard_normal(shape, out=out[j])
+        out *= sigma
+        return out
 
     def step(self, odometry: SpatialOdometry | None, contact_points_m: Any) -> np.ndarray:
         """One whisk: move the hypotheses by ``odometry``, weigh them by the contacts, return the impulses.
@@ -702,7 +732,10 @@ class SurfaceMatcher:
         K, N = self._logw.shape
         low = np.flatnonzero(1.0 / np.sum(w**2, axis=1) < N / 2)
         if len(low):
-            _kernels().resample_in_place(self._R, self._t, w, low, rows, self._rng.random(K))
+            offsets = np.zeros(K)
+            for k in rows[low]:
+                offsets[k] = self._rngs[k].random()
+            _kernels().resample_in_place(self._R, self._t, w, low, rows, offsets)
             self._logw[rows[low]] = -math.log(N)
 
 

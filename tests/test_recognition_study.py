@@ -112,7 +112,7 @@ def test_surface_matcher_names_more_objects_from_new_paths(quick):
 
 @pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match recognises visited poses, not "
                                        "the surface (along B 0/12); the surface matcher on interpolated surfaces names 8/12 "
-                                       "along B and 8/12 from the viewpoints under the thesis' odometry noise, with wrong "
+                                       "along B and 7/12 from the viewpoints under the thesis' odometry noise, with wrong "
                                        "decisions (distorted maps); at a quarter of that noise (blind proposal) 89 % along B and 83 % from "
                                        "the viewpoints (seeds 0-2), short of 90 %")
 @pytest.mark.parametrize("presentation", ["B", "viewpoints"])

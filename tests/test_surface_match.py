@@ -9,6 +9,7 @@ input (hypothesis); the batched matcher against a per-object reference written o
 from __future__ import annotations
 
 import math
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -440,19 +441,21 @@ def test_move_kernel_equals_the_numpy_expression() -> None:
 # --------------------------------------------------------------------------- the matcher against a per-object reference
 class _PerObjectReference:
     """The matcher of the module docstring written out plainly, one object at a time: scipy rotations and
-    trilinear interpolation, Python loops; the same random draws in the same order as SurfaceMatcher."""
+    trilinear interpolation, Python loops; each object's random draws from its own stream (the seed's
+    SeedSequence with the CRC-32 of the object's name as its spawn key), drawn only while the object is in
+    question: its initial spread, then per whisk its rotation noise, displacement noise and resampling comb."""
 
     def __init__(self, lib: SurfaceLibrary, start: np.ndarray, cfg: SurfaceMatchConfig) -> None:
         from scipy.interpolate import RegularGridInterpolator
 
         self.cfg, self.K, self.N = cfg, lib.n_objects, cfg.particles
-        self.rng = np.random.default_rng(cfg.seed)
         K, N, f = self.K, self.N, lib.fields
-        turn = Rotation.from_euler("xyz", self.rng.normal(0.0, math.radians(cfg.initial_sigma_deg), (K * N, 3))).as_matrix()
-        t = start[:3] + self.rng.normal(0.0, cfg.initial_sigma_m, (K * N, 3))
+        self.rngs = [np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(zlib.crc32(n.encode()),))) for n in lib.names]
         R0 = Rotation.from_quat(start[3:]).as_matrix()
-        self.R = [R0 @ turn[k * N:(k + 1) * N] for k in range(K)]
-        self.t = [t[k * N:(k + 1) * N].copy() for k in range(K)]
+        self.R, self.t = [], []
+        for rng in self.rngs:
+            self.R.append(R0 @ Rotation.from_euler("xyz", rng.normal(0.0, math.radians(cfg.initial_sigma_deg), (N, 3))).as_matrix())
+            self.t.append(start[:3] + rng.normal(0.0, cfg.initial_sigma_m, (N, 3)))
         self.logw = [np.zeros(N) for _ in range(K)]
         self.active = [True] * K
         self.window: list[tuple[list[float], list[np.ndarray], int]] = []
@@ -470,16 +473,16 @@ class _PerObjectReference:
     def step(self, odometry: SpatialOdometry | None, pts: np.ndarray) -> np.ndarray:
         cfg, K, N = self.cfg, self.K, self.N
         if odometry is not None:
-            angles = self.rng.normal(0.0, math.radians(cfg.rotation_sigma_deg), (K * N, 3))
             delta = np.asarray(odometry.v) * odometry.dt
             size = float(np.linalg.norm(delta))
-            scale = (np.maximum(size + self.rng.normal(0.0, cfg.displacement_sigma_m, K * N), 0.0) / size if size > 0
-                     else np.zeros(K * N))
             step = Rotation.from_rotvec(np.asarray(odometry.omega) * odometry.dt).as_matrix()
             for k in range(K):
                 if self.active[k]:
-                    undo = Rotation.from_euler("xyz", angles[k * N:(k + 1) * N]).inv().as_matrix()
-                    self.t[k] = self.t[k] + self.R[k] @ delta * scale[k * N:(k + 1) * N, None]
+                    angles = self.rngs[k].normal(0.0, math.radians(cfg.rotation_sigma_deg), (N, 3))
+                    scale = (np.maximum(size + self.rngs[k].normal(0.0, cfg.displacement_sigma_m, N), 0.0) / size if size > 0
+                             else np.zeros(N))
+                    undo = Rotation.from_euler("xyz", angles).inv().as_matrix()
+                    self.t[k] = self.t[k] + self.R[k] @ delta * scale[:, None]
                     self.R[k] = self.R[k] @ step @ undo
         impulses = np.zeros(K, dtype=bool)
         if pts is None or len(pts) < cfg.min_contacts:
@@ -500,11 +503,9 @@ class _PerObjectReference:
             self.logw[k] = np.log(np.maximum(w, 1e-300))
             if 1.0 / np.sum(w**2) < N / 2:
                 resample.append((k, w))
-        if resample:
-            comb = self.rng.random(K)
-            for k, w in resample:
-                idx = np.minimum(np.searchsorted(np.cumsum(w), (comb[k] + np.arange(N)) / N), N - 1)
-                self.R[k], self.t[k], self.logw[k] = self.R[k][idx], self.t[k][idx], np.full(N, -math.log(N))
+        for k, w in resample:
+            idx = np.minimum(np.searchsorted(np.cumsum(w), (self.rngs[k].random() + np.arange(N)) / N), N - 1)
+            self.R[k], self.t[k], self.logw[k] = self.R[k][idx], self.t[k][idx], np.full(N, -math.log(N))
         self.window = (self.window + [(whisk_ll, contact_r, len(pts))])[-cfg.window_whisks:]
         self.log_evidence = np.array([sum(e[k] for e, _, _ in self.window) for k in range(K)])
         self.evidence_m = np.array([np.median(np.concatenate([r[k] for _, r, _ in self.window])) if self.active[k]
@@ -555,6 +556,33 @@ def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) 
             np.testing.assert_allclose(batched._R[k], reference.R[k], atol=1e-12)
             np.testing.assert_allclose(batched._t[k], reference.t[k], atol=1e-12)
     assert impulses > 0 and dropped == (prune_margin < 100)  # the run exercises the impulses and the pruning
+
+
+@pytest.mark.parametrize("refine", [0, 1])
+def test_an_objects_filter_does_not_depend_on_the_rest_of_the_library(refine: int) -> None:
+    """Each object draws from its own stream, keyed by its name: object ``a``'s hypotheses, whisk
+    log likelihoods and residuals are the same bits alone, with two more objects after it, and with
+    them before it; and they would not be if the streams were shared (the other objects drawing
+    first would move ``a``'s noise)."""
+    surfaces = {"a": _sphere(0.10, seed=1), "b": _sphere(0.12, seed=2), "c": _plane(0.0, half=0.15)}
+    cfg = SurfaceMatchConfig(particles=16, initial_sigma_m=0.003, initial_sigma_deg=1.0, refine_iterations=refine,
+                             window_whisks=4, min_window_contacts=4, prune_margin=1e9, seed=3)
+    runs = {}
+    for order in (("a",), ("a", "b", "c"), ("c", "b", "a")):
+        lib = SurfaceLibrary([surfaces[n] for n in order], list(order), [surfaces[n] * 2.0 for n in order])
+        m = SurfaceMatcher(lib, IDENTITY, cfg)
+        rng = np.random.default_rng(9)
+        k, trace = order.index("a"), []
+        for i in range(8):
+            odo = None if i == 0 else SpatialOdometry(rng.normal(0, 0.004, 3), rng.normal(0, 0.02, 3), 1.0)
+            pts = surfaces["a"][rng.choice(len(surfaces["a"]), 1 + i % 4, replace=False)]
+            m.step(odo, pts)
+            trace.append((m._R[k].copy(), m._t[k].copy(), m._window[-1][0][k], m._window[-1][1][k].copy()))
+        runs[order] = trace
+    for order in (("a", "b", "c"), ("c", "b", "a")):
+        for (R, t, ll, r), (R1, t1, ll1, r1) in zip(runs[order], runs[("a",)]):
+            assert np.array_equal(R, R1) and np.array_equal(t, t1) and ll == ll1 and np.array_equal(r, r1), order
+    assert len({zlib.crc32(n.encode()) for n in surfaces}) == 3  # three distinct streams
 
 
 _REFERENCE_SURFACES: list[SurfaceLibrary] = []
