@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -511,8 +512,7 @@ class _PerObjectReference:
         self.evidence_m = np.array([np.median(np.concatenate([r[k] for _, r, _ in self.window])) if self.active[k]
                                     else np.inf for k in range(K)])
         best = int(np.argmax(self.log_evidence))
-        if len(self.window) == cfg.window_whisks:
-            self.active = [bool(self.log_evidence[k] >= self.log_evidence[best] - cfg.prune_margin) for k in range(K)]
+        self.active = [bool(self.log_evidence[k] >= self.log_evidence[best] - cfg.prune_margin) for k in range(K)]
         others = np.delete(self.log_evidence, best)
         if (sum(c for _, _, c in self.window) >= cfg.min_window_contacts
                 and (len(others) == 0 or self.log_evidence[best] - others.max() >= cfg.margin)
@@ -561,16 +561,17 @@ def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) 
 @pytest.mark.parametrize("refine", [0, 1])
 def test_an_objects_filter_does_not_depend_on_the_rest_of_the_library(refine: int) -> None:
     """Each object draws from its own stream, keyed by its name: object ``a``'s hypotheses, whisk
-    log likelihoods and residuals are the same bits alone, with two more objects after it, and with
-    them before it; and they would not be if the streams were shared (the other objects drawing
-    first would move ``a``'s noise)."""
+    log likelihoods and residuals are the same bits alone, with two more objects after it, with
+    them before it, and with them dropped early (a 3-nat prune margin); and they would not be if
+    the streams were shared (the other objects drawing first would move ``a``'s noise)."""
     surfaces = {"a": _sphere(0.10, seed=1), "b": _sphere(0.12, seed=2), "c": _plane(0.0, half=0.15)}
     cfg = SurfaceMatchConfig(particles=16, initial_sigma_m=0.003, initial_sigma_deg=1.0, refine_iterations=refine,
                              window_whisks=4, min_window_contacts=4, prune_margin=1e9, seed=3)
     runs = {}
-    for order in (("a",), ("a", "b", "c"), ("c", "b", "a")):
-        lib = SurfaceLibrary([surfaces[n] for n in order], list(order), [surfaces[n] * 2.0 for n in order])
-        m = SurfaceMatcher(lib, IDENTITY, cfg)
+    for order in (("a",), ("a", "b", "c"), ("c", "b", "a"), ("b", "a", "c", "pruned")):
+        names = [n for n in order if n != "pruned"]
+        lib = SurfaceLibrary([surfaces[n] for n in names], names, [surfaces[n] * 2.0 for n in names])
+        m = SurfaceMatcher(lib, IDENTITY, replace(cfg, prune_margin=3.0) if "pruned" in order else cfg)
         rng = np.random.default_rng(9)
         k, trace = order.index("a"), []
         for i in range(8):
@@ -579,7 +580,9 @@ def test_an_objects_filter_does_not_depend_on_the_rest_of_the_library(refine: in
             m.step(odo, pts)
             trace.append((m._R[k].copy(), m._t[k].copy(), m._window[-1][0][k], m._window[-1][1][k].copy()))
         runs[order] = trace
-    for order in (("a", "b", "c"), ("c", "b", "a")):
+        if "pruned" in order:
+            assert m.active.tolist() == [False, True, False]  # b and c were dropped on the way
+    for order in (("a", "b", "c"), ("c", "b", "a"), ("b", "a", "c", "pruned")):
         for (R, t, ll, r), (R1, t1, ll1, r1) in zip(runs[order], runs[("a",)]):
             assert np.array_equal(R, R1) and np.array_equal(t, t1) and ll == ll1 and np.array_equal(r, r1), order
     assert len({zlib.crc32(n.encode()) for n in surfaces}) == 3  # three distinct streams
