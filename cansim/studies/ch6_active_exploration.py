@@ -220,7 +220,16 @@ these runs):
   reaching for 3 whiskers (as the recognition study's, ``object_trajectory(...,
   reach_contacts=3)``'s rule applied to the tour): the torus 86 observations, 5
   re-localisations, still 93 mm off (the snowman 53 mm, the duck 71 mm); duck / bear 7 of 8,
-  snowman / torus 4 of 8, as before. The lever is the maps' closures, not the matcher.
+  snowman / torus 4 of 8, as before. Other mapping paths (scratch monkeypatches of
+  :func:`mapping_tour`; the same 16 runs, correct first at IC 300; stored surface to mesh):
+  the face tour's one loop retraced in the same order (10 of 16: the torus still 0
+  re-localisations, 166 mm); 2 loops of the Ch.5 trajectory A instead (12 of 16 at the fixed
+  standoff, 12 reaching for 3 whiskers: the torus named 4 of 4 - 38-65 re-localisations, 42-64
+  mm - but the duck 0 of 4, taken for the bear: its A map is accurate, 17-34 mm, but covers a
+  band round its middle, where the explorer feels all over it); a loop of A, the face tour, a
+  loop of A (10 of 16 either way: the torus 2 of 4, the duck 0 of 4). Which map wins is a
+  contest between the maps' coverage and accuracy, and no mapping path tried wins it for both
+  pairs. The lever is the maps' closures and coverage together, not the matcher.
 * Tried and not kept: more mapping loops (``prepare(..., n_loops=3 / 4)``, refined
   matcher): duck / bear 7 / 5 of 8, snowman / torus 4 / 4 of 8 (the torus never named).
 * Tried in a scratch study and not kept: free-space evidence (a penalty for the swept
