@@ -1,5 +1,6 @@
 """Explorer metrics (IM, SRT from hand-made IC traces) and a short simulated run through the safety envelope."""
 
+import logging
 import math
 
 import numpy as np
@@ -124,9 +125,10 @@ def _explorer(world, strategy="lsr", seed=3, n=60, spc=True):
 
 
 @pytest.mark.parametrize("strategy,spc", [("default", False), ("feh", False), ("lsr", False), ("lsr", True)])
-def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world, strategy, spc):
+def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world, strategy, spc, caplog):
     ex, arm, env, cycles = _explorer(world, strategy, spc=spc, n=60 if not spc else 150)
-    res = ex.run()
+    with caplog.at_level(logging.DEBUG, logger="cansim"):
+        res = ex.run()
     n = len(res.ic)
     assert n == (60 if not spc else 150) == len(res.poses) == len(res.strategies) and res.stop_reason == "iterations"
     sent = [c for c in arm.arm.received if c.kind == "moveL"]
@@ -135,6 +137,9 @@ def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world,
         assert c.speed <= env.max_tcp_speed
     # faces below the floor are refused: counted, and the explorer moved on
     assert res.refused_commands == arm.refused
+    refusals = [r for r in caplog.records if "refused by the safety envelope" in r.getMessage()]
+    assert [r.levelno for r in refusals if r.levelno > logging.DEBUG] == ([logging.INFO] if arm.refused else [])
+    assert sum(r.levelno == logging.DEBUG for r in refusals) == arm.refused  # one line a run, each refusal at DEBUG
     if strategy == "default":  # the default search walks the sphere's faces and meets the floor
         assert arm.refused > 0
     assert len(sent) == n - res.strategies.count("none")  # a move per whisk unless every re-plan was refused

@@ -761,7 +761,7 @@ class Explorer:
                 return source
             except SafetyViolationError as exc:
                 self.refused_commands += 1
-                _LOG.warning("arm command refused by the safety envelope (%s): %s; re-planning", source, exc)
+                _LOG.debug("arm command refused by the safety envelope (%s): %s; re-planning", source, exc)
                 if source == "default":
                     self.default.refused()
                 elif source in ("feh", "lsr") and self.strategy is not None:
@@ -775,6 +775,7 @@ class Explorer:
         """Explore until the stop threshold, the iteration limit or the time limit."""
         t0 = time.monotonic()
         reason = "iterations"
+        refused = self.refused_commands
         for _ in range(self.max_iterations):
             pose = self.arm.pose()  # type: ignore[attr-defined]
             obs = self.sensor(pose)
@@ -788,6 +789,9 @@ class Explorer:
             if time.monotonic() - t0 > self.time_limit_s:
                 reason = "time"
                 break
+        if self.refused_commands > refused:  # one line a run; each refusal is logged at DEBUG
+            _LOG.info("%d arm commands refused by the safety envelope in %d whisks, each re-planned "
+                      "(ExplorationResult.refused_commands)", self.refused_commands - refused, len(self._strats))
         return self.result(reason)
 
     def replay(self, cycles: Sequence[tuple[Pose, object]]) -> ExplorationResult:
