@@ -38,8 +38,9 @@ identified. This module identifies the *surface* instead of the *view*:
    contact in ten is 1-2 cm off the true surface by the contact noise of Sec 6.1.3.1.2).
    From the first whisk on, an object ``prune_margin`` nats below the best is dropped for
    the rest of the presentation, so the cost per whisk follows the objects still in question
-   (an object's filter does not depend on the others', item 2, so dropping one early changes
-   nothing for the rest).
+   (an object's filter does not depend on the others', item 2, so dropping one early leaves
+   the rest's filters as they were; an impulse the dropped object would have blocked, had it
+   come back within ``margin`` of the best, can fire earlier).
 5. **Impulse.** The best object gets an impulse (into its leaky integrator,
    :func:`maps.recognition.leaky_step`, so the RC / IC decisions of Ch.5 / Ch.6 are
    unchanged) when the window holds ``min_window_contacts`` contacts, its log evidence
