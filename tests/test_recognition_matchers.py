@@ -52,6 +52,27 @@ def test_bad_calibration_seeds_raise_typed_errors(seeds) -> None:
         recognition.calibrated_thresholds(seeds, (0,))
 
 
+@settings(max_examples=15, deadline=None)
+@given(st.one_of(st.floats(max_value=-360.001), st.floats(min_value=360.001), st.just(float("nan")), st.just(float("inf")),
+                 st.just(True), st.just("90")))
+def test_bad_rolls_are_refused_before_any_work(tmp_path_factory, roll) -> None:
+    out = tmp_path_factory.mktemp("rec") / "out"
+    with pytest.raises(ConfigError, match="roll_deg"):
+        recognition.run(out, objects=["mug"], novel=[], roll_deg=roll, progress=False)
+    assert not out.exists()
+
+
+def test_each_object_gets_its_roll_and_the_thesis_roll_by_default() -> None:
+    """roll_job: a torus lying flat is whisked at 0 deg (the array rolled by 90 deg straddles it), the Mug at
+    the thesis' 90; with no reach (the Ch.5 study's fixed standoff) every object keeps 90; Setup.roll_of
+    gives an unlisted object 90."""
+    assert recognition.roll_job(("torus_flat-v0", 3)) == ("torus_flat-v0", 0.0)
+    assert recognition.roll_job(("mug", 3)) == ("mug", 90.0)
+    assert recognition.roll_job(("torus_flat-v0", 0)) == ("torus_flat-v0", 90.0)
+    setup = recognition.Setup(0, 2, 200, (1.0, 0.3), "out", rolls_deg=(("torus_flat-v0", 0.0),))
+    assert setup.roll_of("torus_flat-v0") == 0.0 and setup.roll_of("mug") == 90.0
+
+
 @settings(max_examples=8, deadline=None)
 @given(st.one_of(st.floats(max_value=0.0), st.floats(min_value=1.0, exclude_min=True), st.just(float("nan"))))
 def test_bad_calibration_quantiles_raise_typed_errors(q) -> None:

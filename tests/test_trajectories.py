@@ -20,6 +20,7 @@ from whisker_io.sim.trajectories import (
     facing_pose,
     fit_surface,
     object_trajectory,
+    reaching_roll_deg,
     step_sizes,
 )
 
@@ -221,6 +222,48 @@ def test_bad_reach_settings_raise_typed_errors(box, reach, advance):
         object_trajectory(box, reach_contacts=reach)
     with pytest.raises(InvalidInputError):
         object_trajectory(box, reach_contacts=3, max_advance_m=advance)
+
+
+def _share_touching(mesh, roll, k=3):
+    """Share of one reaching loop's poses touched by >= k whiskers (rigid sweeps), counted here."""
+    target = MeshTarget(mesh)
+    loop = object_trajectory(mesh, "A", n_loops=1, roll_deg=roll, reach_contacts=k)
+    return float(np.mean([_touching(target, p) >= k for p in loop]))
+
+
+@pytest.mark.parametrize("name", ["torus_flat-v0", "mug", "duck"])
+def test_the_roll_that_reaches_follows_its_rule(name):
+    """reaching_roll_deg against shares counted here: the thesis' 90 deg unless 0 deg gives a share
+    more than 0.1 higher. A torus lying flat sits between the rows of the array rolled by 90 deg
+    (no pose touched by 3 whiskers) and is touched by 3 at every pose at 0 deg; the Mug keeps 90."""
+    from whisker_io.sim.catalogue import resolve_object
+
+    mesh = resolve_object(name).mesh
+    at90, at0 = _share_touching(mesh, 90.0), _share_touching(mesh, 0.0)
+    want = 0.0 if at0 > at90 + 0.1 else 90.0
+    assert reaching_roll_deg(mesh, "A", 3) == want, (at90, at0)
+    if name == "torus_flat-v0":
+        assert at90 == 0.0 and at0 >= 0.9 and want == 0.0
+    if name == "mug":
+        assert want == 90.0
+    assert reaching_roll_deg(mesh, "A", 3, candidates_deg=(0.0, 90.0)) == (90.0 if at90 > at0 + 0.1 else 0.0)
+    assert reaching_roll_deg(mesh, "A", 3, min_gain=1.0) == 90.0  # no roll can gain more than every pose
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.one_of(
+    st.fixed_dictionaries({"candidates_deg": st.sampled_from([(), (float("nan"),), (90.0, float("inf")), ("x",)])}),
+    st.fixed_dictionaries({"min_gain": st.one_of(st.floats(max_value=-1e-9), st.floats(min_value=1.0001),
+                                                 st.just(float("nan")))}),
+    st.fixed_dictionaries({"reach_contacts": st.one_of(st.integers(max_value=0), st.just(2.5))}),
+    st.fixed_dictionaries({"roll_deg": st.just(0.0)}),
+    st.fixed_dictionaries({"n_loops": st.just(2)}),
+    st.fixed_dictionaries({"step_m": st.just(-0.1)}),
+))
+def test_bad_roll_choices_raise_typed_errors(box, kwargs):
+    with pytest.raises(CansimError) as err:
+        reaching_roll_deg(box, "A", **kwargs)
+    assert isinstance(err.value, (InvalidInputError, ConfigError))
 
 
 # ------------------------------------------------------------- bad input

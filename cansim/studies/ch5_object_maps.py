@@ -337,11 +337,13 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     }
 
 
-def map_object(name: str, cfg: Config, s: StudyConfig,
-               step: tuple[float, float] | None = None) -> tuple[Any, list[Any], dict[str, Any]]:
+def map_object(name: str, cfg: Config, s: StudyConfig, step: tuple[float, float] | None = None,
+               roll_deg: float = 90.0) -> tuple[Any, list[Any], dict[str, Any]]:
     """Map ``name`` (a name or mesh file) along ``s.n_loops`` loops of trajectory A: (model, poses, exploration log).
 
-    ``step`` (m, deg) is the largest step between whisks (default :func:`step_of`).
+    ``step`` (m, deg) is the largest step between whisks (default :func:`step_of`); ``roll_deg``
+    the array's roll about its axis (:func:`whisker_io.sim.trajectories.object_trajectory`;
+    the thesis' 90 deg by default).
     Seeded by ``(s.seed, "build", name, cfg.label)``: every caller that maps the same
     object with the same configuration gets the same whisks and the same map.
     """
@@ -351,7 +353,8 @@ def map_object(name: str, cfg: Config, s: StudyConfig,
 
     mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name) if step is None else step
-    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=s.reach_contacts)
+    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=s.reach_contacts,
+                              roll_deg=roll_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng, s.odometry_scale)
