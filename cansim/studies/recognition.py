@@ -92,7 +92,7 @@ it is not - the region features of Eq 5.5 match the poses visited, not the surfa
 interpolated between the contacts; :mod:`maps.surface_match`, :mod:`maps.surface_field`)
 identifies from new paths when the stored surfaces are accurate, and the surfaces are as
 accurate as the odometry lets the maps be.
-``cansim study recognition --quick`` (both matchers, 12 objects, seed 0; 33 s wall with
+``cansim study recognition --quick`` (both matchers, 12 objects, seed 0; 36 s wall with
 warm caches on a quiet machine, 2026-12-05 - 35 s with warm and 53 s with empty caches
 before the poses reached for contact; 3.6-4.5 min at load 2-4), correct IC decisions thesis / surface:
 
