@@ -227,7 +227,9 @@ these runs):
   standoff, 12 reaching for 3 whiskers: the torus named 4 of 4 - 38-65 re-localisations, 42-64
   mm - but the duck 0 of 4, taken for the bear: its A map is accurate, 17-34 mm, but covers a
   band round its middle, where the explorer feels all over it); a loop of A, the face tour, a
-  loop of A (10 of 16 either way: the torus 2 of 4, the duck 0 of 4). Which map wins is a
+  loop of A (10 of 16 either way: the torus 2 of 4, the duck 0 of 4); two loops of A and two of
+  B, reaching, in that order or alternating (10 and 8 of 16: the duck 0 of 4 each time, the
+  snowman's map 177-244 mm off after 1,040 whisks). Which map wins is a
   contest between the maps' coverage and accuracy, and no mapping path tried wins it for both
   pairs. The lever is the maps' closures and coverage together, not the matcher.
 * Tried and not kept: more mapping loops (``prepare(..., n_loops=3 / 4)``, refined
