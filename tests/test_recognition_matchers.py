@@ -238,14 +238,21 @@ def test_unmapped_contact_fraction_refuses_bad_input_with_typed_errors(tmp_path_
 
 @pytest.mark.slow
 def test_a_library_object_the_mapping_never_observed_leaves_the_run_finishing(tmp_path: Path) -> None:
-    """A flat torus (9 cm high, felt by fewer than 3 whiskers at every whisk of A even reaching for
-    contact) gets a map without an experience; the study's full mode (25 and 50 objects hold such
-    shapes) used to stop on it in the thesis library model. Now the run finishes: the flat torus is
-    in the library by name, nothing is decided for it by the thesis matcher, the Mug is named."""
+    """A flat torus (9 cm high) whisked with the array rolled by the thesis' 90 deg is felt by fewer
+    than 3 whiskers at every whisk of A, even reaching for contact, and gets a map without an
+    experience; the study's full mode (25 and 50 objects hold such shapes) used to stop on it in
+    the thesis library model. Now the run finishes: the flat torus is in the library by name,
+    nothing is decided for it by the thesis matcher, the Mug is named. With the roll chosen per
+    object (the default) the torus is whisked at 0 deg, observed, and named along A."""
     rows = recognition.run(tmp_path / "out", objects=["mug", "torus_flat-v0"], novel=[], bins=(), seeds=(0,),
-                           progress=False, workers=1)
+                           progress=False, workers=1, roll_deg=90.0)
     assert {(r["matcher"], r["presented"], r["presentation"]) for r in rows} == {
         (m, n, p) for m in recognition.DEFAULT_MATCHERS for n in ("mug", "torus_flat-v0") for p in ("A", "B")}
     thesis = {(r["presented"], r["presentation"]): r for r in rows if r["matcher"] == "thesis"}
     assert thesis["torus_flat-v0", "A"]["impulses_own"] == 0 and thesis["torus_flat-v0", "A"]["whisks_with_contact"] == 0
     assert thesis["mug", "A"]["decision"] == "mug" and thesis["mug", "B"]["decision"] in ("mug", "")
+    rows = recognition.run(tmp_path / "rolled", objects=["mug", "torus_flat-v0"], novel=[], bins=(), seeds=(0,),
+                           progress=False, workers=1, matchers=("thesis",))
+    along_a = {r["presented"]: r for r in rows if r["presentation"] == "A"}
+    assert along_a["torus_flat-v0"]["roll_deg"] == 0.0 and along_a["mug"]["roll_deg"] == 90.0
+    assert along_a["torus_flat-v0"]["whisks_with_contact"] > 0 and along_a["torus_flat-v0"]["decision"] == "torus_flat-v0"
