@@ -40,7 +40,10 @@ identified. This module identifies the *surface* instead of the *view*:
    the rest of the presentation, so the cost per whisk follows the objects still in question
    (an object's filter does not depend on the others', item 2, so dropping one early leaves
    the rest's filters as they were; an impulse the dropped object would have blocked, had it
-   come back within ``margin`` of the best, can fire earlier).
+   come back within ``margin`` of the best, can fire earlier). Once the window is full, an
+   object whose evidence in metres exceeds ``prune_residual_ratio`` (2) times ``tolerance_m``
+   is dropped too: it fits too badly for an impulse, and on a surface nothing fits (a novel
+   object, a part no map felt) every object may go, after which the matcher weighs nothing.
 5. **Impulse.** The best object gets an impulse (into its leaky integrator,
    :func:`maps.recognition.leaky_step`, so the RC / IC decisions of Ch.5 / Ch.6 are
    unchanged) when the window holds ``min_window_contacts`` contacts, its log evidence
@@ -255,6 +258,18 @@ in :mod:`cansim.studies.recognition`):
   independent, objects are also dropped from the first whisk on (item 4; before, only once the
   window was full): the same decisions in all nine replays, 1.26 -> 1.15 ms a whisk at 50
   objects on the study's library, the look-alike ellipsoids 4.5 -> 3.9 ms (``bench/README.md``).
+* **Dropping objects that fit too badly** (``prune_residual_ratio`` 2, 2026-12-05; the factor
+  fixed beforehand: twice the largest evidence that may get an impulse). Presentations that
+  nothing in the library fits (flat tori, bowls, novel shapes) kept 10-20 objects within 30 nats
+  of the best to the end, each costing its filter. Nine replays (as above): A 108 -> 108, B 73 ->
+  73, viewpoints 57 -> 57, wrong 35 -> 36, novel undecided 54 -> 56; ``--quick --seeds 3``
+  (thresholds on seed 0): A 36, B 24, viewpoints 17, wrong 10 both, novel undecided 21 -> 18 of
+  27 (seed 0: 7 -> 5 of 9) - within the spread these figures show for any change of the draws.
+  Keeping in question the objects within ``margin`` of the best whatever their residual made no
+  difference to the cost and gave novel undecided 51 (not taken). Cost on the study's 50-object
+  library, all 53 presentations along B (per-object rolls, 2 threads, alternated): 1.27 -> 1.04
+  ms a whisk, the slowest 3.06 -> 2.1-2.2 ms, 7-8 -> 2 of 53 over 2 ms; at 50 objects along B
+  correct 13 -> 14 of 50, wrong 7 -> 6 (seed 0). The look-alike ellipsoids all fit: unchanged.
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
   Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
   any number): a whole moving 60-whisk presentation costs 4.7-5.9 ms per whisk at 50 objects on
@@ -360,6 +375,11 @@ class SurfaceMatchConfig:
         than the fit's volume allows.
     refine_prior_scale : float
         Scale of the refinement's prior on the odometry noise (> 0).
+    prune_residual_ratio : float
+        Once the window is full, an object whose window evidence (``evidence_m``, the median
+        residual) is more than this times ``tolerance_m`` is dropped as well (>= 1): it fits
+        the whisks too badly for an impulse, and a novel object's presentation drops them
+        all. A large value turns it off.
 
     Notes
     -----
@@ -403,6 +423,7 @@ class SurfaceMatchConfig:
     seed: int = checked(0, int, minimum=0)
     refine_iterations: int = checked(1, int, minimum=0, maximum=50)
     refine_prior_scale: float = checked(4.0, float, above=0, maximum=100.0)
+    prune_residual_ratio: float = checked(2.0, float, minimum=1.0, maximum=1e6)
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -691,6 +712,8 @@ class SurfaceMatcher:
             return impulses
         f = self.library.fields
         rows = np.flatnonzero(self.active)
+        if not len(rows):  # every object dropped: nothing left to weigh (the evidence stays as it was)
+            return impulses
         cap = min(cfg.cap_m, f.config.cap_m)
         if cfg.refine_iterations > 0:
             sd = cfg.refine_prior_scale * np.array([cfg.displacement_sigma_m] * 3 + [math.radians(cfg.rotation_sigma_deg)] * 3)
@@ -726,7 +749,9 @@ class SurfaceMatcher:
         order = np.argsort(-self.log_evidence)
         best = int(order[0])
         self.active &= self.log_evidence >= self.log_evidence[best] - cfg.prune_margin
-        if n >= cfg.min_window_contacts:
+        if len(self._window) == cfg.window_whisks:  # a full window that an object fits this badly: dropped too
+            self.active &= self.evidence_m <= cfg.prune_residual_ratio * cfg.tolerance_m
+        if n >= cfg.min_window_contacts and np.isfinite(self.log_evidence[best]):
             second = self.log_evidence[order[1]] if K > 1 else -np.inf
             if self.log_evidence[best] - second >= cfg.margin and self.evidence_m[best] <= cfg.tolerance_m:
                 impulses[best] = True

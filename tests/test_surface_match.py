@@ -222,7 +222,7 @@ def test_bad_start_pose_raises(pose: object) -> None:
 
 @settings(max_examples=25, deadline=None)
 @given(st.sampled_from(["cap_m", "contact_sigma_m", "tolerance_m", "margin", "window_whisks", "particles",
-                        "outlier_weight"]),
+                        "outlier_weight", "prune_residual_ratio"]),
        st.one_of(st.just(0), st.just(-1.0), st.just(float("nan")), st.just("x"), st.just(True)))
 def test_bad_config_raises(field: str, value: object) -> None:
     with pytest.raises(ConfigError):
@@ -486,7 +486,7 @@ class _PerObjectReference:
                     self.t[k] = self.t[k] + self.R[k] @ delta * scale[:, None]
                     self.R[k] = self.R[k] @ step @ undo
         impulses = np.zeros(K, dtype=bool)
-        if pts is None or len(pts) < cfg.min_contacts:
+        if pts is None or len(pts) < cfg.min_contacts or not any(self.active):
             return impulses
         whisk_ll, contact_r, resample = [-np.inf] * K, [np.full(len(pts), np.inf) for _ in range(K)], []
         for k in range(K):
@@ -513,24 +513,29 @@ class _PerObjectReference:
                                     else np.inf for k in range(K)])
         best = int(np.argmax(self.log_evidence))
         self.active = [bool(self.log_evidence[k] >= self.log_evidence[best] - cfg.prune_margin) for k in range(K)]
+        if len(self.window) == cfg.window_whisks:  # fitting a full window this badly drops an object too
+            self.active = [a and bool(self.evidence_m[k] <= cfg.prune_residual_ratio * cfg.tolerance_m)
+                           for k, a in enumerate(self.active)]
         others = np.delete(self.log_evidence, best)
-        if (sum(c for _, _, c in self.window) >= cfg.min_window_contacts
+        if (sum(c for _, _, c in self.window) >= cfg.min_window_contacts and math.isfinite(self.log_evidence[best])
                 and (len(others) == 0 or self.log_evidence[best] - others.max() >= cfg.margin)
                 and self.evidence_m[best] <= cfg.tolerance_m):
             impulses[best] = True
         return impulses
 
 
-@pytest.mark.parametrize("prune_margin", [8.0, 1e9])
-def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) -> None:
+@pytest.mark.parametrize("prune_margin,residual_ratio", [(8.0, 2.0), (1e9, 2.0), (1e9, 1e6)])
+def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float, residual_ratio: float) -> None:
     """SurfaceMatcher (all objects' hypotheses in one array, numba kernels) against the per-object
     reference above over 24 whisks with odometry (turning, stepping, standing still), whisks of
-    1-6 contacts and none, objects dropped (prune margin 8 nats) or all kept: the same evidence
-    to rounding, the same objects dropped, the same impulses."""
+    1-6 contacts and none, objects dropped (prune margin 8 nats, or residuals over twice the
+    tolerance alone) or all kept: the same evidence to rounding, the same objects dropped, the
+    same impulses."""
     surfaces = [_sphere(0.10, seed=1), _sphere(0.12, seed=2), _plane(0.0, half=0.15), _sphere(0.09, seed=3) + [0.0, 0.0, 0.02]]
     lib = SurfaceLibrary(surfaces, ["a", "b", "c", "d"], [s * 2.0 for s in surfaces])
     cfg = SurfaceMatchConfig(particles=24, initial_sigma_m=0.004, initial_sigma_deg=2.0, window_whisks=6, refine_iterations=0,
-                             min_window_contacts=6, prune_margin=prune_margin, seed=5, margin=1.0, tolerance_m=0.01)
+                             min_window_contacts=6, prune_margin=prune_margin, seed=5, margin=1.0, tolerance_m=0.01,
+                             prune_residual_ratio=residual_ratio)
     start = np.array([0.0, 0.0, 0.0, 0.0, 0.0, math.sin(0.1), math.cos(0.1)])
     batched, reference = SurfaceMatcher(lib, start, cfg), _PerObjectReference(lib, start, cfg)
     rng = np.random.default_rng(6)
@@ -555,7 +560,7 @@ def test_the_batched_matcher_equals_a_per_object_reference(prune_margin: float) 
         if batched.active[k]:
             np.testing.assert_allclose(batched._R[k], reference.R[k], atol=1e-12)
             np.testing.assert_allclose(batched._t[k], reference.t[k], atol=1e-12)
-    assert impulses > 0 and dropped == (prune_margin < 100)  # the run exercises the impulses and the pruning
+    assert impulses > 0 and dropped == (prune_margin < 100 or residual_ratio < 100)  # impulses and pruning exercised
 
 
 @pytest.mark.parametrize("refine", [0, 1])
@@ -586,6 +591,33 @@ def test_an_objects_filter_does_not_depend_on_the_rest_of_the_library(refine: in
         for (R, t, ll, r), (R1, t1, ll1, r1) in zip(runs[order], runs[("a",)]):
             assert np.array_equal(R, R1) and np.array_equal(t, t1) and ll == ll1 and np.array_equal(r, r1), order
     assert len({zlib.crc32(n.encode()) for n in surfaces}) == 3  # three distinct streams
+
+
+def test_a_surface_no_object_fits_drops_every_object_and_the_matcher_stays_quiet() -> None:
+    """Whisks on a ball 5 cm larger than either stored surface (every contact about 3-5 cm off both):
+    once the window is full each object's median residual is over twice the tolerance, so both are
+    dropped; later whisks (and odometry) weigh nothing, fire nothing and warn nothing. With the rule
+    off (a ratio of 1e6) both stay in question."""
+    import warnings
+
+    ball, plate = _sphere(0.10, seed=1), _plane(0.0, half=0.15)
+    lib = SurfaceLibrary([ball, plate], ["ball", "plate"], [ball * 2.0, _plane(0.3, half=0.15)])
+    other = _sphere(0.15, seed=4)
+    for ratio, dropped in ((2.0, True), (1e6, False)):
+        cfg = SurfaceMatchConfig(particles=16, window_whisks=4, min_window_contacts=4, refine_iterations=0,
+                                 prune_residual_ratio=ratio, tolerance_m=0.008)
+        m = SurfaceMatcher(lib, IDENTITY, cfg)
+        rng = np.random.default_rng(2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            fired = 0
+            for i in range(10):
+                odo = None if i == 0 else SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
+                fired += int(m.step(odo, other[rng.choice(len(other), 5, replace=False)]).sum())
+        assert fired == 0
+        assert (not m.active.any()) == dropped and m.active.all() == (not dropped)
+        if dropped:  # the evidence the objects were dropped on
+            assert np.all(m.evidence_m > 2 * 0.008), m.evidence_m
 
 
 _REFERENCE_SURFACES: list[SurfaceLibrary] = []
