@@ -164,10 +164,11 @@ STUDY_PRESENTED = ("mug", "kettle", "duck", "blob", "knot-h0")
 @pytest.fixture(scope="module")
 def study_library(tmp_path_factory):
     """The recognition study's maps of its 50-object library (seed 0), built by its own ``map_job`` as its
-    full mode builds them (thresholds calibrated on seed 0; not timed, about half a minute), and the
-    whisks of a presentation along B of each of :data:`STUDY_PRESENTED` (as the study presents: whole
-    loops of its trajectory with the study's reach, at least 200 whisks, the ``tip`` contacts at the
-    study's contact noise, Eq 6.4-6.11 odometry)."""
+    full mode builds them (thresholds calibrated on seed 0, each object's roll chosen as the study
+    chooses it; not timed, about half a minute), and the whisks of a presentation along B of each of
+    :data:`STUDY_PRESENTED` (as the study presents: whole loops of its trajectory with the study's
+    reach and the object's roll, at least 200 whisks, the ``tip`` contacts at the study's contact
+    noise, Eq 6.4-6.11 odometry)."""
     from cansim.studies import recognition as rec
     from whisker_io.sim.catalogue import object_file_names, resolve_object
     from whisker_io.sim.odometry_noise import noisy_odometry as noisy
@@ -178,13 +179,14 @@ def study_library(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("study")
     names = list(library_names(50))
+    rolls = tuple(rec.roll_job((n, rec.REACH_CONTACTS)) for n in dict.fromkeys((*names, *STUDY_PRESENTED)))  # as run() does
     setup = rec.Setup(seed=0, map_loops=2, whisks=200, thresholds=rec.calibrated_thresholds("first-seed", (0,), None),
-                      out=str(out), matchers=("surface",))
+                      out=str(out), matchers=("surface",), rolls_deg=rolls)
     surfaces = [rec.map_job((n, setup, f))["surface"] for n, f in zip(names, object_file_names(names))]
     presentations = {}
     for i, name in enumerate(STUDY_PRESENTED):
         mesh = resolve_object(name).mesh
-        loop = object_trajectory(mesh, "B", 1, reach_contacts=rec.REACH_CONTACTS)
+        loop = object_trajectory(mesh, "B", 1, reach_contacts=rec.REACH_CONTACTS, roll_deg=setup.roll_of(name))
         poses = loop * math.ceil(setup.whisks / len(loop))  # whole loops, at least the study's 200 whisks
         chain = WhiskChain(mesh, signals=False, contact_model=rec.CONTACT_MODEL,
                            contact_noise=ContactNoise().scaled(rec.NOISE_SCALE))
