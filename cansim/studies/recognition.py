@@ -817,8 +817,8 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     presented = list(dict.fromkeys(r["presented"] for r in base))
     decided = [p for p in presented if not any(r["novel"] for r in base if r["presented"] == p)] + ["none"]
     files = []
-    fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels) + 1.5, 0.32 * len(presented) + 2.5), squeeze=False,
-                             sharey=True)  # one column of object names, not one over each neighbour
+    fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels) + 1.5, 0.24 * len(presented) + 2.8), squeeze=False,
+                             sharey=True, layout="constrained")  # one column of object names, not one over each neighbour
     for ax, lab in zip(axes[0], labels):
         m = np.zeros((len(presented), len(decided)))
         for r in base:
@@ -834,7 +834,7 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     fig.colorbar(im, ax=axes[0].tolist(), shrink=0.8, label="fraction of runs")
     fig.suptitle(f"Recognition decisions, library of {small} objects, matcher {rows[0]['matcher']}")
     files.append(out / f"recognition_confusion{suffix}.png")
-    fig.savefig(files[-1], dpi=110)
+    fig.savefig(files[-1], dpi=110, bbox_inches="tight")
     plt.close(fig)
     # accuracy vs viewpoint distance
     fig, ax = plt.subplots(figsize=(6.5, 4))
