@@ -604,7 +604,7 @@ class SurfaceMatcher:
     Attributes
     ----------
     active : ndarray (n_objects,) bool
-        The objects still in question (``prune_margin``).
+        The objects still in question (``prune_margin``, ``prune_residual_ratio``; none: nothing is weighed).
     log_evidence : ndarray (n_objects,)
         Log likelihood (nats) of the window's whisks under each object.
     evidence_m : ndarray (n_objects,)
