@@ -255,7 +255,7 @@ class Setup:
     odometry_scale: float = 1.0
     reach_contacts: int = REACH_CONTACTS
     #: ``(object, roll)`` pairs: the array's roll about its axis on each object's trajectories, deg
-    #: (:func:`object_rolls`); an object not listed is whisked at the thesis' 90 deg
+    #: (:func:`roll_job`); an object not listed is whisked at the thesis' 90 deg
     rolls_deg: tuple[tuple[str, float], ...] = ()
 
     def roll_of(self, name: str) -> float:
