@@ -168,6 +168,9 @@ commands = {
         st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks"]), not_positive).map(list),
         st.tuples(st.just("recognition"), st.just("--quick"), st.just("--reach-contacts"),
                   st.one_of(negative, st.integers(65, 10**6).map(str), not_an_int)).map(list),
+        st.tuples(st.just("recognition"), st.just("--quick"), st.just("--roll-deg"),
+                  st.one_of(st.integers(361, 10**6).map(str), st.integers(-10**6, -361).map(str),
+                            st.sampled_from(["nan", "inf", "-inf", "ninety", ""]))).map(list),
     ),
     "top": st.one_of(st.just([]), st.tuples(names.map(lambda s: f"zz{s}")).map(list), st.tuples(unknown_option).map(list)),
 }
