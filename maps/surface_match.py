@@ -301,6 +301,13 @@ in :mod:`cansim.studies.recognition`):
     3 mm 12, 0, 2, 22. Held out, seeds 1-2 (of 72, 216, 54; today A 72, B 50, viewpoints 36, wrong
     25, novel 39): 5 mm 72, 50, 34, 23, 39; 4 mm 70, 50, 27, 18, 39. What seed 0 showed did not hold:
     the tolerance trades viewpoints for wrong decisions, no target nearer.
+  - *Putting every object back in question* 20 whisks with contacts after the last one was ruled
+    out (each filter moved by the odometry since it left, spread by that many steps of the motion
+    noise, the window emptied): the nine replays the same but for one novel presentation decided
+    (novel undecided 56 -> 55); the Ch.6 surface-matcher runs (:mod:`cansim.explore.explorer`,
+    Notes), where every object is ruled out in 11 of 24 runs, the same correct-first counts but
+    the two torus runs ruled out early (whisks 34, 99) decided for the snowman (524 and 437
+    impulses). Not done: once nothing fits, the matcher stays silent.
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
   Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
   any number): a whole moving 60-whisk presentation costs 4.7-5.9 ms per whisk at 50 objects on

@@ -343,6 +343,49 @@ def test_explorer_bad_matcher_or_surface_config_is_a_config_error(world, matcher
             Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), matcher="surface", surface_config=config)
 
 
+def _block_run(world, n=120, seed=5):
+    """A block standing beside where the Box and the Box-Stack were mapped (0.25 m from their faces): every contact
+    lies off both maps' surfaces."""
+    import trimesh
+
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.hw.safety import SafetyEnvelope
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    known, _ = world
+    block = trimesh.creation.box(extents=(0.2, 0.25, 0.3))
+    block.apply_translation([0.45, 0.0, 0.3])
+    chain = WhiskChain(block, contact_model="tip")
+    search = DefaultSearch(block.bounds.mean(axis=0), float(np.linalg.norm(block.extents)) / 2, mesh=block, seed=seed)
+    search.current = int(np.argmax([search.face_pose(i).position_m[2] for i in range(len(search.directions))]))
+    arm = SimArm(search.face_pose(search.current), SafetyEnvelope(**WORKSPACE))
+    rng = np.random.default_rng(seed)
+    counts = []
+
+    def sensor(pose):
+        f = chain.features(pose, rng)
+        counts.append(len(np.asarray(getattr(f, "contact_points_m", np.zeros((0, 3)))).reshape(-1, 3)))
+        return f
+
+    ex = Explorer(known, sensor, arm, _odometry(200 + seed), search, stop_threshold=math.inf, max_iterations=n,
+                  matcher="surface", surface_config=SurfaceMatchConfig(seed=seed))
+    return ex.run(), np.array(counts)
+
+
+def test_the_explorer_says_once_when_the_surface_matcher_has_ruled_every_object_out(world, caplog):
+    """Every contact is off both stored surfaces (residual ``cap_m`` = 30 mm, above twice the 8-mm tolerance), so the
+    matcher rules both objects out when its window holds ``window_whisks`` (20) whisks with contacts, and not before:
+    one INFO line names that whisk, counted here from the sensor's own output, and no impulse ever comes."""
+    with caplog.at_level(logging.INFO, logger="cansim.explore.explorer"):
+        res, counts = _block_run(world)
+    with_contact = np.flatnonzero(counts >= 1)
+    assert len(with_contact) >= 20  # the block is touched: the run is about ruling out, not about missing it
+    assert res.stop_reason == "iterations" and len(res.poses) == 120 and not res.impulses.any()
+    lines = [r for r in caplog.records if "every object ruled out" in r.getMessage()]
+    assert len(lines) == 1 and lines[0].levelno == logging.INFO
+    assert f"whisk {with_contact[19] + 1}," in lines[0].getMessage(), (lines[0].getMessage(), with_contact[:21])
+
+
 def test_surface_matcher_names_each_object_along_its_mapping_poses_with_exact_odometry():
     """End to end through the explorer's frames (map anchors, the matcher's start pose, the odometry's sense): a Box and
     a Mug mapped with noiseless odometry, each whisked again at its mapping poses (new contact noise) with noiseless

@@ -571,6 +571,20 @@ class Explorer:
     surface_config : SurfaceMatchConfig, optional
         The surface matcher's parameters (``matcher="surface"``; default
         ``SurfaceMatchConfig()``, whose motion model is Eq 6.4-6.11's noise).
+
+    Notes
+    -----
+    With ``matcher="surface"`` the matcher may rule every known object out (each fits the
+    window's contacts worse than ``prune_residual_ratio`` times the impulse tolerance, or lies
+    ``prune_margin`` behind one that did): no impulse comes for the rest of the run, and the
+    explorer says so once, at INFO, with the whisk. That is what a novel object does, but in
+    exploration it happens on known objects too, where the whisks touch what their map never
+    felt: in the Ch.6 study's surface-matcher runs (freeform pairs and Box / Box-Stack, seeds
+    0-3, 1000 whisks) in 11 of 24, mostly after the decision (the upright torus at whisks 34
+    and 99, never named). Putting every object back in question 20 whisks later named no
+    more of them and turned those two torus runs into decisions for the snowman
+    (:mod:`maps.surface_match`, Status): it is not done, and ruling everything out is not
+    reported as "unknown object".
     """
 
     def __init__(
@@ -617,6 +631,7 @@ class Explorer:
         self._surfaces: SurfaceLibrary | None = None
         self._surface_config = surface_config if surface_config is not None else SurfaceMatchConfig()
         self._surface_matcher: SurfaceMatcher | None = None
+        self._ruled_out = False  # the surface matcher holds no object in question (logged once)
         if matcher == "surface":
             stored = [k.stored_surface() for k in known]
             self._surfaces = SurfaceLibrary([pts for pts, _ in stored], [k.name for k in known], [seen for _, seen in stored])
@@ -672,6 +687,11 @@ class Explorer:
                 imp = self._surface_matcher.step(None, _contacts(observation))
             else:
                 imp = self._surface_matcher.step(odo, _contacts(observation))
+            if not self._ruled_out and not self._surface_matcher.active.any():
+                self._ruled_out = True
+                _LOG.info("surface matcher: no known object fits the contacts felt (whisk %d, %d contacts in the "
+                          "evidence window): every object ruled out, no further impulses this run",
+                          len(self._poses) + 1, self._surface_matcher.window_contacts)
         self._level = leaky_step(self._level, imp, self.integrator)
         self._ic = self._ic + self._level * self.integrator.dt
         self._c.append(self._level.copy())
