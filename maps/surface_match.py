@@ -308,6 +308,11 @@ in :mod:`cansim.studies.recognition`):
     Notes), where every object is ruled out in 11 of 24 runs, the same correct-first counts but
     the two torus runs ruled out early (whisks 34, 99) decided for the snowman (524 and 437
     impulses). Not done: once nothing fits, the matcher stays silent.
+  - *600 hypotheses instead of 200* (with the refined proposal; the 500 / 1000 above were measured
+    without it): seed 0, three matcher seeds, B 23, viewpoints 20, wrong 5, novel undecided 21 (today
+    23, 21, 11, 17); held out, seeds 1-2: A 72, B 51, viewpoints 37, wrong 22, novel undecided 34
+    (today 72, 50, 36, 25, 39) - seed 0's fewer wrong decisions mostly did not hold, novel objects
+    were decided more often, at 3 x the cost per whisk.
 * **Cost** (``bench/test_bench_recognition.py``, numba kernels :mod:`maps._surface_numba`).
   Since 2026-12-05 both kernels share their hypotheses among numba's threads (the same bits on
   any number): a whole moving 60-whisk presentation costs 4.7-5.9 ms per whisk at 50 objects on
