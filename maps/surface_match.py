@@ -270,7 +270,7 @@ in :mod:`cansim.studies.recognition`):
   library, all 53 presentations along B (per-object rolls, 2 threads, alternated): 1.27 -> 1.04
   ms a whisk, the slowest 3.06 -> 2.1-2.2 ms, 7-8 -> 2 of 53 over 2 ms; at 50 objects along B
   correct 13 -> 14 of 50, wrong 7 -> 6 (seed 0). The look-alike ellipsoids all fit: unchanged.
-* **Where the decisions go wrong, and four rules tried against it (2026-12-05; not kept).** The
+* **Where the decisions go wrong, and six rules tried against it (2026-12-05; not kept).** The
   study's whisks of seeds 0-2 (quick settings) recorded once with each whisk's sweep (which whiskers
   touched and at what angle) and replayed with three matcher seeds each, paired (nine runs; today A
   108, B 73, viewpoints 57 of 108, wrong 36 of 324, novel undecided 56 of 81). Seed 0, one matcher
@@ -280,6 +280,7 @@ in :mod:`cansim.studies.recognition`):
   against 25 own; viewpoints Bear 95 to the Kettle, Jug 82 to the Barrel; the hollow bucket 94-177
   to the Barrel). An impulse's window evidence is a median 2.4 mm (quartiles 1.9-3.4) on the own
   object against 3.4 mm (3.0-3.9) on a wrong one and 4.2 (2.7-6.2) on a novel one: they overlap.
+
   - *Free-space evidence*: 33 points on the swept shaft (11 angles x 55 / 80 / 100 % of its length)
     of each whisker that touched nothing, and of a touching one up to 5 deg before its contact;
     a hypothesis pays ``log(eps)`` per whisker with a point more than ``depth`` inside its object's
