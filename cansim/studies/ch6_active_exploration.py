@@ -251,7 +251,10 @@ these runs):
   search with contact seeking on the known object, another seed, then mapped with the SPC off):
   snowman / torus **7 of 8** (the torus named 3 of 4), but duck / bear 5 of 8 and Box / Box-Stack 6
   of 8 (12 of 16; maps 50-90 mm off with 3-25 closures in 250 whisks); the tour followed by such a
-  run: 8 of 16 and Box / Box-Stack 5 of 8 (426-519 whisks: more drift). Neither adopted.
+  run: 8 of 16 and Box / Box-Stack 5 of 8 (426-519 whisks: more drift); both maps of each object
+  in the library as two entries, an impulse needing its margin over the other object's entries
+  only: 11 of 16 (snowman / torus 6, duck / bear 5: the bear's exploration map, 63 mm off, takes
+  the duck's whisks), Box / Box-Stack 8 of 8. None adopted.
 * Tried and not kept: more mapping loops (``prepare(..., n_loops=3 / 4)``, refined
   matcher): duck / bear 7 / 5 of 8, snowman / torus 4 / 4 of 8 (the torus never named).
 * Tried in a scratch study and not kept: free-space evidence (a penalty for the swept
