@@ -135,7 +135,7 @@ and the superquadric, 0.67-0.71 on the Box (3-5 of 240 inside, after Alg 7's mov
 Where the project objects' whisks without contact come from (2026-12-05; the tests' harness,
 ``tests/test_explore_contact_seeking.py``'s ``_run``, 120 whisks, seeds 0-2, counted by the move
 that led to the whisk): Box contact 0.83, of its 61 whisks without contact 25 after a new face, 19
-after a back-off, 9 after an advance; Mug 0.80: 31, 10, 15 of 72; Kettle 0.83: 15 after a new
+after a back-off, 9 after an advance; Mug 0.80: 31, 10, 15 of 71; Kettle 0.83: 15 after a new
 face, 16 after Alg 7's own move, 12 after a turn, 8 after a back-off. The 90 % would need the new
 faces placed within reach and the back-offs that lose the surface halved; not tried further here.
 No setting reached both targets, and every one that touches puts bases inside where the
