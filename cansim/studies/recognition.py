@@ -750,11 +750,11 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     stems = object_file_names(everything)  # distinct: mesh files of one name do not overwrite each other's maps
+    whisked = list(dict.fromkeys((*everything, *novel)))  # every object mapped or presented, once
     if roll is None:  # per object, once for every seed (the trajectories do not depend on the seed)
-        rolls = tuple(pool_map(roll_job, [(n, int(reach)) for n in dict.fromkeys((*everything, *novel))], workers,
-                               "choosing the rolls", progress))
+        rolls = tuple(pool_map(roll_job, [(n, int(reach)) for n in whisked], workers, "choosing the rolls", progress))
     else:
-        rolls = tuple((n, float(roll)) for n in dict.fromkeys((*everything, *novel)))
+        rolls = tuple((n, float(roll)) for n in whisked)
     for seed in seeds:
         setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
                       odometry_scale=float(odometry_scale), reach_contacts=int(reach), rolls_deg=rolls)
