@@ -146,6 +146,26 @@ def test_glb_scene_with_two_nodes(tmp_path):
     # y up: the box sits 0.3 above the sphere; heights 0.05 + 0.3 + 0.05 = 0.4 m
     assert obj.mesh.extents[2] == pytest.approx(0.4, abs=1e-6)
     _assert_conventions(obj)
+    assert not any("glTF" in n for n in obj.notes)  # the up axis was given: nothing to warn about
+
+
+def test_a_gltf_file_read_without_an_up_axis_is_taken_as_z_up_with_a_warning(tmp_path, caplog):
+    path = tmp_path / "tower.glb"
+    trimesh.creation.box(extents=(0.1, 0.4, 0.1)).export(path)  # tall along y, as a y-up glTF holds it
+    with caplog.at_level("WARNING", logger="whisker_io.sim.objects"):
+        obj = load_object(path)
+    assert obj.up_axis == "+z" and obj.mesh.extents[2] == pytest.approx(0.1)  # taken as z-up: lying on its side
+    assert [r.levelname for r in caplog.records] == ["WARNING"] and "--up-axis y" in caplog.records[0].getMessage()
+    assert any("y-up by their specification" in n for n in obj.notes)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="whisker_io.sim.objects"):
+        assert not any("glTF" in n for n in load_object(path, up_axis="z").notes)
+    assert not caplog.records  # z given explicitly: the user said so
+    obj_stl = tmp_path / "tower.stl"
+    trimesh.creation.box(extents=(0.1, 0.4, 0.1)).export(obj_stl)
+    with caplog.at_level("WARNING", logger="whisker_io.sim.objects"):
+        load_object(obj_stl)
+    assert not caplog.records  # other formats have no up-axis convention
 
 
 def test_clean_ups_are_recorded():
@@ -204,8 +224,12 @@ def test_a_directory_is_not_a_mesh(tmp_path):
 def test_absurd_sizes_say_what_to_pass():
     with pytest.raises(InvalidInputError, match=r"0\.005 m across.*scale_to_m=0\.35"):
         load_object(trimesh.creation.box(extents=(0.005, 0.005, 0.005)))
-    with pytest.raises(InvalidInputError, match=r"350 m across.*millimetres pass scale_to_m=0\.35"):
-        load_object(trimesh.creation.box(extents=(100.0, 200.0, 350.0)))
+    with pytest.raises(InvalidInputError, match=r"350 m across.*millimetres it is 0\.35 m across: pass scale_to_m=0\.35 "
+                                                r"\(--scale-to-m 0\.35 on the command line\)$"):
+        load_object(trimesh.creation.box(extents=(100.0, 200.0, 350.0)))  # the thesis' size already: said once
+    with pytest.raises(InvalidInputError, match=r"500 m across.*pass scale_to_m=0\.5 \(--scale-to-m 0\.5 on the "
+                                                r"command line\), or 0\.35 for the thesis objects' size"):
+        load_object(trimesh.creation.box(extents=(100.0, 200.0, 500.0)))
     assert load_object(trimesh.creation.box(extents=(100.0, 200.0, 350.0)), scale_to_m=0.35).mesh.extents.max() == pytest.approx(0.35)
 
 
@@ -226,7 +250,6 @@ def test_faces_naming_no_vertex():
         ({"scale_to_m": "0.3"}, "real numbers"),
         ({"up_axis": "w"}, "up_axis"),
         ({"up_axis": ""}, "up_axis"),
-        ({"up_axis": None}, "up_axis"),
         ({"up_axis": "++z"}, "up_axis"),
         ({"name": ""}, "name"),
         ({"name": 3}, "name"),
@@ -307,7 +330,7 @@ VALID_UP = {"x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z"}
 @settings(max_examples=80, deadline=None)
 @given(up=st.one_of(st.text(max_size=4), st.sampled_from(sorted(VALID_UP) + ["X", " -Y ", "+Z"]), st.integers(), st.none()))
 def test_up_axis_fuzz(up):
-    ok = isinstance(up, str) and up.strip().lower() in VALID_UP  # case and surrounding spaces ignored
+    ok = up is None or isinstance(up, str) and up.strip().lower() in VALID_UP  # case and spaces ignored; None: z
     try:
         obj = load_object(_TETRA, up_axis=up)
     except CansimError:

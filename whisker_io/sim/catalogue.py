@@ -24,7 +24,8 @@ from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
 __all__ = ["object_file_name", "object_file_names", "resolve_object"]
 
 
-def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None, up_axis: str = "z") -> LoadedObject:
+def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None,
+                   up_axis: str | None = None) -> LoadedObject:
     """The object a runner was asked for: a registered name, a procedural shape's name, or a mesh.
 
     Parameters
@@ -62,7 +63,7 @@ def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m
                 f"(families {', '.join(SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "
                 f"({', '.join(MESH_SUFFIXES)}); check the spelling or the path"
             )
-        if scale_to_m is None and isinstance(up_axis, str) and up_axis.strip().lower() in ("z", "+z"):
+        if scale_to_m is None and (up_axis is None or isinstance(up_axis, str) and up_axis.strip().lower() in ("z", "+z")):
             return LoadedObject(mesh, name, source, "+z", np.eye(3), 1.0, np.zeros(3), mesh.extents)
         return dataclasses.replace(load_object(mesh, scale_to_m=scale_to_m, up_axis=up_axis, name=name), source=source)
     return load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis)

@@ -421,7 +421,7 @@ def load_object(
     path_or_trimesh: str | os.PathLike[str] | trimesh.Trimesh | trimesh.Scene,
     *,
     scale_to_m: float | None = None,
-    up_axis: str = "z",
+    up_axis: str | None = None,
     name: str | None = None,
 ) -> LoadedObject:
     """Read, check and bring a mesh to the simulator's conventions.
@@ -444,10 +444,11 @@ def load_object(
         Largest bounding-box extent wanted, metres, between :data:`MIN_EXTENT_M`
         and :data:`MAX_EXTENT_M` (0.35 matches the thesis objects). ``None``: the
         file is already in metres.
-    up_axis : {"z", "y", "x", "-z", "-y", "-x"}
-        The input's axis that points up. glTF/GLB files are y-up by their
-        specification (trimesh keeps the file's axes): pass ``"y"`` for them
-        unless they were written z-up.
+    up_axis : {"z", "y", "x", "-z", "-y", "-x"}, optional
+        The input's axis that points up (default ``"z"``). glTF/GLB files are y-up by
+        their specification (trimesh keeps the file's axes): pass ``"y"`` for them
+        unless they were written z-up. A glTF/GLB file read without ``up_axis`` is taken
+        as z-up with a warning and a note in the record.
     name : str, optional
         The object's name; default the file's stem (``"mesh"`` for a mesh in memory).
 
@@ -474,12 +475,18 @@ def load_object(
     >>> obj.extents_m.round(3).tolist(), float(obj.mesh.bounds[0, 2])
     ([0.1, 0.2, 0.35], 0.0)
     """
-    key = _up_axis_key(up_axis)
+    key = _up_axis_key("z" if up_axis is None else up_axis)
     target = _scale_target(scale_to_m)
     if name is not None and not (isinstance(name, str) and name.strip()):
         raise InvalidInputError(f"name must be a non-empty string, got {name!r}")
     raw, source, default_name, notes = _as_surface(path_or_trimesh)
     mesh = _checked_surface(raw, source)
+    if up_axis is None and isinstance(path_or_trimesh, (str, os.PathLike)) \
+            and Path(path_or_trimesh).suffix.lower() in (".glb", ".gltf"):
+        gltf = ("taken as z-up (no up axis given), although glTF/GLB files are y-up by their specification: "
+                "if the object lies on its side, pass up_axis='y' (--up-axis y)")
+        notes.append(gltf)
+        _log.warning("%s: %s", source, gltf)
     source_extents = np.asarray(mesh.extents, dtype=np.float64)
     if not mesh.is_watertight:
         n_before = len(mesh.vertices)
@@ -498,8 +505,13 @@ def load_object(
         notes.append(f"scaled by {scale:.6g} (largest extent {largest:.6g} -> {target:.6g} m)")
     size_m = largest * scale
     if not MIN_EXTENT_M <= size_m <= MAX_EXTENT_M:
-        hint = (f"if it is in millimetres pass scale_to_m={size_m / 1000:.3g} (or scale_to_m=0.35 for the thesis objects' size)"
-                if size_m > MAX_EXTENT_M else "pass scale_to_m=0.35 (the thesis objects' size) or the real size in metres")
+        if size_m > MAX_EXTENT_M:
+            mm = f"{size_m / 1000:.3g}"
+            hint = (f"if it is in millimetres it is {mm} m across: pass scale_to_m={mm} (--scale-to-m {mm} on the "
+                    "command line)" + ("" if mm == "0.35" else ", or 0.35 for the thesis objects' size"))
+        else:
+            hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
+                    "real size in metres")
         raise InvalidInputError(
             f"{source} is {size_m:.4g} m across (largest extent); objects must be {MIN_EXTENT_M}-{MAX_EXTENT_M} m: {hint}"
         )
