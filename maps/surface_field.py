@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 from whisker_io.errors import InvalidInputError
 from whisker_io.validation import checked, finite_array, validate_fields
 
-__all__ = ["SurfaceFieldConfig", "SurfaceFields", "oriented_normals"]
+__all__ = ["MAX_CELLS", "SurfaceFieldConfig", "SurfaceFields", "grid_cells", "oriented_normals"]
 
 #: Largest grid of one object (cells).
 MAX_CELLS = 4_000_000
@@ -133,6 +133,18 @@ def _grid_extent(points: np.ndarray, cfg: SurfaceFieldConfig) -> tuple[np.ndarra
     return lo, np.ceil((points.max(axis=0) + cfg.reach_m - lo) / cfg.cell_m).astype(np.int64) + 1
 
 
+def grid_cells(points_m: np.ndarray, config: SurfaceFieldConfig = SurfaceFieldConfig()) -> int:
+    """Cells of the signed-distance grid over stored points (n, 3), m: their box plus ``reach_m``, at ``cell_m``.
+
+    :class:`SurfaceFields` refuses a surface whose grid exceeds :data:`MAX_CELLS`; a
+    caller can ask before mapping, with the box an object's surface may fill.
+    """
+    pts = finite_array(points_m, (None, 3), "points_m")
+    if not len(pts):
+        raise InvalidInputError("points_m needs at least one point (n, 3), m")
+    return int(np.prod(_grid_extent(pts, config)[1].astype(float)))  # in floats: no int64 overflow on a span in km
+
+
 def _imls_grid(points: np.ndarray, normals: np.ndarray, cfg: SurfaceFieldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(lo (3,), shape (3,) int, values (prod(shape),)) of one object's clipped signed distance."""
     lo, shape = _grid_extent(points, cfg)
@@ -201,7 +213,7 @@ class SurfaceFields:
         for k, (pts, vp) in enumerate(zip(surfaces, views)):
             if len(pts) < 3:
                 raise InvalidInputError(f"surface {k} has {len(pts)} stored points (need >= 3): map it with contacts")
-            cells = float(np.prod(_grid_extent(pts, config)[1].astype(float)))
+            cells = grid_cells(pts, config)
             if cells > MAX_CELLS:
                 raise InvalidInputError(f"surface {k} spans {np.ptp(pts, axis=0).round(2).tolist()} m: its grid would need "
                                         f"{cells:.3g} cells (at most {MAX_CELLS:g}); surfaces must be in metres, or use a "

@@ -300,3 +300,45 @@ def test_both_features_svr_localise_below_the_step(svr_settings: ch5_study.Study
         assert len(b["position_m"]) > 0, (name, seed)
         assert np.median(b["position_m"]) < b["step_m"], (name, seed, np.median(b["position_m"]), b["step_m"])
         assert np.median(b["rotation_deg"]) < b["step_deg"], (name, seed, np.median(b["rotation_deg"]), b["step_deg"])
+
+
+# ----------------------------------------------------------------- a user's mesh files
+@pytest.mark.slow
+def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_path: Path, monkeypatch) -> None:
+    """A millimetre, y-up mesh given by a relative path with --scale-to-m / --up-axis; an unreachable flat disk.
+
+    The maps go to ``ch5_maps/<stem>.npz`` under ``--out`` (never beside the user's file), the summary names
+    the novel object given and prints no NaN."""
+    import trimesh
+
+    from whisker_io.sim.objects import load_object, make_object
+
+    folder = tmp_path / "my meshes"
+    folder.mkdir()
+    mug = make_object("mug").copy()
+    mug.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # z up -> y up
+    mug.apply_scale(1000.0)  # metres -> millimetres
+    mug.export(folder / "My Mug.stl")
+    disk = trimesh.creation.cylinder(radius=0.175, height=0.02, sections=48)  # flat: no whisk touches it with 3 whiskers
+    disk.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    disk.apply_scale(1000.0)
+    disk.export(folder / "disk.obj")
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    assert ch5_study.main(["--quick", "--out", str(out), "--objects", "my meshes/My Mug.stl", "my meshes/disk.obj", "box",
+                           "--novel", "plane", "--scale-to-m", "0.35", "--up-axis", "y", "--contacts", "tip",
+                           "--no-compare", "--workers", "1"]) == 0
+    assert sorted(p.name for p in folder.iterdir()) == ["My Mug.stl", "disk.obj"]  # nothing written beside them
+    assert sorted(p.name for p in (out / "ch5_maps").iterdir()) == ["My_Mug.npz", "box.npz", "disk.npz"]
+    # the copies in the conventions: the mug upright and 0.35 m tall as the registered one, on z = 0
+    conformed = load_object(out / "objects" / "My_Mug.ply").mesh
+    assert conformed.extents == pytest.approx(make_object("mug").extents * 0.35 / make_object("mug").extents.max(), abs=1e-6)
+    assert conformed.bounds[0, 2] == pytest.approx(0.0, abs=1e-12)
+    assert not (out / "objects" / "box.ply").exists()  # a named object is not copied
+    _, ids = _rows(out / "ch5_identification.csv")
+    mug_rows = [r for r in ids if r["presented"].endswith("My_Mug.ply") and r["trajectory"] == "A"]
+    assert mug_rows and max(mug_rows, key=lambda r: float(r["final_ic"]))["map_identity"] == mug_rows[0]["presented"]
+    text = (out / "ch5_summary.txt").read_text()
+    assert "nan" not in text.lower().replace("nanmedian", "")
+    assert "undefined" in text  # the disk: no re-localisation
+    assert "here plane" in text and "Skull (novel)" not in text

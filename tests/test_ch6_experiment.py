@@ -172,6 +172,37 @@ def test_users_mesh_files_run_through_the_explorer_with_one_flag(tmp_path):
         ch6.main(["--quick", "--out", str(out), "--objects", "box", "teapot"])
 
 
+def test_a_millimetre_y_up_mesh_runs_with_the_options_and_an_untouchable_one_is_refused_before_the_runs(tmp_path, caplog):
+    """--scale-to-m / --up-axis bring a CAD export to the conventions; a flat disk, whose map holds no experience,
+    stops the study with the reason before any run, its map saved for a look."""
+    import trimesh
+
+    from cansim.errors import InvalidInputError
+    from whisker_io.sim.objects import make_object
+
+    box = make_object("box_stack").copy()
+    box.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # z up -> y up
+    box.apply_scale(1000.0)  # millimetres
+    box.export(tmp_path / "stack.stl")
+    out = tmp_path / "out"
+    with caplog.at_level("WARNING"):
+        assert ch6.main(["--quick", "--seeds", "1", "--iterations", "40", "--out", str(out), "--objects", "box",
+                         str(tmp_path / "stack.stl"), "--scale-to-m", str(make_object("box_stack").extents.max()),
+                         "--up-axis", "y"]) == 0
+    with open(out / "ch6_runs.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert {r["presented"] for r in rows} == {"box", str(out / "objects" / "stack.ply")}
+    touched = [r for r in rows if r["presented"].endswith("stack.ply") and r["threshold"] == "100.0"]
+    assert touched and all(int(r["whisks_without_contact"]) < int(r["iterations"]) for r in touched)  # upright: touched
+
+    disk = trimesh.creation.cylinder(radius=0.175, height=0.02, sections=48)
+    disk.export(tmp_path / "disk.obj")
+    with pytest.raises(InvalidInputError, match="map of .*disk.obj' holds no experience"):
+        ch6.main(["--quick", "--seeds", "1", "--iterations", "40", "--out", str(tmp_path / "o2"), "--objects",
+                  str(tmp_path / "disk.obj"), "box"])
+    assert (tmp_path / "o2" / "maps" / "disk.npz").exists() and not (tmp_path / "o2" / "ch6_runs.csv").exists()
+
+
 def test_the_believed_volume_comes_from_the_known_objects_and_scales_about_its_centre():
     box = ch6.believed_volume(("box", "box_stack"))
     big = ch6.believed_volume(("box", "box_stack"), 1.5)

@@ -54,6 +54,23 @@ def test_every_command_has_help(command):
     assert proc.stdout.startswith(f"usage: cansim {command}")
 
 
+@pytest.mark.parametrize("argv,usage,option", [
+    (("study", "ch5", "--help"), "usage: cansim study ch5", "--scale-to-m"),
+    (("study", "--quick", "recognition", "-h"), "usage: cansim study recognition", "--roll-deg"),
+    (("demo", "whisker", "--help"), "usage: cansim demo whisker", "--up-axis"),
+])
+def test_a_study_or_demo_named_before_help_shows_its_own_options(argv, usage, option):
+    proc = cansim(*argv)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(usage) and option in proc.stdout
+
+
+def test_a_studys_usage_error_names_the_command():
+    proc = cansim("study", "ch6", "--objects", "box")
+    assert proc.returncode == 2 and "cansim study ch6: error: argument --objects" in proc.stderr
+    assert "__main__" not in proc.stderr
+
+
 def test_usage_errors_exit_2():
     assert cansim("fly").returncode == 2
     proc = cansim("sweep")

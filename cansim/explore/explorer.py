@@ -265,8 +265,19 @@ class KnownObject:
         matched region's experience nearest the packet at any pose-cell distance
         (``match_distance_cells`` beyond the grid's largest wrapped distance,
         :func:`any_distance_cells`). Experience and region ids are the map's own.
+
+        Raises
+        ------
+        InvalidInputError
+            The map holds no experience (no mapping whisk observed a region).
         """
         m = self.fresh_model()
+        if m.object_map.n_experiences == 0:
+            raise InvalidInputError(
+                f"the map of {self.name!r} holds no experience: none of its {len(self.poses)} mapping whisks observed a "
+                "region (3 contacts or more), so nothing can be recognised as it. Map it along a path that touches it "
+                "(a flat or thin object passes between the array's rows of whiskers; a mesh in millimetres or lying on "
+                "its side is out of reach: check its units and up axis) or leave it out")
         cfg = replace(m.config, match_distance_cells=any_distance_cells(m.config.shape))
         return WhiskerRatSLAM.library([m], [self.name], cfg)[0]
 

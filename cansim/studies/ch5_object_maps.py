@@ -166,7 +166,9 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
 from cansim.studies.process_pool import pool_map
+from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.validation import checked, config_field, validate_fields
 
@@ -592,6 +594,7 @@ def _median(x: Sequence[float]) -> float:
     return float(np.median(x)) if len(x) else math.nan
 
 
+
 def best_config_per_object(builds: Sequence[dict[str, Any]]) -> dict[str, Config]:
     """Per object, the configuration with the lowest error relative to the step.
 
@@ -624,7 +627,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     # Fig 5.14b: dead-reckoning displacement error over one loop of A
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
-    parts = ax.boxplot(data, tick_labels=objs)
+    parts = ax.boxplot(data, tick_labels=[object_label(o) for o in objs])
     ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     ax.set_xlabel("object")
     ax.set_ylabel("dead-reckoning displacement error (m)")
@@ -636,7 +639,8 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
-        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=objs, showfliers=False)
+        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=[object_label(o) for o in objs],
+                           showfliers=False)
         for i, o in enumerate(objs):
             st = next(b[step_key] for b in builds if b["object"] == o)
             ax.hlines(st, i + 0.6, i + 1.4, colors="tab:red", linestyles="--")
@@ -670,7 +674,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             rows = np.flatnonzero(r["history_object"] == k)
             if len(rows):
                 a1.axvspan(rows[0], rows[-1], color=cmap(k), alpha=0.15)
-                a1.text(rows[0], 0, name, fontsize=7, va="bottom")
+                a1.text(rows[0], 0, object_label(name), fontsize=7, va="bottom")
         a1.plot(t[:n0], h[:n0], color="0.5", lw=0.8, label="experience id while the library maps were built")
         a1.plot(t[n0:], h[n0:], color="k", lw=0.8, label="experience id while the object is presented")
         corr = r["names"].index(r["presented"]) if r["presented"] in r["names"] else -1
@@ -682,9 +686,9 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
         a1.set_ylabel("experience id")
         a1.set_xlabel("iteration (library build, then presentation; shaded: each library object's map, same colours below)")
         a1.legend(fontsize=7, loc="upper left")
-        a1.set_title(f"Fig 5.16: {r['presented']} presented (trajectory A)")
+        a1.set_title(f"Fig 5.16: {object_label(r['presented'])} presented (trajectory A)")
         for k, name in enumerate(r["names"]):
-            a2.plot(r["confidence"][:, k], color=cmap(k), label=name)
+            a2.plot(r["confidence"][:, k], color=cmap(k), label=object_label(name))
         a2.axhline(RC_THRESHOLD, color="tab:red", lw=1, label=f"threshold {RC_THRESHOLD:g}")
         a2.set_xlabel("iteration of the exploration")
         a2.set_ylabel("confidence c_k")
@@ -726,8 +730,8 @@ def _localisation_lines(builds: Sequence[dict[str, Any]]) -> list[str]:
     lines = []
     for b in builds:
         pm, rd = _median(b["position_m"]), _median(b["rotation_deg"])
-        lines.append(f"  {b['object']:7s} {b['config'].label:22s} n_reloc {len(b['position_m']):4d}  position {pm:.4f} m (step {b['step_m']:.3f})"
-                     f"  rotation {rd:6.2f} deg (step {b['step_deg']:.1f})  {'below step' if _below(b) else 'NOT below step'}"
+        lines.append(f"  {b['object']:7s} {b['config'].label:22s} n_reloc {len(b['position_m']):4d}  position {fmt(pm, '.4f')} m (step {b['step_m']:.3f})"
+                     f"  rotation {fmt(rd, '6.2f')} deg (step {b['step_deg']:.1f})  {'below step' if _below(b) else 'NOT below step'}"
                      f"  [{b['n_experiences']} experiences, {b['n_regions']} regions, {b['n_iterations']} whisks]")
     return lines
 
@@ -742,7 +746,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
     lines = []
     star_runs = [b for b in builds if b["config"] == star]
     below = [_below(b) for b in star_runs if b["object"] != "kettle"]
-    per = ", ".join(f"{b['object']} {_median(b['position_m']):.3f} m / {_median(b['rotation_deg']):.1f} deg "
+    per = ", ".join(f"{b['object']} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
                     f"(step {b['step_m']:.3f} m / {b['step_deg']:.1f} deg)" for b in star_runs)
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
                  f"size. Measured ({star.label}): {sum(below)} of {len(below)} non-Kettle objects below the step; medians {per}. "
@@ -751,7 +755,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
     if kettle:
         k = kettle[0]
         lines.append(f"  2{tag}. Thesis: the Kettle fails (symmetry). Measured with {star.label}: {'below' if _below(k) else 'NOT below'} step "
-                     f"(median {_median(k['position_m']):.4f} m / {_median(k['rotation_deg']):.1f} deg). "
+                     f"(median {fmt(_median(k['position_m']), '.4f')} m / {fmt(_median(k['rotation_deg']), '.1f')} deg). "
                      f"{'REPRODUCED' if not _below(k) else 'NOT reproduced'}.")
     bests = best_config_per_object(builds)
     n_star = sum(1 for c in bests.values() if c == star)
@@ -765,7 +769,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
 
     n_zero = sum(_median(b["position_m"]) == 0 and _median(b["rotation_deg"]) == 0 for b in builds)
     lines.append(f"  3{tag}. Thesis: the lowest errors come from {BEST.label}. Measured: best configuration per object "
-                 + ", ".join(f"{o} {c.label} (mean {mean_m(o, c):.3f} m vs {mean_m(o, star):.3f} m with {star.label})"
+                 + ", ".join(f"{o} {c.label} (mean {fmt(mean_m(o, c))} m vs {fmt(mean_m(o, star))} m with {star.label})"
                              for o, c in bests.items())
                  + f" (lowest median error relative to the step, ties by the mean: {n_zero} of {len(builds)} runs have a median "
                  f"of 0, the exact revisit); {n_star} of {len(bests)} objects best with {star.label}"
@@ -820,7 +824,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         n_b, n_c = sum(_below(b) for b, _ in pairs), sum(_below(c) for _, c in pairs)
         lines.append(f"  M. Matching ({s.matching} vs {compare[0]['matching']}, same runs): {n_b} vs {n_c} of {len(pairs)} "
                      "object x configuration runs below the step; with " + star.label + ": "
-                     + ", ".join(f"{b['object']} {_median(b['position_m']):.3f} vs {_median(c['position_m']):.3f} m"
+                     + ", ".join(f"{b['object']} {fmt(_median(b['position_m']))} vs {fmt(_median(c['position_m']))} m"
                                  for b, c in pairs if b["config"] == star) + ".")
     if id_rows:
         def rows(fam: str, pred: Any) -> list[dict[str, Any]]:
@@ -828,13 +832,14 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         sk = rows("A", lambda r: r["presented"] not in mapped) + rows("B", lambda r: r["presented"] not in mapped)
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
-        lines.append(f"  4. Thesis: the Skull (novel) has very low confidence for every map. Measured: max confidence {sk_max:.2f} "
-                     f"(RC threshold {RC_THRESHOLD:g}), largest final IC {sk_ic:.1f} (IC threshold {IC_THRESHOLD:g}). "
+        novel = ", ".join(sorted({object_label(r["presented"]) for r in sk})) or "none presented"
+        lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
+                     f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
                      f"{'REPRODUCED' if sk and sk_max < RC_THRESHOLD else 'NOT reproduced'}.")
         mA = np.mean([r["mean_confidence"] for r in rows("A", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         mB = np.mean([r["mean_confidence"] for r in rows("B", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
-                     f"A {mA:.3f}, B {mB:.3f}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
+                     f"A {fmt(mA)}, B {fmt(mB)}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
         for fam in "AB":
             pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped)})
             top, ic_ok, ic_fired = [], 0, 0
@@ -850,7 +855,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. {'REPRODUCED' if top and all(top) else 'NOT reproduced'}.")
         fired = [r for r in sk if r["ic_decision"]]
-        lines.append(f"  7. The IC decision on the Skull: {'fired for ' + ', '.join(sorted({r['map_identity'] + ' (' + r['trajectory'] + ')' for r in fired})) if fired else 'never fired (correct: novel)'}.")
+        lines.append(f"  7. The IC decision on the novel object ({novel}): {'fired for ' + ', '.join(sorted({r['map_identity'] + ' (' + r['trajectory'] + ')' for r in fired})) if fired else 'never fired (correct: novel)'}.")
     return "\n".join(lines) + "\n"
 
 
@@ -869,9 +874,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH",
                     help=f"mapped objects: registered names ({', '.join(MAPPED)}), procedural shapes (e.g. duck) or mesh "
-                         "files in metres, z up (default: all six; --quick: mug box plane)")
+                         "files in metres, z up unless --scale-to-m / --up-axis say otherwise (default: all six; "
+                         "--quick: mug box plane)")
     ap.add_argument("--novel", default=NOVEL, metavar="NAME_OR_MESH",
                     help=f"the object presented but not mapped (default {NOVEL})")
+    add_mesh_options(ap)
     ap.add_argument("--loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="least loops per identification run (default 1)")
     ap.add_argument("--id-whisks", type=int,
@@ -909,11 +916,12 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     out = a.out
     out.mkdir(parents=True, exist_ok=True)
-    objects = a.objects or (("mug", "box", "plane") if a.quick else MAPPED)
-    from whisker_io.sim.catalogue import resolve_object
+    from whisker_io.sim.catalogue import object_file_names
 
-    for spec in (*objects, a.novel):  # a bad name or mesh fails here, with the reason, before any work
-        resolve_object(spec)
+    # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
+    # --scale-to-m / --up-axis are run from their copies in out/objects
+    *objects, novel = conform_objects([*(a.objects or (("mug", "box", "plane") if a.quick else MAPPED)), a.novel],
+                                      out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
     loops = a.loops or (2 if a.quick else 3)
     id_whisks = a.id_whisks if a.id_whisks is not None else (0 if a.quick else ID_WHISKS)
     contacts = a.contacts or CONTACTS
@@ -934,7 +942,9 @@ def main(argv: list[str] | None = None) -> int:
     s = StudyConfig(loops, a.noise_scale, thresholds, radial, a.seed, a.id_loops, matching, id_whisks)
     maps_dir = out / "ch5_maps"
     maps_dir.mkdir(exist_ok=True)
-    jobs = [(o, c, s, str(maps_dir / f"{o}.npz") if c == id_cfg else None) for o in objects for c in configs]
+    # one file per object, named by its stem (a mesh file's path is no file name; distinct stems)
+    map_path = {o: str(maps_dir / f"{stem}.npz") for o, stem in zip(objects, object_file_names(objects))}
+    jobs = [(o, c, s, map_path[o] if c == id_cfg else None) for o in objects for c in configs]
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
     if not a.no_compare:
         jobs += [(o, c, other, None) for o in objects for c in configs]
@@ -942,8 +952,8 @@ def main(argv: list[str] | None = None) -> int:
     builds = [b for b in runs if b["matching"] == matching]
     compare = [b for b in runs if b["matching"] != matching]
     _write_csv(out / "ch5_localisation.csv", localisation_rows(runs), LOC_COLUMNS)
-    paths = [str(maps_dir / f"{o}.npz") for o in objects]
-    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, a.novel)]
+    paths = [map_path[o] for o in objects]
+    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, novel)]
     ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification")
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", id_rows, ID_COLUMNS)

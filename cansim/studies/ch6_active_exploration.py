@@ -280,6 +280,8 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
+from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
 
 logger = logging.getLogger("ch6_active_exploration")
@@ -594,13 +596,13 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     if r is not None:
         for k, name in enumerate(runs[0]["objects"]):
-            axes[0].plot(r.confidence[:, k], label=name)
-            axes[1].plot(r.ic[:, k], label=name)
+            axes[0].plot(r.confidence[:, k], label=object_label(name))
+            axes[1].plot(r.ic[:, k], label=object_label(name))
         for thr in THRESHOLDS:
             axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
         axes[1].set_title("integrated confidence (dotted: the IC thresholds)", fontsize=9)
     axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
-    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {runs[0]['presented']} presented, {runs[0]['strategy']}" if runs else "")
+    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {object_label(runs[0]['presented'])} presented, {runs[0]['strategy']}" if runs else "")
     fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
 
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -649,6 +651,27 @@ def spc_sequences(runs: Sequence[dict[str, Any]]) -> list[int]:
     return out
 
 
+def seldom_touched(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """One line for each presented object whose whisks observed no region (under 3 contacts) more often than not.
+
+    Over every run that presented it (each run once: the rows of its first IC threshold). The
+    search places the array round the believed volume, not the object, so an object that does
+    not reach the volume's faces, or that is flat or thin, is seldom touched: its IC metrics
+    then say little about recognition.
+    """
+    counts: dict[str, list[int]] = {}
+    for x in rows:
+        if x["threshold"] == THRESHOLDS[0] and not (x.get("study") == "spc" and x["spc"] == "on"):
+            c = counts.setdefault(x["presented"], [0, 0])
+            c[0] += x["whisks_without_contact"]
+            c[1] += x["iterations"]
+    return [f"the {object_label(p)} observed a region (3 contacts or more) in only {n - miss} of its {n} whisks: the "
+            "search does not reach its surface well, so its recognition figures say little; check that the mesh is in "
+            "metres, z up and about 0.35 m across (--scale-to-m, --up-axis), or try --contact-seeking (an object that "
+            "is flat or thin, under about 5 cm in one dimension, passes between the array's rows of whiskers)"
+            for p, (miss, n) in counts.items() if n and miss > 0.5 * n]
+
+
 def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float,
             runs: Sequence[dict[str, Any]] = ()) -> str:
     from scipy import stats
@@ -658,7 +681,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
              f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
              f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher",
-             "maps: " + ", ".join(f"{k.name} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
+             "maps: " + ", ".join(f"{object_label(k.name)} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
     spc_rows = [x for x in first if x.get("study") == "spc"]
@@ -668,9 +691,9 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     off_i = [x["mean_incorrect_confidence"] for x in spc_rows if x["spc"] == "off"]
     p = stats.mannwhitneyu(on, off, alternative="greater").pvalue if on and off and len(set(on + off)) > 1 else math.nan
     rep = bool(on and off and np.median(on) > np.median(off) and p < 0.05)
-    lines.append(f"1. SPC raises the correct-identity confidence significantly (thesis Fig 6.6): median on {np.median(on) if on else math.nan:.3f} "
-                 f"vs off {np.median(off) if off else math.nan:.3f}, Mann-Whitney one-sided p = {p:.3g} (n = {len(on)}, {len(off)}); "
-                 f"incorrect on {np.median(on_i) if on_i else math.nan:.3f} vs off {np.median(off_i) if off_i else math.nan:.3f}. "
+    lines.append(f"1. SPC raises the correct-identity confidence significantly (thesis Fig 6.6): median on {fmt(np.median(on) if on else math.nan)} "
+                 f"vs off {fmt(np.median(off) if off else math.nan)}, Mann-Whitney one-sided p = {fmt(p, '.3g')} (n = {len(on)}, {len(off)}); "
+                 f"incorrect on {fmt(np.median(on_i) if on_i else math.nan)} vs off {fmt(np.median(off_i) if off_i else math.nan)}. "
                  f"{'REPRODUCED' if rep else 'NOT reproduced'}"
                  + (f"; the thesis' 'incorrect raised less': incorrect {np.median(on_i) - np.median(off_i):+.3f} vs correct "
                     f"{np.median(on) - np.median(off):+.3f}, "
@@ -693,8 +716,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     best_im = max(med, key=lambda s: med[s][0]) if strat else None
     best_srt = min(med, key=lambda s: med[s][1]) if strat else None
     lines.append("2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): "
-                 + "; ".join(f"{s} IM {m[0]:.0f} SRT {m[1]:.0f}" for s, m in med.items())
-                 + f"; Kruskal-Wallis p(IM) = {p_im:.3g}, p(SRT) = {p_srt:.3g}. "
+                 + "; ".join(f"{s} IM {fmt(m[0], '.0f')} SRT {fmt(m[1], '.0f')}" for s, m in med.items())
+                 + f"; Kruskal-Wallis p(IM) = {fmt(p_im, '.3g')}, p(SRT) = {fmt(p_srt, '.3g')}. "
                  + ("REPRODUCED" if best_im == "lsr" and best_srt == "lsr" else "NOT reproduced")
                  + f" (highest IM: {best_im}, lowest SRT: {best_srt})")
     per_thr = {}
@@ -704,7 +727,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
         per_thr[t] = (sum(x["correct_first"] for x in v), len(v), len(crossed), float(np.median([x["im"] for x in v])) if v else math.nan)
     best_thr = max(THRESHOLDS, key=lambda t: (per_thr[t][0], -t)) if strat else None
     lines.append("3. IC ~300 is the best threshold (Fig 6.7): per threshold correct-first / runs / runs with any crossing / median IM: "
-                 + "; ".join(f"{t:.0f}: {a}/{b}/{c}/{d:.0f}" for t, (a, b, c, d) in per_thr.items())
+                 + "; ".join(f"{t:.0f}: {a}/{b}/{c}/{fmt(d, '.0f')}" for t, (a, b, c, d) in per_thr.items())
                  + f". Best by correct-first count: {best_thr}. " + ("REPRODUCED" if best_thr == 300.0 else "NOT reproduced"))
     lines.append("")
     lines.append("Correct identity first at IC 300, per strategy: "
@@ -717,13 +740,14 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     for p in setup.objects:
         v = [x for x in strat if x["threshold"] == 300.0 and x["presented"] == p]
         ids = [x["identity"] or "none" for x in v]
-        lines.append(f"  {p} presented: identity first at IC 300 " + ", ".join(f"{k} {ids.count(k)}" for k in (*setup.objects, "none"))
-                     + f" of {len(v)}; mean confidence correct {np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan:.3f}"
-                     f" vs incorrect {np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan:.3f}")
-    lines.append(f"SPC on vs off (default search, {setup.objects[-1]} presented): mean correct confidence {np.mean(on) if on else math.nan:.3f} "
-                 f"vs {np.mean(off) if off else math.nan:.3f} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
-                 f"{min(len(on), len(off))} seeds); mean incorrect {np.mean(on_i) if on_i else math.nan:.3f} vs "
-                 f"{np.mean(off_i) if off_i else math.nan:.3f}")
+        lines.append(f"  {object_label(p)} presented: identity first at IC 300 "
+                     + ", ".join(f"{object_label(k)} {ids.count(k)}" for k in (*setup.objects, "none"))
+                     + f" of {len(v)}; mean confidence correct {fmt(np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan)}"
+                     f" vs incorrect {fmt(np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan)}")
+    lines.append(f"SPC on vs off (default search, {setup.objects[-1]} presented): mean correct confidence {fmt(np.mean(on) if on else math.nan)} "
+                 f"vs {fmt(np.mean(off) if off else math.nan)} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
+                 f"{min(len(on), len(off))} seeds); mean incorrect {fmt(np.mean(on_i) if on_i else math.nan)} vs "
+                 f"{fmt(np.mean(off_i) if off_i else math.nan)}")
     nc_on = [x["whisks_without_contact"] / x["iterations"] for x in spc_rows if x["spc"] == "on"]
     nc_off = [x["whisks_without_contact"] / x["iterations"] for x in spc_rows if x["spc"] == "off"]
     if nc_on and nc_off:
@@ -746,6 +770,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     tot = {s: sum(x["iterations"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
     lines.append(f"Whisks with a whisker base inside the presented object (impossible placements, checked against its mesh): "
                  f"SPC on {ins['on']} of {tot['on']}, SPC off {ins['off']} of {tot['off']}.")
+    lines += [f"Warning: {line}." for line in seldom_touched(rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -765,8 +790,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--object-yaw-deg", type=float, default=0.0,
                     help="s.d. of the presented object's seeded yaw, deg (default 0)")
     ap.add_argument("--objects", nargs=2, default=list(OBJECTS), metavar="NAME_OR_MESH",
-                    help="the two known objects (registered names, procedural shapes or mesh files in metres, z up); "
-                         "each is mapped and presented (default: box box_stack)")
+                    help="the two known objects (registered names, procedural shapes or mesh files in metres, z up "
+                         "unless --scale-to-m / --up-axis say otherwise); each is mapped and presented (default: box "
+                         "box_stack)")
+    add_mesh_options(ap)
     ap.add_argument("--believed-scale", type=float, default=1.0,
                     help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
                          "larger, issue 22)")
@@ -794,10 +821,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from tqdm import tqdm
 
     t0 = time.monotonic()
-    from whisker_io.sim.catalogue import resolve_object
-
-    for spec in args.objects:  # a bad name or mesh fails here, with the reason, before any work
-        resolve_object(spec)
+    # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
+    # --scale-to-m / --up-axis are run from their copies in out/objects
+    args.objects = tuple(conform_objects(args.objects, args.out / "objects", scale_to_m=args.scale_to_m,
+                                         up_axis=args.up_axis))
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
                     believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
     from whisker_io.sim.catalogue import object_file_names
@@ -805,6 +832,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     (args.out / "maps").mkdir(exist_ok=True)
     for k, stem in zip(setup.known, object_file_names([k.name for k in setup.known])):  # the maps the runs recognise
         k.save(args.out / "maps" / f"{stem}.npz")  # by, with their mapping logs (KnownObject.load reads them)
+    for k in setup.known:
+        k.exploring_model()  # an object whose map holds no experience fails here, saying why, before the runs
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     runs, spc_runs, rows = [], [], []
@@ -821,6 +850,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         w = csv.DictWriter(f, fieldnames=list(COLUMNS) + ["study"])
         w.writeheader()
         w.writerows(rows)
+    for line in seldom_touched(rows):
+        logger.warning(line)
     figures(args.out, runs, spc_runs, rows)
     text = summary(rows, setup, args, time.monotonic() - t0, runs)
     (args.out / "ch6_summary.txt").write_text(text)

@@ -201,6 +201,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
@@ -744,7 +745,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
     novel = list(novel) if novel is not None else list(novel_names(3))
     for spec in (*everything, *novel):
-        resolve_object(spec)  # a bad name or mesh fails before any work
+        mesh = resolve_object(spec).mesh  # a bad name or mesh fails before any work
+        if "surface" in matchers and spec in everything:
+            _check_surface_grid(spec, mesh.bounds)
     chosen = [b for b in VIEWPOINT_BINS if bins is None or b[0] in bins]
     thresholds = calibrated_thresholds(calibration, seeds, calibration_quantile)  # a bad rule, seed or quantile: before any file
     out.mkdir(parents=True, exist_ok=True)
@@ -777,6 +780,25 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         w.writeheader()
         w.writerows(rows)
     return rows
+
+
+#: How far a map's stored surface may lie outside its object's box (m): the drift of maps under the
+#: Eq 6.4-6.11 noise (stored surfaces 14-23 mm from the mesh, a few up to 0.1 m).
+_MAP_DRIFT_M = 0.1
+
+
+def _check_surface_grid(spec: str, bounds_m: np.ndarray) -> None:
+    """Refuse, before any mapping, an object too large for the surface matcher's grid (:data:`maps.surface_field.MAX_CELLS`)."""
+    from cansim.errors import InvalidInputError
+    from maps.surface_field import MAX_CELLS, grid_cells
+
+    cells = grid_cells(np.asarray(bounds_m) + [[-_MAP_DRIFT_M] * 3, [_MAP_DRIFT_M] * 3])
+    if cells > MAX_CELLS:
+        size = " x ".join(f"{x:.2f}" for x in np.ptp(bounds_m, axis=0))
+        raise InvalidInputError(
+            f"{spec} is {size} m: the surface matcher's grid over its map would need about {cells:.3g} cells (at most "
+            f"{MAX_CELLS:g}); give a smaller object (a cube up to about 0.8 m; --scale-to-m 0.35: the thesis objects' size), or run without the surface "
+            "matcher (--matchers thesis)")
 
 
 def _label(row: dict[str, Any]) -> str:
@@ -826,8 +848,8 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
                 m[presented.index(r["presented"]), decided.index(r["decision"] or "none")] += 1
         m /= np.maximum(m.sum(axis=1, keepdims=True), 1)
         im = ax.imshow(m, vmin=0, vmax=1, cmap="Blues")
-        ax.set_xticks(range(len(decided)), decided, rotation=90, fontsize=6)
-        ax.set_yticks(range(len(presented)), presented, fontsize=6)
+        ax.set_xticks(range(len(decided)), [object_label(d) for d in decided], rotation=90, fontsize=6)
+        ax.set_yticks(range(len(presented)), [object_label(p) for p in presented], fontsize=6)
         ax.set_xlabel("decided identity (IC >= 300)")
         ax.set_title(lab, fontsize=9)
     axes[0][0].set_ylabel("presented object (novel ones last)")
@@ -957,6 +979,13 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
         hit, miss = [r for r in cover if r["correct"]], [r for r in cover if not r["correct"]]
         lines.append(f"  contacts where the own map felt nothing (off trajectory A, median): correct runs {med(hit)} "
                      f"({len(hit)}), missed runs {med(miss)} ({len(miss)})")
+    seldom = sorted({object_label(r["presented"]) for r in rows
+                     if int(r["whisks"]) and int(r["whisks_with_contact"]) < 0.5 * int(r["whisks"])})
+    if seldom:
+        lines.append(f"  Warning: seldom touched - under half the whisks of a presentation observed a region (3 contacts "
+                     f"or more): {', '.join(seldom)}. Their maps and decisions say little: a flat or thin object passes "
+                     "between the array's rows of whiskers (--roll-deg 0 whisks it rolled), a mesh in millimetres or "
+                     "lying on its side is out of reach (--scale-to-m, --up-axis).")
     lines += ["", "Thesis Fig 5.17 findings:",
               f"  own map recognised along A (thesis: yes): {share(lib, 'trajectory A')}",
               f"  along B lower than A but still identified (thesis: yes): {share(lib, 'trajectory B')}",
@@ -973,6 +1002,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH", help="library objects (default: the 12-object library)")
     ap.add_argument("--novel", nargs="+", metavar="NAME_OR_MESH", help="novel objects (default: three held-out shapes)")
+    add_mesh_options(ap)
     ap.add_argument("--seeds", type=int, default=None, help="seeds (default 3, quick 1)")
     ap.add_argument("--whisks", type=int, default=200, help="least whisks per presentation (default 200)")
     ap.add_argument("--map-loops", type=int, default=2, help="loops of trajectory A per map (default 2)")
@@ -1008,6 +1038,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     seeds = range(a.seeds if a.seeds is not None else (1 if a.quick else 3))
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     bins = ("vp 5-10 cm",) if a.quick else None
+    objects, novel = list(a.objects or ()), list(a.novel or ())
+    # a bad name or mesh fails here, before any work; mesh files changed by --scale-to-m / --up-axis
+    # are run from their copies in out/objects
+    conformed = conform_objects([*objects, *novel], a.out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
+    a.objects, a.novel = conformed[:len(objects)] or None, conformed[len(objects):] or None
     rows = run(a.out, a.objects, a.novel, library_sizes=sizes if not a.objects else (len(a.objects),), seeds=seeds,
                bins=bins, map_loops=a.map_loops, whisks=a.whisks, workers=a.workers, progress=not a.no_progress,
                matchers=a.matchers, odometry_scale=a.odometry_noise, calibration=a.calibration,

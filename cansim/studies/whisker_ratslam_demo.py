@@ -91,6 +91,8 @@ from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.localisation import map_pose_errors, relocalisation_errors, rotation_error_rad, step_sizes
 from maps.odometry import SpatialOdometry
+from cansim.studies.object_options import add_mesh_options
+from cansim.studies.report import fmt
 from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
@@ -111,7 +113,7 @@ DEFAULT_STEP_BOUNDS = (0.11, 12.0)
 def run(
     object_name: str | Path = "mug", loops: int = 2, seed: int = 0, backend: str = "numba", progress: bool = True,
     contact_noise: float = DEFAULT_CONTACT_NOISE, thesis_matching: bool = False,
-    scale_to_m: float | None = None, up_axis: str = "z",
+    scale_to_m: float | None = None, up_axis: str | None = None,
 ) -> dict:
     """Explore ``object_name`` for ``loops`` loops; return the run's arrays and metrics.
 
@@ -182,6 +184,9 @@ def run(
     map_err = np.array([np.linalg.norm(om[e, :3] - t.position_m) if e >= 0 else np.nan for e, t in zip(exp_ids, rel_true)])
     metrics = {
         "object": object_name,
+        "object_source": loaded.source,
+        "object_extents_m": [float(x) for x in loaded.extents_m],
+        "object_changes": list(loaded.notes),
         "matching": "thesis" if thesis_matching else "pose-consistent",
         "contact_noise": float(contact_noise),
         "seed": int(seed),
@@ -211,38 +216,46 @@ def run(
             "dr_error_m": dr_p, "map_error_m": map_err, "loop_starts": [len(poses) // loops * k for k in range(loops)]}
 
 
-def _m(value: float, digits: int = 3) -> str:
-    return "undefined" if not np.isfinite(value) else f"{value:.{digits}f}"
 
 
 def _contact_warning(m: dict) -> str:
-    return (f"only {m['observations']} of {m['whisks']} whisks touched the {m['object']}: the trajectory (an ellipsoid "
-            "fitted around the mesh) does not reach its surface well, so the map has little to work with and errors "
-            "that need re-localisations are undefined (null in the JSON); check that the mesh is in metres, z up and "
-            "about 0.35 m across (--scale-to-m, --up-axis)")
+    return (f"only {m['observations']} of {m['whisks']} whisks touched the {m['object']} with 3 whiskers or more (a "
+            "region, Eq 5.5): the trajectory (an ellipsoid fitted around the mesh) does not reach its surface well, so "
+            "the map has little to work with and errors that need re-localisations are undefined (null in the JSON). "
+            "Check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis); an object that "
+            "is flat or thin (under about 5 cm in one dimension) passes between the array's rows of whiskers")
 
 
 def summary(metrics: dict, out: Path, files: list[Path]) -> str:
     """A few sentences a person reads: what ran, the map against dead reckoning and the step, where the files are."""
     m = metrics
-    lines = [
+    lines = []
+    if m.get("object_source") not in (None, "registered object", "procedural shape"):
+        size = " x ".join(f"{x:.3f}" for x in m["object_extents_m"])
+        lines.append(f"Loaded {m['object_source']} as the {m['object']} ({size} m; "
+                     + ("; ".join(m["object_changes"]) or "already in the conventions: only placed") + ").")
+    lines += [
         f"WhiskerRatSLAM whisked the {m['object']} {m['whisks']} times ({m['whisks_per_s']:.0f} whisks/s after the first); "
         f"{m['observations']} whisks touched it. The object map has {m['experiences']} experiences; "
         f"the pose cells re-localised {m['relocalisations']} times ({m['relocalisations_second_loop']} in the last loop).",
     ]
     if m["relocalisations"]:
-        lines.append(f"Re-localisations land a median {_m(m['median_position_error_m'])} m / "
-                     f"{_m(m['median_rotation_error_deg'], 1)} deg from where their experience was made "
+        lines.append(f"Re-localisations land a median {fmt(m['median_position_error_m'])} m / "
+                     f"{fmt(m['median_rotation_error_deg'], '.1f')} deg from where their experience was made "
                      f"(the step between whisks is {m['step_translation_m']:.3f} m / {m['step_rotation_deg']:.1f} deg).")
     else:
         lines.append("No re-localisation happened, so the re-localisation errors are undefined (null in the JSON).")
-    lines.append(f"In the last loop the map's estimate of the arm's position (its current experience) is a median "
-                 f"{_m(m['map_estimate_median_position_error_m'])} m from the truth, dead reckoning's "
-                 f"{m['dr_last_loop_median_position_error_m']:.3f} m (over the whole run dead reckoning drifts a median "
-                 f"{m['dr_median_position_error_m']:.3f} m / {m['dr_median_rotation_error_deg']:.1f} deg; the experiences "
-                 f"lie a median {_m(m['map_median_position_error_m'])} m from the truth).")
-    better = bool(m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"])
-    lines.append("=> the map beats dead reckoning." if better else "=> the map does NOT beat dead reckoning on this run.")
+    drift = (f"over the whole run dead reckoning drifts a median {m['dr_median_position_error_m']:.3f} m / "
+             f"{m['dr_median_rotation_error_deg']:.1f} deg")
+    if np.isfinite(m["map_estimate_median_position_error_m"]):
+        lines.append(f"In the last loop the map's estimate of the arm's position (its current experience) is a median "
+                     f"{fmt(m['map_estimate_median_position_error_m'])} m from the truth, dead reckoning's "
+                     f"{m['dr_last_loop_median_position_error_m']:.3f} m ({drift}; the experiences "
+                     f"lie a median {fmt(m['map_median_position_error_m'])} m from the truth).")
+        better = bool(m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"])
+        lines.append("=> the map beats dead reckoning." if better else "=> the map does NOT beat dead reckoning on this run.")
+    else:
+        lines.append(f"The map holds no experience, so it has no estimate of the arm's position (null in the JSON); {drift}.")
     if m["whisks"] and m["observations"] < 0.5 * m["whisks"]:
         lines.append(f"Warning: {_contact_warning(m)}")
     lines.append(f"Wrote {', '.join(f.name for f in files)} in {out.resolve()}.")
@@ -308,9 +321,7 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape (e.g. duck, "
                          "torus_flat-v3) or a mesh file (.obj .stl .ply .glb; metres and z up unless --scale-to-m / "
                          "--up-axis say otherwise). Default: mug")
-    ap.add_argument("--scale-to-m", type=float, default=None, metavar="M",
-                    help="scale a mesh so that its largest extent is M metres (e.g. 0.35, the thesis objects' size)")
-    ap.add_argument("--up-axis", default="z", help="the mesh file's up axis (x, y, z, -x, -y, -z; default z)")
+    add_mesh_options(ap)
     ap.add_argument("--quick", action="store_true", help="one loop (< 30 s)")
     ap.add_argument("--out", type=Path, default=Path("."))
     ap.add_argument("--seed", type=int, default=0)

@@ -82,11 +82,18 @@ class CommandError(CansimError):
         self.code = code
 
 
-def _run_main(module: ModuleType, argv: list[str]) -> int:
+def _run_main(module: ModuleType, argv: list[str], prog: str) -> int:
+    """``module.main(argv)``, its usage lines and errors naming ``prog`` (argparse takes its name from ``sys.argv[0]``)."""
+    saved = sys.argv[0] if sys.argv else None
+    if sys.argv:
+        sys.argv[0] = prog
     try:
         code = module.main(argv)
     except SystemExit as exc:  # an example's own argparse or sys.exit
         code = exc.code
+    finally:
+        if saved is not None:
+            sys.argv[0] = saved
     if code is None:
         return EXIT_OK
     if isinstance(code, int):
@@ -99,13 +106,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     options = list(args.options)
     which = options.pop(0) if options and options[0] in DEMOS else next(iter(DEMOS))
     module = importlib.import_module(DEMOS[which])
-    return _run_main(module, ["--seed", str(args.seed), "--out", str(args.out), *options])
+    return _run_main(module, ["--seed", str(args.seed), "--out", str(args.out), *options], f"cansim demo {which}")
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
     module = importlib.import_module(STUDIES[args.chapter])
     argv = (["--quick"] if args.quick else []) + ["--out", str(args.out), *args.options]
-    return _run_main(module, argv)
+    return _run_main(module, argv, f"cansim study {args.chapter}")
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -297,6 +304,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _forward_help(argv: list[str]) -> list[str]:
+    """``argv`` without a ``-h`` / ``--help`` that follows a study's chapter or a demo's name (the study's or demo's
+    own help is then shown, not ``cansim study``'s)."""
+    for command, names in (("study", STUDIES), ("demo", DEMOS)):
+        if command in argv:
+            rest = argv[argv.index(command) + 1:]
+            named = [i for i, a in enumerate(rest) if a in names]
+            if named:
+                after = rest[named[0] + 1:]
+                if any(a in ("-h", "--help") for a in after):
+                    kept = [a for a in after if a not in ("-h", "--help")]
+                    return argv[:argv.index(command) + 1] + rest[:named[0] + 1] + kept
+    return argv
+
+
 def _int_at_least(minimum: int, what: str) -> Callable[[str], int]:
     """An argparse type: an integer >= ``minimum`` (``what`` names it in the message)."""
 
@@ -339,7 +361,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     Usage errors raise ``SystemExit(2)`` (argparse).
     """
     parser = build_parser()
-    args, extra = parser.parse_known_args(None if argv is None else list(argv))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args, extra = parser.parse_known_args(_forward_help(argv))
+    if len(argv) > len(_forward_help(argv)):
+        extra.append("--help")  # 'cansim study ch5 --help': the study's own options
     if extra and args.command not in ("demo", "study"):
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.options = extra  # a demo's or study's own options, passed to its main(argv)

@@ -1,0 +1,109 @@
+"""The command-line options for the objects a demo or study is given: names, or mesh files and their conventions.
+
+Every runner that takes objects - the demo's ``--object``, the Ch.5 study's ``--objects`` /
+``--novel``, the Ch.6 study's ``--objects``, the recognition study's ``--objects`` /
+``--novel`` - takes a registered name, a procedural shape's name or a mesh file
+(:func:`whisker_io.sim.catalogue.resolve_object`). A mesh file must follow the
+simulator's conventions (metres, z up; :func:`whisker_io.sim.objects.load_object` rests
+it on z = 0 and centres it) unless the run is told otherwise with the two options added
+by :func:`add_mesh_options`:
+
+* ``--scale-to-m M``: every mesh file is scaled so that its largest extent is ``M`` metres
+  (0.35 for the thesis objects' size; a file in millimetres is refused with the value to
+  pass);
+* ``--up-axis AXIS``: every mesh file's up axis (``x``, ``y``, ``z``, ``-x``, ``-y``,
+  ``-z``; glTF/GLB files are y-up by their specification).
+
+The options apply to every mesh file of the command (files in different units or with
+different up axes: bring each to the conventions first with ``load_object`` and export
+it). A study runs its objects in worker processes by name, so :func:`conform_objects`
+writes each mesh file it changed, in the conventions, to ``<out>/objects/<stem>.ply``
+(single-precision vertices: within a micrometre)
+and hands on that path: the study's outputs name that file, which keeps the object
+exactly as run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from whisker_io.errors import InvalidInputError
+from whisker_io.sim.catalogue import object_file_name, object_file_names, resolve_object
+from whisker_io.sim.objects import MESH_SUFFIXES, UP_AXES, load_object
+
+__all__ = ["add_mesh_options", "conform_objects", "is_mesh_file", "object_label"]
+
+log = logging.getLogger(__name__)
+
+
+def add_mesh_options(ap: argparse.ArgumentParser) -> None:
+    """Add ``--scale-to-m M`` and ``--up-axis AXIS`` (module docstring) to a runner's parser."""
+    ap.add_argument("--scale-to-m", type=float, default=None, metavar="M",
+                    help="scale every mesh file so that its largest extent is M metres (e.g. 0.35, the thesis "
+                         "objects' size; needed for files in millimetres)")
+    ap.add_argument("--up-axis", default=None, metavar="AXIS",
+                    help=f"the mesh files' up axis ({', '.join(UP_AXES)}; default z; glTF/GLB files are y-up by "
+                         "their specification)")
+
+
+def is_mesh_file(spec: str | os.PathLike[str]) -> bool:
+    """Whether an object given on a command line names a mesh file (by its ending) rather than an object."""
+    return Path(spec).suffix.lower() in MESH_SUFFIXES
+
+
+def object_label(spec: str | os.PathLike[str]) -> str:
+    """A short label for an object in figures: a mesh file's stem (``"/data/my mug.obj"`` -> ``"my_mug"``), a name as given."""
+    return object_file_name(spec) if is_mesh_file(spec) else str(spec)
+
+
+def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | None = None,
+                    up_axis: str | None = None) -> list[str]:
+    """Check every object of a command line and bring its mesh files to the conventions when told to.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        Objects as given: registered names, procedural shapes' names or mesh files.
+    folder : Path
+        Where a mesh file changed by ``scale_to_m`` / ``up_axis`` is written, as
+        ``<stem>.ply`` (stems of :func:`~whisker_io.sim.catalogue.object_file_names`:
+        distinct); created when needed.
+    scale_to_m, up_axis : optional
+        As :func:`whisker_io.sim.objects.load_object`'s, for every mesh file.
+
+    Returns
+    -------
+    list of str
+        ``specs`` with each changed mesh file replaced by the path of its copy in the
+        conventions; unchanged when neither option is given.
+
+    Raises
+    ------
+    InvalidInputError, CorruptFileError
+        A name that is no object, a mesh file :func:`load_object` refuses (the message
+        says what to pass), or ``scale_to_m`` / ``up_axis`` given with no mesh file to
+        apply them to.
+    """
+    specs = [str(s) for s in specs]
+    given = scale_to_m is not None or up_axis is not None
+    files = [is_mesh_file(s) for s in specs]
+    if given and not any(files):
+        raise InvalidInputError("--scale-to-m / --up-axis apply to mesh files, and no object given is one "
+                                f"({', '.join(specs)}); leave them out for named objects")
+    out = []
+    for spec, is_file, stem in zip(specs, files, object_file_names(specs)):
+        if not (given and is_file):
+            resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
+            out.append(spec)
+            continue
+        loaded = load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{stem}.ply"
+        loaded.mesh.export(path)
+        log.info("%s: %s; written in the conventions to %s", spec, "; ".join(loaded.notes) or "placed only", path)
+        out.append(str(path))
+    return out

@@ -1,0 +1,125 @@
+"""The runners' object options (cansim.studies.object_options), the summaries' numbers (cansim.studies.report),
+the surface grid's size (maps.surface_field.grid_cells) and the Ch.6 study's seldom-touched warning."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cansim.errors import CansimError, InvalidInputError
+from cansim.studies.object_options import add_mesh_options, conform_objects, is_mesh_file, object_label
+from cansim.studies.report import fmt
+from maps.surface_field import MAX_CELLS, SurfaceFieldConfig, grid_cells
+from whisker_io.sim.objects import load_object
+
+
+def _brick_mm_y_up(path: Path) -> None:
+    """A 100 x 350 x 200 mm brick, y up (its height, 350 mm, along y)."""
+    trimesh.creation.box(extents=(100.0, 350.0, 200.0)).export(path)
+
+
+def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    _brick_mm_y_up(a / "brick.stl")
+    _brick_mm_y_up(b / "brick.obj")
+    out = tmp_path / "out" / "objects"
+    got = conform_objects([str(a / "brick.stl"), "mug", str(b / "brick.obj")], out, scale_to_m=0.35, up_axis="y")
+    assert got[1] == "mug"
+    assert got[0] == str(out / "brick_1.ply") and got[2] == str(out / "brick_3.ply")  # one stem twice: numbered by place
+    for path in (got[0], got[2]):
+        mesh = load_object(path).mesh  # the copy is in the conventions already: loading changes nothing but placement
+        assert mesh.extents == pytest.approx([0.1, 0.2, 0.35], abs=1e-6)  # by hand: y (350 mm) up; PLY holds float32
+        assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-12)
+    assert sorted(p.name for p in a.iterdir()) == ["brick.stl"]  # the user's folder untouched
+
+
+def test_without_the_options_nothing_is_copied(tmp_path):
+    path = tmp_path / "cube.obj"
+    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(path)
+    assert conform_objects([str(path), "box"], tmp_path / "objects") == [str(path), "box"]
+    assert not (tmp_path / "objects").exists()
+
+
+def test_options_without_a_mesh_file_are_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="apply to mesh files"):
+        conform_objects(["mug", "box"], tmp_path, scale_to_m=0.35)
+    with pytest.raises(InvalidInputError, match="apply to mesh files"):
+        conform_objects([], tmp_path, up_axis="y")
+
+
+def test_a_millimetre_file_without_the_option_names_the_flag(tmp_path):
+    _brick_mm_y_up(tmp_path / "brick.stl")
+    with pytest.raises(InvalidInputError, match="--scale-to-m 0.35"):
+        conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects")
+
+
+@settings(max_examples=40, deadline=None)
+@given(spec=st.one_of(st.text(max_size=12), st.sampled_from(["teapot", "x.obj", "dir/none.stl", ""])),
+       scale=st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True), st.just(0.35)),
+       up=st.one_of(st.none(), st.text(max_size=3), st.sampled_from(["y", "-z"])))
+def test_conform_objects_fuzz(tmp_path_factory, spec, scale, up):
+    """Any input: a list of objects back, or the project's typed error - never another exception."""
+    folder = tmp_path_factory.mktemp("objects")
+    try:
+        got = conform_objects([spec], folder, scale_to_m=scale, up_axis=up)
+    except CansimError:
+        return
+    assert len(got) == 1
+
+
+def test_labels_and_mesh_files():
+    assert is_mesh_file("/data/My Mug.OBJ") and is_mesh_file("x.glb") and not is_mesh_file("mug")
+    assert object_label("/data/My Mug.OBJ") == "My_Mug" and object_label("torus_flat-v3") == "torus_flat-v3"
+
+
+def test_the_options_parse():
+    ap = argparse.ArgumentParser()
+    add_mesh_options(ap)
+    a = ap.parse_args(["--scale-to-m", "0.3", "--up-axis", "y"])
+    assert (a.scale_to_m, a.up_axis) == (0.3, "y")
+    assert (ap.parse_args([]).scale_to_m, ap.parse_args([]).up_axis) == (None, None)
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_fmt_never_prints_nan(value):
+    text = fmt(value)
+    assert "nan" not in text and "inf" not in text
+    assert (text == "undefined") == (not math.isfinite(value))
+    if math.isfinite(value):
+        assert text == f"{value:.3f}"
+
+
+def test_grid_cells_by_hand():
+    # a 0.3 m cube of points at 7.5 mm with 5 cm of reach: (0.3 + 0.1) / 0.0075 = 53.3 -> 54 + 1 = 55 cells an axis
+    pts = np.array([[0.0, 0.0, 0.0], [0.3, 0.3, 0.3]])
+    assert grid_cells(pts) == 55 ** 3
+    assert grid_cells(pts, SurfaceFieldConfig(cell_m=0.01, reach_m=0.05)) == 41 ** 3  # 0.4 / 0.01 = 40 -> 40 + 1
+    assert grid_cells(np.array([[0.0, 0, 0], [1e6, 1e6, 1e6]])) > MAX_CELLS  # no int64 overflow on a silly span
+
+
+@pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.full((2, 3), np.nan), np.zeros((2, 2)), "x"])
+def test_grid_cells_refuses_bad_points(bad):
+    with pytest.raises(CansimError):
+        grid_cells(bad)
+
+
+def test_the_ch6_study_warns_of_an_object_it_seldom_touched():
+    from cansim.studies.ch6_active_exploration import seldom_touched
+
+    def row(p, miss, n, thr=100.0, study="strategy", spc="on"):
+        return {"presented": p, "whisks_without_contact": miss, "iterations": n, "threshold": thr, "study": study, "spc": spc}
+
+    rows = [row("/x/flat disk.obj", 50, 60), row("/x/flat disk.obj", 20, 60), row("mug", 10, 60),
+            row("/x/flat disk.obj", 60, 60, thr=300.0),  # another threshold's row of the same run: not counted again
+            row("mug", 60, 60, study="spc", spc="on")]  # the SPC study's on-runs repeat strategy runs: not counted
+    lines = seldom_touched(rows)
+    assert len(lines) == 1 and lines[0].startswith("the flat_disk observed a region (3 contacts or more) in only 50 of its 120")
+    assert seldom_touched([row("mug", 30, 60)]) == []  # exactly half: not "more often than not"
