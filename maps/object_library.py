@@ -22,8 +22,8 @@ beside ``exp_object``, ``names`` (a unicode array) and ``history_object``.
 
 from __future__ import annotations
 
-import logging
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import BinaryIO
@@ -35,8 +35,6 @@ from whisker_io.persistence import read_npz, write_npz
 from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
-
-logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -159,8 +157,8 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     -----
     A map with no experience (an object whose exploration observed no region, e.g. a flat
     object felt by fewer than 3 whiskers at every whisk) is kept under its name with no
-    experience: nothing can re-localise into it, so it never gets an impulse (a warning
-    is logged).
+    experience: nothing can re-localise into it, so it never gets an impulse (a
+    ``UserWarning`` says so, once per process for the same maps).
 
     Raises
     ------
@@ -187,9 +185,9 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     empty = [n for m, n in zip(maps, names) if m.n_experiences == 0]
     if len(empty) == len(maps):
         raise InvalidInputError(f"every map is empty ({names}): explore the objects first (no experience to append)")
-    if empty:
-        logger.warning("%d object map(s) without an experience appended (nothing can be recognised as them): %s",
-                       len(empty), ", ".join(empty))
+    if empty:  # a warning, not a log line: shown once per process however often a study builds this library
+        warnings.warn(f"{len(empty)} object map(s) without an experience appended (nothing can be recognised as them): "
+                      f"{', '.join(empty)}", UserWarning, stacklevel=2)
     parts = [m.to_arrays() for m in maps]
     out = dict(ObjectMap(maps[0].config, maps[0].geometry).to_arrays())  # fresh accumulators and state
     n_exp = [len(p["exp_vt"]) for p in parts]

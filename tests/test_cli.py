@@ -71,6 +71,27 @@ def test_a_studys_usage_error_names_the_command():
     assert "__main__" not in proc.stderr
 
 
+@pytest.mark.parametrize("argv,says", [
+    (["study", "ch5", "--quick", "--objects", "box", "mug", "--novel", "mug"], "both a library object and a novel one"),
+    (["study", "ch6", "--quick", "--objects", "box", "box"], "given twice"),
+    (["study", "ch6", "--quick", "--scale-to-m", "0.35"], "apply to mesh files"),
+    (["demo", "--object", "mug", "--up-axis", "y"], "apply to mesh files"),
+])
+def test_objects_named_twice_or_options_without_a_mesh_are_refused_before_any_work(tmp_path, argv, says):
+    proc = cansim(*argv, "--out", str(tmp_path), cwd=tmp_path, timeout=60)
+    line = _one_line_error(proc.stderr, argv[0] if argv[0] == "demo" else f"{argv[0]} {argv[1]}")
+    assert proc.returncode == 3 and says in line
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(tmp_path):
+    (tmp_path / "a_file").write_text("")
+    for argv in (["study", "ch6", "--quick"], ["demo"]):
+        proc = cansim(*argv, "--out", str(tmp_path / "a_file" / "out"), cwd=tmp_path, timeout=60)
+        line = _one_line_error(proc.stderr, " ".join(argv[:2]) if argv[0] == "study" else "demo")
+        assert proc.returncode == 3 and "cannot write to the output folder" in line
+
+
 def test_usage_errors_exit_2():
     assert cansim("fly").returncode == 2
     proc = cansim("sweep")

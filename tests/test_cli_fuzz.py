@@ -202,6 +202,11 @@ studies = st.one_of(
               bad_float).map(list),
     st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks", "--map-loops", "--workers"]),
               not_positive).map(list),
+    # the mesh options: a bad value, or an option with no mesh file to apply it to (registered objects only)
+    st.tuples(st.sampled_from(["ch5", "ch6", "recognition"]), st.just("--quick"), st.just("--scale-to-m"),
+              st.one_of(bad_float, st.sampled_from(["0", "5", "1e-9"]))).map(list),
+    st.tuples(st.sampled_from(["ch5", "ch6", "recognition"]), st.just("--quick"), st.just("--up-axis"),
+              st.one_of(names, st.sampled_from(["y", "-z", "yz", ""]))).map(list),
 )
 
 

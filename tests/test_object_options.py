@@ -120,6 +120,46 @@ def test_the_ch6_study_warns_of_an_object_it_seldom_touched():
     rows = [row("/x/flat disk.obj", 50, 60), row("/x/flat disk.obj", 20, 60), row("mug", 10, 60),
             row("/x/flat disk.obj", 60, 60, thr=300.0),  # another threshold's row of the same run: not counted again
             row("mug", 60, 60, study="spc", spc="on")]  # the SPC study's on-runs repeat strategy runs: not counted
+    rows.append(row("mug", 60, 60, study="spc", spc="off"))  # the SPC study's contrast: not counted either
     lines = seldom_touched(rows)
     assert len(lines) == 1 and lines[0].startswith("the flat_disk observed a region (3 contacts or more) in only 50 of its 120")
+    assert "--scale-to-m" in lines[0] and "--contact-seeking" in lines[0]
+    assert "--contact-seeking" not in seldom_touched(rows, contact_seeking=True)[0]  # no advice to do what was done
+    assert "--scale-to-m" not in seldom_touched([row("box_stack", 50, 60)])[0]  # a registered object: no mesh to check
     assert seldom_touched([row("mug", 30, 60)]) == []  # exactly half: not "more often than not"
+
+
+def test_distinct_objects(tmp_path):
+    from cansim.studies.object_options import check_distinct, object_labels
+
+    path = tmp_path / "cup.obj"
+    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(path)
+    check_distinct(["mug", str(path)], ["box"])
+    with pytest.raises(InvalidInputError, match="given twice"):
+        check_distinct([str(path), "mug", str(tmp_path / "." / "cup.obj")])  # one file by two spellings
+    with pytest.raises(InvalidInputError, match="both a library object and a novel one"):
+        check_distinct(["mug", "box"], ["Mug"])  # one registered object, spelt otherwise
+    with pytest.raises(InvalidInputError, match="given twice"):
+        check_distinct([], ["box", "box"])
+    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "cup_1", "mug": "mug", "b/cup.stl": "cup_3"}
+
+
+def test_a_gltf_without_an_up_axis_is_copied_once_with_its_warning(tmp_path, caplog):
+    path = tmp_path / "tower.glb"
+    trimesh.creation.box(extents=(0.1, 0.4, 0.1)).export(path)
+    with caplog.at_level("WARNING"):
+        got = conform_objects([str(path), "mug"], tmp_path / "objects")
+    assert got == [str(tmp_path / "objects" / "tower.ply"), "mug"]
+    assert sum("y-up by their specification" in r.getMessage() for r in caplog.records) == 1
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        load_object(got[0])  # what the study's workers load: no warning again
+    assert not caplog.records
+
+
+def test_the_changes_made_are_said(tmp_path, caplog):
+    _brick_mm_y_up(tmp_path / "brick.stl")
+    with caplog.at_level("WARNING", logger="cansim.studies.object_options"):
+        conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects", scale_to_m=0.35, up_axis="y")
+    (msg,) = [r.getMessage() for r in caplog.records]
+    assert "scaled by 0.001" in msg and "rotated +90 deg about x" in msg and "0.100 x 0.200 x 0.350 m" in msg

@@ -178,6 +178,7 @@ def test_evaluate_models_on_hand_made_validation(tmp_path) -> None:
     rows = list(csv.DictReader(path.open()))
     assert tuple(rows[0]) == RESULT_COLUMNS and [r["model"] for r in rows] == ["tip", "random"]
     assert float(rows[0]["median_abs_error"]) == pytest.approx(0.5)
+    assert rows[0]["cv_rmse_m"] == "" and "nan" not in path.read_text().lower()  # a baseline has no CV error: empty
 
 
 # ---------------------------------------------------------------- bad input

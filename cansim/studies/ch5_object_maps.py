@@ -166,7 +166,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
@@ -624,10 +624,11 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     from whisker_io.plots.axes import boxplot_handles
 
     objs = list(dict.fromkeys(b["object"] for b in builds))
+    label = object_labels([*objs, *(r["presented"] for r in ids)])
     # Fig 5.14b: dead-reckoning displacement error over one loop of A
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data = [np.concatenate([b["dr_error_m"] for b in builds if b["object"] == o and b["config"].contact_model == "tip"][:1] or [np.zeros(1)]) for o in objs]
-    parts = ax.boxplot(data, tick_labels=[object_label(o) for o in objs])
+    parts = ax.boxplot(data, tick_labels=[label[o] for o in objs])
     ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     ax.set_xlabel("object")
     ax.set_ylabel("dead-reckoning displacement error (m)")
@@ -639,7 +640,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
-        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=[object_label(o) for o in objs],
+        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=[label[o] for o in objs],
                            showfliers=False)
         for i, o in enumerate(objs):
             st = next(b[step_key] for b in builds if b["object"] == o)
@@ -674,7 +675,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             rows = np.flatnonzero(r["history_object"] == k)
             if len(rows):
                 a1.axvspan(rows[0], rows[-1], color=cmap(k), alpha=0.15)
-                a1.text(rows[0], 0, object_label(name), fontsize=7, va="bottom")
+                a1.text(rows[0], 0, label.get(name, name), fontsize=7, va="bottom")
         a1.plot(t[:n0], h[:n0], color="0.5", lw=0.8, label="experience id while the library maps were built")
         a1.plot(t[n0:], h[n0:], color="k", lw=0.8, label="experience id while the object is presented")
         corr = r["names"].index(r["presented"]) if r["presented"] in r["names"] else -1
@@ -686,9 +687,9 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
         a1.set_ylabel("experience id")
         a1.set_xlabel("iteration (library build, then presentation; shaded: each library object's map, same colours below)")
         a1.legend(fontsize=7, loc="upper left")
-        a1.set_title(f"Fig 5.16: {object_label(r['presented'])} presented (trajectory A)")
+        a1.set_title(f"Fig 5.16: {label.get(r['presented'], r['presented'])} presented (trajectory A)")
         for k, name in enumerate(r["names"]):
-            a2.plot(r["confidence"][:, k], color=cmap(k), label=object_label(name))
+            a2.plot(r["confidence"][:, k], color=cmap(k), label=label.get(name, name))
         a2.axhline(RC_THRESHOLD, color="tab:red", lw=1, label=f"threshold {RC_THRESHOLD:g}")
         a2.set_xlabel("iteration of the exploration")
         a2.set_ylabel("confidence c_k")
@@ -898,6 +899,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--radial-model", help="Ch.4 model (.skops) for the SVR contact estimate")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     a = ap.parse_args(argv)
     # every number is checked before any work (a 0 loop count ran the default, a negative seed or a bad
     # quantile failed after minutes of mapping or calibration)
@@ -920,8 +922,9 @@ def main(argv: list[str] | None = None) -> int:
 
     # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
     # --scale-to-m / --up-axis are run from their copies in out/objects
-    *objects, novel = conform_objects([*(a.objects or (("mug", "box", "plane") if a.quick else MAPPED)), a.novel],
-                                      out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
+    given = list(a.objects or (("mug", "box", "plane") if a.quick else MAPPED))
+    check_distinct(given, [a.novel])
+    *objects, novel = conform_objects([*given, a.novel], out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
     loops = a.loops or (2 if a.quick else 3)
     id_whisks = a.id_whisks if a.id_whisks is not None else (0 if a.quick else ID_WHISKS)
     contacts = a.contacts or CONTACTS
@@ -934,7 +937,7 @@ def main(argv: list[str] | None = None) -> int:
         id_cfg = configs[-1]
     radial = _ensure_radial_model(a.radial_model, out) if "svr" in contacts else None
     cals = pool_map(_calibrate_job, [(a.noise_scale, a.calibration_quantile, a.seed, c, radial) for c in contacts],
-                     a.workers, "ch5 thresholds")
+                     a.workers, "ch5 thresholds", not a.no_progress)
     _write_csv(out / "ch5_calibration.csv", cals, list(cals[0]))
     thresholds = {r["contact_model"]: (r["pfh_threshold"] if a.pfh_threshold is None else a.pfh_threshold,
                                        r["sda_threshold"] if a.sda_threshold is None else a.sda_threshold) for r in cals}
@@ -948,13 +951,13 @@ def main(argv: list[str] | None = None) -> int:
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
     if not a.no_compare:
         jobs += [(o, c, other, None) for o in objects for c in configs]
-    runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)")
+    runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)", not a.no_progress)
     builds = [b for b in runs if b["matching"] == matching]
     compare = [b for b in runs if b["matching"] != matching]
     _write_csv(out / "ch5_localisation.csv", localisation_rows(runs), LOC_COLUMNS)
     paths = [map_path[o] for o in objects]
     id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, novel)]
-    ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification")
+    ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification", not a.no_progress)
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", id_rows, ID_COLUMNS)
     figures(out, builds, ids, id_rows, id_cfg)

@@ -280,7 +280,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_labels
 from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
 
@@ -595,14 +595,15 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     r = runs[0]["result"] if runs else None
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     if r is not None:
+        label = object_labels(runs[0]["objects"])
         for k, name in enumerate(runs[0]["objects"]):
-            axes[0].plot(r.confidence[:, k], label=object_label(name))
-            axes[1].plot(r.ic[:, k], label=object_label(name))
+            axes[0].plot(r.confidence[:, k], label=label[name])
+            axes[1].plot(r.ic[:, k], label=label[name])
         for thr in THRESHOLDS:
             axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
         axes[1].set_title("integrated confidence (dotted: the IC thresholds)", fontsize=9)
     axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
-    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {object_label(runs[0]['presented'])} presented, {runs[0]['strategy']}" if runs else "")
+    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {object_labels(runs[0]['objects'])[runs[0]['presented']]} presented, {runs[0]['strategy']}" if runs else "")
     fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
 
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -651,37 +652,48 @@ def spc_sequences(runs: Sequence[dict[str, Any]]) -> list[int]:
     return out
 
 
-def seldom_touched(rows: Sequence[dict[str, Any]]) -> list[str]:
+def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False) -> list[str]:
     """One line for each presented object whose whisks observed no region (under 3 contacts) more often than not.
 
-    Over every run that presented it (each run once: the rows of its first IC threshold). The
-    search places the array round the believed volume, not the object, so an object that does
-    not reach the volume's faces, or that is flat or thin, is seldom touched: its IC metrics
-    then say little about recognition.
+    Over the strategy study's runs that presented it (each run once: the rows of its first IC
+    threshold; the SPC-off runs are the SPC study's contrast, not counted). The search places
+    the array round the believed volume, not the object, so an object that does not reach
+    the volume's faces, or that is flat or thin, is seldom touched: its IC metrics then say
+    little about recognition. The advice names what the run can change: a mesh file's
+    conventions, and contact seeking when it was off (``contact_seeking``).
     """
     counts: dict[str, list[int]] = {}
     for x in rows:
-        if x["threshold"] == THRESHOLDS[0] and not (x.get("study") == "spc" and x["spc"] == "on"):
+        if x["threshold"] == THRESHOLDS[0] and x.get("study", "strategy") == "strategy":
             c = counts.setdefault(x["presented"], [0, 0])
             c[0] += x["whisks_without_contact"]
             c[1] += x["iterations"]
-    return [f"the {object_label(p)} observed a region (3 contacts or more) in only {n - miss} of its {n} whisks: the "
-            "search does not reach its surface well, so its recognition figures say little; check that the mesh is in "
-            "metres, z up and about 0.35 m across (--scale-to-m, --up-axis), or try --contact-seeking (an object that "
-            "is flat or thin, under about 5 cm in one dimension, passes between the array's rows of whiskers)"
-            for p, (miss, n) in counts.items() if n and miss > 0.5 * n]
+    lines, label = [], object_labels(list(counts))
+    for p, (miss, n) in counts.items():
+        if n and miss > 0.5 * n:
+            advice = ["an object that is flat or thin (under about 5 cm in one dimension) passes between the array's "
+                      "rows of whiskers"]
+            if is_mesh_file(p):
+                advice.insert(0, "check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis)")
+            if not contact_seeking:
+                advice.append("--contact-seeking moves the array until whiskers touch")
+            lines.append(f"the {label[p]} observed a region (3 contacts or more) in only {n - miss} of its {n} "
+                         f"whisks: the search does not reach its surface well, so its recognition figures say little; "
+                         + "; ".join(advice))
+    return lines
 
 
 def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float,
             runs: Sequence[dict[str, Any]] = ()) -> str:
     from scipy import stats
 
+    label = object_labels(setup.objects)
     lines = [(f"Thesis Ch.6 active exploration ({'quick' if args.quick else 'full'} run, seeds {args.seeds}, "
               f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)"),
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
              f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
              f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher",
-             "maps: " + ", ".join(f"{object_label(k.name)} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
+             "maps: " + ", ".join(f"{label[k.name]} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
     spc_rows = [x for x in first if x.get("study") == "spc"]
@@ -740,8 +752,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     for p in setup.objects:
         v = [x for x in strat if x["threshold"] == 300.0 and x["presented"] == p]
         ids = [x["identity"] or "none" for x in v]
-        lines.append(f"  {object_label(p)} presented: identity first at IC 300 "
-                     + ", ".join(f"{object_label(k)} {ids.count(k)}" for k in (*setup.objects, "none"))
+        lines.append(f"  {label[p]} presented: identity first at IC 300 "
+                     + ", ".join(f"{label.get(k, k)} {ids.count(k)}" for k in (*setup.objects, "none"))
                      + f" of {len(v)}; mean confidence correct {fmt(np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan)}"
                      f" vs incorrect {fmt(np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan)}")
     lines.append(f"SPC on vs off (default search, {setup.objects[-1]} presented): mean correct confidence {fmt(np.mean(on) if on else math.nan)} "
@@ -770,7 +782,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     tot = {s: sum(x["iterations"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
     lines.append(f"Whisks with a whisker base inside the presented object (impossible placements, checked against its mesh): "
                  f"SPC on {ins['on']} of {tot['on']}, SPC off {ins['off']} of {tot['off']}.")
-    lines += [f"Warning: {line}." for line in seldom_touched(rows)]
+    lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)))]
     return "\n".join(lines) + "\n"
 
 
@@ -823,6 +835,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.monotonic()
     # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
     # --scale-to-m / --up-axis are run from their copies in out/objects
+    check_distinct(args.objects)
     args.objects = tuple(conform_objects(args.objects, args.out / "objects", scale_to_m=args.scale_to_m,
                                          up_axis=args.up_axis))
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
@@ -850,7 +863,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         w = csv.DictWriter(f, fieldnames=list(COLUMNS) + ["study"])
         w.writeheader()
         w.writerows(rows)
-    for line in seldom_touched(rows):
+    for line in seldom_touched(rows, args.contact_seeking):
         logger.warning(line)
     figures(args.out, runs, spc_runs, rows)
     text = summary(rows, setup, args, time.monotonic() - t0, runs)

@@ -35,7 +35,8 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.catalogue import object_file_name, object_file_names, resolve_object
 from whisker_io.sim.objects import MESH_SUFFIXES, UP_AXES, load_object
 
-__all__ = ["add_mesh_options", "conform_objects", "is_mesh_file", "object_label"]
+__all__ = ["add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects", "is_mesh_file",
+           "object_label", "object_labels"]
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +61,62 @@ def object_label(spec: str | os.PathLike[str]) -> str:
     return object_file_name(spec) if is_mesh_file(spec) else str(spec)
 
 
+def check_mesh_options(specs: Sequence[str], *, scale_to_m: float | None = None, up_axis: str | None = None) -> None:
+    """Refuse ``--scale-to-m`` / ``--up-axis`` on a command whose objects hold no mesh file (they would be ignored).
+
+    Raises
+    ------
+    InvalidInputError
+        An option given and no object of ``specs`` a mesh file.
+    """
+    if (scale_to_m is not None or up_axis is not None) and not any(is_mesh_file(s) for s in specs):
+        given = ", ".join(map(str, specs)) or "the default objects"
+        raise InvalidInputError(f"--scale-to-m / --up-axis apply to mesh files, and no object given is one ({given}); "
+                                "leave them out for named objects")
+
+
+def _identity(spec: str) -> tuple[str, str]:
+    """What makes two objects of a command line the same: a mesh file's resolved path, an object's own name."""
+    if is_mesh_file(spec):
+        return "file", str(Path(spec).resolve())
+    return "name", resolve_object(spec).name
+
+
+def check_distinct(objects: Sequence[str], novel: Sequence[str] = ()) -> None:
+    """Refuse an object given twice, or as both a library (mapped) object and a novel one, before any work.
+
+    Raises
+    ------
+    InvalidInputError
+        The object named twice, with what to do.
+    """
+    seen: dict[tuple[str, str], tuple[str, str]] = {}  # identity -> (role, spec as given first)
+    for role, specs in (("library", objects), ("novel", novel)):
+        for spec in map(str, specs):
+            key = _identity(spec)
+            if key in seen:
+                first_role, first = seen[key]
+                what = "given twice" if first_role == role else "both a library object and a novel one"
+                spelt = f" ({first} and {spec})" if first != spec else ""
+                raise InvalidInputError(f"{spec} is {what}{spelt}; name each object once "
+                                        "(a novel object is one the library does not hold)")
+            seen[key] = (role, spec)
+
+
+def object_labels(specs: Sequence[str]) -> dict[str, str]:
+    """Short, distinct labels for the objects of one run: :func:`object_label` of each, and where two would be
+    equal (``a/cup.obj``, ``b/cup.stl``) each of those numbered by its place among the objects.
+
+    >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
+    {'a/cup.obj': 'cup_1', 'mug': 'mug', 'b/cup.stl': 'cup_3'}
+    >>> object_labels(["/data/My Mug.obj", "torus_flat-v3"])
+    {'/data/My Mug.obj': 'My_Mug', 'torus_flat-v3': 'torus_flat-v3'}
+    """
+    unique = list(dict.fromkeys(map(str, specs)))
+    plain = [object_label(s) for s in unique]
+    return {s: f"{p}_{i + 1}" if plain.count(p) > 1 else p for i, (s, p) in enumerate(zip(unique, plain))}
+
+
 def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | None = None,
                     up_axis: str | None = None) -> list[str]:
     """Check every object of a command line and bring its mesh files to the conventions when told to.
@@ -69,9 +126,8 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     specs : sequence of str
         Objects as given: registered names, procedural shapes' names or mesh files.
     folder : Path
-        Where a mesh file changed by ``scale_to_m`` / ``up_axis`` is written, as
-        ``<stem>.ply`` (stems of :func:`~whisker_io.sim.catalogue.object_file_names`:
-        distinct); created when needed.
+        Where a changed mesh file is written, as ``<stem>.ply`` (stems of
+        :func:`~whisker_io.sim.catalogue.object_file_names`: distinct); created when needed.
     scale_to_m, up_axis : optional
         As :func:`whisker_io.sim.objects.load_object`'s, for every mesh file.
 
@@ -79,24 +135,25 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     -------
     list of str
         ``specs`` with each changed mesh file replaced by the path of its copy in the
-        conventions; unchanged when neither option is given.
+        conventions: every mesh file when an option is given, and a glTF/GLB file read
+        without ``up_axis`` (taken as z-up with one warning, not one in every process
+        that loads it); otherwise unchanged. What a copy changed is logged as a warning
+        (the run uses the object as changed, not as given).
 
     Raises
     ------
     InvalidInputError, CorruptFileError
         A name that is no object, a mesh file :func:`load_object` refuses (the message
         says what to pass), or ``scale_to_m`` / ``up_axis`` given with no mesh file to
-        apply them to.
+        apply them to (:func:`check_mesh_options`).
     """
     specs = [str(s) for s in specs]
+    check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
     given = scale_to_m is not None or up_axis is not None
-    files = [is_mesh_file(s) for s in specs]
-    if given and not any(files):
-        raise InvalidInputError("--scale-to-m / --up-axis apply to mesh files, and no object given is one "
-                                f"({', '.join(specs)}); leave them out for named objects")
     out = []
-    for spec, is_file, stem in zip(specs, files, object_file_names(specs)):
-        if not (given and is_file):
+    for spec, stem in zip(specs, object_file_names(specs)):
+        gltf = Path(spec).suffix.lower() in (".glb", ".gltf")
+        if not is_mesh_file(spec) or not (given or gltf):
             resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
             out.append(spec)
             continue
@@ -104,6 +161,9 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{stem}.ply"
         loaded.mesh.export(path)
-        log.info("%s: %s; written in the conventions to %s", spec, "; ".join(loaded.notes) or "placed only", path)
+        changes = [n for n in loaded.notes if n.startswith(("rotated", "scaled"))]
+        if changes:
+            log.warning("%s: %s (%s m); run from %s", spec, "; ".join(changes),
+                        " x ".join(f"{x:.3f}" for x in loaded.extents_m), path)
         out.append(str(path))
     return out

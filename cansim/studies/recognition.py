@@ -201,7 +201,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, conform_objects, object_label
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
@@ -555,6 +555,9 @@ def load_surface_library(surfaces: Sequence[str | Path], names: Sequence[str]) -
             raise InvalidInputError(f"{f}: no such surface file (map the object first: the study's map_job writes it)") from None
         except (KeyError, OSError, ValueError, zipfile.BadZipFile) as exc:
             raise CorruptFileError(f"{f}: not a stored-surface file with points_m ({exc})") from None
+    for name, pts in zip(names, points):  # the grid's limit, named for the object and the command line
+        if len(pts):
+            _check_surface_grid(name, np.array([pts.min(axis=0), pts.max(axis=0)]), drift_m=0.0, what="its map")
     return SurfaceLibrary(points, names, seen)
 
 
@@ -744,6 +747,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
     novel = list(novel) if novel is not None else list(novel_names(3))
+    check_distinct(everything, novel)  # a novel object the library holds, an object named twice: before any work
     for spec in (*everything, *novel):
         mesh = resolve_object(spec).mesh  # a bad name or mesh fails before any work
         if "surface" in matchers and spec in everything:
@@ -787,16 +791,18 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
 _MAP_DRIFT_M = 0.1
 
 
-def _check_surface_grid(spec: str, bounds_m: np.ndarray) -> None:
-    """Refuse, before any mapping, an object too large for the surface matcher's grid (:data:`maps.surface_field.MAX_CELLS`)."""
+def _check_surface_grid(spec: str, bounds_m: np.ndarray, drift_m: float = _MAP_DRIFT_M, what: str = "it") -> None:
+    """Refuse an object too large for the surface matcher's grid (:data:`maps.surface_field.MAX_CELLS`): its box
+    ``bounds_m`` (2, 3) grown by ``drift_m`` - before any mapping - or its map's stored points' box after it."""
     from cansim.errors import InvalidInputError
     from maps.surface_field import MAX_CELLS, grid_cells
 
-    cells = grid_cells(np.asarray(bounds_m) + [[-_MAP_DRIFT_M] * 3, [_MAP_DRIFT_M] * 3])
+    cells = grid_cells(np.asarray(bounds_m) + [[-drift_m] * 3, [drift_m] * 3])
     if cells > MAX_CELLS:
         size = " x ".join(f"{x:.2f}" for x in np.ptp(bounds_m, axis=0))
         raise InvalidInputError(
-            f"{spec} is {size} m: the surface matcher's grid over its map would need about {cells:.3g} cells (at most "
+            f"{object_label(spec)}: {what} spans {size} m: the surface matcher's grid over its map would need about "
+            f"{cells:.3g} cells (at most "
             f"{MAX_CELLS:g}); give a smaller object (a cube up to about 0.8 m; --scale-to-m 0.35: the thesis objects' size), or run without the surface "
             "matcher (--matchers thesis)")
 
@@ -848,8 +854,9 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
                 m[presented.index(r["presented"]), decided.index(r["decision"] or "none")] += 1
         m /= np.maximum(m.sum(axis=1, keepdims=True), 1)
         im = ax.imshow(m, vmin=0, vmax=1, cmap="Blues")
-        ax.set_xticks(range(len(decided)), [object_label(d) for d in decided], rotation=90, fontsize=6)
-        ax.set_yticks(range(len(presented)), [object_label(p) for p in presented], fontsize=6)
+        label = object_labels([*presented, *decided])
+        ax.set_xticks(range(len(decided)), [label[d] for d in decided], rotation=90, fontsize=6)
+        ax.set_yticks(range(len(presented)), [label[p] for p in presented], fontsize=6)
         ax.set_xlabel("decided identity (IC >= 300)")
         ax.set_title(lab, fontsize=9)
     axes[0][0].set_ylabel("presented object (novel ones last)")
@@ -1039,6 +1046,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     bins = ("vp 5-10 cm",) if a.quick else None
     objects, novel = list(a.objects or ()), list(a.novel or ())
+    check_distinct(objects, novel)  # before the copies: one file given twice would get two
     # a bad name or mesh fails here, before any work; mesh files changed by --scale-to-m / --up-axis
     # are run from their copies in out/objects
     conformed = conform_objects([*objects, *novel], a.out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)

@@ -91,7 +91,7 @@ from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.localisation import map_pose_errors, relocalisation_errors, rotation_error_rad, step_sizes
 from maps.odometry import SpatialOdometry
-from cansim.studies.object_options import add_mesh_options
+from cansim.studies.object_options import add_mesh_options, check_mesh_options
 from cansim.studies.report import fmt
 from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
@@ -338,6 +338,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--contact-noise must lie in [0, 1]")
     if args.seed < 0:
         ap.error(f"--seed must be >= 0, got {args.seed}")
+    check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)  # not silently on a name
     result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
                  progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching,
                  scale_to_m=args.scale_to_m, up_axis=args.up_axis)

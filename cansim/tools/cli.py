@@ -16,6 +16,7 @@ import argparse
 import importlib
 import logging
 import sys
+import tempfile
 import textwrap
 import warnings
 from collections.abc import Callable, Sequence
@@ -102,7 +103,19 @@ def _run_main(module: ModuleType, argv: list[str], prog: str) -> int:
 
 
 # ------------------------------------------------------------------ commands
+def _writable(out: Path) -> None:
+    """Make ``out`` and check that a file can be written in it, before any work (a read-only folder failed at the end)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise CommandError(f"cannot write to the output folder {out} ({exc.strerror or exc}); give a writable --out",
+                           EXIT_BAD_INPUT) from None
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
+    _writable(args.out)
     options = list(args.options)
     which = options.pop(0) if options and options[0] in DEMOS else next(iter(DEMOS))
     module = importlib.import_module(DEMOS[which])
@@ -110,6 +123,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
+    _writable(args.out)
     module = importlib.import_module(STUDIES[args.chapter])
     argv = (["--quick"] if args.quick else []) + ["--out", str(args.out), *args.options]
     return _run_main(module, argv, f"cansim study {args.chapter}")
@@ -370,7 +384,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.options = extra  # a demo's or study's own options, passed to its main(argv)
     if not logging.getLogger().handlers:
         logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING, format="cansim: %(levelname)s: %(message)s")
-    command = args.command
+    command = args.command if args.command != "study" else f"study {args.chapter}"  # errors name the study
 
     def one_line_warning(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
         print(f"cansim {command}: warning: {message}", file=sys.stderr)

@@ -324,13 +324,17 @@ def evaluate_models(
 
 
 def write_results_csv(scores: Sequence[ModelScore], path: str | os.PathLike[str]) -> Path:
-    """Write the results table (:data:`RESULT_COLUMNS`, one row per model) as CSV."""
+    """Write the results table (:data:`RESULT_COLUMNS`, one row per model) as CSV.
+
+    A figure a model does not have (the baselines' cross-validation error, a mesh distance
+    without a mesh) is an empty cell, not ``nan``.
+    """
     path = Path(path)
     with path.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(RESULT_COLUMNS))
         w.writeheader()
         for s in scores:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in s.row().items()})
+            w.writerow({k: ((f"{v:.6g}" if np.isfinite(v) else "") if isinstance(v, float) else v) for k, v in s.row().items()})
     return path
 
 
