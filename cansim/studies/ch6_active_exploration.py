@@ -782,6 +782,11 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     tot = {s: sum(x["iterations"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
     lines.append(f"Whisks with a whisker base inside the presented object (impossible placements, checked against its mesh): "
                  f"SPC on {ins['on']} of {tot['on']}, SPC off {ins['off']} of {tot['off']}.")
+    if ins["on"] + ins["off"]:
+        lines.append("Warning: a real arm would have pressed the array into the object at those whisks. The simulation "
+                     "lets a base pass into the mesh; contact feedback alone cannot prevent it with the thesis array "
+                     "(its whiskers sweep no space straight ahead of the front bases: cansim.explore.contact_seeking), "
+                     "so on hardware keep the arm's envelope and speed limits conservative.")
     lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)))]
     return "\n".join(lines) + "\n"
 
