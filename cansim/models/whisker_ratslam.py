@@ -247,6 +247,12 @@ def _positive_dt(odo: SpatialOdometry) -> None:
         raise InvalidInputError(f"a whisk's odometry needs dt > 0 s, got {odo.dt!r}")
 
 
+#: Configuration fields every model of :meth:`WhiskerRatSLAM.library` shares with the exploring configuration: the
+#: pose cells' metric grid and the region matching (features, thresholds), without which the maps' cells and
+#: stored regions would not mean the same thing.
+_LIBRARY_FIELDS = ("cell_size_m", "grid_cells", "angle_cells", "lv_mode", "frontend")
+
+
 class WhiskerRatSLAM(SlamLoop):
     """The 6-DoF WhiskerRatSLAM model (see the module docstring).
 
@@ -400,10 +406,26 @@ class WhiskerRatSLAM(SlamLoop):
             The model and the experience -> object table. Save both to resume an
             identification: the model with :meth:`save`, the table (names included) with
             :meth:`~maps.object_library.ObjectLibrary.save`.
+
+        Raises
+        ------
+        InvalidInputError
+            Not one model per name, one model under two names, or a model whose cell size,
+            grid, local-view mode or front end (features, thresholds) differs from the
+            exploring configuration's (the maps would not mean the same thing).
         """
         if not models or len(models) != len(names) or not all(isinstance(m, WhiskerRatSLAM) for m in models):
             raise InvalidInputError("library needs one WhiskerRatSLAM per name (at least one)")
+        if len({id(m) for m in models}) < len(models):
+            raise InvalidInputError("library got one model under two names; give each object's own model once")
         cfg = config if config is not None else models[0].config
+        for k, m in enumerate(models):  # one metric grid, one region matching: else the maps mean different things
+            other = [f for f in _LIBRARY_FIELDS if getattr(m.config, f) != getattr(cfg, f)]
+            if other:
+                raise InvalidInputError(
+                    f"the model of {names[k]!r} differs from the {'given' if config is not None else 'first'} "
+                    f"configuration in {', '.join(other)}; build every object's map with one configuration (cell "
+                    "size, grid and front end) and explore with it")
         model = cls(replace(cfg, pose_gate_m=None, pose_gate_deg=None, pose_gate_growth_m=None, pose_gate_growth_deg=None,
                             pose_weight=0.0))
         offsets = []

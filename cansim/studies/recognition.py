@@ -556,8 +556,10 @@ def load_surface_library(surfaces: Sequence[str | Path], names: Sequence[str]) -
         except (KeyError, OSError, ValueError, zipfile.BadZipFile) as exc:
             raise CorruptFileError(f"{f}: not a stored-surface file with points_m ({exc})") from None
     for name, pts in zip(names, points):  # the grid's limit, named for the object and the command line
-        if len(pts):
+        pts = np.asarray(pts)
+        if pts.ndim == 2 and pts.shape[1] == 3 and len(pts) and pts.dtype.kind == "f" and np.isfinite(pts).all():
             _check_surface_grid(name, np.array([pts.min(axis=0), pts.max(axis=0)]), drift_m=0.0, what="its map")
+        # (malformed points: SurfaceLibrary says what is wrong with them)
     return SurfaceLibrary(points, names, seen)
 
 
