@@ -416,3 +416,17 @@ def test_object_file_names_number_every_object_when_two_would_collide():
     assert object_file_names(["a/mug.obj", "b/mug.stl", "box"]) == ["mug_1", "mug_2", "box_3"]
     assert object_file_names(["box", "/x/my mug.obj"]) == ["box", "my_mug"]
     assert object_file_names([]) == []
+
+
+def test_a_millimetre_mesh_given_straight_to_the_simulator_is_refused_saying_what_to_do():
+    """object_trajectory and WhiskChain take a bare mesh: one in millimetres (1000 x too large) made 9,126 poses."""
+    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.whisk_chain import WhiskChain
+
+    cone_mm = trimesh.creation.cone(radius=120.0, height=300.0)
+    for build in (lambda: object_trajectory(cone_mm, "A", n_loops=1), lambda: WhiskChain(cone_mm)):
+        with pytest.raises(InvalidInputError, match=r"load_object\) is 300 m across.*millimetres.*scale_to_m=0\.3 "):
+            build()
+    wall = trimesh.creation.box(extents=(3.0, 0.2, 3.0))  # a scene larger than an object is whisked as before
+    assert WhiskChain(wall) is not None
+    assert len(object_trajectory(load_object(cone_mm, scale_to_m=0.3).mesh, "A", n_loops=1)) > 10

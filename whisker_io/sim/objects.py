@@ -54,6 +54,8 @@ from whisker_io.validation import finite_scalar
 
 __all__ = [
     "OBJECT_NAMES",
+    "MAX_SCENE_M",
+    "check_extent",
     "MAZE_SIZE_M",
     "make_object",
     "LoadedObject",
@@ -255,6 +257,9 @@ _UP_ROTATIONS: dict[str, tuple[float, tuple[int, int, int]]] = {
     "+x": (-_TURN, (0, 1, 0)),  # quarter turn about y: x -> z, z -> -x
     "-x": (_TURN, (0, 1, 0)),  # x -> -z, z -> x
 }
+MAX_SCENE_M: float = 20.0
+"""Largest extent of any mesh the simulator whisks (a wall, a maze), metres: larger is a mesh in millimetres."""
+
 UP_AXES: tuple[str, ...] = ("x", "y", "z", "-x", "-y", "-z")
 """Values of ``up_axis`` (``"+x"`` etc. and upper case are accepted too)."""
 
@@ -344,6 +349,33 @@ def _scale_target(scale_to_m: object) -> float | None:
             f"object should have), got {size!r}; the thesis objects are about 0.35 m"
         )
     return size
+
+
+def check_extent(size_m: float, where: str, *, minimum_m: float = MIN_EXTENT_M, maximum_m: float = MAX_EXTENT_M) -> None:
+    """Refuse an object whose largest extent ``size_m`` is outside [``minimum_m``, ``maximum_m``] m.
+
+    The simulator works in metres; a mesh in millimetres is 1000 times too large. The
+    message says what to pass to :func:`load_object` (and on the command line). The
+    defaults are an object's range (:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`); a scene
+    (a wall, the Ch.3 maze) is checked with a wider one (:data:`MAX_SCENE_M`).
+
+    Raises
+    ------
+    InvalidInputError
+        The size is not finite or out of range; ``where`` names the mesh.
+    """
+    if minimum_m <= size_m <= maximum_m:
+        return
+    if size_m > maximum_m:
+        mm = f"{size_m / 1000:.3g}"
+        hint = (f"if it is in millimetres it is {mm} m across: pass scale_to_m={mm} (--scale-to-m {mm} on the "
+                "command line)" + ("" if mm == "0.35" else ", or 0.35 for the thesis objects' size"))
+    else:
+        hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
+                "real size in metres")
+    raise InvalidInputError(
+        f"{where} is {size_m:.4g} m across (largest extent); it must be {minimum_m:g}-{maximum_m:g} m: {hint}"
+    )
 
 
 def _scene_meshes(scene: trimesh.Scene) -> list[trimesh.Trimesh]:
@@ -503,18 +535,7 @@ def load_object(
     scale = 1.0 if target is None else target / largest
     if target is not None:
         notes.append(f"scaled by {scale:.6g} (largest extent {largest:.6g} -> {target:.6g} m)")
-    size_m = largest * scale
-    if not MIN_EXTENT_M <= size_m <= MAX_EXTENT_M:
-        if size_m > MAX_EXTENT_M:
-            mm = f"{size_m / 1000:.3g}"
-            hint = (f"if it is in millimetres it is {mm} m across: pass scale_to_m={mm} (--scale-to-m {mm} on the "
-                    "command line)" + ("" if mm == "0.35" else ", or 0.35 for the thesis objects' size"))
-        else:
-            hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
-                    "real size in metres")
-        raise InvalidInputError(
-            f"{source} is {size_m:.4g} m across (largest extent); objects must be {MIN_EXTENT_M}-{MAX_EXTENT_M} m: {hint}"
-        )
+    check_extent(largest * scale, source)
     linear = np.eye(4)
     linear[:3, :3] = scale * rotation
     mesh.apply_transform(linear)

@@ -58,6 +58,7 @@ from whisker_io.validation import checked, finite_scalar, validate_fields, whole
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
 from whisker_io.pose import PoseLike
+from whisker_io.sim.objects import MAX_SCENE_M, check_extent
 
 __all__ = [
     "RayEngine",
@@ -140,6 +141,7 @@ class MeshTarget:
     def __init__(self, mesh: trimesh.Trimesh, engine: RayEngine = "auto") -> None:
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise InvalidInputError("mesh must be a non-empty trimesh.Trimesh")
+        check_extent(float(np.max(mesh.extents)), "the mesh (bring it to metres with whisker_io.sim.objects.load_object)", minimum_m=0.001, maximum_m=MAX_SCENE_M)  # metres, not mm
         if engine not in ("auto", "embree", "triangle"):
             raise InvalidInputError(
                 f"unknown ray engine {engine!r}; use 'auto', 'embree' or 'triangle'"
