@@ -179,6 +179,26 @@ def test_build_object_model_with_spc_whisks_more_and_stores_the_map(world):
         assert len(k.poses) >= k.n_history > 0
 
 
+def test_a_map_that_closed_no_loop_says_so(world, caplog):
+    """Its poses are dead reckoning: a user mapping along a path that never comes back is told (one warning)."""
+    from whisker_io.sim.trajectories import object_trajectory
+
+    _, chains = world
+    mesh, chain = chains["box"]
+    rng = np.random.default_rng(3)
+    loop = object_trajectory(mesh, "A", n_loops=1)
+    with caplog.at_level("WARNING", logger="cansim.explore.explorer"):
+        few = build_object_model("box", loop[:4], lambda p: chain.features(p, rng), _odometry(3), placement=None,
+                                 model=_model())
+    assert few.n_built > 0 and not any(few.mapping_log["relocalised"])
+    assert [r.getMessage().split(":")[0] for r in caplog.records] == ["the map of 'box' closed no loop"]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="cansim.explore.explorer"):
+        full = build_object_model("box", loop, lambda p: chain.features(p, rng), _odometry(3),
+                                  placement=PlacementParams(roll_rad=math.pi / 2), model=_model())
+    assert any(full.mapping_log["relocalised"]) and not caplog.records  # it closed loops: nothing to say
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.one_of(st.integers(-3, 0), st.floats(allow_nan=True), st.text(max_size=3), st.booleans()),
        st.sampled_from(["default", "feh", "lsr", "random", ""]))

@@ -396,6 +396,14 @@ def build_object_model(
     model : WhiskerRatSLAM, optional
         Default ``WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))``: one object
         mapped in one frame (pose-consistent matching, see :mod:`cansim.models.whisker_ratslam`).
+
+    Notes
+    -----
+    A map is only as good as its loop closures: the experience poses are the odometry
+    corrected at re-localisations. A mapping run in which no whisk re-localised is dead
+    reckoning (a warning says so); under Eq 6.4-6.11's noise its stored surface
+    (:meth:`KnownObject.stored_surface`) lies centimetres to decimetres from the object,
+    and the surface matcher then matches it poorly.
     """
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
@@ -429,6 +437,11 @@ def build_object_model(
             pose = goal
             obs = whisk(pose)
     om = slam.object_map
+    if om.n_experiences and not any(log["relocalised"]):
+        _LOG.warning("the map of %r closed no loop: none of its %d mapping whisks re-localised, so its poses are dead "
+                     "reckoning (under the thesis' odometry noise, centimetres off after a loop) and its stored surface "
+                     "is as far off; map along a path that comes back to what it felt (two loops or more)",
+                     name, len(visited))
     return KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log)
 
 
