@@ -344,6 +344,7 @@ from scipy.spatial.transform import Rotation
 
 from maps.object_library import ObjectLibrary
 from maps.object_map import ObjectMap
+from whisker_io.pose import Pose
 from maps.odometry import SpatialOdometry
 from maps.surface_field import SurfaceFieldConfig, SurfaceFields
 from whisker_io.errors import InvalidInputError, ShapeError
@@ -480,12 +481,15 @@ class SurfaceMatchConfig:
 
 
 def _pose7(pose: Any, name: str) -> np.ndarray:
+    """A pose as 7 numbers (x, y, z m, qx, qy, qz, qw), from those or from a :class:`~whisker_io.pose.Pose`."""
+    if isinstance(pose, Pose):
+        return np.concatenate([pose.position_m, pose.quaternion_xyzw])
     try:
         p = np.asarray(pose, dtype=np.float64)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be 7 numbers (x, y, z m, qx, qy, qz, qw), got {pose!r}") from None
+        raise InvalidInputError(f"{name} must be a Pose or 7 numbers (x, y, z m, qx, qy, qz, qw), got {pose!r}") from None
     if p.shape != (7,):
-        raise ShapeError(f"{name} must be (x, y, z m, qx, qy, qz, qw), 7 numbers; got shape {p.shape}")
+        raise ShapeError(f"{name} must be a Pose or (x, y, z m, qx, qy, qz, qw), 7 numbers; got shape {p.shape}")
     if not np.isfinite(p).all() or abs(float(np.linalg.norm(p[3:])) - 1.0) > 1e-6:
         raise InvalidInputError(f"{name} must be finite with a unit quaternion (scalar-last), got {p.tolist()}")
     return p
@@ -561,7 +565,7 @@ class SurfaceLibrary:
         maps : sequence of ObjectMap
             Maps that kept their contacts (:meth:`ObjectMap.record_contacts`).
         names : sequence of str
-        anchors : sequence of array_like (7,)
+        anchors : sequence of Pose or array_like (7,)
             Pose of each map's frame (its first experience's frame: where the arm was when
             mapping began) in the arm's frame, ``(x, y, z m, qx, qy, qz, qw)``.
         field : SurfaceFieldConfig
@@ -647,7 +651,7 @@ class SurfaceMatcher:
     Parameters
     ----------
     library : SurfaceLibrary
-    start_pose : array_like (7,)
+    start_pose : Pose or array_like (7,)
         The arm's end-effector pose at the first whisk, in the library's frame.
     config : SurfaceMatchConfig
 

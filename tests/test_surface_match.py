@@ -213,6 +213,19 @@ def test_bad_points_raise_typed_errors(points: object) -> None:
     assert slam.object_map.n_contacts == 5  # unchanged
 
 
+def test_a_pose_object_is_taken_where_seven_numbers_are() -> None:
+    """The rest of the API takes a Pose; the matcher's start pose and the libraries' anchors did not."""
+    from whisker_io.pose import Pose
+
+    lib = SurfaceLibrary([_plane(0.0)], ["low"])
+    pose = Pose([0.1, -0.2, 0.3], [0.0, 0.0, np.sin(0.3), np.cos(0.3)])
+    seven = [0.1, -0.2, 0.3, 0.0, 0.0, np.sin(0.3), np.cos(0.3)]
+    a, b = SurfaceMatcher(lib, pose, SurfaceMatchConfig(seed=4)), SurfaceMatcher(lib, seven, SurfaceMatchConfig(seed=4))
+    contacts = np.array([[0.1, -0.2, 0.0], [0.12, -0.18, 0.0], [0.08, -0.21, 0.0]])
+    assert a.step(None, contacts) == b.step(None, contacts)
+    np.testing.assert_array_equal(a.log_evidence, b.log_evidence)
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.one_of(st.just([0.0] * 7), st.just([0.0] * 6), st.just([np.nan] * 7), st.just("pose")))
 def test_bad_start_pose_raises(pose: object) -> None:
