@@ -52,3 +52,15 @@ def test_a_damaged_archive_in_memory_is_a_corrupt_file_named_by_its_type():
     np.savez(buf, a=np.arange(3))
     with pytest.raises(CorruptFileError, match="<BytesIO>: cannot be read"):
         read_npz(io.BytesIO(buf.getvalue()[:20]))
+
+
+def test_a_missing_file_a_folder_and_a_pickle_say_what_they_are(tmp_path):
+    with pytest.raises(CorruptFileError, match="no such file; check the path"):
+        read_npz(tmp_path / "nope.npz")
+    with pytest.raises(CorruptFileError, match="a folder, not a file"):
+        read_npz(tmp_path)
+    path = tmp_path / "pickled.npy"
+    np.save(path, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:
+        read_npz(path)
+    assert "allow_pickle" not in str(info.value)  # numpy's advice to load it unsafely is not passed on

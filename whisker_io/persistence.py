@@ -22,10 +22,16 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         The file is missing, empty, truncated, not an ``.npz`` archive (or one of a zip
         version or compression this Python cannot read), or a member is damaged.
     """
+    if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path):
+        what = "a folder, not a file" if os.path.isdir(path) else "no such file"
+        raise CorruptFileError(f"{what}; check the path (a save() of this library writes the file)", path=path)
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         # NotImplementedError: zipfile's answer to a zip version or compression it cannot read
+        if isinstance(exc, ValueError) and "pickle" in str(exc):  # numpy's message would suggest loading it unsafely
+            raise CorruptFileError("not an .npz archive written by save(): it holds pickled objects, which are never "
+                                   "loaded (they can run code)", path=path) from exc
         raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
     if not hasattr(archive, "files"):
         raise CorruptFileError("holds a single array, not an .npz archive", path=path)
