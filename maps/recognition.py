@@ -97,9 +97,15 @@ def relocalisation_targets(exp_ids: np.ndarray, relocalised: np.ndarray, exp_obj
         raise ShapeError(f"exp_ids and relocalised must be (n,) and exp_object (n_exp,), got {e.shape}, {r.shape}, {eo.shape}")
     if e.dtype.kind not in "iu" or eo.dtype.kind not in "iu":
         raise InvalidInputError("exp_ids and exp_object must be integers")
+    if len(e) and e.min() < -1:
+        raise InvalidInputError(f"exp_ids must be experience ids >= 0 (or -1: none), got {int(e.min())}")
+    if len(eo) and eo.min() < -1:
+        raise InvalidInputError(f"exp_object must hold object indices >= 0 (or -1: the explored object's own), got {int(eo.min())}")
     hit = r.astype(bool) & (e >= 0)
     if hit.any() and e[hit].max() >= len(eo):
-        raise InvalidInputError(f"exp_ids refer to experience {int(e[hit].max())}, exp_object covers {len(eo)}")
+        raise InvalidInputError(f"exp_ids refer to experience {int(e[hit].max())}, exp_object covers {len(eo)}: "
+                                "extend it with ObjectLibrary.with_explored(n_experiences) for the experiences the "
+                                "exploration made")
     out = np.full(e.shape, -1, dtype=np.int64)
     out[hit] = eo[e[hit]]
     return out

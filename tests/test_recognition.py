@@ -92,8 +92,12 @@ def test_bad_input_is_typed():
         confidence(np.zeros((2, 2), dtype=int), 2)
     with pytest.raises(InvalidInputError):
         recognise(np.array([0]), 2, correct=2)
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(InvalidInputError, match="with_explored"):
         relocalisation_targets(np.array([9]), np.array([True]), np.array([0, 1]))
+    with pytest.raises(InvalidInputError, match="exp_ids must be experience ids >= 0"):  # was read as "no impulse"
+        relocalisation_targets(np.array([0, -3]), np.array([False, True]), np.array([0, 1]))
+    with pytest.raises(InvalidInputError, match="exp_object must hold object indices"):
+        relocalisation_targets(np.array([0]), np.array([True]), np.array([-2, 1]))
 
 
 # ------------------------------------------------ several impulses per iteration (one model per map)

@@ -686,7 +686,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     out : Path
         Output folder (maps are saved under ``out/maps``).
     objects : sequence of str, optional
-        Library objects (names or mesh files); default :func:`library_names` of the
+        Library objects (names or mesh files); default :func:`whisker_io.sim.shapes.library_names` of the
         largest ``library_sizes``.
     novel : sequence of str, optional
         Objects presented but never mapped (default: three of
