@@ -65,6 +65,15 @@ def test_a_study_or_demo_named_before_help_shows_its_own_options(argv, usage, op
     assert proc.stdout.startswith(usage) and option in proc.stdout
 
 
+def test_help_is_shown_whatever_the_output_folder_and_only_for_the_subcommand(tmp_path):
+    (tmp_path / "a_file").write_text("")
+    proc = cansim("study", "--out", str(tmp_path / "a_file" / "x"), "ch5", "--help", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.startswith("usage: cansim study ch5")  # help needs no output folder
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+    proc = cansim("sweep", "--out", "study", "ch5", "-h", cwd=tmp_path)  # 'study' is a value here, not the command
+    assert proc.returncode == 0 and proc.stdout.startswith("usage: cansim sweep")
+
+
 def test_a_studys_usage_error_names_the_command():
     proc = cansim("study", "ch6", "--objects", "box")
     assert proc.returncode == 2 and "cansim study ch6: error: argument --objects" in proc.stderr

@@ -430,3 +430,12 @@ def test_a_millimetre_mesh_given_straight_to_the_simulator_is_refused_saying_wha
     wall = trimesh.creation.box(extents=(3.0, 0.2, 3.0))  # a scene larger than an object is whisked as before
     assert WhiskChain(wall) is not None
     assert len(object_trajectory(load_object(cone_mm, scale_to_m=0.3).mesh, "A", n_loops=1)) > 10
+
+
+@pytest.mark.parametrize("size", [float("nan"), float("inf")])
+def test_a_non_finite_size_is_called_what_it_is(size):
+    from whisker_io.sim.objects import check_extent
+
+    with pytest.raises(InvalidInputError, match="non-finite vertex coordinates") as info:
+        check_extent(size, "the mesh")
+    assert "scale_to_m" not in str(info.value)  # no scale can repair it

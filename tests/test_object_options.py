@@ -41,6 +41,15 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
     assert sorted(p.name for p in a.iterdir()) == ["brick.stl"]  # the user's folder untouched
 
 
+def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):
+    _brick_mm_y_up(tmp_path / "brick.stl")
+    (copy,) = conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects", scale_to_m=0.35, up_axis="y")
+    before = Path(copy).read_bytes()
+    with pytest.raises(InvalidInputError, match="the copy an earlier run wrote"):
+        conform_objects([copy], tmp_path / "objects", up_axis="y")  # would turn it a second time, over itself
+    assert Path(copy).read_bytes() == before
+
+
 def test_without_the_options_nothing_is_copied(tmp_path):
     path = tmp_path / "cube.obj"
     trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(path)
@@ -141,7 +150,9 @@ def test_distinct_objects(tmp_path):
         check_distinct(["mug", "box"], ["Mug"])  # one registered object, spelt otherwise
     with pytest.raises(InvalidInputError, match="given twice"):
         check_distinct([], ["box", "box"])
-    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "cup_1", "mug": "mug", "b/cup.stl": "cup_3"}
+    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "cup_1", "mug": "mug_2", "b/cup.stl": "cup_3"}
+    labels = object_labels(["a/cup.obj", "b/cup.obj", "cup_1.obj"])
+    assert len(set(labels.values())) == 3  # distinct even where a stem looks like a numbered one
 
 
 def test_a_gltf_without_an_up_axis_is_copied_once_with_its_warning(tmp_path, caplog):

@@ -64,3 +64,8 @@ def test_a_missing_file_a_folder_and_a_pickle_say_what_they_are(tmp_path):
     with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:
         read_npz(path)
     assert "allow_pickle" not in str(info.value)  # numpy's advice to load it unsafely is not passed on
+    member = tmp_path / "member.npz"
+    np.savez(member, ok=np.arange(2), obj=np.array([{"a": 1}], dtype=object))  # an archive with an object member
+    with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:
+        read_npz(member)
+    assert "allow_pickle" not in str(info.value) and "damaged" not in str(info.value)

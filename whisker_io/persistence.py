@@ -13,6 +13,9 @@ from whisker_io.errors import CorruptFileError
 __all__ = ["read_npz", "write_npz"]
 
 
+_PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
+
+
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """All members of an ``.npz`` archive written by a ``save()`` of this library.
 
@@ -24,20 +27,23 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """
     if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path):
         what = "a folder, not a file" if os.path.isdir(path) else "no such file"
-        raise CorruptFileError(f"{what}; check the path (a save() of this library writes the file)", path=path)
+        raise CorruptFileError(f"{what}; check the path", path=path)
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         # NotImplementedError: zipfile's answer to a zip version or compression it cannot read
         if isinstance(exc, ValueError) and "pickle" in str(exc):  # numpy's message would suggest loading it unsafely
-            raise CorruptFileError("not an .npz archive written by save(): it holds pickled objects, which are never "
-                                   "loaded (they can run code)", path=path) from exc
+            raise CorruptFileError(_PICKLED, path=path) from exc
         raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
     if not hasattr(archive, "files"):
         raise CorruptFileError("holds a single array, not an .npz archive", path=path)
     with archive:
         try:
             return {k: archive[k] for k in archive.files}
+        except ValueError as exc:
+            if "pickle" in str(exc):  # an object member: numpy's message would suggest loading it unsafely
+                raise CorruptFileError(_PICKLED, path=path) from exc
+            raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
         except Exception as exc:  # zip/CRC/header errors of a damaged member
             raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
 

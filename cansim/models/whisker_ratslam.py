@@ -248,9 +248,10 @@ def _positive_dt(odo: SpatialOdometry) -> None:
 
 
 #: Configuration fields every model of :meth:`WhiskerRatSLAM.library` shares with the exploring configuration: the
-#: pose cells' metric grid and the region matching (features, thresholds), without which the maps' cells and
-#: stored regions would not mean the same thing.
-_LIBRARY_FIELDS = ("cell_size_m", "grid_cells", "angle_cells", "lv_mode", "frontend")
+#: pose-cell grid and the region matching (features, thresholds), without which the maps' cells and stored regions
+#: would not mean the same thing. The cell size may differ: the Ch.5 study maps each object at its own step and
+#: explores at the presented object's (:func:`cansim.studies.ch5_object_maps.library_model`).
+_LIBRARY_FIELDS = ("grid_cells", "angle_cells", "lv_mode", "frontend")
 
 
 class WhiskerRatSLAM(SlamLoop):
@@ -410,9 +411,9 @@ class WhiskerRatSLAM(SlamLoop):
         Raises
         ------
         InvalidInputError
-            Not one model per name, one model under two names, or a model whose cell size,
-            grid, local-view mode or front end (features, thresholds) differs from the
-            exploring configuration's (the maps would not mean the same thing).
+            Not one model per name, one model under two names, or a model whose grid,
+            local-view mode or front end (features, thresholds) differs from the exploring
+            configuration's (the maps would not mean the same thing; the cell size may differ).
         """
         if not models or len(models) != len(names) or not all(isinstance(m, WhiskerRatSLAM) for m in models):
             raise InvalidInputError("library needs one WhiskerRatSLAM per name (at least one)")
@@ -424,8 +425,8 @@ class WhiskerRatSLAM(SlamLoop):
             if other:
                 raise InvalidInputError(
                     f"the model of {names[k]!r} differs from the {'given' if config is not None else 'first'} "
-                    f"configuration in {', '.join(other)}; build every object's map with one configuration (cell "
-                    "size, grid and front end) and explore with it")
+                    f"configuration in {', '.join(other)}; build every object's map with one grid and front end and "
+                    "explore with them")
         model = cls(replace(cfg, pose_gate_m=None, pose_gate_deg=None, pose_gate_growth_m=None, pose_gate_growth_deg=None,
                             pose_weight=0.0))
         offsets = []

@@ -166,7 +166,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
@@ -728,11 +728,11 @@ def _below(b: dict[str, Any]) -> bool:
 
 
 def _localisation_lines(builds: Sequence[dict[str, Any]]) -> list[str]:
-    lines = []
+    lines, label = [], object_labels([b["object"] for b in builds])
     for b in builds:
         pm, rd = _median(b["position_m"]), _median(b["rotation_deg"])
-        lines.append(f"  {b['object']:7s} {b['config'].label:22s} n_reloc {len(b['position_m']):4d}  position {fmt(pm, '.4f')} m (step {b['step_m']:.3f})"
-                     f"  rotation {fmt(rd, '6.2f')} deg (step {b['step_deg']:.1f})  {'below step' if _below(b) else 'NOT below step'}"
+        lines.append(f"  {label[b['object']]:7s} {b['config'].label:22s} n_reloc {len(b['position_m']):4d}  position {fmt(pm, '.4f'):>6} m (step {b['step_m']:.3f})"
+                     f"  rotation {fmt(rd, '6.2f'):>6} deg (step {b['step_deg']:.1f})  {'below step' if _below(b) else 'NOT below step'}"
                      f"  [{b['n_experiences']} experiences, {b['n_regions']} regions, {b['n_iterations']} whisks]")
     return lines
 
@@ -747,7 +747,8 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
     lines = []
     star_runs = [b for b in builds if b["config"] == star]
     below = [_below(b) for b in star_runs if b["object"] != "kettle"]
-    per = ", ".join(f"{b['object']} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
+    label = object_labels([b["object"] for b in builds])
+    per = ", ".join(f"{label[b['object']]} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
                     f"(step {b['step_m']:.3f} m / {b['step_deg']:.1f} deg)" for b in star_runs)
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
                  f"size. Measured ({star.label}): {sum(below)} of {len(below)} non-Kettle objects below the step; medians {per}. "
@@ -770,11 +771,11 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
 
     n_zero = sum(_median(b["position_m"]) == 0 and _median(b["rotation_deg"]) == 0 for b in builds)
     lines.append(f"  3{tag}. Thesis: the lowest errors come from {BEST.label}. Measured: best configuration per object "
-                 + ", ".join(f"{o} {c.label} (mean {fmt(mean_m(o, c))} m vs {fmt(mean_m(o, star))} m with {star.label})"
+                 + ", ".join(f"{label[o]} {c.label} (mean {fmt(mean_m(o, c))} m vs {fmt(mean_m(o, star))} m with {star.label})"
                              for o, c in bests.items())
                  + f" (lowest median error relative to the step, ties by the mean: {n_zero} of {len(builds)} runs have a median "
                  f"of 0, the exact revisit); {n_star} of {len(bests)} objects best with {star.label}"
-                 + ". Configurations below the step per object: " + ", ".join(f"{o} {n}/{n_configs}" for o, n in all_below.items())
+                 + ". Configurations below the step per object: " + ", ".join(f"{label[o]} {n}/{n_configs}" for o, n in all_below.items())
                  + f". {'REPRODUCED' if bests and n_star > len(bests) / 2 else 'NOT reproduced'}.")
     return lines
 
@@ -825,7 +826,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         n_b, n_c = sum(_below(b) for b, _ in pairs), sum(_below(c) for _, c in pairs)
         lines.append(f"  M. Matching ({s.matching} vs {compare[0]['matching']}, same runs): {n_b} vs {n_c} of {len(pairs)} "
                      "object x configuration runs below the step; with " + star.label + ": "
-                     + ", ".join(f"{b['object']} {fmt(_median(b['position_m']))} vs {fmt(_median(c['position_m']))} m"
+                     + ", ".join(f"{object_labels(list(mapped))[b['object']]} {fmt(_median(b['position_m']))} vs {fmt(_median(c['position_m']))} m"
                                  for b, c in pairs if b["config"] == star) + ".")
     if id_rows:
         def rows(fam: str, pred: Any) -> list[dict[str, Any]]:
@@ -833,7 +834,8 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         sk = rows("A", lambda r: r["presented"] not in mapped) + rows("B", lambda r: r["presented"] not in mapped)
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
-        novel = ", ".join(sorted({object_label(r["presented"]) for r in sk})) or "none presented"
+        label = object_labels([*mapped, *(r["presented"] for r in sk)])
+        novel = ", ".join(sorted({label[r["presented"]] for r in sk})) or "none presented"
         lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
                      f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
                      f"{'REPRODUCED' if sk and sk_max < RC_THRESHOLD else 'NOT reproduced'}.")

@@ -756,7 +756,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      + ", ".join(f"{label.get(k, k)} {ids.count(k)}" for k in (*setup.objects, "none"))
                      + f" of {len(v)}; mean confidence correct {fmt(np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan)}"
                      f" vs incorrect {fmt(np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan)}")
-    lines.append(f"SPC on vs off (default search, {setup.objects[-1]} presented): mean correct confidence {fmt(np.mean(on) if on else math.nan)} "
+    lines.append(f"SPC on vs off (default search, {label[setup.objects[-1]]} presented): mean correct confidence {fmt(np.mean(on) if on else math.nan)} "
                  f"vs {fmt(np.mean(off) if off else math.nan)} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
                  f"{min(len(on), len(off))} seeds); mean incorrect {fmt(np.mean(on_i) if on_i else math.nan)} vs "
                  f"{fmt(np.mean(off_i) if off_i else math.nan)}")

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.sim.catalogue import object_file_name, object_file_names, resolve_object
-from whisker_io.sim.objects import MESH_SUFFIXES, UP_AXES, load_object
+from whisker_io.sim.objects import GLTF_SUFFIXES, MESH_SUFFIXES, UP_AXES, load_object
 
 __all__ = ["add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects", "is_mesh_file",
            "object_label", "object_labels"]
@@ -104,17 +104,18 @@ def check_distinct(objects: Sequence[str], novel: Sequence[str] = ()) -> None:
 
 
 def object_labels(specs: Sequence[str]) -> dict[str, str]:
-    """Short, distinct labels for the objects of one run: :func:`object_label` of each, and where two would be
-    equal (``a/cup.obj``, ``b/cup.stl``) each of those numbered by its place among the objects.
+    """Short, distinct labels for the objects of one run: :func:`object_label` of each, or, where two would be
+    equal (``a/cup.obj``, ``b/cup.stl``), the run's file stems (:func:`~whisker_io.sim.catalogue.object_file_names`:
+    every one numbered by its place).
 
     >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
-    {'a/cup.obj': 'cup_1', 'mug': 'mug', 'b/cup.stl': 'cup_3'}
+    {'a/cup.obj': 'cup_1', 'mug': 'mug_2', 'b/cup.stl': 'cup_3'}
     >>> object_labels(["/data/My Mug.obj", "torus_flat-v3"])
     {'/data/My Mug.obj': 'My_Mug', 'torus_flat-v3': 'torus_flat-v3'}
     """
     unique = list(dict.fromkeys(map(str, specs)))
     plain = [object_label(s) for s in unique]
-    return {s: f"{p}_{i + 1}" if plain.count(p) > 1 else p for i, (s, p) in enumerate(zip(unique, plain))}
+    return dict(zip(unique, plain if len(set(plain)) == len(plain) else object_file_names(unique)))
 
 
 def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | None = None,
@@ -152,16 +153,21 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     given = scale_to_m is not None or up_axis is not None
     out = []
     for spec, stem in zip(specs, object_file_names(specs)):
-        gltf = Path(spec).suffix.lower() in (".glb", ".gltf")
+        gltf = Path(spec).suffix.lower() in GLTF_SUFFIXES
         if not is_mesh_file(spec) or not (given or gltf):
             resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
             out.append(spec)
             continue
+        path = folder / f"{stem}.ply"
+        if Path(spec).resolve() == path.resolve():
+            raise InvalidInputError(f"{spec} is the copy an earlier run wrote in its conventions; give the original "
+                                    "file, or this one without --scale-to-m / --up-axis, or another --out")
         loaded = load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
         folder.mkdir(parents=True, exist_ok=True)
-        path = folder / f"{stem}.ply"
         loaded.mesh.export(path)
-        changes = [n for n in loaded.notes if n.startswith(("rotated", "scaled"))]
+        changes = [n for n in loaded.notes if n.startswith("rotated")]
+        if loaded.scale_factor != 1.0:
+            changes += [n for n in loaded.notes if n.startswith("scaled")]
         if changes:
             log.warning("%s: %s (%s m); run from %s", spec, "; ".join(changes),
                         " x ".join(f"{x:.3f}" for x in loaded.extents_m), path)

@@ -1045,10 +1045,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--roll-deg must be a number of degrees in [-360, 360]")
     t0 = time.perf_counter()
     seeds = range(a.seeds if a.seeds is not None else (1 if a.quick else 3))
-    sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     bins = ("vp 5-10 cm",) if a.quick else None
+    from whisker_io.sim.shapes import library_names, novel_names
+
     objects, novel = list(a.objects or ()), list(a.novel or ())
-    check_distinct(objects, novel)  # before the copies: one file given twice would get two
+    sizes = (12,) if a.quick or a.objects else (12, 25, 50)
+    # before the copies (one file given twice would get two), against the libraries the run will use
+    check_distinct(objects or list(library_names(sizes[-1])), novel or list(novel_names(3)))
     # a bad name or mesh fails here, before any work; mesh files changed by --scale-to-m / --up-axis
     # are run from their copies in out/objects
     conformed = conform_objects([*objects, *novel], a.out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)

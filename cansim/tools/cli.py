@@ -114,8 +114,13 @@ def _writable(out: Path) -> None:
                            EXIT_BAD_INPUT) from None
 
 
+def _asks_help(args: argparse.Namespace) -> bool:
+    return any(o in ("-h", "--help") for o in args.options)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
-    _writable(args.out)
+    if not _asks_help(args):
+        _writable(args.out)
     options = list(args.options)
     which = options.pop(0) if options and options[0] in DEMOS else next(iter(DEMOS))
     module = importlib.import_module(DEMOS[which])
@@ -123,7 +128,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    _writable(args.out)
+    if not _asks_help(args):
+        _writable(args.out)
     module = importlib.import_module(STUDIES[args.chapter])
     argv = (["--quick"] if args.quick else []) + ["--out", str(args.out), *args.options]
     return _run_main(module, argv, f"cansim study {args.chapter}")
@@ -321,16 +327,15 @@ def build_parser() -> argparse.ArgumentParser:
 def _forward_help(argv: list[str]) -> list[str]:
     """``argv`` without a ``-h`` / ``--help`` that follows a study's chapter or a demo's name (the study's or demo's
     own help is then shown, not ``cansim study``'s)."""
-    for command, names in (("study", STUDIES), ("demo", DEMOS)):
-        if command in argv:
-            rest = argv[argv.index(command) + 1:]
-            named = [i for i, a in enumerate(rest) if a in names]
-            if named:
-                after = rest[named[0] + 1:]
-                if any(a in ("-h", "--help") for a in after):
-                    kept = [a for a in after if a not in ("-h", "--help")]
-                    return argv[:argv.index(command) + 1] + rest[:named[0] + 1] + kept
-    return argv
+    at = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)  # the subcommand (top options take no value)
+    if at is None or argv[at] not in ("study", "demo"):
+        return argv
+    names = STUDIES if argv[at] == "study" else DEMOS
+    rest = argv[at + 1:]
+    named = next((i for i, a in enumerate(rest) if a in names), None)
+    if named is None or not any(a in ("-h", "--help") for a in rest[named + 1:]):
+        return argv
+    return argv[:at + 1] + rest[:named + 1] + [a for a in rest[named + 1:] if a not in ("-h", "--help")]
 
 
 def _int_at_least(minimum: int, what: str) -> Callable[[str], int]:

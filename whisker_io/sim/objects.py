@@ -35,6 +35,7 @@ object or a procedural shape) or a mesh file, so every runner accepts both.
 from __future__ import annotations
 
 import logging
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +55,7 @@ from whisker_io.validation import finite_scalar
 
 __all__ = [
     "OBJECT_NAMES",
+    "GLTF_SUFFIXES",
     "MAX_SCENE_M",
     "check_extent",
     "MAZE_SIZE_M",
@@ -242,6 +244,8 @@ arms of the thesis reach 0.85 m (UR5) and 1.3 m (UR10, Ch.3) (Sec 2.2.1), so
 nothing larger can be explored around."""
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
+GLTF_SUFFIXES: tuple[str, ...] = (".glb", ".gltf")
+"""Mesh files y-up by their specification (glTF 2.0)."""
 """File endings :func:`load_object` reads (via trimesh)."""
 
 _MAX_COORDINATE = 1e9  # in any unit: beyond this the file is not a model (its extents would overflow)
@@ -366,6 +370,8 @@ def check_extent(size_m: float, where: str, *, minimum_m: float = MIN_EXTENT_M, 
     """
     if minimum_m <= size_m <= maximum_m:
         return
+    if not math.isfinite(size_m):
+        raise InvalidInputError(f"{where} has non-finite vertex coordinates (its size is {size_m}); repair or re-export it")
     if size_m > maximum_m:
         mm = f"{size_m / 1000:.3g}"
         hint = (f"if it is in millimetres it is {mm} m across: pass scale_to_m={mm} (--scale-to-m {mm} on the "
@@ -514,7 +520,7 @@ def load_object(
     raw, source, default_name, notes = _as_surface(path_or_trimesh)
     mesh = _checked_surface(raw, source)
     if up_axis is None and isinstance(path_or_trimesh, (str, os.PathLike)) \
-            and Path(path_or_trimesh).suffix.lower() in (".glb", ".gltf"):
+            and Path(path_or_trimesh).suffix.lower() in GLTF_SUFFIXES:
         gltf = ("taken as z-up (no up axis given), although glTF/GLB files are y-up by their specification: "
                 "if the object lies on its side, pass up_axis='y' (--up-axis y)")
         notes.append(gltf)

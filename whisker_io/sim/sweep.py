@@ -141,7 +141,10 @@ class MeshTarget:
     def __init__(self, mesh: trimesh.Trimesh, engine: RayEngine = "auto") -> None:
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise InvalidInputError("mesh must be a non-empty trimesh.Trimesh")
-        check_extent(float(np.max(mesh.extents)), "the mesh (bring it to metres with whisker_io.sim.objects.load_object)", minimum_m=0.001, maximum_m=MAX_SCENE_M)  # metres, not mm
+        # in metres: a mesh in millimetres (1000 x too large) is refused, saying so; every whisk and trajectory
+        # around a mesh goes through here
+        check_extent(float(np.max(mesh.extents)), "the mesh (bring it to metres with whisker_io.sim.objects.load_object)",
+                     minimum_m=0.001, maximum_m=MAX_SCENE_M)
         if engine not in ("auto", "embree", "triangle"):
             raise InvalidInputError(
                 f"unknown ray engine {engine!r}; use 'auto', 'embree' or 'triangle'"

@@ -99,7 +99,6 @@ from scipy.spatial.transform import Rotation
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.pose import Pose
-from whisker_io.sim.objects import MAX_SCENE_M, check_extent
 from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
 from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
 
@@ -229,8 +228,6 @@ TRAJECTORY_FAMILIES: dict[str, LoopShape] = {
 def _check_mesh(mesh: object) -> None:
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InvalidInputError(f"mesh must be a non-empty trimesh.Trimesh, got {type(mesh).__name__}")
-    check_extent(float(np.max(mesh.extents)), "the mesh (bring it to metres with whisker_io.sim.objects.load_object)",
-                 minimum_m=0.001, maximum_m=MAX_SCENE_M)  # in metres: a millimetre mesh is refused, saying so
 
 
 def _frames(y_axes: NDArray[np.float64], up: NDArray[np.float64],
