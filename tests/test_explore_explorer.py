@@ -179,6 +179,34 @@ def test_build_object_model_with_spc_whisks_more_and_stores_the_map(world):
         assert len(k.poses) >= k.n_history > 0
 
 
+def test_a_run_that_touched_nothing_or_never_moved_says_so(world, caplog):
+    """It ended at its iteration limit with every IC at zero and said nothing (a new user's believed volume 1 m off)."""
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.hw.safety import SafetyEnvelope
+
+    known, chains = world
+    mesh, chain = chains["box_stack"]
+    rng = np.random.default_rng(5)
+    far = mesh.bounds.mean(axis=0) + [0.0, 0.6, 0.0]  # the search round empty space beside the object
+    search = DefaultSearch(far, 0.2, seed=5)
+    env = SafetyEnvelope(**WORKSPACE)
+    start = next(search.face_pose(f) for f in range(len(search.directions)) if search.face_pose(f).position_m[2] > 0.3)
+    ex = Explorer(known, lambda p: chain.features(p, rng), SimArm(start, env), _odometry(5), search,
+                  stop_threshold=math.inf, max_iterations=12)
+    with caplog.at_level("WARNING", logger="cansim.explore.explorer"):
+        ex.run()
+    assert [r.getMessage().split(":")[0] for r in caplog.records] == ["none of the 12 whisks of this run touched anything"]
+    caplog.clear()
+    locked = SafetyEnvelope(workspace_min=start.position_m - 1e-3, workspace_max=start.position_m + 1e-3,
+                            max_tool_tilt=math.pi)  # the start pose only: every command refused
+    ex = Explorer(known, lambda p: chain.features(p, rng), SimArm(start, locked), _odometry(5), search,
+                  stop_threshold=math.inf, max_iterations=6)
+    with caplog.at_level("WARNING", logger="cansim.explore.explorer"):
+        res = ex.run()
+    assert res.refused_commands >= 5 and all(p == start for p in res.poses)
+    assert any(r.getMessage().startswith("the arm did not move in this run") for r in caplog.records)
+
+
 def test_a_map_that_closed_no_loop_says_so(world, caplog):
     """Its poses are dead reckoning: a user mapping along a path that never comes back is told (one warning)."""
     from whisker_io.sim.trajectories import object_trajectory

@@ -820,9 +820,12 @@ class Explorer:
         t0 = time.monotonic()
         reason = "iterations"
         refused = self.refused_commands
+        whisks, touched, moves, stuck = 0, 0, 0, 0
         for _ in range(self.max_iterations):
             pose = self.arm.pose()  # type: ignore[attr-defined]
             obs = self.sensor(pose)
+            whisks += 1
+            touched += _contacts(obs) is not None
             reloc = self.observe(pose, obs)
             if self._ic.max() >= self.stop_threshold:
                 self._strats.append("none")
@@ -830,12 +833,22 @@ class Explorer:
                 break
             goal, source = self._plan(pose, obs, reloc)
             self._strats.append(self._move(goal, source))
+            moves += 1
+            stuck += self._strats[-1] == "none"  # every attempt refused: the arm stayed
             if time.monotonic() - t0 > self.time_limit_s:
                 reason = "time"
                 break
         if self.refused_commands > refused:  # one line a run; each refusal is logged at DEBUG
             _LOG.info("%d arm commands refused by the safety envelope in %d whisks, each re-planned "
                       "(ExplorationResult.refused_commands)", self.refused_commands - refused, len(self._strats))
+        if moves and stuck == moves:
+            _LOG.warning("the arm did not move in this run: every command of its %d whisks was refused by the safety "
+                         "envelope; check the envelope against the search's placements (centre, radius, tool tilt)",
+                         whisks)
+        if whisks and not touched:
+            _LOG.warning("none of the %d whisks of this run touched anything: the search's placements do not reach the "
+                         "object (is the search centred on it, with a radius in metres?); contact seeking "
+                         "(contact_seeking=ContactSeekingParams()) moves the array until whiskers touch", whisks)
         return self.result(reason)
 
     def replay(self, cycles: Sequence[tuple[Pose, object]]) -> ExplorationResult:

@@ -166,7 +166,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels, seed_name
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
@@ -358,7 +358,7 @@ def map_object(name: str, cfg: Config, s: StudyConfig, step: tuple[float, float]
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=s.reach_contacts,
                               roll_deg=roll_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
-    rng = np.random.default_rng(derive_seed(s.seed, "build", name, cfg.label))
+    rng = np.random.default_rng(derive_seed(s.seed, "build", seed_name(name), cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng, s.odometry_scale)
     return slam, poses, log
 
@@ -431,7 +431,7 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
     poses = loop * n_loops  # whole loops (object_trajectory repeats one loop)
     slam, lib = library_model(paths, names, cell_size_m=step_m)
     n_lib_hist = len(lib.history_object)
-    rng = np.random.default_rng(derive_seed(s.seed, "identify", presented, family, cfg.label))
+    rng = np.random.default_rng(derive_seed(s.seed, "identify", seed_name(presented), family, cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
     table = lib.with_explored(slam.object_map.n_experiences)
     targets = relocalisation_targets(log["exp_ids"], log["relocalised"], table)

@@ -280,7 +280,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_labels
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_labels, seed_name
 from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
 
@@ -379,7 +379,7 @@ def presented_mesh(name: str, seed: int, offset_m: float = 0.0, yaw_deg: float =
 
     mesh = resolve_object(name).mesh
     if offset_m > 0 or yaw_deg > 0:
-        rng = np.random.default_rng(derive_seed(seed, "placement", name))
+        rng = np.random.default_rng(derive_seed(seed, "placement", seed_name(name)))
         T = np.eye(4)
         T[:3, :3] = Rotation.from_euler("z", rng.normal(0.0, math.radians(yaw_deg))).as_matrix()
         T[:2, 3] = rng.normal(0.0, offset_m, 2)
@@ -424,7 +424,7 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
 
     mesh = resolve_object(name).mesh
     surface = fit_surface(mesh, "ellipsoid")
-    search = DefaultSearch(surface.centre_m, float(np.max(surface.semi_axes_m)), mesh=mesh, seed=derive_seed(seed, "tour", name),
+    search = DefaultSearch(surface.centre_m, float(np.max(surface.semi_axes_m)), mesh=mesh, seed=derive_seed(seed, "tour", seed_name(name)),
                            semi_axes_m=surface.semi_axes_m, footprint_m=array_bases_m())
     return search.tour(n_loops, accept=_inside)
 
@@ -432,7 +432,15 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
 def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 2,
             contact_model: str = DEFAULT_CONTACT_MODEL, objects: Sequence[str] = OBJECTS,
             believed_scale: float = 1.0, contact_seeking: bool = False) -> Setup:
-    """Thresholds (step 1) and the object maps of the known objects (step 2; default Box and Box-Stack)."""
+    """Thresholds (step 1) and the object maps of the known objects (step 2; default Box and Box-Stack).
+
+    ``believed_scale`` (1-3) sizes the believed volume against the known objects' box; a
+    value outside raises :class:`~cansim.errors.ConfigError` before any mapping.
+    """
+    from whisker_io.validation import config_field
+
+    config_field(believed_scale, "believed_scale", float, minimum=1.0, maximum=3.0,
+                 hint="the believed volume is at least the known objects' box (1) and at most 3 times it")
     from cansim.explore.explorer import build_object_model
     from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
@@ -443,7 +451,7 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
     cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
     known = []
     for name in objects:
-        rng = np.random.default_rng(derive_seed(seed, "map", name))
+        rng = np.random.default_rng(derive_seed(seed, "map", seed_name(name)))
         chain = chain_for(name, noise_scale, contact_model)
         known.append(build_object_model(
             name, mapping_tour(name, seed, n_loops), lambda p, c=chain, r=rng: c.features(p, r),
@@ -478,7 +486,7 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
 
     mesh = resolve_object(presented).mesh if mesh is None else mesh
     chain = chain_for(presented, setup.noise_scale, setup.contact_model, mesh)
-    sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", presented, strategy, spc))
+    sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", seed_name(presented), strategy, spc))
     box = setup.believed_box()
     search = DefaultSearch(box.bounds.mean(axis=0), float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
                            footprint_m=array_bases_m())
@@ -498,7 +506,7 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
                   contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
-                  surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", presented, strategy, spc),
+                  surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", seed_name(presented), strategy, spc),
                                                     initial_sigma_m=float(placement_sd[0]),
                                                     initial_sigma_deg=float(placement_sd[1])))
     return ex, arm, cycles
@@ -508,7 +516,7 @@ def replay_odometry(seed: int, presented: str, strategy: str, spc: bool) -> Any:
     """Eq 6.4-6.11 noisy odometry with a generator fixed by the run's identity."""
     from whisker_io.sim.odometry_noise import noisy_odometry
 
-    rng = np.random.default_rng(derive_seed(seed, "odometry", presented, strategy, spc))
+    rng = np.random.default_rng(derive_seed(seed, "odometry", seed_name(presented), strategy, spc))
     return lambda a, b: noisy_odometry(a, b, rng)
 
 
@@ -534,7 +542,17 @@ def outside_envelope(arm: Any) -> int:
 
 def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
             offset_m: float = 0.0, yaw_deg: float = 0.0, matcher: str = "thesis") -> dict[str, Any]:
-    """One exploration run and its traces (the object moved by :func:`presented_mesh`; ``matcher`` as :func:`explorer_for`)."""
+    """One exploration run and its traces (the object moved by :func:`presented_mesh`; ``matcher`` as :func:`explorer_for`).
+
+    ``presented`` is one of the known objects (``setup.objects``, as given to :func:`prepare`): the
+    study measures how soon the explorer names the right one. An object the library does not
+    hold raises :class:`~cansim.errors.InvalidInputError` before the run.
+    """
+    if presented not in setup.objects:
+        from cansim.errors import InvalidInputError
+
+        raise InvalidInputError(f"{presented!r} is not one of the known objects {list(setup.objects)}: run_one presents a "
+                                "known object, spelt as given to prepare (the Ch.6 study has no novel object)")
     mesh = presented_mesh(presented, seed, offset_m, yaw_deg)
     ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh, matcher=matcher,
                                    placement_sd=(offset_m, yaw_deg))
@@ -833,7 +851,9 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
-    logging.getLogger("cansim.explore.explorer").setLevel(logging.ERROR)  # refusals are counted in the CSV
+    # refusals are counted in the CSV (the explorer logs them at DEBUG / INFO); its warnings - a map that closed
+    # no loop - are shown
+    logging.getLogger("cansim.explore.explorer").setLevel(logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     from tqdm import tqdm
 

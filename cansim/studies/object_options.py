@@ -36,7 +36,7 @@ from whisker_io.sim.catalogue import object_file_name, object_file_names, resolv
 from whisker_io.sim.objects import GLTF_SUFFIXES, MESH_SUFFIXES, UP_AXES, load_object
 
 __all__ = ["add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects", "is_mesh_file",
-           "object_label", "object_labels"]
+           "object_label", "object_labels", "seed_name"]
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +101,18 @@ def check_distinct(objects: Sequence[str], novel: Sequence[str] = ()) -> None:
                 raise InvalidInputError(f"{spec} is {what}{spelt}; name each object once "
                                         "(a novel object is one the library does not hold)")
             seen[key] = (role, spec)
+
+
+def seed_name(spec: str | os.PathLike[str]) -> str:
+    """What an object contributes to the seeds of a study's runs: a mesh file's stem, a name as given.
+
+    A path's folder does not count, so the same file named by a relative or an absolute path,
+    or copied to another ``--out``, gets the same noise (:func:`cansim.seeding.derive_seed`).
+
+    >>> seed_name("runs/out/objects/cup.ply") == seed_name("/home/me/runs/out/objects/cup.ply") == "cup"
+    True
+    """
+    return object_file_name(spec) if is_mesh_file(spec) else str(spec)
 
 
 def object_labels(specs: Sequence[str]) -> dict[str, str]:

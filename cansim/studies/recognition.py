@@ -201,7 +201,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels
+from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels, seed_name
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
@@ -412,7 +412,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     reach, roll = setup.reach_contacts, setup.roll_of(presented)
     loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach, roll_deg=roll)
     poses = loop * max(1, math.ceil(setup.whisks / len(loop)))  # whole loops (object_trajectory repeats one loop)
-    rng = np.random.default_rng(derive_seed(setup.seed, "present", presented, presentation,
+    rng = np.random.default_rng(derive_seed(setup.seed, "present", seed_name(presented), presentation,
                                             vp_bin[0] if vp_bin else ""))
     mapping = loop if family == "A" else object_trajectory(mesh, "A", 1, step_m=step_m, step_deg=step_deg,
                                                            reach_contacts=reach, roll_deg=roll)
@@ -436,7 +436,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
         else:
             targets = surface_targets(library, poses[0], log["odometry"], log["contacts"],
                                       odometry_scale=setup.odometry_scale,
-                                      seed=derive_seed(setup.seed, "surface", presented, presentation))
+                                      seed=derive_seed(setup.seed, "surface", seed_name(presented), presentation))
         ic = integrated_confidence(confidence(targets, len(names), params), params)
         k = decide(ic, IC_THRESHOLD)
         crossing = None if k is None else int(np.flatnonzero(ic[:, k] >= IC_THRESHOLD)[0])
@@ -776,7 +776,11 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
             names = everything[:size]
             lib_paths = [paths[n] for n in names]
             kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
-            library = load_surface_library([surface_paths[n] for n in names], names) if "surface" in matchers else None
+            # named by the objects' file stems: the matcher's per-object random streams (keyed by name) do not
+            # depend on the folder a mesh file was given from
+            stem_of = dict(zip(everything, stems))
+            library = (load_surface_library([surface_paths[n] for n in names], [stem_of[n] for n in names])
+                       if "surface" in matchers else None)
             for presentation, vp in kinds:
                 jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
                 jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
