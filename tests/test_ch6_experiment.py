@@ -203,6 +203,20 @@ def test_a_millimetre_y_up_mesh_runs_with_the_options_and_an_untouchable_one_is_
     assert (tmp_path / "o2" / "maps" / "disk.npz").exists() and not (tmp_path / "o2" / "ch6_runs.csv").exists()
 
 
+def test_one_mesh_file_named_two_ways_gets_the_same_maps(tmp_path, monkeypatch):
+    """The seeds took the path as typed: a relative and an absolute path to one file gave other maps."""
+    from whisker_io.sim.objects import make_object
+
+    make_object("box").export(tmp_path / "brick.obj")
+    monkeypatch.chdir(tmp_path)
+    rel = ch6.prepare(0, objects=("brick.obj", "box_stack"))
+    absolute = ch6.prepare(0, objects=(str(tmp_path / "brick.obj"), "box_stack"))
+    for a, b in zip(rel.known, absolute.known):
+        np.testing.assert_array_equal(a.stored_surface()[0], b.stored_surface()[0])
+    with pytest.raises(Exception, match="not one of the known objects"):
+        ch6.run_one(rel, str(tmp_path / "brick.obj"), "default", True, 0, 5)  # spelt otherwise than given: refused
+
+
 def test_the_believed_volume_comes_from_the_known_objects_and_scales_about_its_centre():
     box = ch6.believed_volume(("box", "box_stack"))
     big = ch6.believed_volume(("box", "box_stack"), 1.5)
