@@ -64,6 +64,11 @@ def test_a_missing_file_a_folder_and_a_pickle_say_what_they_are(tmp_path):
     with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:
         read_npz(path)
     assert "allow_pickle" not in str(info.value)  # numpy's advice to load it unsafely is not passed on
+    text = tmp_path / "box.obj"
+    text.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")  # a mesh given where a saved map was asked for
+    with pytest.raises(CorruptFileError, match="not an .npz archive") as info:
+        read_npz(text)
+    assert "pickle" not in str(info.value)
     member = tmp_path / "member.npz"
     np.savez(member, ok=np.arange(2), obj=np.array([{"a": 1}], dtype=object))  # an archive with an object member
     with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:

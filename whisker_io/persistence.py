@@ -16,6 +16,17 @@ __all__ = ["read_npz", "write_npz"]
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
 
 
+def _starts_with(path: Any, magic: bytes) -> bool:
+    """Whether the file at ``path`` starts with ``magic`` (False for an open file or an unreadable one)."""
+    if not isinstance(path, (str, os.PathLike)):
+        return False
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(magic)) == magic
+    except OSError:
+        return False
+
+
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """All members of an ``.npz`` archive written by a ``save()`` of this library.
 
@@ -32,8 +43,12 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         # NotImplementedError: zipfile's answer to a zip version or compression it cannot read
-        if isinstance(exc, ValueError) and "pickle" in str(exc):  # numpy's message would suggest loading it unsafely
-            raise CorruptFileError(_PICKLED, path=path) from exc
+        if isinstance(exc, ValueError) and "pickle" in str(exc):
+            # numpy takes any file that is no zip or .npy for a pickle, and would suggest loading it unsafely
+            if _starts_with(path, b"\x80") or _starts_with(path, b"\x93NUMPY"):  # a pickle, an .npy of objects
+                raise CorruptFileError(_PICKLED, path=path) from exc
+            raise CorruptFileError("not an .npz archive (a save() here writes a zip of arrays): check that this is "
+                                   "the file you meant", path=path) from exc
         raise CorruptFileError(f"cannot be read as an .npz archive ({exc})", path=path) from exc
     if not hasattr(archive, "files"):
         raise CorruptFileError("holds a single array, not an .npz archive", path=path)
