@@ -108,8 +108,12 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--iterations", type=int, default=300)
     ap.add_argument("--time-limit", type=float, default=math.inf, help="s")
     ap.add_argument("--seed", type=int, default=0, help="picks the default search's first face")
-    ap.add_argument("--out", type=Path, default=Path("hw_explore"), help="session directory")
-    ap.add_argument("--replay", type=Path, default=None, help="replay a recorded session directory instead")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="session directory (default hw_explore; with --replay: where exploration_replay.csv goes, "
+                         "default the recorded session's directory)")
+    ap.add_argument("--replay", type=Path, default=None,
+                    help="replay a recorded session directory instead (its first --iterations whisks, stopping at "
+                         "--threshold as a live run does)")
     ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--product-id", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
@@ -167,12 +171,26 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
     if args.replay is not None:
         from whisker_io.hw.recorder import replay_session
 
-        result = make_explorer(None, None).replay(replay_session(args.replay, chain))
-        write_trace(args.replay / "exploration_replay.csv", names, result)
-        print(f"replayed {len(result.ic)} whisks; final IC " + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+        if not args.replay.is_dir():
+            return fail(EXIT_USAGE, f"--replay {args.replay}: no such session directory (a live run's --out)")
+        cycles = list(replay_session(args.replay, chain))[:args.iterations]
+        if not cycles:
+            return fail(EXIT_USAGE, f"--replay {args.replay}: the session holds no whisk")
+        explorer = make_explorer(None, None)
+        for cycle in cycles:  # as a live run: until the threshold
+            result = explorer.replay([cycle])
+            if result.ic[-1].max() >= args.threshold:
+                break
+        result = explorer.result("threshold" if result.ic[-1].max() >= args.threshold else "iterations")
+        out = args.out if args.out is not None else args.replay
+        out.mkdir(parents=True, exist_ok=True)
+        write_trace(out / "exploration_replay.csv", names, result)
+        print(f"replayed {len(result.ic)} whisks ({result.stop_reason}); final IC "
+              + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
         return EXIT_OK
     if not args.robot_ip:
         return fail(EXIT_USAGE, "--robot-ip is needed (or --replay DIR)")
+    args.out = args.out if args.out is not None else Path("hw_explore")
 
     from whisker_io.array.control import WhiskPattern
     from whisker_io.hw.platform import open_platform, session_failure

@@ -117,3 +117,12 @@ def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
     with open(out / "exploration_replay.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) == len(live)
     assert hx.main(surface + ["--map", f"box={assets / 'box.npz'}"]) == hx.EXIT_USAGE
+    # a replay honours --iterations and --out (it replayed everything into the session folder), and a missing
+    # session is a usage error
+    elsewhere = tmp_path / "replays"
+    assert hx.main(["--replay", str(out), "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}",
+                    "--iterations", "3", "--out", str(elsewhere)]) == 0
+    with open(elsewhere / "exploration_replay.csv", newline="") as f:
+        assert [r["ic_box"] for r in csv.DictReader(f)] == [r["ic_box"] for r in live][:3]
+    assert hx.main(["--replay", str(tmp_path / "no_session"), "--radial-model", str(assets / "svr10.skops"),
+                    "--map", f"box={assets / 'box.npz'}"]) == hx.EXIT_USAGE
