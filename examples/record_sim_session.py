@@ -23,16 +23,20 @@ Run ``hardware_session.py`` for the same loop on a UR arm and the USB array.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
 from whisker_io.hw.arm import SimArm
+from whisker_io.errors import SafetyViolationError
 from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_session
 from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import SimArray
-from whisker_io.sim.objects import OBJECT_NAMES, make_object
+from cansim.studies.object_options import add_mesh_options, check_mesh_options
+from whisker_io.sim.catalogue import resolve_object
+from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.simulator import ArraySimulator
 
 
@@ -43,7 +47,10 @@ def contacts(cycle):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--object", default="box", choices=sorted(OBJECT_NAMES))
+    ap.add_argument("--object", default="box", metavar="NAME_OR_MESH",
+                    help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape or a mesh file "
+                         "(metres, z up unless --scale-to-m / --up-axis say otherwise); default box")
+    add_mesh_options(ap)
     ap.add_argument("--out", type=Path, default=Path("sim_session"), help="session directory")
     ap.add_argument("--distance", type=float, default=0.32,
                     help="end effector to the object's axis, m (whiskers reach ~0.36 m)")
@@ -52,6 +59,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args()
+    check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)
+    mesh = resolve_object(args.object, scale_to_m=args.scale_to_m, up_axis=args.up_axis).mesh
 
     # the array looks along +y at the object; its tool z-axis points up
     envelope = SafetyEnvelope(workspace_min=(-0.3, -0.6, 0.02), workspace_max=(0.3, -0.2, 0.5),
@@ -61,15 +70,24 @@ def main() -> None:
 
     arm = SimArm(targets[0], envelope, rate_limited=True, control_period=0.008)
     simulator = ArraySimulator(seed=args.seed, controller=RetractAtMax())
-    array = SimArray.from_simulator(simulator, make_object(args.object), arm.pose)
+    array = SimArray.from_simulator(simulator, mesh, arm.pose)
     with Recorder(args.out, pipeline=contacts) as recorder:
-        explore(arm, array, recorder, targets, progress=not args.no_progress,
-                description=f"whisking the {args.object}")
+        try:
+            explore(arm, array, recorder, targets, progress=not args.no_progress,
+                    description=f"whisking the {args.object}")
+        except SafetyViolationError as exc:  # the guard did its job: say so, keep what was recorded
+            print(f"record_sim_session: the arm was stopped after {recorder.n_cycles} whisks: {exc}; the whisks "
+                  f"before are in {args.out}/ (a larger --distance keeps the array off the object)", file=sys.stderr)
+            raise SystemExit(4) from None
     live = recorder.results
     n_contacts = sum(c is not None for cycle in live for c in cycle)
     replayed = replay_session(args.out, contacts)
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/ over {arm.time:.1f} s of arm "
           f"motion; {n_contacts} contacts detected; replay identical: {replayed == live}")
+    if not n_contacts:
+        print(f"warning: no whisker touched the {args.object}: the raster (--distance {args.distance} m from its axis, "
+              "0.16 x 0.24 m round 0.18 m high) does not reach it; a smaller --distance, or check its size and "
+              "up axis (--scale-to-m, --up-axis)", file=sys.stderr)
 
 
 if __name__ == "__main__":

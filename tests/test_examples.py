@@ -28,3 +28,25 @@ def test_ring_attractor_re_anchors_and_beats_dead_reckoning(tmp_path):
     assert err_ring.mean() < 0.25 * err_dr.mean()
     assert ring.main(["--steps", "200", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "ring_attractor.png").stat().st_size > 10_000
+
+
+def test_record_sim_session_takes_a_users_mesh_and_says_when_nothing_touched(tmp_path, monkeypatch, capsys):
+    """--object took registered names only; a raster that touched nothing said '0 contacts' and nothing more."""
+    import sys
+
+    import trimesh
+
+    rec = _load("record_sim_session")
+    cup = trimesh.creation.cylinder(radius=60.0, height=200.0)  # millimetres
+    cup.export(tmp_path / "cup.stl")
+    monkeypatch.setattr(sys, "argv", ["record_sim_session.py", "--object", str(tmp_path / "cup.stl"), "--scale-to-m",
+                                      "0.2", "--nx", "2", "--nz", "2", "--out", str(tmp_path / "s"), "--no-progress"])
+    rec.main()
+    out, err = capsys.readouterr()
+    assert "4 whisks recorded" in out and "replay identical: True" in out
+    monkeypatch.setattr(sys, "argv", ["record_sim_session.py", "--object", str(tmp_path / "cup.stl"), "--scale-to-m",
+                                      "0.2", "--distance", "0.6", "--nx", "2", "--nz", "2", "--out", str(tmp_path / "far"),
+                                      "--no-progress"])
+    rec.main()
+    out, err = capsys.readouterr()
+    assert "0 contacts detected" in out and "warning: no whisker touched" in err
