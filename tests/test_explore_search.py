@@ -312,3 +312,12 @@ def test_a_mesh_that_is_not_a_mesh_is_a_typed_error(mesh):
     """DefaultSearch(mesh=3) raised AttributeError (issue 25)."""
     with pytest.raises(InvalidInputError, match="trimesh.Trimesh"):
         DefaultSearch([0, 0, 0], 0.2, mesh=mesh)
+
+
+def test_a_search_radius_in_millimetres_is_refused():
+    """A believed volume given in millimetres (radius 350) was accepted; every face lay 350 m out."""
+    from cansim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="millimetres"):
+        DefaultSearch((0.0, 0.0, 0.0), 350.0)
+    assert DefaultSearch((0.0, 0.0, 0.0), 0.35).radius_m == 0.35

@@ -381,7 +381,9 @@ def build_object_model(
     trajectory : sequence of Pose
         Whisk poses (world): the thesis' mapping run (Sec 6.1.3.1) is
         ``DefaultSearch(c, r, mesh=mesh, semi_axes_m=fit_surface(mesh).semi_axes_m,
-        footprint_m=array.positions_m).tour(2)`` (every whisker base 15 mm or more before the object).
+        footprint_m=array.positions_m).tour(2, accept=...)`` (every whisker base 15 mm or more before the
+        object; ``accept`` drops the faces the arm cannot take, e.g. under the table, as
+        :func:`cansim.studies.ch6_active_exploration.mapping_tour` does with the safety envelope).
     sensor : callable
         ``sensor(pose) -> RegionFeatures``.
     odometry : callable

@@ -74,7 +74,7 @@ STRATEGIES = ("default", "feh", "lsr")
 
 #: largest length :class:`DefaultSearch` takes (radius, standoff, clearance, semi-axes), m: the
 #: search surrounds an object within an arm's reach; lengths near 1e154 m overflow the norms
-MAX_SEARCH_M = 1.0e3
+MAX_SEARCH_M = 20.0  # as whisker_io.sim.objects.MAX_SCENE_M: a radius of 1,000 is a believed volume in millimetres
 #: smallest ellipsoid semi-axis, m (the face directions divide by the semi-axes)
 MIN_SEMI_AXIS_M = 1.0e-6
 #: most icosphere subdivisions of :class:`DefaultSearch` (20 * 4**6 = 81,920 faces)
@@ -233,7 +233,7 @@ class DefaultSearch:
                  footprint_m: ArrayLike | None = None) -> None:
         c = finite_vector(centre_m, 3, "centre_m")  # the one validator: rejects strings, NaN, wrong shapes
         for name, v in (("radius_m", radius_m), ("standoff_m", standoff_m)):
-            config_field(v, name, float, above=0, maximum=MAX_SEARCH_M, hint="give metres")
+            config_field(v, name, float, above=0, maximum=MAX_SEARCH_M, hint="give metres (a larger number is millimetres)")
         config_field(clearance_m, "clearance_m", float, minimum=0, maximum=MAX_SEARCH_M, hint="give metres")
         axes = None if semi_axes_m is None else finite_vector(semi_axes_m, 3, "semi_axes_m")
         if axes is not None and not np.all((axes >= MIN_SEMI_AXIS_M) & (axes <= MAX_SEARCH_M)):

@@ -792,7 +792,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     for x in first:
         reasons[x["stop_reason"]] = reasons.get(x["stop_reason"], 0) + 1
     censored = sum(1 for x in strat if x["threshold"] == 300.0 and x["identity"] == "")
-    lines.append(f"Runs: {len(first)} ({reasons}); at IC 300, {censored} strategy runs never crossed (IM/SRT censored at the run's end).")
+    lines.append(f"Runs: {len(first)} (stopped by {', '.join(f'{k} {v}' for k, v in reasons.items())}); at IC 300, {censored} strategy runs never crossed (IM/SRT censored at the run's end).")
     lines.append(f"Safety: refused commands (re-planned) {sum(x['refused_commands'] for x in first)}; "
                  f"commands that reached the arm outside the envelope {sum(x['commands_outside_envelope'] for x in first)}.")
     distinct = [x for x in first if x.get("study") == "strategy" or x["spc"] == "off"]  # each run once
