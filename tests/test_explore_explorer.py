@@ -272,6 +272,15 @@ def test_explorer_bad_strategy_options_are_typed(world, options, strategy):
         Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy=strategy, strategy_options=options)
 
 
+def test_strategy_options_for_the_default_search_are_refused(world):
+    """The default search takes no options: they were dropped silently, a typo'd key as well."""
+    known, _ = world
+    with pytest.raises(ConfigError, match="apply to the 'feh' and 'lsr' strategies"):
+        Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy="default",
+                 strategy_options={"along_surfce": False})
+    Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy="default", strategy_options={})
+
+
 def test_strategy_options_reach_the_strategy(world):
     known, _ = world
     ex = Explorer(known, None, None, None, DefaultSearch((0, 0, 0), 0.3), strategy="feh",

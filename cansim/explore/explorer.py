@@ -569,7 +569,8 @@ class Explorer:
     strategy_options : mapping, optional
         Keyword arguments of the FEH or LSR strategy
         (:class:`cansim.explore.search.FollowExperienceHistory`,
-        :class:`cansim.explore.search.LeastSimilarRegion`), e.g. ``{"along_surface": True}``.
+        :class:`cansim.explore.search.LeastSimilarRegion`), e.g. ``{"along_surface": True}``; the
+        default search takes none (options given with it raise :class:`ConfigError`).
     contact_seeking : ContactSeekingParams or None
         Contact seeking (:mod:`cansim.explore.contact_seeking`; opt-in, default None): back off
         when the contacts lie nearer than the SPC band, advance along the array's axis
@@ -668,6 +669,9 @@ class Explorer:
         self.strategy_name = strategy
         if strategy_options is not None and not isinstance(strategy_options, dict):
             raise ConfigError(f"strategy_options must be a dict of keyword arguments, got {type(strategy_options).__name__}")
+        if strategy == "default" and strategy_options:  # they were ignored, a typo and all
+            raise ConfigError(f"strategy_options {sorted(strategy_options)} apply to the 'feh' and 'lsr' strategies; the "
+                              "default search takes none")
         try:
             self.strategy = make_strategy(strategy, **(strategy_options or {}) if strategy != "default" else {})
         except TypeError as exc:
