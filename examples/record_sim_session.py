@@ -15,7 +15,7 @@ z-axis, the array looks at it along +y (end-effector z-axis up).
 
 Usage::
 
-    python examples/record_sim_session.py [--object box] [--out sim_session] [--seed 0]
+    python examples/record_sim_session.py [--object box|MESH_FILE [--scale-to-m M] [--up-axis AXIS]] [--out sim_session] [--seed 0]
 
 Run ``hardware_session.py`` for the same loop on a UR arm and the USB array.
 """
@@ -29,7 +29,8 @@ from pathlib import Path
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
 from whisker_io.hw.arm import SimArm
-from whisker_io.errors import SafetyViolationError
+from whisker_io.errors import CansimError, SafetyViolationError
+from whisker_io.hw.platform import session_failure
 from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore, raster_poses, replay_session
 from whisker_io.hw.safety import SafetyEnvelope
@@ -59,8 +60,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args()
-    check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)
-    mesh = resolve_object(args.object, scale_to_m=args.scale_to_m, up_axis=args.up_axis).mesh
+    try:
+        check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)
+        mesh = resolve_object(args.object, scale_to_m=args.scale_to_m, up_axis=args.up_axis).mesh
+    except CansimError as exc:  # a misspelt name, a missing or millimetre mesh: one line, exit 2
+        ap.error(str(exc))
 
     # the array looks along +y at the object; its tool z-axis points up
     envelope = SafetyEnvelope(workspace_min=(-0.3, -0.6, 0.02), workspace_max=(0.3, -0.2, 0.5),
@@ -76,9 +80,9 @@ def main() -> None:
             explore(arm, array, recorder, targets, progress=not args.no_progress,
                     description=f"whisking the {args.object}")
         except SafetyViolationError as exc:  # the guard did its job: say so, keep what was recorded
-            print(f"record_sim_session: the arm was stopped after {recorder.n_cycles} whisks: {exc}; the whisks "
-                  f"before are in {args.out}/ (a larger --distance keeps the array off the object)", file=sys.stderr)
-            raise SystemExit(4) from None
+            code, message = session_failure(exc, recorder.n_cycles)
+            print(f"record_sim_session: {message}; a larger --distance keeps the array off the object", file=sys.stderr)
+            raise SystemExit(code) from None
     live = recorder.results
     n_contacts = sum(c is not None for cycle in live for c in cycle)
     replayed = replay_session(args.out, contacts)

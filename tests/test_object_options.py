@@ -45,9 +45,39 @@ def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):
     _brick_mm_y_up(tmp_path / "brick.stl")
     (copy,) = conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects", scale_to_m=0.35, up_axis="y")
     before = Path(copy).read_bytes()
-    with pytest.raises(InvalidInputError, match="the copy an earlier run wrote"):
+    with pytest.raises(InvalidInputError, match="where this run writes a copy"):
         conform_objects([copy], tmp_path / "objects", up_axis="y")  # would turn it a second time, over itself
     assert Path(copy).read_bytes() == before
+
+
+def test_a_copy_is_never_written_over_a_file_still_to_be_read(tmp_path):
+    """b's copy went to out/objects/cup_2.ply before that file, given third, was read."""
+    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir(), (tmp_path / "objects").mkdir()
+    trimesh.creation.cylinder(radius=0.1, height=0.3).export(tmp_path / "a" / "cup.stl")
+    trimesh.creation.icosphere(radius=0.15).export(tmp_path / "b" / "cup.stl")
+    third = tmp_path / "objects" / "cup_2.ply"  # where b's copy goes (the stems cup, cup, cup_2 are numbered)
+    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(third)
+    before = third.read_bytes()
+    with pytest.raises(InvalidInputError, match="where this run writes a copy"):
+        conform_objects([str(tmp_path / "a" / "cup.stl"), str(tmp_path / "b" / "cup.stl"), str(third)],
+                        tmp_path / "objects", scale_to_m=0.35)
+    assert third.read_bytes() == before and not (tmp_path / "objects" / "cup_1.ply").exists()
+
+
+def test_seed_names_follow_the_file_not_its_path(tmp_path, monkeypatch):
+    from cansim.studies.object_options import check_distinct, seed_name
+
+    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
+    trimesh.creation.cylinder(radius=0.1, height=0.3).export(tmp_path / "a" / "cup.stl")
+    trimesh.creation.icosphere(radius=0.15).export(tmp_path / "b" / "cup.stl")
+    monkeypatch.chdir(tmp_path)
+    assert seed_name("a/cup.stl") == seed_name(str(tmp_path / "a" / "cup.stl"))  # one file, two spellings
+    assert seed_name("a/cup.stl") != seed_name("b/cup.stl")  # two files of one stem: independent noise
+    assert seed_name("a/cup.stl").startswith("cup-") and seed_name("mug") == "mug"
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "tin.stl").write_bytes((tmp_path / "a" / "cup.stl").read_bytes())
+    with pytest.raises(InvalidInputError, match="given twice"):
+        check_distinct(["a/cup.stl", "c/tin.stl"])  # the same mesh under two names
 
 
 def test_without_the_options_nothing_is_copied(tmp_path):

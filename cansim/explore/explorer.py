@@ -848,9 +848,9 @@ class Explorer:
             _LOG.info("%d arm commands refused by the safety envelope in %d whisks, each re-planned "
                       "(ExplorationResult.refused_commands)", self.refused_commands - refused, len(self._strats))
         if moves and stuck == moves:
-            _LOG.warning("the arm did not move in this run: every command of its %d whisks was refused by the safety "
+            _LOG.warning("the arm did not move in this run: all %d of its commands were refused by the safety "
                          "envelope; check the envelope against the search's placements (centre, radius, tool tilt)",
-                         whisks)
+                         moves)
         if whisks and not touched:
             _LOG.warning("none of the %d whisks of this run touched anything: the search's placements do not reach the "
                          "object (is the search centred on it, with a radius in metres?); contact seeking "

@@ -26,6 +26,7 @@ exactly as run.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import logging
 import os
 from collections.abc import Sequence
@@ -76,9 +77,10 @@ def check_mesh_options(specs: Sequence[str], *, scale_to_m: float | None = None,
 
 
 def _identity(spec: str) -> tuple[str, str]:
-    """What makes two objects of a command line the same: a mesh file's resolved path, an object's own name."""
+    """What makes two objects of a command line the same: a mesh file's bytes (its path when unreadable), an
+    object's own name."""
     if is_mesh_file(spec):
-        return "file", str(Path(spec).resolve())
+        return "file", _digest(spec) or str(Path(spec).resolve())
     return "name", resolve_object(spec).name
 
 
@@ -103,16 +105,26 @@ def check_distinct(objects: Sequence[str], novel: Sequence[str] = ()) -> None:
             seen[key] = (role, spec)
 
 
+def _digest(path: str | os.PathLike[str]) -> str:
+    """The first 12 hex digits of the SHA-256 of a file's bytes ("" when it cannot be read)."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
+    except OSError:
+        return ""
+
+
 def seed_name(spec: str | os.PathLike[str]) -> str:
-    """What an object contributes to the seeds of a study's runs: a mesh file's stem, a name as given.
+    """What an object contributes to the seeds of a study's runs: a name as given; for a mesh file its stem
+    and a digest of its bytes.
 
-    A path's folder does not count, so the same file named by a relative or an absolute path,
-    or copied to another ``--out``, gets the same noise (:func:`cansim.seeding.derive_seed`).
-
-    >>> seed_name("runs/out/objects/cup.ply") == seed_name("/home/me/runs/out/objects/cup.ply") == "cup"
-    True
+    Where a file lies does not count: the same file named by a relative or an absolute path,
+    or its copy in another ``--out``, gets the same noise (:func:`cansim.seeding.derive_seed`);
+    two different files of one stem (``a/cup.obj``, ``b/cup.obj``) get different noise.
     """
-    return object_file_name(spec) if is_mesh_file(spec) else str(spec)
+    if not is_mesh_file(spec):
+        return str(spec)
+    digest = _digest(spec)
+    return f"{object_file_name(spec)}-{digest}" if digest else object_file_name(spec)
 
 
 def object_labels(specs: Sequence[str]) -> dict[str, str]:
@@ -163,17 +175,19 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     specs = [str(s) for s in specs]
     check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
     given = scale_to_m is not None or up_axis is not None
+    copied = [is_mesh_file(s) and (given or Path(s).suffix.lower() in GLTF_SUFFIXES) for s in specs]
+    targets = {(folder / f"{stem}.ply").resolve() for stem, c in zip(object_file_names(specs), copied) if c}
+    for spec in specs:  # before any copy is written: none may land on a file still to be read
+        if is_mesh_file(spec) and Path(spec).resolve() in targets:
+            raise InvalidInputError(f"{spec} is where this run writes a copy in its conventions (an earlier run's "
+                                    "copy?); give the original file, or another --out")
     out = []
-    for spec, stem in zip(specs, object_file_names(specs)):
-        gltf = Path(spec).suffix.lower() in GLTF_SUFFIXES
-        if not is_mesh_file(spec) or not (given or gltf):
+    for spec, stem, copy in zip(specs, object_file_names(specs), copied):
+        if not copy:
             resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
             out.append(spec)
             continue
         path = folder / f"{stem}.ply"
-        if Path(spec).resolve() == path.resolve():
-            raise InvalidInputError(f"{spec} is the copy an earlier run wrote in its conventions; give the original "
-                                    "file, or this one without --scale-to-m / --up-axis, or another --out")
         loaded = load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
         folder.mkdir(parents=True, exist_ok=True)
         loaded.mesh.export(path)

@@ -776,10 +776,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
             names = everything[:size]
             lib_paths = [paths[n] for n in names]
             kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
-            # named by the objects' file stems: the matcher's per-object random streams (keyed by name) do not
-            # depend on the folder a mesh file was given from
-            stem_of = dict(zip(everything, stems))
-            library = (load_surface_library([surface_paths[n] for n in names], [stem_of[n] for n in names])
+            # named by seed_name: the matcher's per-object random streams (keyed by name) do not depend on the
+            # folder a mesh file was given from, and a registered object's name is its own
+            library = (load_surface_library([surface_paths[n] for n in names], [seed_name(n) for n in names])
                        if "surface" in matchers else None)
             for presentation, vp in kinds:
                 jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]

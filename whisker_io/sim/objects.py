@@ -244,9 +244,10 @@ arms of the thesis reach 0.85 m (UR5) and 1.3 m (UR10, Ch.3) (Sec 2.2.1), so
 nothing larger can be explored around."""
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
+"""File endings :func:`load_object` reads (via trimesh)."""
+
 GLTF_SUFFIXES: tuple[str, ...] = (".glb", ".gltf")
 """Mesh files y-up by their specification (glTF 2.0)."""
-"""File endings :func:`load_object` reads (via trimesh)."""
 
 _MAX_COORDINATE = 1e9  # in any unit: beyond this the file is not a model (its extents would overflow)
 _MIN_SIZE = 1e-9  # in any unit: a smaller mesh is a point (scaling it would overflow)
