@@ -169,11 +169,13 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
 
     names = [k.name for k in known]
     if args.replay is not None:
-        from whisker_io.hw.recorder import replay_session
+        from itertools import islice
+
+        from whisker_io.records.recording import replay
 
         if not args.replay.is_dir():
             return fail(EXIT_USAGE, f"--replay {args.replay}: no such session directory (a live run's --out)")
-        cycles = list(replay_session(args.replay, chain))[:args.iterations]
+        cycles = [chain(c) for c in islice(replay(args.replay), args.iterations)]  # the features of those whisks only
         if not cycles:
             return fail(EXIT_USAGE, f"--replay {args.replay}: the session holds no whisk")
         explorer = make_explorer(None, None)
