@@ -204,3 +204,13 @@ def test_the_changes_made_are_said(tmp_path, caplog):
         conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects", scale_to_m=0.35, up_axis="y")
     (msg,) = [r.getMessage() for r in caplog.records]
     assert "scaled by 0.001" in msg and "rotated +90 deg about x" in msg and "0.100 x 0.200 x 0.350 m" in msg
+
+
+def test_whisks_to_decide_is_the_first_whisk_at_which_an_impulse_every_whisk_crosses():
+    from cansim.studies.recognition import IC_THRESHOLD, whisks_to_decide
+    from maps.recognition import confidence, integrated_confidence
+
+    n = whisks_to_decide()
+    ic = integrated_confidence(confidence(np.zeros(n, dtype=np.int64), 1))[:, 0]
+    assert ic[n - 1] >= IC_THRESHOLD > ic[n - 2]  # one whisk fewer cannot decide
+    assert whisks_to_decide(1e4) > n > whisks_to_decide(10.0)

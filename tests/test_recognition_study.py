@@ -146,3 +146,19 @@ def test_the_surface_matcher_identifies_along_b_when_the_maps_are_accurate_enoug
     assert sum(r["impulses_own"] for r in surface) >= 2 * sum(r["impulses_own"] for r in thesis)
     assert sum(r["decision"] not in ("", r["presented"]) for r in surface) <= 1
     assert along_b["surface", "knot-h0"]["decision"] == ""
+
+
+def test_run_takes_the_mesh_options_and_the_summary_says_when_runs_are_too_short(tmp_path):
+    """run() had no scale_to_m / up_axis although its error told the user to pass scale_to_m; and 40 whisks, too
+    few for any decision at IC 300, were reported only as targets not held."""
+    import trimesh
+
+    trimesh.creation.capsule(height=200.0, radius=50.0).export(tmp_path / "capsule_mm.stl")  # 300 mm, z up
+    rows = recognition.run(tmp_path / "out", objects=[str(tmp_path / "capsule_mm.stl"), "mug"], novel=["box"],
+                           seeds=(0,), bins=(), whisks=40, workers=1, progress=False, matchers=("thesis",),
+                           scale_to_m=0.3)
+    copy = tmp_path / "out" / "objects" / "capsule_mm.ply"
+    assert copy.exists() and {r["presented"] for r in rows} >= {str(copy), "mug", "box"}
+    text = recognition.summary(rows, 1.0, False)
+    short = sum(int(r["whisks"]) < recognition.whisks_to_decide() for r in rows)  # whole loops: some reach it
+    assert short > 0 and f"{short} of {len(rows)} runs had fewer whisks than any decision at IC 300 needs" in text

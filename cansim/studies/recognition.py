@@ -67,14 +67,17 @@ What runs
 Outputs (``--out``)
 -------------------
 * ``recognition_runs.csv`` - one row per run (columns :data:`COLUMNS`; among them
-  ``unmapped_contact_fraction``, the share of the presentation's contacts where the
-  presented object's map felt nothing, :func:`unmapped_contact_fraction`);
+  ``whisks_with_contact``, the whisks that observed a region - 3 contacts or more, Eq 5.5 -,
+  and, with the surface matcher, ``unmapped_contact_fraction``, the share of the
+  presentation's contacts where the presented object's map felt nothing,
+  :func:`unmapped_contact_fraction`; ``presented`` and ``decision`` name objects as given,
+  a mesh file changed by ``--scale-to-m`` / ``--up-axis`` by its copy in ``objects/``);
 * ``recognition_confusion.png`` - decisions per presented object (rows) and decided
   identity (columns, plus "none"), per presentation;
 * ``recognition_accuracy_vs_distance.png`` - correct decisions vs viewpoint distance;
 * ``recognition_accuracy_vs_library.png`` - correct decisions vs library size
   (full mode: 12, 25, 50 objects);
-* ``recognition_unmapped.png`` - per presentation of a library object, the share of its
+* ``recognition_unmapped.png`` (with the surface matcher) - per presentation of a library object, the share of its
   contacts where the own map felt nothing against the own object's impulses, correct and
   missed runs marked;
 * ``recognition_summary.txt`` - the issue's acceptance figures, each held or not, and
@@ -201,7 +204,8 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_label, object_labels, seed_name
+from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_label,
+                                           object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
@@ -678,8 +682,10 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         matchers: Sequence[str] = DEFAULT_MATCHERS, odometry_scale: float = 1.0,
         calibration: str | Sequence[int] = "first-seed",
         calibration_quantile: float | None = None, reach_contacts: int = REACH_CONTACTS,
-        roll_deg: float | None = None) -> list[dict[str, Any]]:
-    """Run the benchmark; returns the CSV rows (also written to ``out``).
+        roll_deg: float | None = None, scale_to_m: float | None = None,
+        up_axis: str | None = None) -> list[dict[str, Any]]:
+    """Run the benchmark; returns the CSV rows (also written to ``out`` as ``recognition_runs.csv``; the figures
+    and the summary are :func:`figures` and :func:`summary` of the rows, as :func:`main` writes them).
 
     Parameters
     ----------
@@ -723,13 +729,18 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         (:func:`roll_job`: the thesis' 90 deg unless the object's trajectory A reaches for
         ``reach_contacts`` whiskers clearly more often at 0 deg - flat tori, bowls; 90 deg
         with ``reach_contacts=0``); the CSV's ``roll_deg`` column gives it.
+    scale_to_m, up_axis : optional
+        Applied to every mesh file of ``objects`` and ``novel``
+        (:func:`cansim.studies.object_options.conform_objects`: the changed files are run from
+        their copies in ``out/objects``), as ``--scale-to-m`` / ``--up-axis``.
 
     Raises
     ------
     cansim.errors.ConfigError
         An unknown matcher or calibration rule, ``reach_contacts`` or ``roll_deg`` out of range.
     cansim.errors.InvalidInputError
-        Bad calibration seeds or quantile.
+        Bad calibration seeds or quantile; an object named twice or as both library and novel;
+        a mesh file :func:`whisker_io.sim.objects.load_object` refuses.
     """
     from whisker_io.sim.catalogue import object_file_names, resolve_object
     from whisker_io.sim.shapes import library_names, novel_names
@@ -749,6 +760,10 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
     novel = list(novel) if novel is not None else list(novel_names(3))
+    if scale_to_m is not None or up_axis is not None or any(map(is_mesh_file, (*everything, *novel))):
+        check_distinct(everything, novel)  # before the copies: one file given twice would get two
+        conformed = conform_objects([*everything, *novel], out / "objects", scale_to_m=scale_to_m, up_axis=up_axis)
+        everything, novel = conformed[:len(everything)], conformed[len(everything):]
     check_distinct(everything, novel)  # a novel object the library holds, an object named twice: before any work
     for spec in (*everything, *novel):
         mesh = resolve_object(spec).mesh  # a bad name or mesh fails before any work
@@ -789,6 +804,19 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         w.writeheader()
         w.writerows(rows)
     return rows
+
+
+def whisks_to_decide(threshold: float = IC_THRESHOLD) -> int:
+    """Fewest whisks in which an IC can reach ``threshold``: an impulse at every whisk (the leaky integrator of
+    :mod:`maps.recognition` with its defaults); a shorter presentation cannot be decided."""
+    from maps.recognition import confidence, integrated_confidence
+
+    n = 64
+    while True:
+        ic = integrated_confidence(confidence(np.zeros(n, dtype=np.int64), 1))[:, 0]
+        if ic[-1] >= threshold:
+            return int(np.searchsorted(ic, threshold)) + 1
+        n *= 2
 
 
 #: How far a map's stored surface may lie outside its object's box (m): the drift of maps under the
@@ -991,6 +1019,11 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
         hit, miss = [r for r in cover if r["correct"]], [r for r in cover if not r["correct"]]
         lines.append(f"  contacts where the own map felt nothing (off trajectory A, median): correct runs {med(hit)} "
                      f"({len(hit)}), missed runs {med(miss)} ({len(miss)})")
+    need = whisks_to_decide()
+    short = sum(1 for r in rows if int(r["whisks"]) < need)
+    if short:
+        lines.append(f"  Warning: {short} of {len(rows)} runs had fewer whisks than any decision at IC {IC_THRESHOLD:g} "
+                     f"needs ({need}, with an impulse at every whisk): they cannot be decided - give more --whisks.")
     seldom = sorted({object_label(r["presented"]) for r in rows
                      if int(r["whisks"]) and int(r["whisks_with_contact"]) < 0.5 * int(r["whisks"])})
     if seldom:
