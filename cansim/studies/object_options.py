@@ -33,8 +33,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.sim.catalogue import object_file_name, object_file_names, resolve_object
-from whisker_io.sim.objects import GLTF_SUFFIXES, MESH_SUFFIXES, UP_AXES, load_object
+from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file_names, object_name, resolve_object
+from whisker_io.sim.objects import GLTF_SUFFIXES, UP_AXES, load_object
 
 __all__ = ["add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects", "is_mesh_file",
            "object_label", "object_labels", "seed_name"]
@@ -50,11 +50,6 @@ def add_mesh_options(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--up-axis", default=None, metavar="AXIS",
                     help=f"the mesh files' up axis ({', '.join(UP_AXES)}; default z; glTF/GLB files are y-up by "
                          "their specification)")
-
-
-def is_mesh_file(spec: str | os.PathLike[str]) -> bool:
-    """Whether an object given on a command line names a mesh file (by its ending) rather than an object."""
-    return Path(spec).suffix.lower() in MESH_SUFFIXES
 
 
 def object_label(spec: str | os.PathLike[str]) -> str:
@@ -81,7 +76,7 @@ def _identity(spec: str) -> tuple[str, str]:
     object's own name."""
     if is_mesh_file(spec):
         return "file", _digest(spec) or str(Path(spec).resolve())
-    return "name", resolve_object(spec).name
+    return "name", object_name(spec)[0]  # the name resolve_object gives it, without building its mesh
 
 
 def check_distinct(objects: Sequence[str], novel: Sequence[str] = ()) -> None:
@@ -175,14 +170,15 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     specs = [str(s) for s in specs]
     check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
     given = scale_to_m is not None or up_axis is not None
+    stems = object_file_names(specs)
     copied = [is_mesh_file(s) and (given or Path(s).suffix.lower() in GLTF_SUFFIXES) for s in specs]
-    targets = {(folder / f"{stem}.ply").resolve() for stem, c in zip(object_file_names(specs), copied) if c}
+    targets = {(folder / f"{stem}.ply").resolve() for stem, c in zip(stems, copied) if c}
     for spec in specs:  # before any copy is written: none may land on a file still to be read
         if is_mesh_file(spec) and Path(spec).resolve() in targets:
             raise InvalidInputError(f"{spec} is where this run writes a copy in its conventions (an earlier run's "
                                     "copy?); give the original file, or another --out")
     out = []
-    for spec, stem, copy in zip(specs, object_file_names(specs), copied):
+    for spec, stem, copy in zip(specs, stems, copied):
         if not copy:
             resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
             out.append(spec)

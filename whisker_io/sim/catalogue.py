@@ -21,7 +21,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import MESH_SUFFIXES, OBJECT_NAMES, LoadedObject, load_object, make_object
 from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
 
-__all__ = ["object_file_name", "object_file_names", "resolve_object"]
+__all__ = ["is_mesh_file", "object_file_name", "object_file_names", "object_name", "resolve_object"]
 
 
 def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None,
@@ -51,22 +51,45 @@ def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m
         A string that is neither a known name nor a mesh file; the message lists the
         registered names and shape families. Errors of :func:`load_object` for files.
     """
-    if isinstance(spec, str) and Path(spec).suffix.lower() not in MESH_SUFFIXES:
-        key = spec.strip().lower().replace("-", "_").replace(" ", "_")
-        if key in OBJECT_NAMES:
-            mesh, name, source = make_object(key), key, "registered object"
-        elif is_shape_name(spec.strip()):
-            mesh, name, source = make_shape(spec.strip()), spec.strip(), "procedural shape"
-        else:
-            raise InvalidInputError(
-                f"{spec!r} is neither a registered object ({', '.join(OBJECT_NAMES)}), a procedural shape "
-                f"(families {', '.join(SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "
-                f"({', '.join(MESH_SUFFIXES)}); check the spelling or the path"
-            )
+    if isinstance(spec, str) and not is_mesh_file(spec):
+        name, source = object_name(spec)
+        mesh = make_object(name) if source == "registered object" else make_shape(name)
         if scale_to_m is None and (up_axis is None or isinstance(up_axis, str) and up_axis.strip().lower() in ("z", "+z")):
             return LoadedObject(mesh, name, source, "+z", np.eye(3), 1.0, np.zeros(3), mesh.extents)
         return dataclasses.replace(load_object(mesh, scale_to_m=scale_to_m, up_axis=up_axis, name=name), source=source)
     return load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis)
+
+
+def is_mesh_file(spec: str | os.PathLike[str]) -> bool:
+    """Whether an object spec names a mesh file (by its ending, :data:`MESH_SUFFIXES`) rather than an object."""
+    return Path(spec).suffix.lower() in MESH_SUFFIXES
+
+
+def object_name(spec: str) -> tuple[str, str]:
+    """``(name, source)`` of a registered object's or a procedural shape's name, without building its mesh.
+
+    ``name`` is what :func:`resolve_object` names the object (a registered name in its
+    canonical spelling: ``"Box-Stack"`` -> ``"box_stack"``); ``source`` is ``"registered
+    object"`` or ``"procedural shape"``.
+
+    >>> object_name("Box-Stack"), object_name(" duck-v2 ")
+    (('box_stack', 'registered object'), ('duck-v2', 'procedural shape'))
+
+    Raises
+    ------
+    InvalidInputError
+        Neither a known name nor a shape's; the message lists both and the mesh endings.
+    """
+    key = spec.strip().lower().replace("-", "_").replace(" ", "_")
+    if key in OBJECT_NAMES:
+        return key, "registered object"
+    if is_shape_name(spec.strip()):
+        return spec.strip(), "procedural shape"
+    raise InvalidInputError(
+        f"{spec!r} is neither a registered object ({', '.join(OBJECT_NAMES)}), a procedural shape "
+        f"(families {', '.join(SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "
+        f"({', '.join(MESH_SUFFIXES)}); check the spelling or the path"
+    )
 
 
 def object_file_name(spec: str | os.PathLike[str]) -> str:
