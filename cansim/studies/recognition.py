@@ -204,8 +204,8 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_label,
-                                           object_labels, seed_name)
+from cansim.studies.object_options import (add_mesh_options, check_distinct, check_mesh_options, conform_objects,
+                                           is_mesh_file, object_label, object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 
@@ -757,14 +757,16 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
                          hint="whiskers the trajectories reach for (0: the fixed standoff)")
     roll = None if roll_deg is None else config_field(roll_deg, "roll_deg", float, minimum=-360.0, maximum=360.0,
                                                       hint="degrees about the array's axis, or None: per object")
+    check_mesh_options([*(objects or ()), *(novel or ())], scale_to_m=scale_to_m, up_axis=up_axis)  # as given
     sizes = sorted(set(int(n) for n in library_sizes))
     everything = list(objects) if objects is not None else list(library_names(sizes[-1]))
     novel = list(novel) if novel is not None else list(novel_names(3))
-    if scale_to_m is not None or up_axis is not None or any(map(is_mesh_file, (*everything, *novel))):
-        check_distinct(everything, novel)  # before the copies: one file given twice would get two
+    # a novel object the library holds, an object named twice: before any work, and before the copies (one
+    # file given twice would get two)
+    check_distinct(everything, novel)
+    if any(map(is_mesh_file, (*everything, *novel))):  # mesh files changed by the options: run from their copies
         conformed = conform_objects([*everything, *novel], out / "objects", scale_to_m=scale_to_m, up_axis=up_axis)
         everything, novel = conformed[:len(everything)], conformed[len(everything):]
-    check_distinct(everything, novel)  # a novel object the library holds, an object named twice: before any work
     for spec in (*everything, *novel):
         mesh = resolve_object(spec).mesh  # a bad name or mesh fails before any work
         if "surface" in matchers and spec in everything:
@@ -1082,20 +1084,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     seeds = range(a.seeds if a.seeds is not None else (1 if a.quick else 3))
     bins = ("vp 5-10 cm",) if a.quick else None
-    from whisker_io.sim.shapes import library_names, novel_names
-
-    objects, novel = list(a.objects or ()), list(a.novel or ())
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
-    # before the copies (one file given twice would get two), against the libraries the run will use
-    check_distinct(objects or list(library_names(sizes[-1])), novel or list(novel_names(3)))
-    # a bad name or mesh fails here, before any work; mesh files changed by --scale-to-m / --up-axis
-    # are run from their copies in out/objects
-    conformed = conform_objects([*objects, *novel], a.out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
-    a.objects, a.novel = conformed[:len(objects)] or None, conformed[len(objects):] or None
     rows = run(a.out, a.objects, a.novel, library_sizes=sizes if not a.objects else (len(a.objects),), seeds=seeds,
                bins=bins, map_loops=a.map_loops, whisks=a.whisks, workers=a.workers, progress=not a.no_progress,
                matchers=a.matchers, odometry_scale=a.odometry_noise, calibration=a.calibration,
-               reach_contacts=a.reach_contacts, roll_deg=a.roll_deg)
+               reach_contacts=a.reach_contacts, roll_deg=a.roll_deg, scale_to_m=a.scale_to_m, up_axis=a.up_axis)
     files = figures(rows, a.out)
     text = summary(rows, time.perf_counter() - t0, a.quick)
     (a.out / "recognition_summary.txt").write_text(text + "\n")
