@@ -727,8 +727,8 @@ def _below(b: dict[str, Any]) -> bool:
     return bool(_median(b["position_m"]) < b["step_m"] and _median(b["rotation_deg"]) < b["step_deg"])
 
 
-def _localisation_lines(builds: Sequence[dict[str, Any]]) -> list[str]:
-    lines, label = [], object_labels([b["object"] for b in builds])
+def _localisation_lines(builds: Sequence[dict[str, Any]], label: dict[str, str]) -> list[str]:
+    lines = []
     for b in builds:
         pm, rd = _median(b["position_m"]), _median(b["rotation_deg"])
         lines.append(f"  {label[b['object']]:7s} {b['config'].label:22s} n_reloc {len(b['position_m']):4d}  position {fmt(pm, '.4f'):>6} m (step {b['step_m']:.3f})"
@@ -742,12 +742,11 @@ def _matching_name(m: str) -> str:
             else "the thesis' Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis)")
 
 
-def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: str) -> list[str]:
+def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: str, label: dict[str, str]) -> list[str]:
     """Findings 1-3 (Table 5.1, Fig 5.15) on one matching's runs."""
     lines = []
     star_runs = [b for b in builds if b["config"] == star]
     below = [_below(b) for b in star_runs if b["object"] != "kettle"]
-    label = object_labels([b["object"] for b in builds])
     per = ", ".join(f"{label[b['object']]} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
                     f"(step {b['step_m']:.3f} m / {b['step_deg']:.1f} deg)" for b in star_runs)
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
@@ -788,6 +787,8 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
     maps identification uses; ``compare`` the same runs with the other matching.
     """
     mapped = {b["object"] for b in builds}
+    # one label per object for the whole summary, in the order figures() labels them (mapped, then presented)
+    label = object_labels([*(b["object"] for b in builds), *(r["presented"] for r in id_rows)])
     id_loops = sorted({r["n_loops"] for r in id_rows}) or [0]
     lines = [
         (f"Thesis Ch.5 study ({'--quick' if quick else 'full'}); seed {s.seed}; {s.n_loops} loops of A per map; "
@@ -811,22 +812,22 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
     lines.append("")
     lines.append(f"Localisation, {_matching_name(s.matching)} (Fig 5.15; median re-localisation error vs step size; "
                  "true pose now vs at the experience's creation)")
-    lines += _localisation_lines(builds)
+    lines += _localisation_lines(builds, label)
     if compare:
         lines.append("")
         lines.append(f"Localisation, {_matching_name(compare[0]['matching'])} (comparison; the same noise per run)")
-        lines += _localisation_lines(compare)
+        lines += _localisation_lines(compare, label)
     lines.append("")
     lines.append("Findings")
-    lines += _localisation_findings(builds, star, "")
+    lines += _localisation_findings(builds, star, "", label)
     if compare:
-        lines += _localisation_findings(compare, star, "'")
+        lines += _localisation_findings(compare, star, "'", label)
         by = {(b["object"], b["config"]): b for b in compare}
         pairs = [(b, by[(b["object"], b["config"])]) for b in builds if (b["object"], b["config"]) in by]
         n_b, n_c = sum(_below(b) for b, _ in pairs), sum(_below(c) for _, c in pairs)
         lines.append(f"  M. Matching ({s.matching} vs {compare[0]['matching']}, same runs): {n_b} vs {n_c} of {len(pairs)} "
                      "object x configuration runs below the step; with " + star.label + ": "
-                     + ", ".join(f"{object_labels(list(mapped))[b['object']]} {fmt(_median(b['position_m']))} vs {fmt(_median(c['position_m']))} m"
+                     + ", ".join(f"{label[b['object']]} {fmt(_median(b['position_m']))} vs {fmt(_median(c['position_m']))} m"
                                  for b, c in pairs if b["config"] == star) + ".")
     if id_rows:
         def rows(fam: str, pred: Any) -> list[dict[str, Any]]:
@@ -834,7 +835,6 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         sk = rows("A", lambda r: r["presented"] not in mapped) + rows("B", lambda r: r["presented"] not in mapped)
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
-        label = object_labels([*mapped, *(r["presented"] for r in sk)])
         novel = ", ".join(sorted({label[r["presented"]] for r in sk})) or "none presented"
         lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
                      f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
