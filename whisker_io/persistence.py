@@ -16,15 +16,17 @@ __all__ = ["read_npz", "write_npz"]
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
 
 
-def _starts_with(path: Any, magic: bytes) -> bool:
-    """Whether the file at ``path`` starts with ``magic`` (False for an open file or an unreadable one)."""
+def _is_pickle(path: Any) -> bool:
+    """Whether the file at ``path`` is a pickle or an .npy of objects, by its first bytes (False for an open file or
+    an unreadable one)."""
     if not isinstance(path, (str, os.PathLike)):
         return False
     try:
         with open(path, "rb") as fh:
-            return fh.read(len(magic)) == magic
+            head = fh.read(6)
     except OSError:
         return False
+    return head[:1] == b"\x80" or head == b"\x93NUMPY"  # a pickle's protocol marker, the .npy magic
 
 
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
@@ -45,7 +47,7 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         # NotImplementedError: zipfile's answer to a zip version or compression it cannot read
         if isinstance(exc, ValueError) and "pickle" in str(exc):
             # numpy takes any file that is no zip or .npy for a pickle, and would suggest loading it unsafely
-            if _starts_with(path, b"\x80") or _starts_with(path, b"\x93NUMPY"):  # a pickle, an .npy of objects
+            if _is_pickle(path):
                 raise CorruptFileError(_PICKLED, path=path) from exc
             raise CorruptFileError("not an .npz archive (a save() here writes a zip of arrays): check that this is "
                                    "the file you meant", path=path) from exc

@@ -486,7 +486,8 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
 
     mesh = resolve_object(presented).mesh if mesh is None else mesh
     chain = chain_for(presented, setup.noise_scale, setup.contact_model, mesh)
-    sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", seed_name(presented), strategy, spc))
+    key = seed_name(presented)  # the run's identity in its seeds (a mesh file's stem and digest: read once)
+    sensor_rng = np.random.default_rng(derive_seed(seed, "sensor", key, strategy, spc))
     box = setup.believed_box()
     search = DefaultSearch(box.bounds.mean(axis=0), float(np.linalg.norm(box.extents)) / 2, mesh=box, seed=seed,
                            footprint_m=array_bases_m())
@@ -506,7 +507,7 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
                   contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
-                  surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", seed_name(presented), strategy, spc),
+                  surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", key, strategy, spc),
                                                     initial_sigma_m=float(placement_sd[0]),
                                                     initial_sigma_deg=float(placement_sd[1])))
     return ex, arm, cycles

@@ -381,8 +381,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    args, extra = parser.parse_known_args(_forward_help(argv))
-    if len(argv) > len(_forward_help(argv)):
+    forwarded = _forward_help(argv)
+    args, extra = parser.parse_known_args(forwarded)
+    if len(argv) > len(forwarded):
         extra.append("--help")  # 'cansim study ch5 --help': the study's own options
     if extra and args.command not in ("demo", "study"):
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
