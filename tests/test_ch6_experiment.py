@@ -223,3 +223,19 @@ def test_the_believed_volume_comes_from_the_known_objects_and_scales_about_its_c
     assert big.bounds[0, 2] == pytest.approx(box.bounds[0, 2])  # still on the table
     assert big.extents == pytest.approx(box.extents * 1.5)
     assert big.bounds[:, :2].mean(axis=0) == pytest.approx(box.bounds[:, :2].mean(axis=0))
+
+
+def test_the_surface_matcher_draws_the_same_noise_for_one_mesh_file_named_two_ways(tmp_path, monkeypatch):
+    """The explorer's surface matcher keyed each object's random stream by the path as typed: a relative and an
+    absolute path to one mapped file gave other impulses for the same run (seed 2: 10 against 20)."""
+    from whisker_io.sim.objects import make_object
+
+    make_object("box_stack").export(tmp_path / "stack.obj")
+    monkeypatch.chdir(tmp_path)
+    runs = []
+    for stack in ("stack.obj", str(tmp_path / "stack.obj")):
+        setup = ch6.prepare(0, objects=("box", stack), n_loops=1)
+        runs.append(ch6.run_one(setup, stack, "default", True, 2, 60, matcher="surface")["result"])
+    assert runs[0].impulses.sum() > 0  # the matcher weighed the run: equal impulses are not two empty runs
+    np.testing.assert_array_equal(runs[0].impulses, runs[1].impulses)
+    np.testing.assert_array_equal(runs[0].confidence, runs[1].confidence)

@@ -273,7 +273,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -504,7 +504,12 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
 
     from maps.surface_match import SurfaceMatchConfig
 
-    ex = Explorer(setup.known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
+    known = setup.known
+    if matcher == "surface":  # its per-object random streams are keyed by name: a mesh file's stem and digest, not
+        for k in known:       # its path as typed (one file by a relative and an absolute path: the same run)
+            k.stored_surface()  # computed once, on the setup's objects; the copies share it
+        known = [replace(k, name=seed_name(k.name)) for k in known]
+    ex = Explorer(known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
                   contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
                   surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", key, strategy, spc),
