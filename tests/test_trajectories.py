@@ -22,6 +22,7 @@ from whisker_io.sim.trajectories import (
     object_trajectory,
     reaching_roll_deg,
     step_sizes,
+    touch_share,
 )
 
 ARRAY = WhiskerArray.thesis()
@@ -264,6 +265,41 @@ def test_bad_roll_choices_raise_typed_errors(box, kwargs):
     with pytest.raises(CansimError) as err:
         reaching_roll_deg(box, "A", **kwargs)
     assert isinstance(err.value, (InvalidInputError, ConfigError))
+
+
+def test_touch_share_counts_the_poses_touched_by_enough_whiskers(box):
+    """Hand-placed poses on the Box: facing its side at the thesis standoff (every pose of the loops above
+    touches with 3 or more there), facing away from it (none), and the share of a mix of the two."""
+    centre = box.bounds.mean(axis=0)
+    side = np.array([box.bounds[1, 0], centre[1], centre[2]])  # the middle of the Box's +x face
+    facing = facing_pose(side, np.array([-1.0, 0.0, 0.0]), STANDOFF)
+    away = facing_pose(centre + np.array([0.6, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), 0.0)
+    touching = sum(c is not None for c in sweep_array(ARRAY, MeshTarget(box), facing, COUNT))
+    assert touching >= 3  # the truth the share is counted against, from the sweep itself
+    assert touch_share(box, [facing]) == 1.0 and touch_share(box, [away]) == 0.0
+    assert touch_share(box, [facing, away, away, away]) == 0.25
+    assert touch_share(MeshTarget(box), [facing, away], reach_contacts=touching) == 0.5
+    assert touch_share(box, [facing], reach_contacts=touching + 1) == 0.0
+    assert touch_share(box, (facing, away)) == 0.5  # a tuple of poses as well
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.6, 0.6), st.floats(-0.6, 0.6), st.floats(0.0, 0.5),
+                          st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(
+    lambda t: abs(t[3]) + abs(t[4]) + abs(t[5]) > 0.1), min_size=1, max_size=4),
+       st.integers(1, 8))
+def test_touch_share_is_a_share_and_falls_as_more_whiskers_are_asked(box, rows, k):
+    poses = [facing_pose(np.array(r[:3]), np.array(r[3:]), 0.1) for r in rows]
+    share = touch_share(box, poses, k)
+    assert 0.0 <= share <= 1.0 and share * len(poses) == pytest.approx(round(share * len(poses)))
+    assert touch_share(box, poses, k + 1) <= share <= touch_share(box, poses, max(k - 1, 1))
+
+
+@pytest.mark.parametrize("poses,k", [([], 3), ("poses", 3), ([Pose.identity()], 0), ([Pose.identity()], 65),
+                                      ([Pose.identity()], 2.5), ([np.zeros(7)], 3)])
+def test_bad_touch_share_input_raises_typed_errors(box, poses, k):
+    with pytest.raises(InvalidInputError):
+        touch_share(box, poses, k)
 
 
 # ------------------------------------------------------------- bad input

@@ -75,12 +75,37 @@ def test_a_users_mesh_file_runs_through_the_demo_with_one_flag(tmp_path, capsys)
 
 
 def test_an_unreachable_mesh_says_so_and_writes_null_not_nan(tmp_path, capsys):
-    """A flat torus the trajectory never touches: a clear warning, finite or null metrics, exit 0."""
+    """A 2-cm disk that no pose touches with 3 whiskers, reaching or not: a clear warning, finite or null
+    metrics, exit 0."""
+    import trimesh
+
+    trimesh.creation.cylinder(radius=0.175, height=0.02, sections=48).export(tmp_path / "disk.obj")
     out = tmp_path / "out"
-    assert _load().main(["--quick", "--no-progress", "--out", str(out), "--object", "torus_flat"]) == 0
+    assert _load().main(["--quick", "--no-progress", "--out", str(out), "--object", str(tmp_path / "disk.obj")]) == 0
     raw = (out / "whisker_ratslam_metrics.json").read_text()
     assert "NaN" not in raw
     m = json.loads(raw)
     assert m["observations"] < 0.5 * m["whisks"]
     assert m["median_position_error_m"] is None and math.isfinite(m["dr_median_position_error_m"])
     assert "Warning: only" in capsys.readouterr().out
+
+
+def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, capsys):
+    """The thesis' fixed standoff touches a torus lying flat with 3 whiskers nowhere (the array's rows pass
+    above and below it): the demo's poses then reach for 3 whiskers with the array rolled to 0 deg, and
+    most whisks observe a region. The Mug keeps the thesis' poses."""
+    from whisker_io.sim.catalogue import resolve_object
+    from whisker_io.sim.trajectories import object_trajectory, touch_share
+
+    demo = _load()
+    torus = resolve_object("torus_flat").mesh
+    assert touch_share(torus, object_trajectory(torus, "A", 1)) < demo.MIN_STANDOFF_SHARE  # the premise, counted here
+    out = tmp_path / "out"
+    assert demo.main(["--quick", "--no-progress", "--out", str(out), "--object", "torus_flat"]) == 0
+    m = json.loads((out / "whisker_ratslam_metrics.json").read_text())
+    assert m["trajectory_reach_contacts"] == 3 and m["trajectory_roll_deg"] == 0.0 and m["standoff_touch_share"] == 0.0
+    assert m["observations"] >= 0.5 * m["whisks"] and m["experiences"] > 0
+    text = capsys.readouterr().out
+    assert "moves in until 3 whiskers touch (array rolled 0 deg)" in text and "Warning: only" not in text
+    mug = demo.run("mug", loops=1, progress=False)["metrics"]
+    assert mug["trajectory_reach_contacts"] == 0 and mug["standoff_touch_share"] >= demo.MIN_STANDOFF_SHARE

@@ -111,6 +111,7 @@ __all__ = [
     "step_sizes",
     "object_trajectory",
     "reaching_roll_deg",
+    "touch_share",
 ]
 
 logger = logging.getLogger(__name__)
@@ -352,6 +353,52 @@ def _advance_to_contact(target: MeshTarget, arr: WhiskerArray, origin: NDArray[n
         origin[i] = best_o
 
 
+def touch_share(
+    mesh: trimesh.Trimesh | MeshTarget,
+    poses: list[Pose],
+    reach_contacts: int = 3,
+    array: WhiskerArray | None = None,
+) -> float:
+    """Share of ``poses`` whose rigid sweep touches ``mesh`` with ``reach_contacts`` whiskers or more.
+
+    The measure of items 4 and 6 (module docstring): the whiskers a pose touches with
+    (:func:`whisker_io.sim.sweep.sweep_array`, no refinement, no noise), counted the way
+    a region observation of Eq 5.5 needs 3 of them. It reads the mesh, so it is for
+    planning a simulated trajectory, never for an explorer.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh or MeshTarget
+        The object (metres).
+    poses : list of Pose
+        End-effector poses in the mesh's frame (at least one).
+    reach_contacts : int, default 3
+        Whiskers a pose must touch with (1-64).
+    array : WhiskerArray, optional
+        The array (default: the thesis array).
+
+    Returns
+    -------
+    float
+        In [0, 1].
+
+    Raises
+    ------
+    InvalidInputError
+        No pose, something other than :class:`~whisker_io.pose.Pose` s, ``reach_contacts``
+        outside 1-64, or a mesh :class:`~whisker_io.sim.sweep.MeshTarget` refuses.
+    """
+    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
+    if k > _MAX_REACH_CONTACTS:
+        raise InvalidInputError(f"reach_contacts must be 1-{_MAX_REACH_CONTACTS} whiskers, got {k}")
+    poses = list(poses) if isinstance(poses, tuple) else poses
+    if not isinstance(poses, list) or not poses or not all(isinstance(p, Pose) for p in poses):
+        raise InvalidInputError("poses must be a non-empty list of Pose (end-effector poses in the mesh's frame)")
+    target = mesh if isinstance(mesh, MeshTarget) else MeshTarget(mesh)
+    arr = WhiskerArray.thesis() if array is None else array
+    return float(np.mean([_touching(target, arr, p) >= k for p in poses]))
+
+
 def reaching_roll_deg(
     mesh: trimesh.Trimesh,
     family: str | LoopShape = "A",
@@ -417,7 +464,7 @@ def reaching_roll_deg(
             break  # no candidate can beat the first by more than the gain
         loop = object_trajectory(mesh, family, 1, roll_deg=roll, reach_contacts=k, **trajectory)  # type: ignore[arg-type]
         target = MeshTarget(mesh) if target is None else target
-        share = float(np.mean([_touching(target, arr, p) >= k for p in loop]))
+        share = touch_share(target, loop, k, arr)
         if i == 0:
             first_share = best_share = share
         elif share > first_share + gain and share > best_share:
