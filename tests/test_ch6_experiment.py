@@ -239,3 +239,39 @@ def test_the_surface_matcher_draws_the_same_noise_for_one_mesh_file_named_two_wa
     assert runs[0].impulses.sum() > 0  # the matcher weighed the run: equal impulses are not two empty runs
     np.testing.assert_array_equal(runs[0].impulses, runs[1].impulses)
     np.testing.assert_array_equal(runs[0].confidence, runs[1].confidence)
+
+
+def test_novel_objects_are_presented_unmapped_and_counted_apart(tmp_path):
+    """--novel presents objects the library does not hold (default search, every seed): their rows have no
+    correct identity, the summary counts their decisions from those rows, and they are never mapped."""
+    from cansim.errors import InvalidInputError
+
+    out = tmp_path / "out"
+    assert ch6.main(["--quick", "--seeds", "1", "--iterations", "40", "--out", str(out), "--novel", "torus_upright"]) == 0
+    with open(out / "ch6_runs.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    novel = [r for r in rows if r["study"] == "novel"]
+    assert len(novel) == len(ch6.THRESHOLDS) and {r["presented"] for r in novel} == {"torus_upright"}
+    assert all(r["strategy"] == "default" and r["spc"] == "on" for r in novel)
+    assert all(r["correct_first"] == r["im"] == r["srt"] == r["mean_correct_confidence"] == "" for r in novel)
+    assert all(r["identity"] in ("", *ch6.OBJECTS) for r in novel)
+    known = [r for r in rows if r["study"] != "novel"]
+    assert known and all(r["correct_first"] in ("True", "False") for r in known)  # the known runs as before
+    decided = sum(r["identity"] != "" for r in novel if r["threshold"] == "300.0")
+    text = (out / "ch6_summary.txt").read_text()
+    assert f"300: {decided}/1" in text and f"no decision at IC 300 in {1 - decided} of 1" in text
+    assert sorted(p.name for p in (out / "maps").iterdir()) == ["box.npz", "box_stack.npz"]  # the novel one unmapped
+    with pytest.raises(InvalidInputError, match="both"):
+        ch6.main(["--quick", "--out", str(tmp_path / "o2"), "--novel", "box"])  # a known object is not novel
+
+
+def test_run_one_tells_a_novel_object_from_a_known_one():
+    from cansim.errors import InvalidInputError
+
+    setup = ch6.prepare(0, n_loops=1)
+    with pytest.raises(InvalidInputError, match="novel object is one the library does not hold"):
+        ch6.run_one(setup, "box", "default", True, 0, 5, novel=True)
+    with pytest.raises(InvalidInputError, match="novel=True"):
+        ch6.run_one(setup, "duck", "default", True, 0, 5)
+    run = ch6.run_one(setup, "duck", "default", True, 0, 5, novel=True)
+    assert run["correct"] is None and len(run["result"].poses) == 5

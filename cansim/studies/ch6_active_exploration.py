@@ -38,6 +38,13 @@ Steps:
    600 and 900 are evaluated on its IC trace (:func:`cansim.explore.explorer.ic_metrics`;
    a crossing that never happens is censored at the run's end).
 
+Novel objects (``--novel NAME_OR_MESH ...``, beyond the thesis' Ch.6, which presents only
+its two known objects): each is presented, never mapped, to the default search with the SPC
+for every seed, inside the known objects' believed volume; any decision is wrong (the
+unmapped Skull of Fig 5.17). Their rows of ``ch6_runs.csv`` have the ``study`` ``novel``
+and no correct identity (``im``, ``srt``, ``correct_first`` and ``mean_correct_confidence``
+empty), and the summary counts the runs with a decision per threshold.
+
 Outputs (working directory or ``--out``): ``ch6_runs.csv`` (one row per run and
 threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_spc.png``,
 ``fig6_7_im_threshold.png``, ``fig6_8_im_strategy.png``, ``fig6_9_srt_strategy.png``,
@@ -547,41 +554,59 @@ def outside_envelope(arm: Any) -> int:
 
 
 def run_one(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
-            offset_m: float = 0.0, yaw_deg: float = 0.0, matcher: str = "thesis") -> dict[str, Any]:
+            offset_m: float = 0.0, yaw_deg: float = 0.0, matcher: str = "thesis", novel: bool = False) -> dict[str, Any]:
     """One exploration run and its traces (the object moved by :func:`presented_mesh`; ``matcher`` as :func:`explorer_for`).
 
     ``presented`` is one of the known objects (``setup.objects``, as given to :func:`prepare`): the
-    study measures how soon the explorer names the right one. An object the library does not
-    hold raises :class:`~cansim.errors.InvalidInputError` before the run.
-    """
-    if presented not in setup.objects:
-        from cansim.errors import InvalidInputError
+    study measures how soon the explorer names the right one. With ``novel`` it is an object
+    the library does not hold (a name or mesh file; the explorer still searches the believed
+    volume of the known objects): the run's ``correct`` is None, and any decision is wrong
+    (thesis Fig 5.17: the unmapped Skull raised little confidence in any object).
 
+    Raises
+    ------
+    InvalidInputError
+        Before the run: ``presented`` not a known object (spelt as given to :func:`prepare`), or,
+        with ``novel``, one that is.
+    """
+    from cansim.errors import InvalidInputError
+
+    if novel and presented in setup.objects:
+        raise InvalidInputError(f"{presented!r} is one of the known objects {list(setup.objects)}: a novel object is one "
+                                "the library does not hold")
+    if not novel and presented not in setup.objects:
         raise InvalidInputError(f"{presented!r} is not one of the known objects {list(setup.objects)}: run_one presents a "
-                                "known object, spelt as given to prepare (the Ch.6 study has no novel object)")
+                                "known object, spelt as given to prepare (novel=True presents an object the library "
+                                "does not hold)")
     mesh = presented_mesh(presented, seed, offset_m, yaw_deg)
     ex, arm, cycles = explorer_for(setup, presented, strategy, spc, seed, max_iterations, mesh=mesh, matcher=matcher,
                                    placement_sd=(offset_m, yaw_deg))
     res = ex.run()
     return {"seed": seed, "presented": presented, "strategy": strategy, "spc": "on" if spc else "off", "result": res,
-            "correct": setup.objects.index(presented), "objects": setup.objects, "outside": outside_envelope(arm),
+            "correct": None if novel else setup.objects.index(presented), "objects": setup.objects, "outside": outside_envelope(arm),
             "inside": int(bases_inside(mesh, res.poses).sum()),
             "no_contact": sum(not getattr(f, "is_observation", False) for _, f in cycles)}
 
 
 def run_rows(run: dict[str, Any]) -> list[dict[str, Any]]:
-    """One ``ch6_runs.csv`` row per IC threshold."""
+    """One ``ch6_runs.csv`` row per IC threshold.
+
+    A novel object's run (``run["correct"]`` None) has no correct identity: its ``im``, ``srt``,
+    ``correct_first`` and ``mean_correct_confidence`` are empty, and ``mean_incorrect_confidence``
+    is over every known object.
+    """
     res, k = run["result"], run["correct"]
     c = res.confidence
     others = [j for j in range(c.shape[1]) if j != k]
     rows = []
     for thr in THRESHOLDS:
-        m = res.metrics(k, thr)
+        m = res.metrics(0 if k is None else k, thr)  # the identity decided does not depend on the correct one
         rows.append({
             "seed": run["seed"], "presented": run["presented"], "strategy": run["strategy"], "spc": run["spc"],
-            "threshold": thr, "im": m.im, "srt": m.srt,
-            "identity": "" if m.identity is None else run["objects"][m.identity], "correct_first": m.correct_first,
-            "mean_correct_confidence": float(c[:, k].mean()) if len(c) else 0.0,
+            "threshold": thr, "im": "" if k is None else m.im, "srt": "" if k is None else m.srt,
+            "identity": "" if m.identity is None else run["objects"][m.identity],
+            "correct_first": "" if k is None else m.correct_first,
+            "mean_correct_confidence": "" if k is None else float(c[:, k].mean()) if len(c) else 0.0,
             "mean_incorrect_confidence": float(c[:, others].mean()) if len(c) and others else 0.0,
             "iterations": len(c), "refused_commands": res.refused_commands,
             "commands_outside_envelope": run["outside"], "whisks_base_inside": run["inside"],
@@ -679,7 +704,7 @@ def spc_sequences(runs: Sequence[dict[str, Any]]) -> list[int]:
 def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False) -> list[str]:
     """One line for each presented object whose whisks observed no region (under 3 contacts) more often than not.
 
-    Over the strategy study's runs that presented it (each run once: the rows of its first IC
+    Over the strategy study's and the novel objects' runs that presented it (each run once: the rows of its first IC
     threshold; the SPC-off runs are the SPC study's contrast, not counted). The search places
     the array round the believed volume, not the object, so an object that does not reach
     the volume's faces, or that is flat or thin, is seldom touched: its IC metrics then say
@@ -688,7 +713,7 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     """
     counts: dict[str, list[int]] = {}
     for x in rows:
-        if x["threshold"] == THRESHOLDS[0] and x.get("study", "strategy") == "strategy":
+        if x["threshold"] == THRESHOLDS[0] and x.get("study", "strategy") in ("strategy", "novel"):
             c = counts.setdefault(x["presented"], [0, 0])
             c[0] += x["whisks_without_contact"]
             c[1] += x["iterations"]
@@ -780,6 +805,21 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      + ", ".join(f"{label.get(k, k)} {ids.count(k)}" for k in (*setup.objects, "none"))
                      + f" of {len(v)}; mean confidence correct {fmt(np.mean([x['mean_correct_confidence'] for x in v]) if v else math.nan)}"
                      f" vs incorrect {fmt(np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan)}")
+    novel = [x for x in rows if x.get("study") == "novel"]
+    if novel:
+        shown = list(dict.fromkeys(x["presented"] for x in novel))
+        nl = object_labels([*setup.objects, *shown])
+        at = {t: [x for x in novel if x["threshold"] == t] for t in THRESHOLDS}
+        lines.append("Novel objects (never mapped; default search, SPC on; any decision is wrong - thesis Fig 5.17, the "
+                     "unmapped Skull): runs with a decision per threshold "
+                     + "; ".join(f"{t:.0f}: {sum(x['identity'] != '' for x in v)}/{len(v)}" for t, v in at.items()))
+        for p in shown:
+            v = [x for x in at[300.0] if x["presented"] == p]
+            ids = [x["identity"] for x in v if x["identity"]]
+            lines.append(f"  {nl[p]} presented (novel): no decision at IC 300 in {len(v) - len(ids)} of {len(v)}"
+                         + (" (decided " + ", ".join(f"{nl[k]} {ids.count(k)}" for k in setup.objects if ids.count(k)) + ")"
+                            if ids else "")
+                         + f"; mean confidence in the known objects {fmt(np.mean([x['mean_incorrect_confidence'] for x in v]) if v else math.nan)}")
     lines.append(f"SPC on vs off (default search, {label[setup.objects[-1]]} presented): mean correct confidence {fmt(np.mean(on) if on else math.nan)} "
                  f"vs {fmt(np.mean(off) if off else math.nan)} (higher with SPC in {sum(a > b for a, b in zip(on, off))} of "
                  f"{min(len(on), len(off))} seeds); mean incorrect {fmt(np.mean(on_i) if on_i else math.nan)} vs "
@@ -801,7 +841,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     lines.append(f"Runs: {len(first)} (stopped by {', '.join(f'{k} {v}' for k, v in reasons.items())}); at IC 300, {censored} strategy runs never crossed (IM/SRT censored at the run's end).")
     lines.append(f"Safety: refused commands (re-planned) {sum(x['refused_commands'] for x in first)}; "
                  f"commands that reached the arm outside the envelope {sum(x['commands_outside_envelope'] for x in first)}.")
-    distinct = [x for x in first if x.get("study") == "strategy" or x["spc"] == "off"]  # each run once
+    distinct = [x for x in first if x.get("study") in ("strategy", "novel") or x["spc"] == "off"]  # each run once
     ins = {s: sum(x["whisks_base_inside"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
     tot = {s: sum(x["iterations"] for x in distinct if x["spc"] == s) for s in ("on", "off")}
     lines.append(f"Whisks with a whisker base inside the presented object (impossible placements, checked against its mesh): "
@@ -835,6 +875,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                          "unless --scale-to-m / --up-axis say otherwise); each is mapped and presented (default: box "
                          "box_stack)")
     add_mesh_options(ap)
+    ap.add_argument("--novel", nargs="+", default=[], metavar="NAME_OR_MESH",
+                    help="objects presented but never mapped (names or mesh files), each explored by the default "
+                         "search for every seed: a decision for any known object is wrong (Fig 5.17's Skull)")
     ap.add_argument("--believed-scale", type=float, default=1.0,
                     help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
                          "larger, issue 22)")
@@ -866,9 +909,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.monotonic()
     # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
     # --scale-to-m / --up-axis are run from their copies in out/objects
-    check_distinct(args.objects)
-    args.objects = tuple(conform_objects(args.objects, args.out / "objects", scale_to_m=args.scale_to_m,
-                                         up_axis=args.up_axis))
+    check_distinct(args.objects, args.novel)
+    conformed = conform_objects([*args.objects, *args.novel], args.out / "objects", scale_to_m=args.scale_to_m,
+                                up_axis=args.up_axis)
+    args.objects, args.novel = tuple(conformed[:len(args.objects)]), tuple(conformed[len(args.objects):])
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
                     believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
     from whisker_io.sim.catalogue import object_file_names
@@ -880,13 +924,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         k.exploring_model()  # an object whose map holds no experience fails here, saying why, before the runs
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
+    jobs += [("novel", p, "default", True, args.seed + i) for i in range(args.seeds) for p in args.novel]
     runs, spc_runs, rows = [], [], []
     for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr):
         if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
             r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
         else:
-            r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg, args.matcher)
-        (runs if study == "strategy" else spc_runs).append(r)
+            r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg, args.matcher,
+                        novel=study == "novel")
+        if study != "novel":  # the figures are the thesis' (known objects); the novel runs are in the CSV and summary
+            (runs if study == "strategy" else spc_runs).append(r)
         for row in run_rows(r):
             row["study"] = study
             rows.append(row)
