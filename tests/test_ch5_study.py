@@ -340,3 +340,30 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     assert "nan" not in text.lower().replace("nanmedian", "")
     assert "undefined" in text  # the disk: no re-localisation
     assert "here plane" in text and "Skull (novel)" not in text
+
+
+# ----------------------------------------------------------------- shapes the thesis' poses miss
+@pytest.mark.slow
+def test_a_flat_mesh_the_thesis_poses_miss_is_mapped_and_identified_reaching(tmp_path: Path) -> None:
+    """A torus lying flat (a user's mesh file) is touched by 3 whiskers at no pose of the thesis' fixed standoff:
+    mapping and identification then reach for 3 whiskers at the roll that touches it, and the map holds
+    experiences; the Mug keeps the thesis' poses (its map the one made along the fixed standoff)."""
+    from whisker_io.sim.catalogue import resolve_object
+    from whisker_io.sim.trajectories import object_trajectory, touch_share
+
+    torus = resolve_object("torus_flat").mesh
+    path = tmp_path / "ring.obj"
+    torus.export(path)
+    assert touch_share(torus, object_trajectory(torus, "A", 1, step_m=ch5_study.STEP[0], step_deg=ch5_study.STEP[1])) == 0.0
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    cfg = ch5_study.Config("both", False, "tip")
+    slam, poses, log = ch5_study.map_object(str(path), cfg, s)
+    assert slam.object_map.n_experiences > 0.3 * len(poses)
+    fixed = object_trajectory(torus, "A", 1, step_m=ch5_study.STEP[0], step_deg=ch5_study.STEP[1])
+    assert any(not np.allclose(p.position_m, q.position_m) for p, q in zip(poses, fixed))  # the poses reached
+    slam.save(tmp_path / "ring.npz")
+    res = ch5_study.identify_job((str(path), "B", [str(tmp_path / "ring.npz")], ["ring"], cfg, s))
+    assert (np.asarray(res["targets"]) == 0).sum() > 0  # along B it re-localises to its own map (none at the standoff)
+    mug_slam, mug_poses, _ = ch5_study.map_object("mug", cfg, s)
+    mug_fixed = object_trajectory(resolve_object("mug").mesh, "A", 1, step_m=ch5_study.STEP[0], step_deg=ch5_study.STEP[1])
+    assert all(np.array_equal(p.position_m, q.position_m) for p, q in zip(mug_poses, mug_fixed))

@@ -17,6 +17,8 @@ from whisker_io.sim.objects import make_object
 from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
 from whisker_io.sim.trajectories import (
     LoopShape,
+    ReachChoice,
+    choose_reach,
     facing_pose,
     fit_surface,
     object_trajectory,
@@ -300,6 +302,43 @@ def test_touch_share_is_a_share_and_falls_as_more_whiskers_are_asked(box, rows, 
 def test_bad_touch_share_input_raises_typed_errors(box, poses, k):
     with pytest.raises(InvalidInputError):
         touch_share(box, poses, k)
+
+
+@pytest.mark.parametrize("name", ["mug", "torus_flat", "duck"])
+def test_choose_reach_keeps_the_standoff_where_it_touches_and_reaches_where_it_does_not(name):
+    """Against shares counted here with the sweep: the Mug's fixed-standoff loop is touched by 3 whiskers at
+    most poses (kept), a flat torus' at none and the duck's at few (reaching, at reaching_roll_deg's roll)."""
+    from whisker_io.sim.catalogue import resolve_object
+
+    mesh = resolve_object(name).mesh
+    target = MeshTarget(mesh)
+    loop = object_trajectory(mesh, "A", n_loops=1)
+    counted = float(np.mean([sum(c is not None for c in sweep_array(ARRAY, target, p, COUNT)) >= 3 for p in loop]))
+    choice = choose_reach(mesh)
+    assert choice.standoff_touch_share == pytest.approx(counted)
+    if counted >= 0.5:
+        assert choice == ReachChoice(counted, 0, 90.0) and name == "mug"
+    else:
+        assert choice == ReachChoice(counted, 3, reaching_roll_deg(mesh, "A", 3)) and name != "mug"
+    assert choose_reach(mesh, min_share=0.0).reach_contacts == 0  # nothing is below no share
+    assert choose_reach(mesh, min_share=1.0).reach_contacts == (0 if counted == 1.0 else 3)
+    if name == "torus_flat":
+        assert counted == 0.0 and choice.roll_deg == 0.0
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.one_of(
+    st.fixed_dictionaries({"min_share": st.one_of(st.floats(max_value=-1e-9), st.floats(min_value=1.0001),
+                                                  st.just(float("nan")), st.just("half"))}),
+    st.fixed_dictionaries({"reach_contacts": st.one_of(st.integers(max_value=0), st.just(2.5))}),
+    st.fixed_dictionaries({"roll_deg": st.just(0.0)}),
+    st.fixed_dictionaries({"n_loops": st.just(2)}),
+    st.fixed_dictionaries({"step_m": st.just(-0.1)}),
+))
+def test_bad_reach_choices_raise_typed_errors(box, kwargs):
+    with pytest.raises(CansimError) as err:
+        choose_reach(box, "A", **kwargs)
+    assert isinstance(err.value, (InvalidInputError, ConfigError))
 
 
 # ------------------------------------------------------------- bad input

@@ -95,11 +95,11 @@ def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, caps
     above and below it): the demo's poses then reach for 3 whiskers with the array rolled to 0 deg, and
     most whisks observe a region. The Mug keeps the thesis' poses."""
     from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import object_trajectory, touch_share
+    from whisker_io.sim.trajectories import MIN_STANDOFF_SHARE, object_trajectory, touch_share
 
     demo = _load()
     torus = resolve_object("torus_flat").mesh
-    assert touch_share(torus, object_trajectory(torus, "A", 1)) < demo.MIN_STANDOFF_SHARE  # the premise, counted here
+    assert touch_share(torus, object_trajectory(torus, "A", 1)) < MIN_STANDOFF_SHARE  # the premise, counted here
     out = tmp_path / "out"
     assert demo.main(["--quick", "--no-progress", "--out", str(out), "--object", "torus_flat"]) == 0
     m = json.loads((out / "whisker_ratslam_metrics.json").read_text())
@@ -108,4 +108,4 @@ def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, caps
     text = capsys.readouterr().out
     assert "moves in until 3 whiskers touch (array rolled 0 deg)" in text and "Warning: only" not in text
     mug = demo.run("mug", loops=1, progress=False)["metrics"]
-    assert mug["trajectory_reach_contacts"] == 0 and mug["standoff_touch_share"] >= demo.MIN_STANDOFF_SHARE
+    assert mug["trajectory_reach_contacts"] == 0 and mug["standoff_touch_share"] >= MIN_STANDOFF_SHARE

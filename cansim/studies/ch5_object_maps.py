@@ -228,8 +228,11 @@ class StudyConfig:
     ``"mapping"`` (:meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping`) or
     ``"thesis"`` (Eq 5.5 alone); ``id_whisks`` is the least number of whisks of an
     identification run (whole loops, at least ``id_loops``); ``reach_contacts`` is passed
-    to :func:`whisker_io.sim.trajectories.object_trajectory` for the maps (0, the
-    default: the fixed standoff; the recognition study reaches for 3 whiskers).
+    to :func:`whisker_io.sim.trajectories.object_trajectory` for the maps (the recognition
+    study reaches for 3 whiskers); 0, the default, keeps the thesis' fixed standoff for every
+    object it touches with 3 whiskers at half of trajectory A's poses or more (every thesis
+    object) and reaches for 3 elsewhere, mapping and identifying alike
+    (:func:`whisker_io.sim.trajectories.choose_reach`: a user's flat or narrow mesh).
     """
 
     n_loops: int
@@ -351,11 +354,15 @@ def map_object(name: str, cfg: Config, s: StudyConfig, step: tuple[float, float]
     """
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
     from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.trajectories import choose_reach, object_trajectory
 
     mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name) if step is None else step
-    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=s.reach_contacts,
+    reach = s.reach_contacts
+    if not reach:  # the thesis' standoff where it touches, reaching where it does not (StudyConfig)
+        choice = choose_reach(mesh, "A", step_m=step_m, step_deg=step_deg)
+        reach, roll_deg = choice.reach_contacts, (choice.roll_deg if choice.reach_contacts else roll_deg)
+    poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=reach,
                               roll_deg=roll_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", seed_name(name), cfg.label))
@@ -421,12 +428,16 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
         relocalisation_targets,
     )
     from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import object_trajectory
+    from whisker_io.sim.trajectories import choose_reach, object_trajectory
 
     presented, family, paths, names, cfg, s = job
     mesh = resolve_object(presented).mesh
     step_m, step_deg = step_of(presented)
-    loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg)
+    reach, roll = 0, 90.0
+    if not s.reach_contacts:  # whisked as map_object would map it (StudyConfig)
+        choice = choose_reach(mesh, "A", step_m=step_m, step_deg=step_deg)
+        reach, roll = choice.reach_contacts, choice.roll_deg
+    loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach, roll_deg=roll)
     n_loops = max(s.id_loops, math.ceil(s.id_whisks / len(loop)))
     poses = loop * n_loops  # whole loops (object_trajectory repeats one loop)
     slam, lib = library_model(paths, names, cell_size_m=step_m)

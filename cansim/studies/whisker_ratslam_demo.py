@@ -30,7 +30,7 @@ Writes (in ``--out``, default the working folder):
 **Reaching for shapes the standoff misses.** The thesis' trajectory A keeps a fixed
 standoff from an ellipsoid fitted around the mesh. Where that loop's poses touch the
 object with 3 whiskers or more (a region, Eq 5.5) in fewer than half of them
-(:data:`MIN_STANDOFF_SHARE`; rigid sweeps of one loop, :func:`whisker_io.sim.trajectories.touch_share`)
+(rigid sweeps of one loop, :func:`whisker_io.sim.trajectories.choose_reach`)
 - a flat torus between the array's rows, a duck's narrow head and neck - each pose
 moves forward along its axis until 3 whiskers touch, with the array rolled as
 :func:`~whisker_io.sim.trajectories.reaching_roll_deg` chooses (0 deg for the flat
@@ -103,7 +103,6 @@ import logging
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -115,9 +114,8 @@ from cansim.studies.object_options import add_mesh_options, check_mesh_options
 from cansim.studies.report import fmt
 from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
-from whisker_io.pose import Pose
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
-from whisker_io.sim.trajectories import object_trajectory, reaching_roll_deg, touch_share
+from whisker_io.sim.trajectories import choose_reach, object_trajectory
 from whisker_io.sim.sweep import ContactNoise
 from whisker_io.sim.whisk_chain import WhiskChain
 
@@ -129,42 +127,8 @@ DEFAULT_CONTACT_NOISE = 0.075
 #: Step bounds of the trajectory (m, deg) per object (module docstring).
 STEP_BOUNDS = {"box": (0.03, 8.0)}
 DEFAULT_STEP_BOUNDS = (0.11, 12.0)
-#: Share of the thesis trajectory's poses touched by 3 whiskers below which the poses reach (module docstring).
-MIN_STANDOFF_SHARE = 0.5
-#: Whiskers a pose reaches for when it does (a region observation of Eq 5.5 needs 3).
+#: Whiskers a pose reaches for when the thesis' poses touch too few (a region observation of Eq 5.5 needs 3).
 REACH_CONTACTS = 3
-
-
-def demo_trajectory(mesh: Any, loops: int, step_m: float, step_deg: float) -> tuple[list[Pose], dict[str, float]]:
-    """Trajectory A round ``mesh``: the thesis' fixed standoff, or poses reaching for 3 whiskers (module docstring).
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        The object (metres, z up).
-    loops : int
-        Loops of the trajectory (each the same poses).
-    step_m, step_deg : float
-        Bounds of a step between whisks, m and degrees.
-
-    Returns
-    -------
-    poses : list of Pose
-        The whisk poses, ``loops`` times one loop.
-    how : dict
-        ``standoff_touch_share`` (the thesis loop's share of poses touched by 3 whiskers, 0-1),
-        ``trajectory_reach_contacts`` (0: the thesis' poses; 3: they reach) and
-        ``trajectory_roll_deg`` (the array's roll about its axis, degrees).
-    """
-    steps = dict(step_m=step_m, step_deg=step_deg)
-    loop = object_trajectory(mesh, "A", 1, **steps)
-    share = touch_share(mesh, loop, REACH_CONTACTS)
-    how = {"standoff_touch_share": share, "trajectory_reach_contacts": 0, "trajectory_roll_deg": 90.0}
-    if share < MIN_STANDOFF_SHARE:
-        roll = reaching_roll_deg(mesh, "A", REACH_CONTACTS, **steps)
-        loop = object_trajectory(mesh, "A", 1, reach_contacts=REACH_CONTACTS, roll_deg=roll, **steps)
-        how.update(trajectory_reach_contacts=REACH_CONTACTS, trajectory_roll_deg=float(roll))
-    return loop * loops, how
 
 
 def run(
@@ -189,8 +153,12 @@ def run(
     for note in loaded.notes:
         log.info("%s: %s", object_name, note)
     step_m, step_deg = STEP_BOUNDS.get(object_name, DEFAULT_STEP_BOUNDS)
-    poses, how = demo_trajectory(mesh, loops, step_m, step_deg)
-    if how["trajectory_reach_contacts"]:
+    choice = choose_reach(mesh, "A", REACH_CONTACTS, step_m=step_m, step_deg=step_deg)
+    poses = object_trajectory(mesh, "A", loops, step_m=step_m, step_deg=step_deg, reach_contacts=choice.reach_contacts,
+                              roll_deg=choice.roll_deg)
+    how = {"standoff_touch_share": choice.standoff_touch_share, "trajectory_reach_contacts": choice.reach_contacts,
+           "trajectory_roll_deg": choice.roll_deg}
+    if choice.reach_contacts:
         log.info(_reach_note(object_name, how))
     st, sr = step_sizes(np.array([p.position_m for p in poses]), np.array([p.quaternion_xyzw for p in poses]))
     noise = None if contact_noise == 0 else ContactNoise(

@@ -112,6 +112,9 @@ __all__ = [
     "object_trajectory",
     "reaching_roll_deg",
     "touch_share",
+    "ReachChoice",
+    "choose_reach",
+    "MIN_STANDOFF_SHARE",
 ]
 
 logger = logging.getLogger(__name__)
@@ -397,6 +400,82 @@ def touch_share(
     target = mesh if isinstance(mesh, MeshTarget) else MeshTarget(mesh)
     arr = WhiskerArray.thesis() if array is None else array
     return float(np.mean([_touching(target, arr, p) >= k for p in poses]))
+
+
+#: Share of the fixed-standoff poses touched by 3 whiskers below which :func:`choose_reach` reaches.
+MIN_STANDOFF_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class ReachChoice:
+    """How the poses round one object reach its surface (:func:`choose_reach`).
+
+    Attributes
+    ----------
+    standoff_touch_share : float
+        Share (0-1) of one fixed-standoff loop's poses touched by ``reach_contacts`` whiskers
+        (3 when the standoff is kept).
+    reach_contacts : int
+        :func:`object_trajectory`'s ``reach_contacts``: 0 keeps the thesis' fixed standoff.
+    roll_deg : float
+        :func:`object_trajectory`'s ``roll_deg``, degrees.
+    """
+
+    standoff_touch_share: float
+    reach_contacts: int
+    roll_deg: float
+
+
+def choose_reach(
+    mesh: trimesh.Trimesh,
+    family: str | LoopShape = "A",
+    reach_contacts: int = 3,
+    min_share: float = MIN_STANDOFF_SHARE,
+    **trajectory: object,
+) -> ReachChoice:
+    """The thesis' fixed standoff where it touches, poses reaching for ``reach_contacts`` whiskers where it does not.
+
+    One loop of ``family`` at the fixed standoff (items 1-5) is built; when fewer than
+    ``min_share`` of its poses are touched by ``reach_contacts`` whiskers or more
+    (:func:`touch_share`) - a torus lying flat between the array's rows, a duck's narrow head
+    - the poses reach (item 6) at the roll :func:`reaching_roll_deg` picks; otherwise the
+    thesis' poses are kept (roll 90 deg). Build the trajectory, of any family, with
+    ``object_trajectory(mesh, family, n, reach_contacts=c.reach_contacts, roll_deg=c.roll_deg)``.
+    Measured (the WhiskerRatSLAM demo, :mod:`cansim.studies.whisker_ratslam_demo`): the Mug
+    (0.89), the Box (0.93) and the Ch.5 objects (0.57-1.00 along A) keep the standoff; a flat
+    torus, a mushroom and a bowl (0.00) and the duck (0.17) reach.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+    family : {"A", "B"} or LoopShape
+        The loop the choice is made on (choose on the mapping loop and use the choice for
+        every family, so that one object is always whisked alike).
+    reach_contacts : int, default 3
+        Whiskers counted, and reached for (1-64; 3: a region of Eq 5.5).
+    min_share : float, default :data:`MIN_STANDOFF_SHARE`
+        Share of poses (0-1) below which the poses reach.
+    **trajectory
+        Further :func:`object_trajectory` arguments (``step_m``, ``step_deg``, ...), not
+        ``n_loops``, ``roll_deg`` or ``reach_contacts``.
+
+    Raises
+    ------
+    InvalidInputError, ConfigError
+        ``min_share`` outside [0, 1], or what :func:`reaching_roll_deg` refuses.
+    """
+    share_min = finite_scalar(min_share, "min_share")
+    if not 0.0 <= share_min <= 1.0:
+        raise InvalidInputError(f"min_share must be a share of poses in [0, 1], got {min_share!r}")
+    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
+    for name in ("n_loops", "roll_deg", "reach_contacts"):
+        if name in trajectory:
+            raise InvalidInputError(f"choose_reach sets {name} itself; do not pass it")
+    share = touch_share(mesh, object_trajectory(mesh, family, 1, **trajectory), k,  # type: ignore[arg-type]
+                        trajectory.get("array"))  # type: ignore[arg-type]
+    if share >= share_min:
+        return ReachChoice(share, 0, 90.0)
+    return ReachChoice(share, k, float(reaching_roll_deg(mesh, family, k, **trajectory)))
 
 
 def reaching_roll_deg(
