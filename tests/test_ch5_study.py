@@ -339,6 +339,10 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     text = (out / "ch5_summary.txt").read_text()
     assert "nan" not in text.lower().replace("nanmedian", "")
     assert "undefined" in text  # the disk: no re-localisation
+    assert "Reaching: the thesis' fixed standoff touches the disk (roll" in text  # the one object whisked reaching
+    # --contacts tip: the thesis' best configuration (SVR contacts) never ran, so finding 3 is not measured
+    third = next(line for line in text.splitlines() if "the lowest errors come from" in line)
+    assert "NOT measured" in third and "REPRODUCED" not in third
     assert "here plane" in text and "Skull (novel)" not in text
 
 
@@ -367,3 +371,27 @@ def test_a_flat_mesh_the_thesis_poses_miss_is_mapped_and_identified_reaching(tmp
     mug_slam, mug_poses, _ = ch5_study.map_object("mug", cfg, s)
     mug_fixed = object_trajectory(resolve_object("mug").mesh, "A", 1, step_m=ch5_study.STEP[0], step_deg=ch5_study.STEP[1])
     assert all(np.array_equal(p.position_m, q.position_m) for p, q in zip(mug_poses, mug_fixed))
+
+
+@pytest.mark.parametrize("name", [*ch5_study.MAPPED, ch5_study.NOVEL])
+def test_every_thesis_object_keeps_the_fixed_standoff(name: str) -> None:
+    """The thesis' objects are touched by 3 whiskers at half the poses of trajectory A or more (the blob at
+    0.57, the closest), so the Ch.5 study whisks them at the thesis' fixed standoff and roll."""
+    from whisker_io.sim.catalogue import resolve_object
+
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    assert ch5_study.trajectory_choice(resolve_object(name).mesh, s, *ch5_study.step_of(name)) == (0, 90.0)
+
+
+def test_trajectory_choice_follows_the_study_config() -> None:
+    """A flat torus reaches (roll 0) only with reach_contacts 0 and reach_when_missed; a count given is kept,
+    and reach_when_missed=False (the recognition study's --reach-contacts 0) keeps the fixed standoff and roll."""
+    from whisker_io.sim.catalogue import resolve_object
+
+    torus = resolve_object("torus_flat").mesh
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    assert ch5_study.trajectory_choice(torus, s, *ch5_study.STEP) == (3, 0.0)
+    assert ch5_study.trajectory_choice(torus, dataclasses.replace(s, reach_when_missed=False), *ch5_study.STEP, 45.0) == (0, 45.0)
+    assert ch5_study.trajectory_choice(torus, dataclasses.replace(s, reach_contacts=5), *ch5_study.STEP, 45.0) == (5, 45.0)
+    with pytest.raises(ConfigError):
+        dataclasses.replace(s, reach_when_missed="yes")

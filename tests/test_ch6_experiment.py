@@ -260,6 +260,12 @@ def test_novel_objects_are_presented_unmapped_and_counted_apart(tmp_path):
     decided = sum(r["identity"] != "" for r in novel if r["threshold"] == "300.0")
     text = (out / "ch6_summary.txt").read_text()
     assert f"300: {decided}/1" in text and f"no decision at IC 300 in {1 - decided} of 1" in text
+    first = [r for r in rows if r["threshold"] == "100.0"]
+    seen = sum(int(r["iterations"]) - int(r["whisks_without_contact"]) for r in first if r["study"] == "novel")
+    assert f"a region observed in {seen} of 40 whisks" in text
+    # the safety totals count the novel runs' whisks (SPC on: 3 strategies x 2 objects and the novel run, 40 each)
+    on = [r for r in first if r["study"] in ("strategy", "novel")]
+    assert f"SPC on {sum(int(r['whisks_base_inside']) for r in on)} of {40 * 7}," in text
     assert sorted(p.name for p in (out / "maps").iterdir()) == ["box.npz", "box_stack.npz"]  # the novel one unmapped
     with pytest.raises(InvalidInputError, match="both"):
         ch6.main(["--quick", "--out", str(tmp_path / "o2"), "--novel", "box"])  # a known object is not novel
@@ -275,3 +281,12 @@ def test_run_one_tells_a_novel_object_from_a_known_one():
         ch6.run_one(setup, "duck", "default", True, 0, 5)
     run = ch6.run_one(setup, "duck", "default", True, 0, 5, novel=True)
     assert run["correct"] is None and len(run["result"].poses) == 5
+
+
+def test_seldom_touched_counts_the_novel_objects_runs():
+    """A novel object's runs count toward the seldom-touched warning, the SPC study's contrast runs do not."""
+    row = {"threshold": ch6.THRESHOLDS[0], "presented": "duck", "iterations": 100}
+    novel = dict(row, study="novel", whisks_without_contact=80)
+    assert len(ch6.seldom_touched([novel])) == 1 and "duck observed a region" in ch6.seldom_touched([novel])[0]
+    assert ch6.seldom_touched([dict(novel, study="spc")]) == []
+    assert ch6.seldom_touched([dict(novel, whisks_without_contact=40)]) == []

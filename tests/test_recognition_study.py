@@ -162,3 +162,18 @@ def test_run_takes_the_mesh_options_and_the_summary_says_when_runs_are_too_short
     text = recognition.summary(rows, 1.0, False)
     short = sum(int(r["whisks"]) < recognition.whisks_to_decide() for r in rows)  # whole loops: some reach it
     assert short > 0 and f"{short} of {len(rows)} runs had fewer whisks than any decision at IC 300 needs" in text
+
+
+def test_reach_contacts_0_maps_and_presents_at_the_fixed_standoff() -> None:
+    """--reach-contacts 0 is the fixed standoff for every object, the maps' poses as the presentations': the
+    Ch.5 study's reaching for shapes its standoff misses (choose_reach) is not applied to the maps, even for
+    a torus lying flat that the standoff never touches with 3 whiskers."""
+    from cansim.studies import ch5_object_maps as ch5
+    from cansim.studies import recognition as rec
+    from whisker_io.sim.catalogue import resolve_object
+
+    setup = rec.Setup(seed=0, map_loops=1, whisks=10, thresholds=(0.9, 0.3), out=".", reach_contacts=0,
+                      rolls_deg=(("torus_flat", 0.0),))
+    torus = resolve_object("torus_flat").mesh
+    mapped = ch5.trajectory_choice(torus, rec._settings(setup), *ch5.STEP, setup.roll_of("torus_flat"))
+    assert mapped == (setup.reach_contacts, setup.roll_of("torus_flat")) == (0, 0.0)  # what present_job whisks

@@ -302,6 +302,8 @@ def test_touch_share_is_a_share_and_falls_as_more_whiskers_are_asked(box, rows, 
 def test_bad_touch_share_input_raises_typed_errors(box, poses, k):
     with pytest.raises(InvalidInputError):
         touch_share(box, poses, k)
+    with pytest.raises(InvalidInputError, match="WhiskerArray"):
+        touch_share(box, [Pose.identity()], 3, array="x")
 
 
 @pytest.mark.parametrize("name", ["mug", "torus_flat", "duck"])
@@ -334,6 +336,8 @@ def test_choose_reach_keeps_the_standoff_where_it_touches_and_reaches_where_it_d
     st.fixed_dictionaries({"roll_deg": st.just(0.0)}),
     st.fixed_dictionaries({"n_loops": st.just(2)}),
     st.fixed_dictionaries({"step_m": st.just(-0.1)}),
+    st.fixed_dictionaries({"bogus": st.just(1)}),
+    st.fixed_dictionaries({"array": st.just("x")}),
 ))
 def test_bad_reach_choices_raise_typed_errors(box, kwargs):
     with pytest.raises(CansimError) as err:

@@ -106,6 +106,6 @@ def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, caps
     assert m["trajectory_reach_contacts"] == 3 and m["trajectory_roll_deg"] == 0.0 and m["standoff_touch_share"] == 0.0
     assert m["observations"] >= 0.5 * m["whisks"] and m["experiences"] > 0
     text = capsys.readouterr().out
-    assert "moves in until 3 whiskers touch (array rolled 0 deg)" in text and "Warning: only" not in text
+    assert "moves forward along its axis to reach for 3 whiskers (array rolled 0 deg)" in text and "Warning: only" not in text
     mug = demo.run("mug", loops=1, progress=False)["metrics"]
     assert mug["trajectory_reach_contacts"] == 0 and mug["standoff_touch_share"] >= MIN_STANDOFF_SHARE

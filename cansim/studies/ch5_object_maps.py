@@ -183,7 +183,7 @@ LOC_COLUMNS = ("matching", "object", "features", "feature_update", "contact_mode
                "rotation_error_deg", "step_translation_m", "step_rotation_deg")
 ID_COLUMNS = ("presented", "trajectory", "map_identity", "max_confidence", "mean_confidence", "final_ic",
               "threshold", "ic_threshold", "rc_decision", "ic_decision", "ic_crossing_iteration", "n_relocalisations",
-              "n_iterations", "n_loops")
+              "n_iterations", "n_loops", "n_observations")
 #: Raw-confidence threshold of the Ch.5 decision (Fig 5.16's red line; Fig 6.4's 3).
 RC_THRESHOLD = 3.0
 #: Integrated-confidence threshold of the Ch.6 decision (thesis Sec 6.2: 300).
@@ -228,11 +228,13 @@ class StudyConfig:
     ``"mapping"`` (:meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping`) or
     ``"thesis"`` (Eq 5.5 alone); ``id_whisks`` is the least number of whisks of an
     identification run (whole loops, at least ``id_loops``); ``reach_contacts`` is passed
-    to :func:`whisker_io.sim.trajectories.object_trajectory` for the maps (the recognition
-    study reaches for 3 whiskers); 0, the default, keeps the thesis' fixed standoff for every
-    object it touches with 3 whiskers at half of trajectory A's poses or more (every thesis
-    object) and reaches for 3 elsewhere, mapping and identifying alike
-    (:func:`whisker_io.sim.trajectories.choose_reach`: a user's flat or narrow mesh).
+    to :func:`whisker_io.sim.trajectories.object_trajectory` (the recognition study reaches
+    for 3 whiskers); with 0, the default, ``reach_when_missed`` (default True) keeps the
+    thesis' fixed standoff for every object it touches with 3 whiskers at half of trajectory
+    A's poses or more (every thesis object) and reaches for 3 elsewhere
+    (:func:`whisker_io.sim.trajectories.choose_reach`: a user's flat or narrow mesh); False
+    keeps the fixed standoff for every object. Mapping and identification whisk an object
+    alike (:func:`trajectory_choice`).
     """
 
     n_loops: int
@@ -245,6 +247,7 @@ class StudyConfig:
     id_whisks: int = 0
     odometry_scale: float = checked(1.0, float, minimum=0.0, maximum=10.0, hint="a multiple of the Eq 6.4-6.11 odometry noise")
     reach_contacts: int = checked(0, int, minimum=0, maximum=64, hint="whiskers the mapping poses reach for")
+    reach_when_missed: bool = checked(True, bool)
 
     def __post_init__(self) -> None:
         from cansim.errors import ConfigError
@@ -342,31 +345,48 @@ def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generato
     }
 
 
+def trajectory_choice(mesh: Any, s: StudyConfig, step_m: float, step_deg: float,
+                      roll_deg: float = 90.0) -> tuple[int, float]:
+    """``(reach_contacts, roll_deg)`` of an object's trajectories, for mapping and identification alike.
+
+    ``s.reach_contacts`` and the ``roll_deg`` given, except with ``s.reach_contacts`` 0 and
+    ``s.reach_when_missed``: then :func:`whisker_io.sim.trajectories.choose_reach` on one loop
+    of trajectory A at the step ``(step_m, step_deg)`` (m, deg) - the fixed standoff and
+    ``roll_deg`` where it touches with 3 whiskers at half the poses or more, else poses reaching
+    for 3 at the roll that touches the object best (:class:`StudyConfig`).
+    """
+    from whisker_io.sim.trajectories import choose_reach
+
+    if s.reach_contacts or not s.reach_when_missed:
+        return s.reach_contacts, roll_deg
+    choice = choose_reach(mesh, "A", step_m=step_m, step_deg=step_deg)
+    return (choice.reach_contacts, choice.roll_deg) if choice.reach_contacts else (0, roll_deg)
+
+
 def map_object(name: str, cfg: Config, s: StudyConfig, step: tuple[float, float] | None = None,
                roll_deg: float = 90.0) -> tuple[Any, list[Any], dict[str, Any]]:
     """Map ``name`` (a name or mesh file) along ``s.n_loops`` loops of trajectory A: (model, poses, exploration log).
 
     ``step`` (m, deg) is the largest step between whisks (default :func:`step_of`); ``roll_deg``
     the array's roll about its axis (:func:`whisker_io.sim.trajectories.object_trajectory`;
-    the thesis' 90 deg by default).
+    the thesis' 90 deg by default). How the poses reach the surface, and the roll where they
+    reach a shape the thesis' standoff misses, are :func:`trajectory_choice`'s.
     Seeded by ``(s.seed, "build", name, cfg.label)``: every caller that maps the same
     object with the same configuration gets the same whisks and the same map.
     """
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
     from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import choose_reach, object_trajectory
+    from whisker_io.sim.trajectories import object_trajectory
 
     mesh = resolve_object(name).mesh
     step_m, step_deg = step_of(name) if step is None else step
-    reach = s.reach_contacts
-    if not reach:  # the thesis' standoff where it touches, reaching where it does not (StudyConfig)
-        choice = choose_reach(mesh, "A", step_m=step_m, step_deg=step_deg)
-        reach, roll_deg = choice.reach_contacts, (choice.roll_deg if choice.reach_contacts else roll_deg)
+    reach, roll_deg = trajectory_choice(mesh, s, step_m, step_deg, roll_deg)
     poses = object_trajectory(mesh, "A", s.n_loops, step_m=step_m, step_deg=step_deg, reach_contacts=reach,
                               roll_deg=roll_deg)
     slam = WhiskerRatSLAM(_slam_config(cfg, s, step_m))
     rng = np.random.default_rng(derive_seed(s.seed, "build", seed_name(name), cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng, s.odometry_scale)
+    log["reach_contacts"], log["roll_deg"] = reach, float(roll_deg)
     return slam, poses, log
 
 
@@ -386,6 +406,7 @@ def build_job(job: tuple[str, Config, StudyConfig, str | None]) -> dict[str, Any
         "rotation_deg": np.degrees(err.rotation_rad), "step_m": float(np.median(st)), "step_deg": float(np.degrees(np.median(sr))),
         "dr_error_m": np.linalg.norm(log["dr_position_m"][:per_loop + 1] - log["true_p"][:per_loop + 1], axis=1),
         "n_experiences": slam.object_map.n_experiences, "n_regions": len(slam.frontend), "n_iterations": len(poses),
+        "reach_contacts": log["reach_contacts"], "roll_deg": log["roll_deg"],
     }
 
 
@@ -428,15 +449,12 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
         relocalisation_targets,
     )
     from whisker_io.sim.catalogue import resolve_object
-    from whisker_io.sim.trajectories import choose_reach, object_trajectory
+    from whisker_io.sim.trajectories import object_trajectory
 
     presented, family, paths, names, cfg, s = job
     mesh = resolve_object(presented).mesh
     step_m, step_deg = step_of(presented)
-    reach, roll = 0, 90.0
-    if not s.reach_contacts:  # whisked as map_object would map it (StudyConfig)
-        choice = choose_reach(mesh, "A", step_m=step_m, step_deg=step_deg)
-        reach, roll = choice.reach_contacts, choice.roll_deg
+    reach, roll = trajectory_choice(mesh, s, step_m, step_deg)  # whisked as map_object maps it
     loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach, roll_deg=roll)
     n_loops = max(s.id_loops, math.ceil(s.id_whisks / len(loop)))
     poses = loop * n_loops  # whole loops (object_trajectory repeats one loop)
@@ -452,7 +470,7 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
         "presented": presented, "trajectory": family, "targets": targets, "confidence": c,
         "ic": integrated_confidence(c, params), "history": slam.object_map.history, "n_lib_hist": n_lib_hist,
         "history_object": lib.history_object, "n_lib_exp": len(lib.exp_object), "names": tuple(names),
-        "n_loops": n_loops,
+        "n_loops": n_loops, "n_observations": int(log["n_observations"]),
     }
 
 
@@ -589,6 +607,7 @@ def identification_rows(ids: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
                 "rc_decision": rc_id == k, "ic_decision": ic_id == k,
                 "ic_crossing_iteration": -1 if cross is None else cross,
                 "n_relocalisations": int(np.sum(r["targets"] == k)), "n_iterations": len(c), "n_loops": r["n_loops"],
+                "n_observations": r.get("n_observations", -1),
             })
     return rows
 
@@ -786,7 +805,9 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
                  + f" (lowest median error relative to the step, ties by the mean: {n_zero} of {len(builds)} runs have a median "
                  f"of 0, the exact revisit); {n_star} of {len(bests)} objects best with {star.label}"
                  + ". Configurations below the step per object: " + ", ".join(f"{label[o]} {n}/{n_configs}" for o, n in all_below.items())
-                 + f". {'REPRODUCED' if bests and n_star > len(bests) / 2 else 'NOT reproduced'}.")
+                 + (f". NOT measured: {BEST.label} did not run (--contacts, --features)" if star.label != BEST.label
+                    else ". NOT measured: one configuration ran, nothing to compare" if n_configs < 2
+                    else f". {'REPRODUCED' if bests and n_star > len(bests) / 2 else 'NOT reproduced'}") + ".")
     return lines
 
 
@@ -811,6 +832,12 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         (f"Steps: largest {STEP[0]:g} m / {STEP[1]:g} deg between whisks, the Box {BOX_STEP[0]:g} m / {BOX_STEP[1]:g} deg "
          "(the thesis' Box 3 cm and 3 deg cannot both hold on a loop around it: module docstring)."),
     ]
+    reached = {b["object"]: (b["reach_contacts"], b["roll_deg"]) for b in builds if b.get("reach_contacts")}
+    if reached and not s.reach_contacts:
+        lines.append("Reaching: the thesis' fixed standoff touches " + ", ".join(
+            f"the {label[o]} (roll {r:.0f} deg)" for o, (_, r) in reached.items()) + " with 3 whiskers at under half "
+            "the poses of trajectory A, so its poses, mapping and identifying, move in until 3 whiskers touch "
+            "(whisker_io.sim.trajectories.choose_reach); every other object keeps the thesis' poses.")
     for cal in cals:
         cm = cal["contact_model"]
         t_pfh, t_sda = s.thresholds_for(cm)
@@ -847,9 +874,14 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
         novel = ", ".join(sorted({label[r["presented"]] for r in sk})) or "none presented"
+        # a novel object the trajectories seldom touched cannot raise confidence: its low figures measure nothing
+        seen = {(r["presented"], r["trajectory"]): (r.get("n_observations", -1), r["n_iterations"]) for r in sk}
+        unseen = sorted({label[p] for (p, _), (o, n) in seen.items() if 0 <= o < 0.5 * n})
+        verdict = (f"NOT measured: the {', the '.join(unseen)} observed a region (3 contacts or more) in under half its whisks"
+                   if unseen else "REPRODUCED" if sk and sk_max < RC_THRESHOLD else "NOT reproduced")
         lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
                      f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
-                     f"{'REPRODUCED' if sk and sk_max < RC_THRESHOLD else 'NOT reproduced'}.")
+                     f"{verdict}.")
         mA = np.mean([r["mean_confidence"] for r in rows("A", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         mB = np.mean([r["mean_confidence"] for r in rows("B", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
@@ -869,7 +901,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. {'REPRODUCED' if top and all(top) else 'NOT reproduced'}.")
         fired = [r for r in sk if r["ic_decision"]]
-        lines.append(f"  7. The IC decision on the novel object ({novel}): {'fired for ' + ', '.join(sorted({r['map_identity'] + ' (' + r['trajectory'] + ')' for r in fired})) if fired else 'never fired (correct: novel)'}.")
+        lines.append(f"  7. The IC decision on the novel object ({novel}): {'fired for ' + ', '.join(sorted({r['map_identity'] + ' (' + r['trajectory'] + ')' for r in fired})) if fired else 'never fired' + (' (seldom touched: says little)' if unseen else ' (correct: novel)')}.")
     return "\n".join(lines) + "\n"
 
 

@@ -208,6 +208,7 @@ from cansim.studies.object_options import (add_mesh_options, check_distinct, che
                                            is_mesh_file, object_label, object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
+from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
 
 logger = logging.getLogger(__name__)
 
@@ -243,8 +244,9 @@ CALIBRATION_SEEDS = 5
 CALIBRATION_QUANTILE = 0.80
 
 
-#: Whiskers the recognition study's trajectories reach for (:func:`run`'s ``reach_contacts``)
-REACH_CONTACTS = 3
+#: Whiskers the recognition study's trajectories reach for (:func:`run`'s ``reach_contacts``):
+#: :data:`whisker_io.sim.trajectories.REACH_CONTACTS`, a region of Eq 5.5
+REACH_CONTACTS = TRAJECTORY_REACH_CONTACTS
 
 
 @dataclass(frozen=True)
@@ -352,7 +354,8 @@ def _settings(setup: Setup) -> Any:
     ch5 = _ch5()
     return ch5.StudyConfig(n_loops=setup.map_loops, noise_scale=NOISE_SCALE,
                         thresholds={CONTACT_MODEL: setup.thresholds}, radial_model=None, seed=setup.seed,
-                        odometry_scale=setup.odometry_scale, reach_contacts=setup.reach_contacts)
+                        odometry_scale=setup.odometry_scale, reach_contacts=setup.reach_contacts,
+                        reach_when_missed=False)  # reach_contacts 0: the fixed standoff for every object
 
 
 def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:

@@ -24,7 +24,8 @@ Writes (in ``--out``, default the working folder):
   ``relocalisations``, ``relocalisations_second_loop``, ``experiences``, ``regions``,
   ``observations``, ``whisks``, ``whisks_per_s`` (after the first whisk; ``first_whisk_s`` is
   the time to it, including ``warm_up_s``, the model's warm-up that compiles or loads its
-  kernels), and the run's ``matching``,
+  kernels), ``standoff_touch_share``, ``trajectory_reach_contacts`` and ``trajectory_roll_deg``
+  (how the poses reach the object, below), and the run's ``matching``,
   ``contact_noise`` and ``seed``.
 
 **Reaching for shapes the standoff misses.** The thesis' trajectory A keeps a fixed
@@ -115,7 +116,7 @@ from cansim.studies.report import fmt
 from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
-from whisker_io.sim.trajectories import choose_reach, object_trajectory
+from whisker_io.sim.trajectories import REACH_CONTACTS, choose_reach, object_trajectory
 from whisker_io.sim.sweep import ContactNoise
 from whisker_io.sim.whisk_chain import WhiskChain
 
@@ -127,8 +128,6 @@ DEFAULT_CONTACT_NOISE = 0.075
 #: Step bounds of the trajectory (m, deg) per object (module docstring).
 STEP_BOUNDS = {"box": (0.03, 8.0)}
 DEFAULT_STEP_BOUNDS = (0.11, 12.0)
-#: Whiskers a pose reaches for when the thesis' poses touch too few (a region observation of Eq 5.5 needs 3).
-REACH_CONTACTS = 3
 
 
 def run(
@@ -247,18 +246,18 @@ def run(
 
 def _reach_note(name: str, how: dict) -> str:
     return (f"the thesis' fixed-standoff trajectory touches the {name} with {REACH_CONTACTS} whiskers at "
-            f"{how['standoff_touch_share']:.0%} of its poses, so each pose moves in until {REACH_CONTACTS} whiskers "
-            f"touch (array rolled {how['trajectory_roll_deg']:.0f} deg)")
+            f"{how['standoff_touch_share']:.0%} of its poses, so each pose moves forward along its axis to reach for "
+            f"{REACH_CONTACTS} whiskers (array rolled {how['trajectory_roll_deg']:.0f} deg)")
 
 
 def _contact_warning(m: dict) -> str:
     return (f"only {m['observations']} of {m['whisks']} whisks touched the {m['object']} with 3 whiskers or more (a "
             "region, Eq 5.5): the trajectory (an ellipsoid fitted around the mesh"
-            + (f", each pose moving in until {REACH_CONTACTS} whiskers touch" if m.get("trajectory_reach_contacts") else "")
+            + (f", each pose reaching for {REACH_CONTACTS} whiskers" if m.get("trajectory_reach_contacts") else "")
             + ") does not reach its surface well, so "
             "the map has little to work with and errors that need re-localisations are undefined (null in the JSON). "
             "Check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis); an object that "
-            "is flat or thin (under about 5 cm in one dimension) passes between the array's rows of whiskers")
+            "is flat or thin (under about 8 cm in one dimension) passes between the array's rows of whiskers")
 
 
 def summary(metrics: dict, out: Path, files: list[Path]) -> str:

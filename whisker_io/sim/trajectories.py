@@ -88,6 +88,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -115,6 +116,7 @@ __all__ = [
     "ReachChoice",
     "choose_reach",
     "MIN_STANDOFF_SHARE",
+    "REACH_CONTACTS",
 ]
 
 logger = logging.getLogger(__name__)
@@ -323,6 +325,10 @@ def _bases_blocked(
 
 _ADVANCE_STEP_M = 0.01  # step of item 6's advance, m
 _MAX_REACH_CONTACTS = 64
+#: Share of the fixed-standoff poses touched by 3 whiskers below which :func:`choose_reach` reaches.
+MIN_STANDOFF_SHARE = 0.5
+#: Whiskers a pose reaches for by default: a region observation of Eq 5.5 needs 3 contacts.
+REACH_CONTACTS = 3
 _RIGID = SweepParams(refine=False)  # which whiskers touch, not where: no refinement of the contact angle
 
 
@@ -358,8 +364,8 @@ def _advance_to_contact(target: MeshTarget, arr: WhiskerArray, origin: NDArray[n
 
 def touch_share(
     mesh: trimesh.Trimesh | MeshTarget,
-    poses: list[Pose],
-    reach_contacts: int = 3,
+    poses: Sequence[Pose],
+    reach_contacts: int = REACH_CONTACTS,
     array: WhiskerArray | None = None,
 ) -> float:
     """Share of ``poses`` whose rigid sweep touches ``mesh`` with ``reach_contacts`` whiskers or more.
@@ -373,9 +379,9 @@ def touch_share(
     ----------
     mesh : trimesh.Trimesh or MeshTarget
         The object (metres).
-    poses : list of Pose
+    poses : sequence of Pose
         End-effector poses in the mesh's frame (at least one).
-    reach_contacts : int, default 3
+    reach_contacts : int, default :data:`REACH_CONTACTS` (3)
         Whiskers a pose must touch with (1-64).
     array : WhiskerArray, optional
         The array (default: the thesis array).
@@ -389,7 +395,8 @@ def touch_share(
     ------
     InvalidInputError
         No pose, something other than :class:`~whisker_io.pose.Pose` s, ``reach_contacts``
-        outside 1-64, or a mesh :class:`~whisker_io.sim.sweep.MeshTarget` refuses.
+        outside 1-64, an ``array`` that is not a :class:`~whisker_io.array.geometry.WhiskerArray`,
+        or a mesh :class:`~whisker_io.sim.sweep.MeshTarget` refuses.
     """
     k = whole_number(reach_contacts, "reach_contacts", minimum=1)
     if k > _MAX_REACH_CONTACTS:
@@ -397,13 +404,13 @@ def touch_share(
     poses = list(poses) if isinstance(poses, tuple) else poses
     if not isinstance(poses, list) or not poses or not all(isinstance(p, Pose) for p in poses):
         raise InvalidInputError("poses must be a non-empty list of Pose (end-effector poses in the mesh's frame)")
+    if array is not None and not isinstance(array, WhiskerArray):
+        raise InvalidInputError(f"array must be a WhiskerArray or None (the thesis array), got {type(array).__name__}")
     target = mesh if isinstance(mesh, MeshTarget) else MeshTarget(mesh)
     arr = WhiskerArray.thesis() if array is None else array
     return float(np.mean([_touching(target, arr, p) >= k for p in poses]))
 
 
-#: Share of the fixed-standoff poses touched by 3 whiskers below which :func:`choose_reach` reaches.
-MIN_STANDOFF_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -429,7 +436,7 @@ class ReachChoice:
 def choose_reach(
     mesh: trimesh.Trimesh,
     family: str | LoopShape = "A",
-    reach_contacts: int = 3,
+    reach_contacts: int = REACH_CONTACTS,
     min_share: float = MIN_STANDOFF_SHARE,
     **trajectory: object,
 ) -> ReachChoice:
@@ -442,7 +449,7 @@ def choose_reach(
     thesis' poses are kept (roll 90 deg). Build the trajectory, of any family, with
     ``object_trajectory(mesh, family, n, reach_contacts=c.reach_contacts, roll_deg=c.roll_deg)``.
     Measured (the WhiskerRatSLAM demo, :mod:`cansim.studies.whisker_ratslam_demo`): the Mug
-    (0.89), the Box (0.93) and the Ch.5 objects (0.57-1.00 along A) keep the standoff; a flat
+    (0.89), the Box (0.95) and the Ch.5 objects (0.57-1.00 along A) keep the standoff; a flat
     torus, a mushroom and a bowl (0.00) and the duck (0.17) reach.
 
     Parameters
@@ -451,7 +458,7 @@ def choose_reach(
     family : {"A", "B"} or LoopShape
         The loop the choice is made on (choose on the mapping loop and use the choice for
         every family, so that one object is always whisked alike).
-    reach_contacts : int, default 3
+    reach_contacts : int, default :data:`REACH_CONTACTS` (3)
         Whiskers counted, and reached for (1-64; 3: a region of Eq 5.5).
     min_share : float, default :data:`MIN_STANDOFF_SHARE`
         Share of poses (0-1) below which the poses reach.
@@ -471,8 +478,11 @@ def choose_reach(
     for name in ("n_loops", "roll_deg", "reach_contacts"):
         if name in trajectory:
             raise InvalidInputError(f"choose_reach sets {name} itself; do not pass it")
-    share = touch_share(mesh, object_trajectory(mesh, family, 1, **trajectory), k,  # type: ignore[arg-type]
-                        trajectory.get("array"))  # type: ignore[arg-type]
+    try:
+        loop = object_trajectory(mesh, family, 1, **trajectory)  # type: ignore[arg-type]
+    except TypeError as exc:  # an argument object_trajectory does not take
+        raise InvalidInputError(f"choose_reach passes its further arguments to object_trajectory: {exc}") from None
+    share = touch_share(mesh, loop, k, trajectory.get("array"))  # type: ignore[arg-type]
     if share >= share_min:
         return ReachChoice(share, 0, 90.0)
     return ReachChoice(share, k, float(reaching_roll_deg(mesh, family, k, **trajectory)))
