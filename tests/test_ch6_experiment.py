@@ -241,13 +241,15 @@ def test_the_surface_matcher_draws_the_same_noise_for_one_mesh_file_named_two_wa
     np.testing.assert_array_equal(runs[0].confidence, runs[1].confidence)
 
 
-def test_novel_objects_are_presented_unmapped_and_counted_apart(tmp_path):
+def test_novel_objects_are_presented_unmapped_and_counted_apart(tmp_path, capfd):
     """--novel presents objects the library does not hold (default search, every seed): their rows have no
     correct identity, the summary counts their decisions from those rows, and they are never mapped."""
     from cansim.errors import InvalidInputError
 
     out = tmp_path / "out"
-    assert ch6.main(["--quick", "--seeds", "1", "--iterations", "40", "--out", str(out), "--novel", "torus_upright"]) == 0
+    assert ch6.main(["--quick", "--seeds", "1", "--iterations", "40", "--out", str(out), "--novel", "torus_upright",
+                     "--no-progress"]) == 0
+    assert "runs:" not in capfd.readouterr().err  # no progress bar
     with open(out / "ch6_runs.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     novel = [r for r in rows if r["study"] == "novel"]

@@ -886,6 +886,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                          "unless --scale-to-m / --up-axis say otherwise); each is mapped and presented (default: box "
                          "box_stack)")
     add_mesh_options(ap)
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar (e.g. in logs)")
     ap.add_argument("--novel", nargs="+", default=[], metavar="NAME_OR_MESH",
                     help="objects presented but never mapped (names or mesh files), each explored by the default "
                          "search for every seed: a decision for any known object is wrong (Fig 5.17's Skull)")
@@ -937,7 +938,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     jobs += [("novel", p, "default", True, args.seed + i) for i in range(args.seeds) for p in args.novel]
     runs, spc_runs, rows = [], [], []
-    for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr):
+    for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr, disable=args.no_progress):
         if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
             r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
         else:

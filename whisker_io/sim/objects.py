@@ -531,7 +531,8 @@ def load_object(
         n_before = len(mesh.vertices)
         mesh.merge_vertices()
         if len(mesh.vertices) < n_before:
-            notes.append(f"merged {n_before - len(mesh.vertices)} coincident vertices (the mesh as given was not watertight)")
+            notes.append(f"merged {n_before - len(mesh.vertices)} coincident vertices (the file stores its triangles "
+                         "separately, as STL does, or repeats vertices)")
 
     angle, axis = _UP_ROTATIONS[key]
     rotation = rotation_matrix(angle, axis)[:3, :3] if angle else np.eye(3)
