@@ -362,6 +362,20 @@ def _advance_to_contact(target: MeshTarget, arr: WhiskerArray, origin: NDArray[n
         origin[i] = best_o
 
 
+def _share_and_reach(share: object, share_name: str, reach_contacts: object, trajectory: dict[str, object],
+                     caller: str) -> tuple[float, int]:
+    """``(share, whiskers)`` checked: a share of poses in [0, 1], a count >= 1, and ``trajectory`` leaving
+    the loop's own arguments to ``caller``."""
+    value = finite_scalar(share, share_name)
+    if not 0.0 <= value <= 1.0:
+        raise InvalidInputError(f"{share_name} must be a share of poses in [0, 1], got {share!r}")
+    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
+    for name in ("n_loops", "roll_deg", "reach_contacts"):
+        if name in trajectory:
+            raise InvalidInputError(f"{caller} sets {name} itself; do not pass it")
+    return value, k
+
+
 def touch_share(
     mesh: trimesh.Trimesh | MeshTarget,
     poses: Sequence[Pose],
@@ -471,13 +485,7 @@ def choose_reach(
     InvalidInputError, ConfigError
         ``min_share`` outside [0, 1], or what :func:`reaching_roll_deg` refuses.
     """
-    share_min = finite_scalar(min_share, "min_share")
-    if not 0.0 <= share_min <= 1.0:
-        raise InvalidInputError(f"min_share must be a share of poses in [0, 1], got {min_share!r}")
-    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
-    for name in ("n_loops", "roll_deg", "reach_contacts"):
-        if name in trajectory:
-            raise InvalidInputError(f"choose_reach sets {name} itself; do not pass it")
+    share_min, k = _share_and_reach(min_share, "min_share", reach_contacts, trajectory, "choose_reach")
     try:
         loop = object_trajectory(mesh, family, 1, **trajectory)  # type: ignore[arg-type]
     except TypeError as exc:  # an argument object_trajectory does not take
@@ -537,13 +545,7 @@ def reaching_roll_deg(
     rolls = [finite_scalar(r, "candidates_deg") for r in candidates_deg]
     if not rolls:
         raise InvalidInputError("candidates_deg needs at least one roll, degrees (e.g. (90.0, 0.0))")
-    gain = finite_scalar(min_gain, "min_gain")
-    if not 0.0 <= gain <= 1.0:
-        raise InvalidInputError(f"min_gain must be a share of poses in [0, 1], got {min_gain!r}")
-    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
-    for name in ("n_loops", "roll_deg", "reach_contacts"):
-        if name in trajectory:
-            raise InvalidInputError(f"reaching_roll_deg sets {name} itself; do not pass it")
+    gain, k = _share_and_reach(min_gain, "min_gain", reach_contacts, trajectory, "reaching_roll_deg")
     arr = trajectory.get("array")
     arr = WhiskerArray.thesis() if arr is None else arr
     target = None
