@@ -277,6 +277,20 @@ these runs):
   duck / bear 7 of 8, snowman / torus 5 of 8 (the torus once), Box / Box-Stack 7 of 8 -
   without the refined proposal. With it, on the recognition study's replays
   (:mod:`maps.surface_match`, Status): a small gain at a large cost, not kept.
+* Tried in a scratch study and not kept (2026-12-05; ``prepare(0, objects=pair, believed_scale=1.5,
+  contact_seeking=True)``, ``run_one(..., "default", True, seed, 1000, matcher="surface")``, seeds
+  0-3; this version's figures without them: duck / bear 7 of 8, snowman / torus 4 of 8): placing
+  the default search's next goal from the surface matcher's pose estimates instead of the next
+  face, once its window holds 20 contacts, so that the explorer whisks where the maps felt.
+  (a) *Revisit*: the leading object's next mapping whisk, along the mapping run, 5 cm or 15 deg
+  from the mapping whisk nearest the arm's estimated pose - duck / bear 5 of 8 (the bear, on a
+  wrong lead, confirmed: leading the duck's presentations, its mapped poses fit the duck well
+  enough). (b) *Disagree* (the thesis' LSR on surfaces): of the two leading objects' mapping
+  whisks within 0.3 m of the arm, the one whose contacts, placed by its object's estimate, lie
+  farthest from the other object's stored surface - duck / bear 6 of 8 (the duck's own impulses
+  542 and 498 against 96 and 306 on seeds 0-1, but seed 3 lost), snowman / torus 4 of 8 (the
+  torus is ruled out before two objects lead, so nothing changes). Neither helps where the
+  torus fails: it is dropped before any goal can test it.
 """
 
 from __future__ import annotations
