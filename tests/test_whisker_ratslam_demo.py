@@ -74,7 +74,7 @@ def test_a_users_mesh_file_runs_through_the_demo_with_one_flag(tmp_path, capsys)
     assert "whisks touched it" in text and "Wrote whisker_ratslam_map.png" in text
 
 
-def test_an_unreachable_mesh_says_so_and_writes_null_not_nan(tmp_path, capsys):
+def test_an_unreachable_mesh_says_so_and_writes_null_not_nan(tmp_path, capfd, caplog):
     """A 2-cm disk that no pose touches with 3 whiskers, reaching or not: a clear warning, finite or null
     metrics, exit 0."""
     import trimesh
@@ -87,7 +87,9 @@ def test_an_unreachable_mesh_says_so_and_writes_null_not_nan(tmp_path, capsys):
     m = json.loads(raw)
     assert m["observations"] < 0.5 * m["whisks"]
     assert m["median_position_error_m"] is None and math.isfinite(m["dr_median_position_error_m"])
-    assert "Warning: only" in capsys.readouterr().out
+    out_err = capfd.readouterr()
+    assert "Warning: only" in out_err.out and "only 0 of" not in out_err.err  # said once, in the summary
+    assert not [r for r in caplog.records if "whisks touched the" in r.getMessage()]  # not logged besides
 
 
 def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, capsys):

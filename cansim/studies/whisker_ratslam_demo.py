@@ -376,9 +376,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.seed < 0:
         ap.error(f"--seed must be >= 0, got {args.seed}")
     check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)  # not silently on a name
-    result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
-                 progress=not args.no_progress, contact_noise=args.contact_noise, thesis_matching=args.thesis_matching,
-                 scale_to_m=args.scale_to_m, up_axis=args.up_axis)
+    level = log.level
+    log.setLevel(logging.ERROR)  # the summary printed below says what run() warns of: once, not twice
+    try:
+        result = run(args.object, loops=1 if args.quick else 2, seed=args.seed, backend=args.backend,
+                     progress=not args.no_progress, contact_noise=args.contact_noise,
+                     thesis_matching=args.thesis_matching, scale_to_m=args.scale_to_m, up_axis=args.up_axis)
+    finally:
+        log.setLevel(level)
     files = figures(result, args.out)
     m = result["metrics"]
     # NaN (no re-localisation happened) is not JSON: write null
