@@ -590,7 +590,11 @@ def localisation_rows(builds: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def identification_rows(ids: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One ``ch5_identification.csv`` row per presented object x trajectory x map identity."""
+    """One ``ch5_identification.csv`` row per presented object x trajectory x map identity.
+
+    ``n_observations`` is the run's whisks that observed a region (3 contacts or more; -1 for a
+    result without the count), to tell a run that says little (a seldom-touched object) apart.
+    """
     from maps.recognition import decide, first_crossing
 
     rows = []

@@ -417,14 +417,12 @@ def touch_share(
         raise InvalidInputError(f"reach_contacts must be 1-{_MAX_REACH_CONTACTS} whiskers, got {k}")
     poses = list(poses) if isinstance(poses, tuple) else poses
     if not isinstance(poses, list) or not poses or not all(isinstance(p, Pose) for p in poses):
-        raise InvalidInputError("poses must be a non-empty list of Pose (end-effector poses in the mesh's frame)")
+        raise InvalidInputError("poses must be a non-empty list or tuple of Pose (end-effector poses in the mesh's frame)")
     if array is not None and not isinstance(array, WhiskerArray):
         raise InvalidInputError(f"array must be a WhiskerArray or None (the thesis array), got {type(array).__name__}")
     target = mesh if isinstance(mesh, MeshTarget) else MeshTarget(mesh)
     arr = WhiskerArray.thesis() if array is None else array
     return float(np.mean([_touching(target, arr, p) >= k for p in poses]))
-
-
 
 
 @dataclass(frozen=True)
