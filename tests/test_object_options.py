@@ -4,6 +4,7 @@ the surface grid's size (maps.surface_field.grid_cells) and the Ch.6 study's sel
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 
@@ -14,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cansim.errors import CansimError, InvalidInputError
-from cansim.studies.object_options import add_mesh_options, conform_objects, is_mesh_file, object_label
+from cansim.studies.object_options import SOURCES_FILE, add_mesh_options, conform_objects, is_mesh_file, object_label
 from cansim.studies.report import fmt
 from maps.surface_field import MAX_CELLS, SurfaceFieldConfig, grid_cells
 from whisker_io.sim.objects import load_object
@@ -39,6 +40,15 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
         assert mesh.extents == pytest.approx([0.1, 0.2, 0.35], abs=1e-6)  # by hand: y (350 mm) up; PLY holds float32
         assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-12)
     assert sorted(p.name for p in a.iterdir()) == ["brick.stl"]  # the user's folder untouched
+    # sources.json: which file each copy came from, and what was changed (the named object has no entry)
+    sources = json.loads((out / SOURCES_FILE).read_text())
+    assert [(e["given"], e["copy"]) for e in sources] == [(str(a / "brick.stl"), got[0]), (str(b / "brick.obj"), got[2])]
+    for e in sources:
+        assert e["given_path"] == str(Path(e["given"]).resolve())
+        assert e["scale_factor"] == pytest.approx(0.35 / 350.0)  # by hand: 350 mm -> 0.35 m
+        assert e["extents_m"] == pytest.approx([0.1, 0.2, 0.35])
+        assert any(c.startswith("rotated") for c in e["changes"]) and any(c.startswith("scaled") for c in e["changes"])
+    assert not list(out.glob(".*.tmp"))  # written whole, no temporary left
 
 
 def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):
@@ -112,6 +122,11 @@ def test_conform_objects_fuzz(tmp_path_factory, spec, scale, up):
     except CansimError:
         return
     assert len(got) == 1
+    sources = folder / SOURCES_FILE
+    if got[0] != spec:  # a copy was made: its source is recorded
+        assert [e["copy"] for e in json.loads(sources.read_text())] == got
+    else:
+        assert not sources.exists()
 
 
 def test_labels_and_mesh_files():

@@ -20,13 +20,15 @@ it). A study runs its objects in worker processes by name, so :func:`conform_obj
 writes each mesh file it changed, in the conventions, to ``<out>/objects/<stem>.ply``
 (single-precision vertices: within a micrometre)
 and hands on that path: the study's outputs name that file, which keeps the object
-exactly as run.
+exactly as run. ``<out>/objects/sources.json`` says which file each copy was made from and
+what was changed (:data:`SOURCES_FILE`).
 """
 
 from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import logging
 import os
 from collections.abc import Sequence
@@ -36,10 +38,16 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file_names, object_name, resolve_object
 from whisker_io.sim.objects import GLTF_SUFFIXES, UP_AXES, load_object
 
-__all__ = ["add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects", "is_mesh_file",
-           "object_label", "object_labels", "seed_name"]
+__all__ = ["SOURCES_FILE", "add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects",
+           "is_mesh_file", "object_label", "object_labels", "seed_name"]
 
 log = logging.getLogger(__name__)
+
+#: Written beside the copies by :func:`conform_objects`: a JSON list, one entry per copy, with
+#: ``given`` (the file as given on the command line), ``given_path`` (its absolute path),
+#: ``copy`` (the copy the run used), ``changes`` (what :func:`~whisker_io.sim.objects.load_object`
+#: changed, one sentence each), ``scale_factor`` and ``extents_m`` (the copy's, m).
+SOURCES_FILE = "sources.json"
 
 
 def add_mesh_options(ap: argparse.ArgumentParser) -> None:
@@ -158,7 +166,8 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         conventions: every mesh file when an option is given, and a glTF/GLB file read
         without ``up_axis`` (taken as z-up with one warning, not one in every process
         that loads it); otherwise unchanged. What a copy changed is logged as a warning
-        (the run uses the object as changed, not as given).
+        (the run uses the object as changed, not as given) and written, with the file it
+        came from, to ``folder / SOURCES_FILE``.
 
     Raises
     ------
@@ -177,7 +186,7 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         if is_mesh_file(spec) and Path(spec).resolve() in targets:
             raise InvalidInputError(f"{spec} is where this run writes a copy in its conventions (an earlier run's "
                                     "copy?); give the original file, or another --out")
-    out = []
+    out, sources = [], []
     for spec, stem, copy in zip(specs, stems, copied):
         if not copy:
             resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
@@ -187,6 +196,9 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         loaded = load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
         folder.mkdir(parents=True, exist_ok=True)
         loaded.mesh.export(path)
+        sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": str(path),
+                        "changes": list(loaded.notes), "scale_factor": float(loaded.scale_factor),
+                        "extents_m": [float(x) for x in loaded.extents_m]})
         changes = [n for n in loaded.notes if n.startswith("rotated")]
         if loaded.scale_factor != 1.0:
             changes += [n for n in loaded.notes if n.startswith("scaled")]
@@ -194,4 +206,8 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
             log.warning("%s: %s (%s m); run from %s", spec, "; ".join(changes),
                         " x ".join(f"{x:.3f}" for x in loaded.extents_m), path)
         out.append(str(path))
+    if sources:  # which file each copy came from (written whole, then renamed: never half a file)
+        tmp = folder / f".{SOURCES_FILE}.tmp"
+        tmp.write_text(json.dumps(sources, indent=2))
+        os.replace(tmp, folder / SOURCES_FILE)
     return out
