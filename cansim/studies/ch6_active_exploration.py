@@ -46,7 +46,8 @@ and no correct identity (``im``, ``srt``, ``correct_first`` and ``mean_correct_c
 empty), and the summary counts the runs with a decision per threshold. Measured
 (``--quick --novel duck skull knot``, the Box and the Box-Stack known, seeds 0-1, 300 whisks;
 the search observed a region in 26-28 % of the duck's and the knot's whisks and in none of the
-Skull's, which lies beyond the believed volume's faces, so its runs say nothing): the thesis
+Skull's, touched by at most 2 whiskers at a time at the believed volume's faces, so its runs say
+nothing): the thesis
 matcher decided nothing on the duck and the knot in 4 of 4 runs at every threshold (mean
 confidence in the known objects 0.010-0.013); ``--matcher surface`` decided in 2 of 4 at IC 300
 (the duck taken for the Box-Stack, the knot for the Box; mean confidence 0.64-0.74): the surface
