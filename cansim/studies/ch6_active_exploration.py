@@ -319,6 +319,9 @@ logger = logging.getLogger("ch6_active_exploration")
 OBJECTS = ("box", "box_stack")
 STRATEGY_NAMES = ("default", "feh", "lsr")
 THRESHOLDS = (100.0, 300.0, 600.0, 900.0)
+#: ``ch6_runs.csv``'s columns. ``whisks_without_contact`` counts the whisks that observed no region
+#: (fewer than 3 contacts, Eq 5.5; Fig 6.2's "without contact"): a whisk touched by 1 or 2 whiskers
+#: counts. ``study`` (``strategy``, ``spc`` or ``novel``) is added after these.
 COLUMNS = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
            "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands",
            "commands_outside_envelope", "whisks_base_inside", "whisks_without_contact", "stop_reason")
