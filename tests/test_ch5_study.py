@@ -333,7 +333,10 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     assert conformed.extents == pytest.approx(make_object("mug").extents * 0.35 / make_object("mug").extents.max(), abs=1e-6)
     assert conformed.bounds[0, 2] == pytest.approx(0.0, abs=1e-12)
     assert not (out / "objects" / "box.ply").exists()  # a named object is not copied
-    _, ids = _rows(out / "ch5_identification.csv")
+    fields, ids = _rows(out / "ch5_identification.csv")
+    assert fields[-1] == "n_observations"
+    assert {r["n_observations"] for r in ids if r["presented"].endswith("disk.ply")} == {"0"}  # never a region
+    assert all(int(r["n_observations"]) > int(r["n_iterations"]) // 2 for r in ids if r["presented"].endswith("My_Mug.ply"))
     mug_rows = [r for r in ids if r["presented"].endswith("My_Mug.ply") and r["trajectory"] == "A"]
     assert mug_rows and max(mug_rows, key=lambda r: float(r["final_ic"]))["map_identity"] == mug_rows[0]["presented"]
     text = (out / "ch5_summary.txt").read_text()
@@ -395,3 +398,40 @@ def test_trajectory_choice_follows_the_study_config() -> None:
     assert ch5_study.trajectory_choice(torus, dataclasses.replace(s, reach_contacts=5), *ch5_study.STEP, 45.0) == (5, 45.0)
     with pytest.raises(ConfigError):
         dataclasses.replace(s, reach_when_missed="yes")
+
+
+def _id_row(presented: str, fam: str, max_confidence: float, observations: int, fired: bool = False) -> dict:
+    return dict(presented=presented, trajectory=fam, map_identity="mug", max_confidence=max_confidence,
+                mean_confidence=max_confidence / 2, final_ic=100 * max_confidence, threshold=ch5_study.RC_THRESHOLD,
+                ic_threshold=ch5_study.IC_THRESHOLD, rc_decision=False, ic_decision=fired, ic_crossing_iteration=-1,
+                n_relocalisations=0, n_iterations=100, n_loops=1, n_observations=observations)
+
+
+def _finding(text: str, number: str) -> str:
+    return next(line for line in text.splitlines() if line.strip().startswith(number))
+
+
+def test_the_summary_judges_only_what_was_measured() -> None:
+    """Made-up runs: a novel object's low confidence counts only from runs that touched it (a region in half the
+    whisks or more); high confidence fails whatever the touch; a finding about the thesis' best configuration
+    is not measured when it did not run, nor a comparison of configurations when only one ran."""
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    build = dict(object="mug", config=ch5_study.BEST, position_m=[0.0], rotation_deg=[0.0], step_m=0.1, step_deg=10.0,
+                 n_experiences=1, n_regions=1, n_iterations=10, dr_error_m=[0.0], matching="mapping")
+    own = _id_row("mug", "A", 5.0, 90)
+
+    def text(ids: list, star: ch5_study.Config = ch5_study.BEST, builds: list | None = None) -> str:
+        return ch5_study.summary(builds or [build], ids, [], s, star, True)
+
+    seldom_only = text([own, _id_row("skull", "A", 0.1, 10)])
+    assert "NOT measured: every novel run" in _finding(seldom_only, "4.") and "says little" in _finding(seldom_only, "7.")
+    mixed = text([own, _id_row("skull", "A", 0.1, 10), _id_row("duck", "A", 0.2, 90)])
+    assert "REPRODUCED (seldom touched, not judged: skull (A))" in _finding(mixed, "4.")
+    assert "correct: novel; seldom touched: skull (A)" in _finding(mixed, "7.")
+    high = text([own, _id_row("skull", "A", 7.0, 10, fired=True)])  # above the RC threshold, seldom touched or not
+    assert _finding(high, "4.").endswith("NOT reproduced.") and "fired for mug (A)" in _finding(high, "7.")
+    assert "NOT measured: one configuration ran" in _finding(high, "3.")
+    tip = ch5_study.Config("both", False, "tip")
+    other = text([own], star=tip, builds=[dict(build, config=tip), dict(build, config=ch5_study.Config("pfh", False, "tip"))])
+    assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "1.")
+    assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "3.")

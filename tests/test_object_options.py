@@ -49,6 +49,13 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
         assert e["extents_m"] == pytest.approx([0.1, 0.2, 0.35])
         assert any(c.startswith("rotated") for c in e["changes"]) and any(c.startswith("scaled") for c in e["changes"])
     assert not list(out.glob(".*.tmp"))  # written whole, no temporary left
+    # a later run into the same folder: a bad name fails before anything is written, and a run that copies nothing
+    # leaves no earlier run's record behind
+    with pytest.raises(InvalidInputError, match="teapot"):
+        conform_objects([str(a / "brick.stl"), "teapot"], out, scale_to_m=0.7, up_axis="y")
+    assert load_object(got[0]).mesh.extents.max() == pytest.approx(0.35, abs=1e-6)  # the copy not rewritten at 0.7 m
+    assert json.loads((out / SOURCES_FILE).read_text()) == sources  # nor its record
+    assert conform_objects(["mug", "box"], out) == ["mug", "box"] and not (out / SOURCES_FILE).exists()
 
 
 def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):

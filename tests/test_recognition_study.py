@@ -164,16 +164,32 @@ def test_run_takes_the_mesh_options_and_the_summary_says_when_runs_are_too_short
     assert short > 0 and f"{short} of {len(rows)} runs had fewer whisks than any decision at IC 300 needs" in text
 
 
-def test_reach_contacts_0_maps_and_presents_at_the_fixed_standoff() -> None:
+def test_reach_contacts_0_maps_and_presents_at_the_fixed_standoff(monkeypatch) -> None:
     """--reach-contacts 0 is the fixed standoff for every object, the maps' poses as the presentations': the
     Ch.5 study's reaching for shapes its standoff misses (choose_reach) is not applied to the maps, even for
     a torus lying flat that the standoff never touches with 3 whiskers."""
     from cansim.studies import ch5_object_maps as ch5
     from cansim.studies import recognition as rec
+    from whisker_io.sim import trajectories as ch5_trajectories
     from whisker_io.sim.catalogue import resolve_object
 
     setup = rec.Setup(seed=0, map_loops=1, whisks=10, thresholds=(0.9, 0.3), out=".", reach_contacts=0,
                       rolls_deg=(("torus_flat", 0.0),))
     torus = resolve_object("torus_flat").mesh
     mapped = ch5.trajectory_choice(torus, rec._settings(setup), *ch5.STEP, setup.roll_of("torus_flat"))
-    assert mapped == (setup.reach_contacts, setup.roll_of("torus_flat")) == (0, 0.0)  # what present_job whisks
+    assert mapped == (0, 0.0)  # the fixed standoff at the object's roll, for map_job and present_job alike
+    # present_job whisks through the same rule: its loop A is the fixed-standoff loop at that roll
+    calls = []
+
+    def spy(mesh, family="A", n_loops=2, **kw):
+        calls.append((family, kw.get("reach_contacts"), kw.get("roll_deg")))
+        raise _Stop
+
+    monkeypatch.setattr(ch5_trajectories, "object_trajectory", spy)
+    with pytest.raises(_Stop):
+        rec.present_job(("torus_flat", False, "A", None, [], [], setup, None))
+    assert calls == [("A", 0, 0.0)]
+
+
+class _Stop(Exception):
+    """Raised by a spy to stop a job once it has said what it would whisk."""

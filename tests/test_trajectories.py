@@ -262,6 +262,7 @@ def test_the_roll_that_reaches_follows_its_rule(name):
     st.fixed_dictionaries({"roll_deg": st.just(0.0)}),
     st.fixed_dictionaries({"n_loops": st.just(2)}),
     st.fixed_dictionaries({"step_m": st.just(-0.1)}),
+    st.fixed_dictionaries({"bogus": st.just(1)}),
 ))
 def test_bad_roll_choices_raise_typed_errors(box, kwargs):
     with pytest.raises(CansimError) as err:

@@ -785,7 +785,8 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
                     f"(step {b['step_m']:.3f} m / {b['step_deg']:.1f} deg)" for b in star_runs)
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
                  f"size. Measured ({star.label}): {sum(below)} of {len(below)} non-Kettle objects below the step; medians {per}. "
-                 f"{'REPRODUCED' if below and all(below) else 'NOT reproduced'}.")
+                 + (f"NOT measured: {BEST.label} did not run (--contacts, --features)." if star != BEST
+                    else f"{'REPRODUCED' if below and all(below) else 'NOT reproduced'}."))
     kettle = [b for b in star_runs if b["object"] == "kettle"]
     if kettle:
         k = kettle[0]
@@ -809,7 +810,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
                  + f" (lowest median error relative to the step, ties by the mean: {n_zero} of {len(builds)} runs have a median "
                  f"of 0, the exact revisit); {n_star} of {len(bests)} objects best with {star.label}"
                  + ". Configurations below the step per object: " + ", ".join(f"{label[o]} {n}/{n_configs}" for o, n in all_below.items())
-                 + (f". NOT measured: {BEST.label} did not run (--contacts, --features)" if star.label != BEST.label
+                 + (f". NOT measured: {BEST.label} did not run (--contacts, --features)" if star != BEST
                     else ". NOT measured: one configuration ran, nothing to compare" if n_configs < 2
                     else f". {'REPRODUCED' if bests and n_star > len(bests) / 2 else 'NOT reproduced'}") + ".")
     return lines
@@ -836,12 +837,15 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         (f"Steps: largest {STEP[0]:g} m / {STEP[1]:g} deg between whisks, the Box {BOX_STEP[0]:g} m / {BOX_STEP[1]:g} deg "
          "(the thesis' Box 3 cm and 3 deg cannot both hold on a loop around it: module docstring)."),
     ]
-    reached = {b["object"]: (b["reach_contacts"], b["roll_deg"]) for b in builds if b.get("reach_contacts")}
+    from whisker_io.sim.trajectories import REACH_CONTACTS
+
+    reached = {b["object"]: b["roll_deg"] for b in builds if b.get("reach_contacts")}
     if reached and not s.reach_contacts:
         lines.append("Reaching: the thesis' fixed standoff touches " + ", ".join(
-            f"the {label[o]} (roll {r:.0f} deg)" for o, (_, r) in reached.items()) + " with 3 whiskers at under half "
-            "the poses of trajectory A, so its poses, mapping and identifying, move in until 3 whiskers touch "
-            "(whisker_io.sim.trajectories.choose_reach); every other object keeps the thesis' poses.")
+            f"the {label[o]} (roll {r:.0f} deg)" for o, r in reached.items()) + f" with {REACH_CONTACTS} whiskers at "
+            "under half the poses of trajectory A, so its poses, mapping and identifying, move forward along their "
+            f"axis to reach for {REACH_CONTACTS} whiskers (whisker_io.sim.trajectories.choose_reach); every other "
+            "object keeps the thesis' poses.")
     for cal in cals:
         cm = cal["contact_model"]
         t_pfh, t_sda = s.thresholds_for(cm)
@@ -878,11 +882,18 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         sk_max = max((r["max_confidence"] for r in sk), default=math.nan)
         sk_ic = max((r["final_ic"] for r in sk), default=math.nan)
         novel = ", ".join(sorted({label[r["presented"]] for r in sk})) or "none presented"
-        # a novel object the trajectories seldom touched cannot raise confidence: its low figures measure nothing
-        seen = {(r["presented"], r["trajectory"]): (r.get("n_observations", -1), r["n_iterations"]) for r in sk}
-        unseen = sorted({label[p] for (p, _), (o, n) in seen.items() if 0 <= o < 0.5 * n})
-        verdict = (f"NOT measured: the {', the '.join(unseen)} observed a region (3 contacts or more) in under half its whisks"
-                   if unseen else "REPRODUCED" if sk and sk_max < RC_THRESHOLD else "NOT reproduced")
+        # a run that seldom touched its novel object cannot raise confidence: low figures measure nothing there,
+        # so low confidence is judged on the well-touched runs; high confidence is a failure wherever it comes from
+        touched = [r for r in sk if not 0 <= r.get("n_observations", -1) < 0.5 * r["n_iterations"]]
+        unseen = sorted({label[r["presented"]] + " (" + r["trajectory"] + ")" for r in sk if r not in touched})
+        seldom = f" (seldom touched, not judged: {', '.join(unseen)})" if unseen else ""
+        if sk and sk_max >= RC_THRESHOLD:
+            verdict = "NOT reproduced"
+        elif touched:
+            verdict = ("REPRODUCED" if max(r["max_confidence"] for r in touched) < RC_THRESHOLD else "NOT reproduced") + seldom
+        else:
+            verdict = ("NOT measured: every novel run observed a region (3 contacts or more) in under half its whisks"
+                       if sk else "NOT reproduced")
         lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
                      f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
                      f"{verdict}.")
@@ -905,7 +916,11 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. {'REPRODUCED' if top and all(top) else 'NOT reproduced'}.")
         fired = [r for r in sk if r["ic_decision"]]
-        lines.append(f"  7. The IC decision on the novel object ({novel}): {'fired for ' + ', '.join(sorted({r['map_identity'] + ' (' + r['trajectory'] + ')' for r in fired})) if fired else 'never fired' + (' (seldom touched: says little)' if unseen else ' (correct: novel)')}.")
+        lines.append(f"  7. The IC decision on the novel object ({novel}): "
+                     + ("fired for " + ", ".join(sorted({r["map_identity"] + " (" + r["trajectory"] + ")" for r in fired}))
+                        if fired else "never fired" + (" (correct: novel" + (f"; seldom touched: {', '.join(unseen)})" if unseen else ")")
+                                                         if touched else " (every novel run seldom touched: says little)"))
+                     + ".")
     return "\n".join(lines) + "\n"
 
 

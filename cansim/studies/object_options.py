@@ -186,28 +186,35 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         if is_mesh_file(spec) and Path(spec).resolve() in targets:
             raise InvalidInputError(f"{spec} is where this run writes a copy in its conventions (an earlier run's "
                                     "copy?); give the original file, or another --out")
+    # every object is read and checked before anything is written: a bad name or mesh fails with its reason and
+    # leaves no copy, and no record of one, behind
+    loaded = {i: load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
+              for i, (spec, stem, copy) in enumerate(zip(specs, stems, copied)) if copy}
+    for i, spec in enumerate(specs):
+        if i not in loaded:
+            resolve_object(spec)
+    record = folder / SOURCES_FILE
+    record.unlink(missing_ok=True)  # this run's record or none: never an earlier run's
     out, sources = [], []
-    for spec, stem, copy in zip(specs, stems, copied):
-        if not copy:
-            resolve_object(spec)  # a bad name or mesh fails here, with the reason, before any work
+    for i, (spec, stem) in enumerate(zip(specs, stems)):
+        if i not in loaded:
             out.append(spec)
             continue
-        path = folder / f"{stem}.ply"
-        loaded = load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
+        path, obj = folder / f"{stem}.ply", loaded[i]
         folder.mkdir(parents=True, exist_ok=True)
-        loaded.mesh.export(path)
+        obj.mesh.export(path)
         sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": str(path),
-                        "changes": list(loaded.notes), "scale_factor": float(loaded.scale_factor),
-                        "extents_m": [float(x) for x in loaded.extents_m]})
-        changes = [n for n in loaded.notes if n.startswith("rotated")]
-        if loaded.scale_factor != 1.0:
-            changes += [n for n in loaded.notes if n.startswith("scaled")]
+                        "changes": list(obj.notes), "scale_factor": float(obj.scale_factor),
+                        "extents_m": [float(x) for x in obj.extents_m]})
+        changes = [n for n in obj.notes if n.startswith("rotated")]
+        if obj.scale_factor != 1.0:
+            changes += [n for n in obj.notes if n.startswith("scaled")]
         if changes:
             log.warning("%s: %s (%s m); run from %s", spec, "; ".join(changes),
-                        " x ".join(f"{x:.3f}" for x in loaded.extents_m), path)
+                        " x ".join(f"{x:.3f}" for x in obj.extents_m), path)
         out.append(str(path))
     if sources:  # which file each copy came from (written whole, then renamed: never half a file)
         tmp = folder / f".{SOURCES_FILE}.tmp"
         tmp.write_text(json.dumps(sources, indent=2))
-        os.replace(tmp, folder / SOURCES_FILE)
+        os.replace(tmp, record)
     return out

@@ -416,7 +416,8 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
     mesh = resolve_object(presented).mesh
     step_m, step_deg = ch5.STEP  # the same step for every object, the Box too (module docstring)
     family = "B" if presentation == "B" else "A"
-    reach, roll = setup.reach_contacts, setup.roll_of(presented)
+    # whisked as map_job maps it (ch5.map_object): the same rule, one function
+    reach, roll = ch5.trajectory_choice(mesh, _settings(setup), step_m, step_deg, setup.roll_of(presented))
     loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach, roll_deg=roll)
     poses = loop * max(1, math.ceil(setup.whisks / len(loop)))  # whole loops (object_trajectory repeats one loop)
     rng = np.random.default_rng(derive_seed(setup.seed, "present", seed_name(presented), presentation,

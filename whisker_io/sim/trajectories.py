@@ -86,9 +86,9 @@ mesh's (world) frame, metres.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -369,16 +369,28 @@ def _share_and_reach(share: object, share_name: str, reach_contacts: object, tra
     value = finite_scalar(share, share_name)
     if not 0.0 <= value <= 1.0:
         raise InvalidInputError(f"{share_name} must be a share of poses in [0, 1], got {share!r}")
-    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
+    k = _reach_count(reach_contacts)
     for name in ("n_loops", "roll_deg", "reach_contacts"):
         if name in trajectory:
             raise InvalidInputError(f"{caller} sets {name} itself; do not pass it")
+    unknown = sorted(set(trajectory) - set(inspect.signature(object_trajectory).parameters))
+    if unknown:
+        raise InvalidInputError(f"{caller} passes its further arguments to object_trajectory, which takes no "
+                                f"{', '.join(unknown)}")
     return value, k
+
+
+def _reach_count(reach_contacts: object) -> int:
+    """Whiskers to reach for, 1 to the array's 64 at most."""
+    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
+    if k > _MAX_REACH_CONTACTS:
+        raise InvalidInputError(f"reach_contacts must be 1-{_MAX_REACH_CONTACTS} whiskers, got {k}")
+    return k
 
 
 def touch_share(
     mesh: trimesh.Trimesh | MeshTarget,
-    poses: Sequence[Pose],
+    poses: list[Pose] | tuple[Pose, ...],
     reach_contacts: int = REACH_CONTACTS,
     array: WhiskerArray | None = None,
 ) -> float:
@@ -393,7 +405,7 @@ def touch_share(
     ----------
     mesh : trimesh.Trimesh or MeshTarget
         The object (metres).
-    poses : sequence of Pose
+    poses : list or tuple of Pose
         End-effector poses in the mesh's frame (at least one).
     reach_contacts : int, default :data:`REACH_CONTACTS` (3)
         Whiskers a pose must touch with (1-64).
@@ -412,9 +424,7 @@ def touch_share(
         outside 1-64, an ``array`` that is not a :class:`~whisker_io.array.geometry.WhiskerArray`,
         or a mesh :class:`~whisker_io.sim.sweep.MeshTarget` refuses.
     """
-    k = whole_number(reach_contacts, "reach_contacts", minimum=1)
-    if k > _MAX_REACH_CONTACTS:
-        raise InvalidInputError(f"reach_contacts must be 1-{_MAX_REACH_CONTACTS} whiskers, got {k}")
+    k = _reach_count(reach_contacts)
     poses = list(poses) if isinstance(poses, tuple) else poses
     if not isinstance(poses, list) or not poses or not all(isinstance(p, Pose) for p in poses):
         raise InvalidInputError("poses must be a non-empty list or tuple of Pose (end-effector poses in the mesh's frame)")
@@ -484,10 +494,7 @@ def choose_reach(
         ``min_share`` outside [0, 1], or what :func:`reaching_roll_deg` refuses.
     """
     share_min, k = _share_and_reach(min_share, "min_share", reach_contacts, trajectory, "choose_reach")
-    try:
-        loop = object_trajectory(mesh, family, 1, **trajectory)  # type: ignore[arg-type]
-    except TypeError as exc:  # an argument object_trajectory does not take
-        raise InvalidInputError(f"choose_reach passes its further arguments to object_trajectory: {exc}") from None
+    loop = object_trajectory(mesh, family, 1, **trajectory)  # type: ignore[arg-type]
     share = touch_share(mesh, loop, k, trajectory.get("array"))  # type: ignore[arg-type]
     if share >= share_min:
         return ReachChoice(share, 0, 90.0)
