@@ -57,11 +57,9 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     with archive:
         try:
             return {k: archive[k] for k in archive.files}
-        except ValueError as exc:
-            if "pickle" in str(exc):  # an object member: numpy's message would suggest loading it unsafely
+        except Exception as exc:  # zip/CRC/header errors of a damaged member, or an object member
+            if isinstance(exc, ValueError) and "pickle" in str(exc):  # numpy's message would suggest loading it unsafely
                 raise CorruptFileError(_PICKLED, path=path) from exc
-            raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
-        except Exception as exc:  # zip/CRC/header errors of a damaged member
             raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
 
 
