@@ -354,10 +354,17 @@ class Setup:
     #: the believed volume (:func:`believed_volume` of ``objects`` and ``believed_scale``), built once by
     #: :func:`prepare`; None: built when needed
     believed: Any = None
+    #: each known object's :func:`~cansim.studies.object_options.seed_name` (a mesh file's stem and digest), in map
+    #: order, read once by :func:`prepare`; empty: read when needed
+    seed_names: tuple[str, ...] = ()
 
     def believed_box(self) -> Any:
         """The believed volume (a trimesh box): :attr:`believed`, or built from the known objects."""
         return self.believed if self.believed is not None else believed_volume(self.objects, self.believed_scale)
+
+    def object_keys(self) -> tuple[str, ...]:
+        """The known objects' identities in the seeds: :attr:`seed_names`, or read from ``objects``."""
+        return self.seed_names or tuple(seed_name(n) for n in self.objects)
 
 
 def envelope() -> Any:
@@ -482,16 +489,16 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
 
     mug, cal_rng = chain_for("mug", noise_scale, contact_model), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
     cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
-    known = []
-    for name in objects:
-        rng = np.random.default_rng(derive_seed(seed, "map", seed_name(name)))
+    known, keys = [], tuple(seed_name(n) for n in objects)
+    for name, key in zip(objects, keys):
+        rng = np.random.default_rng(derive_seed(seed, "map", key))
         chain = chain_for(name, noise_scale, contact_model)
         known.append(build_object_model(
             name, mapping_tour(name, seed, n_loops), lambda p, c=chain, r=rng: c.features(p, r),
             lambda a, b, r=rng: noisy_odometry(a, b, r), placement=spc_params(), adjustments_per_pose=MAX_ADJUSTMENTS,
             model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
     return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model, tuple(objects),
-                 float(believed_scale), bool(contact_seeking), believed_volume(objects, believed_scale))
+                 float(believed_scale), bool(contact_seeking), believed_volume(objects, believed_scale), keys)
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
@@ -541,8 +548,9 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
     if matcher == "surface":  # its per-object random streams are keyed by name: a mesh file's stem and digest, not
         for k in known:       # its path as typed (one file by a relative and an absolute path: the same run)
             k.stored_surface()  # computed once, on the setup's objects; the copies share it
-        known = [replace(k, name=seed_name(k.name)) for k in known]
-    ex = Explorer(known, sensor, arm, replay_odometry(seed, presented, strategy, spc), search, strategy=strategy,
+        known = [replace(k, name=name) for k, name in zip(known, setup.object_keys())]
+    # replay_odometry of the run's key, not of the file again: a key is its own seed_name (no mesh-file ending)
+    ex = Explorer(known, sensor, arm, replay_odometry(seed, key, strategy, spc), search, strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
                   contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
                   surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", key, strategy, spc),
