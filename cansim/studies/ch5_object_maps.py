@@ -916,11 +916,13 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. {'REPRODUCED' if top and all(top) else 'NOT reproduced'}.")
         fired = [r for r in sk if r["ic_decision"]]
-        lines.append(f"  7. The IC decision on the novel object ({novel}): "
-                     + ("fired for " + ", ".join(sorted({r["map_identity"] + " (" + r["trajectory"] + ")" for r in fired}))
-                        if fired else "never fired" + (" (correct: novel" + (f"; seldom touched: {', '.join(unseen)})" if unseen else ")")
-                                                         if touched else " (every novel run seldom touched: says little)"))
-                     + ".")
+        if fired:
+            outcome = "fired for " + ", ".join(sorted({r["map_identity"] + " (" + r["trajectory"] + ")" for r in fired}))
+        elif not touched:
+            outcome = "never fired (every novel run seldom touched: says little)"
+        else:
+            outcome = "never fired (correct: novel" + (f"; seldom touched: {', '.join(unseen)})" if unseen else ")")
+        lines.append(f"  7. The IC decision on the novel object ({novel}): {outcome}.")
     return "\n".join(lines) + "\n"
 
 
