@@ -435,3 +435,22 @@ def test_the_summary_judges_only_what_was_measured() -> None:
     other = text([own], star=tip, builds=[dict(build, config=tip), dict(build, config=ch5_study.Config("pfh", False, "tip"))])
     assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "1.")
     assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "3.")
+
+
+@settings(max_examples=25, deadline=None)
+@given(reach=st.integers(0, 64), missed=st.booleans(), roll=st.floats(-180.0, 180.0),
+       step=st.one_of(st.just(ch5_study.STEP), st.tuples(st.floats(-1.0, 0.0), st.floats(-10.0, 10.0))))
+def test_trajectory_choice_keeps_a_given_count_and_roll_or_raises_a_typed_error(reach: int, missed: bool, roll: float,
+                                                                                step: tuple[float, float]) -> None:
+    """Any settings: a count given (or reaching turned off) comes back with the roll as given, untouched; otherwise
+    the Box (touched at most poses of the thesis' loop) keeps the standoff and the roll; a bad step is the
+    project's typed error."""
+    from whisker_io.sim.objects import make_object
+
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0, reach_contacts=reach, reach_when_missed=missed)
+    try:
+        got = ch5_study.trajectory_choice(make_object("box"), s, *step, roll)
+    except (InvalidInputError, ConfigError):
+        assert step != ch5_study.STEP and reach == 0 and missed  # only a bad step, and only when a loop is built
+        return
+    assert got == (reach, roll)
