@@ -180,6 +180,23 @@ in :mod:`cansim.studies.recognition`):
   mapped patches. Far cells on the inner side of their nearest stored tangent plane holding
   ``-cap`` remove it; over six matcher seeds on seed 0: B + viewpoints 84 against 82 of
   144, wrong 11 against 14, but novel objects undecided 25 against 31 of 36 - not adopted.
+* **Tried and not kept (2026-12-06): surfaces extrapolated past what was felt, and impulses
+  decided on the contacts both maps cover.** Offline replays of seed 0's recorded
+  presentations (the study's quick settings, maps of 2 loops of A), one matcher seed; correct
+  along A / B / viewpoints of 12, wrong of 36, novel undecided of 9; today 12 / 8 / 7, 3, 5.
+  (a) Grid cells farther than 2h from every stored point given a second, wider IMLS blend
+  (width h2, the grid's margin widened with it) instead of ``+cap``: h2 40 mm, margin 80 mm
+  8 / 3 / 2, 5, 8; h2 25 mm, margin 50 mm 12 / 6 / 4, 2, 7; h2 20 mm, 16 neighbours 12 / 6 / 4,
+  4, 7. An extrapolated surface fits other objects' contacts too, like the credit above.
+  (b) The leader chosen pairwise on the contacts that both objects' maps cover (posterior
+  residual under the cap): the object whose smallest log-likelihood lead over any other on
+  their common contacts is largest, an impulse when that lead exceeds ``margin``, half its
+  window's contacts or more are covered and their median residual is within ``tolerance_m``.
+  Pruning off: 12 / 7 / 6, 0, 5 (the standard rule with pruning off: 12 / 9 / 6, 0, 6); with
+  pruning: 12 / 8 / 7, 3, 4. The misses are not the ranking's: where another object leads
+  (the Barrel taken for the Kettle along B; the Jug for the Barrel and the Bear for the Kettle
+  from the viewpoints) the own surface fits the contacts within a median 2.9-4.5 mm, and the
+  other one better.
 * **What limits identification from a new path: coverage, measured (2026-12-05).** Library
   surfaces built from contacts at their *true* poses (seed 1's presentations, so no mapping
   warp), the seed-0 whisks along B and from the viewpoints replayed under the full odometry noise
