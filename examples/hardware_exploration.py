@@ -178,12 +178,7 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
         cycles = [chain(c) for c in islice(replay(args.replay), args.iterations)]  # the features of those whisks only
         if not cycles:
             return fail(EXIT_USAGE, f"--replay {args.replay}: the session holds no whisk")
-        explorer = make_explorer(None, None)
-        for cycle in cycles:  # as a live run: until the threshold
-            result = explorer.replay([cycle])
-            if result.ic[-1].max() >= args.threshold:
-                break
-        result = explorer.result("threshold" if result.ic[-1].max() >= args.threshold else "iterations")
+        result = make_explorer(None, None).replay(cycles, stop_at_threshold=True)  # as a live run: until the threshold
         out = args.out if args.out is not None else args.replay
         out.mkdir(parents=True, exist_ok=True)
         write_trace(out / "exploration_replay.csv", names, result)

@@ -163,6 +163,41 @@ def test_replay_of_a_recorded_session_gives_the_live_beliefs(world):
     assert rep.poses == live.poses
 
 
+@pytest.fixture(scope="module")
+def recorded(world):
+    """A live run's cycles and the beliefs of replaying all of them."""
+    ex, _, _, cycles = _explorer(world, "lsr", seed=5, n=50)
+    ex.run()
+    return cycles, _replayer(world).replay(cycles)
+
+
+def _replayer(world, threshold=300.0):
+    known, _ = world
+    return Explorer(known, None, None, _odometry(105), DefaultSearch((0, 0, 0.17), 0.3), strategy="lsr",
+                    stop_threshold=threshold)
+
+
+@settings(max_examples=12, deadline=None)
+@given(fraction=st.floats(0.05, 1.5))
+def test_a_replay_stops_at_the_threshold_as_a_live_run_does(world, recorded, fraction):
+    cycles, full = recorded
+    peak = full.ic.max(axis=1)  # the leading IC after each whisk
+    assert peak[-1] > 0  # the run re-localised: thresholds below and above its peak are both drawn
+    threshold = fraction * float(peak[-1])
+    crossed = np.flatnonzero(peak >= threshold)
+    rep = _replayer(world, threshold).replay(cycles, stop_at_threshold=True)
+    n = int(crossed[0]) + 1 if len(crossed) else len(cycles)  # the first whisk at the threshold, found from the full trace
+    assert len(rep.ic) == n and rep.stop_reason == ("threshold" if len(crossed) else "iterations")
+    np.testing.assert_array_equal(rep.ic, full.ic[:n])  # the same beliefs as far as it went
+    np.testing.assert_array_equal(rep.impulses, full.impulses[:n])
+
+
+@pytest.mark.parametrize("bad", [None, 1, "yes", 0.5])
+def test_replay_refuses_a_stop_flag_that_is_not_a_bool(world, recorded, bad):
+    with pytest.raises(InvalidInputError, match="stop_at_threshold"):
+        _replayer(world).replay(recorded[0][:1], stop_at_threshold=bad)
+
+
 def test_fresh_models_do_not_share_state(world):
     known, _ = world
     a = known[0].fresh_model()

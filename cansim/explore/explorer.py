@@ -858,11 +858,29 @@ class Explorer:
                          "(contact_seeking=ContactSeekingParams()) moves the array until whiskers touch", whisks)
         return self.result(reason)
 
-    def replay(self, cycles: Sequence[tuple[Pose, object]]) -> ExplorationResult:
-        """Perception and recognition over recorded ``(pose, features)`` cycles (no arm)."""
+    def replay(self, cycles: Sequence[tuple[Pose, object]], stop_at_threshold: bool = False) -> ExplorationResult:
+        """Perception and recognition over recorded ``(pose, features)`` cycles (no arm).
+
+        Parameters
+        ----------
+        cycles : sequence of (Pose, observation)
+            The recorded whisks, in order.
+        stop_at_threshold : bool
+            Stop after the whisk at which an IC reaches ``stop_threshold``, as :meth:`run`
+            does (stop reason ``"threshold"``); default False: every cycle.
+
+        Returns
+        -------
+        ExplorationResult
+            The traces of every whisk replayed so far (this call's and any earlier ones').
+        """
+        if not isinstance(stop_at_threshold, (bool, np.bool_)):
+            raise InvalidInputError(f"stop_at_threshold must be True or False, got {stop_at_threshold!r}")
         for pose, obs in cycles:
             self.observe(pose, obs)
             self._strats.append("none")
+            if stop_at_threshold and self._ic.max() >= self.stop_threshold:
+                return self.result("threshold")
         return self.result("iterations")
 
     def result(self, reason: str) -> ExplorationResult:
