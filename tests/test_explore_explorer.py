@@ -668,3 +668,62 @@ def test_a_known_object_that_could_not_load_back_is_not_saved(world, tmp_path, b
     with pytest.raises((InvalidInputError, ShapeError)):
         obj.save(path)
     assert not path.exists()
+
+
+# ------------------------------------------------------------ a newcomer's mistakes are typed errors (session 45)
+def test_explorer_refuses_what_is_not_a_list_of_known_objects_or_a_search(world):
+    known, _ = world
+    search = DefaultSearch((0, 0, 0.17), 0.3)
+    for bad in (known[0], [known[0].model], [], "box"):
+        with pytest.raises(InvalidInputError, match="KnownObject"):
+            Explorer(bad, None, None, None, search)
+    with pytest.raises(InvalidInputError, match="distinct names"):
+        Explorer([known[0], known[0]], None, None, None, search)
+    with pytest.raises(InvalidInputError, match="DefaultSearch"):
+        Explorer(known, None, None, None, None)
+    with pytest.raises(InvalidInputError, match="callable"):
+        Explorer(known, None, None, 3.0, search)
+    with pytest.raises(ConfigError, match="sensor and an arm"):
+        Explorer(known, None, None, _odometry(1), search).run()
+
+
+def test_odometry_that_returns_no_motion_is_a_typed_error_at_the_second_whisk(world):
+    known, _ = world
+    pose = known[0].poses[0]
+    ex = Explorer(known, None, None, lambda a, b: None, DefaultSearch((0, 0, 0.17), 0.3))
+    ex.observe(pose, None)  # the first whisk moves by nothing: odometry is not called
+    with pytest.raises(InvalidInputError, match=r"\(v \(3,\) m/s, omega"):
+        ex.observe(pose, None)
+    with pytest.raises(ConfigError, match="no odometry"):
+        ex2 = Explorer(known, None, None, None, DefaultSearch((0, 0, 0.17), 0.3))
+        ex2.observe(pose, None)
+        ex2.observe(pose, None)
+
+
+def test_build_object_model_names_an_untouched_map_and_refuses_bad_callables(world, caplog):
+    known, _ = world
+    poses = known[0].poses[:6]
+    ok_odometry = _odometry(2)
+    with pytest.raises(InvalidInputError, match="name"):
+        build_object_model(None, poses, lambda p: None, ok_odometry)
+    with pytest.raises(InvalidInputError, match="callable"):
+        build_object_model("x", poses, None, ok_odometry)
+    with pytest.raises(InvalidInputError, match="must return"):
+        build_object_model("x", poses, lambda p: None, lambda a, b: (np.zeros(3), np.zeros(3)))  # no dt
+    with caplog.at_level(logging.WARNING, logger="cansim"):
+        untouched = build_object_model("air", poses, lambda p: None, ok_odometry, placement=None, model=_model())
+    assert untouched.mapping_observations() == (0, 6)
+    assert any("only 0 of the 6 mapping whisks of 'air' observed a region" in r.getMessage() for r in caplog.records)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.one_of(st.none(), st.integers(0, 8)), max_size=12))
+def test_mapping_observations_count_the_whisks_with_three_contacts_or_more(world, counts):
+    from cansim.explore.explorer import KnownObject
+
+    known, _ = world
+    log = {"odometry": [], "exp_ids": [], "relocalised": [],
+           "contacts": [None if c is None else np.zeros((c, 3)) for c in counts]}
+    k = KnownObject("box", known[0].model, 1, 1, 1, [], log)
+    assert k.mapping_observations() == (sum(c is not None and c >= 3 for c in counts), len(counts))
+    assert KnownObject("box", known[0].model, 1, 1, 1).mapping_observations() is None

@@ -84,6 +84,7 @@ from maps.odometry import SpatialOdometry
 from maps.recognition import MATCHERS, LeakyIntegrator, first_crossing, leaky_step
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
 from whisker_io.errors import SafetyViolationError
+from whisker_io.features.region import MIN_OBSERVATION_CONTACTS
 from whisker_io.persistence import read_npz, write_npz
 from whisker_io.pose import Pose
 from whisker_io.validation import config_field, finite_array
@@ -147,6 +148,18 @@ class KnownObject:
             self._surface = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"],
                                           with_viewpoints=True, anchor=self.poses[0])
         return self._surface
+
+    def mapping_observations(self) -> tuple[int, int] | None:
+        """``(whisks that observed a region, mapping whisks)`` of the mapping run, or None without a mapping log.
+
+        A whisk observes a region with 3 contacts or more (Eq 5.5,
+        :data:`whisker_io.features.region.MIN_OBSERVATION_CONTACTS`); a map whose whisks
+        seldom did is sparse, seldom re-localised, and its stored surface is far off.
+        """
+        if self.mapping_log is None:
+            return None
+        contacts = self.mapping_log["contacts"]
+        return sum(c is not None and len(c) >= MIN_OBSERVATION_CONTACTS for c in contacts), len(contacts)
 
     def _model_arrays(self) -> dict[str, np.ndarray]:
         """The model's ``.npz`` members as mapping left it (taken once)."""
@@ -407,9 +420,14 @@ def build_object_model(
     (:meth:`KnownObject.stored_surface`) lies centimetres to decimetres from the object,
     and the surface matcher then matches it poorly.
     """
+    if not isinstance(name, str) or not name:
+        raise InvalidInputError(f"name must be a non-empty string (the object's name), got {name!r}")
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
     config_field(adjustments_per_pose, "adjustments_per_pose", int, minimum=0)
+    if not callable(sensor) or not callable(odometry):
+        raise InvalidInputError("sensor and odometry must be callables: sensor(pose) -> RegionFeatures, "
+                                "odometry(prev, now) -> (v, omega, dt)")
     slam = model if model is not None else WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))
     prev: Pose | None = None
     visited: list[Pose] = []
@@ -418,7 +436,7 @@ def build_object_model(
     def whisk(pose: Pose) -> object:
         nonlocal prev
         obs = sensor(pose)
-        odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0) if prev is None else SpatialOdometry(*odometry(prev, pose))
+        odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0) if prev is None else _odometry_of(odometry, prev, pose)
         st = slam.step(odo, obs)
         log["odometry"].append(odo)
         log["exp_ids"].append(int(st.exp_id))
@@ -439,12 +457,36 @@ def build_object_model(
             pose = goal
             obs = whisk(pose)
     om = slam.object_map
+    known = KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log)
+    observed, whisks = known.mapping_observations() or (0, len(visited))
+    seldom = observed < 0.5 * whisks
+    if seldom:
+        _LOG.warning("only %d of the %d mapping whisks of %r observed a region (3 contacts or more): its map is sparse, "
+                     "seldom re-localises and its stored surface is far off; bring the trajectory within the whiskers' "
+                     "reach (placements nearer the surface, contact seeking), and for a flat or thin object try another "
+                     "roll of the array", observed, whisks, name)
     if om.n_experiences and not any(log["relocalised"]):
         _LOG.warning("the map of %r closed no loop: none of its %d mapping whisks re-localised, so its poses are dead "
                      "reckoning (under the thesis' odometry noise, centimetres off after a loop) and its stored surface "
-                     "is as far off; map along a path that comes back to what it felt (two loops or more)",
-                     name, len(visited))
-    return KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log)
+                     "is as far off; %s", name, len(visited),
+                     "touch it more often (above)" if seldom else
+                     "map along a path that comes back to what it felt, at the same poses (two loops or more)")
+    return known
+
+
+def _odometry_of(odometry: Odometry, prev: Pose, now: Pose) -> SpatialOdometry:
+    """``odometry(prev, now)`` as a :class:`SpatialOdometry`; a typed error if it is not ``(v, omega, dt)``."""
+    if odometry is None:
+        raise ConfigError("no odometry to move by: give odometry(prev, now) -> (v, omega, dt)")
+    value = odometry(prev, now)
+    if isinstance(value, SpatialOdometry):
+        return value
+    try:
+        v, omega, dt = value
+        return SpatialOdometry(v, omega, dt)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"odometry(prev, now) must return (v (3,) m/s, omega (3,) rad/s, dt s) in the "
+                                f"end-effector frame, got {type(value).__name__}: {exc}") from None
 
 
 def _contacts(obs: object) -> np.ndarray | None:
@@ -645,8 +687,17 @@ class Explorer:
             raise ConfigError(f"contact_seeking must be a ContactSeekingParams or None, got {type(contact_seeking).__name__}")
         if placement is not None and not isinstance(placement, PlacementParams):
             raise ConfigError(f"placement must be a PlacementParams or None, got {type(placement).__name__}")
-        if not known:
-            raise InvalidInputError("the explorer needs at least one known object")
+        if isinstance(known, KnownObject) or not isinstance(known, Sequence) or not known \
+                or not all(isinstance(k, KnownObject) for k in known):
+            raise InvalidInputError("known must be a non-empty list of KnownObject (build_object_model or "
+                                    f"KnownObject.load), got {type(known).__name__}")
+        if len({k.name for k in known}) != len(known):
+            raise InvalidInputError(f"the known objects need distinct names, got {[k.name for k in known]}")
+        if not isinstance(default_search, DefaultSearch):
+            raise InvalidInputError(f"default_search must be a DefaultSearch, got {type(default_search).__name__}")
+        if any(f is not None and not callable(f) for f in (odometry, sensor)):
+            raise InvalidInputError("odometry must be a callable odometry(prev, now) -> (v, omega, dt), and sensor a "
+                                    "callable sensor(pose) -> RegionFeatures (either None: given later, not used)")
         config_field(max_iterations, "max_iterations", int, minimum=1)
         for name, v in (("max_adjustments", max_adjustments), ("max_replans", max_replans)):
             config_field(v, name, int, minimum=0)
@@ -701,7 +752,7 @@ class Explorer:
         if self._prev is None:
             odo = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
         else:
-            odo = SpatialOdometry(*self.odometry(self._prev, pose))
+            odo = _odometry_of(self.odometry, self._prev, pose)
         reloc: list[tuple[int, int]] = []
         imp = np.zeros(len(self.models), dtype=bool)
         for k, (m, v) in enumerate(zip(self.models, self.views)):
@@ -823,6 +874,9 @@ class Explorer:
     # ------------------------------------------------------------------ runs
     def run(self) -> ExplorationResult:
         """Explore until the stop threshold, the iteration limit or the time limit."""
+        if self.sensor is None or self.arm is None:
+            raise ConfigError("run() needs a sensor and an arm (this explorer was made with None: replay() its "
+                              "recorded cycles instead, or give both)")
         t0 = time.monotonic()
         reason = "iterations"
         refused = self.refused_commands
