@@ -255,3 +255,22 @@ def test_object_name_is_the_name_resolve_object_gives_without_building(spec):
         return
     got = resolve_object(spec)
     assert (got.name, got.source) == (name, source)
+
+
+def test_poorly_mapped_names_the_known_objects_whose_tour_seldom_observed_a_region():
+    """Half the mapping whisks with 3 contacts or more is enough; fewer names the object; a map without a log is skipped."""
+    from types import SimpleNamespace
+
+    from cansim.studies import ch6_active_exploration
+
+    def known(counts):
+        contacts = [None if c is None else np.zeros((c, 3)) for c in counts]
+        return SimpleNamespace(mapping_observations=lambda: (sum(c is not None and len(c) >= 3 for c in contacts),
+                                                             len(contacts)))
+
+    sparse = known([3, 2, None, 1])  # 1 of 4 observed
+    half = known([3, 4, None, 2])  # 2 of 4: not warned
+    bare = SimpleNamespace(mapping_observations=lambda: None)
+    setup = ch6_active_exploration.Setup([sparse, half, bare], 1.0, 0.3, 0.3, objects=("capsule", "mug", "box"))
+    lines = ch6_active_exploration.poorly_mapped(setup)
+    assert len(lines) == 1 and "capsule observed a region in only 1 of its 4 mapping whisks" in lines[0]
