@@ -198,6 +198,7 @@ MALFORMED = [
     ("inf.obj", "v 0 0 inf\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, "NaN/inf"),
     ("line.obj", "v 0 0 0\nv 0.1 0 0\nv 0.2 0 0\nf 1 2 3\n", InvalidInputError, "no face with non-zero area"),
     ("point.obj", "v 0.1 0.1 0.1\nv 0.1 0.1 0.1\nv 0.1 0.1 0.1\nf 1 2 3\n", InvalidInputError, "single point"),
+    ("sheet.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, r"sheet\.obj is flat: 0 m thick.*extrude"),
     ("huge.obj", "v 0 0 0\nv 1e12 0 0\nv 0 1 0\nf 1 2 3\n", InvalidInputError, "no sensible unit"),
     ("notes.txt", "v 0 0 0\n", InvalidInputError, "cannot read"),
     ("garbage.ply", "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n", CorruptFileError, "not a readable PLY"),
@@ -213,6 +214,17 @@ def test_malformed_files_raise_typed_errors(tmp_path, name, content, error, mess
         load_object(path)
     if error is CorruptFileError:
         assert info.value.path == str(path)
+
+
+@pytest.mark.parametrize("thickness_m,ok", [(0.0, False), (0.0009, False), (0.001, True), (0.02, True)])
+def test_a_sheet_thinner_than_a_millimetre_is_refused(thickness_m, ok):
+    plate = trimesh.creation.box(extents=(0.3, 0.2, 1.0))
+    plate.vertices[:, 2] *= thickness_m  # 0: every vertex at z = 0, a flat sheet of triangles
+    if ok:
+        assert load_object(plate).extents_m.min() == pytest.approx(thickness_m)
+    else:
+        with pytest.raises(InvalidInputError, match="is flat.*1 mm thick"):
+            load_object(plate)
 
 
 def test_a_directory_is_not_a_mesh(tmp_path):

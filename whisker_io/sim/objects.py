@@ -57,6 +57,7 @@ __all__ = [
     "OBJECT_NAMES",
     "GLTF_SUFFIXES",
     "MAX_SCENE_M",
+    "MIN_THICKNESS_M",
     "check_extent",
     "MAZE_SIZE_M",
     "make_object",
@@ -237,6 +238,10 @@ def make_object(name: str) -> trimesh.Trimesh:
 
 MIN_EXTENT_M: float = 0.01
 """Smallest accepted largest extent of an object after scaling (1 cm), metres."""
+
+MIN_THICKNESS_M: float = 0.001
+"""Smallest accepted extent of a loaded object in its thinnest dimension (1 mm), metres: a flat
+sheet has no volume to place a trajectory or a search round, and :func:`load_object` refuses it."""
 
 MAX_EXTENT_M: float = 2.0
 """Largest accepted largest extent of an object after scaling (2 m), metres: the
@@ -500,7 +505,8 @@ def load_object(
     ------
     InvalidInputError
         No such file, an unsupported ending, no triangles, NaN/inf vertices, no face
-        with area, a bad ``up_axis``, ``name`` or ``scale_to_m``, or a largest extent
+        with area, a flat sheet (under :data:`MIN_THICKNESS_M` thick), a bad ``up_axis``, ``name`` or
+        ``scale_to_m``, or a largest extent
         (after scaling) outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`]; the
         message says what to pass or repair.
     CorruptFileError
@@ -565,6 +571,10 @@ def load_object(
         notes.append("not watertight (open or non-manifold edges): ray casting from outside works, volume is undefined")
 
     lo, hi = mesh.bounds
+    if float(np.min(hi - lo)) < MIN_THICKNESS_M:
+        raise InvalidInputError(f"{source} is flat: {float(np.min(hi - lo)):.3g} m thick in its thinnest dimension "
+                                f"(extents {np.round(hi - lo, 4).tolist()} m); the whisker simulation needs a solid at "
+                                f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it)")
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     mesh.vertices = mesh.vertices + translation  # a plain sum: the lowest vertex lands exactly on z = 0
     result = LoadedObject(
