@@ -459,3 +459,25 @@ def test_facing_pose_any_up_and_previous_z_give_a_rotation_or_a_typed_error(axis
     assert np.linalg.det(R) == pytest.approx(1.0)
     y = a / np.abs(a).max()
     np.testing.assert_allclose(R[:, 1], y / np.linalg.norm(y), atol=1e-9)
+
+
+def test_poses_left_inside_the_object_are_named_with_the_mesh_and_counted(monkeypatch, caplog):
+    """The warning names the trajectory, the mesh (its file, or its extents) and how many of how many poses."""
+    import logging
+
+    import trimesh
+
+    from whisker_io.sim import trajectories
+
+    monkeypatch.setattr(trajectories, "_bases_blocked", lambda target, origin, R, bases: np.ones(len(origin), bool))
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.3))
+    with caplog.at_level(logging.WARNING, logger="whisker_io"):
+        poses = object_trajectory(box, "B", 1)
+    msg = [r.getMessage() for r in caplog.records if "behind the surface" in r.getMessage()]
+    assert len(msg) == 1
+    assert msg[0].startswith(f"trajectory B of the mesh of extents [0.2, 0.2, 0.3] m: {len(poses)} of {len(poses)} poses")
+    box.metadata["file_name"] = "my_box.stl"
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="whisker_io"):
+        object_trajectory(box, "B", 1)
+    assert any(r.getMessage().startswith("trajectory B of my_box.stl:") for r in caplog.records)

@@ -690,16 +690,15 @@ def object_trajectory(
     far = 2.0 * float(np.linalg.norm(surface.semi_axes_m))
     roll = Rotation.from_rotvec([0.0, math.radians(finite_scalar(roll_deg, "roll_deg")), 0.0]).as_matrix()
 
-    def back_off(origin: NDArray[np.float64], R: NDArray[np.float64]) -> None:
-        """Move poses whose whisker bases are inside or behind the object back along the axis."""
+    def back_off(origin: NDArray[np.float64], R: NDArray[np.float64]) -> int:
+        """Move poses whose whisker bases are inside or behind the object back along the axis; how many still are."""
         pending = np.arange(len(origin))
         for _ in range(_MAX_BACKOFF_STEPS):
             pending = pending[_bases_blocked(target, origin[pending], R[pending], arr.positions_m)]
             if not pending.size:
-                return
+                return 0
             origin[pending] -= _BACKOFF_STEP_M * R[pending, :, 1]
-        logger.warning("%d poses still have whisker bases behind the surface after backing off %.0f mm",
-                       pending.size, 1e3 * _BACKOFF_STEP_M * _MAX_BACKOFF_STEPS)
+        return int(pending.size)
 
     def dense_loop(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         P = surface.point(*loop.angles(np.arange(n) / n))
@@ -737,7 +736,13 @@ def object_trajectory(
     frac = np.clip(frac, 0.0, 1.0)
     pos = origin[seg] + frac[:, None] * (origin[nxt[seg]] - origin[seg])
     rots = (rot[seg] * Rotation.from_rotvec(frac[:, None] * turn[seg].as_rotvec())).as_matrix()  # slerp
-    back_off(pos, rots)
+    inside = back_off(pos, rots)  # the whisk poses (the dense loop's samples above are not whisked)
+    if inside:
+        meta = getattr(mesh, "metadata", None) or {}
+        label = meta.get("name") or meta.get("file_name") or f"the mesh of extents {np.round(mesh.extents, 3).tolist()} m"
+        logger.warning("trajectory %s of %s: %d of %d poses still have whisker bases behind the surface after backing "
+                       "off %.0f mm (their whisks start inside the object)", getattr(family, "name", family), label,
+                       inside, n_steps, 1e3 * _BACKOFF_STEP_M * _MAX_BACKOFF_STEPS)
     if reach > 0:
         _advance_to_contact(target, arr, pos, rots, reach, advance)
     quats = Rotation.from_matrix(rots).as_quat()
