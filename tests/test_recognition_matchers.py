@@ -256,3 +256,20 @@ def test_a_library_object_the_mapping_never_observed_leaves_the_run_finishing(tm
     along_a = {r["presented"]: r for r in rows if r["presentation"] == "A"}
     assert along_a["torus_flat-v0"]["roll_deg"] == 0.0 and along_a["mug"]["roll_deg"] == 90.0
     assert along_a["torus_flat-v0"]["whisks_with_contact"] > 0 and along_a["torus_flat-v0"]["decision"] == "torus_flat-v0"
+
+
+def test_a_library_object_felt_at_no_point_is_a_typed_error_naming_it(tmp_path: Path, monkeypatch) -> None:
+    """The surface matcher needs a felt surface of every library object: one felt at fewer than 3 points stops the
+    run after mapping with an error that names the object as given (not its seed name) and what to change."""
+    real = recognition.map_job
+
+    def unfelt_box(job):
+        out = real(job)
+        return dict(out, n_points=0) if job[0] == "box" else out
+
+    monkeypatch.setattr(recognition, "map_job", unfelt_box)
+    with pytest.raises(InvalidInputError, match=r"the box was touched at 0 points in its \d+ mapping whisks: the surface "
+                                                r"matcher has no surface.*--scale-to-m.*--matchers thesis"):
+        recognition.run(tmp_path / "out", objects=["mug", "box"], novel=[], bins=(), seeds=(0,), progress=False,
+                        workers=1, matchers=("surface",))
+    assert not (tmp_path / "out" / "recognition_runs.csv").exists()  # stopped before any presentation

@@ -387,7 +387,8 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
                                  anchor=poses[0])
     surface_path = path.with_name(path.stem + "_surface.npz")
     np.savez_compressed(surface_path, points_m=points, viewpoints_m=seen)
-    return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences}
+    return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences,
+            "n_points": int(len(points)), "whisks": len(poses)}
 
 
 def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple[float, float]] | None,
@@ -790,6 +791,16 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
                       odometry_scale=float(odometry_scale), reach_contacts=int(reach), rolls_deg=rolls)
         maps = pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
                          progress)
+        unfelt = [m for m in maps if m.get("n_points", 3) < 3]
+        if "surface" in matchers and unfelt:  # the surface matcher needs a felt surface of every library object
+            from whisker_io.errors import InvalidInputError
+
+            label = object_labels(everything)
+            raise InvalidInputError("; ".join(f"the {label[m['name']]} was touched at {m['n_points']} points in its "
+                                              f"{m['whisks']} mapping whisks" for m in unfelt)
+                                    + ": the surface matcher has no surface to match it against. The study's "
+                                    "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, "
+                                    "--up-axis); leave the object out, or run --matchers thesis")
         paths = {m["name"]: m["path"] for m in maps}
         surface_paths = {m["name"]: m["surface"] for m in maps}
         jobs = []
