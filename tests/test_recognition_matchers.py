@@ -273,3 +273,31 @@ def test_a_library_object_felt_at_no_point_is_a_typed_error_naming_it(tmp_path: 
         recognition.run(tmp_path / "out", objects=["mug", "box"], novel=[], bins=(), seeds=(0,), progress=False,
                         workers=1, matchers=("surface",))
     assert not (tmp_path / "out" / "recognition_runs.csv").exists()  # stopped before any presentation
+
+
+def test_the_summary_says_what_a_novel_object_was_taken_for_and_counts_presentations() -> None:
+    def row(presented, novel, presentation, decision, correct, size=2):
+        return {"matcher": "surface", "library_size": size, "seed": 0, "presented": presented, "novel": novel,
+                "presentation": presentation, "distance_bin": "", "decision": decision, "correct": correct,
+                "whisks": 200, "whisks_with_contact": 180, "unmapped_contact_fraction": ""}
+
+    rows = [row("mug", False, "A", "mug", True), row("barrel", False, "A", "barrel", True),
+            row("bucket", True, "A", "barrel", False), row("bucket", True, "B", "barrel", False),
+            row("knot", True, "A", "mug", False), row("knot", True, "B", "", True)]
+    text = recognition.summary(rows, 60.0, True)
+    assert "library of 2 objects" in text
+    assert "novel objects  no decision in 1/4 presentations" in text
+    assert "the bucket (novel) was taken for the barrel 2x" in text and "the knot (novel) was taken for the mug 1x" in text
+    one = recognition.summary([dict(r, library_size=1) for r in rows[:1]], 60.0, True)
+    assert "library of 1 object," in one and "with one library object every decision names it" in one
+
+
+def test_reaching_for_more_whiskers_than_the_array_has_is_refused() -> None:
+    from whisker_io.sim.objects import make_object
+    from whisker_io.sim.trajectories import object_trajectory
+
+    with pytest.raises(InvalidInputError, match=r"reach_contacts must be in \[0, 18\] \(the array's 18 whiskers"):
+        object_trajectory(make_object("mug"), "A", 1, reach_contacts=19)
+    with pytest.raises(SystemExit):
+        recognition.main(["--reach-contacts", "19"])
+    assert len(object_trajectory(make_object("mug"), "A", 1, reach_contacts=18)) > 3  # all 18: allowed

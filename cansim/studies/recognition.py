@@ -458,7 +458,7 @@ def present_job(job: tuple[str, bool, str, tuple[str, tuple[float, float], tuple
             "decision": "" if k is None else names[k],
             "correct": (k is None) if novel else (k == own),
             "decision_whisk": "" if crossing is None else crossing,
-            "final_ic_own": float(ic[-1, own]) if own >= 0 else 0.0,
+            "final_ic_own": float(ic[-1, own]) if own >= 0 else "",  # a novel object has no map of its own
             "final_ic_best_other": float(ic[-1, others].max()) if others else 0.0,
             "impulses_own": int(np.sum(targets == own)) if own >= 0 else 0,
             "impulses_other": int(np.sum((targets >= 0) & (targets != own))),
@@ -1014,7 +1014,8 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
         c, n = d.get(key, (0, 0))
         return "HELD" if n and c / n >= target else "NOT HELD"
 
-    lines = [f"Recognition benchmark ({'--quick' if quick else 'full'}): library of {small} objects, seeds {seeds}, "
+    lines = [f"Recognition benchmark ({'--quick' if quick else 'full'}): library of {small} object{'s' * (small != 1)}, "
+             f"seeds {seeds}, "
              f"IC threshold {IC_THRESHOLD:g}, matcher {_MATCHER_LABEL.get(matcher, matcher)}; {elapsed_s / 60:.1f} min "
              "(all matchers).", "",
              "Issue 22 acceptance (library objects: correct IC decision; novel objects: no decision):"]
@@ -1024,8 +1025,18 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
         if key not in ("trajectory A", "trajectory B", "vp 5-10 cm"):
             lines.append(f"  {key:14s} correct {share(lib, key)} (reported)")
     novel_all = (sum(c for c, _ in nov.values()), sum(n for _, n in nov.values()))
-    lines.append(f"  novel objects  no decision {novel_all[0]}/{novel_all[1]} "
+    lines.append(f"  novel objects  no decision in {novel_all[0]}/{novel_all[1]} presentations "
                  f"target 95 %: {'HELD' if novel_all[1] and novel_all[0] / novel_all[1] >= 0.95 else 'NOT HELD'}")
+    taken: dict[str, list[str]] = {}
+    for r in rows:  # which library object each decided novel presentation was taken for
+        if r["novel"] and r["library_size"] == small and r["decision"]:
+            taken.setdefault(object_label(r["presented"]), []).append(object_label(r["decision"]))
+    for name, decided in taken.items():
+        counts = {d: decided.count(d) for d in dict.fromkeys(decided)}
+        lines.append(f"    the {name} (novel) was taken for " + ", ".join(f"the {d} {k}x" for d, k in counts.items()))
+    if small == 1:
+        lines.append("  Note: with one library object every decision names it; add objects for the figures to mean "
+                     "anything.")
     lines.append(f"  off-diagonal decisions {off}/{len(base)} target <= 5 %: "
                  f"{'HELD' if base and off / len(base) <= 0.05 else 'NOT HELD'}")
     cover = [r for r in base if r["presentation"] != "A" and r.get("unmapped_contact_fraction", "") != ""]
@@ -1065,7 +1076,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH", help="library objects (default: the 12-object library)")
     ap.add_argument("--novel", nargs="+", metavar="NAME_OR_MESH", help="novel objects (default: three held-out shapes)")
     add_mesh_options(ap)
-    ap.add_argument("--seeds", type=int, default=None, help="seeds (default 3, quick 1)")
+    ap.add_argument("--seeds", type=int, default=None,
+                    help="how many seeds: 0, 1, ... (default 3, quick 1; other seeds: run(seeds=...) in Python)")
     ap.add_argument("--whisks", type=int, default=200, help="least whisks per presentation (default 200)")
     ap.add_argument("--map-loops", type=int, default=2, help="loops of trajectory A per map (default 2)")
     ap.add_argument("--matchers", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
@@ -1082,8 +1094,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--roll-deg", type=float, default=None, metavar="DEG",
                     help="the array's roll about its axis on every trajectory, degrees (default: per object, the "
                          "thesis' 90 unless 0 reaches the object clearly more often: flat tori, bowls)")
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--workers", type=int, default=2, help="processes mapping and presenting in parallel (default 2)")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     a = ap.parse_args(None if argv is None else list(argv))
     for name in ("whisks", "map_loops", "workers"):
         if getattr(a, name) < 1:
@@ -1092,8 +1104,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--seeds must be >= 1")
     if not 0.0 <= a.odometry_noise <= 10.0:
         ap.error("--odometry-noise must be in [0, 10]")
-    if not 0 <= a.reach_contacts <= 64:
-        ap.error("--reach-contacts must be in [0, 64]")
+    from whisker_io.array.geometry import WhiskerArray
+
+    whiskers = len(WhiskerArray.thesis().positions_m)
+    if not 0 <= a.reach_contacts <= whiskers:
+        ap.error(f"--reach-contacts must be in [0, {whiskers}] (the thesis array's whiskers)")
     if a.roll_deg is not None and not (math.isfinite(a.roll_deg) and -360.0 <= a.roll_deg <= 360.0):
         ap.error("--roll-deg must be a number of degrees in [-360, 360]")
     t0 = time.perf_counter()

@@ -682,8 +682,9 @@ def object_trajectory(
     if not 0 <= smoothing <= 180:
         raise InvalidInputError(f"smoothing_deg must be in [0, 180], got {smoothing_deg!r}")
     reach = whole_number(reach_contacts, "reach_contacts", minimum=0)
-    if reach > _MAX_REACH_CONTACTS:
-        raise InvalidInputError(f"reach_contacts must be in [0, {_MAX_REACH_CONTACTS}] whiskers, got {reach_contacts!r}")
+    if reach > min(_MAX_REACH_CONTACTS, len(arr.positions_m)):
+        raise InvalidInputError(f"reach_contacts must be in [0, {min(_MAX_REACH_CONTACTS, len(arr.positions_m))}] (the "
+                                f"array's {len(arr.positions_m)} whiskers at most), got {reach_contacts!r}")
     advance = finite_scalar(max_advance_m, "max_advance_m")
     if not 0 <= advance <= 1.0:
         raise InvalidInputError(f"max_advance_m must be in [0, 1] m, got {max_advance_m!r}")
