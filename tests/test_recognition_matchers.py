@@ -142,7 +142,7 @@ def test_surface_targets_go_to_the_touched_surface(tmp_path: Path) -> None:
 _BAD_SETTINGS = {
     "odometry_scale": st.one_of(st.just(-0.1), st.just(10.5), st.just(float("nan")), st.just(float("inf")), st.just(True),
                                 st.just("1")),
-    "reach_contacts": st.one_of(st.integers(max_value=-1), st.integers(min_value=65), st.just(1.5), st.just(float("nan")),
+    "reach_contacts": st.one_of(st.integers(max_value=-1), st.integers(min_value=19), st.just(1.5), st.just(float("nan")),
                                 st.just(True), st.just("3")),
 }
 
@@ -301,3 +301,31 @@ def test_reaching_for_more_whiskers_than_the_array_has_is_refused() -> None:
     with pytest.raises(SystemExit):
         recognition.main(["--reach-contacts", "19"])
     assert len(object_trajectory(make_object("mug"), "A", 1, reach_contacts=18)) > 3  # all 18: allowed
+
+
+def test_the_matcher_motion_model_has_a_floor_so_exact_odometry_is_not_a_collapsed_filter(tmp_path: Path,
+                                                                                          monkeypatch) -> None:
+    """Below MATCHER_NOISE_FLOOR the odometry scale no longer narrows the matcher's motion model (Eq 6.4-6.11's
+    2.5 deg per Euler angle and 1 cm per whisk, times the scale); above it the scale is the model's."""
+    import maps.surface_match as sm
+
+    files = []
+    for k, z in enumerate((0.0, 0.09)):
+        files.append(tmp_path / f"s{k}.npz")
+        np.savez_compressed(files[-1], points_m=_grid(z))
+    down = Pose.from_rotvec([0.0, 0.0, 0.2], [np.pi, 0.0, 0.0])
+    contacts = [down.inverse().apply(np.c_[np.linspace(-0.1, 0.1, 5), np.zeros((5, 2))])] * 3
+    still = SpatialOdometry(np.zeros(3), np.zeros(3), 1.0)
+    library = recognition.load_surface_library(files, ["low", "high"])
+    seen = []
+
+    class Spy(sm.SurfaceMatcher):
+        def __init__(self, lib, start, config):
+            seen.append((config.rotation_sigma_deg, config.displacement_sigma_m))
+            super().__init__(lib, start, config)
+
+    monkeypatch.setattr(sm, "SurfaceMatcher", Spy)
+    for scale in (0.0, 0.1, 0.25, 0.5, 2.0):
+        recognition.surface_targets(library, down, [None, still, still], contacts, scale)
+    assert recognition.MATCHER_NOISE_FLOOR == 0.25
+    np.testing.assert_allclose(seen, [(2.5 * f, 0.01 * f) for f in (0.25, 0.25, 0.25, 0.5, 2.0)])

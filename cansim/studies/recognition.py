@@ -247,6 +247,13 @@ CALIBRATION_QUANTILE = 0.80
 #: Whiskers the recognition study's trajectories reach for (:func:`run`'s ``reach_contacts``):
 #: :data:`whisker_io.sim.trajectories.REACH_CONTACTS`, a region of Eq 5.5
 REACH_CONTACTS = TRAJECTORY_REACH_CONTACTS
+#: The surface matcher's motion model is never narrower than this multiple of Eq 6.4-6.11's noise,
+#: whatever ``odometry_scale``: with exact odometry (``--odometry-noise 0``) hypotheses that never
+#: spread cannot follow a stored surface's own error (contact noise, interpolation) and every object
+#: was ruled out after a few impulses (quick settings, seeds 0-2: A 33, B 32, viewpoints 25 of 36);
+#: with 0.1 x A 35, B 35, viewpoints 35; with 0.25 x A 36, B 36, viewpoints 34, wrong 2 of 108
+#: (chosen on those seeds; the held-out figures are in the module docstring's Status).
+MATCHER_NOISE_FLOOR = 0.25
 
 
 @dataclass(frozen=True)
@@ -587,15 +594,17 @@ def surface_targets(library: Any, start_pose: Any, odometry: Sequence[Any], cont
     contacts : sequence of ndarray (k, 3) or None
         Per whisk, end-effector frame, m.
     odometry_scale : float
-        The odometry's noise as a multiple of Eq 6.4-6.11's (the matcher's motion model).
+        The odometry's noise as a multiple of Eq 6.4-6.11's: the matcher's motion model, at
+        least :data:`MATCHER_NOISE_FLOOR` times it.
     seed : int
         Seed of the matcher's hypotheses.
     """
     from maps.surface_match import SurfaceMatchConfig, SurfaceMatcher
 
     base = SurfaceMatchConfig()
-    cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * odometry_scale,
-                  displacement_sigma_m=base.displacement_sigma_m * odometry_scale, seed=seed)
+    scale = max(float(odometry_scale), MATCHER_NOISE_FLOOR)
+    cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * scale,
+                  displacement_sigma_m=base.displacement_sigma_m * scale, seed=seed)
     matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw], cfg)
     out = np.full(len(contacts), -1, dtype=np.int64)
     for i, (odo, pts) in enumerate(zip(odometry, contacts)):
@@ -758,8 +767,10 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
     config_field(odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
                  hint="a multiple of the Eq 6.4-6.11 odometry noise")
-    reach = config_field(reach_contacts, "reach_contacts", int, minimum=0, maximum=64,
-                         hint="whiskers the trajectories reach for (0: the fixed standoff)")
+    from whisker_io.array.geometry import WhiskerArray
+
+    reach = config_field(reach_contacts, "reach_contacts", int, minimum=0, maximum=len(WhiskerArray.thesis().positions_m),
+                         hint="whiskers the trajectories reach for, at most the thesis array's (0: the fixed standoff)")
     roll = None if roll_deg is None else config_field(roll_deg, "roll_deg", float, minimum=-360.0, maximum=360.0,
                                                       hint="degrees about the array's axis, or None: per object")
     check_mesh_options([*(objects or ()), *(novel or ())], scale_to_m=scale_to_m, up_axis=up_axis)  # as given
