@@ -10,7 +10,10 @@
 """
 
 from cansim.explore.contact_seeking import ContactSeekingParams, seek_contact
+from cansim.explore.explorer import ExplorationResult, Explorer, KnownObject, build_object_model
 from cansim.explore.placement import DEFAULT_CONE_HALF_ANGLE_RAD, PlacementParams, maintain_yaw, place, ring_half_angle_rad
+from cansim.explore.search import DefaultSearch
 
-__all__ = ["ContactSeekingParams", "DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place",
-           "ring_half_angle_rad", "seek_contact"]
+__all__ = ["ContactSeekingParams", "DEFAULT_CONE_HALF_ANGLE_RAD", "DefaultSearch", "ExplorationResult", "Explorer",
+           "KnownObject", "PlacementParams", "build_object_model", "maintain_yaw", "place", "ring_half_angle_rad",
+           "seek_contact"]
