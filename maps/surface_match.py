@@ -577,6 +577,14 @@ class SurfaceLibrary:
                          field: SurfaceFieldConfig = SurfaceFieldConfig()) -> "SurfaceLibrary":
         """The library of object maps whose frames sit at ``anchors`` in the arm's frame.
 
+        Each contact is placed by the experience it was recorded with. The studies and
+        :meth:`cansim.explore.explorer.KnownObject.stored_surface` place them by the
+        mapping whisks' own poses optimised as a pose graph instead
+        (:func:`maps.pose_graph.whisk_surface`, then this class's constructor), which lies
+        closer to the object (a user's capsule: 14.5 against 23.7 mm from its mesh, median;
+        identified along trajectory B 12 against 9 of 15 times): prefer it when the mapping
+        run's odometry, experience ids and contacts were kept.
+
         Parameters
         ----------
         maps : sequence of ObjectMap
