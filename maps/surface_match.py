@@ -552,6 +552,9 @@ class SurfaceLibrary:
 
     def __init__(self, surfaces_m: Sequence[Any], names: Sequence[str], viewpoints_m: Sequence[Any] | None = None,
                  field: SurfaceFieldConfig = SurfaceFieldConfig()) -> None:
+        if isinstance(names, str):
+            raise InvalidInputError(f"names must be a sequence of names, one per surface, got the string {names!r} "
+                                    f"(for one object: [{names!r}])")
         surfaces, names = list(surfaces_m), [str(n) for n in names]
         if not surfaces:
             raise InvalidInputError("a SurfaceLibrary needs at least one object surface")

@@ -696,3 +696,9 @@ def test_the_kernels_give_the_same_bits_on_one_thread_and_on_all() -> None:
         numba.set_num_threads(before)
     for a, b in zip(*out):
         assert np.array_equal(a, b)
+
+
+def test_a_single_name_given_as_a_string_is_refused_with_the_list_it_meant() -> None:
+    with pytest.raises(InvalidInputError, match=r"got the string 'cap' \(for one object: \['cap'\]\)"):
+        SurfaceLibrary([_plane(0.0)], "cap")
+    assert SurfaceLibrary([_plane(0.0)], ["cap"]).names == ("cap",)
