@@ -202,9 +202,28 @@ def test_distinct_objects(tmp_path):
         check_distinct(["mug", "box"], ["Mug"])  # one registered object, spelt otherwise
     with pytest.raises(InvalidInputError, match="given twice"):
         check_distinct([], ["box", "box"])
-    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "cup_1", "mug": "mug_2", "b/cup.stl": "cup_3"}
+    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "a/cup", "mug": "mug", "b/cup.stl": "b/cup"}
+    assert object_labels(["a/cup.obj", "a/cup.stl"]) == {"a/cup.obj": "a/cup.obj", "a/cup.stl": "a/cup.stl"}
+    assert object_labels(["x/a/cup.obj", "y/a/cup.obj", "mug"]) == {"x/a/cup.obj": "cup_1", "y/a/cup.obj": "cup_2",
+                                                                    "mug": "mug_3"}  # the numbered fallback
     labels = object_labels(["a/cup.obj", "b/cup.obj", "cup_1.obj"])
     assert len(set(labels.values())) == 3  # distinct even where a stem looks like a numbered one
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.one_of(st.sampled_from(["mug", "box", "cup", "duck"]),
+                          st.builds(lambda d, stem, ext: f"{d}{stem}.{ext}",
+                                    st.sampled_from(["", "a/", "b/", "x/a/", "y/a/", "a/b/"]),
+                                    st.sampled_from(["cup", "mug", "cup_1", "My Mug"]), st.sampled_from(["obj", "stl"]))),
+                max_size=8))
+def test_object_labels_are_distinct_and_plain_where_nothing_clashes(specs):
+    from cansim.studies.object_options import object_label, object_labels
+
+    labels = object_labels(specs)
+    assert list(labels) == list(dict.fromkeys(specs)) and len(set(labels.values())) == len(labels)
+    plain = [object_label(s) for s in labels]
+    if len(set(plain)) == len(plain):  # no clash: the plain labels
+        assert list(labels.values()) == plain
 
 
 def test_a_gltf_without_an_up_axis_is_copied_once_with_its_warning(tmp_path, caplog):

@@ -131,18 +131,33 @@ def seed_name(spec: str | os.PathLike[str]) -> str:
 
 
 def object_labels(specs: Sequence[str]) -> dict[str, str]:
-    """Short, distinct labels for the objects of one run: :func:`object_label` of each, or, where two would be
-    equal (``a/cup.obj``, ``b/cup.stl``), the run's file stems (:func:`~whisker_io.sim.catalogue.object_file_names`:
-    every one numbered by its place).
+    """Short, distinct labels for the objects of one run: :func:`object_label` of each; where two would be equal
+    (``a/cup.obj``, ``b/cup.stl``), those two take their folder (``a/cup``, ``b/cup``), then their file name
+    (``a/cup.obj``), and only then a number by their place (:func:`~whisker_io.sim.catalogue.object_file_names`).
+    The others keep their plain labels.
 
     >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
-    {'a/cup.obj': 'cup_1', 'mug': 'mug_2', 'b/cup.stl': 'cup_3'}
+    {'a/cup.obj': 'a/cup', 'mug': 'mug', 'b/cup.stl': 'b/cup'}
     >>> object_labels(["/data/My Mug.obj", "torus_flat-v3"])
     {'/data/My Mug.obj': 'My_Mug', 'torus_flat-v3': 'torus_flat-v3'}
     """
     unique = list(dict.fromkeys(map(str, specs)))
-    plain = [object_label(s) for s in unique]
-    return dict(zip(unique, plain if len(set(plain)) == len(plain) else object_file_names(unique)))
+    labels = {s: object_label(s) for s in unique}
+    for _ in range(2):  # the clashing ones: with their folder, then with their suffix too
+        seen: dict[str, list[str]] = {}
+        for spec, lab in labels.items():
+            seen.setdefault(lab, []).append(spec)
+        clash = [spec for group in seen.values() if len(group) > 1 for spec in group]
+        if not clash:
+            return labels
+        for spec in clash:
+            if is_mesh_file(spec):
+                path = Path(spec)
+                name = labels[spec] if "/" not in labels[spec] else path.name
+                labels[spec] = f"{path.parent.name}/{name}" if path.parent.name else name
+    if len(set(labels.values())) == len(labels):
+        return labels
+    return dict(zip(unique, object_file_names(unique)))
 
 
 def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | None = None,
