@@ -138,7 +138,8 @@ def test_run_keeps_every_command_inside_the_envelope_and_replans_refusals(world,
     # faces below the floor are refused: counted, and the explorer moved on
     assert res.refused_commands == arm.refused
     refusals = [r for r in caplog.records if "refused by the safety envelope" in r.getMessage()]
-    assert [r.levelno for r in refusals if r.levelno > logging.DEBUG] == ([logging.INFO] if arm.refused else [])
+    level = logging.WARNING if arm.refused >= n else logging.INFO  # a refusal a whisk or more: warned
+    assert [r.levelno for r in refusals if r.levelno > logging.DEBUG] == ([level] if arm.refused else [])
     assert sum(r.levelno == logging.DEBUG for r in refusals) == arm.refused  # one line a run, each refusal at DEBUG
     if strategy == "default":  # the default search walks the sphere's faces and meets the floor
         assert arm.refused > 0
@@ -727,3 +728,23 @@ def test_mapping_observations_count_the_whisks_with_three_contacts_or_more(world
     k = KnownObject("box", known[0].model, 1, 1, 1, [], log)
     assert k.mapping_observations() == (sum(c is not None and c >= 3 for c in counts), len(counts))
     assert KnownObject("box", known[0].model, 1, 1, 1).mapping_observations() is None
+
+
+def test_an_envelope_that_refuses_most_moves_is_warned_of(world, caplog):
+    """A workspace whose floor lies above most of the search's placements: a refusal a whisk or more is a warning
+    that names the envelope; the run still keeps every command inside it."""
+    from whisker_io.hw.arm import SimArm
+    from whisker_io.hw.safety import SafetyEnvelope
+
+    known, _ = world
+    search = DefaultSearch((0, 0, 0.17), 0.3, seed=2)
+    env = SafetyEnvelope(workspace_min=(-0.75, -0.75, 0.35), workspace_max=(0.75, 0.75, 1.0), max_tool_tilt=math.pi)
+    start = next(search.face_pose(f) for f in range(len(search.directions)) if search.face_pose(f).position_m[2] > 0.4)
+    arm = SimArm(start, env)
+    ex = Explorer(known, lambda p: None, arm, _odometry(4), search, placement=None, max_iterations=20,
+                  stop_threshold=math.inf)
+    with caplog.at_level(logging.INFO, logger="cansim"):
+        res = ex.run()
+    assert res.refused_commands >= len(res.ic)
+    lines = [r for r in caplog.records if "refused by the safety envelope" in r.getMessage()]
+    assert [r.levelno for r in lines] == [logging.WARNING] and "check the envelope" in lines[0].getMessage()

@@ -899,9 +899,14 @@ class Explorer:
             if time.monotonic() - t0 > self.time_limit_s:
                 reason = "time"
                 break
-        if self.refused_commands > refused:  # one line a run; each refusal is logged at DEBUG
-            _LOG.info("%d arm commands refused by the safety envelope in %d whisks, each re-planned "
-                      "(ExplorationResult.refused_commands)", self.refused_commands - refused, len(self._strats))
+        n_refused = self.refused_commands - refused
+        if n_refused:  # one line a run; each refusal is logged at DEBUG
+            many = n_refused >= whisks  # a refusal a whisk or more: the envelope, not the object, shapes the run
+            _LOG.log(logging.WARNING if many else logging.INFO,
+                     "%d arm commands refused by the safety envelope in %d whisks, each re-planned "
+                     "(ExplorationResult.refused_commands)%s", n_refused, whisks,
+                     "; most planned moves lie outside it: check the envelope against the search's placements "
+                     "(centre, radius, tool tilt)" if many else "")
         if moves and stuck == moves:
             _LOG.warning("the arm did not move in this run: all %d of its commands were refused by the safety "
                          "envelope; check the envelope against the search's placements (centre, radius, tool tilt)",
