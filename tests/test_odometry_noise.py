@@ -257,3 +257,17 @@ def test_bad_poses_are_typed_errors(value):
         assert isinstance(exc, InvalidInputError)
         return
     assert np.all(np.isfinite(v)) and np.all(np.isfinite(omega)) and dt > 0
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.0, 100.0))
+def test_scaled_odometry_noise_multiplies_the_rotation_and_displacement_deviations(k):
+    q = OdometryNoise().scaled(k)
+    assert q.euler_std_rad == pytest.approx(k * math.radians(2.5)) and q.displacement_std_m == pytest.approx(k * 0.01)
+    assert (q.angular_speed_mean_rad_s, q.angular_speed_std_rad_s, q.min_dt_s) == (0.03, 0.0087, 0.01)  # kept
+
+
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), True, "1", None])
+def test_scaled_odometry_noise_refuses_a_bad_scale(bad):
+    with pytest.raises(InvalidInputError, match="scale"):
+        OdometryNoise().scaled(bad)

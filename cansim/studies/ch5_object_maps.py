@@ -296,8 +296,7 @@ def odometry_noise(scale: float = 1.0) -> Any:
     """The Eq 6.4-6.11 odometry noise with its rotation and displacement deviations times ``scale``."""
     from whisker_io.sim.odometry_noise import OdometryNoise
 
-    base = OdometryNoise()
-    return OdometryNoise(euler_std_rad=base.euler_std_rad * scale, displacement_std_m=base.displacement_std_m * scale)
+    return OdometryNoise().scaled(scale)
 
 
 def explore(slam: Any, chain: Any, poses: Sequence[Any], rng: np.random.Generator,

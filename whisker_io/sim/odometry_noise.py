@@ -48,7 +48,7 @@ Guards (decisions; the thesis does not meet these cases)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -113,6 +113,33 @@ class OdometryNoise:
     def noise_free(self) -> OdometryNoise:
         """The same model without noise: ``omega`` = its mean, no rotation or displacement noise."""
         return OdometryNoise(self.angular_speed_mean_rad_s, 0.0, 0.0, 0.0, self.min_dt_s)
+
+    def scaled(self, scale: float) -> OdometryNoise:
+        """This noise with its rotation and displacement deviations multiplied by ``scale``.
+
+        ``OdometryNoise().scaled(s)`` is ``s`` times Eq 6.6's and Eq 6.9's noise: each Euler
+        angle N(0, 2.5 s deg), the displacement's magnitude N(0, s cm); the drawn angular speed
+        (which sets ``dt``) is kept, as in :meth:`ContactNoise.scaled
+        <whisker_io.sim.sweep.ContactNoise.scaled>`. ``scaled(0)`` is exact odometry, ``scaled(1)``
+        an equal copy.
+
+        Parameters
+        ----------
+        scale : float
+            Factor, finite and >= 0 (dimensionless).
+
+        Raises
+        ------
+        InvalidInputError
+            A scale that is not a finite number >= 0 (or a bool), or that makes a deviation overflow.
+        """
+        k = finite_scalar(scale, "scale")
+        if k < 0:
+            raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
+        euler, disp = self.euler_std_rad * k, self.displacement_std_m * k
+        if not (math.isfinite(euler) and math.isfinite(disp)):
+            raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")
+        return replace(self, euler_std_rad=float(euler), displacement_std_m=float(disp))
 
 
 def _generator(rng: object) -> np.random.Generator:
