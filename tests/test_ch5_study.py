@@ -438,7 +438,7 @@ def test_the_summary_judges_only_what_was_measured() -> None:
 
 
 @settings(max_examples=25, deadline=None)
-@given(reach=st.integers(0, 64), missed=st.booleans(), roll=st.floats(-180.0, 180.0),
+@given(reach=st.integers(0, 18), missed=st.booleans(), roll=st.floats(-180.0, 180.0),
        step=st.one_of(st.just(ch5_study.STEP), st.tuples(st.floats(-1.0, 0.0), st.floats(-10.0, 10.0))))
 def test_trajectory_choice_keeps_a_given_count_and_roll_or_raises_a_typed_error(reach: int, missed: bool, roll: float,
                                                                                 step: tuple[float, float]) -> None:

@@ -246,7 +246,8 @@ class StudyConfig:
     matching: str = "mapping"
     id_whisks: int = 0
     odometry_scale: float = checked(1.0, float, minimum=0.0, maximum=10.0, hint="a multiple of the Eq 6.4-6.11 odometry noise")
-    reach_contacts: int = checked(0, int, minimum=0, maximum=64, hint="whiskers the mapping poses reach for")
+    reach_contacts: int = checked(0, int, minimum=0, maximum=18,
+                                  hint="whiskers the mapping poses reach for, at most the thesis array's 18")
     reach_when_missed: bool = checked(True, bool)
 
     def __post_init__(self) -> None:
