@@ -247,13 +247,14 @@ CALIBRATION_QUANTILE = 0.80
 #: Whiskers the recognition study's trajectories reach for (:func:`run`'s ``reach_contacts``):
 #: :data:`whisker_io.sim.trajectories.REACH_CONTACTS`, a region of Eq 5.5
 REACH_CONTACTS = TRAJECTORY_REACH_CONTACTS
-#: The surface matcher's motion model is never narrower than this multiple of Eq 6.4-6.11's noise,
-#: whatever ``odometry_scale``: with exact odometry (``--odometry-noise 0``) hypotheses that never
-#: spread cannot follow a stored surface's own error (contact noise, interpolation) and every object
-#: was ruled out after a few impulses (quick settings, seeds 0-2: A 33, B 32, viewpoints 25 of 36);
-#: with 0.1 x A 35, B 35, viewpoints 35; with 0.25 x A 36, B 36, viewpoints 34, wrong 2 of 108
-#: (chosen on those seeds; the held-out figures are in the module docstring's Status).
-MATCHER_NOISE_FLOOR = 0.25
+#: The odometry noise the surface path assumes (the matcher's motion model and the odometry edges
+#: of the pose graph that places each map's contacts, :func:`map_job`) is never below this multiple
+#: of Eq 6.4-6.11's, whatever ``odometry_scale``. With exact odometry (``--odometry-noise 0``)
+#: hypotheses that never spread cannot follow a stored surface's own error (contact noise,
+#: interpolation) and every object was ruled out after a few impulses (quick settings, seeds 0-2:
+#: A 33, B 32, viewpoints 25 of 36); with 0.1 x A 35, B 35, viewpoints 35; with 0.25 x A 36, B 36,
+#: viewpoints 34, wrong 2 of 108 (chosen on those seeds; the held-out figures are in the Status).
+SURFACE_NOISE_FLOOR = 0.25
 
 
 @dataclass(frozen=True)
@@ -379,7 +380,7 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
     in the arm's frame: the first whisk's true pose is the map's anchor) is saved next to
     it for the ``surface`` matcher.
     """
-    from maps.pose_graph import whisk_surface
+    from maps.pose_graph import WhiskGraphConfig, whisk_surface
     from whisker_io.sim.catalogue import object_file_name
 
     ch5 = _ch5()
@@ -390,8 +391,11 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP,
                                       roll_deg=setup.roll_of(name))
     slam.save(path)
-    points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], with_viewpoints=True,
-                                 anchor=poses[0])
+    base = WhiskGraphConfig()
+    scale = max(setup.odometry_scale, SURFACE_NOISE_FLOOR)  # the graph's odometry edges as noisy as the odometry
+    graph = replace(base, odometry_sigma_m=base.odometry_sigma_m * scale, odometry_sigma_deg=base.odometry_sigma_deg * scale)
+    points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], graph,
+                                 with_viewpoints=True, anchor=poses[0])
     surface_path = path.with_name(path.stem + "_surface.npz")
     np.savez_compressed(surface_path, points_m=points, viewpoints_m=seen)
     return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences,
@@ -595,14 +599,14 @@ def surface_targets(library: Any, start_pose: Any, odometry: Sequence[Any], cont
         Per whisk, end-effector frame, m.
     odometry_scale : float
         The odometry's noise as a multiple of Eq 6.4-6.11's: the matcher's motion model, at
-        least :data:`MATCHER_NOISE_FLOOR` times it.
+        least :data:`SURFACE_NOISE_FLOOR` times it.
     seed : int
         Seed of the matcher's hypotheses.
     """
     from maps.surface_match import SurfaceMatchConfig, SurfaceMatcher
 
     base = SurfaceMatchConfig()
-    scale = max(float(odometry_scale), MATCHER_NOISE_FLOOR)
+    scale = max(float(odometry_scale), SURFACE_NOISE_FLOOR)
     cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * scale,
                   displacement_sigma_m=base.displacement_sigma_m * scale, seed=seed)
     matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw], cfg)
