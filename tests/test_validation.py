@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -137,3 +137,31 @@ def test_config_field_int_accepts_exactly_the_odd_or_any_ints_in_range(value, od
         assert not good and str(exc).startswith("w must be")
         return
     assert good
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-5, 5), st.booleans(), st.none(), st.text(max_size=2)))
+@example(1e10)  # overflows b
+@example(0.25)
+def test_scaled_fields_multiplies_the_named_fields_or_raises_a_typed_error(scale):
+    import dataclasses
+
+    from whisker_io.validation import scaled_fields
+
+    @dataclasses.dataclass(frozen=True)
+    class Noise:
+        a: float = 2.0
+        b: float = 1e300
+        kept: float = 7.0
+
+    ok = (isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale >= 0
+          and math.isfinite(2.0 * scale))
+    if ok:
+        got = scaled_fields(Noise(), scale, ("a",))
+        assert (got.a, got.b, got.kept) == (2.0 * scale, 1e300, 7.0)
+    else:
+        with pytest.raises(InvalidInputError, match="scale"):
+            scaled_fields(Noise(), scale, ("a",))
+    if ok and scale > 1e9:
+        with pytest.raises(InvalidInputError, match="overflow"):
+            scaled_fields(Noise(), scale, ("a", "b"))

@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
 __all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple", "config_field",
-           "plain_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
+           "plain_fields", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -88,6 +88,31 @@ def _check_finite(arr: NDArray[np.float64], name: str) -> None:
             f"{name} holds NaN/inf at index {where} ({bad.size} non-finite values); "
             "give finite numbers (mask or drop missing samples first)"
         )
+
+
+def scaled_fields(obj: Any, scale: object, fields: Sequence[str]) -> Any:
+    """A copy of the dataclass ``obj`` with ``fields`` (standard deviations) multiplied by ``scale``.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+    scale : float
+        Factor, finite and >= 0 (dimensionless).
+    fields : sequence of str
+        The fields scaled; the others are kept.
+
+    Raises
+    ------
+    InvalidInputError
+        A scale that is not a finite number >= 0 (or a bool), or that makes a field overflow.
+    """
+    k = finite_scalar(scale, "scale")
+    if k < 0:
+        raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
+    values = {f: float(getattr(obj, f)) * k for f in fields}
+    if not all(math.isfinite(v) for v in values.values()):
+        raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")
+    return dataclasses.replace(obj, **values)
 
 
 def finite_scalar(value: object, name: str) -> float:

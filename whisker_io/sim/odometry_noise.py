@@ -48,7 +48,7 @@ Guards (decisions; the thesis does not meet these cases)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,7 +56,7 @@ from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import MAX_STEP_M, checked, finite_scalar, finite_vector, validate_fields
+from whisker_io.validation import MAX_STEP_M, checked, finite_scalar, finite_vector, scaled_fields, validate_fields
 
 __all__ = [
     "MAX_SPEED_DRAWS",
@@ -133,13 +133,7 @@ class OdometryNoise:
         InvalidInputError
             A scale that is not a finite number >= 0 (or a bool), or that makes a deviation overflow.
         """
-        k = finite_scalar(scale, "scale")
-        if k < 0:
-            raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
-        euler, disp = self.euler_std_rad * k, self.displacement_std_m * k
-        if not (math.isfinite(euler) and math.isfinite(disp)):
-            raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")
-        return replace(self, euler_std_rad=float(euler), displacement_std_m=float(disp))
+        return scaled_fields(self, scale, ("euler_std_rad", "displacement_std_m"))
 
 
 def _generator(rng: object) -> np.random.Generator:

@@ -54,7 +54,7 @@ import trimesh
 from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
+from whisker_io.validation import checked, finite_scalar, scaled_fields, validate_fields, whole_number
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
 from whisker_io.pose import PoseLike
@@ -572,13 +572,7 @@ class ContactNoise:
             A scale that is not a finite number >= 0 (or a bool), or that makes a
             standard deviation overflow.
         """
-        k = finite_scalar(scale, "scale")
-        if k < 0:
-            raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
-        pos, slope = self.position_sigma_fraction * k, self.slope_sigma * k
-        if not (np.isfinite(pos) and np.isfinite(slope)):
-            raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")
-        return replace(self, position_sigma_fraction=float(pos), slope_sigma=float(slope))
+        return scaled_fields(self, scale, ("position_sigma_fraction", "slope_sigma"))
 
 
 def perturb_contacts(
