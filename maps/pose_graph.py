@@ -76,9 +76,20 @@ from maps.odometry import SpatialOdometry
 from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.pose import as_pose
-from whisker_io.validation import checked, config_field, finite_array, validate_fields
+from whisker_io.validation import checked, config_field, finite_array, finite_scalar, scaled_fields, validate_fields
 
-__all__ = ["PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
+__all__ = ["MIN_NOISE_SCALE", "PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "noise_model_scale", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
+
+
+#: Least multiple of Eq 6.4-6.11's odometry noise that the surface path's noise models assume
+#: (:meth:`WhiskGraphConfig.for_odometry_scale`, :meth:`maps.surface_match.SurfaceMatchConfig.for_odometry_scale`),
+#: however exact the odometry. With exact odometry a surface matcher whose hypotheses never spread
+#: cannot follow its stored surface's own error (contact noise, interpolation), and a pose graph with
+#: rigid odometry edges lets one re-localisation that disagrees bend the map. Measured in the
+#: recognition study (:mod:`cansim.studies.recognition`, Status): quick settings, seeds 0-2, odometry
+#: exact, correct along A / B / viewpoints of 36 with the matcher at 0 / 0.1 / 0.25 x: 33 / 32 / 25,
+#: 35 / 35 / 35, 36 / 36 / 34 (chosen there, judged on seeds 3-5).
+MIN_NOISE_SCALE = 0.25
 
 
 @dataclass(frozen=True)
@@ -101,6 +112,26 @@ class WhiskGraphConfig:
 
     def __post_init__(self) -> None:
         validate_fields(self)
+
+    def for_odometry_scale(self, scale: float) -> WhiskGraphConfig:
+        """This graph for odometry whose noise is ``scale`` times Eq 6.4-6.11's: the odometry edges'
+        deviations times ``max(scale, MIN_NOISE_SCALE)``, the closures' kept (``scale`` 1: an equal copy).
+
+        Raises
+        ------
+        InvalidInputError
+            A scale that is not a finite number >= 0.
+        """
+        return scaled_fields(self, noise_model_scale(scale), ("odometry_sigma_m", "odometry_sigma_deg"))
+
+
+def noise_model_scale(scale: object) -> float:
+    """The multiple of Eq 6.4-6.11's noise a model of odometry ``scale`` times as noisy assumes:
+    ``max(scale, MIN_NOISE_SCALE)`` (a typed error for a scale that is not a finite number >= 0)."""
+    k = finite_scalar(scale, "scale")
+    if k < 0:
+        raise InvalidInputError(f"scale must be >= 0 (a multiple of Eq 6.4-6.11's odometry noise), got {scale!r}")
+    return max(k, MIN_NOISE_SCALE)
 
 
 @dataclass(frozen=True)

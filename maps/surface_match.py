@@ -363,9 +363,10 @@ from maps.object_library import ObjectLibrary
 from maps.object_map import ObjectMap
 from whisker_io.pose import Pose
 from maps.odometry import SpatialOdometry
+from maps.pose_graph import noise_model_scale
 from maps.surface_field import SurfaceFieldConfig, SurfaceFields
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, validate_fields
+from whisker_io.validation import checked, finite_array, scaled_fields, validate_fields
 
 __all__ = [
     "SurfaceMatchConfig",
@@ -495,6 +496,18 @@ class SurfaceMatchConfig:
 
     def __post_init__(self) -> None:
         validate_fields(self)
+
+    def for_odometry_scale(self, scale: float) -> SurfaceMatchConfig:
+        """This matcher for odometry whose noise is ``scale`` times Eq 6.4-6.11's: the motion model's
+        deviations (``rotation_sigma_deg``, ``displacement_sigma_m``) times ``max(scale,``
+        :data:`maps.pose_graph.MIN_NOISE_SCALE` ``)``, everything else kept (``scale`` 1: an equal copy).
+
+        Raises
+        ------
+        InvalidInputError
+            A scale that is not a finite number >= 0.
+        """
+        return scaled_fields(self, noise_model_scale(scale), ("rotation_sigma_deg", "displacement_sigma_m"))
 
 
 def _pose7(pose: Any, name: str) -> np.ndarray:

@@ -215,3 +215,26 @@ def test_whisk_surface_in_an_anchors_frame() -> None:
     for bad in ("pose", [1.0, 2.0], np.full((4, 4), np.nan)):
         with pytest.raises((InvalidInputError, ShapeError)):
             whisk_surface(odo, [0, 1, 2], [False] * 3, contacts, anchor=bad)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.one_of(st.floats(0.0, 1e3), st.just(-1.0), st.just(float("nan")), st.just(float("inf")), st.booleans(), st.none()))
+def test_noise_models_for_an_odometry_scale_never_go_below_the_floor(scale):
+    from maps.pose_graph import MIN_NOISE_SCALE, WhiskGraphConfig
+    from maps.surface_match import SurfaceMatchConfig
+
+    good = isinstance(scale, float) and math.isfinite(scale) and scale >= 0
+    if not good:
+        with pytest.raises(InvalidInputError, match="scale"):
+            WhiskGraphConfig().for_odometry_scale(scale)
+        with pytest.raises(InvalidInputError, match="scale"):
+            SurfaceMatchConfig().for_odometry_scale(scale)
+        return
+    k = max(scale, 0.25)
+    assert MIN_NOISE_SCALE == 0.25
+    g = WhiskGraphConfig().for_odometry_scale(scale)  # Eq 6.9's 1 cm and Eq 6.6's 2.5 deg, times k; closures kept
+    assert (g.odometry_sigma_m, g.odometry_sigma_deg, g.closure_sigma_m, g.closure_sigma_deg) == pytest.approx(
+        (0.01 * k, 2.5 * k, 0.01, 3.0))
+    m = SurfaceMatchConfig(seed=7).for_odometry_scale(scale)
+    assert (m.rotation_sigma_deg, m.displacement_sigma_m) == pytest.approx((2.5 * k, 0.01 * k))
+    assert m.seed == 7 and m.tolerance_m == SurfaceMatchConfig().tolerance_m

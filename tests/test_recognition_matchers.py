@@ -305,7 +305,7 @@ def test_reaching_for_more_whiskers_than_the_array_has_is_refused() -> None:
 
 def test_the_matcher_motion_model_has_a_floor_so_exact_odometry_is_not_a_collapsed_filter(tmp_path: Path,
                                                                                           monkeypatch) -> None:
-    """Below SURFACE_NOISE_FLOOR the odometry scale no longer narrows the matcher's motion model (Eq 6.4-6.11's
+    """Below maps.pose_graph.MIN_NOISE_SCALE the odometry scale no longer narrows the matcher's motion model (Eq 6.4-6.11's
     2.5 deg per Euler angle and 1 cm per whisk, times the scale); above it the scale is the model's."""
     import maps.surface_match as sm
 
@@ -327,7 +327,9 @@ def test_the_matcher_motion_model_has_a_floor_so_exact_odometry_is_not_a_collaps
     monkeypatch.setattr(sm, "SurfaceMatcher", Spy)
     for scale in (0.0, 0.1, 0.25, 0.5, 2.0):
         recognition.surface_targets(library, down, [None, still, still], contacts, scale)
-    assert recognition.SURFACE_NOISE_FLOOR == 0.25
+    from maps.pose_graph import MIN_NOISE_SCALE
+
+    assert MIN_NOISE_SCALE == 0.25
     np.testing.assert_allclose(seen, [(2.5 * f, 0.01 * f) for f in (0.25, 0.25, 0.25, 0.5, 2.0)])
 
 
@@ -335,7 +337,7 @@ def test_the_matcher_motion_model_has_a_floor_so_exact_odometry_is_not_a_collaps
 def test_a_map_is_placed_by_a_pose_graph_whose_odometry_edges_are_as_noisy_as_the_odometry(tmp_path: Path, monkeypatch,
                                                                                         scale, expected) -> None:
     """The odometry edges of map_job's pose graph: Eq 6.4-6.11's 1 cm and 2.5 deg times the study's odometry scale
-    (at least SURFACE_NOISE_FLOOR), the closures as the default; at scale 1 the default graph itself."""
+    (at least MIN_NOISE_SCALE), the closures as the default; at scale 1 the default graph itself."""
     import maps.pose_graph as pg
 
     seen = []

@@ -121,8 +121,8 @@ accurate as the odometry lets the maps be.
   barrel's surface, and the pose hypotheses, free to shift and tilt, fit its contacts to the
   barrel's map within 5 mm: ``tolerance_m`` 5 or 6 mm instead of 8 changed no decision at
   S = 0.25, seeds 0-2), the mushroom and the knot stay undecided. Below S = 1 the surface path's noise models follow S, never below
-  :data:`SURFACE_NOISE_FLOOR`: the matcher's motion model (:func:`surface_targets`) and the
-  odometry edges of each map's pose graph (:func:`map_job`). Without the floor, S = 0 ruled every
+  :data:`maps.pose_graph.MIN_NOISE_SCALE` (0.25): the matcher's motion model (:func:`surface_targets`)
+  and the odometry edges of each map's pose graph (:func:`map_job`), by their ``for_odometry_scale``. Without the floor, S = 0 ruled every
   object out after a few impulses (seeds 0-2: 33 / 32 / 25, novel 24); with the graph's edges at
   the full noise, S = 0 on seeds 3-5 gave 34 / 34 / 32 and 7 wrong (re-localisations that
   disagreed with exact odometry bent the barrel's, the mug's and the jug's maps: presented along
@@ -283,14 +283,6 @@ CALIBRATION_QUANTILE = 0.80
 #: Whiskers the recognition study's trajectories reach for (:func:`run`'s ``reach_contacts``):
 #: :data:`whisker_io.sim.trajectories.REACH_CONTACTS`, a region of Eq 5.5
 REACH_CONTACTS = TRAJECTORY_REACH_CONTACTS
-#: The odometry noise the surface path assumes (the matcher's motion model and the odometry edges
-#: of the pose graph that places each map's contacts, :func:`map_job`) is never below this multiple
-#: of Eq 6.4-6.11's, whatever ``odometry_scale``. With exact odometry (``--odometry-noise 0``)
-#: hypotheses that never spread cannot follow a stored surface's own error (contact noise,
-#: interpolation) and every object was ruled out after a few impulses (quick settings, seeds 0-2:
-#: A 33, B 32, viewpoints 25 of 36); with 0.1 x A 35, B 35, viewpoints 35; with 0.25 x A 36, B 36,
-#: viewpoints 34, wrong 2 of 108 (chosen on those seeds; the held-out figures are in the Status).
-SURFACE_NOISE_FLOOR = 0.25
 
 
 @dataclass(frozen=True)
@@ -427,9 +419,7 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
     slam, poses, log = ch5.map_object(name, ch5.Config("both", False, CONTACT_MODEL), _settings(setup), step=ch5.STEP,
                                       roll_deg=setup.roll_of(name))
     slam.save(path)
-    base = WhiskGraphConfig()
-    scale = max(setup.odometry_scale, SURFACE_NOISE_FLOOR)  # the graph's odometry edges as noisy as the odometry
-    graph = replace(base, odometry_sigma_m=base.odometry_sigma_m * scale, odometry_sigma_deg=base.odometry_sigma_deg * scale)
+    graph = WhiskGraphConfig().for_odometry_scale(setup.odometry_scale)  # odometry edges as noisy as the odometry
     points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], graph,
                                  with_viewpoints=True, anchor=poses[0])
     surface_path = path.with_name(path.stem + "_surface.npz")
@@ -635,16 +625,14 @@ def surface_targets(library: Any, start_pose: Any, odometry: Sequence[Any], cont
         Per whisk, end-effector frame, m.
     odometry_scale : float
         The odometry's noise as a multiple of Eq 6.4-6.11's: the matcher's motion model, at
-        least :data:`SURFACE_NOISE_FLOOR` times it.
+        least :data:`maps.pose_graph.MIN_NOISE_SCALE` times it
+        (:meth:`~maps.surface_match.SurfaceMatchConfig.for_odometry_scale`).
     seed : int
         Seed of the matcher's hypotheses.
     """
     from maps.surface_match import SurfaceMatchConfig, SurfaceMatcher
 
-    base = SurfaceMatchConfig()
-    scale = max(float(odometry_scale), SURFACE_NOISE_FLOOR)
-    cfg = replace(base, rotation_sigma_deg=base.rotation_sigma_deg * scale,
-                  displacement_sigma_m=base.displacement_sigma_m * scale, seed=seed)
+    cfg = replace(SurfaceMatchConfig().for_odometry_scale(odometry_scale), seed=seed)
     matcher = SurfaceMatcher(library, np.r_[start_pose.position_m, start_pose.quaternion_xyzw], cfg)
     out = np.full(len(contacts), -1, dtype=np.int64)
     for i, (odo, pts) in enumerate(zip(odometry, contacts)):
