@@ -609,7 +609,7 @@ def _corrupted(arrays, member, how):
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.sampled_from(["known_format", "known_name", "known_sizes", "known_poses", "known_odometry", "known_exp_ids",
-                        "known_relocalised", "known_contact_counts", "known_contacts"]),
+                        "known_relocalised", "known_contact_counts", "known_contacts", "known_odometry_scale"]),
        st.sampled_from(["drop", "shape", "dtype", "nan"]))
 def test_a_damaged_known_object_file_is_a_corrupt_file_error_naming_the_member(world, saved_box, member, how):
     import io
@@ -624,6 +624,9 @@ def test_a_damaged_known_object_file_is_a_corrupt_file_error_naming_the_member(w
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     buf.seek(0)
+    if (member, how) == ("known_odometry_scale", "drop"):  # a file written before the member: Eq 6.4-6.11's noise
+        assert KnownObject.load(buf).odometry_scale == 1.0
+        return
     with pytest.raises(CorruptFileError) as err:
         KnownObject.load(buf)
     assert err.value.field == member, (member, how, err.value)
@@ -751,3 +754,32 @@ def test_an_envelope_that_refuses_most_moves_is_warned_of(world, caplog):
     assert res.refused_commands >= len(res.ic)
     lines = [r for r in caplog.records if "refused by the safety envelope" in r.getMessage()]
     assert [r.levelno for r in lines] == [logging.WARNING] and "check the envelope" in lines[0].getMessage()
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.sampled_from([0.0, 0.1, 0.25, 0.5, 1.0, 3.0]))
+def test_a_known_objects_odometry_scale_saves_loads_and_sets_its_pose_graph(world, scale):
+    """The stored surface of an object mapped with odometry ``scale`` x Eq 6.4-6.11 is whisk_surface's with the
+    graph for that scale (at least the floor), before and after a save and a load."""
+    import io
+    from dataclasses import replace as dc_replace
+
+    from cansim.explore.explorer import KnownObject
+    from maps.pose_graph import WhiskGraphConfig, whisk_surface
+
+    known, _ = world
+    k = dc_replace(known[0], odometry_scale=scale, _surface=None)
+    log = k.mapping_log
+    graph = WhiskGraphConfig(odometry_sigma_m=0.01 * max(scale, 0.25), odometry_sigma_deg=2.5 * max(scale, 0.25))
+    want = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], graph,
+                         with_viewpoints=True, anchor=k.poses[0])
+    buf = io.BytesIO()
+    k.save(buf)
+    buf.seek(0)
+    back = KnownObject.load(buf)
+    assert back.odometry_scale == scale
+    for got in (k.stored_surface(), back.stored_surface()):
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+    with pytest.raises(InvalidInputError, match="odometry_scale"):
+        dc_replace(k, odometry_scale=-1.0).save(io.BytesIO())

@@ -112,6 +112,10 @@ class KnownObject:
     mapping_log : dict or None
         What :func:`build_object_model` recorded of each mapping whisk (``odometry``,
         ``exp_ids``, ``relocalised``, ``contacts``): the input of :meth:`stored_surface`.
+    odometry_scale : float
+        The mapping odometry's noise as a multiple of Eq 6.4-6.11's (default 1): the odometry
+        edges of :meth:`stored_surface`'s pose graph
+        (:meth:`maps.pose_graph.WhiskGraphConfig.for_odometry_scale`).
 
     :meth:`save` writes all of it to one ``.npz`` file and :meth:`load` reads it back (or
     a bare model file, without poses and log).
@@ -124,6 +128,7 @@ class KnownObject:
     n_history: int
     poses: list[Pose] = field(default_factory=list)
     mapping_log: dict[str, list] | None = field(default=None, repr=False)
+    odometry_scale: float = 1.0
     _snapshot: dict[str, np.ndarray] | None = field(default=None, repr=False)
     _surface: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
@@ -140,12 +145,13 @@ class KnownObject:
             The object was not mapped by :func:`build_object_model` (no mapping log).
         """
         if self._surface is None:
-            from maps.pose_graph import whisk_surface
+            from maps.pose_graph import WhiskGraphConfig, whisk_surface
 
             log = self.mapping_log
             if log is None or not self.poses:
                 raise ConfigError(f"{self.name}: no mapping log to place a stored surface by; map it with build_object_model")
-            self._surface = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"],
+            graph = WhiskGraphConfig().for_odometry_scale(self.odometry_scale)
+            self._surface = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], graph,
                                           with_viewpoints=True, anchor=self.poses[0])
         return self._surface
 
@@ -181,7 +187,8 @@ class KnownObject:
         The file is a :meth:`WhiskerRatSLAM.save` file (``WhiskerRatSLAM.load`` reads its
         model) with the object's own members beside the model's (prefix ``known_``):
         ``known_name``, ``known_sizes`` (``n_built``, ``n_built_regions``, ``n_history``),
-        ``known_poses`` (n, 7: position m, quaternion x, y, z, w), and, when the object
+        ``known_poses`` (n, 7: position m, quaternion x, y, z, w), ``known_odometry_scale`` (a
+        file without it is read as 1), and, when the object
         was mapped by :func:`build_object_model`, its mapping log: ``known_odometry``
         (n, 7: v m/s, omega rad/s, dt s), ``known_exp_ids`` (n,), ``known_relocalised``
         (n,), ``known_contact_counts`` (n,; -1 for a whisk without a contact array) and
@@ -198,6 +205,10 @@ class KnownObject:
             malformed contact points (nothing is written).
         """
         sizes = (self.n_built, self.n_built_regions, self.n_history)
+        scale = self.odometry_scale
+        if isinstance(scale, bool) or not isinstance(scale, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(scale) or scale < 0:
+            raise InvalidInputError(f"{self.name}: odometry_scale must be a finite number >= 0, got {scale!r}")
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0 for v in sizes):
             raise InvalidInputError(f"{self.name}: n_built, n_built_regions and n_history must be counts >= 0, got {sizes}")
         if not all(isinstance(p, Pose) for p in self.poses):
@@ -220,6 +231,7 @@ class KnownObject:
         arrays["known_format"] = np.int64(_KNOWN_FORMAT)
         arrays["known_name"] = np.array(str(self.name))
         arrays["known_sizes"] = np.array(sizes, dtype=np.int64)
+        arrays["known_odometry_scale"] = np.float64(scale)
         arrays["known_poses"] = np.array([np.r_[p.position_m, p.quaternion_xyzw] for p in self.poses],
                                          dtype=np.float64).reshape(-1, 7)
         if log is not None:
@@ -265,7 +277,7 @@ class KnownObject:
             return cls(str(name), model, om.n_experiences, len(model.frontend), len(om.history))
         fields = _known_fields(arrays, path)
         obj = cls(str(fields["name"]) if name is None else str(name), model, *fields["sizes"], fields["poses"],
-                  fields["log"])
+                  fields["log"], fields["odometry_scale"])
         obj._snapshot = {k: v for k, v in arrays.items() if not k.startswith("known_")}
         return obj
 
@@ -354,7 +366,11 @@ def _known_fields(arrays: dict[str, np.ndarray], path: Any) -> dict[str, Any]:
             at += max(c, 0)
         log = {"odometry": odometry, "exp_ids": [int(v) for v in ids], "relocalised": [bool(v) for v in rel],
                "contacts": contacts}
-    return {"name": str(name), "sizes": [int(v) for v in sizes], "poses": poses, "log": log}
+    scale = np.asarray(arrays.get("known_odometry_scale", np.float64(1.0)))  # files before it: Eq 6.4-6.11's noise
+    if scale.shape != () or scale.dtype.kind != "f" or not np.isfinite(scale) or float(scale) < 0:
+        raise CorruptFileError("expected one finite float >= 0", path=path, field="known_odometry_scale")
+    return {"name": str(name), "sizes": [int(v) for v in sizes], "poses": poses, "log": log,
+            "odometry_scale": float(scale)}
 
 
 def any_distance_cells(shape: Sequence[int]) -> float:
@@ -383,6 +399,7 @@ def build_object_model(
     placement: PlacementParams | None = PlacementParams(roll_rad=math.pi / 2),
     adjustments_per_pose: int = 10,
     model: WhiskerRatSLAM | None = None,
+    odometry_scale: float = 1.0,
 ) -> KnownObject:
     """Map an object along ``trajectory`` (two loops over the faces of its fitted ellipsoid), with the SPC.
 
@@ -411,6 +428,9 @@ def build_object_model(
     model : WhiskerRatSLAM, optional
         Default ``WhiskerRatSLAM(WhiskerRatSLAMConfig.mapping(cell_size_m=0.03))``: one object
         mapped in one frame (pose-consistent matching, see :mod:`cansim.models.whisker_ratslam`).
+    odometry_scale : float
+        How noisy ``odometry`` is, as a multiple of Eq 6.4-6.11's (default 1; 0: exact): kept as
+        :attr:`KnownObject.odometry_scale` for the stored surface's pose graph.
 
     Notes
     -----
@@ -425,6 +445,7 @@ def build_object_model(
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
     config_field(adjustments_per_pose, "adjustments_per_pose", int, minimum=0)
+    config_field(odometry_scale, "odometry_scale", float, minimum=0.0, hint="a multiple of Eq 6.4-6.11's odometry noise")
     if not callable(sensor) or not callable(odometry):
         raise InvalidInputError("sensor and odometry must be callables: sensor(pose) -> RegionFeatures, "
                                 "odometry(prev, now) -> (v, omega, dt)")
@@ -457,7 +478,8 @@ def build_object_model(
             pose = goal
             obs = whisk(pose)
     om = slam.object_map
-    known = KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log)
+    known = KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log,
+                        float(odometry_scale))
     observed, whisks = known.mapping_observations() or (0, len(visited))
     seldom = observed < 0.5 * whisks
     if seldom:
