@@ -198,7 +198,7 @@ studies = st.one_of(
     st.tuples(st.just("ch5"), st.just("--quick"), st.just("--objects"), names.map(lambda s: f"zz_{s}")).map(list),
     st.tuples(st.just("ch6"), st.just("--quick"), st.sampled_from(["--seeds", "--iterations"]), not_positive).map(list),
     st.tuples(st.just("ch6"), st.just("--quick"), st.sampled_from(["--seed"]), negative).map(list),
-    st.tuples(st.just("ch6"), st.just("--quick"), st.sampled_from(["--noise-scale", "--object-offset-m", "--believed-scale"]),
+    st.tuples(st.just("ch6"), st.just("--quick"), st.sampled_from(["--noise-scale", "--object-offset-m", "--believed-scale", "--odometry-noise"]),
               bad_float).map(list),
     st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks", "--map-loops", "--workers"]),
               not_positive).map(list),

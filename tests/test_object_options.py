@@ -293,3 +293,17 @@ def test_poorly_mapped_names_the_known_objects_whose_tour_seldom_observed_a_regi
     setup = ch6_active_exploration.Setup([sparse, half, bare], 1.0, 0.3, 0.3, objects=("capsule", "mug", "box"))
     lines = ch6_active_exploration.poorly_mapped(setup)
     assert len(lines) == 1 and "capsule observed a region in only 1 of its 4 mapping whisks" in lines[0]
+
+
+@pytest.mark.parametrize("bad", [-0.1, 10.5, float("nan"), float("inf"), True, "1"])
+def test_ch6_prepare_refuses_a_bad_odometry_scale_before_any_mapping(bad, monkeypatch):
+    from cansim.errors import ConfigError
+    from cansim.explore import explorer
+    from cansim.studies import ch6_active_exploration
+
+    def no_mapping(*a, **kw):
+        raise AssertionError("mapped before the settings were checked")
+
+    monkeypatch.setattr(explorer, "build_object_model", no_mapping)
+    with pytest.raises(ConfigError, match="odometry_scale"):
+        ch6_active_exploration.prepare(0, odometry_scale=bad)

@@ -357,6 +357,9 @@ class Setup:
     #: each known object's :func:`~cansim.studies.object_options.seed_name` (a mesh file's stem and digest), in map
     #: order, read once by :func:`prepare`; empty: read when needed
     seed_names: tuple[str, ...] = ()
+    #: the arm's odometry noise in mapping and exploration, a multiple of Eq 6.4-6.11's (1: the thesis'); the
+    #: surface matcher's motion model and the stored surfaces' pose graphs follow it (``for_odometry_scale``)
+    odometry_scale: float = 1.0
 
     def believed_box(self) -> Any:
         """The believed volume (a trimesh box): :attr:`believed`, or built from the known objects."""
@@ -471,22 +474,27 @@ def mapping_tour(name: str, seed: int, n_loops: int = 2) -> list[Any]:
 
 def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 2,
             contact_model: str = DEFAULT_CONTACT_MODEL, objects: Sequence[str] = OBJECTS,
-            believed_scale: float = 1.0, contact_seeking: bool = False) -> Setup:
+            believed_scale: float = 1.0, contact_seeking: bool = False, odometry_scale: float = 1.0) -> Setup:
     """Thresholds (step 1) and the object maps of the known objects (step 2; default Box and Box-Stack).
 
-    ``believed_scale`` (1-3) sizes the believed volume against the known objects' box; a
-    value outside raises :class:`~cansim.errors.ConfigError` before any mapping.
+    ``believed_scale`` (1-3) sizes the believed volume against the known objects' box;
+    ``odometry_scale`` (0-10) is the arm's odometry noise as a multiple of Eq 6.4-6.11's, in
+    mapping and in every run of this setup (:attr:`Setup.odometry_scale`). A value outside
+    raises :class:`~cansim.errors.ConfigError` before any mapping.
     """
     from whisker_io.validation import config_field
 
     config_field(believed_scale, "believed_scale", float, minimum=1.0, maximum=3.0,
                  hint="the believed volume is at least the known objects' box (1) and at most 3 times it")
+    config_field(odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
+                 hint="a multiple of the Eq 6.4-6.11 odometry noise")
     from cansim.explore.explorer import build_object_model
     from whisker_io.features.match_thresholds import calibrate_match_thresholds
     from whisker_io.sim.objects import make_object
-    from whisker_io.sim.odometry_noise import noisy_odometry
+    from whisker_io.sim.odometry_noise import OdometryNoise, noisy_odometry
     from whisker_io.sim.trajectories import object_trajectory
 
+    noise = OdometryNoise().scaled(odometry_scale)
     mug, cal_rng = chain_for("mug", noise_scale, contact_model), np.random.default_rng(derive_seed(seed, "calibrate", noise_scale))
     cal = calibrate_match_thresholds(lambda p: mug.features(p, cal_rng), object_trajectory(make_object("mug"), "A", 1), 0.75)
     known, keys = [], tuple(seed_name(n) for n in objects)
@@ -495,10 +503,12 @@ def prepare(seed: int, noise_scale: float = DEFAULT_NOISE_SCALE, n_loops: int = 
         chain = chain_for(name, noise_scale, contact_model)
         known.append(build_object_model(
             name, mapping_tour(name, seed, n_loops), lambda p, c=chain, r=rng: c.features(p, r),
-            lambda a, b, r=rng: noisy_odometry(a, b, r), placement=spc_params(), adjustments_per_pose=MAX_ADJUSTMENTS,
-            model=slam_model(cal.pfh_threshold, cal.sda_threshold)))
+            lambda a, b, r=rng: noisy_odometry(a, b, r, noise), placement=spc_params(),
+            adjustments_per_pose=MAX_ADJUSTMENTS, model=slam_model(cal.pfh_threshold, cal.sda_threshold),
+            odometry_scale=float(odometry_scale)))
     return Setup(known, cal.pfh_threshold, cal.sda_threshold, noise_scale, contact_model, tuple(objects),
-                 float(believed_scale), bool(contact_seeking), believed_volume(objects, believed_scale), keys)
+                 float(believed_scale), bool(contact_seeking), believed_volume(objects, believed_scale), keys,
+                 float(odometry_scale))
 
 
 def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: int, max_iterations: int,
@@ -550,21 +560,24 @@ def explorer_for(setup: Setup, presented: str, strategy: str, spc: bool, seed: i
             k.stored_surface()  # computed once, on the setup's objects; the copies share it
         known = [replace(k, name=name) for k, name in zip(known, setup.object_keys())]
     # replay_odometry of the run's key, not of the file again: a key is its own seed_name (no mesh-file ending)
-    ex = Explorer(known, sensor, arm, replay_odometry(seed, key, strategy, spc), search, strategy=strategy,
+    ex = Explorer(known, sensor, arm, replay_odometry(seed, key, strategy, spc, setup.odometry_scale), search,
+                  strategy=strategy,
                   placement=spc_params() if spc else None, stop_threshold=stop_threshold, max_iterations=max_iterations,
                   contact_seeking=ContactSeekingParams() if setup.contact_seeking else None, matcher=matcher,
                   surface_config=SurfaceMatchConfig(seed=derive_seed(seed, "surface", key, strategy, spc),
                                                     initial_sigma_m=float(placement_sd[0]),
-                                                    initial_sigma_deg=float(placement_sd[1])))
+                                                    initial_sigma_deg=float(placement_sd[1])
+                                                    ).for_odometry_scale(setup.odometry_scale))
     return ex, arm, cycles
 
 
-def replay_odometry(seed: int, presented: str, strategy: str, spc: bool) -> Any:
-    """Eq 6.4-6.11 noisy odometry with a generator fixed by the run's identity."""
-    from whisker_io.sim.odometry_noise import noisy_odometry
+def replay_odometry(seed: int, presented: str, strategy: str, spc: bool, odometry_scale: float = 1.0) -> Any:
+    """Eq 6.4-6.11 noisy odometry (its deviations times ``odometry_scale``) with a generator fixed by the run's identity."""
+    from whisker_io.sim.odometry_noise import OdometryNoise, noisy_odometry
 
     rng = np.random.default_rng(derive_seed(seed, "odometry", seed_name(presented), strategy, spc))
-    return lambda a, b: noisy_odometry(a, b, rng)
+    noise = OdometryNoise().scaled(odometry_scale)
+    return lambda a, b: noisy_odometry(a, b, rng, noise)
 
 
 def _inside(pose: Any) -> bool:
@@ -796,7 +809,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
               f"up to {args.iterations} whisks a run, {elapsed_s:.0f} s)"),
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
              f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
-             f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher",
+             f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher; "
+             f"odometry noise {setup.odometry_scale:g} x Eq 6.4-6.11",
              "maps: " + ", ".join(f"{label[k.name]} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -942,6 +956,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--matcher", choices=MATCHERS, default="thesis",
                     help="impulse source: thesis (re-localisations, Eq 5.5) or surface (the stored surfaces, "
                          "maps.surface_match; issue 22) (default thesis)")
+    ap.add_argument("--odometry-noise", type=float, default=1.0, metavar="SCALE",
+                    help="the arm's odometry noise in mapping and exploration as a multiple of Eq 6.4-6.11 (default 1: "
+                         "the thesis'); the surface matcher and the stored surfaces assume it (at least 0.25 of it)")
     ap.add_argument("--contact-seeking", action="store_true",
                     help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn, "
                          "keep every goal clear of the contacts felt")
@@ -951,10 +968,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
     finite = all(math.isfinite(v) and v >= 0 for v in (args.noise_scale, args.object_offset_m, args.object_yaw_deg))
     finite = finite and math.isfinite(args.believed_scale) and 1.0 <= args.believed_scale <= 3.0
+    finite = finite and math.isfinite(args.odometry_noise) and 0.0 <= args.odometry_noise <= 10.0
     if (args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45
             or args.seed < 0):
         print("ch6_active_exploration: --seed >= 0, --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, "
-              "--object-offset-m in [0, 0.1], --object-yaw-deg in [0, 45] and --believed-scale in [1, 3] are needed",
+              "--object-offset-m in [0, 0.1], --object-yaw-deg in [0, 45], --believed-scale in [1, 3] and "
+              "--odometry-noise in [0, 10] are needed",
               file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
@@ -972,7 +991,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 up_axis=args.up_axis)
     args.objects, args.novel = tuple(conformed[:len(args.objects)]), tuple(conformed[len(args.objects):])
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
-                    believed_scale=args.believed_scale, contact_seeking=args.contact_seeking)
+                    believed_scale=args.believed_scale, contact_seeking=args.contact_seeking,
+                    odometry_scale=args.odometry_noise)
     from whisker_io.sim.catalogue import object_file_names
 
     (args.out / "maps").mkdir(exist_ok=True)
