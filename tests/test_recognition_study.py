@@ -113,8 +113,9 @@ def test_surface_matcher_names_more_objects_from_new_paths(quick):
 @pytest.mark.xfail(strict=True, reason="issue 22 open: the thesis' Eq 5.5 region match recognises visited poses, not "
                                        "the surface (along B 0/12); the surface matcher on interpolated surfaces names 8/12 "
                                        "along B and 7/12 from the viewpoints under the thesis' odometry noise, with wrong "
-                                       "decisions (distorted maps); at a quarter of that noise (blind proposal) 89 % along B and 83 % from "
-                                       "the viewpoints (seeds 0-2), short of 90 %")
+                                       "decisions (distorted maps); at a quarter of that noise, with the matcher and the maps' "
+                                       "pose graphs told so, 36/36 along B and 34-35/36 from the viewpoints on seeds 0-2 and "
+                                       "3-5 (README), but this quick run is the thesis' noise")
 @pytest.mark.parametrize("presentation", ["B", "viewpoints"])
 def test_headline_identified_from_a_new_path(quick, presentation):
     """Held by either matcher: 90 % correct decisions."""
@@ -193,3 +194,19 @@ def test_reach_contacts_0_maps_and_presents_at_the_fixed_standoff(monkeypatch) -
 
 class _Stop(Exception):
     """Raised by a spy to stop a job once it has said what it would whisk."""
+
+
+def test_at_a_quarter_of_the_odometry_noise_the_headline_holds(tmp_path_factory):
+    """The quick settings with the arm's odometry a quarter of Eq 6.4-6.11's (``--odometry-noise 0.25``; the matcher's
+    motion model and the maps' pose graphs told so): the issue's targets along A, B and the 5-10 cm viewpoints and
+    for wrong decisions hold on seed 0 (and on seeds 1-5: the README's table). The novel objects' do not (the
+    bucket is named the barrel), so they are not asserted here."""
+    out = tmp_path_factory.mktemp("rec_quarter")
+    rows = recognition.run(out, seeds=(0,), bins=("vp 5-10 cm",), matchers=("surface",), odometry_scale=0.25,
+                           progress=False)
+    library = [r for r in rows if not r["novel"]]
+    right = {p: sum(r["decision"] == r["presented"] for r in library if r["presentation"] == p) for p in ("A", "B", "viewpoints")}
+    total = {p: sum(r["presentation"] == p for r in library) for p in right}
+    assert right["A"] == total["A"] == 12, right
+    assert right["B"] >= 0.9 * total["B"] and right["viewpoints"] >= 0.9 * total["viewpoints"], right
+    assert sum(r["decision"] not in ("", r["presented"]) for r in library) <= 0.05 * len(library)
