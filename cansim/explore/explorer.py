@@ -483,10 +483,10 @@ def build_object_model(
     observed, whisks = known.mapping_observations() or (0, len(visited))
     seldom = observed < 0.5 * whisks
     if seldom:
-        _LOG.warning("only %d of the %d mapping whisks of %r observed a region (3 contacts or more): its map is sparse, "
-                     "seldom re-localises and its stored surface is far off; bring the trajectory within the whiskers' "
-                     "reach (placements nearer the surface, contact seeking), and for a flat or thin object try another "
-                     "roll of the array", observed, whisks, name)
+        _LOG.warning("only %d of the %d mapping whisks of %r observed a region (3 contacts or more): its map is sparse "
+                     "and seldom re-localises, so its stored surface is only as good as the odometry; bring the "
+                     "trajectory within the whiskers' reach (placements nearer the surface, contact seeking), and for a "
+                     "flat or thin object try another roll of the array", observed, whisks, name)
     if om.n_experiences and not any(log["relocalised"]):
         _LOG.warning("the map of %r closed no loop: none of its %d mapping whisks re-localised, so its poses are dead "
                      "reckoning (under the thesis' odometry noise, centimetres off after a loop) and its stored surface "
