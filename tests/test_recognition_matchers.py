@@ -285,7 +285,8 @@ def test_the_summary_says_what_a_novel_object_was_taken_for_and_counts_presentat
             row("bucket", True, "A", "barrel", False), row("bucket", True, "B", "barrel", False),
             row("knot", True, "A", "mug", False), row("knot", True, "B", "", True)]
     text = recognition.summary(rows, 60.0, True)
-    assert "library of 2 objects" in text
+    assert "library of 2 objects" in text and "odometry noise 1 x Eq 6.4-6.11 (the thesis)" in text
+    assert "odometry noise 0.25 x Eq 6.4-6.11;" in recognition.summary(rows, 60.0, True, 0.25)
     assert "novel objects  no decision in 1/4 presentations" in text
     assert "the bucket (novel) was taken for the barrel 2x" in text and "the knot (novel) was taken for the mug 1x" in text
     one = recognition.summary([dict(r, library_size=1) for r in rows[:1]], 60.0, True)

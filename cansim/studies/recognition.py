@@ -1031,13 +1031,16 @@ def _saved(fig: Any, path: Path) -> Path:
 _MATCHER_LABEL = {"thesis": "thesis (Eq 5.5 region match)", "surface": "surface (maps.surface_match on the stored surfaces)"}
 
 
-def summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool) -> str:
-    """The issue's acceptance figures and the thesis' Fig 5.17 findings, each held or not (one section per matcher)."""
+def summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, odometry_scale: float = 1.0) -> str:
+    """The issue's acceptance figures and the thesis' Fig 5.17 findings, each held or not (one section per matcher);
+    ``odometry_scale`` is the run's (:func:`run`'s), stated in each section's first line."""
     matchers = list(dict.fromkeys(r["matcher"] for r in rows))
-    return "\n\n".join(_summary([r for r in rows if r["matcher"] == m], elapsed_s, quick, m) for m in matchers)
+    return "\n\n".join(_summary([r for r in rows if r["matcher"] == m], elapsed_s, quick, m, odometry_scale)
+                       for m in matchers)
 
 
-def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matcher: str) -> str:
+def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matcher: str,
+             odometry_scale: float = 1.0) -> str:
     lib = accuracy(rows, False)
     nov = accuracy(rows, True)
     small = min(r["library_size"] for r in rows)
@@ -1055,7 +1058,8 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
 
     lines = [f"Recognition benchmark ({'--quick' if quick else 'full'}): library of {small} object{'s' * (small != 1)}, "
              f"seeds {seeds}, "
-             f"IC threshold {IC_THRESHOLD:g}, matcher {_MATCHER_LABEL.get(matcher, matcher)}; {elapsed_s / 60:.1f} min "
+             f"IC threshold {IC_THRESHOLD:g}, matcher {_MATCHER_LABEL.get(matcher, matcher)}, odometry noise "
+             f"{odometry_scale:g} x Eq 6.4-6.11{' (the thesis)' if odometry_scale == 1 else ''}; {elapsed_s / 60:.1f} min "
              "(all matchers).", "",
              "Issue 22 acceptance (library objects: correct IC decision; novel objects: no decision):"]
     for key, target in (("trajectory A", 1.0), ("trajectory B", 0.9), ("vp 5-10 cm", 0.9)):
@@ -1159,7 +1163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                matchers=a.matchers, odometry_scale=a.odometry_noise, calibration=a.calibration,
                reach_contacts=a.reach_contacts, roll_deg=a.roll_deg, scale_to_m=a.scale_to_m, up_axis=a.up_axis)
     files = figures(rows, a.out)
-    text = summary(rows, time.perf_counter() - t0, a.quick)
+    text = summary(rows, time.perf_counter() - t0, a.quick, a.odometry_noise)
     (a.out / "recognition_summary.txt").write_text(text + "\n")
     print(text)
     print("Wrote " + ", ".join(f.name for f in [a.out / "recognition_runs.csv", *files, a.out / "recognition_summary.txt"])
