@@ -1126,7 +1126,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--matchers", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
                     help=f"matchers deciding every presentation (default: {' '.join(DEFAULT_MATCHERS)})")
     ap.add_argument("--odometry-noise", type=float, default=1.0, metavar="SCALE",
-                    help="odometry noise of maps and presentations as a multiple of Eq 6.4-6.11 (default 1: the thesis')")
+                    help="odometry noise of maps and presentations as a multiple of Eq 6.4-6.11 (default 1: the thesis'); "
+                         "the surface matcher and the maps' pose graphs assume it, at least 0.25 of it")
     ap.add_argument("--calibration", choices=CALIBRATIONS, default="first-seed",
                     help="T_pfh / T_sda of the maps: first-seed (default; the 0.75 quantile on the run's first seed) or "
                          f"pooled (the {CALIBRATION_QUANTILE:g} quantile over {CALIBRATION_SEEDS} calibration seeds that "
