@@ -731,9 +731,15 @@ def test_mapping_observations_count_the_whisks_with_three_contacts_or_more(world
     known, _ = world
     log = {"odometry": [], "exp_ids": [], "relocalised": [],
            "contacts": [None if c is None else np.zeros((c, 3)) for c in counts]}
+    from whisker_io.features.region import MIN_OBSERVATION_CONTACTS
+
+    assert MIN_OBSERVATION_CONTACTS == 3  # a region of Eq 5.5
     k = KnownObject("box", known[0].model, 1, 1, 1, [], log)
-    assert k.mapping_observations() == (sum(c is not None and c >= 3 for c in counts), len(counts))
-    assert KnownObject("box", known[0].model, 1, 1, 1).mapping_observations() is None
+    observed = sum(c is not None and c >= 3 for c in counts)
+    assert k.mapping_observations() == (observed, len(counts))
+    assert k.seldom_observed() == (observed < 0.5 * len(counts))
+    bare = KnownObject("box", known[0].model, 1, 1, 1)
+    assert bare.mapping_observations() is None and not bare.seldom_observed()
 
 
 def test_an_envelope_that_refuses_most_moves_is_warned_of(world, caplog):
@@ -781,5 +787,15 @@ def test_a_known_objects_odometry_scale_saves_loads_and_sets_its_pose_graph(worl
     for got in (k.stored_surface(), back.stored_surface()):
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
-    with pytest.raises(InvalidInputError, match="odometry_scale"):
-        dc_replace(k, odometry_scale=-1.0).save(io.BytesIO())
+    for bad in (-1.0, None, float("nan"), True, "1"):
+        with pytest.raises(InvalidInputError, match="odometry_scale"):
+            dc_replace(k, odometry_scale=bad)
+
+
+def test_build_object_model_refuses_a_trajectory_that_is_not_poses(world):
+    known, _ = world
+    for bad in (None, 5, "AB", [known[0].poses[0], (0, 0, 0)]):
+        with pytest.raises(InvalidInputError, match="trajectory must be a sequence of Pose"):
+            build_object_model("x", bad, lambda p: None, _odometry(1))
+    with pytest.raises(InvalidInputError, match="name"):
+        build_object_model("  ", known[0].poses[:3], lambda p: None, _odometry(1))

@@ -179,8 +179,9 @@ def test_clean_ups_are_recorded():
     extra = trimesh.Trimesh(pyramid.vertices, np.vstack([pyramid.faces, [[0, 0, 1]]]), process=False)
     obj = load_object(extra)
     assert "removed 1 zero-area faces" in obj.notes and len(obj.mesh.faces) == len(pyramid.faces)
-    sheet = trimesh.Trimesh([[0, 0, 0], [0.3, 0, 0], [0, 0.3, 0.1]], [[0, 1, 2]], process=False)
-    assert any("not watertight" in n for n in load_object(sheet).notes)
+    open_box = trimesh.creation.box(extents=(0.3, 0.3, 0.1))
+    open_box.update_faces(np.arange(len(open_box.faces)) > 0)  # one triangle of the lid gone: open, still a volume's shell
+    assert any("not watertight" in n for n in load_object(open_box).notes)
 
 
 def _write(tmp_path: Path, name: str, content: str | bytes) -> Path:
@@ -220,11 +221,15 @@ def test_malformed_files_raise_typed_errors(tmp_path, name, content, error, mess
 def test_a_sheet_thinner_than_a_millimetre_is_refused(thickness_m, ok):
     plate = trimesh.creation.box(extents=(0.3, 0.2, 1.0))
     plate.vertices[:, 2] *= thickness_m  # 0: every vertex at z = 0, a flat sheet of triangles
+    tilted = plate.copy()
+    tilted.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 4, [1, 0, 0]))  # its box is not flat
     if ok:
         assert load_object(plate).extents_m.min() == pytest.approx(thickness_m)
+        load_object(tilted)
     else:
-        with pytest.raises(InvalidInputError, match="is flat.*1 mm thick"):
-            load_object(plate)
+        for sheet in (plate, tilted):
+            with pytest.raises(InvalidInputError, match="is flat.*1 mm thick"):
+                load_object(sheet)
 
 
 def test_a_directory_is_not_a_mesh(tmp_path):

@@ -204,6 +204,7 @@ def test_distinct_objects(tmp_path):
         check_distinct([], ["box", "box"])
     assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "a/cup", "mug": "mug", "b/cup.stl": "b/cup"}
     assert object_labels(["a/cup.obj", "a/cup.stl"]) == {"a/cup.obj": "a/cup.obj", "a/cup.stl": "a/cup.stl"}
+    assert object_labels(["cup.obj", "cup.stl", "mug"]) == {"cup.obj": "cup.obj", "cup.stl": "cup.stl", "mug": "mug"}
     assert object_labels(["x/a/cup.obj", "y/a/cup.obj", "mug"]) == {"x/a/cup.obj": "cup_1", "y/a/cup.obj": "cup_2",
                                                                     "mug": "mug_3"}  # the numbered fallback
     labels = object_labels(["a/cup.obj", "b/cup.obj", "cup_1.obj"])
@@ -278,18 +279,20 @@ def test_object_name_is_the_name_resolve_object_gives_without_building(spec):
 
 def test_poorly_mapped_names_the_known_objects_whose_tour_seldom_observed_a_region():
     """Half the mapping whisks with 3 contacts or more is enough; fewer names the object; a map without a log is skipped."""
-    from types import SimpleNamespace
-
+    from cansim.explore.explorer import KnownObject
     from cansim.studies import ch6_active_exploration
 
-    def known(counts):
-        contacts = [None if c is None else np.zeros((c, 3)) for c in counts]
-        return SimpleNamespace(mapping_observations=lambda: (sum(c is not None and len(c) >= 3 for c in contacts),
-                                                             len(contacts)))
+    class Mapped:  # only the mapping log: KnownObject's own counting
+        mapping_observations = KnownObject.mapping_observations
+        seldom_observed = KnownObject.seldom_observed
 
-    sparse = known([3, 2, None, 1])  # 1 of 4 observed
-    half = known([3, 4, None, 2])  # 2 of 4: not warned
-    bare = SimpleNamespace(mapping_observations=lambda: None)
+        def __init__(self, counts):
+            self.mapping_log = None if counts is None else {"contacts": [None if c is None else np.zeros((c, 3))
+                                                                         for c in counts]}
+
+    sparse = Mapped([3, 2, None, 1])  # 1 of 4 observed
+    half = Mapped([3, 4, None, 2])  # 2 of 4: not warned
+    bare = Mapped(None)
     setup = ch6_active_exploration.Setup([sparse, half, bare], 1.0, 0.3, 0.3, objects=("capsule", "mug", "box"))
     lines = ch6_active_exploration.poorly_mapped(setup)
     assert len(lines) == 1 and "capsule observed a region in only 1 of its 4 mapping whisks" in lines[0]

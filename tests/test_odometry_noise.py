@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
@@ -261,10 +261,13 @@ def test_bad_poses_are_typed_errors(value):
 
 @settings(max_examples=50, deadline=None)
 @given(st.floats(0.0, 100.0))
+@example(1.0)
 def test_scaled_odometry_noise_multiplies_the_rotation_and_displacement_deviations(k):
     q = OdometryNoise().scaled(k)
     assert q.euler_std_rad == pytest.approx(k * math.radians(2.5)) and q.displacement_std_m == pytest.approx(k * 0.01)
     assert (q.angular_speed_mean_rad_s, q.angular_speed_std_rad_s, q.min_dt_s) == (0.03, 0.0087, 0.01)  # kept
+    if k == 1.0:
+        assert q == OdometryNoise()
 
 
 @pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), True, "1", None])

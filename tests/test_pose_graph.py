@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -219,6 +219,8 @@ def test_whisk_surface_in_an_anchors_frame() -> None:
 
 @settings(max_examples=50, deadline=None)
 @given(st.one_of(st.floats(0.0, 1e3), st.just(-1.0), st.just(float("nan")), st.just(float("inf")), st.booleans(), st.none()))
+@example(1.0)
+@example(0.0)
 def test_noise_models_for_an_odometry_scale_never_go_below_the_floor(scale):
     from maps.pose_graph import MIN_NOISE_SCALE, WhiskGraphConfig
     from maps.surface_match import SurfaceMatchConfig
@@ -238,3 +240,5 @@ def test_noise_models_for_an_odometry_scale_never_go_below_the_floor(scale):
     m = SurfaceMatchConfig(seed=7).for_odometry_scale(scale)
     assert (m.rotation_sigma_deg, m.displacement_sigma_m) == pytest.approx((2.5 * k, 0.01 * k))
     assert m.seed == 7 and m.tolerance_m == SurfaceMatchConfig().tolerance_m
+    if scale == 1.0:  # the thesis' noise: the defaults themselves, every field
+        assert g == WhiskGraphConfig() and m == SurfaceMatchConfig(seed=7)

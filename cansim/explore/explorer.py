@@ -132,6 +132,12 @@ class KnownObject:
     _snapshot: dict[str, np.ndarray] | None = field(default=None, repr=False)
     _surface: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
+    def __post_init__(self) -> None:
+        s = self.odometry_scale
+        if isinstance(s, bool) or not isinstance(s, (int, float, np.integer, np.floating)) or not math.isfinite(s) or s < 0:
+            raise InvalidInputError(f"{self.name}: odometry_scale must be a finite number >= 0 (a multiple of Eq "
+                                    f"6.4-6.11's odometry noise), got {s!r}")
+
     def stored_surface(self) -> tuple[np.ndarray, np.ndarray]:
         """What mapping felt, in the world frame: contact points and where each was felt from, (n, 3) m each.
 
@@ -160,12 +166,18 @@ class KnownObject:
 
         A whisk observes a region with 3 contacts or more (Eq 5.5,
         :data:`whisker_io.features.region.MIN_OBSERVATION_CONTACTS`); a map whose whisks
-        seldom did is sparse, seldom re-localised, and its stored surface is far off.
+        seldom did (:meth:`seldom_observed`) is sparse and seldom re-localised, so its stored surface
+        is only as good as the mapping odometry.
         """
         if self.mapping_log is None:
             return None
         contacts = self.mapping_log["contacts"]
         return sum(c is not None and len(c) >= MIN_OBSERVATION_CONTACTS for c in contacts), len(contacts)
+
+    def seldom_observed(self) -> bool:
+        """Whether under :data:`SELDOM_OBSERVED_SHARE` of the mapping whisks observed a region (False without a log)."""
+        seen = self.mapping_observations()
+        return seen is not None and seen[0] < SELDOM_OBSERVED_SHARE * seen[1]
 
     def _model_arrays(self) -> dict[str, np.ndarray]:
         """The model's ``.npz`` members as mapping left it (taken once)."""
@@ -205,10 +217,7 @@ class KnownObject:
             malformed contact points (nothing is written).
         """
         sizes = (self.n_built, self.n_built_regions, self.n_history)
-        scale = self.odometry_scale
-        if isinstance(scale, bool) or not isinstance(scale, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(scale) or scale < 0:
-            raise InvalidInputError(f"{self.name}: odometry_scale must be a finite number >= 0, got {scale!r}")
+        self.__post_init__()  # the fields may have been set after construction
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0 for v in sizes):
             raise InvalidInputError(f"{self.name}: n_built, n_built_regions and n_history must be counts >= 0, got {sizes}")
         if not all(isinstance(p, Pose) for p in self.poses):
@@ -231,7 +240,7 @@ class KnownObject:
         arrays["known_format"] = np.int64(_KNOWN_FORMAT)
         arrays["known_name"] = np.array(str(self.name))
         arrays["known_sizes"] = np.array(sizes, dtype=np.int64)
-        arrays["known_odometry_scale"] = np.float64(scale)
+        arrays["known_odometry_scale"] = np.float64(self.odometry_scale)
         arrays["known_poses"] = np.array([np.r_[p.position_m, p.quaternion_xyzw] for p in self.poses],
                                          dtype=np.float64).reshape(-1, 7)
         if log is not None:
@@ -307,6 +316,9 @@ class KnownObject:
         return WhiskerRatSLAM.library([m], [self.name], cfg)[0]
 
 
+#: Share of its mapping whisks that observed a region under which a map is called seldom observed
+#: (:meth:`KnownObject.seldom_observed`; the studies' seldom-touched rule, more often than not).
+SELDOM_OBSERVED_SHARE = 0.5
 #: Layout version of the ``known_`` members of :meth:`KnownObject.save`.
 _KNOWN_FORMAT = 1
 #: The members of a saved mapping log (:meth:`KnownObject.save`).
@@ -440,8 +452,11 @@ def build_object_model(
     (:meth:`KnownObject.stored_surface`) lies centimetres to decimetres from the object,
     and the surface matcher then matches it poorly.
     """
-    if not isinstance(name, str) or not name:
+    if not isinstance(name, str) or not name.strip():
         raise InvalidInputError(f"name must be a non-empty string (the object's name), got {name!r}")
+    if not isinstance(trajectory, Sequence) or not all(isinstance(p, Pose) for p in trajectory):
+        raise InvalidInputError(f"trajectory must be a sequence of Pose (e.g. object_trajectory(...)), got "
+                                f"{type(trajectory).__name__}")
     if len(trajectory) < 2:
         raise InvalidInputError("a mapping trajectory needs at least 2 poses")
     config_field(adjustments_per_pose, "adjustments_per_pose", int, minimum=0)
@@ -481,7 +496,7 @@ def build_object_model(
     known = KnownObject(name, slam, om.n_experiences, len(slam.frontend), len(om.history), visited, log,
                         float(odometry_scale))
     observed, whisks = known.mapping_observations() or (0, len(visited))
-    seldom = observed < 0.5 * whisks
+    seldom = known.seldom_observed()
     if seldom:
         _LOG.warning("only %d of the %d mapping whisks of %r observed a region (3 contacts or more): its map is sparse "
                      "and seldom re-localises, so its stored surface is only as good as the odometry; bring the "

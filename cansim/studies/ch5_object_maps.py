@@ -166,6 +166,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from whisker_io.array.geometry import THESIS_POSITIONS_MM
 from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels, seed_name
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
@@ -246,8 +247,8 @@ class StudyConfig:
     matching: str = "mapping"
     id_whisks: int = 0
     odometry_scale: float = checked(1.0, float, minimum=0.0, maximum=10.0, hint="a multiple of the Eq 6.4-6.11 odometry noise")
-    reach_contacts: int = checked(0, int, minimum=0, maximum=18,
-                                  hint="whiskers the mapping poses reach for, at most the thesis array's 18")
+    reach_contacts: int = checked(0, int, minimum=0, maximum=len(THESIS_POSITIONS_MM),
+                                  hint="whiskers the mapping poses reach for, at most the thesis array's")
     reach_when_missed: bool = checked(True, bool)
 
     def __post_init__(self) -> None:

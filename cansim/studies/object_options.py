@@ -143,7 +143,7 @@ def object_labels(specs: Sequence[str]) -> dict[str, str]:
     """
     unique = list(dict.fromkeys(map(str, specs)))
     labels = {s: object_label(s) for s in unique}
-    for _ in range(2):  # the clashing ones: with their folder, then with their suffix too
+    for with_suffix in (False, True):  # the clashing ones: with their folder, then with their file name
         seen: dict[str, list[str]] = {}
         for spec, lab in labels.items():
             seen.setdefault(lab, []).append(spec)
@@ -153,7 +153,7 @@ def object_labels(specs: Sequence[str]) -> dict[str, str]:
         for spec in clash:
             if is_mesh_file(spec):
                 path = Path(spec)
-                name = labels[spec] if "/" not in labels[spec] else path.name
+                name = path.name if with_suffix else object_label(spec)
                 labels[spec] = f"{path.parent.name}/{name}" if path.parent.name else name
     if len(set(labels.values())) == len(labels):
         return labels

@@ -795,9 +795,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         raise ConfigError(f"matchers must be a non-empty selection of {MATCHERS}, got {list(matchers)}")
     config_field(odometry_scale, "odometry_scale", float, minimum=0.0, maximum=10.0,
                  hint="a multiple of the Eq 6.4-6.11 odometry noise")
-    from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.array.geometry import THESIS_POSITIONS_MM
 
-    reach = config_field(reach_contacts, "reach_contacts", int, minimum=0, maximum=len(WhiskerArray.thesis().positions_m),
+    reach = config_field(reach_contacts, "reach_contacts", int, minimum=0, maximum=len(THESIS_POSITIONS_MM),
                          hint="whiskers the trajectories reach for, at most the thesis array's (0: the fixed standoff)")
     roll = None if roll_deg is None else config_field(roll_deg, "roll_deg", float, minimum=-360.0, maximum=360.0,
                                                       hint="degrees about the array's axis, or None: per object")
@@ -1148,9 +1148,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--seeds must be >= 1")
     if not 0.0 <= a.odometry_noise <= 10.0:
         ap.error("--odometry-noise must be in [0, 10]")
-    from whisker_io.array.geometry import WhiskerArray
+    from whisker_io.array.geometry import THESIS_POSITIONS_MM
 
-    whiskers = len(WhiskerArray.thesis().positions_m)
+    whiskers = len(THESIS_POSITIONS_MM)
     if not 0 <= a.reach_contacts <= whiskers:
         ap.error(f"--reach-contacts must be in [0, {whiskers}] (the thesis array's whiskers)")
     if a.roll_deg is not None and not (math.isfinite(a.roll_deg) and -360.0 <= a.roll_deg <= 360.0):

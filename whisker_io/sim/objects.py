@@ -571,8 +571,10 @@ def load_object(
         notes.append("not watertight (open or non-manifold edges): ray casting from outside works, volume is undefined")
 
     lo, hi = mesh.bounds
-    if float(np.min(hi - lo)) < MIN_THICKNESS_M:
-        raise InvalidInputError(f"{source} is flat: {float(np.min(hi - lo)):.3g} m thick in its thinnest dimension "
+    centred = mesh.vertices - mesh.vertices.mean(axis=0)
+    thickness = float(np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2][-1]))  # along its thinnest axis
+    if thickness < MIN_THICKNESS_M:  # a tilted sheet too, whatever its bounding box
+        raise InvalidInputError(f"{source} is flat: {thickness:.3g} m thick in its thinnest dimension "
                                 f"(extents {np.round(hi - lo, 4).tolist()} m); the whisker simulation needs a solid at "
                                 f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it)")
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
