@@ -799,3 +799,21 @@ def test_build_object_model_refuses_a_trajectory_that_is_not_poses(world):
             build_object_model("x", bad, lambda p: None, _odometry(1))
     with pytest.raises(InvalidInputError, match="name"):
         build_object_model("  ", known[0].poses[:3], lambda p: None, _odometry(1))
+
+
+def test_the_default_surface_matcher_assumes_the_known_objects_odometry_noise(world):
+    """Objects mapped with odometry a quarter as noisy: the explorer's matcher moves its hypotheses by a quarter of
+    Eq 6.4-6.11's 2.5 deg and 1 cm; objects of different scales, or a config given, leave it as given / the thesis'."""
+    from dataclasses import replace as dc_replace
+
+    known, _ = world
+    quarter = [dc_replace(k, odometry_scale=0.25) for k in known]
+    search = DefaultSearch((0, 0, 0.17), 0.3)
+    cfg = Explorer(quarter, None, None, _odometry(1), search, matcher="surface")._surface_config
+    assert (cfg.rotation_sigma_deg, cfg.displacement_sigma_m) == pytest.approx((0.625, 0.0025))
+    mixed = [quarter[0], *known[1:]]
+    cfg = Explorer(mixed, None, None, _odometry(1), search, matcher="surface")._surface_config
+    assert (cfg.rotation_sigma_deg, cfg.displacement_sigma_m) == (2.5, 0.01)
+    given = SurfaceMatchConfig(rotation_sigma_deg=1.0)
+    assert Explorer(quarter, None, None, _odometry(1), search, matcher="surface",
+                    surface_config=given)._surface_config is given

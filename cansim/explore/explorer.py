@@ -676,7 +676,9 @@ class Explorer:
         object (issue 22). The models still step: FEH and LSR take their targets from them.
     surface_config : SurfaceMatchConfig, optional
         The surface matcher's parameters (``matcher="surface"``; default
-        ``SurfaceMatchConfig()``, whose motion model is Eq 6.4-6.11's noise).
+        ``SurfaceMatchConfig()`` with its motion model for the known objects' odometry noise,
+        :meth:`~maps.surface_match.SurfaceMatchConfig.for_odometry_scale` of their
+        :attr:`KnownObject.odometry_scale` when they share one, else Eq 6.4-6.11's).
 
     Notes
     -----
@@ -744,7 +746,9 @@ class Explorer:
         self.models = [k.exploring_model() for k in known]
         self.matcher = matcher
         self._surfaces: SurfaceLibrary | None = None
-        self._surface_config = surface_config if surface_config is not None else SurfaceMatchConfig()
+        scales = {float(k.odometry_scale) for k in known}  # the arm that mapped them explores: its odometry's noise
+        self._surface_config = surface_config if surface_config is not None else \
+            SurfaceMatchConfig().for_odometry_scale(scales.pop() if len(scales) == 1 else 1.0)
         self._surface_matcher: SurfaceMatcher | None = None
         self._ruled_out = False  # the surface matcher holds no object in question (logged once)
         if matcher == "surface":
