@@ -76,7 +76,7 @@ from maps.odometry import SpatialOdometry
 from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.pose import as_pose
-from whisker_io.validation import checked, config_field, finite_array, finite_scalar, scaled_fields, validate_fields
+from whisker_io.validation import checked, config_field, finite_array, scale_factor, scaled_fields, validate_fields
 
 __all__ = ["MIN_NOISE_SCALE", "PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "noise_model_scale", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
 
@@ -128,10 +128,7 @@ class WhiskGraphConfig:
 def noise_model_scale(scale: object) -> float:
     """The multiple of Eq 6.4-6.11's noise a model of odometry ``scale`` times as noisy assumes:
     ``max(scale, MIN_NOISE_SCALE)`` (a typed error for a scale that is not a finite number >= 0)."""
-    k = finite_scalar(scale, "scale")
-    if k < 0:
-        raise InvalidInputError(f"scale must be >= 0 (a multiple of Eq 6.4-6.11's odometry noise), got {scale!r}")
-    return max(k, MIN_NOISE_SCALE)
+    return max(scale_factor(scale, hint=" (a multiple of Eq 6.4-6.11's odometry noise)"), MIN_NOISE_SCALE)
 
 
 @dataclass(frozen=True)

@@ -165,3 +165,17 @@ def test_scaled_fields_multiplies_the_named_fields_or_raises_a_typed_error(scale
     if ok and scale > 1e9:
         with pytest.raises(InvalidInputError, match="overflow"):
             scaled_fields(Noise(), scale, ("a", "b"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10, 10), st.booleans(), st.none(),
+                 st.text(max_size=2)))
+def test_scale_factor_is_a_finite_float_at_least_zero_or_a_typed_error(value):
+    from whisker_io.validation import scale_factor
+
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
+    if ok:
+        assert scale_factor(value, "odometry_scale") == float(value)
+    else:
+        with pytest.raises(InvalidInputError, match="odometry_scale"):
+            scale_factor(value, "odometry_scale")

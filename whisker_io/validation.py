@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
 
 __all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple", "config_field",
-           "plain_fields", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
+           "plain_fields", "scale_factor", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -90,6 +90,24 @@ def _check_finite(arr: NDArray[np.float64], name: str) -> None:
         )
 
 
+def scale_factor(value: object, name: str = "scale", hint: str = "") -> float:
+    """``value`` as a finite multiplier >= 0 (dimensionless); ``hint`` is added to the error's first clause.
+
+    Raises
+    ------
+    InvalidInputError
+        None, a bool, a string, NaN/inf or a negative number.
+    ShapeError
+        An array with one or more dimensions.
+    """
+    if value is None:
+        raise InvalidInputError(f"{name} must be a finite number >= 0{hint}, got None")
+    k = finite_scalar(value, name)
+    if k < 0:
+        raise InvalidInputError(f"{name} must be >= 0{hint}, got {value!r}")
+    return k
+
+
 def scaled_fields(obj: Any, scale: object, fields: Sequence[str]) -> Any:
     """A copy of the dataclass ``obj`` with ``fields`` (standard deviations) multiplied by ``scale``.
 
@@ -106,9 +124,7 @@ def scaled_fields(obj: Any, scale: object, fields: Sequence[str]) -> Any:
     InvalidInputError
         A scale that is not a finite number >= 0 (or a bool), or that makes a field overflow.
     """
-    k = finite_scalar(scale, "scale")
-    if k < 0:
-        raise InvalidInputError(f"scale must be >= 0, got {scale!r}")
+    k = scale_factor(scale)
     values = {f: float(getattr(obj, f)) * k for f in fields}
     if not all(math.isfinite(v) for v in values.values()):
         raise InvalidInputError(f"scale {scale!r} makes the noise standard deviations overflow; use a smaller scale")

@@ -87,7 +87,7 @@ from whisker_io.errors import SafetyViolationError
 from whisker_io.features.region import MIN_OBSERVATION_CONTACTS
 from whisker_io.persistence import read_npz, write_npz
 from whisker_io.pose import Pose
-from whisker_io.validation import config_field, finite_array
+from whisker_io.validation import config_field, finite_array, scale_factor
 
 __all__ = ["KnownObject", "any_distance_cells", "build_object_model", "Explorer", "ExplorationResult", "ic_metrics", "ICMetrics"]
 
@@ -133,10 +133,7 @@ class KnownObject:
     _surface: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        s = self.odometry_scale
-        if isinstance(s, bool) or not isinstance(s, (int, float, np.integer, np.floating)) or not math.isfinite(s) or s < 0:
-            raise InvalidInputError(f"{self.name}: odometry_scale must be a finite number >= 0 (a multiple of Eq "
-                                    f"6.4-6.11's odometry noise), got {s!r}")
+        scale_factor(self.odometry_scale, f"{self.name}: odometry_scale", " (a multiple of Eq 6.4-6.11's odometry noise)")
 
     def stored_surface(self) -> tuple[np.ndarray, np.ndarray]:
         """What mapping felt, in the world frame: contact points and where each was felt from, (n, 3) m each.
