@@ -23,6 +23,7 @@ from cansim.errors import (
     InvalidInputError,
     ShapeError,
     UnknownBackendError,
+    UnknownFieldError,
     ZeroActivityError,
 )
 from whisker_io._lazy import lazy_exports
@@ -93,5 +94,6 @@ __all__ = [
     "UnknownBackendError",
     "BackendUnavailableError",
     "ConfigError",
+    "UnknownFieldError",
     "CorruptFileError",
 ]

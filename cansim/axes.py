@@ -9,13 +9,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from cansim.errors import InvalidInputError
-from whisker_io.validation import checked, finite_scalar, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, validate_fields
 
 __all__ = ["Axis"]
 
 
 @dataclass(frozen=True)
-class Axis:
+class Axis(ConfigDataclass):
     """One periodic (wrap-around) axis of a population.
 
     Parameters

@@ -10,13 +10,14 @@ that raised it is left unchanged.
 
 from __future__ import annotations
 
-from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, ShapeError
+from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, ShapeError, UnknownFieldError
 
 __all__ = [
     "CansimError",
     "InvalidInputError",
     "ShapeError",
     "ConfigError",
+    "UnknownFieldError",
     "CorruptFileError",
     "ZeroActivityError",
     "BackendUnavailableError",

@@ -40,7 +40,7 @@ import numpy as np
 
 from cansim._renamed import renamed_keywords
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_vector, validate_fields
 
 __all__ = ["LocalViewParams", "LocalViewCells", "stored_injection_energy"]
 
@@ -72,7 +72,7 @@ def stored_injection_energy(decay: float, max_energy: float) -> float:
 
 @renamed_keywords(inject_gain="inject_energy")
 @dataclass(frozen=True)
-class LocalViewParams:
+class LocalViewParams(ConfigDataclass):
     """Parameters of the LV -> pose-cell connection.
 
     Parameters

@@ -8,7 +8,7 @@ from typing import Sequence, Union
 
 from cansim.errors import InvalidInputError
 from cansim.kernels import NORMALISATIONS, SeparableKernel
-from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, validate_fields, whole_number
 
 __all__ = ["AttractorParams"]
 
@@ -28,7 +28,7 @@ def _per_axis(value: PerAxis, ndim: int, name: str) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class AttractorParams:
+class AttractorParams(ConfigDataclass):
     """Local excitation / inhibition and global inhibition of a CAN population.
 
     Each width/sigma is a scalar (same on every axis) or one value per axis.

@@ -33,7 +33,7 @@ import numpy as np
 from cansim.axes import Axis
 from cansim.errors import InvalidInputError, ShapeError
 from cansim.grid_inputs import MAX_SHIFT_CELLS, check_shift, shift_too_large
-from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields
 
 __all__ = [
     "split_weights",
@@ -225,7 +225,7 @@ class UniformMotion(MotionModel):
 
 
 @dataclass(frozen=True)
-class PlanarMotion(MotionModel):
+class PlanarMotion(MotionModel, ConfigDataclass):
     """RatSLAM's heading-conditional translation on a (x', y', theta') grid (3-DoF).
 
     Each theta layer ``k`` (heading ``th_k = k * step_theta``) shifts its plane by

@@ -96,7 +96,7 @@ from whisker_io.persistence import read_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = [
     "FORMAT_VERSION",
@@ -131,7 +131,7 @@ def _sequence(value: Any, name: str) -> tuple[Any, ...]:
 
 
 @dataclass(frozen=True)
-class MapConfig:
+class MapConfig(ConfigDataclass):
     """Parameters of the experience-map core.
 
     Parameters

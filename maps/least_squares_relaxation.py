@@ -54,7 +54,7 @@ from scipy.sparse import coo_matrix
 from maps.experience_map import ExperienceMap
 from maps.se2 import SE2Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_array, validate_fields, whole_number
 
 __all__ = ["LOSSES", "LeastSquaresConfig", "map_edges", "relax_least_squares", "solve_se2_graph", "view_ties"]
 
@@ -63,7 +63,7 @@ LOSSES: tuple[str, ...] = ("linear", "soft_l1", "huber", "cauchy")
 
 
 @dataclass(frozen=True)
-class LeastSquaresConfig:
+class LeastSquaresConfig(ConfigDataclass):
     """Noise model and options of :func:`relax_least_squares`.
 
     Parameters

@@ -76,7 +76,7 @@ from maps.odometry import SpatialOdometry
 from maps.se3 import SE3Geometry
 from whisker_io.errors import InvalidInputError, ShapeError
 from whisker_io.pose import as_pose
-from whisker_io.validation import checked, config_field, finite_array, scale_factor, scaled_fields, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, finite_array, scale_factor, scaled_fields, validate_fields
 
 __all__ = ["MIN_NOISE_SCALE", "PoseGraphEdges", "WhiskGraphConfig", "dead_reckoned_poses", "noise_model_scale", "optimise_pose_graph", "whisk_graph_edges", "whisk_surface"]
 
@@ -93,7 +93,7 @@ MIN_NOISE_SCALE = 0.25
 
 
 @dataclass(frozen=True)
-class WhiskGraphConfig:
+class WhiskGraphConfig(ConfigDataclass):
     """Standard deviations of the whisk graph's edges (module docstring).
 
     Parameters

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 
 __all__ = [
     "MATCHERS",
@@ -56,7 +56,7 @@ MATCHERS = ("thesis", "surface")
 
 
 @dataclass(frozen=True)
-class LeakyIntegrator:
+class LeakyIntegrator(ConfigDataclass):
     """Parameters of the per-object confidence.
 
     Parameters

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import checked, finite_array, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, validate_fields
 
 __all__ = ["MAX_CELLS", "SurfaceFieldConfig", "SurfaceFields", "grid_cells", "oriented_normals"]
 
@@ -48,7 +48,7 @@ MAX_CELLS = 4_000_000
 
 
 @dataclass(frozen=True)
-class SurfaceFieldConfig:
+class SurfaceFieldConfig(ConfigDataclass):
     """Parameters of the stored surfaces' signed-distance grids (module docstring).
 
     Parameters

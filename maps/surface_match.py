@@ -366,7 +366,7 @@ from maps.odometry import SpatialOdometry
 from maps.pose_graph import noise_model_scale
 from maps.surface_field import SurfaceFieldConfig, SurfaceFields
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, scaled_fields, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, scaled_fields, validate_fields
 
 __all__ = [
     "SurfaceMatchConfig",
@@ -377,7 +377,7 @@ __all__ = [
 ]
 
 @dataclass(frozen=True)
-class SurfaceMatchConfig:
+class SurfaceMatchConfig(ConfigDataclass):
     """Parameters of the surface matcher (module docstring).
 
     Parameters

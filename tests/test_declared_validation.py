@@ -26,9 +26,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
-from whisker_io.validation import (CHECK_KEY, FieldCheck, checked, config_field, field_checks, finite_scalar,
-                                   validate_fields, whole_number)
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError, UnknownFieldError
+from whisker_io.validation import (CHECK_KEY, ConfigDataclass, FieldCheck, checked, config_field, field_checks,
+                                   finite_scalar, validate_fields, whole_number)
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("cansim", "maps", "whisker_io")
@@ -345,6 +345,70 @@ def test_the_converted_classes_are_found() -> None:
     assert expected <= names, expected - names
     for cls in CLASSES:
         assert dataclasses.is_dataclass(cls) and field_checks(cls), cls
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=_qualname)
+def test_a_misspelt_field_is_an_unknown_field_error_naming_the_field_meant(cls: type) -> None:
+    assert issubclass(cls, ConfigDataclass), f"{cls.__name__} declares checked fields: derive it from ConfigDataclass"
+    names = [f.name for f in dataclasses.fields(cls) if f.init]
+    meant = max(names, key=len)
+    typo = meant[:-1] + ("x" if meant[-1] != "x" else "y")  # one letter changed
+    with pytest.raises(UnknownFieldError, match=rf"{cls.__name__} has no field '{typo}' \(did you mean '{meant}'\?\)"):
+        _build(cls, **{typo: 1})
+    base = _build(cls)
+    with pytest.raises(UnknownFieldError, match=f"has no field '{typo}'"):
+        dataclasses.replace(base, **{typo: 1})
+    with pytest.raises(UnknownFieldError, match=rf"takes at most {len(names)} arguments, got {len(names) + 1} positional"):
+        cls(*[getattr(base, n) for n in names], 0)
+
+
+@dataclass(frozen=True)
+class _Window(ConfigDataclass):
+    start_s: float = checked(0.0, float, minimum=0)
+    stop_s: float = checked(1.0, float, minimum=0)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.dictionaries(st.sampled_from(["start_s", "stop_s"]) | st.text(min_size=1, max_size=8),
+                       st.floats(0, 10), max_size=3),
+       st.lists(st.floats(0, 10), max_size=3))
+def test_only_the_fields_pass_the_name_check(kwargs: dict[str, float], args: list[float]) -> None:
+    """Known names and at most two positional values build (or fail a field rule / Python's own duplicate
+    check); any other name or a third positional value is an UnknownFieldError (a ConfigError)."""
+    foreign = [k for k in kwargs if k not in ("start_s", "stop_s")]
+    try:
+        w = _Window(*args, **kwargs)
+    except UnknownFieldError as exc:
+        assert isinstance(exc, ConfigError) and isinstance(exc, TypeError)
+        if foreign:
+            assert f"has no field {foreign[0]!r}" in str(exc)
+        elif len(args) > 2:
+            assert "takes at most 2 arguments" in str(exc)
+        else:  # every value drawn is >= 0: no field rule refuses it
+            pytest.fail(f"a valid call was refused: {exc}")
+        return
+    except TypeError as exc:  # Python's own: a field given positionally and by name
+        assert not isinstance(exc, ConfigError)
+        assert not foreign and len(args) <= 2 and "multiple values" in str(exc), exc
+        return
+    assert not foreign and len(args) <= 2
+    given_values = dict(zip(("start_s", "stop_s"), args)) | kwargs
+    assert (w.start_s, w.stop_s) == (given_values.get("start_s", 0.0), given_values.get("stop_s", 1.0))
+
+
+def test_a_subclass_field_is_known_and_pickling_still_works() -> None:
+    import copy
+    import pickle
+
+    from cansim.models.ratslam_config import RatSLAMConfig
+
+    cfg = RatSLAMConfig(xy_cells=23, cell_size_m=0.5)  # a SlamConfig field and one of the subclass
+    assert pickle.loads(pickle.dumps(cfg)) == cfg and copy.deepcopy(cfg) == cfg
+    with pytest.raises(ConfigError, match="pc_dim_xy is OpenRatSLAM's name: use xy_cells"):
+        RatSLAMConfig(pc_dim_xy=23)
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=_qualname)

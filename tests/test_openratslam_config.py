@@ -154,7 +154,7 @@ def test_overrides_use_the_new_names_and_win():
     assert (cfg.xy_cells, cfg.frontend, cfg.cell_size_m) == (23, "ids", 0.5)
     with pytest.raises(ConfigError, match="pc_dim_th is OpenRatSLAM's name: use heading_cells="):
         RatSLAMConfig.from_text("pc_dim_xy=23\n", pc_dim_th=12)
-    with pytest.raises(ConfigError, match="unknown RatSLAMConfig field"):
+    with pytest.raises(ConfigError, match=r"RatSLAMConfig has no field .xy_cell. \(did you mean .xy_cells.\?\)"):
         RatSLAMConfig.from_text("", xy_cell=3)
 
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from cansim import Population
-from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.errors import ConfigError, InvalidInputError, ShapeError, UnknownFieldError
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.localisation import map_pose_errors, relocalisation_errors
 from maps.odometry import SpatialOdometry
@@ -162,7 +162,7 @@ def test_bad_config_is_named():
     for kw, key in (({"grid_cells": 2}, "grid_cells"), ({"cell_size_m": 0.0}, "cell_size_m"), ({"lv_mode": "x"}, "lv_mode")):
         with pytest.raises(ConfigError, match=key):
             WhiskerRatSLAMConfig(**kw)
-    with pytest.raises(ConfigError, match="unknown"):
+    with pytest.raises(UnknownFieldError, match="WhiskerRatSLAMConfig has no field .pc_dim_xy."):
         WhiskerRatSLAM(pc_dim_xy=3)
 
 

@@ -11,7 +11,8 @@ One class per concept:
 * :class:`InvalidInputError` (a ``ValueError``) - a value outside its domain (NaN/inf,
   negative dt, unknown name); :class:`ShapeError` for a wrong shape;
   :class:`ConfigError` for a malformed parameter or configuration entry (the
-  message names the key).
+  message names the key), :class:`UnknownFieldError` for an argument that names no
+  field of a configuration (also a ``TypeError``, as Python's own refusal of a keyword).
 * :class:`CorruptFileError` (a ``ValueError``) - a saved or recorded file that cannot
   be read back: a saved model, map or whisk recording; ``path``, ``field`` and
   ``line`` say where.
@@ -31,6 +32,7 @@ __all__ = [
     "InvalidInputError",
     "ShapeError",
     "ConfigError",
+    "UnknownFieldError",
     "CorruptFileError",
     "HardwareError",
     "MissingDependencyError",
@@ -66,6 +68,14 @@ class ShapeError(InvalidInputError):
 
 class ConfigError(InvalidInputError):
     """A parameter or configuration entry is unknown or malformed; the message names the key."""
+
+
+class UnknownFieldError(ConfigError, TypeError):
+    """An argument names no field of a configuration, or there are more positional arguments than fields.
+
+    A ``TypeError`` too, as Python's own refusal of an unexpected keyword, so code that
+    catches that keeps working (:class:`whisker_io.validation.ConfigDataclass`).
+    """
 
 
 class CorruptFileError(CansimError, ValueError):

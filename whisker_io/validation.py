@@ -15,7 +15,11 @@ typed error with a message naming the argument, never a NaN result later:
 * :func:`checked` - a dataclass field whose constraint (a :class:`FieldCheck`) is
   declared with it, and :func:`validate_fields` - the one validator that reads those
   declarations (called first by each configuration's ``__post_init__``); a field may
-  declare the error it raises, its name in the message and the message itself.
+  declare the error it raises, its name in the message and the message itself;
+* :class:`ConfigDataclass` - the base of those configuration dataclasses: an argument
+  that names no field (a misspelt one) or one positional argument too many is an
+  :class:`~whisker_io.errors.UnknownFieldError` (a ``ConfigError`` and a ``TypeError``)
+  naming the nearest field.
 
 Non-finite values raise :class:`~whisker_io.errors.InvalidInputError`; a wrong
 shape raises its subclass :class:`~whisker_io.errors.ShapeError`; a bad
@@ -36,10 +40,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from whisker_io.errors import ConfigError, InvalidInputError, ShapeError
+from whisker_io.errors import ConfigError, InvalidInputError, ShapeError, UnknownFieldError
 
 __all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple", "config_field",
-           "plain_fields", "scale_factor", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "MAX_STEP_M", "MAX_TURN_RAD"]
+           "plain_fields", "scale_factor", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "ConfigDataclass", "MAX_STEP_M", "MAX_TURN_RAD"]
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry
@@ -518,6 +522,64 @@ _PLAIN_TYPES = frozenset({float, int, str, bool, type(None)})
 @functools.cache
 def _field_names(cls: type) -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(cls))
+
+
+@functools.cache
+def _init_names(cls: type) -> tuple[tuple[str, ...], frozenset[str]]:
+    """The parameters of a dataclass's ``__init__`` in order, and the names it takes: those and the old
+    names its ``__renamed_keywords__`` still accepts (``cansim._renamed.renamed_keywords``)."""
+    names = tuple(f.name for f in dataclasses.fields(cls) if f.init)
+    return names, frozenset(names) | frozenset(getattr(cls, "__renamed_keywords__", ()))
+
+
+class ConfigDataclass:
+    """Base of the configuration dataclasses: a misspelt or surplus argument is a :class:`ConfigError`.
+
+    A dataclass's generated ``__init__`` refuses a keyword that names no field with a
+    plain ``TypeError`` before any field check runs. ``__new__`` receives the same
+    arguments first, so this base checks their names and number there and raises
+    :class:`~whisker_io.errors.UnknownFieldError` (a :class:`~whisker_io.errors.ConfigError`,
+    the project's error for a bad configuration, and a ``TypeError``, as Python's own)
+    naming the nearest field and listing the class's fields. A missing required field is
+    still the ``__init__``'s ``TypeError``. ``dataclasses.replace`` builds through the
+    constructor and is checked alike.
+
+    Examples
+    --------
+    >>> @dataclasses.dataclass(frozen=True)
+    ... class WindowParams(ConfigDataclass):
+    ...     start_s: float = 0.0
+    ...     stop_s: float = 1.0
+    >>> WindowParams(stop=2.0)
+    Traceback (most recent call last):
+    ...
+    whisker_io.errors.UnknownFieldError: WindowParams has no field 'stop' (did you mean 'stop_s'?); its fields: start_s, stop_s
+    """
+
+    __slots__ = ()
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        if args or kwargs:
+            names, known = _init_names(cls)
+            if len(args) > len(names) or not kwargs.keys() <= known:
+                cls.refuse_arguments(len(args), kwargs)
+        return super().__new__(cls)
+
+    @classmethod
+    def refuse_arguments(cls, n_positional: int, keywords: Any) -> None:
+        """Raise :class:`UnknownFieldError` for the first keyword of ``keywords`` that names no field, or for
+        ``n_positional`` arguments beyond the fields (a subclass may name better advice first)."""
+        import difflib
+
+        names, known = _init_names(cls)
+        listed = ", ".join(names)
+        for key in keywords:
+            if key not in known:
+                near = difflib.get_close_matches(str(key), names, n=1)
+                hint = f" (did you mean {near[0]!r}?)" if near else ""
+                raise UnknownFieldError(f"{cls.__name__} has no field {key!r}{hint}; its fields: {listed}")
+        raise UnknownFieldError(f"{cls.__name__} takes at most {len(names)} arguments, got {n_positional} positional; "
+                          f"give them by name: {listed}")
 
 
 # ------------------------------------------------------------ declared field checks

@@ -175,7 +175,7 @@ from numpy.typing import ArrayLike
 from cansim.errors import InvalidInputError
 from cansim.explore.placement import PlacementParams, place
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import checked, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_vector, validate_fields
 
 __all__ = ["ACTIONS", "ContactSeekingParams", "SeekStep", "clear_of_contacts", "contact_range_m", "held_face_pose", "seek_contact"]
 
@@ -188,7 +188,7 @@ _MAX_CONTACT_DISTANCE_M = 10.0
 
 
 @dataclass(frozen=True)
-class ContactSeekingParams:
+class ContactSeekingParams(ConfigDataclass):
     """Parameters of contact seeking (module docstring; the thesis has none of them).
 
     Parameters

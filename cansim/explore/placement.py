@@ -64,7 +64,7 @@ from scipy.spatial.transform import Rotation
 from cansim.errors import ConfigError, InvalidInputError, ShapeError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.sim.trajectories import facing_pose
-from whisker_io.validation import checked, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_vector, validate_fields
 
 __all__ = ["DEFAULT_CONE_HALF_ANGLE_RAD", "PlacementParams", "maintain_yaw", "place", "ring_half_angle_rad"]
 
@@ -75,7 +75,7 @@ DEFAULT_CONE_HALF_ANGLE_RAD = math.radians(24.0)
 
 
 @dataclass(frozen=True)
-class PlacementParams:
+class PlacementParams(ConfigDataclass):
     """Parameters of the SPC (the thesis does not print them; defaults are this project's).
 
     Parameters

@@ -23,7 +23,7 @@ import numpy as np
 
 from whisker_io.errors import InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 
 __all__ = ["TACTILE_SHAPE", "TactileTemplateConfig", "TactileTemplates", "tactile_similarity"]
 
@@ -49,7 +49,7 @@ def tactile_similarity(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class TactileTemplateConfig:
+class TactileTemplateConfig(ConfigDataclass):
     """Parameters of :class:`TactileTemplates`.
 
     Parameters

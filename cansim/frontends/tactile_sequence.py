@@ -61,7 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 from cansim.frontends.store import TemplateMatch
 from cansim.frontends.tactile import TACTILE_SHAPE
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = ["TactileSequenceConfig", "TactileSequenceMatcher", "calibrate_threshold", "sequence_distances"]
 
@@ -70,7 +70,7 @@ _MAX_SEQUENCE = 10_000
 
 
 @dataclass(frozen=True)
-class TactileSequenceConfig:
+class TactileSequenceConfig(ConfigDataclass):
     """Parameters of :class:`TactileSequenceMatcher`.
 
     Parameters

@@ -36,13 +36,13 @@ import numpy as np
 
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import TemplateMatch, TemplateStore
-from whisker_io.validation import checked, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, validate_fields, whole_number
 
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
 
 @dataclass(frozen=True)
-class VisualTemplateConfig:
+class VisualTemplateConfig(ConfigDataclass):
     """Parameters of :class:`VisualTemplates` (OpenRatSLAM's ``LocalViewMatch``).
 
     A *block* is one element of the template: the mean of a rectangle of pixels

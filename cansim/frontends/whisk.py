@@ -45,7 +45,7 @@ from numba import njit
 from whisker_io.errors import CorruptFileError, InvalidInputError, ShapeError
 from cansim.frontends.store import ViewMatch
 from whisker_io.features._distances_numba import chi2_columns, nmse_columns
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 from whisker_io.numba_cache import tolerate_corrupt_cache
 
 __all__ = ["WhiskFrontEnd", "WhiskFrontEndConfig", "RegionScores", "PosePrior", "FEATURES"]
@@ -54,7 +54,7 @@ FEATURES = ("pfh", "sda", "both")
 
 
 @dataclass(frozen=True)
-class WhiskFrontEndConfig:
+class WhiskFrontEndConfig(ConfigDataclass):
     """Parameters of the whisk front end.
 
     Parameters

@@ -80,8 +80,7 @@ class RatSLAM(SlamLoop):
     """
 
     def __init__(self, config: RatSLAMConfig | None = None, **params: Any) -> None:
-        RatSLAMConfig.check_names(params)
-        cfg = self.config = configured(RatSLAMConfig, config, params, "RatSLAM")
+        cfg = self.config = configured(RatSLAMConfig, config, params)
         pose_cells: Any
         if cfg.pose_cells == "spiking":  # opt-in; imported here so that the rate engines import nothing spiking
             from cansim.models.spiking_pose_cells import SpikingPoseCells

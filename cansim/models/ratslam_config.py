@@ -20,7 +20,7 @@ import os
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Union
 
-from cansim.errors import ConfigError
+from cansim.errors import ConfigError, UnknownFieldError
 from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.visual import VisualTemplateConfig
 from cansim.local_view import LocalViewParams
@@ -146,22 +146,24 @@ class RatSLAMConfig(SlamConfig):
     strict_translation: bool = checked(False, bool)
     pose_cells: str = checked("population", str, choices=("population", "openratslam", "spiking"))
 
-    def __new__(cls, *args: Any, **kwargs: Any) -> "RatSLAMConfig":
-        # a dataclass __init__ would raise TypeError for a foreign keyword; refuse it by name
-        if kwargs:
-            cls.check_names(kwargs)
-        return super().__new__(cls)
-
     @classmethod
     def check_names(cls, names: Any) -> None:
         """Raise :class:`ConfigError` unless every name is a field (OpenRatSLAM names get the field to use)."""
-        unknown = [n for n in names if n not in {f.name for f in fields(cls)}]
-        for name in unknown:
-            new = renamed(name)
+        known = {f.name for f in fields(cls)}
+        if not all(n in known for n in names):
+            cls.refuse_arguments(0, names)
+
+    @classmethod
+    def refuse_arguments(cls, n_positional: int, keywords: Any) -> None:
+        """:meth:`ConfigDataclass.refuse_arguments <whisker_io.validation.ConfigDataclass.refuse_arguments>`, an
+        OpenRatSLAM key name first answered with the field to use."""
+        known = {f.name for f in fields(cls)}
+        for name in keywords:
+            new = None if name in known else renamed(name)
             if new is not None:
-                raise ConfigError(f"{name} is OpenRatSLAM's name: use {new}; RatSLAMConfig.from_file reads OpenRatSLAM files")
-        if unknown:
-            raise ConfigError(f"unknown RatSLAMConfig field(s) {sorted(unknown)}; the fields are {[f.name for f in fields(cls)]}")
+                raise UnknownFieldError(f"{name} is OpenRatSLAM's name: use {new}; RatSLAMConfig.from_file reads "
+                                        "OpenRatSLAM files")
+        super().refuse_arguments(n_positional, keywords)
 
     def __post_init__(self) -> None:
         super().__post_init__()  # the declared fields (SlamConfig's and these), the attractor's type

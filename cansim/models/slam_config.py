@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 from cansim.errors import ConfigError
 from cansim.params import AttractorParams
 from cansim.population import MAX_CELLS
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 
 __all__ = ["SlamConfig", "MAX_POSE_CELLS"]
 
@@ -37,7 +37,7 @@ C = TypeVar("C", bound="SlamConfig")
 
 
 @dataclass(frozen=True)
-class SlamConfig:
+class SlamConfig(ConfigDataclass):
     """The fields RatSLAM and WhiskerRatSLAM share (defaults: OpenRatSLAM's; each model sets its own).
 
     Parameters

@@ -32,7 +32,7 @@ from typing import Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
-from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
+from cansim.errors import CorruptFileError, InvalidInputError
 from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
@@ -46,15 +46,11 @@ _NO_VALUES = np.zeros(0, dtype=np.float64)
 _LOOP_FORMAT = 1
 
 
-def configured(config_type: type, config: Any, params: dict[str, Any], model: str) -> Any:
-    """A model's configuration: ``config`` (or the defaults) with keyword overrides, unknown keys refused."""
+def configured(config_type: type, config: Any, params: dict[str, Any]) -> Any:
+    """A model's configuration: ``config`` (or the defaults) with keyword overrides; a key that names no
+    field is refused by the configuration class (:class:`whisker_io.validation.ConfigDataclass`)."""
     cfg = config if config is not None else config_type()
-    if params:
-        unknown = set(params) - {f.name for f in dataclasses.fields(config_type)}
-        if unknown:
-            raise ConfigError(f"unknown {model} parameter(s) {sorted(unknown)}; see {config_type.__name__}")
-        cfg = dataclasses.replace(cfg, **params)
-    return cfg
+    return dataclasses.replace(cfg, **params) if params else cfg
 
 
 class PoseCells(Protocol):

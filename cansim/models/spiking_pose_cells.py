@@ -49,14 +49,14 @@ from cansim.spiking import (
     calibrate_velocity_lead,
     spiking_params_from_rate,
 )
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = ["SpikingPoseCellParams", "SpikingPoseCells"]
 
 
 
 @dataclass(frozen=True)
-class SpikingPoseCellParams:
+class SpikingPoseCellParams(ConfigDataclass):
     """Parameters of :class:`SpikingPoseCells`.
 
     Parameters

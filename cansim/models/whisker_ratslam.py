@@ -272,7 +272,7 @@ class WhiskerRatSLAM(SlamLoop):
     """
 
     def __init__(self, config: WhiskerRatSLAMConfig | None = None, **params: Any) -> None:
-        cfg = self.config = configured(WhiskerRatSLAMConfig, config, params, "WhiskerRatSLAM")
+        cfg = self.config = configured(WhiskerRatSLAMConfig, config, params)
         na = cfg.grid_cells if cfg.angle_cells is None else cfg.angle_cells
         pose_cells = Population.whisker6d(
             cfg.grid_cells, cfg.cell_size_m, angle_cells=na, params=cfg.attractor, backend=cfg.backend, dtype=np.dtype(cfg.dtype)

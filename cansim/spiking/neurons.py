@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 from cansim.errors import ConfigError, InvalidInputError
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 #: most steps of ``dt_s`` one refractory period may span (a 1 ms period at 1 ps steps): a smaller step
 #: is a mistyped unit, and a step of ~1e-320 s would overflow the count
@@ -45,7 +45,7 @@ def _finite(name: str, value: float) -> float:
 
 
 @dataclass(frozen=True)
-class NeuronParams:
+class NeuronParams(ConfigDataclass):
     """Parameters of every neuron of a spiking population (one value shared by all cells).
 
     Voltages and currents are in threshold units (the default threshold is 1 above rest);

@@ -37,7 +37,7 @@ from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel, scatter_targets
 from cansim.spiking.neurons import NeuronParams
 from whisker_io.persistence import read_npz, write_npz
-from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields
 
 __all__ = ["SpikingParams", "SpikingPopulation", "SPIKING_BACKENDS"]
 
@@ -54,7 +54,7 @@ MIN_KICK_SIGMA_CELLS = 0.05
 
 
 @dataclass(frozen=True)
-class SpikingParams:
+class SpikingParams(ConfigDataclass):
     """Network-level parameters of a spiking attractor population.
 
     Parameters

@@ -86,7 +86,7 @@ from cansim.spiking.conjunctive import (
 )
 from cansim.spiking.nir_io import NIR_STEP_S
 from cansim.spiking.population import SpikingParams
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 
 __all__ = [
     "RotationRingParams",
@@ -105,7 +105,7 @@ RING_NEURONS = NeuronParams(noise_sigma=0.0, refractory_s=NIR_STEP_S, bias_curre
 
 
 @dataclass(frozen=True)
-class RotationRingParams:
+class RotationRingParams(ConfigDataclass):
     """Parameters of the path-integrating ring (see the module docstring).
 
     Parameters

@@ -53,7 +53,7 @@ from cansim.spiking.neurons import NeuronParams
 from cansim.spiking.nir_io import NIR_STEP_S
 from cansim.spiking.population import SpikingParams
 from cansim.spiking.rotation_ring import RING_NEURONS
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = [
     "VelocitySheetParams",
@@ -74,7 +74,7 @@ DIRECTIONS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]])
 
 
 @dataclass(frozen=True)
-class VelocitySheetParams:
+class VelocitySheetParams(ConfigDataclass):
     """Parameters of the path-integrating sheet (module docstring).
 
     Parameters

@@ -171,7 +171,7 @@ from cansim.studies.object_options import add_mesh_options, check_distinct, conf
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
-from whisker_io.validation import checked, config_field, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 logger = logging.getLogger("ch5_study")
 
@@ -222,7 +222,7 @@ BEST = Config("both", False, "svr")
 
 
 @dataclass(frozen=True)
-class StudyConfig:
+class StudyConfig(ConfigDataclass):
     """Everything a worker needs (picklable).
 
     ``thresholds`` maps a contact model to its (T_pfh, T_sda); ``matching`` is

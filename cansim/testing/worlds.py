@@ -33,13 +33,13 @@ from typing import Literal
 import numpy as np
 
 from cansim.errors import InvalidInputError
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 
 __all__ = ["LoopRoute", "Ch3OdometryNoise", "SyntheticRun", "ch3_loops", "dead_reckon", "make_run", "render_view", "scatter_landmarks"]
 
 
 @dataclass(frozen=True)
-class Ch3OdometryNoise:
+class Ch3OdometryNoise(ConfigDataclass):
     """Per-step odometry error model of Sec 3.1.2 of the thesis.
 
     Parameters
@@ -63,7 +63,7 @@ class Ch3OdometryNoise:
 
 
 @dataclass(frozen=True)
-class LoopRoute:
+class LoopRoute(ConfigDataclass):
     """A closed rounded-rectangle route, centred on the origin.
 
     Parameters

@@ -42,7 +42,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import checked, finite_scalar, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, validate_fields
 
 __all__ = [
     "MAX_WHISK_FREQUENCY_HZ",
@@ -59,7 +59,7 @@ MAX_WHISK_FREQUENCY_HZ: float = 10.0
 
 
 @dataclass(frozen=True)
-class WhiskPattern:
+class WhiskPattern(ConfigDataclass):
     """The global whisking pattern: one cosine cycle from retraction to protraction and back.
 
     ``theta(t) = retraction + A (1 - cos(2 pi f t)) / 2`` for ``t = k / fs``,
@@ -203,7 +203,7 @@ class OpenLoop:
 
 
 @dataclass
-class RCP:
+class RCP(ConfigDataclass):
     """Rapid cessation of protraction, Ch.3 form: amplitude reduced by the mean super-threshold ``|y|``.
 
     After each cycle, for each whisker, ``P = mean(``|y - b|``)`` over the samples with
@@ -269,7 +269,7 @@ class RCP:
 
 
 @dataclass
-class RetractAtMax:
+class RetractAtMax(ConfigDataclass):
     """Ch.4/6 RCP: retract as soon as ``|y-deflection|`` reaches the sensor maximum (Sec 4.1.1).
 
     Parameters

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import ConfigError, InvalidInputError
-from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, finite_vector, validate_fields
 
 __all__ = [
     "COLUMNS",
@@ -113,7 +113,7 @@ def radial_base_rotation(base_position_m: ArrayLike) -> NDArray[np.float64]:
 
 
 @dataclass(frozen=True, eq=False)
-class WhiskerModule:
+class WhiskerModule(ConfigDataclass):
     """One whisker module: a straight whisker whisking about its base frame's z-axis.
 
     Parameters

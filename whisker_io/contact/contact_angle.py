@@ -54,7 +54,7 @@ from whisker_io.contact.detection import (
 )
 from whisker_io.errors import InvalidInputError
 from whisker_io.records.whisk_record import WhiskRecord
-from whisker_io.validation import checked, finite_scalar, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, validate_fields, whole_number
 
 __all__ = ["CH3_DETECTION", "CONTACT_ANGLE_METHODS", "ContactAngleMethod", "ContactAngleParams", "contact_angle", "contact_angles"]
 
@@ -76,7 +76,7 @@ of the sensor noise = 80 counts, for both.
 
 
 @dataclass(frozen=True)
-class ContactAngleParams:
+class ContactAngleParams(ConfigDataclass):
     """How the contact angle of a whisk cycle is estimated (see the module docstring).
 
     Parameters

@@ -57,7 +57,7 @@ from scipy.signal import peak_prominences, peak_widths
 
 from whisker_io.contact._detection_numba import bounded_maxima, contact_extent, prominence_bound
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, validate_fields, whole_number
 from whisker_io.records.whisk_record import WhiskRecord
 
 __all__ = [
@@ -73,7 +73,7 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class DetectionParams:
+class DetectionParams(ConfigDataclass):
     """Parameters of the contact-detection pipeline (defaults: thesis Sec 5.1.1.1.1).
 
     Parameters

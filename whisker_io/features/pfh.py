@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = [
     "FEATURE_NAMES",
@@ -70,7 +70,7 @@ FEATURE_NAMES: tuple[str, ...] = ("alpha", "theta", "phi", "d")
 
 
 @dataclass(frozen=True)
-class PFHParams:
+class PFHParams(ConfigDataclass):
     """Parameters of the point feature histogram (Sec 2.5.1.1).
 
     Attributes

@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from whisker_io.errors import ConfigError, InvalidInputError, SafetyViolationError, StaleStateError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = ["SafetyEnvelope", "HARD_CEILINGS"]
 
@@ -78,7 +78,7 @@ MIN_COMMAND_SPEED = 1e-6
 
 
 @dataclass(frozen=True)
-class SafetyEnvelope:
+class SafetyEnvelope(ConfigDataclass):
     """Limits every arm command must satisfy (all in SI units, base frame).
 
     Parameters

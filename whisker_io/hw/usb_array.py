@@ -69,7 +69,7 @@ import numpy as np
 from whisker_io.errors import (ConnectionFailedError, CRCMismatchError, DeviceRemovedError, DeviceTimeoutError,
                                HardwareError, InvalidInputError, SequenceGapError, ShortFrameError, USBFrameError)
 from whisker_io.array.control import WhiskPattern
-from whisker_io.validation import checked, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, validate_fields
 from whisker_io.hw.optional import require
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
@@ -105,7 +105,7 @@ def _thesis_modules() -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class FrameLayout:
+class FrameLayout(ConfigDataclass):
     """Parameters of the USB device and its frame layout.
 
     Parameters

@@ -48,7 +48,7 @@ from whisker_io.contact.detection import DetectionParams, detect_contacts
 from whisker_io.contact.features import contact_features
 from whisker_io.array.control import RetractAtMax, WhiskPattern
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import checked, number_tuple, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, number_tuple, validate_fields
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import whisker_base_transforms
 from whisker_io.radial.features import RadialDataset
@@ -135,7 +135,7 @@ def _nested(signal: object, detection: object) -> None:
 
 
 @dataclass(frozen=True)
-class TrainingSetParams:
+class TrainingSetParams(ConfigDataclass):
     """The rod training set of Sec 4.1.2.1.
 
     Parameters
@@ -227,7 +227,7 @@ def make_training_set(params: TrainingSetParams = TrainingSetParams(), progress:
 
 
 @dataclass(frozen=True)
-class EvansSetParams:
+class EvansSetParams(ConfigDataclass):
     """The Evans et al. (2013) style rod set of Sec 4.2.2 (one still 185-mm whisker).
 
     Parameters
@@ -312,7 +312,7 @@ def validation_array(lengths_mm: Sequence[float] = VALIDATION_LENGTHS_MM) -> Whi
 
 
 @dataclass(frozen=True)
-class ValidationSetParams:
+class ValidationSetParams(ConfigDataclass):
     """The Box exploration of Sec 4.1.2.2.
 
     Parameters

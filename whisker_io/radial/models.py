@@ -48,7 +48,7 @@ from sklearn.svm import SVR
 from threadpoolctl import threadpool_limits
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import checked, number_tuple, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, number_tuple, validate_fields
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, RadialDataset, feature_indices
@@ -195,7 +195,7 @@ class UniformRandom(_LengthBaseline):
 
 
 @dataclass(frozen=True)
-class SearchParams:
+class SearchParams(ConfigDataclass):
     """Hyper-parameter search settings (Sec 4.1.3); grids are in standardised units.
 
     Parameters

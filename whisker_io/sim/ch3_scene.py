@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import make_maze
 from whisker_io.sim.planar_chain import MAX_COORDINATE_M
-from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, validate_fields
 
 __all__ = ["CH3_MAZE_WAYPOINTS_M", "CH3_OBSTACLE_HEIGHT_M", "MAX_PLACES", "MazeRoute", "ch3_terrain"]
 
@@ -90,7 +90,7 @@ def ch3_terrain(max_height_m: float = CH3_OBSTACLE_HEIGHT_M) -> trimesh.Trimesh:
 
 
 @dataclass(frozen=True)
-class MazeRoute:
+class MazeRoute(ConfigDataclass):
     """A closed route of straight legs joined by circular arcs, split into equal places.
 
     Parameters

@@ -56,7 +56,7 @@ from scipy.spatial.transform import Rotation
 
 from whisker_io.errors import InvalidInputError
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.validation import MAX_STEP_M, checked, finite_scalar, finite_vector, scaled_fields, validate_fields
+from whisker_io.validation import ConfigDataclass, MAX_STEP_M, checked, finite_scalar, finite_vector, scaled_fields, validate_fields
 
 __all__ = [
     "MAX_SPEED_DRAWS",
@@ -75,7 +75,7 @@ _ZERO_DISPLACEMENT_M = 1e-12
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class OdometryNoise(ConfigDataclass):
     """Parameters of the odometry noise of Sec 6.1.3.1.1 (Eq 6.4-6.11).
 
     Attributes

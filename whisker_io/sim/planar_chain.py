@@ -70,7 +70,7 @@ from whisker_io.pose import Pose
 from whisker_io.sim.signals import SignalParams, free_whisking_threshold_counts
 from whisker_io.sim.simulator import ArraySimulator, ArrayWhisk
 from whisker_io.sim.sweep import MeshTarget, SweepParams
-from whisker_io.validation import checked, finite_array, finite_scalar, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, validate_fields
 
 __all__ = ["PLANE_HEIGHT_M", "MAX_COORDINATE_M", "Control", "PlanarChain", "WhiskSchedule"]
 
@@ -96,7 +96,7 @@ def _planar_path(path: ArrayLike, name: str = "path") -> NDArray[np.float64]:
 
 
 @dataclass(frozen=True)
-class WhiskSchedule:
+class WhiskSchedule(ConfigDataclass):
     """Pairing of odometry iterations with whisk cycles (see the module docstring).
 
     Parameters

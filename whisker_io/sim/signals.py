@@ -71,7 +71,7 @@ from numpy.typing import ArrayLike
 
 from whisker_io.array.control import OpenLoop, WhiskController, WhiskPattern, contact_threshold_from_noise
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_array, finite_scalar, finite_vector, validate_fields
+from whisker_io.validation import ConfigDataclass, checked, finite_array, finite_scalar, finite_vector, validate_fields
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 #: Longest rod-push recording :func:`simulate_rod_contact` makes (about 83 min at 2 kHz).
@@ -92,7 +92,7 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class SignalParams:
+class SignalParams(ConfigDataclass):
     """Whisker shaft, Hall sensor and ADC parameters.
 
     Parameters

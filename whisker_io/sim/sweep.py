@@ -54,7 +54,7 @@ import trimesh
 from numpy.typing import NDArray
 
 from whisker_io.errors import InvalidInputError, ShapeError
-from whisker_io.validation import checked, finite_scalar, scaled_fields, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, scaled_fields, validate_fields, whole_number
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.array.kinematics import rot_z, rotate_shaft, whisker_base_transforms
 from whisker_io.pose import PoseLike
@@ -263,7 +263,7 @@ class MeshTarget:
 
 
 @dataclass(frozen=True)
-class SweepParams:
+class SweepParams(ConfigDataclass):
     """Parameters of :func:`sweep_array`.
 
     Attributes
@@ -519,7 +519,7 @@ def sweep_array(
 
 
 @dataclass(frozen=True)
-class ContactNoise:
+class ContactNoise(ConfigDataclass):
     """Contact-feature noise of the Ch.6 simulation (Sec 6.1.3.1.2, Sec 4.1.2.3, 6.1.3.1).
 
     Attributes

@@ -101,7 +101,7 @@ from whisker_io.array.geometry import WhiskerArray
 from whisker_io.errors import ConfigError, InvalidInputError
 from whisker_io.pose import Pose
 from whisker_io.sim.sweep import MeshTarget, SweepParams, sweep_array
-from whisker_io.validation import checked, finite_scalar, finite_vector, validate_fields, whole_number
+from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields, whole_number
 
 __all__ = [
     "FittedSurface",
@@ -178,7 +178,7 @@ def fit_surface(mesh: trimesh.Trimesh, shape: Literal["ellipsoid", "sphere"] = "
 
 
 @dataclass(frozen=True)
-class LoopShape:
+class LoopShape(ConfigDataclass):
     """One closed loop on a fitted surface (see the module docstring, item 2).
 
     Attributes
