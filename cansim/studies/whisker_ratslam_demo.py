@@ -125,6 +125,9 @@ log = logging.getLogger(__name__)
 
 #: Contact-position noise of the demo, fraction of the whisker length (module docstring).
 DEFAULT_CONTACT_NOISE = 0.075
+#: Median position errors closer than this (m) are called the same: the summary then says the map is no
+#: better than dead reckoning (without a re-localisation the map's estimate is dead reckoning's, to rounding).
+SAME_ERROR_M = 1e-3
 #: Step bounds of the trajectory (m, deg) per object (module docstring).
 STEP_BOUNDS = {"box": (0.03, 8.0)}
 DEFAULT_STEP_BOUNDS = (0.11, 12.0)
@@ -289,8 +292,11 @@ def summary(metrics: dict, out: Path, files: list[Path]) -> str:
                      f"{fmt(m['map_estimate_median_position_error_m'])} m from the truth, dead reckoning's "
                      f"{m['dr_last_loop_median_position_error_m']:.3f} m ({drift}; the experiences "
                      f"lie a median {fmt(m['map_median_position_error_m'])} m from the truth).")
-        better = bool(m["map_estimate_median_position_error_m"] < m["dr_last_loop_median_position_error_m"])
-        lines.append("=> the map beats dead reckoning." if better else "=> the map does NOT beat dead reckoning on this run.")
+        gain = m["dr_last_loop_median_position_error_m"] - m["map_estimate_median_position_error_m"]
+        if abs(gain) < SAME_ERROR_M:
+            lines.append(f"=> the map is no better than dead reckoning on this run (within {SAME_ERROR_M * 1e3:g} mm).")
+        else:
+            lines.append("=> the map beats dead reckoning." if gain > 0 else "=> the map does NOT beat dead reckoning on this run.")
     else:
         lines.append(f"The map holds no experience, so it has no estimate of the arm's position (null in the JSON); {drift}.")
     if m["whisks"] and m["observations"] < 0.5 * m["whisks"]:
