@@ -55,6 +55,9 @@ def test_csv_has_the_columns_and_one_row_per_run_and_threshold(reduced):
     assert {r["spc"] for r in rows} == {"on", "off"}
     assert {r["presented"] for r in rows} == {"box", "box_stack"}
     assert sorted({float(r["threshold"]) for r in rows}) == [100.0, 300.0, 600.0, 900.0]
+    # every row states the run's settings (the defaults here), so runs with other options can be told apart
+    assert {(r["matcher"], r["odometry_noise"], r["believed_scale"], r["contact_seeking"]) for r in rows} \
+        == {("thesis", "1.0", "1.0", "False")}
     for r in rows:
         n = int(r["iterations"])
         assert n == N and r["stop_reason"] == "iterations"
@@ -131,9 +134,66 @@ def test_figures_and_summary(reduced):
 @given(st.sampled_from([["--seeds", "0"], ["--iterations", "1"], ["--noise-scale", "nan"], ["--noise-scale", "-1"],
                         ["--object-offset-m", "nan"], ["--object-offset-m", "0.5"], ["--object-yaw-deg", "-1"],
                         ["--object-yaw-deg", "inf"], ["--believed-scale", "0.5"], ["--believed-scale", "nan"],
-                        ["--odometry-noise", "-0.1"], ["--odometry-noise", "11"], ["--odometry-noise", "nan"]]))
-def test_bad_arguments_exit_2(tmp_path_factory, args):
-    assert ch6.main(["--quick", "--out", str(tmp_path_factory.mktemp("bad")), *args]) == 2
+                        ["--odometry-noise", "-0.1"], ["--odometry-noise", "11"], ["--odometry-noise", "nan"],
+                        ["--seed", "-1"]]))
+def test_bad_arguments_exit_2_naming_the_option(tmp_path_factory, args):
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert ch6.main(["--quick", "--out", str(tmp_path_factory.mktemp("bad")), *args]) == 2
+    text = err.getvalue()
+    assert text.startswith("cansim study ch6: error: ") and f"{args[0]} must be" in text
+    assert text.count("must be") == 1, text  # only the bad option is named
+
+
+def _summary_rows(im: dict[str, float], identity: str, correct_at: dict[float, int]) -> list[dict]:
+    """Strategy-study rows of two objects: IM / SRT per strategy, the identity decided, and how many of a
+    threshold's runs named the correct object first (the first ``correct_at[t]`` rows of that threshold)."""
+    rows = []
+    for t in ch6.THRESHOLDS:
+        k = 0
+        for p in ("box", "box_stack"):
+            for s in ch6.STRATEGY_NAMES:
+                rows.append({"seed": 0, "presented": p, "strategy": s, "spc": "on", "threshold": t, "study": "strategy",
+                             "im": im[s], "srt": 100.0 - im[s], "identity": identity,
+                             "correct_first": k < correct_at.get(t, 0), "mean_correct_confidence": 0.5,
+                             "mean_incorrect_confidence": 0.1, "iterations": 100, "refused_commands": 0,
+                             "commands_outside_envelope": 0, "whisks_base_inside": 0, "whisks_without_contact": 10,
+                             "stop_reason": "iterations"})
+                k += 1
+    return rows
+
+
+def test_the_findings_say_tied_or_not_measured_instead_of_picking_one():
+    """Finding 2 names every strategy that shares the best median and says NOT measured when every run is censored;
+    finding 3 names every threshold that shares the best correct-first count."""
+    import argparse
+    import types
+
+    setup = types.SimpleNamespace(objects=("box", "box_stack"), known=[], pfh_threshold=0.1, sda_threshold=0.1,
+                                  noise_scale=0.3, contact_model="tip", odometry_scale=1.0, believed_scale=1.0,
+                                  contact_seeking=False)
+    args = argparse.Namespace(quick=True, seeds=1, iterations=100)
+    censored = ch6.summary(_summary_rows({"default": 0.0, "feh": 0.0, "lsr": 0.0}, "", {}), setup, args, 1.0)
+    assert "NOT measured: no run crossed IC 300" in censored
+    assert "NOT measured: no run named the correct object first" in censored
+    tied = ch6.summary(_summary_rows({"default": 40.0, "feh": 20.0, "lsr": 40.0}, "box", {100.0: 6, 300.0: 6, 600.0: 2}),
+                       setup, args, 1.0)
+    assert "NOT reproduced (highest IM: default = lsr, lowest SRT: default = lsr)" in tied
+    assert "Best by correct-first count: 100 = 300 (tied). NOT reproduced" in tied
+    lead = ch6.summary(_summary_rows({"default": 20.0, "feh": 20.0, "lsr": 40.0}, "box", {300.0: 6, 600.0: 2}),
+                       setup, args, 1.0)
+    assert "REPRODUCED (highest IM: lsr, lowest SRT: lsr)" in lead and "Best by correct-first count: 300. REPRODUCED" in lead
+
+
+def test_a_short_run_is_named_as_the_cause_of_seldom_touching():
+    row = {"threshold": ch6.THRESHOLDS[0], "presented": "duck", "study": "strategy"}
+    short = ch6.seldom_touched([dict(row, iterations=5, whisks_without_contact=5)] * 3)
+    assert len(short) == 1 and "the runs are short (5 whisks each)" in short[0] and "--iterations" in short[0]
+    long = ch6.seldom_touched([dict(row, iterations=300, whisks_without_contact=200)] * 3)
+    assert len(long) == 1 and "the runs are short" not in long[0]
 
 
 def test_the_spc_raises_the_correct_confidence_over_seeds():

@@ -331,10 +331,18 @@ STRATEGY_NAMES = ("default", "feh", "lsr")
 THRESHOLDS = (100.0, 300.0, 600.0, 900.0)
 #: ``ch6_runs.csv``'s columns. ``whisks_without_contact`` counts the whisks that observed no region
 #: (fewer than 3 contacts, Eq 5.5; Fig 6.2's "without contact"): a whisk touched by 1 or 2 whiskers
-#: counts. ``study`` (``strategy``, ``spc`` or ``novel``) is added after these.
+#: counts. ``study`` (``strategy``, ``spc`` or ``novel``) and the run's settings (:data:`SETTING_COLUMNS`)
+#: are added after these.
 COLUMNS = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
            "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands",
            "commands_outside_envelope", "whisks_base_inside", "whisks_without_contact", "stop_reason")
+#: The settings every row of ``ch6_runs.csv`` states, after ``study``: the impulses' matcher (``--matcher``),
+#: the odometry noise (a multiple of Eq 6.4-6.11, ``--odometry-noise``), the believed volume's scale
+#: (``--believed-scale``) and whether contact seeking was on (``--contact-seeking``).
+SETTING_COLUMNS = ("matcher", "odometry_noise", "believed_scale", "contact_seeking")
+#: Runs shorter than this (whisks on average) are called short by the seldom-touched warning
+#: (:func:`seldom_touched`): the search's first faces stand before the believed volume.
+SHORT_RUN_WHISKS = 50
 #: Workspace of the simulated arm (object on a table at z = 0, centred at the origin), m.
 WORKSPACE_MIN = (-0.75, -0.75, 0.02)
 WORKSPACE_MAX = (0.75, 0.75, 1.0)
@@ -772,11 +780,12 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     counts: dict[str, list[int]] = {}
     for x in rows:
         if x["threshold"] == THRESHOLDS[0] and x.get("study", "strategy") in ("strategy", "novel"):
-            c = counts.setdefault(x["presented"], [0, 0])
+            c = counts.setdefault(x["presented"], [0, 0, 0])
             c[0] += x["whisks_without_contact"]
             c[1] += x["iterations"]
+            c[2] += 1
     lines, label = [], object_labels(list(counts))
-    for p, (miss, n) in counts.items():
+    for p, (miss, n, runs) in counts.items():
         if n and miss > 0.5 * n:
             advice = ["an object that is flat or thin (under about 8 cm in one dimension) passes between the array's "
                       "rows of whiskers"]
@@ -784,6 +793,9 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
                 advice.insert(0, "check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis)")
             if not contact_seeking:
                 advice.append("--contact-seeking moves the array until whiskers touch")
+            if n < SHORT_RUN_WHISKS * runs:  # the first whisks of a run stand before the believed volume
+                advice.insert(0, f"the runs are short ({n / runs:.0f} whisks each): a run's first whisks place the array "
+                                 "before the believed volume, where few whiskers reach the object; run more (--iterations)")
             lines.append(f"the {label[p]} observed a region (3 contacts or more) in only {n - miss} of its {n} "
                          f"whisks: the search does not reach its surface well, so its recognition figures say little; "
                          + "; ".join(advice))
@@ -825,7 +837,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
              f"thresholds T_pfh {setup.pfh_threshold:.3f}, T_sda {setup.sda_threshold:.3f}; contact-noise scale {setup.noise_scale}; "
              f"contact estimate {setup.contact_model}; presented object offset s.d. {getattr(args, 'object_offset_m', 0.0)} m, "
              f"yaw s.d. {getattr(args, 'object_yaw_deg', 0.0)} deg; impulses from the {getattr(args, 'matcher', 'thesis')} matcher; "
-             f"odometry noise {setup.odometry_scale:g} x Eq 6.4-6.11",
+             f"odometry noise {setup.odometry_scale:g} x Eq 6.4-6.11; believed volume {setup.believed_scale:g} x the "
+             f"known objects' box; contact seeking {'on' if setup.contact_seeking else 'off (Alg 7-8 as printed)'}",
              "maps: " + ", ".join(f"{label[k.name]} {k.n_built} experiences / {k.n_built_regions} regions from {len(k.poses)} whisks"
                                   for k in setup.known), ""]
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -858,23 +871,31 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
         return stats.kruskal(*g).pvalue if len(g) > 1 and len(set(flat)) > 1 else math.nan
 
     p_im, p_srt = kw(groups_im), kw(groups_srt)
-    best_im = max(med, key=lambda s: med[s][0]) if strat else None
-    best_srt = min(med, key=lambda s: med[s][1]) if strat else None
-    lines.append("2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): "
-                 + "; ".join(f"{s} IM {fmt(m[0], '.0f')} SRT {fmt(m[1], '.0f')}" for s, m in med.items())
-                 + f"; Kruskal-Wallis p(IM) = {fmt(p_im, '.3g')}, p(SRT) = {fmt(p_srt, '.3g')}. "
-                 + ("REPRODUCED" if best_im == "lsr" and best_srt == "lsr" else "NOT reproduced")
-                 + f" (highest IM: {best_im}, lowest SRT: {best_srt})")
+    measured = [s for s, m in med.items() if math.isfinite(m[0]) and math.isfinite(m[1])]
+    crossed_300 = any(x["identity"] != "" for v in at300.values() for x in v)
+    finding = "2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): " \
+        + "; ".join(f"{s} IM {fmt(m[0], '.0f')} SRT {fmt(m[1], '.0f')}" for s, m in med.items()) \
+        + f"; Kruskal-Wallis p(IM) = {fmt(p_im, '.3g')}, p(SRT) = {fmt(p_srt, '.3g')}. "
+    if not measured or not crossed_300:  # every run censored: the medians are the runs' ends, not the strategies'
+        lines.append(finding + "NOT measured: no run crossed IC 300 (every IM / SRT censored at the run's end)")
+    else:  # every strategy that shares the best median is named: a tie is not LSR's lead
+        best_im = [s for s in measured if med[s][0] == max(med[t][0] for t in measured)]
+        best_srt = [s for s in measured if med[s][1] == min(med[t][1] for t in measured)]
+        lines.append(finding + ("REPRODUCED" if best_im == ["lsr"] and best_srt == ["lsr"] else "NOT reproduced")
+                     + f" (highest IM: {' = '.join(best_im)}, lowest SRT: {' = '.join(best_srt)})")
     per_thr = {}
     for t in THRESHOLDS:
         v = [x for x in strat if x["threshold"] == t]
         crossed = [x for x in v if x["identity"] != ""]
         per_thr[t] = (sum(x["correct_first"] for x in v), len(v), len(crossed), float(np.median([x["im"] for x in v])) if v else math.nan)
-    best_thr = max(THRESHOLDS, key=lambda t: (per_thr[t][0], -t)) if strat and any(v[0] for v in per_thr.values()) else None
+    most = max(v[0] for v in per_thr.values()) if strat else 0
+    best_thr = [t for t in THRESHOLDS if per_thr[t][0] == most] if most else []  # a tie names every best threshold
     lines.append("3. IC ~300 is the best threshold (Fig 6.7): per threshold correct-first / runs / runs with any crossing / median IM: "
                  + "; ".join(f"{t:.0f}: {a}/{b}/{c}/{fmt(d, '.0f')}" for t, (a, b, c, d) in per_thr.items())
-                 + (f". Best by correct-first count: {best_thr}. " + ("REPRODUCED" if best_thr == 300.0 else "NOT reproduced")
-                    if best_thr is not None else ". NOT measured: no run named the correct object first at any threshold"))
+                 + (f". Best by correct-first count: {' = '.join(f'{t:.0f}' for t in best_thr)}"
+                    + (" (tied)" if len(best_thr) > 1 else "") + ". "
+                    + ("REPRODUCED" if best_thr == [300.0] else "NOT reproduced")
+                    if best_thr else ". NOT measured: no run named the correct object first at any threshold"))
     lines.append("")
     lines.append("Correct identity first at IC 300, per strategy: "
                  + "; ".join(f"{s} {sum(x['correct_first'] for x in v)}/{len(v)}" for s, v in at300.items()))
@@ -966,14 +987,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="objects presented but never mapped (names or mesh files), each explored by the default "
                          "search for every seed: a decision for any known object is wrong (Fig 5.17's Skull)")
     ap.add_argument("--believed-scale", type=float, default=1.0,
-                    help="the believed volume's size against the known objects' bounding box (default 1; 1.5 = 50 %% "
-                         "larger, issue 22)")
+                    help="the believed volume's size against the known objects' bounding box, in [1, 3] (default 1; "
+                         "1.5 = 50 %% larger, issue 22)")
     ap.add_argument("--matcher", choices=MATCHERS, default="thesis",
                     help="impulse source: thesis (re-localisations, Eq 5.5) or surface (the stored surfaces, "
                          "maps.surface_match; issue 22) (default thesis)")
     ap.add_argument("--odometry-noise", type=float, default=1.0, metavar="SCALE",
-                    help="the arm's odometry noise in mapping and exploration as a multiple of Eq 6.4-6.11 (default 1: "
-                         "the thesis'); the surface matcher and the stored surfaces assume it (at least 0.25 of it)")
+                    help="the arm's odometry noise in mapping and exploration as a multiple of Eq 6.4-6.11, in [0, 10] "
+                         "(default 1: the thesis'); the surface matcher and the stored surfaces assume it (at least 0.25 of it)")
     ap.add_argument("--contact-seeking", action="store_true",
                     help="contact seeking (cansim.explore.contact_seeking): advance until whiskers touch, back off, turn, "
                          "keep every goal clear of the contacts felt")
@@ -981,15 +1002,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.objects = tuple(args.objects)
     args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 10)
     args.iterations = args.iterations if args.iterations is not None else (300 if args.quick else 1000)
-    finite = all(math.isfinite(v) and v >= 0 for v in (args.noise_scale, args.object_offset_m, args.object_yaw_deg))
-    finite = finite and math.isfinite(args.believed_scale) and 1.0 <= args.believed_scale <= 3.0
-    finite = finite and math.isfinite(args.odometry_noise) and 0.0 <= args.odometry_noise <= 10.0
-    if (args.seeds < 1 or args.iterations < 2 or not finite or args.object_offset_m > 0.1 or args.object_yaw_deg > 45
-            or args.seed < 0):
-        print("ch6_active_exploration: --seed >= 0, --seeds >= 1, --iterations >= 2, a finite --noise-scale >= 0, "
-              "--object-offset-m in [0, 0.1], --object-yaw-deg in [0, 45], --believed-scale in [1, 3] and "
-              "--odometry-noise in [0, 10] are needed",
-              file=sys.stderr)
+    problems = [f"{option} must be {rule}, got {value}" for option, value, ok, rule in (
+        ("--seed", args.seed, args.seed >= 0, ">= 0"),
+        ("--seeds", args.seeds, args.seeds >= 1, ">= 1"),
+        ("--iterations", args.iterations, args.iterations >= 2, ">= 2"),
+        ("--noise-scale", args.noise_scale, math.isfinite(args.noise_scale) and args.noise_scale >= 0, "finite and >= 0"),
+        ("--object-offset-m", args.object_offset_m, 0.0 <= args.object_offset_m <= 0.1, "in [0, 0.1]"),
+        ("--object-yaw-deg", args.object_yaw_deg, 0.0 <= args.object_yaw_deg <= 45.0, "in [0, 45]"),
+        ("--believed-scale", args.believed_scale, 1.0 <= args.believed_scale <= 3.0, "in [1, 3]"),
+        ("--odometry-noise", args.odometry_noise, 0.0 <= args.odometry_noise <= 10.0, "in [0, 10]"),
+    ) if not ok]  # a NaN fails every range
+    if problems:
+        print("cansim study ch6: error: " + "; ".join(problems), file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.WARNING)
     # refusals are counted in the CSV (the explorer logs them at DEBUG / INFO); its warnings - a map that closed
@@ -1029,9 +1053,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             (runs if study == "strategy" else spc_runs).append(r)
         for row in run_rows(r):
             row["study"] = study
+            row.update(matcher=args.matcher, odometry_noise=setup.odometry_scale, believed_scale=setup.believed_scale,
+                       contact_seeking=setup.contact_seeking)
             rows.append(row)
     with open(args.out / "ch6_runs.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(COLUMNS) + ["study"])
+        w = csv.DictWriter(f, fieldnames=[*COLUMNS, "study", *SETTING_COLUMNS])
         w.writeheader()
         w.writerows(rows)
     for line in seldom_touched(rows, args.contact_seeking):
