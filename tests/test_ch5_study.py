@@ -123,6 +123,26 @@ def test_an_object_map_without_experience_is_appended_under_its_name(two_maps: t
         append_object_maps([never.object_map, never.object_map], ["x", "y"], [0, 0])
 
 
+def test_library_model_warns_of_an_empty_map_unless_its_caller_says_it(tmp_path: Path,
+                                                                         two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM]) -> None:
+    """The studies' jobs build the library for every run and pass ``warn_empty=False`` (their summaries or logs say
+    it once); a user's call warns."""
+    import warnings
+
+    a, _ = two_maps
+    never = WhiskerRatSLAM(backend="numpy")
+    never.step(SpatialOdometry([0.1, 0, 0], [0, 0, 0.3], 1.0), None)
+    a.save(tmp_path / "a.npz")
+    never.save(tmp_path / "never.npz")
+    paths = [tmp_path / "a.npz", tmp_path / "never.npz"]
+    with pytest.warns(UserWarning, match="without an experience.*: never$"):
+        ch5_study.library_model(paths, ["a", "never"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model, lib = ch5_study.library_model(paths, ["a", "never"], warn_empty=False)
+    assert lib.names == ("a", "never") and model.object_map.n_experiences == a.object_map.n_experiences
+
+
 @settings(max_examples=20, deadline=None)
 @given(n=st.one_of(st.integers(-5, 100), st.floats(allow_nan=True), st.booleans()))
 def test_with_explored_validates(two_maps: tuple[WhiskerRatSLAM, WhiskerRatSLAM], n: object) -> None:
@@ -435,6 +455,27 @@ def test_the_summary_judges_only_what_was_measured() -> None:
     other = text([own], star=tip, builds=[dict(build, config=tip), dict(build, config=ch5_study.Config("pfh", False, "tip"))])
     assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "1.")
     assert f"NOT measured: {ch5_study.BEST.label} did not run" in _finding(other, "3.")
+
+
+def test_a_map_without_an_experience_is_warned_of_once_and_left_out_of_the_findings() -> None:
+    """A library mesh no mapping whisk touched with 3 whiskers: one warning in the summary, and findings 1 and 6
+    judge the other maps (NOT measured when none is left) instead of failing for it."""
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    mug = dict(object="mug", config=ch5_study.BEST, position_m=[0.0], rotation_deg=[0.0], step_m=0.1, step_deg=10.0,
+               n_experiences=5, n_regions=5, n_iterations=64, dr_error_m=[0.0], matching="mapping")
+    cube = dict(mug, object="cube_3cm", position_m=[], rotation_deg=[], n_experiences=0, n_regions=0)
+    own = _id_row("mug", "A", 5.0, 90)
+    cube_run = dict(_id_row("cube_3cm", "A", 0.0, 0), map_identity="cube_3cm")
+    ids = [own, dict(own, trajectory="B"), cube_run, dict(cube_run, trajectory="B")]
+    text = ch5_study.summary([mug, cube], ids, [], s, ch5_study.BEST, True)
+    warned = [line for line in text.splitlines() if line.startswith("Warning:")]
+    assert len(warned) == 1 and "the map of the cube_3cm holds no experience: none of its 64 mapping whisks" in warned[0]
+    assert _finding(text, "1.").endswith("REPRODUCED (not judged: cube_3cm, a map without an experience).")
+    assert "REPRODUCED (not judged: cube_3cm, a map without an experience)." in _finding(text, "6A.")
+    only_cube = ch5_study.summary([cube], [cube_run], [], s, ch5_study.BEST, True)
+    assert "NOT measured: no non-Kettle map holds an experience" in _finding(only_cube, "1.")
+    assert "NOT measured: no presented object has a map with an experience" in _finding(only_cube, "6A.")
+    assert ch5_study.empty_maps([mug], {"mug": "mug"}) == []
 
 
 @settings(max_examples=25, deadline=None)

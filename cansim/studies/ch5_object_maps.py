@@ -411,7 +411,8 @@ def build_job(job: tuple[str, Config, StudyConfig, str | None]) -> dict[str, Any
     }
 
 
-def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m: float | None = None) -> tuple[Any, Any]:
+def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m: float | None = None,
+                  warn_empty: bool = True) -> tuple[Any, Any]:
     """One WhiskerRatSLAM holding the union of several saved object models (Fig 5.16).
 
     The stored regions (PFH, SDA, match counts) and their stored pose-cell locations are
@@ -429,16 +430,24 @@ def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m
         Object names, in the order of ``paths``.
     cell_size_m : float, optional
         Translational cell size of the exploring model (default: the first model's).
+    warn_empty : bool
+        Warn of a model whose map holds no experience (:func:`maps.object_library.append_object_maps`);
+        False where the caller states it once itself (the studies' jobs build the library for every run).
 
     Returns
     -------
     (WhiskerRatSLAM, ObjectLibrary)
     """
+    import warnings
+
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
 
     models = [WhiskerRatSLAM.load(p) for p in paths]
     cfg = models[0].config if cell_size_m is None else replace(models[0].config, cell_size_m=cell_size_m)
-    return WhiskerRatSLAM.library(models, names, cfg)
+    with warnings.catch_warnings():
+        if not warn_empty:
+            warnings.filterwarnings("ignore", message=r".*object map\(s\) without an experience", category=UserWarning)
+        return WhiskerRatSLAM.library(models, names, cfg)
 
 
 def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, StudyConfig]) -> dict[str, Any]:
@@ -459,7 +468,7 @@ def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, Stud
     loop = object_trajectory(mesh, family, 1, step_m=step_m, step_deg=step_deg, reach_contacts=reach, roll_deg=roll)
     n_loops = max(s.id_loops, math.ceil(s.id_whisks / len(loop)))
     poses = loop * n_loops  # whole loops (object_trajectory repeats one loop)
-    slam, lib = library_model(paths, names, cell_size_m=step_m)
+    slam, lib = library_model(paths, names, cell_size_m=step_m, warn_empty=False)  # the summary says it once
     n_lib_hist = len(lib.history_object)
     rng = np.random.default_rng(derive_seed(s.seed, "identify", seed_name(presented), family, cfg.label))
     log = explore(slam, _chain(mesh, cfg.contact_model, s.noise_scale, s.radial_model), poses, rng)
@@ -777,17 +786,34 @@ def _matching_name(m: str) -> str:
             else "the thesis' Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis)")
 
 
+def empty_maps(builds: Sequence[dict[str, Any]], label: dict[str, str]) -> list[str]:
+    """One line per mapped object whose map holds no experience (no whisk of its mapping run observed a region of
+    3 contacts or more, Eq 5.5): nothing can be recognised as it, and the findings leave it out."""
+    seen: dict[str, dict[str, Any]] = {}
+    for b in builds:
+        if not b.get("n_experiences", 1):
+            seen.setdefault(b["object"], b)
+    return [f"the map of the {label[o]} holds no experience: none of its {b['n_iterations']} mapping whisks touched it "
+            "with 3 whiskers or more, so nothing can be recognised as it and the findings leave it out. The study's "
+            "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, --up-axis); an object "
+            "that is flat or thin (under about 8 cm in one dimension) passes between the array's rows of whiskers"
+            for o, b in seen.items()]
+
+
 def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: str, label: dict[str, str]) -> list[str]:
     """Findings 1-3 (Table 5.1, Fig 5.15) on one matching's runs."""
     lines = []
     star_runs = [b for b in builds if b["config"] == star]
-    below = [_below(b) for b in star_runs if b["object"] != "kettle"]
+    blank = [label[b["object"]] for b in star_runs if not b.get("n_experiences", 1)]
+    below = [_below(b) for b in star_runs if b["object"] != "kettle" and b.get("n_experiences", 1)]
+    unjudged = f" (not judged: {', '.join(blank)}, a map without an experience)" if blank else ""
     per = ", ".join(f"{label[b['object']]} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
                     f"(step {b['step_m']:.3f} m / {b['step_deg']:.1f} deg)" for b in star_runs)
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
                  f"size. Measured ({star.label}): {sum(below)} of {len(below)} non-Kettle objects below the step; medians {per}. "
                  + (f"NOT measured: {BEST.label} did not run (--contacts, --features)." if star != BEST
-                    else f"{'REPRODUCED' if below and all(below) else 'NOT reproduced'}."))
+                    else "NOT measured: no non-Kettle map holds an experience." if not below
+                    else f"{'REPRODUCED' if all(below) else 'NOT reproduced'}{unjudged}."))
     kettle = [b for b in star_runs if b["object"] == "kettle"]
     if kettle:
         k = kettle[0]
@@ -856,6 +882,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                      f"median NMSE same {cal['same_nmse_median']:.3g} vs next {cal['next_nmse_median']:.3g}; "
                      f"next-pose pairs under the thresholds: chi2 {cal['next_chi2_below_threshold']:.2f}, "
                      f"NMSE {cal['next_nmse_below_threshold']:.2f}).")
+    lines += [f"Warning: {line}." for line in empty_maps(builds, label)]
     lines.append("")
     lines.append(f"Localisation, {_matching_name(s.matching)} (Fig 5.15; median re-localisation error vs step size; "
                  "true pose now vs at the experience's creation)")
@@ -902,8 +929,10 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         mB = np.mean([r["mean_confidence"] for r in rows("B", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
                      f"A {fmt(mA)}, B {fmt(mB)}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
+        blank = {b["object"] for b in builds if not b.get("n_experiences", 1)}  # nothing can be recognised as them
         for fam in "AB":
-            pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped)})
+            pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped and r["presented"] not in blank)})
+            unjudged = sorted({label[r["presented"]] for r in rows(fam, lambda r: r["presented"] in blank)})
             top, ic_ok, ic_fired = [], 0, 0
             for p in pres:
                 rr = rows(fam, lambda r, p=p: r["presented"] == p)
@@ -915,7 +944,11 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
             lines.append(f"  6{fam}. Thesis: activity highest for the correct object (trajectory {fam}). Measured: own map has the highest "
                          f"final IC for {sum(top)} of {len(top)} mapped objects; RC decisions (threshold {RC_THRESHOLD:g}) correct "
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
-                         f"{len(pres)}, correct {ic_ok}. {'REPRODUCED' if top and all(top) else 'NOT reproduced'}.")
+                         f"{len(pres)}, correct {ic_ok}. "
+                         + ("NOT measured: no presented object has a map with an experience" if not top
+                            else ("REPRODUCED" if all(top) else "NOT reproduced")
+                            + (f" (not judged: {', '.join(unjudged)}, a map without an experience)" if unjudged else ""))
+                         + ".")
         fired = [r for r in sk if r["ic_decision"]]
         if fired:
             outcome = "fired for " + ", ".join(sorted({r["map_identity"] + " (" + r["trajectory"] + ")" for r in fired}))
