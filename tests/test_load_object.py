@@ -184,6 +184,22 @@ def test_clean_ups_are_recorded():
     assert any("not watertight" in n for n in load_object(open_box).notes)
 
 
+def test_what_was_assumed_and_the_move_onto_the_table_are_recorded():
+    """Units and up axis not given are said to be assumed; a move of the file's frame of a millimetre or more is
+    given in metres (the placement, by hand: centred in x and y, the lowest point on z = 0)."""
+    far = trimesh.creation.box(extents=(0.2, 0.3, 0.35))
+    far.apply_translation((100.0, -50.0, 20.0))  # the box spans z 19.825 .. 20.175
+    notes = load_object(far).notes
+    assert "assumed in metres and z up (not checked; otherwise give --scale-to-m / --up-axis)" in notes
+    assert "moved by (-100, 50, -19.82) m to stand centred on z = 0" in notes
+    given = load_object(far, scale_to_m=0.35, up_axis="z").notes
+    assert not any(n.startswith("assumed") for n in given)
+    assert load_object(far, up_axis="z").notes[0] == "assumed in metres (not checked; otherwise give --scale-to-m)"
+    placed = trimesh.creation.box(extents=(0.2, 0.3, 0.35))
+    placed.apply_translation((0.0, 0.0, 0.175 + 0.0004))  # 0.4 mm above the table: under the note's millimetre
+    assert not any(n.startswith("moved by") for n in load_object(placed).notes)
+
+
 def _write(tmp_path: Path, name: str, content: str | bytes) -> Path:
     path = tmp_path / name
     path.write_bytes(content.encode() if isinstance(content, str) else content)
@@ -194,6 +210,7 @@ MALFORMED = [
     ("missing.obj", None, InvalidInputError, "no mesh file"),
     ("empty.obj", "", InvalidInputError, "no triangles"),
     ("empty.stl", "", InvalidInputError, "no triangles"),
+    ("text.stl", "hello, not a mesh\n", InvalidInputError, r"no triangles: .*or is not a STL file \(check its format"),
     ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", InvalidInputError, "no triangles"),
     ("nan.obj", "v 0 0 nan\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, "NaN/inf"),
     ("inf.obj", "v 0 0 inf\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, "NaN/inf"),

@@ -249,6 +249,8 @@ arms of the thesis reach 0.85 m (UR5) and 1.3 m (UR10, Ch.3) (Sec 2.2.1), so
 nothing larger can be explored around."""
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
+#: A move onto the table (centred, resting on z = 0) of at least this much along an axis (m) is said in the notes.
+PLACEMENT_NOTE_M = 1e-3
 """File endings :func:`load_object` reads (via trimesh)."""
 
 GLTF_SUFFIXES: tuple[str, ...] = (".glb", ".gltf")
@@ -431,7 +433,10 @@ def _as_surface(source: object) -> tuple[trimesh.Trimesh, str, str, list[str]]:
     else:
         raise InvalidInputError(f"expected a mesh file path or a trimesh.Trimesh, got {type(source).__name__}")
     if not parts:
-        raise InvalidInputError(f"{where} holds no triangles (empty, or points/lines only); give a surface mesh")
+        kind = f", or is not a {path.suffix[1:].upper()} file (check its format and its file ending)" \
+            if isinstance(source, (str, os.PathLike)) else ""
+        raise InvalidInputError(f"{where} holds no triangles: it is empty or holds points or lines only{kind}; "
+                                "give a surface mesh")
     if len(parts) == 1:
         return parts[0], where, stem, []
     return trimesh.util.concatenate(parts), where, stem, [f"concatenated the {len(parts)} meshes of the scene"]
@@ -532,6 +537,11 @@ def load_object(
                 "if the object lies on its side, pass up_axis='y' (--up-axis y)")
         notes.append(gltf)
         _log.warning("%s: %s", source, gltf)
+    else:  # what was assumed, not checked: said, so that a y-up file or one in millimetres is noticed
+        assumed = [what for what, given in (("in metres", scale_to_m), ("z up", up_axis)) if given is None]
+        if assumed:
+            flags = " / ".join(flag for flag, given in (("--scale-to-m", scale_to_m), ("--up-axis", up_axis)) if given is None)
+            notes.append(f"assumed {' and '.join(assumed)} (not checked; otherwise give {flags})")
     source_extents = np.asarray(mesh.extents, dtype=np.float64)
     if not mesh.is_watertight:
         n_before = len(mesh.vertices)
@@ -579,6 +589,8 @@ def load_object(
                                 f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it)")
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     mesh.vertices = mesh.vertices + translation  # a plain sum: the lowest vertex lands exactly on z = 0
+    if np.abs(translation).max() >= PLACEMENT_NOTE_M:  # where the file's frame lies against the object's, in one line
+        notes.append(f"moved by ({', '.join(f'{v:.4g}' for v in translation)}) m to stand centred on z = 0")
     result = LoadedObject(
         mesh=mesh,
         name=default_name if name is None else name.strip(),
