@@ -58,6 +58,14 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
     assert conform_objects(["mug", "box"], out) == ["mug", "box"] and not (out / SOURCES_FILE).exists()
 
 
+def test_the_folder_may_be_given_as_text_and_anything_else_is_refused(tmp_path):
+    _brick_mm_y_up(tmp_path / "brick.stl")
+    (copy,) = conform_objects([str(tmp_path / "brick.stl")], str(tmp_path / "objects"), scale_to_m=0.35, up_axis="y")
+    assert Path(copy).parent == tmp_path / "objects" and Path(copy).is_file()
+    with pytest.raises(InvalidInputError, match="folder must be a path"):
+        conform_objects(["mug"], 3)  # type: ignore[arg-type]
+
+
 def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):
     _brick_mm_y_up(tmp_path / "brick.stl")
     (copy,) = conform_objects([str(tmp_path / "brick.stl")], tmp_path / "objects", scale_to_m=0.35, up_axis="y")

@@ -160,7 +160,7 @@ def object_labels(specs: Sequence[str]) -> dict[str, str]:
     return dict(zip(unique, object_file_names(unique)))
 
 
-def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | None = None,
+def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, scale_to_m: float | None = None,
                     up_axis: str | None = None) -> list[str]:
     """Check every object of a command line and bring its mesh files to the conventions when told to.
 
@@ -168,7 +168,7 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
     ----------
     specs : sequence of str
         Objects as given: registered names, procedural shapes' names or mesh files.
-    folder : Path
+    folder : path-like
         Where a changed mesh file is written, as ``<stem>.ply`` (stems of
         :func:`~whisker_io.sim.catalogue.object_file_names`: distinct); created when needed.
     scale_to_m, up_axis : optional
@@ -192,6 +192,9 @@ def conform_objects(specs: Sequence[str], folder: Path, *, scale_to_m: float | N
         apply them to (:func:`check_mesh_options`).
     """
     specs = [str(s) for s in specs]
+    if not isinstance(folder, (str, os.PathLike)):
+        raise InvalidInputError(f"folder must be a path (str or pathlib.Path), got {type(folder).__name__}")
+    folder = Path(folder)
     check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
     given = scale_to_m is not None or up_axis is not None
     stems = object_file_names(specs)
