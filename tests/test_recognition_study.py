@@ -49,6 +49,7 @@ def test_outputs_and_columns(quick):
         assert (out / name).stat().st_size > 10_000
     text = (out / "recognition_summary.txt").read_text()
     assert "trajectory B" in text and "Fig 5.17" in text
+    assert "Targets (issue 22's acceptance" in text and "(a library object named as another; novel ones" in text
     # what the maps never felt: a share for every library presentation, blank for novel objects; none along A's own
     # path is near the share from the viewpoints (the mapping path felt where A goes)
     assert all(r["unmapped_contact_fraction"] == "" for r in novel)
