@@ -495,3 +495,19 @@ def test_trajectory_choice_keeps_a_given_count_and_roll_or_raises_a_typed_error(
         assert step != ch5_study.STEP and reach == 0 and missed  # only a bad step, and only when a loop is built
         return
     assert got == (reach, roll)
+
+
+def test_training_the_ch4_model_for_the_svr_contacts_is_announced(tmp_path: Path, monkeypatch, caplog) -> None:
+    """The study trains the Ch.4 model once when no --radial-model is given, and says so before it starts."""
+    import logging
+
+    from cansim.studies import ch4_radial_distance
+
+    calls = []
+    monkeypatch.setattr(ch4_radial_distance, "main", lambda argv: calls.append(argv) or 0)
+    with caplog.at_level(logging.INFO, logger="ch5_study"):
+        path = ch5_study._ensure_radial_model(None, tmp_path)
+    assert calls == [["--quick", "--out", str(tmp_path / "ch5_radial")]] and path == str(tmp_path / "ch5_radial" / "svr9.skops")
+    assert any("training it once" in r.getMessage() and "--radial-model PATH reuses one" in r.getMessage()
+               for r in caplog.records)
+    assert ch5_study._ensure_radial_model("given.skops", tmp_path) == "given.skops" and len(calls) == 1

@@ -583,6 +583,8 @@ def _ensure_radial_model(path: str | None, out: Path) -> str:
     if not model.exists():
         from cansim.studies import ch4_radial_distance
 
+        logger.info("The SVR contact estimate needs the Ch.4 radial-distance model: training it once (the Ch.4 study's "
+                    "--quick run) into %s; --radial-model PATH reuses one, --contacts tip needs none", model.parent)
         ch4_radial_distance.main(["--quick", "--out", str(model.parent)])
     return str(model)
 
@@ -997,7 +999,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--id-config", default="both/no-update/svr", help="configuration of the identification maps")
     ap.add_argument("--contacts", nargs="+", choices=CONTACTS, help="contact models (default both; --quick tip and svr on 'both' only)")
     ap.add_argument("--radial-model", help="Ch.4 model (.skops) for the SVR contact estimate")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2, help="processes for the maps and runs (default 2; 0 or 1: in this one)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     a = ap.parse_args(argv)
