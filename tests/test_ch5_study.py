@@ -137,6 +137,11 @@ def test_library_model_warns_of_an_empty_map_unless_its_caller_says_it(tmp_path:
     paths = [tmp_path / "a.npz", tmp_path / "never.npz"]
     with pytest.warns(UserWarning, match="without an experience.*: never$"):
         ch5_study.library_model(paths, ["a", "never"])
+    with warnings.catch_warnings(record=True) as shown:  # Python's default: once per place in the code
+        warnings.simplefilter("default")
+        ch5_study.library_model(paths, ["a", "never"])
+        ch5_study.library_model(paths, ["a", "never"])
+    assert len([w for w in shown if "without an experience" in str(w.message)]) == 1
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         model, lib = ch5_study.library_model(paths, ["a", "never"], warn_empty=False)
@@ -476,6 +481,16 @@ def test_a_map_without_an_experience_is_warned_of_once_and_left_out_of_the_findi
     assert "NOT measured: no non-Kettle map holds an experience" in _finding(only_cube, "1.")
     assert "NOT measured: no presented object has a map with an experience" in _finding(only_cube, "6A.")
     assert ch5_study.empty_maps([mug], {"mug": "mug"}) == []
+    # the identification maps are the best configuration's: an empty map of another configuration leaves the
+    # object in the findings, and no warning
+    tip = ch5_study.Config("both", False, "tip")
+    other_empty = ch5_study.summary([mug, dict(mug, config=tip, position_m=[], rotation_deg=[], n_experiences=0)],
+                                    [own, dict(own, trajectory="B")], [], s, ch5_study.BEST, True)
+    assert "Warning:" not in other_empty and "not judged" not in _finding(other_empty, "6A.")
+    nothing_mapped_shown = ch5_study.summary([mug], [_id_row("duck", "A", 0.1, 90)], [], s, ch5_study.BEST, True)
+    assert "NOT measured: no mapped object was presented" in _finding(nothing_mapped_shown, "6A.")
+    kettle_only = ch5_study.summary([dict(mug, object="kettle")], [], [], s, ch5_study.BEST, True)
+    assert "NOT measured: no object but the Kettle ran" in _finding(kettle_only, "1.")
 
 
 @settings(max_examples=25, deadline=None)

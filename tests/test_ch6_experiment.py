@@ -186,6 +186,7 @@ def test_the_findings_say_tied_or_not_measured_instead_of_picking_one():
     lead = ch6.summary(_summary_rows({"default": 20.0, "feh": 20.0, "lsr": 40.0}, "box", {300.0: 6, 600.0: 2}),
                        setup, args, 1.0)
     assert "REPRODUCED (highest IM: lsr, lowest SRT: lsr)" in lead and "Best by correct-first count: 300. REPRODUCED" in lead
+    assert "NOT measured: no strategy run" in ch6.summary([], setup, args, 1.0)
 
 
 def test_a_short_run_is_named_as_the_cause_of_seldom_touching():

@@ -399,6 +399,54 @@ def test_only_the_fields_pass_the_name_check(kwargs: dict[str, float], args: lis
     assert (w.start_s, w.stop_s) == (given_values.get("start_s", 0.0), given_values.get("stop_s", 1.0))
 
 
+@pytest.mark.parametrize("cls", CLASSES, ids=_qualname)
+def test_the_signature_shows_the_fields_not_new(cls: type) -> None:
+    """``inspect.signature`` (and the API docs, which read it) show the constructor's fields, not ``(*args, **kwargs)``."""
+    import inspect
+
+    names = [f.name for f in dataclasses.fields(cls) if f.init]
+    assert list(inspect.signature(cls).parameters) == names
+    with pytest.raises(AttributeError):
+        _build(cls).__signature__  # noqa: B018 - an instance is no callable: no signature of its own
+
+
+def test_a_subclass_with_its_own_init_is_checked_against_it_and_a_derived_field_is_named() -> None:
+    from whisker_io.array.control import RCP, WhiskPattern
+
+    @dataclass(frozen=True)
+    class Tagged(WhiskPattern):
+        def __init__(self, tag: str = "", **kwargs: Any) -> None:  # any keyword: passed on, nothing to check here
+            super().__init__(**kwargs)
+
+    assert dataclasses.astuple(Tagged(tag="x")) == dataclasses.astuple(WhiskPattern())
+
+    @dataclass(frozen=True)
+    class Named(WhiskPattern):
+        def __init__(self, tag: str) -> None:
+            super().__init__()
+
+    assert dataclasses.astuple(Named(tag="x")) == dataclasses.astuple(WhiskPattern())
+    with pytest.raises(UnknownFieldError, match="Named has no field 'tags' \\(did you mean 'tag'\\?\\); its fields: tag$"):
+        Named(tags="x")
+    with pytest.raises(UnknownFieldError, match="RCP's field 'amplitudes_rad' is derived from the others, not given"):
+        RCP(amplitudes_rad=1.0)
+
+
+def test_a_misspelt_key_in_a_saved_description_keeps_its_advice() -> None:
+    from cansim.models.ratslam_config import RatSLAMConfig
+
+    d = RatSLAMConfig().to_dict()
+    d["xy_cell"] = 23
+    with pytest.raises(UnknownFieldError, match=r"^not a RatSLAMConfig description: RatSLAMConfig has no field 'xy_cell' "
+                                                r"\(did you mean 'xy_cells'\?\)"):
+        RatSLAMConfig.from_dict(d)
+    nested = RatSLAMConfig().to_dict()
+    nested["attractor"]["exc_widht"] = 7
+    with pytest.raises(UnknownFieldError, match=r"^not a RatSLAMConfig description: AttractorParams has no field "
+                                                r"'exc_widht' \(did you mean 'exc_width'\?\)"):
+        RatSLAMConfig.from_dict(nested)
+
+
 def test_a_subclass_field_is_known_and_pickling_still_works() -> None:
     import copy
     import pickle
@@ -406,7 +454,12 @@ def test_a_subclass_field_is_known_and_pickling_still_works() -> None:
     from cansim.models.ratslam_config import RatSLAMConfig
 
     cfg = RatSLAMConfig(xy_cells=23, cell_size_m=0.5)  # a SlamConfig field and one of the subclass
-    assert pickle.loads(pickle.dumps(cfg)) == cfg and copy.deepcopy(cfg) == cfg
+    for protocol in range(pickle.HIGHEST_PROTOCOL + 1):
+        assert pickle.loads(pickle.dumps(cfg, protocol=protocol)) == cfg
+    assert copy.deepcopy(cfg) == cfg and copy.copy(cfg) == cfg
+    assert dataclasses.replace(cfg, heading_cells=12) == RatSLAMConfig(xy_cells=23, cell_size_m=0.5, heading_cells=12)
+    with pytest.raises(UnknownFieldError, match="RatSLAMConfig has no field 'heading_cell'"):
+        dataclasses.replace(cfg, heading_cell=12)
     with pytest.raises(ConfigError, match="pc_dim_xy is OpenRatSLAM's name: use xy_cells"):
         RatSLAMConfig(pc_dim_xy=23)
 

@@ -190,14 +190,25 @@ def test_what_was_assumed_and_the_move_onto_the_table_are_recorded():
     far = trimesh.creation.box(extents=(0.2, 0.3, 0.35))
     far.apply_translation((100.0, -50.0, 20.0))  # the box spans z 19.825 .. 20.175
     notes = load_object(far).notes
-    assert "assumed in metres and z up (not checked; otherwise give --scale-to-m / --up-axis)" in notes
+    assert ("assumed in metres and z up (not checked; otherwise give scale_to_m (--scale-to-m) / up_axis (--up-axis))"
+            in notes)
     assert "moved by (-100, 50, -19.82) m to stand centred on z = 0" in notes
     given = load_object(far, scale_to_m=0.35, up_axis="z").notes
     assert not any(n.startswith("assumed") for n in given)
-    assert load_object(far, up_axis="z").notes[0] == "assumed in metres (not checked; otherwise give --scale-to-m)"
+    assert load_object(far, up_axis="z").notes[0] == "assumed in metres (not checked; otherwise give scale_to_m (--scale-to-m))"
     placed = trimesh.creation.box(extents=(0.2, 0.3, 0.35))
     placed.apply_translation((0.0, 0.0, 0.175 + 0.0004))  # 0.4 mm above the table: under the note's millimetre
     assert not any(n.startswith("moved by") for n in load_object(placed).notes)
+    centred = trimesh.creation.box(extents=(0.2, 0.3, 0.35))  # centred on the origin: moved up only, no "-0"
+    assert "moved by (0, 0, 0.175) m to stand centred on z = 0" in load_object(centred).notes
+
+
+def test_a_gltf_file_without_options_is_warned_of_its_up_axis_and_said_to_be_taken_as_metres(tmp_path):
+    path = tmp_path / "box.glb"
+    trimesh.creation.box(extents=(0.2, 0.3, 0.35)).export(path)
+    notes = load_object(path).notes
+    assert any("y-up by their specification" in n for n in notes)
+    assert "assumed in metres (not checked; otherwise give scale_to_m (--scale-to-m))" in notes  # z up: the warning
 
 
 def _write(tmp_path: Path, name: str, content: str | bytes) -> Path:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import inspect
 import math
 import numbers
 from collections.abc import Callable, Sequence
@@ -525,11 +526,26 @@ def _field_names(cls: type) -> tuple[str, ...]:
 
 
 @functools.cache
-def _init_names(cls: type) -> tuple[tuple[str, ...], frozenset[str]]:
-    """The parameters of a dataclass's ``__init__`` in order, and the names it takes: those and the old
-    names its ``__renamed_keywords__`` still accepts (``cansim._renamed.renamed_keywords``)."""
-    names = tuple(f.name for f in dataclasses.fields(cls) if f.init)
+def _init_names(cls: type) -> tuple[tuple[str, ...], frozenset[str]] | None:
+    """The parameters of a class's ``__init__`` in order, and the names it takes: those and the old names its
+    ``__renamed_keywords__`` still accepts (``cansim._renamed.renamed_keywords``); None when it takes any keyword
+    (``**kwargs``: nothing to check)."""
+    params = list(inspect.signature(cls.__init__).parameters.values())[1:]  # without self
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return None
+    names = tuple(p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
     return names, frozenset(names) | frozenset(getattr(cls, "__renamed_keywords__", ()))
+
+
+class _InitSignature:
+    """``cls.__signature__`` of a :class:`ConfigDataclass`: its ``__init__``'s parameters (without ``self``), so that
+    ``inspect.signature`` and the API docs show the fields, not ``__new__``'s ``(*args, **kwargs)``."""
+
+    def __get__(self, instance: Any, owner: type) -> inspect.Signature:
+        if instance is not None:
+            raise AttributeError("__signature__")
+        sig = inspect.signature(owner.__init__)
+        return sig.replace(parameters=list(sig.parameters.values())[1:], return_annotation=inspect.Signature.empty)
 
 
 class ConfigDataclass:
@@ -540,7 +556,9 @@ class ConfigDataclass:
     arguments first, so this base checks their names and number there and raises
     :class:`~whisker_io.errors.UnknownFieldError` (a :class:`~whisker_io.errors.ConfigError`,
     the project's error for a bad configuration, and a ``TypeError``, as Python's own)
-    naming the nearest field and listing the class's fields. A missing required field is
+    naming the nearest field and listing the class's fields. The names are the
+    ``__init__``'s parameters (a subclass with an ``__init__`` of its own is checked
+    against that one; one that takes ``**kwargs`` is not checked). A missing required field is
     still the ``__init__``'s ``TypeError``. ``dataclasses.replace`` builds through the
     constructor and is checked alike.
 
@@ -554,32 +572,40 @@ class ConfigDataclass:
     Traceback (most recent call last):
     ...
     whisker_io.errors.UnknownFieldError: WindowParams has no field 'stop' (did you mean 'stop_s'?); its fields: start_s, stop_s
+    >>> inspect.signature(WindowParams)
+    <Signature (start_s: 'float' = 0.0, stop_s: 'float' = 1.0)>
     """
 
     __slots__ = ()
+    __signature__ = _InitSignature()
 
     def __new__(cls, *args: Any, **kwargs: Any) -> Any:
         if args or kwargs:
-            names, known = _init_names(cls)
-            if len(args) > len(names) or not kwargs.keys() <= known:
+            init = _init_names(cls)
+            if init is not None and (len(args) > len(init[0]) or not kwargs.keys() <= init[1]):
                 cls.refuse_arguments(len(args), kwargs)
         return super().__new__(cls)
 
     @classmethod
     def refuse_arguments(cls, n_positional: int, keywords: Any) -> None:
-        """Raise :class:`UnknownFieldError` for the first keyword of ``keywords`` that names no field, or for
-        ``n_positional`` arguments beyond the fields (a subclass may name better advice first)."""
+        """Raise :class:`UnknownFieldError` for the first keyword of ``keywords`` that names no parameter, or for
+        ``n_positional`` arguments beyond the parameters (a subclass may name better advice first)."""
         import difflib
 
-        names, known = _init_names(cls)
+        init = _init_names(cls)
+        names, known = init if init is not None else ((), frozenset())
         listed = ", ".join(names)
+        derived = {f.name for f in dataclasses.fields(cls) if not f.init} if dataclasses.is_dataclass(cls) else set()
         for key in keywords:
+            if key in derived:
+                raise UnknownFieldError(f"{cls.__name__}'s field {key!r} is derived from the others, not given; "
+                                        f"its parameters: {listed}")
             if key not in known:
                 near = difflib.get_close_matches(str(key), names, n=1)
                 hint = f" (did you mean {near[0]!r}?)" if near else ""
                 raise UnknownFieldError(f"{cls.__name__} has no field {key!r}{hint}; its fields: {listed}")
         raise UnknownFieldError(f"{cls.__name__} takes at most {len(names)} arguments, got {n_positional} positional; "
-                          f"give them by name: {listed}")
+                                f"give them by name: {listed}")
 
 
 # ------------------------------------------------------------ declared field checks

@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any, TypeVar
 
-from cansim.errors import ConfigError
+from cansim.errors import ConfigError, UnknownFieldError
 from cansim.params import AttractorParams
 from cansim.population import MAX_CELLS
 from whisker_io.validation import ConfigDataclass, checked, validate_fields
@@ -128,6 +128,8 @@ class SlamConfig(ConfigDataclass):
             raise ConfigError(f"not a {cls.__name__} description: expected a dict (to_dict's output), got {type(d).__name__}")
         try:
             return cls(**cls._fields_from_dict(dict(d)))
+        except UnknownFieldError as exc:  # a key that names no field (of the config or a nested part): its advice kept
+            raise UnknownFieldError(f"not a {cls.__name__} description: {exc}") from None
         except (KeyError, TypeError) as exc:
             raise ConfigError(f"not a {cls.__name__} description ({exc!r})") from None
 

@@ -444,9 +444,10 @@ def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m
 
     models = [WhiskerRatSLAM.load(p) for p in paths]
     cfg = models[0].config if cell_size_m is None else replace(models[0].config, cell_size_m=cell_size_m)
+    if warn_empty:  # outside catch_warnings, which would reset the once-per-process record of warnings shown
+        return WhiskerRatSLAM.library(models, names, cfg)
     with warnings.catch_warnings():
-        if not warn_empty:
-            warnings.filterwarnings("ignore", message=r".*object map\(s\) without an experience", category=UserWarning)
+        warnings.filterwarnings("ignore", message=r".*object map\(s\) without an experience", category=UserWarning)
         return WhiskerRatSLAM.library(models, names, cfg)
 
 
@@ -788,12 +789,13 @@ def _matching_name(m: str) -> str:
             else "the thesis' Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis)")
 
 
-def empty_maps(builds: Sequence[dict[str, Any]], label: dict[str, str]) -> list[str]:
+def empty_maps(builds: Sequence[dict[str, Any]], label: dict[str, str], star: Config | None = None) -> list[str]:
     """One line per mapped object whose map holds no experience (no whisk of its mapping run observed a region of
-    3 contacts or more, Eq 5.5): nothing can be recognised as it, and the findings leave it out."""
+    3 contacts or more, Eq 5.5): nothing can be recognised as it, and the findings leave it out. With ``star`` only
+    the maps of that configuration count (identification uses them)."""
     seen: dict[str, dict[str, Any]] = {}
     for b in builds:
-        if not b.get("n_experiences", 1):
+        if not b.get("n_experiences", 1) and (star is None or b["config"] == star):
             seen.setdefault(b["object"], b)
     return [f"the map of the {label[o]} holds no experience: none of its {b['n_iterations']} mapping whisks touched it "
             "with 3 whiskers or more, so nothing can be recognised as it and the findings leave it out. The study's "
@@ -814,6 +816,7 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
     lines.append(f"  1{tag}. Thesis: with the best configuration ({BEST.label}) every object but the Kettle localises below its step "
                  f"size. Measured ({star.label}): {sum(below)} of {len(below)} non-Kettle objects below the step; medians {per}. "
                  + (f"NOT measured: {BEST.label} did not run (--contacts, --features)." if star != BEST
+                    else "NOT measured: no object but the Kettle ran." if not any(b["object"] != "kettle" for b in star_runs)
                     else "NOT measured: no non-Kettle map holds an experience." if not below
                     else f"{'REPRODUCED' if all(below) else 'NOT reproduced'}{unjudged}."))
     kettle = [b for b in star_runs if b["object"] == "kettle"]
@@ -884,7 +887,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                      f"median NMSE same {cal['same_nmse_median']:.3g} vs next {cal['next_nmse_median']:.3g}; "
                      f"next-pose pairs under the thresholds: chi2 {cal['next_chi2_below_threshold']:.2f}, "
                      f"NMSE {cal['next_nmse_below_threshold']:.2f}).")
-    lines += [f"Warning: {line}." for line in empty_maps(builds, label)]
+    lines += [f"Warning: {line}." for line in empty_maps(builds, label, star)]
     lines.append("")
     lines.append(f"Localisation, {_matching_name(s.matching)} (Fig 5.15; median re-localisation error vs step size; "
                  "true pose now vs at the experience's creation)")
@@ -931,7 +934,8 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         mB = np.mean([r["mean_confidence"] for r in rows("B", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
                      f"A {fmt(mA)}, B {fmt(mB)}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
-        blank = {b["object"] for b in builds if not b.get("n_experiences", 1)}  # nothing can be recognised as them
+        # the identification maps (star's) that hold no experience: nothing can be recognised as them
+        blank = {b["object"] for b in builds if not b.get("n_experiences", 1) and b["config"] == star}
         for fam in "AB":
             pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped and r["presented"] not in blank)})
             unjudged = sorted({label[r["presented"]] for r in rows(fam, lambda r: r["presented"] in blank)})
@@ -947,7 +951,8 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          f"final IC for {sum(top)} of {len(top)} mapped objects; RC decisions (threshold {RC_THRESHOLD:g}) correct "
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. "
-                         + ("NOT measured: no presented object has a map with an experience" if not top
+                         + ("NOT measured: no mapped object was presented" if not top and not unjudged
+                            else "NOT measured: no presented object has a map with an experience" if not top
                             else ("REPRODUCED" if all(top) else "NOT reproduced")
                             + (f" (not judged: {', '.join(unjudged)}, a map without an experience)" if unjudged else ""))
                          + ".")

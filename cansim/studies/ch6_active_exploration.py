@@ -876,7 +876,9 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     finding = "2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): " \
         + "; ".join(f"{s} IM {fmt(m[0], '.0f')} SRT {fmt(m[1], '.0f')}" for s, m in med.items()) \
         + f"; Kruskal-Wallis p(IM) = {fmt(p_im, '.3g')}, p(SRT) = {fmt(p_srt, '.3g')}. "
-    if not measured or not crossed_300:  # every run censored: the medians are the runs' ends, not the strategies'
+    if not strat:
+        lines.append(finding + "NOT measured: no strategy run")
+    elif not measured or not crossed_300:  # every run censored: the medians are the runs' ends, not the strategies'
         lines.append(finding + "NOT measured: no run crossed IC 300 (every IM / SRT censored at the run's end)")
     else:  # every strategy that shares the best median is named: a tie is not LSR's lead
         best_im = [s for s in measured if med[s][0] == max(med[t][0] for t in measured)]

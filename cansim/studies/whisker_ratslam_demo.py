@@ -125,9 +125,10 @@ log = logging.getLogger(__name__)
 
 #: Contact-position noise of the demo, fraction of the whisker length (module docstring).
 DEFAULT_CONTACT_NOISE = 0.075
-#: Median position errors closer than this (m) are called the same: the summary then says the map is no
-#: better than dead reckoning (without a re-localisation the map's estimate is dead reckoning's, to rounding).
-SAME_ERROR_M = 1e-3
+#: Median position errors within this share of dead reckoning's are called the same: the summary then says
+#: the map is no better than dead reckoning (without a re-localisation the map's estimate is dead reckoning's,
+#: to rounding).
+SAME_ERROR_SHARE = 0.01
 #: Step bounds of the trajectory (m, deg) per object (module docstring).
 STEP_BOUNDS = {"box": (0.03, 8.0)}
 DEFAULT_STEP_BOUNDS = (0.11, 12.0)
@@ -270,7 +271,7 @@ def summary(metrics: dict, out: Path, files: list[Path]) -> str:
     if m.get("object_source") not in (None, "registered object", "procedural shape"):
         size = " x ".join(f"{x:.3f}" for x in m["object_extents_m"])
         lines.append(f"Loaded {m['object_source']} as the {m['object']} ({size} m; "
-                     + ("; ".join(m["object_changes"]) or "already in the conventions: only placed") + ").")
+                     + ("; ".join(m["object_changes"]) or "in the conventions as given") + ").")
     if m.get("trajectory_reach_contacts"):
         note = _reach_note(m["object"], m)
         lines.append(note[0].upper() + note[1:] + ".")
@@ -292,9 +293,10 @@ def summary(metrics: dict, out: Path, files: list[Path]) -> str:
                      f"{fmt(m['map_estimate_median_position_error_m'])} m from the truth, dead reckoning's "
                      f"{m['dr_last_loop_median_position_error_m']:.3f} m ({drift}; the experiences "
                      f"lie a median {fmt(m['map_median_position_error_m'])} m from the truth).")
-        gain = m["dr_last_loop_median_position_error_m"] - m["map_estimate_median_position_error_m"]
-        if abs(gain) < SAME_ERROR_M:
-            lines.append(f"=> the map is no better than dead reckoning on this run (within {SAME_ERROR_M * 1e3:g} mm).")
+        dr = m["dr_last_loop_median_position_error_m"]
+        gain = dr - m["map_estimate_median_position_error_m"]
+        if abs(gain) <= SAME_ERROR_SHARE * dr:
+            lines.append(f"=> the map is no better than dead reckoning on this run (within {SAME_ERROR_SHARE:.0%}).")
         else:
             lines.append("=> the map beats dead reckoning." if gain > 0 else "=> the map does NOT beat dead reckoning on this run.")
     else:

@@ -249,9 +249,10 @@ arms of the thesis reach 0.85 m (UR5) and 1.3 m (UR10, Ch.3) (Sec 2.2.1), so
 nothing larger can be explored around."""
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".glb", ".gltf")
-#: A move onto the table (centred, resting on z = 0) of at least this much along an axis (m) is said in the notes.
-PLACEMENT_NOTE_M = 1e-3
 """File endings :func:`load_object` reads (via trimesh)."""
+
+PLACEMENT_NOTE_M = 1e-3
+"""A move onto the table (centred, resting on z = 0) of at least this much along an axis (m) is said in the notes."""
 
 GLTF_SUFFIXES: tuple[str, ...] = (".glb", ".gltf")
 """Mesh files y-up by their specification (glTF 2.0)."""
@@ -531,17 +532,21 @@ def load_object(
         raise InvalidInputError(f"name must be a non-empty string, got {name!r}")
     raw, source, default_name, notes = _as_surface(path_or_trimesh)
     mesh = _checked_surface(raw, source)
-    if up_axis is None and isinstance(path_or_trimesh, (str, os.PathLike)) \
-            and Path(path_or_trimesh).suffix.lower() in GLTF_SUFFIXES:
-        gltf = ("taken as z-up (no up axis given), although glTF/GLB files are y-up by their specification: "
-                "if the object lies on its side, pass up_axis='y' (--up-axis y)")
-        notes.append(gltf)
-        _log.warning("%s: %s", source, gltf)
-    else:  # what was assumed, not checked: said, so that a y-up file or one in millimetres is noticed
-        assumed = [what for what, given in (("in metres", scale_to_m), ("z up", up_axis)) if given is None]
-        if assumed:
-            flags = " / ".join(flag for flag, given in (("--scale-to-m", scale_to_m), ("--up-axis", up_axis)) if given is None)
-            notes.append(f"assumed {' and '.join(assumed)} (not checked; otherwise give {flags})")
+    gltf = up_axis is None and isinstance(path_or_trimesh, (str, os.PathLike)) \
+        and Path(path_or_trimesh).suffix.lower() in GLTF_SUFFIXES
+    if gltf:
+        warning = ("taken as z-up (no up axis given), although glTF/GLB files are y-up by their specification: "
+                   "if the object lies on its side, pass up_axis='y' (--up-axis y)")
+        notes.append(warning)
+        _log.warning("%s: %s", source, warning)
+    # what was assumed, not checked, is said, so that a y-up file or one in millimetres is noticed (a glTF file's
+    # up axis has the warning above)
+    assumed = [(what, option) for what, unsaid, option in (("in metres", scale_to_m is None, "scale_to_m (--scale-to-m)"),
+                                                           ("z up", up_axis is None and not gltf, "up_axis (--up-axis)"))
+               if unsaid]
+    if assumed:
+        notes.append(f"assumed {' and '.join(w for w, _ in assumed)} (not checked; otherwise give "
+                     f"{' / '.join(o for _, o in assumed)})")
     source_extents = np.asarray(mesh.extents, dtype=np.float64)
     if not mesh.is_watertight:
         n_before = len(mesh.vertices)
@@ -590,7 +595,7 @@ def load_object(
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     mesh.vertices = mesh.vertices + translation  # a plain sum: the lowest vertex lands exactly on z = 0
     if np.abs(translation).max() >= PLACEMENT_NOTE_M:  # where the file's frame lies against the object's, in one line
-        notes.append(f"moved by ({', '.join(f'{v:.4g}' for v in translation)}) m to stand centred on z = 0")
+        notes.append(f"moved by ({', '.join(f'{v + 0.0:.4g}' for v in translation)}) m to stand centred on z = 0")
     result = LoadedObject(
         mesh=mesh,
         name=default_name if name is None else name.strip(),
@@ -602,7 +607,7 @@ def load_object(
         source_extents=source_extents,
         notes=tuple(notes),
     )
-    _log.info("loaded object %r from %s: %s", result.name, source, "; ".join(notes) or "no change but placement")
+    _log.info("loaded object %r from %s: %s", result.name, source, "; ".join(notes) or "in the conventions as given")
     return result
 
 
