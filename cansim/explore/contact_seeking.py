@@ -137,7 +137,17 @@ Where the project objects' whisks without contact come from (2026-12-05; the tes
 that led to the whisk): Box contact 0.83, of its 61 whisks without contact 25 after a new face, 19
 after a back-off, 9 after an advance; Mug 0.80: 31, 10, 15 of 71; Kettle 0.83: 15 after a new
 face, 16 after Alg 7's own move, 12 after a turn, 8 after a back-off. The 90 % would need the new
-faces placed within reach and the back-offs that lose the surface halved; not tried further here.
+faces placed within reach and the back-offs that lose the surface halved. Tried for the new faces
+(2026-12-06, a scratch study, the same harness; tuned on the Box, Mug, duck and superquadric, judged
+once on the held-out Kettle, Barrel, Box-Stack, bear and snowman), not adopted: keeping the held
+range after a face where the advance found nothing changed no run (that reset never happened: an
+advance from the held range always met the surface); placing the next face at the felt contacts'
+range instead (the 75th percentile of the ranges, along the face's direction, of the contacts felt
+so far within 0.1 m of its axis, plus the margin; the largest range within a 30-deg cone took the
+few ``tip`` contacts lying centimetres outside and lost 6-9 points) gave the held-out Kettle 0.83 ->
+0.86, Barrel 0.82 -> 0.85, Box-Stack 0.84 -> 0.87, bear 0.79 -> 0.78 and snowman 0.78 -> 0.73, with
+bases inside 153 -> 176 of 1800 whisks. The faces that miss on the Box point at its top edges, which
+lie straight ahead of the front bases where no whisker sweeps: no range estimate reaches them.
 No setting reached both targets, and every one that touches puts bases inside where the
 thesis' placement puts none: contact seeking stays opt-in (``Explorer(...,
 contact_seeking=ContactSeekingParams())``, ``cansim study ch6 --contact-seeking``).
