@@ -58,6 +58,19 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
     assert conform_objects(["mug", "box"], out) == ["mug", "box"] and not (out / SOURCES_FILE).exists()
 
 
+def test_mesh_files_come_back_as_absolute_paths_given_relative(tmp_path, monkeypatch):
+    """The studies write the returned specs into their CSVs: a mesh file named relative to the working directory
+    comes back absolute, copied or not, so the CSVs name one file wherever they are read from."""
+    _brick_mm_y_up(tmp_path / "brick.stl")
+    trimesh.creation.box(extents=(0.2, 0.3, 0.35)).export(tmp_path / "box_m.stl")
+    monkeypatch.chdir(tmp_path)
+    kept = conform_objects(["box_m.stl", "mug"], "objects")
+    assert kept == [str((tmp_path / "box_m.stl").resolve()), "mug"]
+    (copy,) = conform_objects(["brick.stl"], "objects", scale_to_m=0.35, up_axis="y")
+    assert copy == str((tmp_path / "objects" / "brick.ply").resolve())
+    assert json.loads((tmp_path / "objects" / SOURCES_FILE).read_text())[0]["copy"] == copy
+
+
 def test_the_folder_may_be_given_as_text_and_anything_else_is_refused(tmp_path):
     _brick_mm_y_up(tmp_path / "brick.stl")
     (copy,) = conform_objects([str(tmp_path / "brick.stl")], str(tmp_path / "objects"), scale_to_m=0.35, up_axis="y")
