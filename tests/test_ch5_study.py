@@ -526,3 +526,13 @@ def test_training_the_ch4_model_for_the_svr_contacts_is_announced(tmp_path: Path
     assert any("training it once" in r.getMessage() and "--radial-model PATH reuses one" in r.getMessage()
                for r in caplog.records)
     assert ch5_study._ensure_radial_model("given.skops", tmp_path) == "given.skops" and len(calls) == 1
+
+
+def test_the_objects_help_lists_every_registered_name(capsys) -> None:
+    """Its error message lists every registered object; the help did not (Box-Stack and Skull were missing)."""
+    from whisker_io.sim.objects import OBJECT_NAMES
+
+    with pytest.raises(SystemExit):
+        ch5_study.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"registered names ({', '.join(OBJECT_NAMES)})" in text and {"box_stack", "skull"} <= set(OBJECT_NAMES)

@@ -977,13 +977,15 @@ def _config(label: str) -> Config:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study; returns the exit code (0 on success)."""
+    from whisker_io.sim.objects import OBJECT_NAMES
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="Mug, Box and Plane (+ Skull), two configurations, 2 loops (< 2 min)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH",
-                    help=f"mapped objects: registered names ({', '.join(MAPPED)}), procedural shapes (e.g. duck) or mesh "
-                         "files in metres, z up unless --scale-to-m / --up-axis say otherwise (default: all six; "
-                         "--quick: mug box plane)")
+                    help=f"mapped objects: registered names ({', '.join(OBJECT_NAMES)}), procedural shapes (e.g. duck) "
+                         "or mesh files in metres, z up unless --scale-to-m / --up-axis say otherwise (default: the "
+                         f"thesis' six, {' '.join(MAPPED)}; --quick: mug box plane)")
     ap.add_argument("--novel", default=NOVEL, metavar="NAME_OR_MESH",
                     help=f"the object presented but not mapped (default {NOVEL})")
     add_mesh_options(ap)
