@@ -136,7 +136,8 @@ class ObjectLibrary:
         return cls.from_arrays(read_npz(path))
 
 
-def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_offsets: Sequence[int]) -> ObjectLibrary:
+def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_offsets: Sequence[int],
+                       warn_empty: bool = True) -> ObjectLibrary:
     """Append object maps into one history with no links between objects (Fig 5.16).
 
     Parameters
@@ -148,6 +149,8 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     view_offsets : sequence of int
         Added to map ``k``'s local-view ids: the number of regions stored before map
         ``k`` in the appended region store (non-decreasing, >= 0).
+    warn_empty : bool
+        Warn of a map with no experience (Notes); False where the caller says it itself.
 
     Returns
     -------
@@ -185,7 +188,7 @@ def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_off
     empty = [n for m, n in zip(maps, names) if m.n_experiences == 0]
     if len(empty) == len(maps):
         raise InvalidInputError(f"every map is empty ({names}): explore the objects first (no experience to append)")
-    if empty:  # a warning, not a log line: shown once per process however often a study builds this library
+    if empty and warn_empty:  # a warning, not a log line: shown once per process however often it is built
         warnings.warn(f"{len(empty)} object map(s) without an experience appended (nothing can be recognised as them): "
                       f"{', '.join(empty)}", UserWarning, stacklevel=2)
     parts = [m.to_arrays() for m in maps]

@@ -358,7 +358,7 @@ def test_a_misspelt_field_is_an_unknown_field_error_naming_the_field_meant(cls: 
     base = _build(cls)
     with pytest.raises(UnknownFieldError, match=f"has no field '{typo}'"):
         dataclasses.replace(base, **{typo: 1})
-    with pytest.raises(UnknownFieldError, match=rf"takes at most {len(names)} arguments, got {len(names) + 1} positional"):
+    with pytest.raises(UnknownFieldError, match=rf"takes at most {len(names)} positional arguments, got {len(names) + 1}"):
         cls(*[getattr(base, n) for n in names], 0)
 
 
@@ -386,7 +386,7 @@ def test_only_the_fields_pass_the_name_check(kwargs: dict[str, float], args: lis
         if foreign:
             assert f"has no field {foreign[0]!r}" in str(exc)
         elif len(args) > 2:
-            assert "takes at most 2 arguments" in str(exc)
+            assert "takes at most 2 positional arguments" in str(exc)
         else:  # every value drawn is >= 0: no field rule refuses it
             pytest.fail(f"a valid call was refused: {exc}")
         return
@@ -430,6 +430,46 @@ def test_a_subclass_with_its_own_init_is_checked_against_it_and_a_derived_field_
         Named(tags="x")
     with pytest.raises(UnknownFieldError, match="RCP's field 'amplitudes_rad' is derived from the others, not given"):
         RCP(amplitudes_rad=1.0)
+
+
+def test_the_check_follows_the_kinds_of_the_init_parameters() -> None:
+    """Keyword-only fields are no positional slots, ``*args`` takes any number, positional-only names are no
+    keywords; a name the subclass's own __init__ takes is never called derived."""
+
+    @dataclass(frozen=True, kw_only=True)
+    class K(ConfigDataclass):
+        a: float = 1.0
+
+    with pytest.raises(UnknownFieldError, match="K takes at most 0 positional arguments, got 1; give them by name: a"):
+        K(1.0)
+    assert K(a=2.0).a == 2.0
+
+    class V(ConfigDataclass):
+        def __init__(self, x: float, *rest: float) -> None:
+            self.total = x + sum(rest)
+
+    assert V(1.0, 2.0, 3.0).total == 6.0
+    with pytest.raises(UnknownFieldError, match="V has no field 'y'"):
+        V(1.0, y=2.0)
+
+    class P(ConfigDataclass):
+        def __init__(self, x: float, /) -> None:
+            self.x = x
+
+    assert P(1.0).x == 1.0
+    with pytest.raises(UnknownFieldError, match="P has no field 'x'"):
+        P(x=1.0)
+
+    @dataclass(frozen=True)
+    class D(ConfigDataclass):
+        d: float = dataclasses.field(default=0.0, init=False)
+
+        def __init__(self, d: float = 0.0) -> None:  # takes the derived field's name itself
+            object.__setattr__(self, "d", 2 * d)
+
+    with pytest.raises(UnknownFieldError, match="D has no field 'x'"):
+        D(d=3.0, x=1.0)  # x is the culprit, not d
+    assert D(d=3.0).d == 6.0
 
 
 def test_a_misspelt_key_in_a_saved_description_keeps_its_advice() -> None:

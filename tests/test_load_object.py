@@ -201,6 +201,12 @@ def test_what_was_assumed_and_the_move_onto_the_table_are_recorded():
     assert not any(n.startswith("moved by") for n in load_object(placed).notes)
     centred = trimesh.creation.box(extents=(0.2, 0.3, 0.35))  # centred on the origin: moved up only, no "-0"
     assert "moved by (0, 0, 0.175) m to stand centred on z = 0" in load_object(centred).notes
+    off = centred.copy()
+    v = off.vertices.copy()
+    v[v[:, 0] > 0, 0] = np.nextafter(0.1, 1.0)  # centred but for the last bit: a 7e-18-m move, said as 0
+    off.vertices = v
+    assert -(off.bounds[0, 0] + off.bounds[1, 0]) / 2 != 0.0
+    assert "moved by (0, 0, 0.175) m to stand centred on z = 0" in load_object(off).notes
 
 
 def test_a_gltf_file_without_options_is_warned_of_its_up_axis_and_said_to_be_taken_as_metres(tmp_path):

@@ -63,11 +63,13 @@ def test_mesh_files_come_back_as_absolute_paths_given_relative(tmp_path, monkeyp
     comes back absolute, copied or not, so the CSVs name one file wherever they are read from."""
     _brick_mm_y_up(tmp_path / "brick.stl")
     trimesh.creation.box(extents=(0.2, 0.3, 0.35)).export(tmp_path / "box_m.stl")
+    (tmp_path / "mug_scan.stl").symlink_to(tmp_path / "box_m.stl")  # a link keeps its own name: the object's
     monkeypatch.chdir(tmp_path)
-    kept = conform_objects(["box_m.stl", "mug"], "objects")
-    assert kept == [str((tmp_path / "box_m.stl").resolve()), "mug"]
+    here = Path.cwd()
+    kept = conform_objects(["box_m.stl", "mug", "mug_scan.stl"], "objects")
+    assert kept == [str(here / "box_m.stl"), "mug", str(here / "mug_scan.stl")]
     (copy,) = conform_objects(["brick.stl"], "objects", scale_to_m=0.35, up_axis="y")
-    assert copy == str((tmp_path / "objects" / "brick.ply").resolve())
+    assert copy == str(here / "objects" / "brick.ply")
     assert json.loads((tmp_path / "objects" / SOURCES_FILE).read_text())[0]["copy"] == copy
 
 

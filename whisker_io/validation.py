@@ -526,15 +526,19 @@ def _field_names(cls: type) -> tuple[str, ...]:
 
 
 @functools.cache
-def _init_names(cls: type) -> tuple[tuple[str, ...], frozenset[str]] | None:
-    """The parameters of a class's ``__init__`` in order, and the names it takes: those and the old names its
-    ``__renamed_keywords__`` still accepts (``cansim._renamed.renamed_keywords``); None when it takes any keyword
+def _init_names(cls: type) -> tuple[tuple[str, ...], float, frozenset[str]] | None:
+    """What a class's ``__init__`` takes: its parameters' names in order (without ``self``), how many positional
+    arguments (inf with ``*args``), and the keywords (those that may be given by name, and the old names its
+    ``__renamed_keywords__`` still accepts, ``cansim._renamed.renamed_keywords``); None when it takes any keyword
     (``**kwargs``: nothing to check)."""
     params = list(inspect.signature(cls.__init__).parameters.values())[1:]  # without self
     if any(p.kind is p.VAR_KEYWORD for p in params):
         return None
-    names = tuple(p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
-    return names, frozenset(names) | frozenset(getattr(cls, "__renamed_keywords__", ()))
+    names = tuple(p.name for p in params if p.kind is not p.VAR_POSITIONAL)
+    positional = math.inf if any(p.kind is p.VAR_POSITIONAL for p in params) else \
+        sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
+    keywords = frozenset(p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
+    return names, positional, keywords | frozenset(getattr(cls, "__renamed_keywords__", ()))
 
 
 class _InitSignature:
@@ -582,7 +586,7 @@ class ConfigDataclass:
     def __new__(cls, *args: Any, **kwargs: Any) -> Any:
         if args or kwargs:
             init = _init_names(cls)
-            if init is not None and (len(args) > len(init[0]) or not kwargs.keys() <= init[1]):
+            if init is not None and (len(args) > init[1] or not kwargs.keys() <= init[2]):
                 cls.refuse_arguments(len(args), kwargs)
         return super().__new__(cls)
 
@@ -592,20 +596,25 @@ class ConfigDataclass:
         ``n_positional`` arguments beyond the parameters (a subclass may name better advice first)."""
         import difflib
 
+        fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
         init = _init_names(cls)
-        names, known = init if init is not None else ((), frozenset())
+        if init is None:  # an __init__ that takes any keyword: the dataclass's own parameters are what it names
+            names, positional, known = tuple(f.name for f in fields if f.init), math.inf, frozenset()
+        else:
+            names, positional, known = init
         listed = ", ".join(names)
-        derived = {f.name for f in dataclasses.fields(cls) if not f.init} if dataclasses.is_dataclass(cls) else set()
+        derived = {f.name for f in fields if not f.init}
         for key in keywords:
-            if key in derived:
+            if key in derived and key not in known:
                 raise UnknownFieldError(f"{cls.__name__}'s field {key!r} is derived from the others, not given; "
                                         f"its parameters: {listed}")
             if key not in known:
                 near = difflib.get_close_matches(str(key), names, n=1)
                 hint = f" (did you mean {near[0]!r}?)" if near else ""
                 raise UnknownFieldError(f"{cls.__name__} has no field {key!r}{hint}; its fields: {listed}")
-        raise UnknownFieldError(f"{cls.__name__} takes at most {len(names)} arguments, got {n_positional} positional; "
-                                f"give them by name: {listed}")
+        if n_positional > positional:
+            raise UnknownFieldError(f"{cls.__name__} takes at most {positional} positional arguments, got {n_positional}; "
+                                    f"give them by name: {listed}")
 
 
 # ------------------------------------------------------------ declared field checks

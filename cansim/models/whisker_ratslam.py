@@ -379,7 +379,8 @@ class WhiskerRatSLAM(SlamLoop):
 
     @classmethod
     def library(
-        cls, models: Sequence["WhiskerRatSLAM"], names: Sequence[str], config: WhiskerRatSLAMConfig | None = None
+        cls, models: Sequence["WhiskerRatSLAM"], names: Sequence[str], config: WhiskerRatSLAMConfig | None = None,
+        warn_empty: bool = True,
     ) -> tuple["WhiskerRatSLAM", ObjectLibrary]:
         """One model holding the object maps of several models, for identification (Fig 5.16).
 
@@ -400,6 +401,9 @@ class WhiskerRatSLAM(SlamLoop):
             Object names, in the order of ``models``.
         config : WhiskerRatSLAMConfig, optional
             Of the exploring model (default: the first model's).
+        warn_empty : bool
+            Warn of a model whose map holds no experience (:func:`~maps.object_library.append_object_maps`);
+            False where the caller says it itself.
 
         Returns
         -------
@@ -433,7 +437,7 @@ class WhiskerRatSLAM(SlamLoop):
         for m in models:
             offsets.append(model.frontend.extend(m.frontend))
             model.local_view.extend_stored(m.local_view)
-        lib = append_object_maps([m.object_map for m in models], names, offsets)
+        lib = append_object_maps([m.object_map for m in models], names, offsets, warn_empty=warn_empty)
         if tuple(lib.object_map.config.pc_shape) != model.config.shape:
             raise InvalidInputError(f"the maps' pose-cell grid {lib.object_map.config.pc_shape} is not the exploring "
                                     f"configuration's {model.config.shape}; use one grid")

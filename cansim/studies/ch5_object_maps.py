@@ -438,17 +438,11 @@ def library_model(paths: Sequence[str | Path], names: Sequence[str], cell_size_m
     -------
     (WhiskerRatSLAM, ObjectLibrary)
     """
-    import warnings
-
     from cansim.models.whisker_ratslam import WhiskerRatSLAM
 
     models = [WhiskerRatSLAM.load(p) for p in paths]
     cfg = models[0].config if cell_size_m is None else replace(models[0].config, cell_size_m=cell_size_m)
-    if warn_empty:  # outside catch_warnings, which would reset the once-per-process record of warnings shown
-        return WhiskerRatSLAM.library(models, names, cfg)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=r".*object map\(s\) without an experience", category=UserWarning)
-        return WhiskerRatSLAM.library(models, names, cfg)
+    return WhiskerRatSLAM.library(models, names, cfg, warn_empty=warn_empty)
 
 
 def identify_job(job: tuple[str, str, Sequence[str], Sequence[str], Config, StudyConfig]) -> dict[str, Any]:

@@ -178,8 +178,9 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
     -------
     list of str
         ``specs`` with each mesh file as an absolute path (so the outputs that name it hold
-        one path, whatever the working directory), and each changed one replaced by the
-        absolute path of its copy in the conventions: every mesh file when an option is given, and a glTF/GLB file read
+        one path, whatever the working directory; a symbolic link is not followed: its name is
+        the object's), and each changed one replaced by the absolute path of its copy in the
+        conventions: every mesh file when an option is given, and a glTF/GLB file read
         without ``up_axis`` (taken as z-up with one warning, not one in every process
         that loads it); otherwise unchanged. What a copy changed is logged as a warning
         (the run uses the object as changed, not as given) and written, with the file it
@@ -216,13 +217,13 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
     record.unlink(missing_ok=True)  # this run's record or none: never an earlier run's
     out, sources = [], []
     for i, (spec, stem) in enumerate(zip(specs, stems)):
-        if i not in loaded:  # a mesh file as an absolute path: the CSVs stay right wherever they are read from
-            out.append(str(Path(spec).resolve()) if is_mesh_file(spec) else spec)
+        if i not in loaded:  # a mesh file as an absolute path (links not followed: its name is the object's)
+            out.append(os.path.abspath(spec) if is_mesh_file(spec) else spec)
             continue
         path, obj = folder / f"{stem}.ply", loaded[i]
         folder.mkdir(parents=True, exist_ok=True)
         obj.mesh.export(path)
-        sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": str(path.resolve()),
+        sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": os.path.abspath(path),
                         "changes": list(obj.notes), "scale_factor": float(obj.scale_factor),
                         "extents_m": [float(x) for x in obj.extents_m]})
         changes = [n for n in obj.notes if n.startswith("rotated")]
@@ -231,7 +232,7 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
         if changes:
             log.warning("%s: %s (%s m); run from %s", spec, "; ".join(changes),
                         " x ".join(f"{x:.3f}" for x in obj.extents_m), path)
-        out.append(str(path.resolve()))
+        out.append(os.path.abspath(path))
     if sources:  # which file each copy came from (written whole, then renamed: never half a file)
         tmp = folder / f".{SOURCES_FILE}.tmp"
         tmp.write_text(json.dumps(sources, indent=2))

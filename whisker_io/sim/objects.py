@@ -595,7 +595,8 @@ def load_object(
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     mesh.vertices = mesh.vertices + translation  # a plain sum: the lowest vertex lands exactly on z = 0
     if np.abs(translation).max() >= PLACEMENT_NOTE_M:  # where the file's frame lies against the object's, in one line
-        notes.append(f"moved by ({', '.join(f'{v + 0.0:.4g}' for v in translation)}) m to stand centred on z = 0")
+        said = [0.0 if abs(v) < PLACEMENT_NOTE_M / 10 else float(v) for v in translation]  # no 1e-17 or -0
+        notes.append(f"moved by ({', '.join(f'{v:.4g}' for v in said)}) m to stand centred on z = 0")
     result = LoadedObject(
         mesh=mesh,
         name=default_name if name is None else name.strip(),
