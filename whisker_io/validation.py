@@ -599,7 +599,8 @@ class ConfigDataclass:
         fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
         init = _init_names(cls)
         if init is None:  # an __init__ that takes any keyword: the dataclass's own parameters are what it names
-            names, positional, known = tuple(f.name for f in fields if f.init), math.inf, frozenset()
+            names = tuple(f.name for f in fields if f.init)
+            positional, known = math.inf, frozenset(names)
         else:
             names, positional, known = init
         listed = ", ".join(names)
