@@ -87,7 +87,7 @@ class WarmUp:
         with self._lock:
             self._announced = True  # a timer firing late says nothing
             if self._bar is not None:
-                self._bar.set_description_str(f"{self.what}: kernels ready")
+                self._bar.set_description_str(f"{self.what}: kernels ready", refresh=False)  # close() draws it once
                 self._bar.close()
                 self._bar = None
         if self.elapsed_s > self.after_s:
