@@ -783,26 +783,32 @@ def _matching_name(m: str) -> str:
             else "the thesis' Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis)")
 
 
-def empty_maps(builds: Sequence[dict[str, Any]], label: dict[str, str], star: Config | None = None) -> list[str]:
-    """One line per mapped object whose map holds no experience (no whisk of its mapping run observed a region of
-    3 contacts or more, Eq 5.5): nothing can be recognised as it, and the findings leave it out. With ``star`` only
-    the maps of that configuration count (identification uses them)."""
+def _without_experience(builds: Sequence[dict[str, Any]], star: Config | None = None) -> dict[str, dict[str, Any]]:
+    """The mapped objects whose map holds no experience, with their (first) build; with ``star`` only the maps of
+    that configuration count (identification uses them)."""
     seen: dict[str, dict[str, Any]] = {}
     for b in builds:
         if not b.get("n_experiences", 1) and (star is None or b["config"] == star):
             seen.setdefault(b["object"], b)
+    return seen
+
+
+def empty_maps(builds: Sequence[dict[str, Any]], label: dict[str, str], star: Config | None = None) -> list[str]:
+    """One line per mapped object whose map holds no experience (no whisk of its mapping run observed a region of
+    3 contacts or more, Eq 5.5): nothing can be recognised as it, and the findings leave it out. With ``star`` only
+    the maps of that configuration count (identification uses them)."""
     return [f"the map of the {label[o]} holds no experience: none of its {b['n_iterations']} mapping whisks touched it "
             "with 3 whiskers or more, so nothing can be recognised as it and the findings leave it out. The study's "
             "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, --up-axis); an object "
             "that is flat or thin (under about 8 cm in one dimension) passes between the array's rows of whiskers"
-            for o, b in seen.items()]
+            for o, b in _without_experience(builds, star).items()]
 
 
 def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: str, label: dict[str, str]) -> list[str]:
     """Findings 1-3 (Table 5.1, Fig 5.15) on one matching's runs."""
     lines = []
     star_runs = [b for b in builds if b["config"] == star]
-    blank = [label[b["object"]] for b in star_runs if not b.get("n_experiences", 1)]
+    blank = [label[o] for o in _without_experience(star_runs)]
     below = [_below(b) for b in star_runs if b["object"] != "kettle" and b.get("n_experiences", 1)]
     unjudged = f" (not judged: {', '.join(blank)}, a map without an experience)" if blank else ""
     per = ", ".join(f"{label[b['object']]} {fmt(_median(b['position_m']))} m / {fmt(_median(b['rotation_deg']), '.1f')} deg "
@@ -928,8 +934,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         mB = np.mean([r["mean_confidence"] for r in rows("B", lambda r: r["presented"] == r["map_identity"])] or [math.nan])
         lines.append(f"  5. Thesis: trajectory B gives much lower confidence than A. Measured mean confidence of the correct map: "
                      f"A {fmt(mA)}, B {fmt(mB)}. {'REPRODUCED' if mB < mA else 'NOT reproduced'}.")
-        # the identification maps (star's) that hold no experience: nothing can be recognised as them
-        blank = {b["object"] for b in builds if not b.get("n_experiences", 1) and b["config"] == star}
+        blank = set(_without_experience(builds, star))  # nothing can be recognised as these
         for fam in "AB":
             pres = sorted({r["presented"] for r in rows(fam, lambda r: r["presented"] in mapped and r["presented"] not in blank)})
             unjudged = sorted({label[r["presented"]] for r in rows(fam, lambda r: r["presented"] in blank)})
