@@ -49,6 +49,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from cansim.studies.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED  # noqa: F401 - the exit table
 
@@ -94,7 +95,7 @@ def write_trace(path: Path, names: Sequence[str], result: Any) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot-ip", help="UR controller address (not needed with --replay)")
     ap.add_argument("--radial-model", required=True, help="Ch.4 svr10 model (.skops)")
     ap.add_argument("--map", action="append", default=[], metavar="NAME=PATH", help="a known object's saved model")

@@ -26,10 +26,10 @@ Exit status (one line on stderr says why, never a traceback):
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
+from cansim.studies.command_line import CommandParser
 from whisker_io.array.control import WhiskPattern
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import (EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED,  # noqa: F401 - the exit table
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _session(argv: list[str] | None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot-ip", required=True, help="UR controller address")
     ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=FrameLayout.vendor_id)
     ap.add_argument("--product-id", type=lambda s: int(s, 0), default=FrameLayout.product_id)

@@ -22,7 +22,6 @@ Needs the extra ``nir-consumers``. Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import time
@@ -44,6 +43,7 @@ from cansim.spiking import (
     to_nir,
 )
 from cansim.spiking.nir_consumers import NIR_CONSUMERS, ConsumerRunner, consumer_status
+from cansim.studies.command_line import CommandParser
 
 DT = 1e-4
 
@@ -108,7 +108,7 @@ def turning(step, n: int, cal) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pi-cells", type=int, default=120)
     ap.add_argument("--out", type=Path, default=Path("nir_consumers.json"))
     args = ap.parse_args(argv)

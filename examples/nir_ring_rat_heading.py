@@ -25,7 +25,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -35,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from cansim.spiking import NIRGraphSimulator, RotationRingParams, calibrate_turning, ring_input, rotation_ring_graph
+from cansim.studies.command_line import CommandParser
 
 DT = 1e-4
 
@@ -114,7 +114,7 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integr
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--who", default="cansim", choices=["cansim", "snntorch", "norse", "rockpool"])
     ap.add_argument("--cells", type=int, default=120)
     ap.add_argument("--seconds", type=float, default=60.0)

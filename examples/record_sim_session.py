@@ -22,10 +22,10 @@ Run ``hardware_session.py`` for the same loop on a UR arm and the USB array.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
+from cansim.studies.command_line import CommandParser
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
 from whisker_io.hw.arm import SimArm
@@ -47,7 +47,7 @@ def contacts(cycle):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--object", default="box", metavar="NAME_OR_MESH",
                     help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape or a mesh file "
                          "(metres, z up unless --scale-to-m / --up-axis say otherwise); default box")

@@ -17,7 +17,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
@@ -28,6 +27,7 @@ import numpy as np
 from cansim import Population, registered_backends
 from cansim.backends import backend_status
 from cansim.local_view import LocalViewCells, LocalViewParams
+from cansim.studies.command_line import CommandParser
 
 log = logging.getLogger("ring_attractor")
 
@@ -128,7 +128,7 @@ def plot(res: dict[str, np.ndarray], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=1200)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--backend", default="numpy", choices=registered_backends())

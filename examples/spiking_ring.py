@@ -29,7 +29,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import math
@@ -41,6 +40,7 @@ from tqdm import tqdm
 
 from cansim import Population
 from cansim.spiking import HD_RING_ATTRACTOR, RotationRingParams, SpikeCountDecoder, rotation_ring_graph, spiking_from_rate, to_nir
+from cansim.studies.command_line import CommandParser
 
 log = logging.getLogger("spiking_ring")
 
@@ -165,7 +165,7 @@ def write_graphs(out: Path, population) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration-s", type=float, default=None, help="simulated seconds (default 60, 10 with --quick)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="10 s and a coarser calibration (for tests)")

@@ -246,7 +246,6 @@ wall times are in the README).
 
 # no ``from __future__ import annotations``: the dataclasses below must also build when a
 # runner loads this file with importlib without registering it in sys.modules
-import argparse
 import csv
 import dataclasses
 import math
@@ -262,6 +261,7 @@ from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequenceMatcher, calibrate_threshold, sequence_distances
 from cansim.errors import InvalidInputError
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+from cansim.studies.command_line import CommandParser
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.least_squares_relaxation import LeastSquaresConfig, relax_least_squares
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
@@ -955,7 +955,7 @@ def _fmt(value: Any) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the Ch.3 study; returns the process exit status (0 on success, 2 on a usage error)."""
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser = CommandParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the same 8 loops, 1 kidnap, 1 tuning run, 2 repetitions, a 3 x 3 calibration grid")
     parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: the working folder)")
     parser.add_argument("--repetitions", type=int, default=None, help="scored repetitions (default 3, quick 2)")

@@ -63,7 +63,6 @@ CV on the training set, the data-set generators use geometry only.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 import time
@@ -74,6 +73,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cansim.studies.command_line import CommandParser
 from whisker_io.radial.datasets import (
     UNSEEN_LENGTHS_MM,
     EvansSetParams,
@@ -250,7 +250,7 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="reduced data sets and grids (smoke run)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--seed", type=int, default=0)

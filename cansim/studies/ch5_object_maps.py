@@ -154,7 +154,6 @@ M, seed)`` as ``tests/test_ch5_study.py`` builds them.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import logging
 import math
@@ -166,6 +165,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.command_line import CommandParser
 from whisker_io.array.geometry import THESIS_POSITIONS_MM
 from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels, seed_name
 from cansim.studies.process_pool import pool_map
@@ -978,7 +978,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the study; returns the exit code (0 on success)."""
     from whisker_io.sim.objects import OBJECT_NAMES
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="Mug, Box and Plane (+ Skull), two configurations, 2 loops (< 2 min)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH",

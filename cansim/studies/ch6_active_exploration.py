@@ -320,6 +320,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.command_line import CommandParser
 from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_labels, seed_name
 from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
@@ -965,7 +966,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="2 seeds, 300 whisks a run (< 3 min)")
     ap.add_argument("--out", type=Path, default=Path("."), help="output folder (default: working directory)")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per strategy (default 10, quick 2)")

@@ -131,7 +131,6 @@ head-direction attractor); Knierim J. J. & Zhang K. (2012) Annu Rev Neurosci 35:
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import math
@@ -148,6 +147,7 @@ from cansim.experiments.params import checked_seed, require, resolve
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
+from cansim.studies.command_line import CommandParser
 
 __all__ = [
     "TRAJECTORIES",
@@ -808,7 +808,7 @@ def summarise(runs: Sequence[DriftRun]) -> list[dict]:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Command line: ``cansim study rat [--quick] [--trajectory NAME] [--start-s S] [--duration-s S] [--seeds N] [--out DIR]``."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two seeds, coarser spiking calibration (~2.5 min)")
     ap.add_argument("--trajectory", choices=TRAJECTORIES, default="sargolini")
     ap.add_argument("--duration-s", type=float, default=600.0, help="seconds of the recording (default 600)")

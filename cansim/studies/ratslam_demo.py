@@ -14,7 +14,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+from cansim.studies.command_line import CommandParser
 from cansim.testing.worlds import LoopRoute, SyntheticRun, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
@@ -57,7 +57,7 @@ def evaluate(run: SyntheticRun, seed_label: str) -> tuple[dict, RatSLAM, np.ndar
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = CommandParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
     args = parser.parse_args(argv)

@@ -237,7 +237,6 @@ are not reached; :mod:`maps.surface_match` (Status) says what limits each.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import logging
 import math
@@ -250,6 +249,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
+from cansim.studies.command_line import CommandParser
 from cansim.studies.object_options import (add_mesh_options, check_distinct, check_mesh_options, conform_objects,
                                            is_mesh_file, object_label, object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
@@ -1128,7 +1128,7 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line (``cansim study recognition``)."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help="12 objects, 1 seed, trajectories A and B and the 5-10 cm viewpoints")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")

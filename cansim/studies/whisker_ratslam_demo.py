@@ -97,7 +97,6 @@ re-localisations on loop 2, 55-75 % exact, and the map at 0.10-0.30 m.)
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import logging
@@ -109,6 +108,7 @@ import numpy as np
 
 from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+from cansim.studies.command_line import CommandParser
 from maps.localisation import map_pose_errors, relocalisation_errors, rotation_error_rad, step_sizes
 from maps.odometry import SpatialOdometry
 from cansim.studies.object_options import add_mesh_options, check_mesh_options
@@ -361,7 +361,7 @@ def figures(result: dict, out: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``[--object NAME] [--quick] [--out DIR] [--seed N] [--backend NAME] [--contact-noise F] [--thesis-matching]``."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--object", default="mug", metavar="NAME_OR_MESH",
                     help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape (e.g. duck, "
                          "torus_flat-v3) or a mesh file (.obj .stl .ply .glb; metres and z up unless --scale-to-m / "

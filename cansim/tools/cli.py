@@ -24,6 +24,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from cansim.studies.command_line import CommandParser
 from whisker_io.errors import CansimError
 
 __all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
@@ -230,7 +231,7 @@ def _epilog() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``cansim`` (all subcommands)."""
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="cansim",
         description=textwrap.fill("cansim: continuous-attractor networks, RatSLAM and WhiskerRatSLAM - demos, thesis "
                                   "studies, parameter sweeps on Dask, ROS bag replay and the benchmark suite.", 88),
