@@ -360,10 +360,14 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     assert conformed.bounds[0, 2] == pytest.approx(0.0, abs=1e-12)
     assert not (out / "objects" / "box.ply").exists()  # a named object is not copied
     fields, ids = _rows(out / "ch5_identification.csv")
-    assert fields[-1] == "n_observations"
-    assert {r["n_observations"] for r in ids if r["presented"].endswith("disk.ply")} == {"0"}  # never a region
-    assert all(int(r["n_observations"]) > int(r["n_iterations"]) // 2 for r in ids if r["presented"].endswith("My_Mug.ply"))
-    mug_rows = [r for r in ids if r["presented"].endswith("My_Mug.ply") and r["trajectory"] == "A"]
+    assert fields[-2:] == ["n_observations", "mesh_file"]
+    # one name per object, the map file's stem; the file it was loaded from beside it
+    assert {(r["presented"], r["mesh_file"]) for r in ids} == {
+        ("My_Mug", str(out / "objects" / "My_Mug.ply")), ("disk", str(out / "objects" / "disk.ply")), ("box", ""), ("plane", "")}
+    assert {r["map_identity"] for r in ids} == {"My_Mug", "disk", "box"}
+    assert {r["n_observations"] for r in ids if r["presented"] == "disk"} == {"0"}  # never a region
+    assert all(int(r["n_observations"]) > int(r["n_iterations"]) // 2 for r in ids if r["presented"] == "My_Mug")
+    mug_rows = [r for r in ids if r["presented"] == "My_Mug" and r["trajectory"] == "A"]
     assert mug_rows and max(mug_rows, key=lambda r: float(r["final_ic"]))["map_identity"] == mug_rows[0]["presented"]
     text = (out / "ch5_summary.txt").read_text()
     assert "nan" not in text.lower().replace("nanmedian", "")

@@ -223,13 +223,15 @@ def test_users_mesh_files_run_through_the_explorer_with_one_flag(tmp_path):
     assert ch6.main(["--quick", "--seeds", "1", "--iterations", "60", "--out", str(out), "--objects", *files]) == 0
     with open(out / "ch6_runs.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert {r["presented"] for r in rows} == set(files)
-    assert all(r["identity"] in ("", *files) for r in rows)
-    # both maps kept although the files share a name: numbered, each loading back as its own object
+    # one name per object in the CSV, the summary and the map files: the file's stem, with its folder where two clash
+    assert {(r["presented"], r["mesh_file"]) for r in rows} == {("a_my_object", files[0]), ("b_my_object", files[1])}
+    assert all(r["identity"] in ("", "a_my_object", "b_my_object") for r in rows)
+    assert "a_my_object" in (out / "ch6_summary.txt").read_text()
+    # both maps kept although the files share a name, each loading back as its own object
     from cansim.explore.explorer import KnownObject
 
-    assert sorted(p.name for p in (out / "maps").iterdir()) == ["my_object_1.npz", "my_object_2.npz"]
-    assert [KnownObject.load(out / "maps" / f"my_object_{i}.npz").name for i in (1, 2)] == files
+    assert sorted(p.name for p in (out / "maps").iterdir()) == ["a_my_object.npz", "b_my_object.npz"]
+    assert [KnownObject.load(out / "maps" / f"{d}_my_object.npz").name for d in "ab"] == files
     with pytest.raises(InvalidInputError, match="neither a registered object"):
         ch6.main(["--quick", "--out", str(out), "--objects", "box", "teapot"])
 
@@ -253,8 +255,8 @@ def test_a_millimetre_y_up_mesh_runs_with_the_options_and_an_untouchable_one_is_
                          "--up-axis", "y"]) == 0
     with open(out / "ch6_runs.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert {r["presented"] for r in rows} == {"box", str(out / "objects" / "stack.ply")}
-    touched = [r for r in rows if r["presented"].endswith("stack.ply") and r["threshold"] == "100.0"]
+    assert {(r["presented"], r["mesh_file"]) for r in rows} == {("box", ""), ("stack", str(out / "objects" / "stack.ply"))}
+    touched = [r for r in rows if r["presented"] == "stack" and r["threshold"] == "100.0"]
     assert touched and all(int(r["whisks_without_contact"]) < int(r["iterations"]) for r in touched)  # upright: touched
 
     disk = trimesh.creation.cylinder(radius=0.175, height=0.02, sections=48)

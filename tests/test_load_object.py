@@ -461,10 +461,11 @@ def test_object_file_names_are_safe_stems(name):
     assert object_file_name("/data/my mug.obj") == "my_mug" and object_file_name("box_stack") == "box_stack"
 
 
-def test_object_file_names_number_every_object_when_two_would_collide():
+def test_object_file_names_take_their_folder_then_a_number_when_two_would_collide():
     from whisker_io.sim.catalogue import object_file_names
 
-    assert object_file_names(["a/mug.obj", "b/mug.stl", "box"]) == ["mug_1", "mug_2", "box_3"]
+    assert object_file_names(["a/mug.obj", "b/mug.stl", "box"]) == ["a_mug", "b_mug", "box"]
+    assert object_file_names(["x/a/mug.obj", "y/a/mug.obj", "box"]) == ["mug_1", "mug_2", "box_3"]
     assert object_file_names(["box", "/x/my mug.obj"]) == ["box", "my_mug"]
     assert object_file_names([]) == []
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +35,7 @@ def test_mesh_files_are_copied_in_the_conventions_and_names_pass(tmp_path):
     out = tmp_path / "out" / "objects"
     got = conform_objects([str(a / "brick.stl"), "mug", str(b / "brick.obj")], out, scale_to_m=0.35, up_axis="y")
     assert got[1] == "mug"
-    assert got[0] == str(out / "brick_1.ply") and got[2] == str(out / "brick_3.ply")  # one stem twice: numbered by place
+    assert got[0] == str(out / "a_brick.ply") and got[2] == str(out / "b_brick.ply")  # one stem twice: with their folders
     for path in (got[0], got[2]):
         mesh = load_object(path).mesh  # the copy is in the conventions already: loading changes nothing but placement
         assert mesh.extents == pytest.approx([0.1, 0.2, 0.35], abs=1e-6)  # by hand: y (350 mm) up; PLY holds float32
@@ -91,15 +92,17 @@ def test_the_copy_of_an_earlier_run_is_not_changed_again_in_place(tmp_path):
 
 
 def test_a_copy_is_never_written_over_a_file_still_to_be_read(tmp_path):
-    """b's copy went to out/objects/cup_2.ply before that file, given third, was read."""
-    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir(), (tmp_path / "objects").mkdir()
-    trimesh.creation.cylinder(radius=0.1, height=0.3).export(tmp_path / "a" / "cup.stl")
-    trimesh.creation.icosphere(radius=0.15).export(tmp_path / "b" / "cup.stl")
-    third = tmp_path / "objects" / "cup_2.ply"  # where b's copy goes (the stems cup, cup, cup_2 are numbered)
+    """y/a/cup.stl's copy went to objects/cup_2.ply before that file, given third, was read."""
+    for folder in ("x/a", "y/a", "objects"):
+        (tmp_path / folder).mkdir(parents=True)
+    trimesh.creation.cylinder(radius=0.1, height=0.3).export(tmp_path / "x" / "a" / "cup.stl")
+    trimesh.creation.icosphere(radius=0.15).export(tmp_path / "y" / "a" / "cup.stl")
+    # where the second's copy goes: the two cups clash by stem, folder and ending, so all three are numbered
+    third = tmp_path / "objects" / "cup_2.ply"
     trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(third)
     before = third.read_bytes()
     with pytest.raises(InvalidInputError, match="where this run writes a copy"):
-        conform_objects([str(tmp_path / "a" / "cup.stl"), str(tmp_path / "b" / "cup.stl"), str(third)],
+        conform_objects([str(tmp_path / "x" / "a" / "cup.stl"), str(tmp_path / "y" / "a" / "cup.stl"), str(third)],
                         tmp_path / "objects", scale_to_m=0.35)
     assert third.read_bytes() == before and not (tmp_path / "objects" / "cup_1.ply").exists()
 
@@ -225,9 +228,9 @@ def test_distinct_objects(tmp_path):
         check_distinct(["mug", "box"], ["Mug"])  # one registered object, spelt otherwise
     with pytest.raises(InvalidInputError, match="given twice"):
         check_distinct([], ["box", "box"])
-    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "a/cup", "mug": "mug", "b/cup.stl": "b/cup"}
-    assert object_labels(["a/cup.obj", "a/cup.stl"]) == {"a/cup.obj": "a/cup.obj", "a/cup.stl": "a/cup.stl"}
-    assert object_labels(["cup.obj", "cup.stl", "mug"]) == {"cup.obj": "cup.obj", "cup.stl": "cup.stl", "mug": "mug"}
+    assert object_labels(["a/cup.obj", "mug", "b/cup.stl"]) == {"a/cup.obj": "a_cup", "mug": "mug", "b/cup.stl": "b_cup"}
+    assert object_labels(["a/cup.obj", "a/cup.stl"]) == {"a/cup.obj": "a_cup_obj", "a/cup.stl": "a_cup_stl"}
+    assert object_labels(["cup.obj", "cup.stl", "mug"]) == {"cup.obj": "cup_obj", "cup.stl": "cup_stl", "mug": "mug"}
     assert object_labels(["x/a/cup.obj", "y/a/cup.obj", "mug"]) == {"x/a/cup.obj": "cup_1", "y/a/cup.obj": "cup_2",
                                                                     "mug": "mug_3"}  # the numbered fallback
     labels = object_labels(["a/cup.obj", "b/cup.obj", "cup_1.obj"])
@@ -333,3 +336,39 @@ def test_ch6_prepare_refuses_a_bad_odometry_scale_before_any_mapping(bad, monkey
     monkeypatch.setattr(explorer, "build_object_model", no_mapping)
     with pytest.raises(ConfigError, match="odometry_scale"):
         ch6_active_exploration.prepare(0, odometry_scale=bad)
+
+
+_SPECS = st.one_of(st.sampled_from(["mug", "box", "cup", "duck-v2"]),
+                   st.builds(lambda d, stem, ext: f"{d}{stem}.{ext}", st.sampled_from(["", "a/", "b/", "x/a/", "y/a/"]),
+                             st.sampled_from(["cup", "mug", "cup_1", "My Mug", "a_cup"]), st.sampled_from(["obj", "stl"])))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_SPECS, min_size=1, max_size=8))
+def test_labels_are_distinct_file_stems_that_name_each_object_once(specs):
+    from whisker_io.sim.catalogue import object_file_names, object_labels
+
+    labels = object_labels(specs)
+    assert len(set(labels.values())) == len(labels) == len(set(specs))
+    assert all(lab and all(c.isalnum() or c in "-_" for c in lab) for lab in labels.values())  # a file's stem
+    assert object_file_names(specs) == [labels[s] for s in specs]  # the map files are named by the labels
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(_SPECS, st.one_of(st.just(""), _SPECS)), min_size=1, max_size=6))
+def test_labelled_rows_name_objects_by_label_and_their_mesh_files(pairs):
+    from cansim.studies.object_options import labelled_rows
+    from whisker_io.sim.catalogue import object_labels
+
+    rows = [{"presented": p, "decision": d, "whisks": i} for i, (p, d) in enumerate(pairs)]
+    kept = [dict(r) for r in rows]
+    labels = object_labels([s for pair in pairs for s in pair if s])
+    out = labelled_rows(rows, labels, ("presented", "decision"), of="presented")
+    assert rows == kept  # the study's own rows are not changed
+    inverse = {lab: spec for spec, lab in labels.items()}
+    for r, (p, d) in zip(out, pairs):
+        assert inverse[r["presented"]] == p and (r["decision"] == "" if d == "" else inverse[r["decision"]] == d)
+        assert r["mesh_file"] == (os.path.abspath(p) if is_mesh_file(p) else "")
+        assert os.path.isabs(r["mesh_file"]) or r["mesh_file"] == ""
+    with pytest.raises(KeyError):  # an object the labels do not know is a bug, not a silent raw name
+        labelled_rows([{"presented": "teapot", "decision": ""}], labels, ("presented",), of="presented")

@@ -160,7 +160,10 @@ def test_run_takes_the_mesh_options_and_the_summary_says_when_runs_are_too_short
                            seeds=(0,), bins=(), whisks=40, workers=1, progress=False, matchers=("thesis",),
                            scale_to_m=0.3)
     copy = tmp_path / "out" / "objects" / "capsule_mm.ply"
-    assert copy.exists() and {r["presented"] for r in rows} >= {str(copy), "mug", "box"}
+    assert copy.exists() and {(r["presented"], r["mesh_file"]) for r in rows} == {("capsule_mm", str(copy)), ("mug", ""),
+                                                                                   ("box", "")}
+    assert {r["decision"] for r in rows} <= {"", "capsule_mm", "mug"}  # by label, as the summary names them
+    assert (tmp_path / "out" / "maps" / "seed0" / "capsule_mm.npz").exists()  # the map file by the same name
     text = recognition.summary(rows, 1.0, False)
     short = sum(int(r["whisks"]) < recognition.whisks_to_decide() for r in rows)  # whole loops: some reach it
     assert short > 0 and f"{short} of {len(rows)} runs had fewer whisks than any decision at IC 300 needs" in text

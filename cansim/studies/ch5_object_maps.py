@@ -66,7 +66,10 @@ Decisions (the thesis is silent or its values cannot hold here)
 Outputs (working directory or ``--out``): ``ch5_localisation.csv``,
 ``ch5_identification.csv``, ``ch5_calibration.csv``, ``fig5_14b_dead_reckoning.png``,
 ``fig5_15_localisation.png``, ``fig5_16_history.png``, ``fig5_17_confidence.png`` and
-``ch5_summary.txt`` (each thesis finding, the measured figure, reproduced or not).
+``ch5_summary.txt`` (each thesis finding, the measured figure, reproduced or not), and the maps
+``ch5_maps/<label>.npz``. Every output names an object by one label
+(:func:`whisker_io.sim.catalogue.object_labels`: a mesh file's stem, a name as given); the CSVs'
+``mesh_file`` column holds the mesh file a row's object was loaded from (empty for a named one).
 
 Noise: ``--noise-scale 1`` is the Ch.6 contact noise of Sec 6.1.3.1.2 (N(0, 0.25 x
 whisker length) along the shaft, slope N(0, 0.33)); the Ch.5 values are not printed.
@@ -167,7 +170,8 @@ import numpy as np
 from cansim.seeding import derive_seed
 from cansim.studies.command_line import CommandParser
 from whisker_io.array.geometry import THESIS_POSITIONS_MM
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, object_labels, seed_name
+from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, labelled_rows, object_labels,
+                                           seed_name)
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
@@ -181,10 +185,10 @@ FEATURES = ("pfh", "sda", "both")
 UPDATES = (True, False)
 CONTACTS = ("tip", "svr")
 LOC_COLUMNS = ("matching", "object", "features", "feature_update", "contact_model", "iteration", "position_error_m",
-               "rotation_error_deg", "step_translation_m", "step_rotation_deg")
+               "rotation_error_deg", "step_translation_m", "step_rotation_deg", "mesh_file")
 ID_COLUMNS = ("presented", "trajectory", "map_identity", "max_confidence", "mean_confidence", "final_ic",
               "threshold", "ic_threshold", "rc_decision", "ic_decision", "ic_crossing_iteration", "n_relocalisations",
-              "n_iterations", "n_loops", "n_observations")
+              "n_iterations", "n_loops", "n_observations", "mesh_file")
 #: Raw-confidence threshold of the Ch.5 decision (Fig 5.16's red line; Fig 6.4's 3).
 RC_THRESHOLD = 3.0
 #: Integrated-confidence threshold of the Ch.6 decision (thesis Sec 6.2: 300).
@@ -1026,8 +1030,6 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     out = a.out
     out.mkdir(parents=True, exist_ok=True)
-    from whisker_io.sim.catalogue import object_file_names
-
     # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
     # --scale-to-m / --up-axis are run from their copies in out/objects
     given = list(a.objects or (("mug", "box", "plane") if a.quick else MAPPED))
@@ -1054,7 +1056,8 @@ def main(argv: list[str] | None = None) -> int:
     maps_dir = out / "ch5_maps"
     maps_dir.mkdir(exist_ok=True)
     # one file per object, named by its stem (a mesh file's path is no file name; distinct stems)
-    map_path = {o: str(maps_dir / f"{stem}.npz") for o, stem in zip(objects, object_file_names(objects))}
+    label = object_labels([*objects, novel])  # one name per object: the CSVs', the summary's, its map file's
+    map_path = {o: str(maps_dir / f"{label[o]}.npz") for o in objects}
     jobs = [(o, c, s, map_path[o] if c == id_cfg else None) for o in objects for c in configs]
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
     if not a.no_compare:
@@ -1062,12 +1065,14 @@ def main(argv: list[str] | None = None) -> int:
     runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)", not a.no_progress)
     builds = [b for b in runs if b["matching"] == matching]
     compare = [b for b in runs if b["matching"] != matching]
-    _write_csv(out / "ch5_localisation.csv", localisation_rows(runs), LOC_COLUMNS)
+    _write_csv(out / "ch5_localisation.csv", labelled_rows(localisation_rows(runs), label, ("object",), of="object"),
+               LOC_COLUMNS)
     paths = [map_path[o] for o in objects]
     id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, novel)]
     ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification", not a.no_progress)
     id_rows = identification_rows(ids)
-    _write_csv(out / "ch5_identification.csv", id_rows, ID_COLUMNS)
+    _write_csv(out / "ch5_identification.csv", labelled_rows(id_rows, label, ("presented", "map_identity"), of="presented"),
+               ID_COLUMNS)
     figures(out, builds, ids, id_rows, id_cfg)
     text = summary(builds, id_rows, cals, s, id_cfg, a.quick, compare)
     (out / "ch5_summary.txt").write_text(text)

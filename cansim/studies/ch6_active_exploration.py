@@ -58,7 +58,7 @@ Outputs (working directory or ``--out``): ``ch6_runs.csv`` (one row per run and
 threshold), ``fig6_2_spc_poses.png``, ``fig6_4_rc_ic.png``, ``fig6_6_confidence_spc.png``,
 ``fig6_7_im_threshold.png``, ``fig6_8_im_strategy.png``, ``fig6_9_srt_strategy.png``,
 ``ch6_summary.txt`` (each thesis finding, the measured figure, reproduced or not) and
-``maps/<object>.npz``, each known object's map with its mapping log
+``maps/<label>.npz``, each known object's map with its mapping log
 (:meth:`cansim.explore.explorer.KnownObject.save`; e.g. the ``--map`` files of
 ``examples/hardware_exploration.py``).
 
@@ -312,7 +312,7 @@ import logging
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -321,7 +321,8 @@ import numpy as np
 
 from cansim.seeding import derive_seed
 from cansim.studies.command_line import CommandParser
-from cansim.studies.object_options import add_mesh_options, check_distinct, conform_objects, is_mesh_file, object_labels, seed_name
+from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, is_mesh_file, labelled_rows,
+                                           object_labels, seed_name)
 from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
 
@@ -332,8 +333,10 @@ STRATEGY_NAMES = ("default", "feh", "lsr")
 THRESHOLDS = (100.0, 300.0, 600.0, 900.0)
 #: ``ch6_runs.csv``'s columns. ``whisks_without_contact`` counts the whisks that observed no region
 #: (fewer than 3 contacts, Eq 5.5; Fig 6.2's "without contact"): a whisk touched by 1 or 2 whiskers
-#: counts. ``study`` (``strategy``, ``spc`` or ``novel``) and the run's settings (:data:`SETTING_COLUMNS`)
-#: are added after these.
+#: counts. ``study`` (``strategy``, ``spc`` or ``novel``), the run's settings (:data:`SETTING_COLUMNS`) and
+#: ``mesh_file`` are added after these: ``presented`` and ``identity`` name objects by their labels
+#: (:func:`whisker_io.sim.catalogue.object_labels`, as the summary and ``maps/<label>.npz``), ``mesh_file``
+#: is the presented object's mesh file (empty for a named one).
 COLUMNS = ("seed", "presented", "strategy", "spc", "threshold", "im", "srt", "identity", "correct_first",
            "mean_correct_confidence", "mean_incorrect_confidence", "iterations", "refused_commands",
            "commands_outside_envelope", "whisks_base_inside", "whisks_without_contact", "stop_reason")
@@ -711,7 +714,7 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     r = runs[0]["result"] if runs else None
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     if r is not None:
-        label = object_labels(runs[0]["objects"])
+        label = object_labels([*runs[0]["objects"], *(x["presented"] for x in rows)])  # as the summary names them
         for k, name in enumerate(runs[0]["objects"]):
             axes[0].plot(r.confidence[:, k], label=label[name])
             axes[1].plot(r.ic[:, k], label=label[name])
@@ -719,7 +722,7 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
             axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
         axes[1].set_title("integrated confidence (dotted: the IC thresholds)", fontsize=9)
     axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
-    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {object_labels(runs[0]['objects'])[runs[0]['presented']]} presented, {runs[0]['strategy']}" if runs else "")
+    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {label[runs[0]['presented']]} presented, {runs[0]['strategy']}" if runs else "")
     fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
 
     first = [x for x in rows if x["threshold"] == THRESHOLDS[0]]
@@ -803,7 +806,7 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     return lines
 
 
-def poorly_mapped(setup: Setup) -> list[str]:
+def poorly_mapped(setup: Setup, labels: Mapping[str, str] | None = None) -> list[str]:
     """One line for each known object whose mapping tour observed a region (3 contacts or more) in under half its whisks.
 
     Such a map is sparse and seldom re-localised, so its poses are as good as the odometry: under
@@ -813,8 +816,10 @@ def poorly_mapped(setup: Setup) -> list[str]:
     runs). With a quarter of that noise the duck, observed in 59 of 156 mapping whisks, was named
     first in 6 of its 6 presentations (``cansim study ch6 --quick --objects duck bear --matcher surface
     --contact-seeking --believed-scale 1.5 --odometry-noise 0.25``: two seeds, three strategies).
+    ``labels`` names the objects (object as given -> label; default
+    :func:`~whisker_io.sim.catalogue.object_labels` of the known objects).
     """
-    lines, label = [], object_labels(list(setup.objects))
+    lines, label = [], dict(labels) if labels is not None else object_labels(list(setup.objects))
     for name, known in zip(setup.objects, setup.known):
         seen = known.mapping_observations()
         if known.seldom_observed():
@@ -961,7 +966,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      "(its whiskers sweep no space straight ahead of the front bases: cansim.explore.contact_seeking), "
                      "so on hardware keep the arm's envelope and speed limits conservative.")
     lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)))]
-    lines += [f"Warning: {line}." for line in poorly_mapped(setup)]
+    lines += [f"Warning: {line}." for line in poorly_mapped(setup, label)]
     return "\n".join(lines) + "\n"
 
 
@@ -1035,11 +1040,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     setup = prepare(args.seed, args.noise_scale, contact_model=args.contact_model, objects=args.objects,
                     believed_scale=args.believed_scale, contact_seeking=args.contact_seeking,
                     odometry_scale=args.odometry_noise)
-    from whisker_io.sim.catalogue import object_file_names
-
+    labels = object_labels([*args.objects, *args.novel])  # one name per object: the CSV's, the summary's, its map's
     (args.out / "maps").mkdir(exist_ok=True)
-    for k, stem in zip(setup.known, object_file_names([k.name for k in setup.known])):  # the maps the runs recognise
-        k.save(args.out / "maps" / f"{stem}.npz")  # by, with their mapping logs (KnownObject.load reads them)
+    for k in setup.known:  # the maps the runs recognise by, with their mapping logs (KnownObject.load reads them)
+        k.save(args.out / "maps" / f"{labels[k.name]}.npz")
     for k in setup.known:
         k.exploring_model()  # an object whose map holds no experience fails here, saying why, before the runs
     jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
@@ -1060,9 +1064,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                        contact_seeking=setup.contact_seeking)
             rows.append(row)
     with open(args.out / "ch6_runs.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=[*COLUMNS, "study", *SETTING_COLUMNS])
+        w = csv.DictWriter(f, fieldnames=[*COLUMNS, "study", *SETTING_COLUMNS, "mesh_file"])
         w.writeheader()
-        w.writerows(rows)
+        w.writerows(labelled_rows(rows, labels, ("presented", "identity"), of="presented"))
     for line in seldom_touched(rows, args.contact_seeking):
         logger.warning(line)
     figures(args.out, runs, spc_runs, rows)

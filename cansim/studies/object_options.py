@@ -17,10 +17,11 @@ by :func:`add_mesh_options`:
 The options apply to every mesh file of the command (files in different units or with
 different up axes: bring each to the conventions first with ``load_object`` and export
 it). A study runs its objects in worker processes by name, so :func:`conform_objects`
-writes each mesh file it changed, in the conventions, to ``<out>/objects/<stem>.ply``
-(single-precision vertices: within a micrometre)
-and hands on that path: the study's outputs name that file, which keeps the object
-exactly as run. ``<out>/objects/sources.json`` says which file each copy was made from and
+writes each mesh file it changed, in the conventions, to ``<out>/objects/<label>.ply``
+(single-precision vertices: within a micrometre; the label of
+:func:`~whisker_io.sim.catalogue.object_labels`) and hands on that path: the study's
+``mesh_file`` columns name that file, which keeps the object exactly as run
+(:func:`labelled_rows`). ``<out>/objects/sources.json`` says which file each copy was made from and
 what was changed (:data:`SOURCES_FILE`).
 """
 
@@ -31,15 +32,16 @@ import hashlib
 import json
 import logging
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file_names, object_name, resolve_object
+from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file_names, object_labels, object_name, resolve_object
 from whisker_io.sim.objects import GLTF_SUFFIXES, UP_AXES, load_object
 
 __all__ = ["SOURCES_FILE", "add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects",
-           "is_mesh_file", "object_label", "object_labels", "seed_name"]
+           "is_mesh_file", "labelled_rows", "object_label", "object_labels", "seed_name"]
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +63,8 @@ def add_mesh_options(ap: argparse.ArgumentParser) -> None:
 
 
 def object_label(spec: str | os.PathLike[str]) -> str:
-    """A short label for an object in figures: a mesh file's stem (``"/data/my mug.obj"`` -> ``"my_mug"``), a name as given."""
+    """A short name for one object in a message: a mesh file's stem (``"/data/my mug.obj"`` -> ``"my_mug"``), a name as
+    given. A run's outputs name its objects by :func:`~whisker_io.sim.catalogue.object_labels` (distinct)."""
     return object_file_name(spec) if is_mesh_file(spec) else str(spec)
 
 
@@ -130,34 +133,38 @@ def seed_name(spec: str | os.PathLike[str]) -> str:
     return f"{object_file_name(spec)}-{digest}" if digest else object_file_name(spec)
 
 
-def object_labels(specs: Sequence[str]) -> dict[str, str]:
-    """Short, distinct labels for the objects of one run: :func:`object_label` of each; where two would be equal
-    (``a/cup.obj``, ``b/cup.stl``), those two take their folder (``a/cup``, ``b/cup``), then their file name
-    (``a/cup.obj``), and only then a number by their place (:func:`~whisker_io.sim.catalogue.object_file_names`).
-    The others keep their plain labels.
+def labelled_rows(rows: Sequence[Mapping[str, Any]], labels: Mapping[str, str], columns: Sequence[str],
+                  of: str) -> list[dict[str, Any]]:
+    """Rows of a study's CSV as written: objects named by their labels, with the mesh file of each row's object.
 
-    >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
-    {'a/cup.obj': 'a/cup', 'mug': 'mug', 'b/cup.stl': 'b/cup'}
-    >>> object_labels(["/data/My Mug.obj", "torus_flat-v3"])
-    {'/data/My Mug.obj': 'My_Mug', 'torus_flat-v3': 'torus_flat-v3'}
+    Parameters
+    ----------
+    rows : sequence of mapping
+        The study's rows, objects named as the run was given them (names or mesh files).
+    labels : mapping
+        Object as given -> its label (:func:`~whisker_io.sim.catalogue.object_labels` of every object of the run:
+        the names its summary, figures and map files use).
+    columns : sequence of str
+        The columns that name an object (``presented``, ``decision``, ...); an empty value stays empty.
+    of : str
+        The column naming the row's own object, whose mesh file goes into ``mesh_file``.
+
+    Returns
+    -------
+    list of dict
+        Copies of ``rows``; ``mesh_file`` is the absolute path of the mesh file the run loaded for the row's
+        object, empty for a registered object or a procedural shape.
     """
-    unique = list(dict.fromkeys(map(str, specs)))
-    labels = {s: object_label(s) for s in unique}
-    for with_suffix in (False, True):  # the clashing ones: with their folder, then with their file name
-        seen: dict[str, list[str]] = {}
-        for spec, lab in labels.items():
-            seen.setdefault(lab, []).append(spec)
-        clash = [spec for group in seen.values() if len(group) > 1 for spec in group]
-        if not clash:
-            return labels
-        for spec in clash:
-            if is_mesh_file(spec):
-                path = Path(spec)
-                name = path.name if with_suffix else object_label(spec)
-                labels[spec] = f"{path.parent.name}/{name}" if path.parent.name else name
-    if len(set(labels.values())) == len(labels):
-        return labels
-    return dict(zip(unique, object_file_names(unique)))
+    out = []
+    for row in rows:
+        new = dict(row)
+        for column in columns:
+            if new[column] != "":
+                new[column] = labels[str(new[column])]
+        spec = str(row[of])
+        new["mesh_file"] = os.path.abspath(spec) if is_mesh_file(spec) else ""
+        out.append(new)
+    return out
 
 
 def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, scale_to_m: float | None = None,
@@ -169,8 +176,8 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
     specs : sequence of str
         Objects as given: registered names, procedural shapes' names or mesh files.
     folder : path-like
-        Where a changed mesh file is written, as ``<stem>.ply`` (stems of
-        :func:`~whisker_io.sim.catalogue.object_file_names`: distinct); created when needed.
+        Where a changed mesh file is written, as ``<label>.ply`` (labels of
+        :func:`~whisker_io.sim.catalogue.object_labels`: distinct); created when needed.
     scale_to_m, up_axis : optional
         As :func:`whisker_io.sim.objects.load_object`'s, for every mesh file.
 

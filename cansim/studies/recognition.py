@@ -70,8 +70,11 @@ Outputs (``--out``)
   ``whisks_with_contact``, the whisks that observed a region - 3 contacts or more, Eq 5.5 -,
   and, with the surface matcher, ``unmapped_contact_fraction``, the share of the
   presentation's contacts where the presented object's map felt nothing,
-  :func:`unmapped_contact_fraction`; ``presented`` and ``decision`` name objects as given,
-  a mesh file changed by ``--scale-to-m`` / ``--up-axis`` by its copy in ``objects/``);
+  :func:`unmapped_contact_fraction`; ``presented`` and ``decision`` name objects by their
+  labels, :func:`whisker_io.sim.catalogue.object_labels` - the names of the summary, the figures
+  and the map files ``maps/seed<N>/<label>.npz`` -, and ``mesh_file`` is the mesh file the run
+  loaded for the presented object, empty for a named one: a file changed by ``--scale-to-m`` /
+  ``--up-axis`` is its copy in ``objects/``);
 * ``recognition_confusion.png`` - decisions per presented object (rows) and decided
   identity (columns, plus "none"), per presentation;
 * ``recognition_accuracy_vs_distance.png`` - correct decisions vs viewpoint distance;
@@ -251,7 +254,7 @@ import numpy as np
 from cansim.seeding import derive_seed
 from cansim.studies.command_line import CommandParser
 from cansim.studies.object_options import (add_mesh_options, check_distinct, check_mesh_options, conform_objects,
-                                           is_mesh_file, object_label, object_labels, seed_name)
+                                           is_mesh_file, labelled_rows, object_label, object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
@@ -271,7 +274,7 @@ DEFAULT_MATCHERS = ("thesis", "surface")
 COLUMNS = ("seed", "library_size", "matcher", "presented", "novel", "presentation", "distance_bin",
            "median_distance_m", "median_rotation_deg", "whisks", "whisks_with_contact", "decision", "correct",
            "decision_whisk", "final_ic_own", "final_ic_best_other", "impulses_own", "impulses_other",
-           "unmapped_contact_fraction", "roll_deg")
+           "unmapped_contact_fraction", "roll_deg", "mesh_file")
 #: Contact model and noise of the maps and the presentations (module docstring).
 CONTACT_MODEL = "tip"
 NOISE_SCALE = 0.3
@@ -409,8 +412,8 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
 
     ``job`` is ``(name, setup)`` or ``(name, setup, stem)``: the files are
     ``maps/seed<seed>/<stem>.npz`` and ``<stem>_surface.npz``, the stem by default
-    :func:`whisker_io.sim.catalogue.object_file_name` of the name (:func:`run` passes
-    :func:`~whisker_io.sim.catalogue.object_file_names` of the whole library, distinct).
+    :func:`whisker_io.sim.catalogue.object_file_name` of the name (:func:`run` passes the object's
+    label, :func:`~whisker_io.sim.catalogue.object_labels` of every object of the run: distinct).
 
     The model is :func:`cansim.studies.ch5_object_maps.map_object`'s, as the Ch.5 study
     builds it (same seed, same whisks). Its stored surface (what was felt, placed by the whisk poses of
@@ -794,7 +797,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         Bad calibration seeds or quantile; an object named twice or as both library and novel;
         a mesh file :func:`whisker_io.sim.objects.load_object` refuses.
     """
-    from whisker_io.sim.catalogue import object_file_names, resolve_object
+    from whisker_io.sim.catalogue import resolve_object
     from whisker_io.sim.shapes import library_names, novel_names
 
     from cansim.errors import ConfigError
@@ -829,7 +832,8 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     thresholds = calibrated_thresholds(calibration, seeds, calibration_quantile)  # a bad rule, seed or quantile: before any file
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
-    stems = object_file_names(everything)  # distinct: mesh files of one name do not overwrite each other's maps
+    labels = object_labels([*everything, *novel])  # one name per object: the CSV's, the summary's, its map file's
+    stems = [labels[n] for n in everything]
     whisked = list(dict.fromkeys((*everything, *novel)))  # every object mapped or presented, once
     if roll is None:  # per object, once for every seed (the trajectories do not depend on the seed)
         rolls = tuple(pool_map(roll_job, [(n, int(reach)) for n in whisked], workers, "choosing the rolls", progress))
@@ -870,6 +874,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
                 jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
                 jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
         rows += [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
+    rows = labelled_rows(rows, labels, ("presented", "decision"), of="presented")
     with open(out / "recognition_runs.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
         w.writeheader()

@@ -21,7 +21,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.sim.objects import MESH_SUFFIXES, OBJECT_NAMES, LoadedObject, load_object, make_object
 from whisker_io.sim.shapes import SHAPE_FAMILIES, is_shape_name, make_shape
 
-__all__ = ["is_mesh_file", "object_file_name", "object_file_names", "object_name", "resolve_object"]
+__all__ = ["is_mesh_file", "object_file_name", "object_file_names", "object_labels", "object_name", "resolve_object"]
 
 
 def resolve_object(spec: str | os.PathLike[str] | trimesh.Trimesh, *, scale_to_m: float | None = None,
@@ -104,17 +104,58 @@ def object_file_name(spec: str | os.PathLike[str]) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in Path(spec).stem) or "object"
 
 
+def object_labels(specs: Sequence[str | os.PathLike[str]]) -> dict[str, str]:
+    """One name per object of a run, used for it everywhere: in its summary and figures, in the object
+    columns of its CSVs, and as the stem of its map and copy files. Distinct and a file-name stem.
+
+    Each object takes :func:`object_file_name` of itself (a mesh file's stem, a name as given); where
+    two would be equal (``a/cup.obj``, ``b/cup.stl``), those two take their folder (``a_cup``,
+    ``b_cup``), then their ending too (``a_cup_obj``), and only then a number by their place among
+    ``specs`` (``cup_1``, ``cup_2``, ...). The others keep their plain names.
+
+    >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
+    {'a/cup.obj': 'a_cup', 'mug': 'mug', 'b/cup.stl': 'b_cup'}
+    >>> object_labels(["/data/My Mug.obj", "torus_flat-v3"])
+    {'/data/My Mug.obj': 'My_Mug', 'torus_flat-v3': 'torus_flat-v3'}
+
+    Parameters
+    ----------
+    specs : sequence of str or path-like
+        Objects as a runner was given them; one given twice is labelled once.
+
+    Returns
+    -------
+    dict
+        ``str(spec)`` -> label, in the order of ``specs``.
+    """
+    unique = list(dict.fromkeys(map(str, specs)))
+    labels = {s: object_file_name(s) for s in unique}
+    for with_suffix in (False, True):  # the clashing ones: with their folder, then with their ending too
+        seen: dict[str, list[str]] = {}
+        for spec, lab in labels.items():
+            seen.setdefault(lab, []).append(spec)
+        clash = [spec for group in seen.values() if len(group) > 1 for spec in group]
+        if not clash:
+            return labels
+        for spec in clash:
+            if is_mesh_file(spec):
+                path = Path(spec)
+                parts = [path.parent.name, path.stem, path.suffix.lstrip(".") if with_suffix else ""]
+                labels[spec] = object_file_name("_".join(p for p in parts if p))
+    if len(set(labels.values())) == len(labels):
+        return labels
+    stems = [object_file_name(s) for s in unique]
+    return {s: f"{stem}_{i + 1}" for i, (s, stem) in enumerate(zip(unique, stems))}
+
+
 def object_file_names(specs: Sequence[str | os.PathLike[str]]) -> list[str]:
-    """:func:`object_file_name` of each of several objects, distinct: when two would be equal (mesh files of one
-    name in different folders) every one is numbered by its place, ``<stem>_1``, ``<stem>_2``, ..., so that no
-    object's file overwrites another's.
+    """:func:`object_labels` of several objects, in the order given: distinct file-name stems, so that no
+    object's file overwrites another's and each file is named as the run's outputs name its object.
 
     >>> object_file_names(["a/mug.obj", "b/mug.stl"])
-    ['mug_1', 'mug_2']
+    ['a_mug', 'b_mug']
     >>> object_file_names(["box", "box_stack"])
     ['box', 'box_stack']
     """
-    stems = [object_file_name(s) for s in specs]
-    if len(set(stems)) < len(stems):
-        stems = [f"{stem}_{i + 1}" for i, stem in enumerate(stems)]
-    return stems
+    labels = object_labels(specs)
+    return [labels[str(s)] for s in specs]
