@@ -135,7 +135,8 @@ commands = {
     "demo": st.one_of(
         st.tuples(st.just("--seed"), st.one_of(not_an_int, negative)).map(list),
         st.tuples(st.sampled_from(["ratslam", "whisker"]), unknown_option).map(list),
-        st.tuples(st.just("whisker"), st.just("--quick"), st.just("--contact-noise"), bad_float).map(list),
+        st.tuples(st.just("whisker"), st.just("--quick"), st.sampled_from(["--contact-noise", "--noise-scale"]), bad_float).map(list),
+        st.tuples(st.just("whisker"), st.just("--contact-noise"), st.just("0.1"), st.just("--noise-scale"), st.just("0.3")).map(list),
         st.tuples(st.just("whisker"), st.just("--quick"), st.just("--object"), names.map(lambda s: f"zz_{s}")).map(list),
     ),
     "sweep": st.one_of(
@@ -166,6 +167,9 @@ commands = {
         st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--loops", "--id-loops"]), not_positive).map(list),
         st.tuples(st.just("ch5"), st.just("--quick"), st.sampled_from(["--seed", "--workers"]), negative).map(list),
         st.tuples(st.just("recognition"), st.just("--quick"), st.sampled_from(["--seeds", "--whisks"]), not_positive).map(list),
+        st.tuples(st.just("recognition"), st.just("--quick"), st.just("--seed"), negative).map(list),
+        st.tuples(st.just("recognition"), st.just("--quick"), st.just("--matchers"), st.just("surface"),
+                  st.just("--matcher"), st.just("thesis")).map(list),  # one option by two names: given twice
         st.tuples(st.just("recognition"), st.just("--quick"), st.just("--reach-contacts"),
                   st.one_of(negative, st.integers(65, 10**6).map(str), not_an_int)).map(list),
         st.tuples(st.just("recognition"), st.just("--quick"), st.just("--roll-deg"),

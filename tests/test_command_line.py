@@ -110,3 +110,73 @@ def test_the_command_refuses_an_option_given_twice_before_any_work(tmp_path, cap
     assert code == 2
     assert f"argument {option}: given twice" in capsys.readouterr().err
     assert [p.name for p in tmp_path.iterdir()] == ["file"]  # nothing written
+
+
+# ------------------------------------------------ one option name across the commands (a user's pass, session 46)
+class _Stop(Exception):
+    pass
+
+
+def test_the_demo_takes_the_studies_noise_scale(monkeypatch, tmp_path):
+    """``--noise-scale S`` (the Ch.5 / Ch.6 studies' option) is ``--contact-noise 0.25 S``: Sec 6.1.3.1.2's
+    contact-position noise is 25 % of the whisker length."""
+    import cansim.studies.whisker_ratslam_demo as demo
+
+    seen = []
+
+    def fake_run(*args, **kwargs):
+        seen.append(kwargs["contact_noise"])
+        raise _Stop
+
+    monkeypatch.setattr(demo, "run", fake_run)
+    for argv, expected in ((["--noise-scale", "0.3"], 0.075), (["--noise-scale", "1"], 0.25), (["--contact-noise", "0.1"], 0.1),
+                           ([], 0.075), (["--noise-scale", "0"], 0.0)):
+        with pytest.raises(_Stop):
+            demo.main(["--out", str(tmp_path), "--quick", *argv])
+        assert seen[-1] == pytest.approx(expected, abs=1e-15)
+
+
+@pytest.mark.parametrize("argv,says", [
+    (["--contact-noise", "0.1", "--noise-scale", "0.3"], "not allowed with argument"),  # one noise, two ways
+    (["--noise-scale", "5"], "--noise-scale must lie in [0, 4]"),
+    (["--noise-scale", "nan"], "--noise-scale must lie in [0, 4]"),
+])
+def test_the_demo_refuses_a_second_or_a_bad_noise(tmp_path, capsys, argv, says):
+    import cansim.studies.whisker_ratslam_demo as demo
+
+    with pytest.raises(SystemExit) as exc:
+        demo.main(["--out", str(tmp_path), "--quick", *argv])
+    assert exc.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_recognition_takes_a_first_seed_and_the_matcher_by_either_name(monkeypatch, tmp_path, capsys):
+    from cansim.studies import recognition
+
+    seen = []
+
+    def fake_run(*args, **kwargs):
+        seen.append(kwargs)
+        raise _Stop
+
+    monkeypatch.setattr(recognition, "run", fake_run)
+    with pytest.raises(_Stop):
+        recognition.main(["--quick", "--out", str(tmp_path), "--seed", "3", "--seeds", "3", "--matcher", "surface"])
+    assert list(seen[-1]["seeds"]) == [3, 4, 5] and seen[-1]["matchers"] == ["surface"]
+    with pytest.raises(_Stop):
+        recognition.main(["--out", str(tmp_path)])
+    assert list(seen[-1]["seeds"]) == [0, 1, 2]  # the default, as before
+    for argv, says in ((["--matchers", "thesis", "--matcher", "surface"], "given twice"),  # two names of one option
+                       (["--seed", "-1"], "--seed must be >= 0")):
+        with pytest.raises(SystemExit) as exc:
+            recognition.main(["--quick", "--out", str(tmp_path), *argv])
+        assert exc.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_ch5_takes_map_loops_as_recognition_does(capsys, tmp_path):
+    from cansim.studies import ch5_object_maps as ch5
+
+    for argv, says in ((["--loops", "2", "--map-loops", "3"], "argument --loops/--map-loops: given twice"),
+                       (["--map-loops", "0"], "--loops (--map-loops) must be >= 1, got 0")):
+        with pytest.raises(SystemExit) as exc:
+            ch5.main(["--quick", "--out", str(tmp_path), *argv])
+        assert exc.value.code == 2 and says in capsys.readouterr().err

@@ -992,7 +992,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--novel", default=NOVEL, metavar="NAME_OR_MESH",
                     help=f"the object presented but not mapped (default {NOVEL})")
     add_mesh_options(ap)
-    ap.add_argument("--loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
+    ap.add_argument("--loops", "--map-loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="least loops per identification run (default 1)")
     ap.add_argument("--id-whisks", type=int,
                     help=f"least whisks per identification run, whole loops (default {ID_WHISKS}; --quick 0)")
@@ -1015,9 +1015,9 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     # every number is checked before any work (a 0 loop count ran the default, a negative seed or a bad
     # quantile failed after minutes of mapping or calibration)
-    for name in ("loops", "id_loops"):
+    for name, option in (("loops", "--loops (--map-loops)"), ("id_loops", "--id-loops")):
         if getattr(a, name) is not None and getattr(a, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(a, name)}")
+            ap.error(f"{option} must be >= 1, got {getattr(a, name)}")
     for name in ("id_whisks", "seed", "workers"):
         if getattr(a, name) is not None and getattr(a, name) < 0:
             ap.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(a, name)}")

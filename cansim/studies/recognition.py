@@ -90,6 +90,7 @@ Run::
 
     cansim study recognition --quick        # 12 objects, 1 seed, A / B / 5-10 cm
     cansim study recognition                # 12 objects, 3 seeds, all bins; 25 and 50 objects
+    cansim study recognition --quick --seed 3 --seeds 3 --matcher surface   # seeds 3-5, one matcher
 
 Status (measured, see the summary of a run): with the thesis matcher a presentation
 along the mapping path is identified, along trajectory B or a viewpoint set 5-10 cm away
@@ -1141,10 +1142,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--novel", nargs="+", metavar="NAME_OR_MESH", help="novel objects (default: three held-out shapes)")
     add_mesh_options(ap)
     ap.add_argument("--seeds", type=int, default=None,
-                    help="how many seeds: 0, 1, ... (default 3, quick 1; other seeds: run(seeds=...) in Python)")
+                    help="how many seeds: --seed, --seed + 1, ... (default 3, quick 1)")
+    ap.add_argument("--seed", type=int, default=0,
+                    help="the first seed (default 0); the maps' T_pfh / T_sda are calibrated on it (--calibration)")
     ap.add_argument("--whisks", type=int, default=200, help="least whisks per presentation (default 200)")
     ap.add_argument("--map-loops", type=int, default=2, help="loops of trajectory A per map (default 2)")
-    ap.add_argument("--matchers", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
+    ap.add_argument("--matchers", "--matcher", nargs="+", choices=MATCHERS, default=list(DEFAULT_MATCHERS),
                     help=f"matchers deciding every presentation (default: {' '.join(DEFAULT_MATCHERS)})")
     ap.add_argument("--odometry-noise", type=float, default=1.0, metavar="SCALE",
                     help="odometry noise of maps and presentations as a multiple of Eq 6.4-6.11 (default 1: the thesis'); "
@@ -1167,6 +1170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             ap.error(f"--{name.replace('_', '-')} must be >= 1")
     if a.seeds is not None and a.seeds < 1:
         ap.error("--seeds must be >= 1")
+    if a.seed < 0:
+        ap.error(f"--seed must be >= 0, got {a.seed}")
     if not 0.0 <= a.odometry_noise <= 10.0:
         ap.error("--odometry-noise must be in [0, 10]")
     from whisker_io.array.geometry import THESIS_POSITIONS_MM
@@ -1177,7 +1182,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if a.roll_deg is not None and not (math.isfinite(a.roll_deg) and -360.0 <= a.roll_deg <= 360.0):
         ap.error("--roll-deg must be a number of degrees in [-360, 360]")
     t0 = time.perf_counter()
-    seeds = range(a.seeds if a.seeds is not None else (1 if a.quick else 3))
+    seeds = range(a.seed, a.seed + (a.seeds if a.seeds is not None else (1 if a.quick else 3)))
     bins = ("vp 5-10 cm",) if a.quick else None
     sizes = (12,) if a.quick or a.objects else (12, 25, 50)
     rows = run(a.out, a.objects, a.novel, library_sizes=sizes if not a.objects else (len(a.objects),), seeds=seeds,

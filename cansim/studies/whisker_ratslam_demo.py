@@ -55,7 +55,8 @@ Decisions (measured with fixed seeds; the thesis does not print these values)
 * **Model**: :meth:`cansim.models.whisker_ratslam.WhiskerRatSLAMConfig.mapping` - the thesis'
   Ch.5 model with pose-consistent region matching (see :mod:`cansim.models.whisker_ratslam`);
   ``--thesis-matching`` runs Eq 5.5 alone for comparison.
-* **Contact noise** ``--contact-noise 0.075`` (default): 0.3 of the Ch.6 values of Sec
+* **Contact noise** ``--contact-noise 0.075`` (default; ``--noise-scale 0.3``, the option's name
+  in the Ch.5 and Ch.6 studies): 0.3 of the Ch.6 values of Sec
   6.1.3.1.2 (position N(0, 0.075 x whisker length), slope N(0, 0.1)), the same scale as
   ``examples/ch5_study.py`` (the Ch.5 noise is not printed). At the full Ch.6 level
   (``--contact-noise 0.25``) two whisks at the same pose of the Mug differ by a median
@@ -125,6 +126,9 @@ log = logging.getLogger(__name__)
 
 #: Contact-position noise of the demo, fraction of the whisker length (module docstring).
 DEFAULT_CONTACT_NOISE = 0.075
+#: Sec 6.1.3.1.2's contact-position noise, fraction of the whisker length: ``--noise-scale S`` is
+#: ``--contact-noise NOISE_FRACTION * S``, as ``ContactNoise().scaled(S)`` in the Ch.5 and Ch.6 studies.
+NOISE_FRACTION = 0.25
 #: Median position errors within this share of dead reckoning's are called the same: the summary then says
 #: the map is no better than dead reckoning (without a re-localisation the map's estimate is dead reckoning's,
 #: to rounding).
@@ -165,8 +169,8 @@ def run(
         log.info(_reach_note(object_name, how))
     st, sr = step_sizes(np.array([p.position_m for p in poses]), np.array([p.quaternion_xyzw for p in poses]))
     noise = None if contact_noise == 0 else ContactNoise(
-        position_sigma_fraction=contact_noise, slope_sigma=0.33 * contact_noise / 0.25,
-        registration_probability=1.0 - 0.02 * contact_noise / 0.25,
+        position_sigma_fraction=contact_noise, slope_sigma=0.33 * contact_noise / NOISE_FRACTION,
+        registration_probability=1.0 - 0.02 * contact_noise / NOISE_FRACTION,
     )
     chain = WhiskChain(mesh, contact_noise=noise)
     rng = np.random.default_rng(seed)
@@ -360,7 +364,8 @@ def figures(result: dict, out: Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Command line: ``[--object NAME] [--quick] [--out DIR] [--seed N] [--backend NAME] [--contact-noise F] [--thesis-matching]``."""
+    """Command line: ``[--object NAME] [--quick] [--out DIR] [--seed N] [--backend NAME] [--contact-noise F | --noise-scale S]
+    [--thesis-matching]``."""
     ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--object", default="mug", metavar="NAME_OR_MESH",
                     help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape (e.g. duck, "
@@ -371,16 +376,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("."))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--backend", default="numba")
-    ap.add_argument("--contact-noise", type=float, default=DEFAULT_CONTACT_NOISE,
-                    help="contact-position noise, fraction of the whisker length (default 0.075 = 0.3 of "
-                         "thesis Sec 6.1.3.1.2's 0.25; 0 = none)")
+    noise = ap.add_mutually_exclusive_group()
+    noise.add_argument("--contact-noise", type=float, default=None,
+                       help="contact-position noise, fraction of the whisker length (default 0.075 = 0.3 of "
+                            "thesis Sec 6.1.3.1.2's 0.25; 0 = none)")
+    noise.add_argument("--noise-scale", type=float, default=None, metavar="S",
+                       help="the same noise as a multiple of Sec 6.1.3.1.2's, as the Ch.5 and Ch.6 studies' --noise-scale "
+                            "(position and slope noise; 0.3 = --contact-noise 0.075, the default; missed registrations "
+                            f"scale with it here, {1 - 0.02 * 0.3:g} at 0.3 against the studies' 0.98)")
     ap.add_argument("--thesis-matching", action="store_true",
                     help="Eq 5.5 matching alone, without the pose prior (WhiskerRatSLAMConfig.thesis)")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.noise_scale is not None:
+        if not 0.0 <= args.noise_scale <= 4.0:
+            ap.error(f"--noise-scale must lie in [0, 4] (a multiple of Sec 6.1.3.1.2's noise), got {args.noise_scale}")
+        args.contact_noise = NOISE_FRACTION * args.noise_scale
+    elif args.contact_noise is None:
+        args.contact_noise = DEFAULT_CONTACT_NOISE
     if not 0.0 <= args.contact_noise <= 1.0:
-        ap.error("--contact-noise must lie in [0, 1]")
+        ap.error(f"--contact-noise must lie in [0, 1], got {args.contact_noise}")
     if args.seed < 0:
         ap.error(f"--seed must be >= 0, got {args.seed}")
     check_mesh_options([args.object], scale_to_m=args.scale_to_m, up_axis=args.up_axis)  # not silently on a name
