@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
 from cansim.tools.bag_replay import decode_image, default_topics, replay, topic_root, write_outputs
-from cansim.errors import CorruptFileError, InvalidInputError
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
 from cansim.frontends.visual import VisualTemplateConfig
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 from cansim.testing.worlds import LoopRoute, make_run, render_view, scatter_landmarks
@@ -307,7 +308,12 @@ def test_decode_image_never_returns_a_wrong_size(h, w, extra, n, enc):
     msg = _Img(height=h, width=w, step=w * nbytes + extra, encoding=enc, is_bigendian=0, data=data)
     try:
         img = decode_image(msg, "sensor_msgs/msg/Image")
-    except (CorruptFileError, InvalidInputError):
+    except (CorruptFileError, InvalidInputError) as exc:
+        text = str(exc)
+        if h >= 1 and w >= 1 and enc != "8UC3" and extra < 0:  # the message names the real fault, never "needs 96, has 96"
+            assert "shorter than a row" in text
+        got = re.search(r"needs (\d+) bytes, the message has (\d+)", text)
+        assert got is None or int(got[1]) > int(got[2])
         return
     assert img.dtype == np.uint8 and img.shape[:2] == (h, w)
     assert img.ndim == (2 if enc in ("mono8", "mono16") else 3)
@@ -364,3 +370,23 @@ def test_a_metadata_yaml_with_a_non_string_topic_is_a_corrupt_file(small_bags, t
     meta.write_text(edited)
     with pytest.raises((CorruptFileError, InvalidInputError)):
         replay(tmp_path / "b", _config())
+
+
+def test_a_config_files_unused_keys_are_one_warning_and_replay_does_not_call_topic_root_unused(config_file):
+    """The model warned once per key, topic_root included although the replay reads it (a user's pass, session 47)."""
+    from cansim.tools.bag_replay import _load_config
+
+    with pytest.warns(UserWarning) as record:
+        cfg, root = _load_config(config_file)
+    assert root == "irat_red" and cfg.cell_size_m == 0.1
+    assert len(record) == 1 and "'enable' (line 13)" in str(record[0].message)  # the lines as in the file
+    assert "[draw]" in str(record[0].message) and "topic_root" not in str(record[0].message)
+    with pytest.warns(UserWarning, match=r"'topic_root' \(line 2 - the bag's topics, read by cansim replay\)"):
+        RatSLAMConfig.from_file(config_file)  # the model alone: it does not read topic_root, replay does
+    with pytest.raises(ConfigError, match="line 5"):  # a malformed value keeps its line number in the replay too
+        _load_config(_write(config_file, CFG_TEXT.replace("pc_cell_x_size = 0.1", "pc_cell_x_size = abc")))
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path

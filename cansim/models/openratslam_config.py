@@ -45,8 +45,9 @@ OpenRatSLAM key                     cansim field                          defaul
 
 Values: integers may be written ``7`` or ``7.0``; booleans ``1/0``, ``true/false``,
 ``yes/no``, ``on/off``; a crop maximum of ``-1`` (OpenRatSLAM: the image edge) is
-``None``. A key not in the table (ROS topics, drawing, visual odometry...) is ignored
-with a ``UserWarning``; a malformed value, or one the config refuses (an even kernel
+``None``. The keys not in the table (ROS topics, drawing, visual odometry...) are ignored
+with one ``UserWarning`` naming them by section and line (``topic_root`` is read by
+``cansim replay``, :mod:`cansim.tools.bag_replay`); a malformed value, or one the config refuses (an even kernel
 width, a negative size), raises :class:`~cansim.errors.ConfigError` naming the key and
 its line.
 """
@@ -64,7 +65,7 @@ from cansim.frontends.visual import VisualTemplateConfig
 
 # The config class is passed in (``config_cls``): ratslam_config imports this module, not the reverse.
 
-__all__ = ["OPENRATSLAM_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed",
+__all__ = ["OPENRATSLAM_KEYS", "REPLAY_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed",
            "write_openratslam_text"]
 
 
@@ -154,20 +155,34 @@ def _by_part(values: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return parts
 
 
+#: Keys of OpenRatSLAM's ``[general]`` section that ``cansim replay`` reads (not the model).
+REPLAY_KEYS = ("topic_root",)
+
+
 def _read(text: str) -> dict[str, tuple[Any, int]]:
-    """``{key: (value, line)}`` of the known keys; unknown keys warned about."""
+    """``{key: (value, line)}`` of the known keys; the unknown keys warned about in one warning, by section."""
     values: dict[str, tuple[Any, int]] = {}
+    unused: dict[str, list[str]] = {}  # section -> "key (line n)"
+    section = ""
     for lineno, raw in enumerate(text.splitlines(), 1):
         line = raw.strip()
+        if line.startswith("[") and line.endswith("]"):
+            section = line[1:-1].strip()
         if not line or line.startswith(("#", ";", "[")):
             continue
         if "=" not in line:
             raise ConfigError(f"line {lineno}: {line!r} is not 'key=value'")
         key, value = (s.strip() for s in line.split("=", 1))
         if key not in OPENRATSLAM_KEYS:
-            warnings.warn(f"OpenRatSLAM config key {key!r} (line {lineno}) is not used by cansim; ignored", UserWarning, stacklevel=4)
+            note = " - the bag's topics, read by cansim replay" if key in REPLAY_KEYS else ""
+            unused.setdefault(section, []).append(f"{key!r} (line {lineno}{note})")
             continue
         values[key] = (_parse_value(key, value, OPENRATSLAM_KEYS[key].kind, lineno), lineno)
+    if unused:
+        groups = "; ".join(f"[{sec}] " * bool(sec) + ", ".join(keys) for sec, keys in unused.items())
+        n = sum(map(len, unused.values()))
+        warnings.warn(f"{n} OpenRatSLAM config key{'s' * (n > 1)} not used by cansim's RatSLAM model (ROS topics, "
+                      f"drawing, visual odometry...), ignored: {groups}", UserWarning, stacklevel=4)
     return values
 
 

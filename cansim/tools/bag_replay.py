@@ -50,7 +50,6 @@ import csv
 import io
 import math
 import os
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
@@ -59,6 +58,7 @@ import numpy as np
 
 from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
 from cansim.frontends.visual import VisualTemplateConfig
+from cansim.models.openratslam_config import REPLAY_KEYS
 from cansim.models.ratslam import RatSLAM
 from cansim.models.ratslam_config import RatSLAMConfig
 
@@ -171,10 +171,14 @@ def decode_image(msg: Any, msgtype: str) -> np.ndarray:
     nbytes = _CHANNELS[enc]
     ch = 1 if nbytes == 2 else nbytes
     data = np.asarray(msg.data, dtype=np.uint8)
-    if h < 1 or w < 1 or step < w * nbytes or data.size < step * h:
-        raise CorruptFileError(
-            f"image of {h} x {w} px, {msg.encoding}, step {step} needs {step * h} bytes, the message has {data.size}"
-        )
+    if h < 1 or w < 1:
+        raise CorruptFileError(f"image of {h} x {w} px ({msg.encoding}): an image needs at least one row and column")
+    if step < w * nbytes:
+        raise CorruptFileError(f"image of {h} x {w} px, {msg.encoding}: its row step {step} is shorter than a row "
+                               f"({w} px x {nbytes} bytes = {w * nbytes}); the encoding or the step is wrong")
+    if data.size < step * h:
+        raise CorruptFileError(f"image of {h} x {w} px, {msg.encoding}, step {step} needs {step * h} bytes, the "
+                               f"message has {data.size}")
     rows = data[: step * h].reshape(h, step)[:, : w * nbytes]
     if nbytes == 2:  # 16-bit grey -> its high byte
         hi = rows.reshape(h, w, 2)[:, :, 0 if msg.is_bigendian else 1]
@@ -246,11 +250,12 @@ def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None) -> tuple
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read it as a text config file ({exc})") from None
     root = topic_root(text)
+    # topic_root is read here, not by the model: a comment in its place (the other keys keep their line numbers),
+    # so that RatSLAMConfig's warning names only the keys nothing reads
+    model_text = "\n".join("#" if ln.split("=", 1)[0].strip() in REPLAY_KEYS and "=" in ln else ln
+                            for ln in text.splitlines())
     try:
-        with warnings.catch_warnings():
-            # topic_root is read here; other keys of the ROS nodes are ignored by RatSLAMConfig with a warning
-            warnings.filterwarnings("ignore", message=r".*'topic_root'.*")
-            cfg = RatSLAMConfig.from_text(text)  # an OpenRatSLAM file's front end is visual
+        cfg = RatSLAMConfig.from_text(model_text)  # an OpenRatSLAM file's front end is visual
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     return cfg, root
