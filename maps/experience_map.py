@@ -92,10 +92,10 @@ from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module'
     write_map_arrays,
 )
 from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
-from whisker_io.persistence import read_npz
+from whisker_io.persistence import npz_path, read_npz, write_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
-from whisker_io.errors import ConfigError, InvalidInputError
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
 from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = [
@@ -637,8 +637,11 @@ class ExperienceMap:
         return write_map_arrays(saved, prefix)
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the map to ``path`` (``.npz``, format in :mod:`maps.experience_map_io`); bit-exact round trip."""
-        np.savez(path, **self.to_arrays())
+        """Write the map to ``path`` (``.npz``, format in :mod:`maps.experience_map_io`); bit-exact round trip.
+
+        As :func:`numpy.savez`, ``.npz`` is added to a name without it; written whole, then renamed into place
+        (:func:`whisker_io.persistence.write_npz`)."""
+        write_npz(npz_path(path), self.to_arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "ExperienceMap":
@@ -663,6 +666,9 @@ class ExperienceMap:
         CorruptFileError
             A field is missing or has the wrong type, shape or value (named in the error).
         """
+        if f"{prefix}format" not in arrays and f"em_{prefix}format" in arrays and "model" in arrays:
+            raise CorruptFileError("this file holds a whole model (RatSLAM.save or WhiskerRatSLAM.save), not an "
+                                   "experience map alone: load it with that class's load(); its map is .experience_map")
         config, geometry = read_map_header(arrays, prefix, MapConfig)
         em = cls(config, geometry)
         em._restore(read_map_body(arrays, prefix, config, geometry))

@@ -74,3 +74,71 @@ def test_a_missing_file_a_folder_and_a_pickle_say_what_they_are(tmp_path):
     with pytest.raises(CorruptFileError, match="pickled objects, which are never loaded") as info:
         read_npz(member)
     assert "allow_pickle" not in str(info.value) and "damaged" not in str(info.value)
+
+
+def test_a_name_without_npz_saves_and_loads_by_the_same_name(tmp_path):
+    """``slam.save("noext")`` wrote ``noext.npz`` (numpy's rule) and ``RatSLAM.load("noext")`` said "no such file"
+    (a user's pass, session 47); an ExperienceMap likewise."""
+    from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+    from maps.experience_map import ExperienceMap
+
+    slam = RatSLAM(RatSLAMConfig(frontend="ids"))
+    for k in range(5):
+        slam.step(0.1, 0.05, 1.0, k % 3)
+    slam.save(tmp_path / "noext")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["noext.npz"]  # no temporary file left behind
+    for name in ("noext", "noext.npz"):
+        back = RatSLAM.load(tmp_path / name)
+        assert back.experience_map.n_experiences == slam.experience_map.n_experiences
+        np.testing.assert_array_equal(back.pose_cells.activity, slam.pose_cells.activity)
+    slam.experience_map.save(str(tmp_path / "map"))
+    assert ExperienceMap.load(str(tmp_path / "map")).n_experiences == slam.experience_map.n_experiences
+    with pytest.raises(CorruptFileError, match="no such file"):
+        read_npz(tmp_path / "other")  # neither the name nor the name with .npz
+
+
+def test_an_interrupted_save_keeps_the_earlier_file(tmp_path, monkeypatch):
+    """A save that fails half-way leaves the previous file under its name, whole (written beside it, then renamed)."""
+    from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+
+    slam = RatSLAM(RatSLAMConfig(frontend="ids"))
+    slam.step(0.1, 0.0, 1.0, 0)
+    slam.save(tmp_path / "run.npz")
+    before = (tmp_path / "run.npz").read_bytes()
+    slam.step(0.1, 0.0, 1.0, 1)
+
+    def broken_savez(fh, **arrays):
+        fh.write(b"PK\x03\x04 half an archive")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        slam.save(tmp_path / "run.npz")
+    assert (tmp_path / "run.npz").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]  # the half-written temporary file removed
+    monkeypatch.undo()
+    assert RatSLAM.load(tmp_path / "run.npz").iteration == 1
+
+
+def test_a_file_of_the_other_kind_is_named_not_called_corrupt(tmp_path):
+    """A whole model loaded as a map, or a map as a model, said "the file is corrupt" (a user's pass, session 47)."""
+    from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
+    from maps.experience_map import ExperienceMap
+
+    slam = RatSLAM(RatSLAMConfig(frontend="ids"))
+    slam.step(0.1, 0.0, 1.0, 0)
+    slam.save(tmp_path / "model.npz")
+    slam.experience_map.save(tmp_path / "map.npz")
+    with pytest.raises(CorruptFileError, match="holds a whole model") as exc:
+        ExperienceMap.load(tmp_path / "model.npz")
+    assert "corrupt" not in str(exc.value)
+    for cls in (RatSLAM, WhiskerRatSLAM):
+        with pytest.raises(CorruptFileError, match="holds an experience map") as exc:
+            cls.load(tmp_path / "map.npz")
+        assert "corrupt" not in str(exc.value)
+    with pytest.raises(CorruptFileError, match="corrupt"):  # a map file missing a field of its own is still corrupt
+        arrays = dict(np.load(tmp_path / "map.npz"))
+        del arrays["link_ends"], arrays["format"]
+        np.savez(tmp_path / "broken.npz", **arrays)
+        ExperienceMap.load(tmp_path / "broken.npz")

@@ -10,7 +10,7 @@ import numpy as np
 
 from whisker_io.errors import CorruptFileError
 
-__all__ = ["read_npz", "write_npz"]
+__all__ = ["npz_path", "read_npz", "write_npz"]
 
 
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
@@ -29,8 +29,17 @@ def _is_pickle(path: Any) -> bool:
     return head[:1] == b"\x80" or head == b"\x93NUMPY"  # a pickle's protocol marker, the .npy magic
 
 
+def npz_path(path: str | os.PathLike[str]) -> str | os.PathLike[str]:
+    """Where :func:`numpy.savez` writes ``path``: with ``.npz`` added when its name lacks it (``"run"`` ->
+    ``"run.npz"``); a path that has it is returned unchanged."""
+    return path if os.fspath(path).endswith(".npz") else os.fspath(path) + ".npz"
+
+
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """All members of an ``.npz`` archive written by a ``save()`` of this library.
+
+    A ``path`` that names no file but whose :func:`npz_path` does is read from there: a
+    model saved as ``save("run")`` (numpy writes ``run.npz``) loads as ``load("run")``.
 
     Raises
     ------
@@ -38,6 +47,8 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         The file is missing, empty, truncated, not an ``.npz`` archive (or one of a zip
         version or compression this Python cannot read), or a member is damaged.
     """
+    if isinstance(path, (str, os.PathLike)) and not os.path.exists(path) and os.path.isfile(npz_path(path)):
+        path = npz_path(path)
     if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path):
         what = "a folder, not a file" if os.path.isdir(path) else "no such file"
         raise CorruptFileError(f"{what}; check the path", path=path)
@@ -74,6 +85,11 @@ def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]
         np.savez(path, **arrays)
         return
     tmp = os.fspath(path) + ".tmp.npz"
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    except BaseException:  # a failed or interrupted write leaves the earlier file and no temporary one
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise

@@ -37,7 +37,7 @@ from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
-from whisker_io.persistence import read_npz
+from whisker_io.persistence import npz_path, read_npz, write_npz
 
 __all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState", "configured"]
 
@@ -346,7 +346,10 @@ class SlamLoop:
         """Save the whole model (pose cells, views, front end, map) to an ``.npz`` file.
 
         Loading it with :meth:`load` and continuing gives exactly the same results as an
-        uninterrupted run. No pickle: arrays plus a JSON string.
+        uninterrupted run. No pickle: arrays plus a JSON string. As :func:`numpy.savez`,
+        ``.npz`` is added to a name without it (``save("run")`` writes ``run.npz``, which
+        ``load("run")`` reads); the file is written whole, then renamed into place, so a
+        crash never leaves half a file under its name (:func:`whisker_io.persistence.write_npz`).
         """
         arrays: dict[str, Any] = {
             "loop_format": np.int64(_LOOP_FORMAT),
@@ -364,7 +367,7 @@ class SlamLoop:
         arrays.update(self.experience_map.to_arrays(prefix="em_"))
         arrays.update(self.frontend.to_arrays(prefix="vt_"))
         arrays.update(self.extra_arrays())
-        np.savez(path, **arrays)
+        write_npz(npz_path(path), arrays)
 
     def extra_arrays(self) -> dict[str, np.ndarray]:
         """Model-specific state for :meth:`save` (none here); :meth:`restore_extra` reads it back."""
@@ -393,6 +396,10 @@ class SlamLoop:
                 raise CorruptFileError("missing", field=key)
             return np.asarray(arrays[key])
 
+        if "model" not in arrays and "format" in arrays and "link_ends" in arrays:
+            raise CorruptFileError(f"this file holds an experience map (ExperienceMap.save, or the experience_map.npz "
+                                   f"of cansim replay), not a whole {cls.__name__} model: read it with "
+                                   "maps.experience_map.ExperienceMap.load")
         try:
             model = cls.from_description(json.loads(str(need("model"))))
         except (json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
