@@ -196,3 +196,23 @@ def test_a_bad_image_shape_is_a_typed_error(shape):
     with pytest.raises(InvalidInputError):
         VisualTemplates(image_shape=shape)
     assert VisualTemplates(image_shape=(60.0, 80)).image_shape == (60, 80)  # an integral float is a count
+
+
+def test_image_errors_name_the_fault():
+    """An RGB frame after grey ones was "differs from the expected ... resize or crop it"; a view id given to the
+    visual front end was "got dtype int64"; RGBA had no hint (a user's pass, session 47)."""
+    vt = VisualTemplates(VisualTemplateConfig(template_width_blocks=4, template_height_blocks=2, shift_match_blocks=0))
+    grey = np.zeros((8, 16), dtype=np.uint8)
+    vt.match(grey)
+    with pytest.raises(ShapeError, match=r"other channels than the first image's \(8, 16\) \(3 channels against grey"):
+        vt.match(np.zeros((8, 16, 3), dtype=np.uint8))
+    with pytest.raises(ShapeError, match="resize or crop"):  # another size is still a size
+        vt.match(np.zeros((8, 12), dtype=np.uint8))
+    with pytest.raises(InvalidInputError, match="a view id\\? .*frontend='ids'"):
+        vt.match(np.int64(3))
+    with pytest.raises(InvalidInputError) as exc:
+        vt.match(np.zeros((8, 16), dtype=np.float32))  # an image of the wrong dtype is not called a view id
+    assert "view id" not in str(exc.value)
+    fresh = VisualTemplates(VisualTemplateConfig(template_width_blocks=4, template_height_blocks=2, shift_match_blocks=0))
+    with pytest.raises(ShapeError, match=r"image\[\.\.\., :3\]"):
+        fresh.match(np.zeros((8, 16, 4), dtype=np.uint8))

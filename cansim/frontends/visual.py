@@ -41,6 +41,11 @@ from whisker_io.validation import ConfigDataclass, checked, validate_fields, who
 __all__ = ["VisualTemplateConfig", "VisualTemplates"]
 
 
+def _channels(shape: tuple[int, ...]) -> str:
+    """How an image of ``shape`` holds its colour, for messages: grey (H, W) or its channel count."""
+    return "grey (H, W)" if len(shape) == 2 else f"{shape[-1]} channels"
+
+
 @dataclass(frozen=True)
 class VisualTemplateConfig(ConfigDataclass):
     """Parameters of :class:`VisualTemplates` (OpenRatSLAM's ``LocalViewMatch``).
@@ -167,7 +172,8 @@ class VisualTemplates:
 
     def _check_geometry(self, shape: tuple[int, ...]) -> None:
         if len(shape) not in (2, 3) or (len(shape) == 3 and shape[2] != 3):
-            raise ShapeError(f"image must have shape (H, W) (grey) or (H, W, 3) (RGB), got {shape}")
+            hint = "; drop the alpha channel: image[..., :3]" if len(shape) == 3 and shape[2] == 4 else ""
+            raise ShapeError(f"image must have shape (H, W) (grey) or (H, W, 3) (RGB), got {shape}{hint}")
         x0, x1, y0, y1 = self._crop(shape)
         c = self.config
         if not (0 <= x0 < x1 <= shape[1] and 0 <= y0 < y1 <= shape[0]):
@@ -188,11 +194,18 @@ class VisualTemplates:
         """
         img = np.asarray(image)
         if img.dtype != np.uint8:
-            raise InvalidInputError(f"image must be uint8 (0-255) like OpenRatSLAM's input, got dtype {img.dtype}")
+            given = (" (a single number: a view id? the visual front end takes camera images; a front end of view "
+                     "ids is frontend='ids')" if img.ndim == 0 else "")
+            raise InvalidInputError(f"image must be a uint8 array (0-255) like OpenRatSLAM's input, got dtype "
+                                    f"{img.dtype}{given}")
         shape = tuple(img.shape)
         if self.image_shape is None:
             self._check_geometry(shape)
         elif shape != self.image_shape:
+            if shape[:2] == self.image_shape[:2]:  # the same size, other channels: grey (H, W) against RGB (H, W, 3)
+                raise ShapeError(f"image shape {shape} has other channels than the first image's {self.image_shape} "
+                                 f"({_channels(shape)} against {_channels(self.image_shape)}); give every image as grey "
+                                 "or every image as RGB")
             raise ShapeError(f"image shape {shape} differs from the expected {self.image_shape}; resize or crop it first")
         c = self.config
         x0, x1, y0, y1 = self._crop(shape)

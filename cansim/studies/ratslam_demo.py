@@ -58,7 +58,7 @@ def evaluate(run: SyntheticRun, seed_label: str) -> tuple[dict, RatSLAM, np.ndar
 
 def main(argv: list[str] | None = None) -> int:
     parser = CommandParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the route's odometry noise and landmarks (default 0)")
     parser.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
     args = parser.parse_args(argv)
     if args.seed < 0:  # numpy's default_rng raised ValueError (a traceback, exit 1)
