@@ -282,3 +282,40 @@ def test_a_saved_model_with_non_finite_view_state_is_refused(tmp_path, field, va
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(CorruptFileError, match=field):
         RatSLAM.load(tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_the_first_experience_resets_dead_reckoning_unless_kept_as_the_cpp_does(keep):
+    """Ten steps of 0.3 m north, a new view each: the robot is at 0.3 (k + 1) m after step k. OpenRatSLAM counts the
+    motion before experience 0 twice (``keep_first_accumulator``, the default), so experience k >= 1 lies one step on."""
+    slam = RatSLAM(RatSLAMConfig(frontend="ids", cell_size_m=1.0, keep_first_accumulator=keep))
+    for k in range(10):
+        slam.step(0.3, 0.0, 1.0, k)
+    em = slam.experience_map
+    expected = [0.3] + [0.3 * (k + 1 + keep) for k in range(1, 10)]  # initial heading 90 deg: along +y
+    np.testing.assert_allclose(em.poses[:em.n_experiences, 1], expected, atol=1e-12)
+    np.testing.assert_allclose(em.poses[:em.n_experiences, 0], 0.0, atol=1e-12)
+    assert RatSLAMConfig.openratslam().keep_first_accumulator  # the parity preset keeps the C++'s rule
+
+
+def test_implausible_odometry_is_warned_once_each_and_still_runs():
+    """A yaw rate in deg/s (45 "rad/s" x 0.5 s) and a 40-cell step were taken silently (a user's pass, session 47)."""
+    slam = RatSLAM(RatSLAMConfig(frontend="ids", cell_size_m=0.25))
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        slam.step(0.2, 0.5, 0.5, 0)  # plausible: no warning
+        assert record == []
+        slam.step(0.2, 45.0, 0.5, 1)
+        slam.step(0.2, -45.0, 0.5, 1)  # the same fault again: warned once
+        slam.step(10.0, 0.0, 1.0, 2)
+        slam.step(10.0, 0.0, 1.0, 3)
+    texts = [str(w.message) for w in record]
+    assert len(texts) == 2 and all(w.filename == __file__ for w in record)  # pointing at the caller's step
+    assert "vrot*dt = 22.5 rad turns more than half a circle" in texts[0] and "deg/s" in texts[0]
+    assert "vtrans*dt = 10 m moves the packet 40 cells" in texts[1] and "strict_translation" in texts[1]
+    assert slam.iteration == 5  # warned, not refused
+    strict = RatSLAM(RatSLAMConfig.openratslam(frontend="ids", cell_size_m=0.25))
+    with pytest.warns(UserWarning, match="half a circle"):  # the parity preset refuses a long step, warns of a turn
+        strict.step(0.2, 45.0, 0.5, 0)
+    with pytest.raises(InvalidInputError, match="40 cells"):
+        strict.step(10.0, 0.0, 1.0, 0)

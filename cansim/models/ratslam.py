@@ -39,6 +39,8 @@ to ~1e-15 cells per step until a truncated coordinate falls the other way.
 
 from __future__ import annotations
 
+import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -108,18 +110,44 @@ class RatSLAM(SlamLoop):
             frontend,
             ExperienceMap(cfg.map_config(), cfg.map_geometry()),
             PlanarOdometry,
-            check_odometry=self._check_strict if cfg.strict_translation else None,
+            check_odometry=self._check_strict if cfg.strict_translation else self._check_plausible,
         )
         self._warm = False  # warm_up() has run (the first step or run runs it)
+        self._one_cell_m = cfg.cell_size_m * (1 + 1e-12)
+        self._warned: set[str] = set()  # the implausible-odometry warnings given (once each per model)
 
     def _check_strict(self, odo: PlanarOdometry) -> None:
         step_m = abs(odo.v * odo.dt)
-        if step_m > self.config.cell_size_m * (1 + 1e-12):
+        if step_m > self._one_cell_m:
             raise InvalidInputError(
                 f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
                 "OpenRatSLAM's path integration is valid for at most one cell per step - "
                 "raise cell_size_m or split the step"
             )
+        if abs(odo.omega * odo.dt) > math.pi:
+            self._warn_implausible(odo)
+
+    def _check_plausible(self, odo: PlanarOdometry) -> None:
+        """Warn (once each) of a step that moves the packet more than a cell or turns more than half a circle."""
+        if abs(odo.v * odo.dt) > self._one_cell_m or abs(odo.omega * odo.dt) > math.pi:
+            self._warn_implausible(odo)
+
+    def _warn_implausible(self, odo: PlanarOdometry) -> None:
+        turn_rad, move_m = odo.omega * odo.dt, abs(odo.v * odo.dt)
+        if abs(turn_rad) > math.pi and "turn" not in self._warned:
+            self._warned.add("turn")
+            warnings.warn(f"iteration {self.iteration}: vrot*dt = {turn_rad:g} rad turns more than half a circle in one "
+                          "step (the pose cells cannot tell the way it turned); vrot is in rad/s - a yaw rate in deg/s? "
+                          "(this warning is given once)", UserWarning, stacklevel=6)
+        if move_m > self._one_cell_m and "move" not in self._warned:
+            self._warned.add("move")
+            cells = move_m / self.config.cell_size_m
+            grid_m = self.config.xy_cells * self.config.cell_size_m
+            warnings.warn(f"iteration {self.iteration}: vtrans*dt = {move_m:g} m moves the packet {cells:.3g} cells in one "
+                          f"step; path integration beyond one cell a step is approximate, and {grid_m / 2:g} m (half "
+                          "the grid) or more wraps round to another place - check the units (m/s, s), raise "
+                          "cell_size_m or split the step (strict_translation=True refuses such steps; this warning "
+                          "is given once)", UserWarning, stacklevel=6)
 
     def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> SlamState:  # type: ignore[override]
         """Run one RatSLAM iteration: the view (if an observation is given), then the odometry.

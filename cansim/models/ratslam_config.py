@@ -115,7 +115,8 @@ class RatSLAMConfig(SlamConfig):
     backend : str
         CAN backend name (numba by default).
     strict_translation : bool
-        Raise when a step moves the packet more than one cell.
+        Raise when a step moves the packet more than one cell (False: warn once, with
+        a turn of more than half a circle in one step - a yaw rate in deg/s?).
     pose_cells : {"population", "openratslam", "spiking"}
         The pose-cell engine: cansim's :class:`~cansim.population.Population` (any
         backend and dtype), :class:`~cansim.models.posecell_network.PosecellNetwork` (the
@@ -123,6 +124,13 @@ class RatSLAMConfig(SlamConfig):
         :class:`~cansim.models.spiking_pose_cells.SpikingPoseCells` (a spiking HD ring x
         place sheet, its default :class:`~cansim.models.spiking_pose_cells.SpikingPoseCellParams`;
         ``backend`` and ``dtype`` do not apply).
+    keep_first_accumulator : bool
+        OpenRatSLAM does not reset its dead reckoning when it creates the very first
+        experience, so the motion before experience 0 is counted again in the link to
+        experience 1 and every later experience is placed that much further on (ten
+        steps of 0.3 m with a new view each: experiences at 0.3, 0.9, 1.2, ... m).
+        True (default, as the C++) keeps that; False resets it, as every later creation
+        does (the object map's rule, thesis Alg 6) [:class:`maps.experience_map.MapConfig`].
 
     Raises
     ------
@@ -145,6 +153,7 @@ class RatSLAMConfig(SlamConfig):
     frame: str = checked("standard", str, choices=("standard", "openratslam"))
     strict_translation: bool = checked(False, bool)
     pose_cells: str = checked("population", str, choices=("population", "openratslam", "spiking"))
+    keep_first_accumulator: bool = checked(True, bool)
 
     @classmethod
     def check_names(cls, names: Any) -> None:
@@ -276,7 +285,8 @@ class RatSLAMConfig(SlamConfig):
         return MapConfig(
             correction=self.correction, relax_passes=self.relax_passes, match_distance_cells=self.match_distance_cells,
             pc_shape=(self.xy_cells, self.xy_cells, self.heading_cells), offset_axes=(2,), relax_budget=self.relax_budget,
-            link_time_since_start=self.link_time_since_start, link_update=self.link_update,
+            link_time_since_start=self.link_time_since_start, keep_first_accumulator=self.keep_first_accumulator,
+            link_update=self.link_update,
         )
 
     def map_geometry(self) -> SE2Geometry:
