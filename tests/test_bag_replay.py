@@ -71,10 +71,10 @@ def _speeds(run, k):
     return run.vtrans[k] * run.dt / dt, run.vrot[k] * run.dt / dt
 
 
-def direct(run, images):
+def direct(run, images, config=None):
     """The documented pairing fed by hand: image k is a view, odometry k an odometry update, except
     that odometry message 0 only starts the clock (dt of message k = its stamp - message k-1's)."""
-    slam = RatSLAM(_config())
+    slam = RatSLAM(config or _config())
     slam.on_view(images[0])
     for k in range(1, len(run)):
         slam.on_view(images[k])
@@ -390,3 +390,21 @@ def test_a_config_files_unused_keys_are_one_warning_and_replay_does_not_call_top
 def _write(path, text):
     path.write_text(text)
     return path
+
+
+def test_replay_openratslam_reads_the_file_into_the_cpp_preset(synthetic, config_file, tmp_path):
+    """``cansim replay --openratslam``: the file's values in RatSLAMConfig.openratslam (the C++ core bit for bit);
+    a config file alone gave the generic engine, with nothing saying so (a user's pass, session 47)."""
+    run, images = synthetic
+    bag = tmp_path / "run.bag"
+    write_ros1(bag, _messages(run, images, False, True, get_typestore(Stores.ROS1_NOETIC)))
+    wide = _write(config_file, CFG_TEXT.replace("pc_cell_x_size = 0.1", "pc_cell_x_size = 0.2"))  # <= a cell a step
+    with pytest.warns(UserWarning):  # the file's [draw] key
+        result = replay(bag, wide, openratslam=True)
+    assert result.slam.config.pose_cells == "openratslam" and result.slam.config.cell_size_m == 0.2
+    want_cfg = RatSLAMConfig.openratslam(cell_size_m=0.2, frontend=_config().frontend)
+    assert_same_map(result.slam, direct(run, images, want_cfg))
+    with pytest.warns(UserWarning):
+        assert replay(bag, config_file).slam.config.pose_cells == "population"  # the default, as documented
+    with pytest.raises(ConfigError, match="applies to a config file"):
+        replay(bag, _config(), openratslam=True)

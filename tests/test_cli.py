@@ -289,7 +289,9 @@ def test_replay_command_writes_map_trajectory_and_figure(tmp_path, capsys):
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert "30 odometry messages (/irat_red/odom), 30 images" in captured.out
-    assert "cansim replay: warning: OpenRatSLAM config key 'enable'" in captured.err  # warnings in one line
+    warned = [ln for ln in captured.err.splitlines() if ln.strip()]
+    assert warned == ["cansim replay: warning: 1 OpenRatSLAM config key not used by cansim's RatSLAM model (ROS topics, "
+                      "drawing, visual odometry...), ignored: [draw] 'enable' (line 13)"]  # one line; topic_root is read
     rows = (tmp_path / "o" / "trajectory.csv").read_text().splitlines()
     assert rows[0] == "time_s,x_m,y_m,th_rad,exp_id" and len(rows) == 30
     assert (tmp_path / "o" / "experience_map.npz").exists() and (tmp_path / "o" / "experience_map.png").exists()

@@ -304,6 +304,7 @@ def test_implausible_odometry_is_warned_once_each_and_still_runs():
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         slam.step(0.2, 0.5, 0.5, 0)  # plausible: no warning
+        slam.step(1.3, 0.0, 1.0, 0)  # 5.2 cells, just under a quarter of the grid (5.25 cells): no warning either
         assert record == []
         slam.step(0.2, 45.0, 0.5, 1)
         slam.step(0.2, -45.0, 0.5, 1)  # the same fault again: warned once
@@ -312,8 +313,8 @@ def test_implausible_odometry_is_warned_once_each_and_still_runs():
     texts = [str(w.message) for w in record]
     assert len(texts) == 2 and all(w.filename == __file__ for w in record)  # pointing at the caller's step
     assert "vrot*dt = 22.5 rad turns more than half a circle" in texts[0] and "deg/s" in texts[0]
-    assert "vtrans*dt = 10 m moves the packet 40 cells" in texts[1] and "strict_translation" in texts[1]
-    assert slam.iteration == 5  # warned, not refused
+    assert "vtrans*dt = 10 m moves the packet 40 cells in one step, a quarter of the 21-cell grid" in texts[1]
+    assert slam.iteration == 6  # warned, not refused
     strict = RatSLAM(RatSLAMConfig.openratslam(frontend="ids", cell_size_m=0.25))
     with pytest.warns(UserWarning, match="half a circle"):  # the parity preset refuses a long step, warns of a turn
         strict.step(0.2, 45.0, 0.5, 0)

@@ -114,6 +114,7 @@ class RatSLAM(SlamLoop):
         )
         self._warm = False  # warm_up() has run (the first step or run runs it)
         self._one_cell_m = cfg.cell_size_m * (1 + 1e-12)
+        self._quarter_grid_m = cfg.xy_cells * cfg.cell_size_m / 4  # a step this long is no robot's: units?
         self._warned: set[str] = set()  # the implausible-odometry warnings given (once each per model)
 
     def _check_strict(self, odo: PlanarOdometry) -> None:
@@ -128,8 +129,8 @@ class RatSLAM(SlamLoop):
             self._warn_implausible(odo)
 
     def _check_plausible(self, odo: PlanarOdometry) -> None:
-        """Warn (once each) of a step that moves the packet more than a cell or turns more than half a circle."""
-        if abs(odo.v * odo.dt) > self._one_cell_m or abs(odo.omega * odo.dt) > math.pi:
+        """Warn (once each) of a step that moves the packet a quarter of the grid or turns more than half a circle."""
+        if abs(odo.v * odo.dt) >= self._quarter_grid_m or abs(odo.omega * odo.dt) > math.pi:
             self._warn_implausible(odo)
 
     def _warn_implausible(self, odo: PlanarOdometry) -> None:
@@ -139,15 +140,14 @@ class RatSLAM(SlamLoop):
             warnings.warn(f"iteration {self.iteration}: vrot*dt = {turn_rad:g} rad turns more than half a circle in one "
                           "step (the pose cells cannot tell the way it turned); vrot is in rad/s - a yaw rate in deg/s? "
                           "(this warning is given once)", UserWarning, stacklevel=6)
-        if move_m > self._one_cell_m and "move" not in self._warned:
+        if move_m >= self._quarter_grid_m and "move" not in self._warned:
             self._warned.add("move")
             cells = move_m / self.config.cell_size_m
             grid_m = self.config.xy_cells * self.config.cell_size_m
             warnings.warn(f"iteration {self.iteration}: vtrans*dt = {move_m:g} m moves the packet {cells:.3g} cells in one "
-                          f"step; path integration beyond one cell a step is approximate, and {grid_m / 2:g} m (half "
-                          "the grid) or more wraps round to another place - check the units (m/s, s), raise "
-                          "cell_size_m or split the step (strict_translation=True refuses such steps; this warning "
-                          "is given once)", UserWarning, stacklevel=6)
+                          f"step, a quarter of the {self.config.xy_cells}-cell grid or more ({grid_m / 2:g} m, half the "
+                          "grid, wraps round to another place) - check the units (m/s, s), raise cell_size_m or split "
+                          "the step (this warning is given once)", UserWarning, stacklevel=6)
 
     def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> SlamState:  # type: ignore[override]
         """Run one RatSLAM iteration: the view (if an observation is given), then the odometry.

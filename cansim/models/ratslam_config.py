@@ -115,8 +115,9 @@ class RatSLAMConfig(SlamConfig):
     backend : str
         CAN backend name (numba by default).
     strict_translation : bool
-        Raise when a step moves the packet more than one cell (False: warn once, with
-        a turn of more than half a circle in one step - a yaw rate in deg/s?).
+        Raise when a step moves the packet more than one cell (False: warn once of a step
+        of a quarter of the grid or more - wrong units? - and, either way, of a turn of more
+        than half a circle in one step - a yaw rate in deg/s?).
     pose_cells : {"population", "openratslam", "spiking"}
         The pose-cell engine: cansim's :class:`~cansim.population.Population` (any
         backend and dtype), :class:`~cansim.models.posecell_network.PosecellNetwork` (the

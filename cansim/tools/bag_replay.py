@@ -233,9 +233,20 @@ class ReplayResult:
         return np.column_stack([self.time_s[keep], poses[:, :3], ids.astype(np.float64)])
 
 
-def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None) -> tuple[RatSLAMConfig, str]:
+def _openratslam_fields() -> dict[str, Any]:
+    """The fields :meth:`RatSLAMConfig.openratslam` sets otherwise than the defaults (engine, frame, dtype, ...)."""
+    preset, base = RatSLAMConfig.openratslam(), RatSLAMConfig()
+    return {name: getattr(preset, name) for name in preset.to_dict() if getattr(preset, name) != getattr(base, name)}
+
+
+def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None,
+                 openratslam: bool = False) -> tuple[RatSLAMConfig, str]:
+    if openratslam and isinstance(config, RatSLAMConfig):
+        raise ConfigError("openratslam=True applies to a config file (or none); a RatSLAMConfig is used as given - "
+                          "build it with RatSLAMConfig.openratslam(...)")
+    preset = _openratslam_fields() if openratslam else {}
     if config is None:
-        return RatSLAMConfig(frontend=VisualTemplateConfig()), ""
+        return RatSLAMConfig(frontend=VisualTemplateConfig(), **preset), ""
     if isinstance(config, RatSLAMConfig):
         if not isinstance(config.frontend, VisualTemplateConfig):
             raise ConfigError(
@@ -255,7 +266,7 @@ def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None) -> tuple
     model_text = "\n".join("#" if ln.split("=", 1)[0].strip() in REPLAY_KEYS and "=" in ln else ln
                             for ln in text.splitlines())
     try:
-        cfg = RatSLAMConfig.from_text(model_text)  # an OpenRatSLAM file's front end is visual
+        cfg = RatSLAMConfig.from_text(model_text, **preset)  # an OpenRatSLAM file's front end is visual
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     return cfg, root
@@ -348,6 +359,7 @@ def replay(
     image_topic: str | None = None,
     stamps: str = "header",
     progress: bool = False,
+    openratslam: bool = False,
 ) -> ReplayResult:
     """Run RatSLAM over a bag's odometry and camera images (pairing in the module docstring).
 
@@ -366,6 +378,11 @@ def replay(
         Time the odometry by its header stamps (OpenRatSLAM) or by the record times.
     progress : bool
         Show a tqdm bar (stderr).
+    openratslam : bool
+        Read the config file (or none) into :meth:`RatSLAMConfig.openratslam`'s preset: the
+        C++ core's pose cells bit for bit, its frame, float64, unbounded relaxation, its link
+        timer and at most one cell a step (``cansim replay --openratslam``). Default: the
+        defaults of :class:`RatSLAMConfig` (the generic pose-cell engine, any backend).
 
     Returns
     -------
@@ -383,7 +400,7 @@ def replay(
     """
     if stamps not in ("header", "log"):
         raise InvalidInputError(f"stamps must be 'header' or 'log', got {stamps!r}")
-    cfg, root = _load_config(config)
+    cfg, root = _load_config(config, openratslam)
     paths = _bag_paths(bag)
     Stores, get_typestore = _need_rosbags()
     from rosbags.highlevel import AnyReader

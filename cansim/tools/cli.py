@@ -172,6 +172,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else Path.cwd() / f"{bag.stem or bag.name}_replay"
     result = replay(
         bag, args.config, odometry_topic=args.odom_topic, image_topic=args.image_topic, stamps=args.stamps,
+        openratslam=args.openratslam,
         progress=not args.no_progress,
     )
     files = write_outputs(result, out, title=f"Experience map - {bag.name}")
@@ -301,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--image-topic", default=None, help="image topic (default <topic_root>/camera/image[/compressed])")
     p.add_argument("--stamps", choices=("header", "log"), default="header",
                    help="time odometry by header stamps (OpenRatSLAM, default) or by the bag's record times")
+    p.add_argument("--openratslam", action="store_true",
+                   help="the OpenRatSLAM preset: the C++ core's pose cells bit for bit (RatSLAMConfig.openratslam); "
+                        "default: cansim's generic pose-cell engine with the config file's values")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_replay)
 
