@@ -5,7 +5,8 @@ from __future__ import annotations
 import copy
 import logging
 import math
-from typing import Optional, Sequence, Union
+import os
+from typing import BinaryIO, Optional, Sequence, Union
 
 import numpy as np
 
@@ -610,6 +611,122 @@ class Population:
             return res.decoded, res.history
         return res.decoded
 
+    # ----------------------------------------------------------- save / load
+    def _description(self) -> dict:
+        """The population's construction (axes, parameters, dtype, backend, motion model, decode window), as JSON."""
+        from dataclasses import asdict
+
+        return {"axes": [{"name": a.name, "size": a.size, "step": a.step, "angular": a.angular} for a in self._axes],
+                "params": asdict(self._params), "dtype": self._dtype.name, "backend": self.backend,
+                "motion": _motion_description(self._motion), "decode_window": self._window}
+
+    def save(self, path: "str | os.PathLike[str] | BinaryIO") -> None:
+        """Write the population - grid, kernels, dtype, backend, motion model, decode window and its
+        activity - to an ``.npz`` file (no pickle); :meth:`load` gives one that continues exactly as this
+        one would. A file name is written to a temporary name beside it and renamed (a crash never
+        leaves half a file); an open binary file is written as is.
+
+        Raises
+        ------
+        InvalidInputError
+            A motion model of your own (not :class:`UniformMotion`, :class:`PlanarMotion` or
+            :class:`SixDofMotion`): it cannot be written without pickle - pickle the population
+            (``pickle.dump``), which keeps any picklable motion model.
+        """
+        import json
+
+        from whisker_io.persistence import write_npz
+
+        arrays = {"population_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(self._description())),
+                  "activity": self._a}
+        if self._last_decoded is not None:
+            arrays["decoded"] = self._last_decoded
+        write_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: "str | os.PathLike[str] | BinaryIO") -> "Population":
+        """Read a population written by :meth:`save`, in the state it was saved in.
+
+        Raises
+        ------
+        CorruptFileError
+            The file is unreadable, of another format version, or a field is missing or malformed
+            (named in the error).
+        """
+        import json
+
+        from cansim.errors import CansimError, CorruptFileError
+        from whisker_io.persistence import read_npz
+
+        arrays = read_npz(path)
+        fmt = arrays.get("population_format")
+        if fmt is None or fmt.shape != () or fmt.dtype.kind not in "iu" or int(fmt) != _SAVE_FORMAT:
+            hint = (" (a spiking population: SpikingPopulation.load)" if "spiking_format" in arrays
+                    else " (a whole model: RatSLAM.load / WhiskerRatSLAM.load)" if "model" in arrays else "")
+            raise CorruptFileError(f"expected population format {_SAVE_FORMAT}, got "
+                                   f"{None if fmt is None else fmt.tolist()!r}{hint}", field="population_format")
+        try:
+            d = json.loads(str(arrays["population"]))
+            population = cls([Axis(a["name"], a["size"], a["step"], a["angular"]) for a in d["axes"]],
+                             AttractorParams(**d["params"]), dtype=np.dtype(d["dtype"]), backend=d["backend"],
+                             motion=_motion_from_description(d["motion"]), decode_window=d["decode_window"])
+        except (KeyError, TypeError, ValueError, AttributeError, CansimError) as exc:
+            raise CorruptFileError(f"not a population description ({exc})", field="population") from exc
+        if "activity" not in arrays:
+            raise CorruptFileError("missing", field="activity")
+        try:
+            population.activity = arrays["activity"]
+        except CansimError as exc:
+            raise CorruptFileError(str(exc), field="activity") from exc
+        if population._a.dtype != arrays["activity"].dtype:
+            raise CorruptFileError(f"dtype {arrays['activity'].dtype}, expected {population._a.dtype}", field="activity")
+        if "decoded" in arrays:
+            decoded = np.asarray(arrays["decoded"])
+            if decoded.shape != (population.ndim,) or not np.all(np.isfinite(decoded)):
+                raise CorruptFileError(f"expected {population.ndim} finite numbers", field="decoded")
+            population._last_decoded = decoded.copy()
+        return population
+
+    def __getstate__(self) -> dict:
+        """What pickle and :func:`copy.deepcopy` keep: the construction and the state (not the bound kernels)."""
+        return {"axes": self._axes, "params": self._params, "dtype": self._dtype.name, "backend": self.backend,
+                "motion": self._motion, "decode_window": self._window, "activity": self._a.copy(),
+                "decoded": None if self._last_decoded is None else self._last_decoded.copy()}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["axes"], state["params"], dtype=np.dtype(state["dtype"]), backend=state["backend"],
+                      motion=state["motion"], decode_window=state["decode_window"])
+        self.activity = state["activity"]
+        self._last_decoded = state["decoded"]
+
     def __repr__(self) -> str:
         ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
+
+
+#: Version of :meth:`Population.save`'s file format.
+_SAVE_FORMAT = 1
+
+
+def _motion_description(motion: MotionModel) -> dict:
+    """A built-in motion model as JSON; another is refused (module of :meth:`Population.save`)."""
+    if type(motion) is UniformMotion:
+        return {"kind": "uniform"}
+    if type(motion) is PlanarMotion:
+        return {"kind": "planar", "frame": motion.frame}
+    if type(motion) is SixDofMotion:
+        return {"kind": "sixdof"}
+    raise InvalidInputError(f"a population with the motion model {type(motion).__name__} cannot be saved to a file "
+                            "without pickle (only UniformMotion, PlanarMotion and SixDofMotion); pickle the "
+                            "population instead (pickle.dump keeps any picklable motion model)")
+
+
+def _motion_from_description(d: dict) -> MotionModel:
+    kind = d["kind"]
+    if kind == "uniform":
+        return UniformMotion()
+    if kind == "planar":
+        return PlanarMotion(d["frame"])
+    if kind == "sixdof":
+        return SixDofMotion()
+    raise ValueError(f"unknown motion model {kind!r}")
