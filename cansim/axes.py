@@ -42,6 +42,12 @@ class Axis(ConfigDataclass):
 
     def __post_init__(self) -> None:
         validate_fields(self)  # size: an int the decoders can use as a float (2 pi / size)
+        if self.angular and not math.isclose(self.size * self.step, 2.0 * math.pi, rel_tol=1e-9):
+            raise InvalidInputError(
+                f"axis {self.name!r}: an angular axis covers a whole turn, so its step must be 2*pi/size = "
+                f"{2.0 * math.pi / self.size:.6g} rad, got {self.step!r} ({self.size} x {self.step!r} = "
+                f"{self.size * self.step:.6g} rad); use Axis.angle({self.name!r}, {self.size}), or angular=False "
+                "for an axis that is not an angle")
 
     @classmethod
     def linear(cls, name: str, size: int, step: float) -> "Axis":

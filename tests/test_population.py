@@ -553,3 +553,17 @@ def test_a_warm_up_between_steps_leaves_the_regions_true():
             pop.step(1.0, 0.2, 1.0)
     assert np.any(tracked._regions[0, 1] < tracked.shape)
     np.testing.assert_array_equal(tracked.activity, plain.activity)
+
+
+@settings(max_examples=60, deadline=None)
+@given(size=st.integers(1, 720), factor=st.floats(0.01, 100.0))
+def test_an_angular_axis_covers_a_whole_turn(size, factor):
+    """``Axis("th", 36, 0.1, angular=True)`` was accepted, and 5 rad of rotation then decoded as 80 deg, not 286
+    (a user's pass, session 47): an angular axis's step is 2 pi / size."""
+    turn = Axis("th", size, 2 * math.pi / size, angular=True)
+    assert turn == Axis.angle("th", size) and turn.period == pytest.approx(2 * math.pi)
+    step = 2 * math.pi / size * factor
+    if abs(factor - 1.0) > 1e-6:
+        with pytest.raises(InvalidInputError, match=r"angular axis covers a whole turn.*Axis\.angle\('th', "):
+            Axis("th", size, step, angular=True)
+    assert Axis("th", size, step).period == pytest.approx(size * step)  # a linear axis takes any step
