@@ -37,7 +37,10 @@ command saturates there). The inversion is outside the graph, so every consumer 
 same commands.
 
 The graph's input is ``N + 1`` values: an external current per ring cell (threshold
-units) followed by the angular velocity (rad/s); its output is the ring's spikes. All
+units) followed by the angular-velocity command (rad/s only on the ring it was
+calibrated for: the bump's speed in cells per second, not in rad/s, follows the command,
+so the same command turns a ring of half the cells twice as fast in rad/s; give
+:meth:`TurningCalibration.command` of the wanted rate); its output is the ring's spikes. All
 weights here are in cansim's units (a current jump per spike, threshold units); the graph
 holds them converted as :mod:`cansim.spiking.nir_io` describes. Both populations are one
 CubaLIF node ``cells`` of ``3 N`` cells (ring, then the two rotation halves)::
@@ -123,7 +126,12 @@ class RotationRingParams(ConfigDataclass):
     ring_to_rotation_weight : float
         Current jump of a rotation cell per spike of its ring cell, >= 0.
     velocity_gain : float
-        Current of the rotation cells per rad/s of angular velocity, >= 0.
+        Current of the rotation cells per unit of the graph's angular-velocity input, >= 0.
+        The input is named rad/s, but the bump moves a number of *cells* per second for a
+        given input, whatever the ring's size: an input of 2 turned a 60-cell ring at 4.27 rad/s,
+        120 cells at 2.13 and 360 cells at 0.71 (a user's check, session 47). Hand the graph
+        :meth:`TurningCalibration.command` of the rate wanted (:func:`calibrate_turning` on
+        this ring), not the rate itself.
     rotation_to_ring_weight : float
         Peak scale of the shifted excitation from rotation cells to the ring, >= 0.
     shift_cells : int
