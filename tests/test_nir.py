@@ -222,3 +222,20 @@ def test_import_rejects_bad_neuron_values_with_config_error(field, bad):
         return
     with pytest.raises(ConfigError):
         from_nir(g)
+
+
+def test_export_warns_of_what_the_consumers_will_run_otherwise():
+    """A 2-ms refractory period was dropped silently (the exported ring fired ~30 times faster in snnTorch and Norse),
+    and dt_s=1e-3 was taken and then refused by snnTorch with a bare AssertionError (a user's pass, session 47)."""
+    import warnings
+
+    default = SpikingPopulation((Axis.angle("h", 12),), SpikingParams())
+    assert default.params.neurons.refractory_s == pytest.approx(2e-3)
+    with pytest.warns(UserWarning, match=r"drops this population's 2 ms.*at most 500 Hz.*refractory_s=0\.0001"):
+        to_nir(default)
+    one_step = SpikingPopulation((Axis.angle("h", 12),), SpikingParams(neurons=NeuronParams(refractory_s=1e-4)), dt_s=1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing to warn of: one step's hold, the consumers' step
+        to_nir(one_step)
+    with pytest.warns(UserWarning, match="snnTorch runs every graph at 0.0001 s"):
+        to_nir(one_step, dt_s=5e-5)

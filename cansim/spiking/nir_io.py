@@ -65,8 +65,10 @@ weights were written for.
 
 What the graph cannot carry is kept in ``graph.metadata["cansim"]``: the axes, the kernel
 parameters, the refractory period and membrane noise (the consumers' CubaLIF has
-neither: with a step of 0.1 ms and rates of a few hundred Hz, a one-step refractory hold
-changes a rate by under 5 %), the velocity lead table of the kernel-shift path
+neither: a refractory period of one step, 0.1 ms, changes a rate of a few hundred Hz by
+under 5 %; a longer one is dropped with a warning - a 2-ms period held the bump's cells
+under 500 Hz in cansim, and without it they fired every step, a mean rate about 30 times
+cansim's, though the bump's place and width held), the velocity lead table of the kernel-shift path
 integration (a multiplicative gating with no NIR form; see
 :mod:`cansim.spiking.rotation_ring` for path integration by neurons and synapses that
 NIR carries), cansim's own step ``dt_s`` and the seed. :func:`from_nir` rebuilds the
@@ -83,6 +85,7 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from typing import Any, Optional
 
 import numpy as np
@@ -250,6 +253,16 @@ def to_nir(population: SpikingPopulation, *, dt_s: float = NIR_STEP_S, max_dense
             f"(NIR has no periodic convolution). Raise max_dense_cells to export anyway"
         )
     dt = _check_step(dt_s, nrn)
+    if nrn.refractory_s > dt * (1 + 1e-9):
+        warnings.warn(
+            f"to_nir: NIR's CubaLIF has no refractory period, so the graph drops this population's "
+            f"{nrn.refractory_s * 1e3:g} ms: in snnTorch, Norse or Rockpool its cells can fire every step "
+            f"({1 / dt:g} Hz) where cansim's fire at most {1 / nrn.refractory_s:g} Hz, and a bump's cells fire "
+            "many times faster (the bump's place and width hold; from_nir restores the period from the metadata). "
+            f"For the same rates export NeuronParams(refractory_s={dt:g}) or less", UserWarning, stacklevel=2)
+    if dt != NIR_STEP_S:
+        warnings.warn(f"to_nir: dt_s = {dt:g} s; snnTorch runs every graph at {NIR_STEP_S} s and refuses this one "
+                      "(Norse and Rockpool take the step given)", UserWarning, stacklevel=2)
     ce, m = factored_recurrent(p, population.shape)
     target = population.kernel.dense_matrix(p.global_weight)
     scale = max(float(np.abs(target).max()), float((np.abs(m) @ np.abs(ce)).max()), p.recurrent_weight + p.global_weight, 1e-300)
