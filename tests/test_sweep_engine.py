@@ -119,10 +119,14 @@ def test_a_failing_cell_is_recorded_and_retried_only_when_asked(tmp_path, thread
     assert len(rows) == 8 and all(r["status"] == "ok" for r in rows)
 
 
-def test_a_missing_metric_is_an_error_of_that_cell(tmp_path, threads_client):
-    spec = dict(SPEC, experiment="sweep_fixtures:incomplete", metrics=["value", "noise"], grid={"a": [1], "b": [0]})
-    rows = _rows(sweep.run(spec, client=threads_client, out=tmp_path, progress=False).table)
-    assert rows[0]["status"] == "error" and "metric 'noise' missing" in rows[0]["error"]
+def test_a_missing_metric_is_an_error_of_that_cell(tmp_path, threads_client, caplog):
+    spec = dict(SPEC, experiment="sweep_fixtures:incomplete", metrics=["value", "noise"], grid={"a": [1, 2], "b": [0]})
+    with caplog.at_level("WARNING", logger="cansim.tools.sweep"):
+        rows = _rows(sweep.run(spec, client=threads_client, out=tmp_path, progress=False).table)
+    assert all(r["status"] == "error" and "metric 'noise' missing" in r["error"] for r in rows)
+    # said as soon as the first task came back (a misspelt metric), once, not only in the results at the end
+    warned = [r.getMessage() for r in caplog.records if "missing from the experiment's result" in r.getMessage()]
+    assert len(warned) == 1 and "fix the spec's metrics" in warned[0] and "'noise'" in warned[0]
 
 
 def test_a_metric_of_changing_type_is_kept_as_strings(tmp_path, threads_client):

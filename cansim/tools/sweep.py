@@ -593,6 +593,10 @@ def _versions() -> dict[str, str]:
     }
 
 
+#: How a task's error names a metric its experiment did not return (:func:`run_task`; :func:`run` warns at the first).
+_MISSING_METRIC = "missing from the experiment's result"
+
+
 def run_task(task: Task) -> dict[str, Any]:
     """Run one task here (on a worker, or alone to reproduce a row) and return its row.
 
@@ -620,7 +624,7 @@ def run_task(task: Task) -> dict[str, Any]:
         missing = [m for m in task.metrics if m not in result]
         if missing:
             raise InvalidInputError(
-                f"metric {missing[0]!r} missing from the experiment's result (it returned {sorted(map(str, result))})"
+                f"metric {missing[0]!r} {_MISSING_METRIC} (it returned {sorted(map(str, result))})"
             )
         values = {m: _metric_value(m, result[m]) for m in task.metrics}
     except Exception as exc:  # recorded in the row; the sweep goes on
@@ -997,6 +1001,7 @@ def _execute(todo: list[Task], skipped: int, total: int, out: Path, client: Any,
     failed = 0
     futures: dict[Any, Task] = {}
     interrupted = False
+    warned_metric = False
     try:
         for t in todo:
             futures[client.submit(run_task, t, pure=False, key=f"cansim-sweep-{t.task_id}-{os.urandom(4).hex()}")] = t
@@ -1008,6 +1013,10 @@ def _execute(todo: list[Task], skipped: int, total: int, out: Path, client: Any,
                 row = _error_row(task, exc)
             _write_part(out, row)
             failed += row["status"] == "error"
+            if not warned_metric and _MISSING_METRIC in row["error"]:  # most likely a misspelt metric: say so now,
+                warned_metric = True  # not only in the results after the whole sweep
+                log.warning("task %s: %s; if no cell returns it, stop (Ctrl-C keeps the tasks done), fix the spec's "
+                            "metrics and run again with --retry-errors", task.task_id, row["error"])
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(failed=failed, remaining=bar.total - bar.n, refresh=False)
