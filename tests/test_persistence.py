@@ -142,3 +142,13 @@ def test_a_file_of_the_other_kind_is_named_not_called_corrupt(tmp_path):
         del arrays["link_ends"], arrays["format"]
         np.savez(tmp_path / "broken.npz", **arrays)
         ExperienceMap.load(tmp_path / "broken.npz")
+
+
+def test_npz_path_follows_numpy_and_leaves_open_files_alone(tmp_path):
+    import io
+
+    from whisker_io.persistence import npz_path
+
+    assert npz_path("run") == "run.npz" and npz_path("run.npz") == "run.npz" and npz_path(tmp_path / "a.b") == str(tmp_path / "a.b.npz")
+    buf = io.BytesIO()
+    assert npz_path(buf) is buf

@@ -29,10 +29,12 @@ def _is_pickle(path: Any) -> bool:
     return head[:1] == b"\x80" or head == b"\x93NUMPY"  # a pickle's protocol marker, the .npy magic
 
 
-def npz_path(path: str | os.PathLike[str]) -> str | os.PathLike[str]:
+def npz_path(path: str | os.PathLike[str] | BinaryIO) -> str | os.PathLike[str] | BinaryIO:
     """Where :func:`numpy.savez` writes ``path``: with ``.npz`` added when its name lacks it (``"run"`` ->
-    ``"run.npz"``); a path that has it is returned unchanged."""
-    return path if os.fspath(path).endswith(".npz") else os.fspath(path) + ".npz"
+    ``"run.npz"``); a path that has it, or an open file, is returned unchanged."""
+    if not isinstance(path, (str, os.PathLike)) or os.fspath(path).endswith(".npz"):
+        return path
+    return os.fspath(path) + ".npz"
 
 
 def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
