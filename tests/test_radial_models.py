@@ -226,3 +226,58 @@ def test_dataset_validation() -> None:
         RadialDataset(np.ones((3, 7)), np.ones(3), meta={"module": np.arange(2)})
     with pytest.raises(FeatureMismatchError):
         known_table(10, 0).columns(["CP", "XX"])
+
+
+# ----------------------------------------------------------------- inputs a model was not trained for (session 47)
+def test_inputs_outside_the_training_data_are_warned_of_once_and_still_estimated(tmp_path) -> None:
+    """A whisker length in mm, an angular velocity in deg/s or a 300-mm whisker gave a wrong estimate silently."""
+    import warnings
+
+    from whisker_io.radial.pipeline import estimate_radial_distance
+    from whisker_io.radial.persistence import load_model, save_model
+
+    train, test = known_table(300, 5), known_table(40, 6)
+    svr = fit_model("svr9", *TABLE_4_1["svr9"], train, QUICK)
+    X = train.features
+    for f in ("CP", "AV", "WL"):  # the range of the training features, by hand
+        assert svr.training_range[f] == (X[:, FEATURE_NAMES.index(f)].min(), X[:, FEATURE_NAMES.index(f)].max())
+    assert svr.training_range["WL"] == (0.065, 0.137)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # inside the training data: silent
+        inside = svr.predict(test.features)
+    wrong_units = test.features.copy()
+    wrong_units[:3, FEATURE_NAMES.index("AV")] *= 180 / np.pi  # deg/s
+    wrong_units[5, FEATURE_NAMES.index("WL")] = 0.3  # a 300-mm whisker
+    with pytest.warns(UserWarning) as record:
+        out = svr.predict(wrong_units)
+    assert len(record) == 1
+    text = str(record[0].message)
+    assert text.startswith("4 of 40 contacts lie outside the data model 'svr9' was trained on")
+    assert "WL 0.3 m (trained on 0.065 to 0.137)" in text and "AV" in text and "rad/s" in text
+    np.testing.assert_array_equal(out[6:], inside[6:])  # the others estimated as before
+    loaded = load_model(save_model(svr, tmp_path / "svr9.skops"))
+    assert loaded.training_range == svr.training_range
+    with pytest.warns(UserWarning, match="4 of 40 contacts"):
+        estimate_radial_distance(wrong_units, tmp_path / "svr9.skops")
+    assert estimate_radial_distance(np.zeros((0, 7)), tmp_path / "svr9.skops").shape == (0,)  # no contacts
+
+
+def test_a_whisker_length_of_zero_or_less_and_an_unfitted_model_are_typed_errors(tmp_path) -> None:
+    from whisker_io.radial.errors import NotFittedModelError
+    from whisker_io.radial.models import TrainedModel, make_estimator
+    from whisker_io.radial.persistence import save_model
+
+    test = known_table(5, 7)
+    bad = test.features.copy()
+    bad[2, FEATURE_NAMES.index("WL")] = -0.09
+    svr = fit_model("svr9", *TABLE_4_1["svr9"], known_table(100, 8), QUICK)
+    with pytest.raises(InvalidInputError, match=r"whisker length WL must be > 0 m, got -0.09 at row 2"):
+        svr.predict(bad)
+    raw = TrainedModel("svr9", "svr", TABLE_4_1["svr9"][1], make_estimator("svr", TABLE_4_1["svr9"][1], QUICK))
+    with pytest.raises(NotFittedModelError, match="never fitted"):
+        raw.predict(test.features)
+    with pytest.raises(NotFittedModelError, match="nothing to save"):
+        save_model(raw, tmp_path / "raw.skops")
+    with pytest.raises(InvalidInputError, match="save_model takes a TrainedModel"):
+        save_model(svr.estimator, tmp_path / "pipe.skops")
+    assert not any(tmp_path.iterdir())  # nothing written

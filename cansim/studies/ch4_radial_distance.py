@@ -253,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = CommandParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="reduced data sets and grids (smoke run)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the simulated data sets and the searches (default 0)")
     args = ap.parse_args(argv)
     if args.seed < 0:  # refused before any work (numpy raised ValueError after the data sets were built)
         ap.error(f"--seed must be >= 0, got {args.seed}")

@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
@@ -38,6 +39,7 @@ from typing import Any
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin, clone
 from sklearn.compose import TransformedTargetRegressor
+from sklearn.exceptions import NotFittedError
 from sklearn.linear_model import LinearRegression
 from sklearn.experimental import enable_halving_search_cv  # noqa: F401  (enables the import below)
 from sklearn.model_selection import HalvingGridSearchCV, KFold
@@ -51,7 +53,7 @@ from whisker_io.errors import InvalidInputError
 from whisker_io.validation import ConfigDataclass, checked, number_tuple, validate_fields
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
-from whisker_io.radial.features import FEATURE_NAMES, RadialDataset, feature_indices
+from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS, RadialDataset, feature_indices
 
 __all__ = [
     "TABLE_4_1",
@@ -117,7 +119,38 @@ def check_feature_matrix(X: Any, what: str = "X") -> np.ndarray:
             f"{what} holds NaN/inf at row {r}, feature {FEATURE_NAMES[c]}; "
             "drop contacts whose features could not be extracted"
         )
+    wl = arr[:, FEATURE_NAMES.index("WL")]
+    if np.any(wl <= 0):
+        r = int(np.argmax(wl <= 0))
+        raise InvalidInputError(f"{what}: whisker length WL must be > 0 m, got {float(wl[r])!r} at row {r} "
+                                "(columns in FEATURE_NAMES order, WL last)")
     return arr
+
+
+#: How far outside a feature's training range (a share of its width) an input lies before
+#: :meth:`TrainedModel.predict` warns.
+OUTSIDE_MARGIN = 0.1
+
+
+def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
+                  training_range: Mapping[str, tuple[float, float]]) -> None:
+    """One warning naming the features of ``X`` (rows) outside ``training_range`` by more than the margin."""
+    outside, rows = [], np.zeros(len(X), dtype=bool)
+    for f in features:
+        if f not in training_range:
+            continue
+        lo, hi = training_range[f]
+        pad = OUTSIDE_MARGIN * max(hi - lo, abs(hi), abs(lo), 1e-12)
+        col = X[:, FEATURE_NAMES.index(f)]
+        bad = (col < lo - pad) | (col > hi + pad)
+        if bad.any():
+            rows |= bad
+            worst = col[bad][np.argmax(np.abs(col[bad] - (lo + hi) / 2))]
+            outside.append(f"{f} {worst:.4g} {FEATURE_UNITS[f]} (trained on {lo:.4g} to {hi:.4g})")
+    if outside:
+        warnings.warn(f"{int(rows.sum())} of {len(X)} contacts lie outside the data model {label!r} was trained on: "
+                      + "; ".join(outside) + " - check the units (WL in m, AV in rad/s, AA in rad/s^2) and the "
+                      "whisker lengths; estimates there are extrapolations", UserWarning, stacklevel=3)
 
 
 class SelectFeatures(TransformerMixin, BaseEstimator):
@@ -427,6 +460,10 @@ class TrainedModel:
         Wall time of search + refit.
     training_hash : str
         :meth:`RadialDataset.fingerprint` of the training set.
+    training_range : mapping
+        Feature name -> ``(min, max)`` over the training contacts, in the feature's units
+        (:data:`~whisker_io.radial.features.FEATURE_UNITS`): :meth:`predict` warns of inputs
+        outside it (empty for models saved before it was kept: no check).
     """
 
     label: str
@@ -437,10 +474,32 @@ class TrainedModel:
     cv_rmse_m: float = float("nan")
     fit_seconds: float = 0.0
     training_hash: str = ""
+    training_range: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def predict(self, X: Any) -> np.ndarray:
-        """Radial distance, m, shape (n,), from the full feature matrix (n, 7)."""
-        return np.asarray(self.estimator.predict(X), dtype=np.float64)
+        """Radial distance, m, shape (n,), from the full feature matrix (n, 7).
+
+        Warns (``UserWarning``, one per call) when contacts lie outside the training data
+        by more than :data:`OUTSIDE_MARGIN` of a feature's training range - another whisker
+        length, or another unit (mm for m, deg/s for rad/s): the estimate there is an
+        extrapolation and can be far off.
+
+        Raises
+        ------
+        FeatureMismatchError, InvalidInputError
+            ``X`` not of shape (n, 7), not finite, or a whisker length <= 0.
+        NotFittedModelError
+            The estimator was never fitted.
+        """
+        X = check_feature_matrix(X)
+        if not len(X):
+            return np.zeros(0)
+        _warn_outside(self.label, X, self.features, self.training_range)
+        try:
+            return np.asarray(self.estimator.predict(X), dtype=np.float64)
+        except NotFittedError:
+            raise NotFittedModelError(f"model {self.label!r} was never fitted; train it with fit_model / "
+                                      "train_models, or load a saved one") from None
 
 
 def fit_model(
@@ -501,6 +560,8 @@ def fit_model(
         est.fit(X, y)
     dt = time.perf_counter() - t0
     log.info("fitted %s (%s on %s) in %.2f s: %s", label, family, "-".join(features), dt, best)
+    used = tuple(features) if family not in ("tip", "random") else ("WL",)
+    span = {f: (float(X[:, FEATURE_NAMES.index(f)].min()), float(X[:, FEATURE_NAMES.index(f)].max())) for f in used}
     return TrainedModel(
         label=label,
         family=family,
@@ -510,6 +571,7 @@ def fit_model(
         cv_rmse_m=cv_rmse,
         fit_seconds=dt,
         training_hash=train.fingerprint(),
+        training_range=span,
     )
 
 

@@ -27,6 +27,7 @@ Retraining with :func:`whisker_io.radial.models.train_models` fixes both.
 from __future__ import annotations
 
 import importlib.metadata
+import math
 import os
 import zipfile
 from collections.abc import Sequence
@@ -35,8 +36,11 @@ from typing import Any
 
 import numpy as np
 import skops.io as sio
+from sklearn.exceptions import NotFittedError
+from sklearn.utils.validation import check_is_fitted
 
-from whisker_io.radial.errors import FeatureMismatchError, CorruptFileError, ModelVersionError
+from whisker_io.errors import InvalidInputError
+from whisker_io.radial.errors import CorruptFileError, FeatureMismatchError, ModelVersionError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS
 from whisker_io.radial.models import TrainedModel, model_features
 
@@ -80,6 +84,17 @@ def _major_minor(v: str, n: int) -> tuple[str, ...]:
     return tuple(v.split(".")[:n])
 
 
+def _training_range(value: Any, path: Path) -> dict[str, tuple[float, float]]:
+    """The ``training_range`` of a saved model's metadata (absent in files written before it: empty)."""
+    try:
+        out = {str(f): (float(lo), float(hi)) for f, (lo, hi) in dict(value).items()}
+    except (TypeError, ValueError) as exc:
+        raise CorruptFileError(f"{path}: malformed training_range ({exc})") from None
+    if any(f not in FEATURE_NAMES or not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi) for f, (lo, hi) in out.items()):
+        raise CorruptFileError(f"{path}: malformed training_range {value!r}")
+    return out
+
+
 def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     """Write a fitted model and its metadata to ``path`` (skops format, ``.skops``).
 
@@ -95,6 +110,15 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     -------
     Path
     """
+    if not isinstance(model, TrainedModel):
+        raise InvalidInputError(f"save_model takes a TrainedModel (from fit_model / train_models), got "
+                                f"{type(model).__name__}; wrap a fitted estimator as TrainedModel(label, family, "
+                                "features, estimator)")
+    try:
+        check_is_fitted(model.estimator)
+    except NotFittedError:
+        raise NotFittedModelError(f"model {model.label!r} was never fitted: nothing to save (fit_model / "
+                                  "train_models fit it)") from None
     feats = model_features(model.estimator)
     meta = {
         "format": FORMAT,
@@ -109,6 +133,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         "best_params": {str(k): _plain_param(v) for k, v in model.best_params.items()},
         "cv_rmse_m": float(model.cv_rmse_m),
         "fit_seconds": float(model.fit_seconds),
+        "training_range": {str(f): [float(lo), float(hi)] for f, (lo, hi) in model.training_range.items()},
     }
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
@@ -278,5 +303,6 @@ def load_model(
         cv_rmse_m=float(meta.get("cv_rmse_m", np.nan)),
         fit_seconds=float(meta.get("fit_seconds", 0.0)),
         training_hash=str(meta.get("training_hash", "")),
+        training_range=_training_range(meta.get("training_range", {}), path),
     )
 

@@ -97,7 +97,10 @@ def estimate_radial_distance(
     ndarray, shape (n,), m
     """
     X = check_feature_matrix(features, "features")
-    r = np.asarray(resolve_radial_model(model).predict(X), dtype=np.float64).reshape(-1)
+    predictor = resolve_radial_model(model)
+    if not len(X):  # no contacts: no estimates (a scikit-learn estimator refuses an empty matrix)
+        return np.zeros(0)
+    r = np.asarray(predictor.predict(X), dtype=np.float64).reshape(-1)
     if clip:
         r = np.clip(r, 0.0, X[:, FEATURE_NAMES.index("WL")])
     return r
