@@ -178,7 +178,21 @@ def test_finding_six_gap_against_the_repetitions_spread_by_hand():
     means = {(c, m): study._mean(rows, "ARR", control=c, contact_angle=m, kidnapped=False)
              for c in study.CONTROLS for m in study.CONTACT_ANGLES}
     line = study._gap_line(rows, "ARR", means, ("rcp", "onset"), -1.0)
-    assert line.startswith("6 (ARR) measured: rcp + threshold is 0.2000 from the best (rcp + onset), beyond")
-    assert f"({0.1 / 6:.4f}: sd over 2 repetitions" in line
+    assert line.startswith("6 (ARR) measured: rcp + threshold is 0.2 from the best (rcp + onset), beyond")
+    assert f"({0.1 / 6:.3g}: sd over 2 repetitions" in line
     one = [r for k, r in enumerate(rows) if k % 2 == 0]  # one repetition: nothing to compare with
     assert "one repetition" in study._gap_line(one, "ARR", means, ("rcp", "onset"), -1.0)
+
+
+def test_a_change_inside_the_repetitions_spread_is_not_called_reproduced():
+    """ARR 0.4339 -> 0.4367 (change 0.003) against a spread of 0.014 was "reproduced" (a user's pass, session 47)."""
+    from cansim.studies.ch3_maze import _change_verdict, _spread
+
+    assert _change_verdict(-0.001, 0.014, 3) == "NOT reproduced"
+    assert _change_verdict(0.0028, 0.014, 3).startswith("direction only: the change 0.0028 is within the repetitions' spread (0.014)")
+    assert _change_verdict(0.05, 0.014, 3).startswith("reproduced (the change 0.05 against a spread of 0.014)")
+    assert "no spread to judge" in _change_verdict(0.05, math.nan, 1)
+    rows = [{"c": "a", "k": v} for v in (1.0, 3.0)] + [{"c": "b", "k": v} for v in (2.0, 2.0, 5.0)]
+    # sd of (1, 3) = 1, of (2, 2, 5) = sqrt(2): their mean, by hand
+    assert _spread(rows, "k", {"c": "a"}, {"c": "b"}) == pytest.approx((1.0 + math.sqrt(2.0)) / 2)
+    assert math.isnan(_spread([{"c": "a", "k": 1.0}], "k", {"c": "a"}))
