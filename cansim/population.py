@@ -629,7 +629,8 @@ class Population:
         Raises
         ------
         InvalidInputError
-            A motion model of your own (not :class:`UniformMotion`, :class:`PlanarMotion` or
+            A backend of your own that :func:`cansim.backends.register_backend` has not named
+            (the file names the backend), or a motion model of your own (not :class:`UniformMotion`, :class:`PlanarMotion` or
             :class:`SixDofMotion`): it cannot be written without pickle - pickle the population
             (``pickle.dump``), which keeps any picklable motion model.
         """
@@ -637,6 +638,11 @@ class Population:
 
         from whisker_io.persistence import write_npz
 
+        from cansim.backends import registered_backends
+
+        if self.backend not in registered_backends():
+            raise InvalidInputError(f"the backend {self.backend!r} has no registered name, so a file cannot name it: "
+                                    "name it with cansim.backends.register_backend first (or pickle the population)")
         arrays = {"population_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(self._description())),
                   "activity": self._a}
         if self._last_decoded is not None:
@@ -655,7 +661,7 @@ class Population:
         """
         import json
 
-        from cansim.errors import CansimError, CorruptFileError
+        from cansim.errors import CansimError, CorruptFileError, UnknownBackendError
         from whisker_io.persistence import read_npz
 
         arrays = read_npz(path)
@@ -670,6 +676,9 @@ class Population:
             population = cls([Axis(a["name"], a["size"], a["step"], a["angular"]) for a in d["axes"]],
                              AttractorParams(**d["params"]), dtype=np.dtype(d["dtype"]), backend=d["backend"],
                              motion=_motion_from_description(d["motion"]), decode_window=d["decode_window"])
+        except UnknownBackendError as exc:
+            raise UnknownBackendError(f"{exc}; a backend of your own is named by cansim.backends.register_backend: "
+                                      "register it before loading a population saved with it") from None
         except (KeyError, TypeError, ValueError, AttributeError, CansimError) as exc:
             raise CorruptFileError(f"not a population description ({exc})", field="population") from exc
         if "activity" not in arrays:
@@ -689,7 +698,11 @@ class Population:
 
     def __getstate__(self) -> dict:
         """What pickle and :func:`copy.deepcopy` keep: the construction and the state (not the bound kernels)."""
-        return {"axes": self._axes, "params": self._params, "dtype": self._dtype.name, "backend": self.backend,
+        from cansim.backends import registered_backends
+
+        named = self.backend in registered_backends()  # a backend of one's own not registered: pickled itself
+        return {"axes": self._axes, "params": self._params, "dtype": self._dtype.name,
+                "backend": self.backend if named else self._backend,
                 "motion": self._motion, "decode_window": self._window, "activity": self._a.copy(),
                 "decoded": None if self._last_decoded is None else self._last_decoded.copy()}
 

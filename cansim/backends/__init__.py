@@ -24,7 +24,7 @@ from typing import Callable
 from cansim.backends.base import Backend
 from cansim.errors import BackendUnavailableError, InvalidInputError, UnknownBackendError
 
-__all__ = ["Backend", "get_backend", "available_backends", "backend_status", "registered_backends"]
+__all__ = ["Backend", "get_backend", "available_backends", "backend_status", "register_backend", "registered_backends"]
 
 log = logging.getLogger(__name__)
 
@@ -45,8 +45,60 @@ _REGISTRY: dict[str, _Entry] = {
 
 
 def registered_backends() -> tuple[str, ...]:
-    """Names of every backend this version knows, installed or not."""
+    """Names of every backend this version knows, installed or not (and those :func:`register_backend` added)."""
     return tuple(_REGISTRY)
+
+
+def register_backend(name: str, cls: type[Backend], *, requires: tuple[str, ...] = (), extra: str = "") -> None:
+    """Make a backend of your own a named one, as ``"numpy"`` or ``"numba"`` are.
+
+    After this, ``Population(..., backend=name)``, ``RatSLAMConfig(backend=name)``, the
+    conformance suite (``pytest --pyargs cansim.testing.conformance --cansim-backend name``),
+    :func:`backend_status` and saved files that name it all work with it. A process that loads
+    a saved model or population naming it must register it first (worker processes too: register
+    it where the class is defined, at import).
+
+    Parameters
+    ----------
+    name : str
+        The backend's name; not one of the built-in ones.
+    cls : type
+        A subclass of :class:`Backend` implementing its abstract kernels (its docstring lists them),
+        constructible without arguments, defined at the top level of an importable module (it is
+        imported again by name).
+    requires : tuple of str
+        Modules it needs; a missing one makes it unavailable with a message naming ``extra``.
+    extra : str
+        The pip extra (or package) that installs ``requires``.
+
+    Raises
+    ------
+    InvalidInputError
+        A name that is empty or built in, or ``cls`` not such a class.
+    """
+    if not isinstance(name, str) or not name.strip() or name in ("numpy", "numba", "opencl"):
+        raise InvalidInputError(f"a backend's name must be a non-empty string other than numpy, numba and opencl; "
+                                f"got {name!r}")
+    if not (isinstance(cls, type) and issubclass(cls, Backend)):
+        raise InvalidInputError(f"cls must be a subclass of cansim.backends.Backend, got {cls!r}")
+    module = importlib.import_module(cls.__module__)
+    found = module
+    for part in cls.__qualname__.split("."):
+        found = getattr(found, part, None)
+    if found is not cls or "<locals>" in cls.__qualname__:
+        raise InvalidInputError(f"{cls.__qualname__} must be defined at the top level of an importable module "
+                                f"({cls.__module__}), so that it can be imported again by name")
+    if getattr(cls, "name", None) != name:
+        raise InvalidInputError(f"{cls.__name__}.name is {getattr(cls, 'name', None)!r}: set the class attribute "
+                                f"name = {name!r} (saved files and configurations name the backend by it)")
+    if cls.__abstractmethods__:
+        raise InvalidInputError(f"{cls.__name__} does not implement {', '.join(sorted(cls.__abstractmethods__))} "
+                                "(the abstract kernels of cansim.backends.Backend)")
+    if not (isinstance(requires, tuple) and all(isinstance(m, str) and m for m in requires)):
+        raise InvalidInputError(f"requires must be a tuple of module names, got {requires!r}")
+    with _status_lock:
+        _REGISTRY[name] = _Entry(cls.__module__, cls.__qualname__, requires, str(extra))
+        _status_cache.pop(name, None)
 
 
 def _missing(entry: _Entry) -> list[str]:
@@ -167,5 +219,7 @@ def get_backend(name: str | Backend) -> Backend:
             f"backend {name!r} needs {', '.join(missing)}, which is not installed; run: "
             f"{_install_hint(entry, missing)}"
         )
-    module = importlib.import_module(entry.module)
-    return getattr(module, entry.cls)()
+    found = importlib.import_module(entry.module)
+    for part in entry.cls.split("."):
+        found = getattr(found, part)
+    return found()

@@ -99,10 +99,13 @@ class RunResult(NamedTuple):
 
 
 class Backend(ABC):
-    """Abstract CAN backend. Subclasses implement the six kernels below.
+    """Abstract CAN backend. Subclasses implement the five abstract kernels below
+    (``dynamics``, ``shift``, ``shift_conditional``, ``inject``, ``decode``); ``step`` and
+    ``run`` have generic versions built on them that a backend may replace with fused ones.
 
-    The conformance suite (``tests/test_backend_conformance.py``) runs every test
-    against every available backend with the numpy backend as the oracle.
+    :func:`cansim.backends.register_backend` names a backend of your own (its ``name``
+    attribute must be that name), and the conformance suite
+    (:mod:`cansim.testing.conformance`) compares it with the numpy reference.
     """
 
     #: registry name, e.g. ``"numpy"``

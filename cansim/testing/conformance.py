@@ -13,8 +13,11 @@ Use it from a test module of your own::
     from cansim.testing.conformance import *  # noqa: F401,F403  (collects the tests)
 
 and run ``pytest test_my_backend.py --cansim-backend mybackend`` (a name
-:func:`cansim.backends.get_backend` knows, or several, comma-separated). Without the
-option the suite runs every available backend except the reference. The plugin's
+:func:`cansim.backends.get_backend` knows - a backend of your own once
+:func:`cansim.backends.register_backend` has named it, e.g. in that ``conftest.py`` -
+or several, comma-separated). Without the option the suite runs every available backend
+except the reference (given as ``numpy``, the reference is compared with itself: a check
+of the suite, not of a backend). The plugin's
 options and fixtures come from :mod:`cansim.testing.plugin` (``-p cansim.testing.plugin``,
 or ``pytest_plugins = ["cansim.testing.plugin"]`` in a ``conftest.py``).
 """
