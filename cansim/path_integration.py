@@ -38,6 +38,7 @@ from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finit
 __all__ = [
     "split_weights",
     "MotionShifts",
+    "check_motion_shifts",
     "MotionModel",
     "UniformMotion",
     "PlanarMotion",
@@ -162,6 +163,46 @@ class MotionModel:
 
 
 _NO_MOTION = MotionShifts(None, None, None)
+
+
+def check_motion_shifts(ms: object, shape: tuple[int, ...], model: str = "the motion model") -> MotionShifts:
+    """What a motion model of one's own returned for one step, checked against the grid and as float64 arrays.
+
+    The rule (:class:`MotionShifts`): ``shift_axes`` and ``cond_shifts`` are both None or both
+    given - ``shift_axes`` distinct ascending axis indices, ``cond_shifts`` of shape
+    ``cond_shape + (len(shift_axes),)`` with ``cond_shape`` the grid's shape without those
+    axes; ``uniform`` None or of shape ``(ndim,)``. Backends do not check it (numpy and numba
+    differed on a wrong one: an error against a silent shift), so :class:`cansim.Population`
+    checks every step of a motion model that is not built in.
+
+    Raises
+    ------
+    ShapeError
+        Anything else, with the rule.
+    """
+    ndim = len(shape)
+    rule = (f"{model}'s step function must return MotionShifts(shift_axes, cond_shifts, uniform): shift_axes and "
+            f"cond_shifts both None or both given (distinct ascending axes of the {ndim}-D grid; shifts of shape "
+            f"<the grid's shape without those axes> + (len(shift_axes),)), uniform None or of shape ({ndim},)")
+    if not (isinstance(ms, tuple) and len(ms) == 3):
+        raise ShapeError(f"{rule}; got {type(ms).__name__}")
+    axes, cond, uniform = ms
+    if (axes is None) != (cond is None):
+        raise ShapeError(f"{rule}; got shift_axes {axes!r} with cond_shifts {'None' if cond is None else 'given'}")
+    if axes is not None:
+        if (not isinstance(axes, tuple) or not axes or not all(isinstance(k, (int, np.integer)) for k in axes)
+                or list(axes) != sorted(set(axes)) or not all(0 <= k < ndim for k in axes)):
+            raise ShapeError(f"{rule}; got shift_axes {axes!r}")
+        want = tuple(n for k, n in enumerate(shape) if k not in axes) + (len(axes),)
+        cond = np.asarray(cond, dtype=np.float64)
+        if cond.shape != want:
+            raise ShapeError(f"{rule}; got cond_shifts of shape {cond.shape} for shift_axes {axes} (expected {want})")
+        axes = tuple(int(k) for k in axes)
+    if uniform is not None:
+        uniform = np.asarray(uniform, dtype=np.float64)
+        if uniform.shape != (ndim,):
+            raise ShapeError(f"{rule}; got uniform of shape {uniform.shape}")
+    return MotionShifts(axes, cond, uniform)
 
 
 def _is_vector(x, n: int) -> bool:

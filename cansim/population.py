@@ -24,6 +24,7 @@ from cansim.path_integration import (
     PlanarMotion,
     SixDofMotion,
     UniformMotion,
+    check_motion_shifts,
     shifts_range_checked,
 )
 
@@ -105,11 +106,18 @@ class Population:
         self._size = size
         self._params = params
         self._dtype = dt
+        if motion is not None and not isinstance(motion, MotionModel):
+            what = f"the class {motion.__name__}" if isinstance(motion, type) else type(motion).__name__
+            raise InvalidInputError(f"motion must be a MotionModel instance (e.g. UniformMotion(), or an instance of a "
+                                    f"subclass implementing bind(axes)), got {what}")
         self._motion = motion if motion is not None else UniformMotion()
         self._motion.check_axes(axes)
         self._motion_shifts, self._motion_trusted = self._motion.bind_checked_and_trusted(axes)
         # a built-in model that refuses oversized shifts itself spares the per-step array check
         self._shifts_checked = shifts_range_checked(self._motion_shifts) and shifts_range_checked(self._motion_trusted)
+        if type(self._motion) not in (UniformMotion, PlanarMotion, SixDofMotion):  # one's own: its output checked
+            self._motion_shifts, self._motion_trusted = (_checking(f, self.shape, type(self._motion).__name__)
+                                                         for f in (self._motion_shifts, self._motion_trusted))
         exc, inh = params.kernels(len(axes))
         self._exc = exc.taps
         self._inh = inh.taps
@@ -715,6 +723,18 @@ class Population:
     def __repr__(self) -> str:
         ax = ", ".join(f"{a.name}={a.size}" for a in self._axes)
         return f"Population({ax}, dtype={self._dtype.name}, backend={self.backend!r})"
+
+
+def _checking(f: object, shape: tuple[int, ...], name: str):
+    """A motion model's step function whose every result is checked (:func:`check_motion_shifts`)."""
+    if not callable(f):
+        raise InvalidInputError(f"{name}.bind(axes) must return a function f(velocity, omega, dt) -> MotionShifts, "
+                                f"got {type(f).__name__}")
+
+    def checked(velocity, omega, dt):
+        return check_motion_shifts(f(velocity, omega, dt), shape, name)
+
+    return checked
 
 
 #: Version of :meth:`Population.save`'s file format.
