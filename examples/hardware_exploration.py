@@ -49,7 +49,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED  # noqa: F401 - the exit table
 

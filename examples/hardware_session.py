@@ -29,8 +29,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from cansim.studies.command_line import CommandParser
 from whisker_io.array.control import WhiskPattern
+from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import (EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED,  # noqa: F401 - the exit table
                                     open_platform, session_failure)

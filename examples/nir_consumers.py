@@ -43,7 +43,7 @@ from cansim.spiking import (
     to_nir,
 )
 from cansim.spiking.nir_consumers import NIR_CONSUMERS, ConsumerRunner, consumer_status
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 
 DT = 1e-4
 

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from cansim.spiking import NIRGraphSimulator, RotationRingParams, calibrate_turning, ring_input, rotation_ring_graph
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 
 DT = 1e-4
 

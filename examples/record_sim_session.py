@@ -25,7 +25,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
 from whisker_io.hw.arm import SimArm

@@ -27,7 +27,7 @@ import numpy as np
 from cansim import Population, registered_backends
 from cansim.backends import backend_status
 from cansim.local_view import LocalViewCells, LocalViewParams
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 
 log = logging.getLogger("ring_attractor")
 

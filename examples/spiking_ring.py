@@ -40,7 +40,7 @@ from tqdm import tqdm
 
 from cansim import Population
 from cansim.spiking import HD_RING_ATTRACTOR, RotationRingParams, SpikeCountDecoder, rotation_ring_graph, spiking_from_rate, to_nir
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 
 log = logging.getLogger("spiking_ring")
 

@@ -73,7 +73,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 from whisker_io.radial.datasets import (
     UNSEEN_LENGTHS_MM,
     EvansSetParams,

@@ -168,13 +168,13 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.command_line import CommandParser
 from whisker_io.array.geometry import THESIS_POSITIONS_MM
 from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, labelled_rows, object_labels,
                                            seed_name)
 from cansim.studies.process_pool import pool_map
 from cansim.studies.report import fmt
 from whisker_io._deprecated import renamed_attributes
+from whisker_io.command_line import CommandParser
 from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 logger = logging.getLogger("ch5_study")

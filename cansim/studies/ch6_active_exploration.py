@@ -320,11 +320,11 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.command_line import CommandParser
 from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, is_mesh_file, labelled_rows,
                                            object_labels, seed_name)
 from cansim.studies.report import fmt
 from maps.recognition import MATCHERS
+from whisker_io.command_line import CommandParser
 
 logger = logging.getLogger("ch6_active_exploration")
 

@@ -147,7 +147,7 @@ from cansim.experiments.params import checked_seed, require, resolve
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
 from cansim.population import Population
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 
 __all__ = [
     "TRAJECTORIES",

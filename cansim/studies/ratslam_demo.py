@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
-from cansim.studies.command_line import CommandParser
 from cansim.testing.worlds import LoopRoute, SyntheticRun, make_run
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
+from whisker_io.command_line import CommandParser
 
 ROUTE = LoopRoute(width_m=4.0, height_m=3.0, corner_radius_m=0.75, step_m=0.05)
 CONFIG = RatSLAMConfig(cell_size_m=0.05, xy_cells=21, inject_energy=0.05)

@@ -109,11 +109,11 @@ import numpy as np
 
 from cansim.frontends.whisk import WhiskFrontEndConfig
 from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
-from cansim.studies.command_line import CommandParser
 from maps.localisation import map_pose_errors, relocalisation_errors, rotation_error_rad, step_sizes
 from maps.odometry import SpatialOdometry
 from cansim.studies.object_options import add_mesh_options, check_mesh_options
 from cansim.studies.report import fmt
+from whisker_io.command_line import CommandParser
 from whisker_io.sim.catalogue import resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry

@@ -39,6 +39,7 @@ import warnings
 from functools import partial
 from pathlib import Path
 
+from whisker_io.command_line import CommandParser
 from whisker_io.radial.datasets import TrainingSetParams, ValidationSetParams, make_training_set, make_validation_set
 from whisker_io.errors import CansimError
 from whisker_io.radial.evaluation import evaluate_models, write_results_csv
@@ -107,7 +108,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m whisker_io.radial", description=__doc__.splitlines()[0])
+    ap = CommandParser(prog="python -m whisker_io.radial", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
     for name, help_ in (("train", "train and save every model"), ("evaluate", "evaluate saved models")):
         p = sub.add_parser(name, help=help_)

@@ -60,6 +60,7 @@ import threading
 import time
 from typing import Iterator
 
+from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError
 
 __all__ = ["RTDE_PORT", "TYPE_FORMATS", "variable_type", "main", "FakeServerError",
@@ -402,7 +403,7 @@ class FakeControlInterface:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the fake server until killed. See the module docstring for options."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = CommandParser(description=__doc__.splitlines()[0])
     p.add_argument("--port", type=int, default=RTDE_PORT)
     p.add_argument("--mode", choices=("stream", "silent", "freeze"), default="stream")
     p.add_argument("--packages", type=int, default=50,
