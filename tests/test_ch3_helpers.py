@@ -168,8 +168,8 @@ def test_main_refuses_bad_options_with_status_2_before_writing(tmp_path_factory,
 
 # ------------------------------------------------------------------ finding 6's measured gap
 def test_finding_six_gap_against_the_repetitions_spread_by_hand():
-    """Two repetitions per condition: ARR 0.5/0.7 for rcp + onset (mean 0.6, sd 0.1), 0.4/0.4 for rcp + threshold,
-    0.2/0.2 elsewhere (sd 0): gap 0.2, spread the mean sd over the 6 conditions = 0.1 / 6."""
+    """Two repetitions per condition: ARR 0.5/0.7 for rcp + onset (mean 0.6, sample sd 0.1 sqrt 2), 0.4/0.4 for
+    rcp + threshold, 0.2/0.2 elsewhere (sd 0): gap 0.2, spread the mean sd over the 6 conditions = 0.1 sqrt 2 / 6."""
     rows = []
     for c in study.CONTROLS:
         for m in study.CONTACT_ANGLES:
@@ -179,7 +179,7 @@ def test_finding_six_gap_against_the_repetitions_spread_by_hand():
              for c in study.CONTROLS for m in study.CONTACT_ANGLES}
     line = study._gap_line(rows, "ARR", means, ("rcp", "onset"), -1.0)
     assert line.startswith("6 (ARR) measured: rcp + threshold is 0.2 from the best (rcp + onset), beyond")
-    assert f"({0.1 / 6:.3g}: sd over 2 repetitions" in line
+    assert f"({0.1 * math.sqrt(2) / 6:.3g}: sd over 2 repetitions" in line
     one = [r for k, r in enumerate(rows) if k % 2 == 0]  # one repetition: nothing to compare with
     assert "one repetition" in study._gap_line(one, "ARR", means, ("rcp", "onset"), -1.0)
 
@@ -191,8 +191,23 @@ def test_a_change_inside_the_repetitions_spread_is_not_called_reproduced():
     assert _change_verdict(-0.001, 0.014, 3) == "NOT reproduced"
     assert _change_verdict(0.0028, 0.014, 3).startswith("direction only: the change 0.0028 is within the repetitions' spread (0.014)")
     assert _change_verdict(0.05, 0.014, 3).startswith("reproduced (the change 0.05 against a spread of 0.014)")
-    assert "no spread to judge" in _change_verdict(0.05, math.nan, 1)
-    rows = [{"c": "a", "k": v} for v in (1.0, 3.0)] + [{"c": "b", "k": v} for v in (2.0, 2.0, 5.0)]
-    # sd of (1, 3) = 1, of (2, 2, 5) = sqrt(2): their mean, by hand
-    assert _spread(rows, "k", {"c": "a"}, {"c": "b"}) == pytest.approx((1.0 + math.sqrt(2.0)) / 2)
-    assert math.isnan(_spread([{"c": "a", "k": 1.0}], "k", {"c": "a"}))
+    assert _change_verdict(0.05, math.nan, 1).startswith("direction only (one run per condition: no spread to judge")
+
+
+def test_the_spread_is_taken_within_each_condition_not_across_them():
+    """Finding 2 pools normal and kidnapped runs of every contact angle: its spread must not be the difference
+    between those conditions (a review, session 47: kidnapped EM 0.5 and normal 0.1 made a 0.2 'spread')."""
+    from cansim.studies.ch3_maze import _repetitions, _spread
+
+    def run(control, angle, kidnapped, em):
+        return {"control": control, "contact_angle": angle, "kidnapped": kidnapped, "EM": em, "ARR": 0.0}
+
+    rows = []
+    for control, shift in (("open_loop", 0.0), ("rcp", -0.02)):  # RCP lowers EM by 0.02 in every condition
+        for angle in ("onset", "max_angle"):
+            for kidnapped, em in ((False, 0.1), (True, 0.5)):
+                rows += [run(control, angle, kidnapped, em + shift + d) for d in (-0.001, 0.001)]
+    # within every condition the two repetitions differ by 0.002: sample sd 0.002 / sqrt 2, by hand
+    assert _spread(rows, "EM", {"control": "open_loop"}, {"control": "rcp"}) == pytest.approx(0.002 / math.sqrt(2))
+    assert _repetitions(rows, {"control": "rcp"}) == 2
+    assert math.isnan(_spread([run("rcp", "onset", False, 0.1)], "EM", {"control": "rcp"}))

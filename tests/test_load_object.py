@@ -465,7 +465,7 @@ def test_object_file_names_take_their_folder_then_a_number_when_two_would_collid
     from whisker_io.sim.catalogue import object_file_names
 
     assert object_file_names(["a/mug.obj", "b/mug.stl", "box"]) == ["a_mug", "b_mug", "box"]
-    assert object_file_names(["x/a/mug.obj", "y/a/mug.obj", "box"]) == ["mug_1", "mug_2", "box_3"]
+    assert object_file_names(["x/a/mug.obj", "y/a/mug.obj", "box"]) == ["mug_1", "mug_2", "box"]
     assert object_file_names(["box", "/x/my mug.obj"]) == ["box", "my_mug"]
     assert object_file_names([]) == []
 

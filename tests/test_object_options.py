@@ -232,7 +232,8 @@ def test_distinct_objects(tmp_path):
     assert object_labels(["a/cup.obj", "a/cup.stl"]) == {"a/cup.obj": "a_cup_obj", "a/cup.stl": "a_cup_stl"}
     assert object_labels(["cup.obj", "cup.stl", "mug"]) == {"cup.obj": "cup_obj", "cup.stl": "cup_stl", "mug": "mug"}
     assert object_labels(["x/a/cup.obj", "y/a/cup.obj", "mug"]) == {"x/a/cup.obj": "cup_1", "y/a/cup.obj": "cup_2",
-                                                                    "mug": "mug_3"}  # the numbered fallback
+                                                                    "mug": "mug"}  # the numbered fallback, clashing only
+    assert object_labels(["a/Cup.obj", "b/cup.obj"]) == {"a/Cup.obj": "a_Cup", "b/cup.obj": "b_cup"}  # case aside
     labels = object_labels(["a/cup.obj", "b/cup.obj", "cup_1.obj"])
     assert len(set(labels.values())) == 3  # distinct even where a stem looks like a numbered one
 
@@ -249,7 +250,7 @@ def test_object_labels_are_distinct_and_plain_where_nothing_clashes(specs):
     labels = object_labels(specs)
     assert list(labels) == list(dict.fromkeys(specs)) and len(set(labels.values())) == len(labels)
     plain = [object_label(s) for s in labels]
-    if len(set(plain)) == len(plain):  # no clash: the plain labels
+    if len({p.casefold() for p in plain}) == len(plain):  # no clash, case aside: the plain labels
         assert list(labels.values()) == plain
 
 
@@ -340,7 +341,7 @@ def test_ch6_prepare_refuses_a_bad_odometry_scale_before_any_mapping(bad, monkey
 
 _SPECS = st.one_of(st.sampled_from(["mug", "box", "cup", "duck-v2"]),
                    st.builds(lambda d, stem, ext: f"{d}{stem}.{ext}", st.sampled_from(["", "a/", "b/", "x/a/", "y/a/"]),
-                             st.sampled_from(["cup", "mug", "cup_1", "My Mug", "a_cup"]), st.sampled_from(["obj", "stl"])))
+                             st.sampled_from(["cup", "Cup", "mug", "cup_1", "My Mug", "a_cup"]), st.sampled_from(["obj", "stl"])))
 
 
 @settings(max_examples=200, deadline=None)
@@ -349,7 +350,7 @@ def test_labels_are_distinct_file_stems_that_name_each_object_once(specs):
     from whisker_io.sim.catalogue import object_file_names, object_labels
 
     labels = object_labels(specs)
-    assert len(set(labels.values())) == len(labels) == len(set(specs))
+    assert len({lab.casefold() for lab in labels.values()}) == len(labels) == len(set(specs))
     assert all(lab and all(c.isalnum() or c in "-_" for c in lab) for lab in labels.values())  # a file's stem
     assert object_file_names(specs) == [labels[s] for s in specs]  # the map files are named by the labels
 

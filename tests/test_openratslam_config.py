@@ -414,3 +414,13 @@ def test_writing_anything_but_a_ratslam_config_raises(config):
 
     with pytest.raises(ConfigError, match="RatSLAMConfig"):
         write_openratslam_text(config)
+
+
+def test_unused_keys_are_named_by_the_section_and_the_line_an_editor_shows():
+    """A header with a comment ("[draw] ; viewer") was not a header, and a form feed in a comment shifted the
+    line numbers by one (str.splitlines splits on it; an editor does not)."""
+    text = "[ratslam]\npc_dim_xy=31\n# page\x0cbreak\n[draw] ; the viewer\nenable=1\n"
+    with pytest.warns(UserWarning) as record:
+        cfg = RatSLAMConfig.from_text(text)
+    assert cfg.xy_cells == 31
+    assert str(record[0].message).endswith("ignored: [draw] 'enable' (line 5)")

@@ -121,8 +121,14 @@ def test_a_failing_cell_is_recorded_and_retried_only_when_asked(tmp_path, thread
 
 def test_a_missing_metric_is_an_error_of_that_cell(tmp_path, threads_client, caplog):
     spec = dict(SPEC, experiment="sweep_fixtures:incomplete", metrics=["value", "noise"], grid={"a": [1, 2], "b": [0]})
+    said_by_row = []  # how many such warnings had been given when each row came in
+
+    def on_row(row):
+        said_by_row.append(sum("missing from the experiment's result" in r.getMessage() for r in caplog.records))
+
     with caplog.at_level("WARNING", logger="cansim.tools.sweep"):
-        rows = _rows(sweep.run(spec, client=threads_client, out=tmp_path, progress=False).table)
+        rows = _rows(sweep.run(spec, client=threads_client, out=tmp_path, progress=False, on_row=on_row).table)
+    assert said_by_row == [1, 1]  # at the first task's row already, and not again
     assert all(r["status"] == "error" and "metric 'noise' missing" in r["error"] for r in rows)
     # said as soon as the first task came back (a misspelt metric), once, not only in the results at the end
     warned = [r.getMessage() for r in caplog.records if "missing from the experiment's result" in r.getMessage()]

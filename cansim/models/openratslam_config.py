@@ -65,7 +65,7 @@ from cansim.frontends.visual import VisualTemplateConfig
 
 # The config class is passed in (``config_cls``): ratslam_config imports this module, not the reverse.
 
-__all__ = ["OPENRATSLAM_KEYS", "REPLAY_KEYS", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed",
+__all__ = ["OPENRATSLAM_KEYS", "REPLAY_KEYS", "key_of", "config_from_flat_dict", "read_openratslam_file", "read_openratslam_text", "renamed",
            "write_openratslam_text"]
 
 
@@ -108,6 +108,12 @@ OPENRATSLAM_KEYS: dict[str, _Key] = {
 """OpenRatSLAM key -> (cansim field, value kind); the table of the module docstring."""
 
 _PARTS = {"attractor": "AttractorParams", "frontend": "VisualTemplateConfig"}
+
+
+def key_of(field: str) -> str:
+    """The OpenRatSLAM config key that sets :class:`RatSLAMConfig`'s ``field`` (``"cell_size_m"`` -> its cell-size
+    key), for messages that tell a config file's user what to change; ``field`` itself when no key sets it."""
+    return next((k for k, v in OPENRATSLAM_KEYS.items() if v.field == field), field)
 
 
 def renamed(name: str) -> str | None:
@@ -164,10 +170,12 @@ def _read(text: str) -> dict[str, tuple[Any, int]]:
     values: dict[str, tuple[Any, int]] = {}
     unused: dict[str, list[str]] = {}  # section -> "key (line n)"
     section = ""
-    for lineno, raw in enumerate(text.splitlines(), 1):
+    for lineno, raw in enumerate(text.split("\n"), 1):  # "\n" only: the lines an editor numbers
         line = raw.strip()
-        if line.startswith("[") and line.endswith("]"):
-            section = line[1:-1].strip()
+        header = line.split(";", 1)[0].split("#", 1)[0].strip()  # "[draw] ; viewer" is a header
+        if header.startswith("[") and header.endswith("]"):
+            section = header[1:-1].strip()
+            continue
         if not line or line.startswith(("#", ";", "[")):
             continue
         if "=" not in line:

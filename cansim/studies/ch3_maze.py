@@ -262,12 +262,12 @@ from cansim.frontends.tactile import TactileTemplateConfig
 from cansim.frontends.tactile_sequence import TactileSequenceConfig, TactileSequenceMatcher, calibrate_threshold, sequence_distances
 from cansim.errors import InvalidInputError
 from cansim.models.ratslam import RatSLAM, RatSLAMConfig
-from cansim.studies.command_line import CommandParser
 from cansim.testing.worlds import SyntheticRun, ch3_loops, make_run
 from maps.least_squares_relaxation import LeastSquaresConfig, relax_least_squares
 from maps.metrics import absolute_trajectory_error, energy_metric, experience_metric
 from maps.plot_maps import plot_experience_ids, plot_experience_map
 from whisker_io._deprecated import renamed_attributes
+from whisker_io.command_line import CommandParser
 from whisker_io.contact.contact_angle import ContactAngleParams
 from whisker_io.sim.ch3_scene import MazeRoute, ch3_terrain
 from whisker_io.sim.planar_chain import PlanarChain, WhiskSchedule
@@ -827,9 +827,10 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
         return "reproduced" if flag else "NOT reproduced"
 
     def judged(key: str, before: dict[str, Any], after: dict[str, Any], better: float) -> str:
-        """A change's direction and its size against the repetitions' spread (a change inside it is not shown)."""
+        """A change's direction, and its size against the repetitions' spread (inside it: "direction only")."""
         b, a = _mean(rows, key, **before), _mean(rows, key, **after)
-        verdict = _change_verdict(better * (a - b), _spread(rows, key, before, after), _repetitions(rows, after))
+        runs = min(_repetitions(rows, before), _repetitions(rows, after))
+        verdict = _change_verdict(better * (a - b), _spread(rows, key, before, after), runs)
         return f"measured {b:.4f} -> {a:.4f}: {verdict}"
 
     out = ["Thesis Ch.3 (whisker RatSLAM in the maze) - simulated reproduction", ""]
@@ -837,8 +838,8 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
                f"loops {list(settings.loops)} (+1 anticlockwise, -1 clockwise)")
     out.append("means over repetitions; 'contact angle' of the thesis = the threshold strategy here")
     out.append("")
-    out.append("A change in the thesis' direction is 'reproduced' when it is larger than the repetitions' spread (sd of the two "
-               "conditions, mean); inside it, only its direction is; the sizes differ from the thesis' (ARR, EM, ARCR of "
+    out.append("A change in the thesis' direction is 'reproduced' when it is larger than the repetitions' spread (the sample "
+               "sd within each condition compared, averaged); inside it, only its direction is; the sizes differ from the thesis' (ARR, EM, ARCR of "
                "another maze, sensor and matcher), so only directions are compared")
     out.append("")
     out.append(f"1. RCP improves ARR (max angle): thesis {THESIS['ARR_open_loop']} -> {THESIS['ARR_rcp']}; "
@@ -868,10 +869,7 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     out.append(f"4b. The map re-localises after every kidnap: in {recovered}/{len(kid_rows)} kidnapped runs a correct re-localisation "
                f"follows each kidnap (median {float(np.median(delays)) if delays else math.nan:.0f} iterations later, "
                f"longest {max(delays) if delays else math.nan:.0f})")
-    flags = []
     for control in CONTROLS:
-        a_max, a_thr = _mean(rows, "ARR", control=control, contact_angle="max_angle", kidnapped=False), _mean(rows, "ARR", control=control, contact_angle="threshold", kidnapped=False)
-        flags.append(a_thr > a_max)
         out.append(f"5. Contact angle raises ARR over max angle, {control}: "
                    + judged("ARR", dict(control=control, contact_angle="max_angle", kidnapped=False),
                             dict(control=control, contact_angle="threshold", kidnapped=False), 1.0))
@@ -907,18 +905,29 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     return out
 
 
+#: What makes two runs repetitions of one condition: the same control, contact angle and kidnapping.
+_CELL = ("control", "contact_angle", "kidnapped")
+
+
+def _cells(rows: list[dict[str, Any]], key: str, match: dict[str, Any]) -> list[list[float]]:
+    """The values of ``key`` of the runs matching ``match``, one list per condition (:data:`_CELL`)."""
+    cells: dict[tuple, list[float]] = {}
+    for r in rows:
+        if all(r[k] == v for k, v in match.items()) and not math.isnan(r[key]):
+            cells.setdefault(tuple(r[k] for k in _CELL), []).append(r[key])
+    return list(cells.values())
+
+
 def _spread(rows: list[dict[str, Any]], key: str, *conditions: dict[str, Any]) -> float:
-    """Mean over ``conditions`` of the sd of ``key`` over each condition's runs (repetitions; NaN with fewer than 2)."""
-    sds = []
-    for match in conditions:
-        vals = [r[key] for r in rows if all(r[k] == v for k, v in match.items()) and not math.isnan(r[key])]
-        if len(vals) > 1:
-            sds.append(float(np.std(vals)))
+    """The repetitions' spread: the sample sd (ddof 1) of ``key`` within each condition (:data:`_CELL`) that
+    ``conditions`` select, averaged; NaN when no condition has two runs."""
+    sds = [float(np.std(v, ddof=1)) for match in conditions for v in _cells(rows, key, match) if len(v) > 1]
     return float(np.mean(sds)) if sds else math.nan
 
 
 def _repetitions(rows: list[dict[str, Any]], match: dict[str, Any]) -> int:
-    return sum(all(r[k] == v for k, v in match.items()) for r in rows)
+    """The fewest runs of any condition (:data:`_CELL`) that ``match`` selects."""
+    return min((len(v) for v in _cells(rows, "ARR", match)), default=0)
 
 
 def _change_verdict(gain: float, spread: float, runs: int) -> str:
@@ -926,7 +935,7 @@ def _change_verdict(gain: float, spread: float, runs: int) -> str:
     if not gain > 0:
         return "NOT reproduced"
     if runs < 2 or not math.isfinite(spread):
-        return "reproduced (direction; one run per condition, no spread to judge its size: run --repetitions 3)"
+        return "direction only (one run per condition: no spread to judge its size; run --repetitions 3)"
     if gain <= spread:
         return f"direction only: the change {gain:.3g} is within the repetitions' spread ({spread:.3g})"
     return f"reproduced (the change {gain:.3g} against a spread of {spread:.3g})"
@@ -935,13 +944,12 @@ def _change_verdict(gain: float, spread: float, runs: int) -> str:
 def _gap_line(rows: list[dict[str, Any]], key: str, values: dict[tuple[str, str], float], winner: tuple[str, str], sign: float) -> str:
     """Finding 6, measured: how far RCP + contact angle is from the best condition against the repetitions' spread."""
     gap = sign * (values[("rcp", "threshold")] - values[winner])
-    spreads = [np.std([r[key] for r in rows if r["control"] == c and r["contact_angle"] == m and not r["kidnapped"]])
-               for c in CONTROLS for m in CONTACT_ANGLES]
-    reps = len([r for r in rows if r["control"] == "rcp" and r["contact_angle"] == "threshold" and not r["kidnapped"]])
+    normal = dict(kidnapped=False)
+    reps = _repetitions(rows, dict(control="rcp", contact_angle="threshold", kidnapped=False))
     text = f"6 ({key}) measured: rcp + threshold is {gap:.3g} from the best ({winner[0]} + {winner[1]})"
     if reps < 2:
         return text + "; one repetition, so no spread to compare it with (run --repetitions 3)"
-    spread = float(np.mean(spreads))
+    spread = _spread(rows, key, normal)
     verdict = "within" if gap <= spread else "beyond"
     return text + f", {verdict} the repetitions' spread ({spread:.3g}: sd over {reps} repetitions, mean over conditions)"
 

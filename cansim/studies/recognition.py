@@ -253,11 +253,11 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from cansim.studies.command_line import CommandParser
 from cansim.studies.object_options import (add_mesh_options, check_distinct, check_mesh_options, conform_objects,
                                            is_mesh_file, labelled_rows, object_label, object_labels, seed_name)
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
+from whisker_io.command_line import CommandParser
 from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
 
 logger = logging.getLogger(__name__)
@@ -849,17 +849,15 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         if "surface" in matchers and unfelt:  # the surface matcher needs a felt surface of every library object
             from whisker_io.errors import InvalidInputError
 
-            label = object_labels(everything)
-            raise InvalidInputError("; ".join(f"the {label[m['name']]} was touched at {m['n_points']} points in its "
+            raise InvalidInputError("; ".join(f"the {labels[m['name']]} was touched at {m['n_points']} points in its "
                                               f"{m['whisks']} mapping whisks" for m in unfelt)
                                     + ": the surface matcher has no surface to match it against. The study's "
                                     "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, "
                                     "--up-axis); leave the object out, or run --matchers thesis")
         empty = [m["name"] for m in maps if m["n_experiences"] == 0]
         if empty:  # once per seed: the presentation jobs build the library without repeating it
-            label = object_labels(everything)
             logger.warning("seed %d: the map of %s holds no experience (no whisk observed a region of 3 contacts or "
-                           "more): the thesis matcher can name nothing as it", seed, ", ".join(label[n] for n in empty))
+                           "more): the thesis matcher can name nothing as it", seed, ", ".join(labels[n] for n in empty))
         paths = {m["name"]: m["path"] for m in maps}
         surface_paths = {m["name"]: m["surface"] for m in maps}
         jobs = []

@@ -264,7 +264,7 @@ def _load_config(config: str | os.PathLike[str] | RatSLAMConfig | None,
     # topic_root is read here, not by the model: a comment in its place (the other keys keep their line numbers),
     # so that RatSLAMConfig's warning names only the keys nothing reads
     model_text = "\n".join("#" if ln.split("=", 1)[0].strip() in REPLAY_KEYS and "=" in ln else ln
-                            for ln in text.splitlines())
+                            for ln in text.split("\n"))
     try:
         cfg = RatSLAMConfig.from_text(model_text, **preset)  # an OpenRatSLAM file's front end is visual
     except ConfigError as exc:

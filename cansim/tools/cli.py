@@ -24,7 +24,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from cansim.studies.command_line import CommandParser
+from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError
 
 __all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
@@ -303,7 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stamps", choices=("header", "log"), default="header",
                    help="time odometry by header stamps (OpenRatSLAM, default) or by the bag's record times")
     p.add_argument("--openratslam", action="store_true",
-                   help="the OpenRatSLAM preset: the C++ core's pose cells bit for bit (RatSLAMConfig.openratslam); "
+                   help="the OpenRatSLAM preset: the C++ core's pose cells bit for bit (RatSLAMConfig.openratslam), "
+                        "which refuses an odometry step of more than one cell (raise the file's cell size); "
                         "default: cansim's generic pose-cell engine with the config file's values")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_replay)

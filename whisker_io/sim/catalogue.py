@@ -109,9 +109,10 @@ def object_labels(specs: Sequence[str | os.PathLike[str]]) -> dict[str, str]:
     columns of its CSVs, and as the stem of its map and copy files. Distinct and a file-name stem.
 
     Each object takes :func:`object_file_name` of itself (a mesh file's stem, a name as given); where
-    two would be equal (``a/cup.obj``, ``b/cup.stl``), those two take their folder (``a_cup``,
-    ``b_cup``), then their ending too (``a_cup_obj``), and only then a number by their place among
-    ``specs`` (``cup_1``, ``cup_2``, ...). The others keep their plain names.
+    two would be equal, letter case aside (``a/cup.obj``, ``b/Cup.stl``: one file on macOS and
+    Windows), those take their folder (``a_cup``, ``b_Cup``), then their ending too
+    (``a_cup_obj``), and only then a number by their place among ``specs`` (``cup_1``,
+    ``cup_2``). The others keep their plain names.
 
     >>> object_labels(["a/cup.obj", "mug", "b/cup.stl"])
     {'a/cup.obj': 'a_cup', 'mug': 'mug', 'b/cup.stl': 'b_cup'}
@@ -130,22 +131,29 @@ def object_labels(specs: Sequence[str | os.PathLike[str]]) -> dict[str, str]:
     """
     unique = list(dict.fromkeys(map(str, specs)))
     labels = {s: object_file_name(s) for s in unique}
-    for with_suffix in (False, True):  # the clashing ones: with their folder, then with their ending too
-        seen: dict[str, list[str]] = {}
-        for spec, lab in labels.items():
-            seen.setdefault(lab, []).append(spec)
-        clash = [spec for group in seen.values() if len(group) > 1 for spec in group]
+    for step in ("folder", "ending", "number"):  # the clashing ones: with their folder, their ending, a number
+        clash = _clashing(labels)
         if not clash:
             return labels
         for spec in clash:
-            if is_mesh_file(spec):
-                path = Path(spec)
-                parts = [path.parent.name, path.stem, path.suffix.lstrip(".") if with_suffix else ""]
+            path = Path(spec)
+            if step == "number":
+                labels[spec] = f"{object_file_name(spec)}_{unique.index(spec) + 1}"
+            elif is_mesh_file(spec):
+                parts = [path.parent.name, path.stem, path.suffix.lstrip(".") if step == "ending" else ""]
                 labels[spec] = object_file_name("_".join(p for p in parts if p))
-    if len(set(labels.values())) == len(labels):
-        return labels
-    stems = [object_file_name(s) for s in unique]
-    return {s: f"{stem}_{i + 1}" for i, (s, stem) in enumerate(zip(unique, stems))}
+    if _clashing(labels):  # a number made one equal to another's plain name: number them all
+        return {s: f"{object_file_name(s)}_{i + 1}" for i, s in enumerate(unique)}
+    return labels
+
+
+def _clashing(labels: dict[str, str]) -> list[str]:
+    """The objects whose labels are equal to another's, letter case aside (file names that differ only in case are
+    one file on macOS and Windows)."""
+    seen: dict[str, list[str]] = {}
+    for spec, lab in labels.items():
+        seen.setdefault(lab.casefold(), []).append(spec)
+    return [spec for group in seen.values() if len(group) > 1 for spec in group]
 
 
 def object_file_names(specs: Sequence[str | os.PathLike[str]]) -> list[str]:
