@@ -190,7 +190,8 @@ def check_motion_shifts(ms: object, shape: tuple[int, ...], model: str = "the mo
     if (axes is None) != (cond is None):
         raise ShapeError(f"{rule}; got shift_axes {axes!r} with cond_shifts {'None' if cond is None else 'given'}")
     if axes is not None:
-        if (not isinstance(axes, tuple) or not axes or not all(isinstance(k, (int, np.integer)) for k in axes)
+        if (isinstance(axes, (str, bytes)) or not isinstance(axes, Sequence) or not axes
+                or not all(isinstance(k, (int, np.integer)) and not isinstance(k, (bool, np.bool_)) for k in axes)
                 or list(axes) != sorted(set(axes)) or not all(0 <= k < ndim for k in axes)):
             raise ShapeError(f"{rule}; got shift_axes {axes!r}")
         want = tuple(n for k, n in enumerate(shape) if k not in axes) + (len(axes),)

@@ -646,11 +646,12 @@ class Population:
 
         from whisker_io.persistence import write_npz
 
-        from cansim.backends import registered_backends
+        from cansim.backends import registered_name
 
-        if self.backend not in registered_backends():
-            raise InvalidInputError(f"the backend {self.backend!r} has no registered name, so a file cannot name it: "
-                                    "name it with cansim.backends.register_backend first (or pickle the population)")
+        if registered_name(self._backend) is None:
+            raise InvalidInputError(f"the backend {type(self._backend).__name__} (name {self.backend!r}) is not the class "
+                                    "the registry builds by its name, so a file cannot name it: register it under a name "
+                                    "of its own with cansim.backends.register_backend first (or pickle the population)")
         arrays = {"population_format": np.int64(_SAVE_FORMAT), "population": np.array(json.dumps(self._description())),
                   "activity": self._a}
         if self._last_decoded is not None:
@@ -706,17 +707,17 @@ class Population:
 
     def __getstate__(self) -> dict:
         """What pickle and :func:`copy.deepcopy` keep: the construction and the state (not the bound kernels)."""
-        from cansim.backends import registered_backends
+        from cansim.backends import registered_name
 
-        named = self.backend in registered_backends()  # a backend of one's own not registered: pickled itself
+        name = registered_name(self._backend)  # a backend the registry does not build by its name: pickled itself
         return {"axes": self._axes, "params": self._params, "dtype": self._dtype.name,
-                "backend": self.backend if named else self._backend,
+                "backend": name if name is not None else self._backend,
                 "motion": self._motion, "decode_window": self._window, "activity": self._a.copy(),
                 "decoded": None if self._last_decoded is None else self._last_decoded.copy()}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["axes"], state["params"], dtype=np.dtype(state["dtype"]), backend=state["backend"],
-                      motion=state["motion"], decode_window=state["decode_window"])
+        Population.__init__(self, state["axes"], state["params"], dtype=np.dtype(state["dtype"]),
+                            backend=state["backend"], motion=state["motion"], decode_window=state["decode_window"])
         self.activity = state["activity"]
         self._last_decoded = state["decoded"]
 

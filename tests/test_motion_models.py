@@ -91,3 +91,11 @@ def test_check_motion_shifts_accepts_exactly_the_rule(shape, axes, cond_extra, u
         assert not ok
         return
     assert ok and (got.uniform is None or got.uniform.dtype == np.float64)
+
+
+def test_shift_axes_may_be_any_sequence_of_axis_indices_but_not_booleans():
+    shape = (6, 8)
+    got = check_motion_shifts(MotionShifts([0], np.zeros((8, 1)), None), shape)  # a list, as one's own model may give
+    assert got.shift_axes == (0,) and got.cond_shifts.dtype == np.float64
+    with pytest.raises(ShapeError, match="shift_axes"):
+        check_motion_shifts(MotionShifts((True,), np.zeros((8, 1)), None), shape)

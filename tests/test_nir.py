@@ -23,6 +23,10 @@ from cansim.spiking import (  # noqa: E402
     to_nir,
 )
 
+# the default neurons' 2-ms refractory period is dropped on export: warned of, and tested, in
+# test_export_warns_of_what_the_consumers_will_run_otherwise; the other tests are about the weights
+pytestmark = pytest.mark.filterwarnings("ignore:to_nir. NIR's CubaLIF has no refractory period:UserWarning")
+
 HSET = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 

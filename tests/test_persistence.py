@@ -152,3 +152,26 @@ def test_npz_path_follows_numpy_and_leaves_open_files_alone(tmp_path):
     assert npz_path("run") == "run.npz" and npz_path("run.npz") == "run.npz" and npz_path(tmp_path / "a.b") == str(tmp_path / "a.b.npz")
     buf = io.BytesIO()
     assert npz_path(buf) is buf
+
+
+def test_a_save_writes_through_a_link_and_keeps_the_files_permissions(tmp_path):
+    import os
+    import stat
+
+    from whisker_io.persistence import write_npz
+
+    real = tmp_path / "data" / "run.npz"
+    real.parent.mkdir()
+    write_npz(real, {"a": np.zeros(2)})
+    os.chmod(real, 0o640)
+    link = tmp_path / "run.npz"
+    link.symlink_to(real)
+    write_npz(link, {"a": np.ones(3)})
+    assert link.is_symlink() and np.array_equal(read_npz(link)["a"], np.ones(3))
+    assert stat.S_IMODE(real.stat().st_mode) == 0o640
+    assert sorted(p.name for p in real.parent.iterdir()) == ["run.npz"]  # no temporary file left
+    fresh = tmp_path / "new.npz"
+    write_npz(fresh, {"a": np.zeros(1)})
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(fresh.stat().st_mode) == 0o666 & ~umask  # as open() makes a file, not mkstemp's 0600

@@ -567,3 +567,9 @@ def test_an_angular_axis_covers_a_whole_turn(size, factor):
         with pytest.raises(InvalidInputError, match=r"angular axis covers a whole turn.*Axis\.angle\('th', "):
             Axis("th", size, step, angular=True)
     assert Axis("th", size, step).period == pytest.approx(size * step)  # a linear axis takes any step
+
+
+def test_an_angular_step_stored_as_float32_is_a_whole_turn():
+    """NIR metadata or hand-built axes may hold 2 pi / n in single precision (a review, session 47)."""
+    step = float(np.float32(2 * math.pi / 36))
+    assert Axis("th", 36, step, angular=True).size == 36

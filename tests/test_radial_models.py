@@ -250,11 +250,19 @@ def test_inputs_outside_the_training_data_are_warned_of_once_and_still_estimated
     wrong_units[5, FEATURE_NAMES.index("WL")] = 0.3  # a 300-mm whisker
     with pytest.warns(UserWarning) as record:
         out = svr.predict(wrong_units)
-    assert len(record) == 1
+    assert len(record) == 1 and record[0].filename == __file__  # pointing at the caller
     text = str(record[0].message)
     assert text.startswith("4 of 40 contacts lie outside the data model 'svr9' was trained on")
     assert "WL 0.3 m (trained on 0.065 to 0.137)" in text and "AV" in text and "rad/s" in text
     np.testing.assert_array_equal(out[6:], inside[6:])  # the others estimated as before
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # once per model: a study's thousands of whisks do not repeat it
+        svr.predict(wrong_units)
+        fresh = fit_model("svr9", *TABLE_4_1["svr9"], train, QUICK)
+        fresh.predict(wrong_units, warn_outside=False)  # an extrapolation made on purpose
+        tip = fit_model("tip", "tip", ("WL",), train, QUICK)
+        assert tip.training_range == {}  # the baselines do not extrapolate
+        tip.predict(wrong_units)
     loaded = load_model(save_model(svr, tmp_path / "svr9.skops"))
     assert loaded.training_range == svr.training_range
     with pytest.warns(UserWarning, match="4 of 40 contacts"):

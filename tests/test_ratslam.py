@@ -320,3 +320,18 @@ def test_implausible_odometry_is_warned_once_each_and_still_runs():
         strict.step(0.2, 45.0, 0.5, 0)
     with pytest.raises(InvalidInputError, match="40 cells"):
         strict.step(10.0, 0.0, 1.0, 0)
+
+
+def test_the_odometry_warning_points_at_the_callers_line_whichever_way_the_step_came():
+    """A fixed stacklevel pointed into the library for run() and one frame off for on_odo() (a review, session 47)."""
+    for how in ("step", "on_odo", "run"):
+        slam = RatSLAM(RatSLAMConfig(frontend="ids"))
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            if how == "step":
+                slam.step(0.2, 45.0, 0.5, 0)
+            elif how == "on_odo":
+                slam.on_odo(0.2, 45.0, 0.5)
+            else:
+                slam.run(np.array([0.2]), np.array([45.0]), np.array([0.5]), [0])
+        assert [w.filename for w in record] == [__file__], how

@@ -37,9 +37,9 @@ def test_a_registered_backend_is_a_name_everywhere(registry):
     mine.save(buf)
     buf.seek(0)
     back = Population.load(buf)
-    assert back.backend == "mine"
+    assert back.backend == "mine" and type(back._backend) is MineBackend
     np.testing.assert_array_equal(_moves(back), _moves(mine))
-    assert pickle.loads(pickle.dumps(mine)).backend == "mine"
+    assert type(pickle.loads(pickle.dumps(mine))._backend) is MineBackend
     from cansim.models.ratslam import RatSLAM, RatSLAMConfig
 
     slam = RatSLAM(RatSLAMConfig(backend="mine", frontend="ids"))
@@ -61,7 +61,7 @@ def test_an_unregistered_instance_runs_and_pickles_but_is_not_written_by_name(re
     p = Population.head_direction(12, backend=MineBackend())
     p.step(0.4)
     assert pickle.loads(pickle.dumps(p)).backend == "mine"  # the instance itself travels
-    with pytest.raises(InvalidInputError, match="has no registered name.*register_backend"):
+    with pytest.raises(InvalidInputError, match="is not the class the registry builds by its name.*register_backend"):
         p.save(tmp_path / "ring.npz")
     assert not any(tmp_path.iterdir())
 
@@ -87,3 +87,16 @@ def test_a_class_defined_inside_a_function_is_refused(registry):
 
     with pytest.raises(InvalidInputError, match="top level of an importable module"):
         backends.register_backend("inner", make())
+
+
+class NumpyNamed(NumpyBackend):
+    """A subclass that keeps the built-in name: never to be swapped for the built-in class."""
+
+
+def test_a_subclass_keeping_a_built_in_name_is_pickled_as_itself_and_not_saved_by_that_name(tmp_path):
+    p = Population.head_direction(12, backend=NumpyNamed())
+    assert p.backend == "numpy" and backends.registered_name(p._backend) is None
+    assert type(pickle.loads(pickle.dumps(p))._backend) is NumpyNamed
+    with pytest.raises(InvalidInputError, match="NumpyNamed .name 'numpy'. is not the class the registry builds"):
+        p.save(tmp_path / "x.npz")
+    assert backends.registered_name(NumpyBackend()) == "numpy"

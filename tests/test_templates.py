@@ -216,3 +216,10 @@ def test_image_errors_name_the_fault():
     fresh = VisualTemplates(VisualTemplateConfig(template_width_blocks=4, template_height_blocks=2, shift_match_blocks=0))
     with pytest.raises(ShapeError, match=r"image\[\.\.\., :3\]"):
         fresh.match(np.zeros((8, 16, 4), dtype=np.uint8))
+
+
+def test_an_rgba_image_after_rgb_ones_is_told_to_drop_alpha():
+    vt = VisualTemplates(VisualTemplateConfig(template_width_blocks=4, template_height_blocks=2, shift_match_blocks=0))
+    vt.match(np.zeros((8, 16, 3), dtype=np.uint8))
+    with pytest.raises(ShapeError, match=r"4 channels against 3 channels.*image\[\.\.\., :3\]"):
+        vt.match(np.zeros((8, 16, 4), dtype=np.uint8))

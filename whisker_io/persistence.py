@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 import zipfile
 from typing import Any, BinaryIO, Mapping
 
@@ -79,19 +80,32 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]) -> None:
     """Write ``arrays`` as an ``.npz`` archive (no pickle).
 
-    A file name is written to a temporary name beside it and renamed (``os.replace``), so a
-    crash never leaves a half-written file under that name; an open binary file (e.g.
+    A file name is written to a temporary file of its own beside it and renamed
+    (``os.replace``), so a crash never leaves a half-written file under that name and two
+    writers never share a temporary file; a symbolic link is written through (it stays a
+    link) and an existing file keeps its permissions. An open binary file (e.g.
     ``io.BytesIO``) is written as is.
     """
     if not isinstance(path, (str, os.PathLike)):
         np.savez(path, **arrays)
         return
-    tmp = os.fspath(path) + ".tmp.npz"
+    target = os.path.realpath(path)  # through a symbolic link, as np.savez writes: the link stays a link
+    folder = os.path.dirname(target)
+    mode = os.stat(target).st_mode & 0o7777 if os.path.exists(target) else _new_file_mode()
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(target) + ".", suffix=".tmp")  # one per writer
     try:
-        with open(tmp, "wb") as fh:
+        with os.fdopen(fd, "wb") as fh:
             np.savez(fh, **arrays)
-        os.replace(tmp, path)
+        os.chmod(tmp, mode)  # the file's own permissions (a new one's as open() would give it), not mkstemp's 0600
+        os.replace(tmp, target)
     except BaseException:  # a failed or interrupted write leaves the earlier file and no temporary one
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def _new_file_mode() -> int:
+    """The permissions :func:`open` gives a new file here: 0666 less the process' umask."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask

@@ -35,6 +35,8 @@ import functools
 import inspect
 import math
 import numbers
+import os
+import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -43,8 +45,26 @@ from numpy.typing import ArrayLike, NDArray
 
 from whisker_io.errors import ConfigError, InvalidInputError, ShapeError, UnknownFieldError
 
-__all__ = ["finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple", "config_field",
-           "plain_fields", "scale_factor", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "ConfigDataclass", "MAX_STEP_M", "MAX_TURN_RAD"]
+__all__ = ["caller_stacklevel", "finite_scalar", "finite_vector", "finite_array", "whole_number", "number_tuple",
+           "config_field", "plain_fields", "scale_factor", "scaled_fields", "FieldCheck", "checked", "field_checks", "validate_fields", "ConfigDataclass", "MAX_STEP_M", "MAX_TURN_RAD"]
+
+#: The library's packages (beside this one wherever it is installed): a warning points past their frames.
+_LIBRARY_DIRS = tuple(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), name) + os.sep
+                      for name in ("cansim", "maps", "whisker_io"))
+
+
+def caller_stacklevel() -> int:
+    """The ``stacklevel`` for :func:`warnings.warn` that names the first caller outside the library.
+
+    Call it as the argument of the ``warnings.warn`` it is for; the warning then points at the
+    user's line whichever way it was reached (``RatSLAM.step``, ``run``, ``on_odo``, a study).
+    """
+    frame = sys._getframe(1)  # the function calling warnings.warn: stacklevel 1
+    level = 1
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_LIBRARY_DIRS):
+        frame, level = frame.f_back, level + 1
+    return level
+
 
 #: Largest accepted translation of one odometry sample or between two successive poses (m);
 #: a larger one is corrupt data (split real motion into steps). Used by the typed odometry

@@ -24,7 +24,7 @@ from typing import Callable
 from cansim.backends.base import Backend
 from cansim.errors import BackendUnavailableError, InvalidInputError, UnknownBackendError
 
-__all__ = ["Backend", "get_backend", "available_backends", "backend_status", "register_backend", "registered_backends"]
+__all__ = ["Backend", "get_backend", "available_backends", "backend_status", "register_backend", "registered_backends", "registered_name"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +47,16 @@ _REGISTRY: dict[str, _Entry] = {
 def registered_backends() -> tuple[str, ...]:
     """Names of every backend this version knows, installed or not (and those :func:`register_backend` added)."""
     return tuple(_REGISTRY)
+
+
+def registered_name(backend: Backend) -> str | None:
+    """The name under which the registry builds exactly this backend's class, or None (a class of one's own not
+    registered, or a subclass of a registered one that keeps its ``name``): what a saved file may name it by."""
+    entry = _REGISTRY.get(getattr(backend, "name", None))  # type: ignore[arg-type]
+    cls = type(backend)
+    if entry is None or (entry.module, entry.cls) != (cls.__module__, cls.__qualname__):
+        return None
+    return backend.name
 
 
 def register_backend(name: str, cls: type[Backend], *, requires: tuple[str, ...] = (), extra: str = "") -> None:

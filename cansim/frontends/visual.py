@@ -203,9 +203,10 @@ class VisualTemplates:
             self._check_geometry(shape)
         elif shape != self.image_shape:
             if shape[:2] == self.image_shape[:2]:  # the same size, other channels: grey (H, W) against RGB (H, W, 3)
+                alpha = "; drop the alpha channel: image[..., :3]" if len(shape) == 3 and shape[2] == 4 else ""
                 raise ShapeError(f"image shape {shape} has other channels than the first image's {self.image_shape} "
                                  f"({_channels(shape)} against {_channels(self.image_shape)}); give every image as grey "
-                                 "or every image as RGB")
+                                 f"or every image as RGB{alpha}")
             raise ShapeError(f"image shape {shape} differs from the expected {self.image_shape}; resize or crop it first")
         c = self.config
         x0, x1, y0, y1 = self._crop(shape)

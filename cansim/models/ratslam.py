@@ -53,11 +53,13 @@ from cansim.frontends.tactile import TactileTemplateConfig, TactileTemplates
 from cansim.frontends.visual import VisualTemplateConfig, VisualTemplates
 from cansim.local_view import LocalViewCells
 from cansim.population import Population
+from cansim.models.openratslam_config import key_of
 from cansim.models.posecell_network import PosecellNetwork
 from cansim.models.ratslam_config import RatSLAMConfig
 from cansim.models.slam_loop import SlamLog, SlamLoop, SlamState, configured
 from maps.experience_map import ExperienceMap
 from maps.odometry import PlanarOdometry
+from whisker_io.validation import caller_stacklevel
 
 __all__ = ["RatSLAM", "RatSLAMConfig"]
 
@@ -123,7 +125,7 @@ class RatSLAM(SlamLoop):
             raise InvalidInputError(
                 f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
                 "OpenRatSLAM's path integration is valid for at most one cell per step - "
-                "raise cell_size_m or split the step"
+                f"raise cell_size_m ({key_of('cell_size_m')} in an OpenRatSLAM config file) or split the step"
             )
         if abs(odo.omega * odo.dt) > math.pi:
             self._warn_implausible(odo)
@@ -139,7 +141,7 @@ class RatSLAM(SlamLoop):
             self._warned.add("turn")
             warnings.warn(f"iteration {self.iteration}: vrot*dt = {turn_rad:g} rad turns more than half a circle in one "
                           "step (the pose cells cannot tell the way it turned); vrot is in rad/s - a yaw rate in deg/s? "
-                          "(this warning is given once)", UserWarning, stacklevel=6)
+                          "(this warning is given once)", UserWarning, stacklevel=caller_stacklevel())
         if move_m >= self._quarter_grid_m and "move" not in self._warned:
             self._warned.add("move")
             cells = move_m / self.config.cell_size_m
@@ -147,7 +149,7 @@ class RatSLAM(SlamLoop):
             warnings.warn(f"iteration {self.iteration}: vtrans*dt = {move_m:g} m moves the packet {cells:.3g} cells in one "
                           f"step, a quarter of the {self.config.xy_cells}-cell grid or more ({grid_m / 2:g} m, half the "
                           "grid, wraps round to another place) - check the units (m/s, s), raise cell_size_m or split "
-                          "the step (this warning is given once)", UserWarning, stacklevel=6)
+                          "the step (this warning is given once)", UserWarning, stacklevel=caller_stacklevel())
 
     def step(self, vtrans: float, vrot: float, dt: float, observation: Any = None) -> SlamState:  # type: ignore[override]
         """Run one RatSLAM iteration: the view (if an observation is given), then the odometry.

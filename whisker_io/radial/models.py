@@ -50,7 +50,7 @@ from sklearn.svm import SVR
 from threadpoolctl import threadpool_limits
 
 from whisker_io.errors import InvalidInputError
-from whisker_io.validation import ConfigDataclass, checked, number_tuple, validate_fields
+from whisker_io.validation import ConfigDataclass, caller_stacklevel, checked, number_tuple, validate_fields
 from whisker_io._deprecated import renamed_attributes
 from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS, RadialDataset, feature_indices
@@ -127,14 +127,16 @@ def check_feature_matrix(X: Any, what: str = "X") -> np.ndarray:
     return arr
 
 
-#: How far outside a feature's training range (a share of its width) an input lies before
-#: :meth:`TrainedModel.predict` warns.
+#: How far outside a feature's training range an input lies before :meth:`TrainedModel.predict` warns: this
+#: share of the range's width, or of the larger magnitude of its ends when that is larger (a narrow range far
+#: from zero, e.g. whisker lengths of 65-137 mm, then allows 14 mm).
 OUTSIDE_MARGIN = 0.1
 
 
 def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
-                  training_range: Mapping[str, tuple[float, float]]) -> None:
-    """One warning naming the features of ``X`` (rows) outside ``training_range`` by more than the margin."""
+                  training_range: Mapping[str, tuple[float, float]]) -> bool:
+    """One warning naming the features of ``X`` (rows) outside ``training_range`` by more than the margin;
+    whether it was given."""
     outside, rows = [], np.zeros(len(X), dtype=bool)
     for f in features:
         if f not in training_range:
@@ -150,7 +152,9 @@ def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
     if outside:
         warnings.warn(f"{int(rows.sum())} of {len(X)} contacts lie outside the data model {label!r} was trained on: "
                       + "; ".join(outside) + " - check the units (WL in m, AV in rad/s, AA in rad/s^2) and the "
-                      "whisker lengths; estimates there are extrapolations", UserWarning, stacklevel=3)
+                      "whisker lengths; estimates there are extrapolations (warned once per model)", UserWarning,
+                      stacklevel=caller_stacklevel())
+    return bool(outside)
 
 
 class SelectFeatures(TransformerMixin, BaseEstimator):
@@ -475,14 +479,16 @@ class TrainedModel:
     fit_seconds: float = 0.0
     training_hash: str = ""
     training_range: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    warned: bool = field(default=False, repr=False, compare=False)
 
-    def predict(self, X: Any) -> np.ndarray:
+    def predict(self, X: Any, *, warn_outside: bool = True) -> np.ndarray:
         """Radial distance, m, shape (n,), from the full feature matrix (n, 7).
 
-        Warns (``UserWarning``, one per call) when contacts lie outside the training data
-        by more than :data:`OUTSIDE_MARGIN` of a feature's training range - another whisker
+        Warns (``UserWarning``, once per model: ``warned`` then becomes True) when contacts
+        lie outside the training data by more than :data:`OUTSIDE_MARGIN` - another whisker
         length, or another unit (mm for m, deg/s for rad/s): the estimate there is an
-        extrapolation and can be far off.
+        extrapolation and can be far off. ``warn_outside=False`` for an extrapolation made on
+        purpose (the Ch.4 study's unseen whisker lengths).
 
         Raises
         ------
@@ -494,7 +500,8 @@ class TrainedModel:
         X = check_feature_matrix(X)
         if not len(X):
             return np.zeros(0)
-        _warn_outside(self.label, X, self.features, self.training_range)
+        if warn_outside and not self.warned and _warn_outside(self.label, X, self.features, self.training_range):
+            object.__setattr__(self, "warned", True)
         try:
             return np.asarray(self.estimator.predict(X), dtype=np.float64)
         except NotFittedError:
@@ -561,7 +568,8 @@ def fit_model(
     dt = time.perf_counter() - t0
     log.info("fitted %s (%s on %s) in %.2f s: %s", label, family, "-".join(features), dt, best)
     used = tuple(features) if family not in ("tip", "random") else ("WL",)
-    span = {f: (float(X[:, FEATURE_NAMES.index(f)].min()), float(X[:, FEATURE_NAMES.index(f)].max())) for f in used}
+    span = ({} if family in ("tip", "random") else  # the baselines do not extrapolate: nothing to warn of
+            {f: (float(X[:, FEATURE_NAMES.index(f)].min()), float(X[:, FEATURE_NAMES.index(f)].max())) for f in used})
     return TrainedModel(
         label=label,
         family=family,
