@@ -115,15 +115,19 @@ def run(who: str, cells: int, seconds: float, *, calibrated: bool = True, integr
 
 def main(argv: list[str] | None = None) -> int:
     ap = CommandParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--who", default="cansim", choices=["cansim", "snntorch", "norse", "rockpool"])
-    ap.add_argument("--cells", type=int, default=120)
-    ap.add_argument("--seconds", type=float, default=60.0)
-    ap.add_argument("--start-s", type=float, default=0.0)
-    ap.add_argument("--data", default="sargolini", choices=["sargolini", "tanni"])
-    ap.add_argument("--smooth-s", type=float, default=1.0)
-    ap.add_argument("--min-speed-m-s", type=float, default=0.03)
-    ap.add_argument("--lowpass-s", type=float, default=0.2)
-    ap.add_argument("--no-calibration", action="store_true")
+    ap.add_argument("--who", default="cansim", choices=["cansim", "snntorch", "norse", "rockpool"],
+                    help="who runs the NIR graph (default cansim's own simulation of it)")
+    ap.add_argument("--cells", type=int, default=120, help="cells of the turning ring (default 120)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="seconds of the recorded trajectory to run (default 60)")
+    ap.add_argument("--start-s", type=float, default=0.0, help="where in the recording to start, s (default 0)")
+    ap.add_argument("--data", default="sargolini", choices=["sargolini", "tanni"],
+                    help="the recorded rat trajectory (default sargolini)")
+    ap.add_argument("--smooth-s", type=float, default=1.0, help="the velocity's direction averaged over this, s (default 1)")
+    ap.add_argument("--min-speed-m-s", type=float, default=0.03,
+                    help="below this averaged speed the heading is held, m/s (default 0.03)")
+    ap.add_argument("--lowpass-s", type=float, default=0.2, help="low-pass of the heading before its derivative is taken, s (default 0.2)")
+    ap.add_argument("--no-calibration", action="store_true",
+                    help="hand the graph the angular velocity itself, not TurningCalibration.command of it")
     ap.add_argument("--integration", default="exact", choices=["exact", "euler"],
                     help="cansim's discretisation (euler: the consumers'; --who cansim only)")
     ap.add_argument("--precision", default="float32", choices=["float32", "float64"],

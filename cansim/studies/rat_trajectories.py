@@ -871,7 +871,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     fig.tight_layout()
     fig.savefig(args.out / "rat_trajectories_errors.png", dpi=120)
     plt.close(fig)
-    metrics = {"trajectory": traj.name, "start_s": args.start_s, "duration_s": traj.duration_s, "dt_s": traj.dt_s,
+    metrics = {"trajectory": traj.name, "start_s": args.start_s, "duration_s": round(traj.duration_s, 6), "dt_s": traj.dt_s,
                "seeds": list(range(args.seed, args.seed + args.seeds)), "quick": args.quick,
                "landmark_radius_m": args.landmark_radius_m,
                "summary": rows, "runs": [{"seed": args.seed + i // (2 * len(models)), **r.summary()} for i, r in enumerate(runs)]}
