@@ -305,9 +305,10 @@ def quick_study(tmp_path_factory):
 def test_study_quick_mode_writes_the_named_columns(quick_study):
     tmp_path, rows = quick_study
     study = _load_study()
-    assert rows[0] == ["control", "contact_angle", "kidnapped", "ARR", "ARCR", "EM", "map_error_m", "dr_error_m"]
+    assert rows[0] == ["control", "contact_angle", "kidnapped", "ARR", "ARCR", "EM", "map_error_m", "dr_error_m", "seed"]
     body = rows[1:]
     assert len(body) == 2 * 2 * 3 * 2  # 2 repetitions x {open_loop, rcp} x {onset, max_angle, threshold} x {normal, kidnapped}
+    assert [r[8] for r in body] == ["1"] * 12 + ["2"] * 12  # the summary's "seeds [1, 2]", by repetition
     assert {r[0] for r in body} == {"open_loop", "rcp"}
     assert {r[1] for r in body} == {"onset", "max_angle", "threshold"}
     assert {r[2] for r in body} == {"true", "false"}

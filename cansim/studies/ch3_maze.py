@@ -214,9 +214,9 @@ mode) for both the sensor and the odometry noise.
 Outputs (in ``--out``, default the working folder)
 --------------------------------------------------
 * ``ch3_metrics.csv`` - one row per scored run, columns ``control, contact_angle,
-  kidnapped, ARR, ARCR, EM, map_error_m, dr_error_m`` (``control`` in ``open_loop, rcp``;
-  ``kidnapped`` ``true``/``false``); rows ordered by repetition, control, contact-angle
-  strategy, then normal before kidnapped.
+  kidnapped, ARR, ARCR, EM, map_error_m, dr_error_m, seed`` (``control`` in ``open_loop, rcp``;
+  ``kidnapped`` ``true``/``false``; ``seed`` the repetition's); rows ordered by repetition,
+  control, contact-angle strategy, then normal before kidnapped.
 * ``ch3_calibration.csv`` - ``sequence``: per condition the threshold, the energy and
   the same-place (median, 90th percentile) and different-place (1st percentile,
   median) sequence dissimilarities with the share of same-place pairs under the
@@ -1074,7 +1074,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     metrics["ids"] = ids[metrics["valid"]]
                     delays = recovery_delays(metrics, kidnaps) if is_kid else []
                     rows.append({"control": control, "contact_angle": m, "kidnapped": is_kid, "recovery": delays,
-                                 **{k: metrics[k] for k in METRIC_COLUMNS[3:]}})
+                                 **{k: metrics[k] for k in METRIC_COLUMNS[3:]}, "seed": seed})
                     if seed == seeds[0]:
                         examples[(control, m, is_kid)] = (rec, slam, metrics, kidnaps if is_kid else ())
                     progress.update(1)
@@ -1082,9 +1082,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     with open(out / "ch3_metrics.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
-        writer.writerow(METRIC_COLUMNS)
+        writer.writerow((*METRIC_COLUMNS, "seed"))
         for r in rows:
-            writer.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
+            writer.writerow([_fmt(r[c]) for c in (*METRIC_COLUMNS, "seed")])
     grid_columns: tuple[str, ...] = ("control", "contact_angle", "match_threshold", "inject_energy", "ARR", "ARCR", "chosen")
     if args.recognition == "sequence":
         grid_columns = ("control", "contact_angle", "match_threshold", "inject_energy", "same_median", "same_p90", "different_p1",
