@@ -55,3 +55,19 @@ def test_study_writes_the_results_table_and_figures(study):
         assert {"model", "features", "median_abs_error", "ks_p_vs_tip"} <= set(r)
         assert np.isfinite(float(r["median_abs_error"]))
     assert len(list(out.glob("*.png"))) >= 4
+
+
+def test_the_summary_says_what_was_reproduced_with_the_table_it_rests_on(study):
+    """It listed only the differences from the thesis, with no table (a user's pass, session 47)."""
+    out, scores = study
+    text = (out / "radial_study_summary.txt").read_text()
+    reproduced = text.split("Reproduced (as the thesis found):")[1].split("Differences from the thesis:")[0]
+    best = min((s for k, s in scores.items() if k not in ("tip", "random")), key=lambda s: s.median_abs_error)
+    assert f"Fig 4.9: the lowest median |radial error| is {best.model}'s ({best.median_abs_error:.4f})" in reproduced
+    with open(out / "radial_results.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    table = text.split("Validation on unseen whisker lengths")[1].split("Evans-style")[0]
+    for r in rows:  # every model of the CSV in the summary's table, with its median
+        line = next(ln for ln in table.splitlines() if ln.split()[:1] == [r["model"]])
+        assert f"{float(r['median_abs_error']):.4f}" in line
+    assert "(thesis 2.77 %)" in text and "(thesis 3.37 %)" in text and "Quick run" not in text
