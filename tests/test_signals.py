@@ -331,3 +331,17 @@ def test_retract_at_max_cycle_is_the_numpy_composition():
     assert not np.array_equal(angles2, angles)  # the controller did react
     (x, y, th), _ = _numpy_cycle(contacts, angles2, SignalParams(), 5)
     assert all(np.array_equal(r.y_counts, y[i]) and np.array_equal(r.angle_rad, th[i]) for i, r in enumerate(recs))
+
+
+@pytest.mark.parametrize("kwargs,says", [
+    (dict(angle_rad=30.0, radial_distance_m=0.05, whisker_length_m=0.1), r"30 deg = 0.5236 rad"),
+    (dict(angle_rad=-4.0, radial_distance_m=0.05, whisker_length_m=0.1), r"within \+-pi rad"),
+    (dict(angle_rad=0.3, radial_distance_m=50.0, whisker_length_m=90.0), r"90 mm = 0.09 m"),
+])
+def test_a_contact_in_degrees_or_millimetres_is_refused_naming_the_unit(kwargs, says):
+    """Degrees and millimetres gave no contact and empty features, silently (a user's pass, session 47)."""
+    from whisker_io.sim.signals import WhiskContact
+
+    with pytest.raises(InvalidInputError, match=says):
+        WhiskContact(**kwargs)
+    WhiskContact(angle_rad=math.pi, radial_distance_m=1.0, whisker_length_m=1.0)  # the bounds themselves are taken

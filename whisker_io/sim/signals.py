@@ -176,6 +176,8 @@ class SignalParams(ConfigDataclass):
 
 
 _LENGTH_DOMAIN = "whisker_length_m must be > 0"
+#: Longest whisker a :class:`WhiskContact` takes, m (the thesis' are 60-160 mm): a longer one is millimetres given as metres.
+MAX_WHISKER_LENGTH_M = 1.0
 _RADIAL_DOMAIN = "radial_distance_m must lie in (0, whisker_length_m]"
 
 
@@ -283,6 +285,12 @@ class WhiskContact:
         L = finite_scalar(self.whisker_length_m, "WhiskContact.whisker_length_m")
         if not L > 0:
             raise InvalidInputError(_LENGTH_DOMAIN)
+        if L > MAX_WHISKER_LENGTH_M:
+            raise InvalidInputError(f"whisker_length_m = {L:g} m: a whisker is at most {MAX_WHISKER_LENGTH_M:g} m long - "
+                                    f"metres are meant ({L:g} mm = {L / 1e3:g} m)")
+        if abs(angle) > math.pi:
+            raise InvalidInputError(f"angle_rad = {angle:g}: a whisk angle lies within +-pi rad - radians are meant "
+                                    f"({angle:g} deg = {math.radians(angle):.4g} rad)")
         if not 0 < a <= L:
             raise InvalidInputError(_RADIAL_DOMAIN)
         if self.normal is None:
