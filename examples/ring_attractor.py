@@ -134,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--backend", default="numpy", choices=registered_backends())
     ap.add_argument("--out", type=Path, default=Path("."))
     args = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")  # the library's INFO lines (another backend's
+    log.setLevel(logging.INFO)  # probe building its OpenCL program) are not this example's; its own are
     usable, reason = backend_status()[args.backend]
     if not usable:  # one line, no traceback
         print(f"ring_attractor: backend {args.backend!r} cannot run here: {reason}", file=sys.stderr)
