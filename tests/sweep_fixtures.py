@@ -44,3 +44,13 @@ def mixed(params: dict, seed: int) -> dict:
     """``value`` is a number for ``a == 1`` and a string otherwise (an experiment with an untidy metric)."""
     value = 10 * params["a"] + params["b"]
     return {"value": value if params["a"] == 1 else f"v{value}"}
+
+
+def no_seed(params: dict) -> dict:
+    """Takes no seed: a wrong signature for an experiment."""
+    return {"value": 1}
+
+
+def keyword_seed(params: dict, *, seed: int = 0) -> dict:
+    """The seed only by keyword: the sweep passes it by position, so a wrong signature too."""
+    return {"value": 1}

@@ -314,6 +314,15 @@ def test_missing_metrics_and_unreadable_files_name_the_problem(tmp_path):
         sweep.run(dict(SPEC, experiment="no_such_module:run"), out=tmp_path / "x", progress=False)
 
 
+@pytest.mark.parametrize("name", ["no_seed", "keyword_seed"])
+def test_an_experiment_of_the_wrong_signature_is_refused_before_any_task(tmp_path, name):
+    """It was caught per task, each row an error, after the cluster had started (a user's pass, session 47)."""
+    with pytest.raises(ConfigError, match=rf"^experiment: 'sweep_fixtures:{name}' must take \(params: dict, seed: int\)"):
+        sweep.run(dict(SPEC, experiment=f"sweep_fixtures:{name}"), out=tmp_path / "x", progress=False)
+    assert not (tmp_path / "x").exists()
+    assert sweep.resolve_experiment("sweep_fixtures:fast").__name__ == "fast"  # (params, seed): taken
+
+
 def test_names_without_a_function_and_file_names():
     assert sweep.parse_spec(dict(SPEC, experiment="diffusion")).experiment == "cansim.experiments.diffusion:run"
     assert sweep.parse_spec(dict(SPEC, experiment="pkg.mod")).experiment == "pkg.mod:run"

@@ -68,6 +68,7 @@ import datetime as _dt
 import contextlib
 import hashlib
 import importlib
+import inspect
 import itertools
 import json
 import logging
@@ -544,6 +545,15 @@ def resolve_experiment(path: str) -> Callable[[dict[str, Any], int], Mapping[str
         obj = getattr(obj, part)
     if not callable(obj):
         raise ConfigError(f"experiment: {path!r} is not callable")
+    try:
+        signature = inspect.signature(obj)
+    except (TypeError, ValueError):  # a builtin without a signature: left to the first task
+        return obj
+    try:
+        signature.bind({}, 0)
+    except TypeError:
+        raise ConfigError(f"experiment: {path!r} must take (params: dict, seed: int) and return a dict of metrics; its "
+                          f"signature is {obj.__name__ if hasattr(obj, '__name__') else path}{signature}") from None
     return obj
 
 
