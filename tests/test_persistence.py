@@ -175,3 +175,15 @@ def test_a_save_writes_through_a_link_and_keeps_the_files_permissions(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(fresh.stat().st_mode) == 0o666 & ~umask  # as open() makes a file, not mkstemp's 0600
+
+
+def test_writing_into_a_folder_that_does_not_exist_names_the_folder(tmp_path):
+    """The radial model's own atomic write named its temporary file "x.skops.tmp" here (a user's pass, session 47);
+    every save now writes through one mechanism, write_atomically."""
+    from whisker_io.persistence import write_atomically, write_npz
+
+    for write in (lambda p: write_npz(p, {"a": np.zeros(1)}), lambda p: write_atomically(p, lambda fh: fh.write(b"x"))):
+        with pytest.raises(FileNotFoundError) as exc:
+            write(tmp_path / "absent" / "x.npz")
+        assert exc.value.filename == str(tmp_path / "absent")
+    assert list(tmp_path.iterdir()) == []

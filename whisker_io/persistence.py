@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 import zipfile
-from typing import Any, BinaryIO, Mapping
+from typing import Any, BinaryIO, Callable, Mapping
 
 import numpy as np
 
 from whisker_io.errors import CorruptFileError
 
-__all__ = ["npz_path", "read_npz", "write_npz"]
+__all__ = ["npz_path", "read_npz", "write_atomically", "write_npz"]
 
 
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
@@ -80,22 +81,38 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]) -> None:
     """Write ``arrays`` as an ``.npz`` archive (no pickle).
 
-    A file name is written to a temporary file of its own beside it and renamed
-    (``os.replace``), so a crash never leaves a half-written file under that name and two
-    writers never share a temporary file; a symbolic link is written through (it stays a
-    link) and an existing file keeps its permissions. An open binary file (e.g.
-    ``io.BytesIO``) is written as is.
+    A file name is written by :func:`write_atomically` (whole or not at all, through a link,
+    keeping the file's permissions); an open binary file (e.g. ``io.BytesIO``) is written as is.
     """
     if not isinstance(path, (str, os.PathLike)):
         np.savez(path, **arrays)
         return
+    write_atomically(path, lambda fh: np.savez(fh, **arrays))
+
+
+def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], object]) -> None:
+    """Let ``write`` fill a file that then replaces ``path`` whole: never half a file under that name.
+
+    ``write`` gets a binary file: a temporary file of its own beside ``path`` (two writers never
+    share one), renamed over it (``os.replace``) once written. A symbolic link is written through
+    (it stays a link) and an existing file keeps its permissions (a new one gets those
+    :func:`open` would give it). A failed or interrupted ``write`` leaves the earlier file and no
+    temporary one.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path``'s folder does not exist (named).
+    """
     target = os.path.realpath(path)  # through a symbolic link, as np.savez writes: the link stays a link
     folder = os.path.dirname(target)
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(errno.ENOENT, "no such folder to write into", folder)
     mode = os.stat(target).st_mode & 0o7777 if os.path.exists(target) else _new_file_mode()
     fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(target) + ".", suffix=".tmp")  # one per writer
     try:
         with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
+            write(fh)
         os.chmod(tmp, mode)  # the file's own permissions (a new one's as open() would give it), not mkstemp's 0600
         os.replace(tmp, target)
     except BaseException:  # a failed or interrupted write leaves the earlier file and no temporary one

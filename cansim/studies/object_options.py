@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.persistence import write_atomically
 from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file_names, object_labels, object_name, resolve_object
 from whisker_io.sim.objects import GLTF_SUFFIXES, UP_AXES, load_object
 
@@ -241,7 +242,6 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
                         " x ".join(f"{x:.3f}" for x in obj.extents_m), path)
         out.append(os.path.abspath(path))
     if sources:  # which file each copy came from (written whole, then renamed: never half a file)
-        tmp = folder / f".{SOURCES_FILE}.tmp"
-        tmp.write_text(json.dumps(sources, indent=2))
-        os.replace(tmp, record)
+        text = json.dumps(sources, indent=2).encode()
+        write_atomically(record, lambda fh: fh.write(text))
     return out

@@ -40,6 +40,7 @@ from sklearn.exceptions import NotFittedError
 from sklearn.utils.validation import check_is_fitted
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.persistence import write_atomically
 from whisker_io.radial.errors import CorruptFileError, FeatureMismatchError, ModelVersionError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS
 from whisker_io.radial.models import TrainedModel, model_features
@@ -136,9 +137,8 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         "training_range": {str(f): [float(lo), float(hi)] for f, (lo, hi) in model.training_range.items()},
     }
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(_canonical_skops(sio.dumps({"meta": meta, "estimator": model.estimator})))
-    os.replace(tmp, path)
+    data = _canonical_skops(sio.dumps({"meta": meta, "estimator": model.estimator}))
+    write_atomically(path, lambda fh: fh.write(data))
     return path
 
 
