@@ -49,6 +49,14 @@ def registered_backends() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+def _importable(module: str, qualname: str) -> type | None:
+    """The class ``module.qualname`` (nested classes too), as the registry imports it again; None if absent."""
+    found: object = importlib.import_module(module)
+    for part in qualname.split("."):
+        found = getattr(found, part, None)
+    return found  # type: ignore[return-value]
+
+
 def registered_name(backend: Backend) -> str | None:
     """The name under which the registry builds exactly this backend's class, or None (a class of one's own not
     registered, or a subclass of a registered one that keeps its ``name``): what a saved file may name it by."""
@@ -91,11 +99,7 @@ def register_backend(name: str, cls: type[Backend], *, requires: tuple[str, ...]
                                 f"got {name!r}")
     if not (isinstance(cls, type) and issubclass(cls, Backend)):
         raise InvalidInputError(f"cls must be a subclass of cansim.backends.Backend, got {cls!r}")
-    module = importlib.import_module(cls.__module__)
-    found = module
-    for part in cls.__qualname__.split("."):
-        found = getattr(found, part, None)
-    if found is not cls or "<locals>" in cls.__qualname__:
+    if "<locals>" in cls.__qualname__ or _importable(cls.__module__, cls.__qualname__) is not cls:
         raise InvalidInputError(f"{cls.__qualname__} must be defined at the top level of an importable module "
                                 f"({cls.__module__}), so that it can be imported again by name")
     if getattr(cls, "name", None) != name:
@@ -229,7 +233,4 @@ def get_backend(name: str | Backend) -> Backend:
             f"backend {name!r} needs {', '.join(missing)}, which is not installed; run: "
             f"{_install_hint(entry, missing)}"
         )
-    found = importlib.import_module(entry.module)
-    for part in entry.cls.split("."):
-        found = getattr(found, part)
-    return found()
+    return _importable(entry.module, entry.cls)()
