@@ -209,5 +209,7 @@ def test_the_spread_is_taken_within_each_condition_not_across_them():
                 rows += [run(control, angle, kidnapped, em + shift + d) for d in (-0.001, 0.001)]
     # within every condition the two repetitions differ by 0.002: sample sd 0.002 / sqrt 2, by hand
     assert _spread(rows, "EM", {"control": "open_loop"}, {"control": "rcp"}) == pytest.approx(0.002 / math.sqrt(2))
-    assert _repetitions(rows, {"control": "rcp"}) == 2
+    assert _repetitions(rows, "EM", {"control": "rcp"}) == 2
+    rows[0]["EM"] = math.nan  # a run without the value judged is no repetition of it
+    assert _repetitions(rows, "EM", {"control": "open_loop"}) == 1 and _repetitions(rows, "ARR", {"control": "open_loop"}) == 2
     assert math.isnan(_spread([run("rcp", "onset", False, 0.1)], "EM", {"control": "rcp"}))

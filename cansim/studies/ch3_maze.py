@@ -829,7 +829,7 @@ def summary_lines(rows: list[dict[str, Any]], calibration: dict[tuple[str, str],
     def judged(key: str, before: dict[str, Any], after: dict[str, Any], better: float) -> str:
         """A change's direction, and its size against the repetitions' spread (inside it: "direction only")."""
         b, a = _mean(rows, key, **before), _mean(rows, key, **after)
-        runs = min(_repetitions(rows, before), _repetitions(rows, after))
+        runs = min(_repetitions(rows, key, before), _repetitions(rows, key, after))
         verdict = _change_verdict(better * (a - b), _spread(rows, key, before, after), runs)
         return f"measured {b:.4f} -> {a:.4f}: {verdict}"
 
@@ -925,9 +925,9 @@ def _spread(rows: list[dict[str, Any]], key: str, *conditions: dict[str, Any]) -
     return float(np.mean(sds)) if sds else math.nan
 
 
-def _repetitions(rows: list[dict[str, Any]], match: dict[str, Any]) -> int:
-    """The fewest runs of any condition (:data:`_CELL`) that ``match`` selects."""
-    return min((len(v) for v in _cells(rows, "ARR", match)), default=0)
+def _repetitions(rows: list[dict[str, Any]], key: str, match: dict[str, Any]) -> int:
+    """The fewest runs with a value of ``key`` in any condition (:data:`_CELL`) that ``match`` selects."""
+    return min((len(v) for v in _cells(rows, key, match)), default=0)
 
 
 def _change_verdict(gain: float, spread: float, runs: int) -> str:
@@ -945,7 +945,7 @@ def _gap_line(rows: list[dict[str, Any]], key: str, values: dict[tuple[str, str]
     """Finding 6, measured: how far RCP + contact angle is from the best condition against the repetitions' spread."""
     gap = sign * (values[("rcp", "threshold")] - values[winner])
     normal = dict(kidnapped=False)
-    reps = _repetitions(rows, dict(control="rcp", contact_angle="threshold", kidnapped=False))
+    reps = _repetitions(rows, key, dict(control="rcp", contact_angle="threshold", kidnapped=False))
     text = f"6 ({key}) measured: rcp + threshold is {gap:.3g} from the best ({winner[0]} + {winner[1]})"
     if reps < 2:
         return text + "; one repetition, so no spread to compare it with (run --repetitions 3)"
