@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from whisker_io.persistence import read_npz
 from whisker_io.errors import CorruptFileError
@@ -187,3 +189,26 @@ def test_writing_into_a_folder_that_does_not_exist_names_the_folder(tmp_path):
             write(tmp_path / "absent" / "x.npz")
         assert exc.value.filename == str(tmp_path / "absent")
     assert list(tmp_path.iterdir()) == []
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(first=st.binary(max_size=300), second=st.binary(max_size=300), fail_after=st.booleans())
+def test_write_atomically_replaces_whole_or_not_at_all(tmp_path, first, second, fail_after):
+    from whisker_io.persistence import write_atomically
+
+    path = tmp_path / "f.bin"
+    write_atomically(path, lambda fh: fh.write(first))
+    assert path.read_bytes() == first
+
+    def half_then_fail(fh):
+        fh.write(second[: len(second) // 2])
+        raise RuntimeError("interrupted")
+
+    if fail_after:
+        with pytest.raises(RuntimeError):
+            write_atomically(path, half_then_fail)
+        assert path.read_bytes() == first  # the earlier file, whole
+    else:
+        write_atomically(path, lambda fh: fh.write(second))
+        assert path.read_bytes() == second
+    assert [p.name for p in tmp_path.iterdir()] == ["f.bin"]  # no temporary file left

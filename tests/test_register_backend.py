@@ -8,6 +8,8 @@ import pickle
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import cansim.backends as backends
 from backend_fixtures import MineBackend
@@ -100,3 +102,18 @@ def test_a_subclass_keeping_a_built_in_name_is_pickled_as_itself_and_not_saved_b
     with pytest.raises(InvalidInputError, match="NumpyNamed .name 'numpy'. is not the class the registry builds"):
         p.save(tmp_path / "x.npz")
     assert backends.registered_name(NumpyBackend()) == "numpy"
+
+
+@settings(max_examples=50, deadline=None)
+@given(name=st.one_of(st.sampled_from(["numpy", "numba", "opencl", "", "  ", "mine"]), st.text(max_size=12)))
+def test_only_a_new_name_that_the_class_carries_is_registered(name):
+    """Registration never changes the registry on a refused name: built-in, empty, or not the class's own."""
+    before = dict(backends._REGISTRY)
+    try:
+        backends.register_backend(name, MineBackend)
+    except InvalidInputError:
+        assert backends._REGISTRY == before
+    else:
+        assert name == "mine" and backends._REGISTRY["mine"].cls == "MineBackend"
+        backends._REGISTRY.clear()
+        backends._REGISTRY.update(before)
