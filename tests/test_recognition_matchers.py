@@ -356,3 +356,20 @@ def test_a_map_is_placed_by_a_pose_graph_whose_odometry_edges_are_as_noisy_as_th
     assert config.odometry_sigma_m == pytest.approx(0.01 * expected)
     assert config.odometry_sigma_deg == pytest.approx(2.5 * expected)
     assert (config.closure_sigma_m, config.closure_sigma_deg) == (0.01, 3.0)
+
+
+def test_the_confusion_counts_keep_an_object_labelled_none_apart_from_no_decision() -> None:
+    """An object may be labelled "none": its column is not the runs that decided nothing (hand-counted)."""
+    def run(presented: str, decision: str, novel: bool = False) -> dict:
+        return {"presented": presented, "decision": decision, "novel": novel}
+
+    rows = [run("none", "none"), run("none", ""), run("mug", "none"), run("mug", "mug"), run("mug", ""),
+            run("knot", "", True), run("knot", "mug", True)]
+    presented, decided, counts = recognition.confusion(rows)
+    assert presented == ["none", "mug", "knot"]
+    assert decided == ["none", "mug", None]  # the novel knot is no column
+    assert counts.tolist() == [[1, 0, 1], [1, 1, 1], [0, 1, 1]]
+    # one order for every panel of the figure: a panel without the knot keeps its row (of zeros)
+    _, _, part = recognition.confusion(rows[:2], presented, decided)
+    assert part.tolist() == [[1, 0, 1], [0, 0, 0], [0, 0, 0]]
+    assert recognition.NO_DECISION not in {"none", "mug", "knot"}

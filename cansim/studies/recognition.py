@@ -76,7 +76,7 @@ Outputs (``--out``)
   loaded for the presented object, empty for a named one: a file changed by ``--scale-to-m`` /
   ``--up-axis`` is its copy in ``objects/``);
 * ``recognition_confusion.png`` - decisions per presented object (rows) and decided
-  identity (columns, plus "none"), per presentation;
+  identity (columns, plus a last column "(no decision)", :data:`NO_DECISION`), per presentation;
 * ``recognition_accuracy_vs_distance.png`` - correct decisions vs viewpoint distance;
 * ``recognition_accuracy_vs_library.png`` - correct decisions vs library size
   (full mode: 12, 25, 50 objects);
@@ -270,6 +270,8 @@ VIEWPOINT_BINS: tuple[tuple[str, tuple[float, float], tuple[float, float]], ...]
     ("vp 5-10 cm", (0.05, 0.10), (5.0, 15.0)),
     ("vp 10-15 cm", (0.10, 0.15), (15.0, 25.0)),
 )
+#: The confusion figure's last column: the runs that decided nothing (no object label has brackets).
+NO_DECISION = "(no decision)"
 #: The matchers a run uses unless told (``--matchers``).
 DEFAULT_MATCHERS = ("thesis", "surface")
 COLUMNS = ("seed", "library_size", "matcher", "presented", "novel", "presentation", "distance_bin",
@@ -928,6 +930,40 @@ def accuracy(rows: Sequence[dict[str, Any]], novel: bool) -> dict[str, tuple[int
     return {k: (sum(v), len(v)) for k, v in acc.items()}
 
 
+def confusion(rows: Sequence[dict[str, Any]], presented: Sequence[str] | None = None,
+              decided: Sequence[str | None] | None = None) -> tuple[list[str], list[str | None], np.ndarray]:
+    """Decisions per presented object: the counts of the confusion figure.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Runs of ``recognition_runs.csv`` (``presented``, ``novel``, ``decision``: "" or None when no
+        decision fired).
+    presented : sequence of str, optional
+        The rows' order (default: as the runs first present them).
+    decided : sequence of str or None, optional
+        The columns' order (default: the presented objects no run presents as novel, then None).
+
+    Returns
+    -------
+    presented : list of str
+        The presented objects (rows of ``counts``).
+    decided : list of str or None
+        The identities decided (columns): the presented library objects, then None, no decision
+        (:data:`NO_DECISION` in the figure; an object may well be labelled "none").
+    counts : ndarray, shape (len(presented), len(decided))
+        Runs per presented object and decision.
+    """
+    presented = list(dict.fromkeys(r["presented"] for r in rows)) if presented is None else list(presented)
+    if decided is None:
+        decided = [*(p for p in presented if not any(r["novel"] for r in rows if r["presented"] == p)), None]
+    decided = list(decided)
+    counts = np.zeros((len(presented), len(decided)))
+    for r in rows:
+        counts[presented.index(r["presented"]), decided.index(r["decision"] or None)] += 1
+    return presented, decided, counts
+
+
 def figures(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     """The confusion matrices, accuracy vs viewpoint distance and vs library size, and what the maps never felt.
 
@@ -950,20 +986,17 @@ def _figures(rows: Sequence[dict[str, Any]], out: Path, suffix: str) -> list[Pat
     small = min(r["library_size"] for r in rows)
     base = [r for r in rows if r["library_size"] == small]
     labels = list(dict.fromkeys(_label(r) for r in base))
-    presented = list(dict.fromkeys(r["presented"] for r in base))
-    decided = [p for p in presented if not any(r["novel"] for r in base if r["presented"] == p)] + ["none"]
+    presented, decided, _ = confusion(base)  # one order of rows and columns for every panel
     files = []
     fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels) + 1.5, 0.24 * len(presented) + 2.8), squeeze=False,
                              sharey=True, layout="constrained")  # one column of object names, not one over each neighbour
     for ax, lab in zip(axes[0], labels):
-        m = np.zeros((len(presented), len(decided)))
-        for r in base:
-            if _label(r) == lab:
-                m[presented.index(r["presented"]), decided.index(r["decision"] or "none")] += 1
+        m = confusion([r for r in base if _label(r) == lab], presented, decided)[2]
         m /= np.maximum(m.sum(axis=1, keepdims=True), 1)
         im = ax.imshow(m, vmin=0, vmax=1, cmap="Blues")
-        label = object_labels([*presented, *decided])
-        ax.set_xticks(range(len(decided)), [label[d] for d in decided], rotation=90, fontsize=6)
+        label = object_labels(presented)
+        ax.set_xticks(range(len(decided)), [NO_DECISION if d is None else label[d] for d in decided], rotation=90,
+                      fontsize=6)
         ax.set_yticks(range(len(presented)), [label[p] for p in presented], fontsize=6)
         ax.set_xlabel("decided identity (IC >= 300)")
         ax.set_title(lab, fontsize=9)
