@@ -332,7 +332,7 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     """A millimetre, y-up mesh given by a relative path with --scale-to-m / --up-axis; an unreachable flat disk.
 
     The maps go to ``ch5_maps/<stem>.npz`` under ``--out`` (never beside the user's file), the summary names
-    the novel object given and prints no NaN."""
+    the novel objects given (two) and prints no NaN."""
     import trimesh
 
     from whisker_io.sim.objects import load_object, make_object
@@ -350,7 +350,7 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"
     assert ch5_study.main(["--quick", "--out", str(out), "--objects", "my meshes/My Mug.stl", "my meshes/disk.obj", "box",
-                           "--novel", "plane", "--scale-to-m", "0.35", "--up-axis", "y", "--contacts", "tip",
+                           "--novel", "plane", "skull", "--scale-to-m", "0.35", "--up-axis", "y", "--contacts", "tip",
                            "--no-compare", "--workers", "1"]) == 0
     assert sorted(p.name for p in folder.iterdir()) == ["My Mug.stl", "disk.obj"]  # nothing written beside them
     assert sorted(p.name for p in (out / "ch5_maps").iterdir()) == ["My_Mug.npz", "box.npz", "disk.npz"]
@@ -363,7 +363,7 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     assert fields[-2:] == ["n_observations", "mesh_file"]
     # one name per object, the map file's stem; the file it was loaded from beside it
     assert {(r["presented"], r["mesh_file"]) for r in ids} == {
-        ("My_Mug", str(out / "objects" / "My_Mug.ply")), ("disk", str(out / "objects" / "disk.ply")), ("box", ""), ("plane", "")}
+        ("My_Mug", str(out / "objects" / "My_Mug.ply")), ("disk", str(out / "objects" / "disk.ply")), ("box", ""), ("plane", ""), ("skull", "")}
     assert {r["map_identity"] for r in ids} == {"My_Mug", "disk", "box"}
     assert {r["n_observations"] for r in ids if r["presented"] == "disk"} == {"0"}  # never a region
     assert all(int(r["n_observations"]) > int(r["n_iterations"]) // 2 for r in ids if r["presented"] == "My_Mug")
@@ -376,7 +376,7 @@ def test_a_users_mesh_files_run_through_the_study_with_their_maps_in_out(tmp_pat
     # --contacts tip: the thesis' best configuration (SVR contacts) never ran, so finding 3 is not measured
     third = next(line for line in text.splitlines() if "the lowest errors come from" in line)
     assert "NOT measured" in third and "REPRODUCED" not in third
-    assert "here plane" in text and "Skull (novel)" not in text
+    assert "here plane, skull" in text  # every novel object given, in the summary's finding 4
 
 
 # ----------------------------------------------------------------- shapes the thesis' poses miss

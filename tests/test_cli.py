@@ -82,6 +82,7 @@ def test_a_studys_usage_error_names_the_command():
 
 @pytest.mark.parametrize("argv,says", [
     (["study", "ch5", "--quick", "--objects", "box", "mug", "--novel", "mug"], "both a library object and a novel one"),
+    (["study", "ch5", "--quick", "--objects", "box", "mug", "--novel", "skull", "plane", "Skull"], "given twice"),
     (["study", "ch6", "--quick", "--objects", "box", "box"], "given twice"),
     (["study", "ch6", "--quick", "--scale-to-m", "0.35"], "apply to mesh files"),
     (["demo", "--object", "mug", "--up-axis", "y"], "apply to mesh files"),

@@ -989,8 +989,8 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"mapped objects: registered names ({', '.join(OBJECT_NAMES)}), procedural shapes (e.g. duck) "
                          "or mesh files in metres, z up unless --scale-to-m / --up-axis say otherwise (default: the "
                          f"thesis' six, {' '.join(MAPPED)}; --quick: mug box plane)")
-    ap.add_argument("--novel", default=NOVEL, metavar="NAME_OR_MESH",
-                    help=f"the object presented but not mapped (default {NOVEL})")
+    ap.add_argument("--novel", nargs="*", default=[NOVEL], metavar="NAME_OR_MESH",
+                    help=f"objects presented but not mapped (default {NOVEL}; none after the flag: no novel object)")
     add_mesh_options(ap)
     ap.add_argument("--loops", "--map-loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="least loops per identification run (default 1)")
@@ -1033,8 +1033,9 @@ def main(argv: list[str] | None = None) -> int:
     # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
     # --scale-to-m / --up-axis are run from their copies in out/objects
     given = list(a.objects or (("mug", "box", "plane") if a.quick else MAPPED))
-    check_distinct(given, [a.novel])
-    *objects, novel = conform_objects([*given, a.novel], out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
+    check_distinct(given, a.novel)
+    conformed = conform_objects([*given, *a.novel], out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
+    objects, novel = conformed[:len(given)], conformed[len(given):]
     loops = a.loops or (2 if a.quick else 3)
     id_whisks = a.id_whisks if a.id_whisks is not None else (0 if a.quick else ID_WHISKS)
     contacts = a.contacts or CONTACTS
@@ -1056,7 +1057,7 @@ def main(argv: list[str] | None = None) -> int:
     maps_dir = out / "ch5_maps"
     maps_dir.mkdir(exist_ok=True)
     # one file per object, named by its stem (a mesh file's path is no file name; distinct stems)
-    label = object_labels([*objects, novel])  # one name per object: the CSVs', the summary's, its map file's
+    label = object_labels([*objects, *novel])  # one name per object: the CSVs', the summary's, its map file's
     map_path = {o: str(maps_dir / f"{label[o]}.npz") for o in objects}
     jobs = [(o, c, s, map_path[o] if c == id_cfg else None) for o in objects for c in configs]
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
@@ -1068,7 +1069,7 @@ def main(argv: list[str] | None = None) -> int:
     _write_csv(out / "ch5_localisation.csv", labelled_rows(localisation_rows(runs), label, ("object",), of="object"),
                LOC_COLUMNS)
     paths = [map_path[o] for o in objects]
-    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, novel)]
+    id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, *novel)]
     ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification", not a.no_progress)
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", labelled_rows(id_rows, label, ("presented", "map_identity"), of="presented"),
