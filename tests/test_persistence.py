@@ -212,3 +212,30 @@ def test_write_atomically_replaces_whole_or_not_at_all(tmp_path, first, second, 
         write_atomically(path, lambda fh: fh.write(second))
         assert path.read_bytes() == second
     assert [p.name for p in tmp_path.iterdir()] == ["f.bin"]  # no temporary file left
+
+
+def test_the_bytes_and_the_rename_reach_the_disk_before_write_atomically_returns(tmp_path, monkeypatch):
+    """The temporary file is fsynced before it takes the name, the folder after: a power cut cannot leave the
+    name on an empty file."""
+    import os
+
+    from whisker_io.persistence import write_atomically
+
+    events: list[tuple[str, str]] = []
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync(fd):
+        events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
+        return real_fsync(fd)
+
+    def replace(src, dst):
+        events.append(("replace", os.fspath(dst)))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "replace", replace)
+    write_atomically(tmp_path / "f.bin", lambda fh: fh.write(b"abc"))
+    assert (tmp_path / "f.bin").read_bytes() == b"abc"
+    kinds = [k for k, _ in events]
+    assert kinds == ["fsync", "replace", "fsync"]
+    assert events[0][1].endswith(".tmp") and events[1][1] == str(tmp_path / "f.bin") and events[2][1] == str(tmp_path)

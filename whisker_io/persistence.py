@@ -12,7 +12,7 @@ import numpy as np
 
 from whisker_io.errors import CorruptFileError
 
-__all__ = ["npz_path", "read_npz", "write_atomically", "write_npz"]
+__all__ = ["npz_path", "read_npz", "sync_folder", "write_atomically", "write_npz"]
 
 
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
@@ -96,8 +96,8 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], o
     ``write`` gets a binary file: a temporary file of its own beside ``path`` (two writers never
     share one), renamed over it (``os.replace``) once written. A symbolic link is written through
     (it stays a link) and an existing file keeps its permissions (a new one gets those
-    :func:`open` would give it). A failed or interrupted ``write`` leaves the earlier file and no
-    temporary one.
+    :func:`open` would give it). The bytes are flushed to the disk (``os.fsync``) before the
+    rename, and the folder after it. A failed or interrupted ``write`` leaves the earlier file and no temporary one.
 
     Raises
     ------
@@ -113,12 +113,30 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], o
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())  # on the disk before it takes the name: a power cut leaves the old file or the new
         os.chmod(tmp, mode)  # the file's own permissions (a new one's as open() would give it), not mkstemp's 0600
         os.replace(tmp, target)
+        sync_folder(folder)  # the rename itself on the disk
     except BaseException:  # a failed or interrupted write leaves the earlier file and no temporary one
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def sync_folder(folder: str | os.PathLike[str]) -> None:
+    """Flush a folder's entries (names made, renamed or removed in it) to the disk; a no-op where folders
+    cannot be opened."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # pragma: no cover - platforms without folder descriptors
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover - file systems that refuse it
+        pass
+    finally:
+        os.close(fd)
 
 
 def _new_file_mode() -> int:

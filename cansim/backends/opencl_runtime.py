@@ -34,6 +34,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from whisker_io.persistence import write_atomically
+
 __all__ = ["IcdRegistration", "find_intel_cpu_runtime", "register_icds", "INTEL_PLATFORM_NAME"]
 
 log = logging.getLogger(__name__)
@@ -106,9 +108,7 @@ def _write_if_changed(path: Path, text: str) -> None:
             return
     except OSError:
         pass
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    write_atomically(path, lambda fh: fh.write(text.encode("utf-8")))
 
 
 def _icd_files(intel_lib: Path) -> dict[str, str]:

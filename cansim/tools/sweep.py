@@ -87,6 +87,7 @@ from typing import Any
 import numpy as np
 
 from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
+from whisker_io.persistence import write_atomically
 from whisker_io.validation import config_field
 
 __all__ = [
@@ -683,11 +684,7 @@ def _pa():
 
 def _write_atomic(table: Any, path: Path) -> None:
     _, pq = _pa()
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    with open(tmp, "rb") as fh:
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    write_atomically(path, lambda fh: pq.write_table(table, fh))
 
 
 def _write_part(out: Path, row: dict[str, Any]) -> None:
@@ -804,9 +801,8 @@ def _check_folder(out: Path, spec: SweepSpec) -> None:
                     "use another --out folder"
                 )
     else:
-        tmp = meta.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(mine, indent=2) + "\n", encoding="utf-8")
-        os.replace(tmp, meta)
+        text = json.dumps(mine, indent=2) + "\n"
+        write_atomically(meta, lambda fh: fh.write(text.encode("utf-8")))
 
 
 # ------------------------------------------------------------------ run

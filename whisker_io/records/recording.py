@@ -75,7 +75,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -84,6 +83,7 @@ from types import MappingProxyType
 import numpy as np
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.persistence import sync_folder, write_atomically
 from whisker_io.pose import PoseLike
 from whisker_io.records.whisk_record import MODULE_NAME_RE, SAMPLE_RATE_HZ, PoseEntry, WhiskRecord
 
@@ -145,37 +145,6 @@ def whisk_file_name(cycle: int, module: str) -> str:
     return f"{whisk_file_stem(cycle)}_{module}.csv"
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` so that the file is complete or absent."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    _fsync_dir(path.parent)
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        dfd = os.open(directory, os.O_RDONLY)
-    except OSError:  # pragma: no cover - platforms without directory fds
-        return
-    try:
-        os.fsync(dfd)
-    except OSError:  # pragma: no cover
-        pass
-    finally:
-        os.close(dfd)
-
-
 def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
     """Write one whisk record atomically (temporary file, fsync, rename).
 
@@ -201,7 +170,8 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
         raise InvalidInputError(f"directory {p.parent} does not exist; create it before writing whisks")
     cols = record.as_columns()
     body = "\n".join(",".join(format(v, ".17g") for v in row) for row in cols.tolist())
-    _atomic_write_text(p, ",".join(WHISK_HEADER) + "\n" + body + "\n")
+    text = ",".join(WHISK_HEADER) + "\n" + body + "\n"
+    write_atomically(p, lambda fh: fh.write(text.encode("utf-8")))
     return p
 
 
@@ -354,7 +324,7 @@ class PoseLogWriter:
         self._fh = open(self.path, "a", encoding="utf-8", newline="\n")
         if needs_header:
             self._write(",".join(POSE_LOG_HEADER) + "\n")
-            _fsync_dir(self.path.parent)
+            sync_folder(self.path.parent)
 
     def _write(self, text: str) -> None:
         self._fh.write(text)
