@@ -92,7 +92,7 @@ from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module'
     write_map_arrays,
 )
 from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
-from whisker_io.persistence import npz_path, read_npz, write_npz
+from whisker_io.persistence import read_npz, write_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
 from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
@@ -641,7 +641,7 @@ class ExperienceMap:
 
         As :func:`numpy.savez`, ``.npz`` is added to a name without it; written whole, then renamed into place
         (:func:`whisker_io.persistence.write_npz`)."""
-        write_npz(npz_path(path), self.to_arrays())
+        write_npz(path, self.to_arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "ExperienceMap":

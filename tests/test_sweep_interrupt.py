@@ -43,7 +43,8 @@ def test_ctrl_c_during_a_sweep_prints_one_line_and_no_worker_traceback(tmp_path)
                             text=True, start_new_session=True)
     try:
         parts = out / "parts"
-        _wait_for(lambda: proc.poll() is not None or (parts.is_dir() and any(parts.iterdir())), 120, "recorded task")
+        # a finished part (a part being written is a temporary file until it is whole)
+        _wait_for(lambda: proc.poll() is not None or (parts.is_dir() and any(parts.glob("*.parquet"))), 120, "recorded task")
         assert proc.poll() is None, f"the sweep ended before the interrupt:\n{proc.stderr.read()}"
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
         _, stderr = proc.communicate(timeout=60)
@@ -56,4 +57,5 @@ def test_ctrl_c_during_a_sweep_prints_one_line_and_no_worker_traceback(tmp_path)
     lines = [ln for ln in stderr.splitlines() if ln.strip()]
     assert lines == ["cansim sweep: interrupted; run the same command again to resume"], lines
     recorded = list((out / "parts").iterdir())
+    assert all(p.suffix == ".parquet" for p in recorded), recorded  # no half-written part left behind
     assert 1 <= len(recorded) < 60  # the finished tasks are kept for the resume, the rest were not run

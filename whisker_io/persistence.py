@@ -79,15 +79,17 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 
 
 def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]) -> None:
-    """Write ``arrays`` as an ``.npz`` archive (no pickle).
+    """Write ``arrays`` as an ``.npz`` archive (no pickle) where :func:`numpy.savez` would: at
+    :func:`npz_path` of ``path`` (``"run"`` -> ``run.npz``), which :func:`read_npz` finds again.
 
     A file name is written by :func:`write_atomically` (whole or not at all, through a link,
     keeping the file's permissions); an open binary file (e.g. ``io.BytesIO``) is written as is.
+    Every ``save()`` of the library writes through here, so all name their files alike.
     """
     if not isinstance(path, (str, os.PathLike)):
         np.savez(path, **arrays)
         return
-    write_atomically(path, lambda fh: np.savez(fh, **arrays))
+    write_atomically(npz_path(path), lambda fh: np.savez(fh, **arrays))
 
 
 def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], object]) -> None:

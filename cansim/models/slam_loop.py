@@ -37,7 +37,7 @@ from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
-from whisker_io.persistence import npz_path, read_npz, write_npz
+from whisker_io.persistence import read_npz, write_npz
 
 __all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState", "configured"]
 
@@ -367,7 +367,7 @@ class SlamLoop:
         arrays.update(self.experience_map.to_arrays(prefix="em_"))
         arrays.update(self.frontend.to_arrays(prefix="vt_"))
         arrays.update(self.extra_arrays())
-        write_npz(npz_path(path), arrays)
+        write_npz(path, arrays)
 
     def extra_arrays(self) -> dict[str, np.ndarray]:
         """Model-specific state for :meth:`save` (none here); :meth:`restore_extra` reads it back."""

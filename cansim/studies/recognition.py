@@ -258,6 +258,7 @@ from cansim.studies.object_options import (add_mesh_options, check_distinct, che
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 from whisker_io.command_line import CommandParser
+from whisker_io.persistence import write_atomically
 from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
 
 logger = logging.getLogger(__name__)
@@ -439,7 +440,7 @@ def map_job(job: tuple[str, Setup] | tuple[str, Setup, str]) -> dict[str, Any]:
     points, seen = whisk_surface(log["odometry"], log["exp_ids"], log["relocalised"], log["contacts"], graph,
                                  with_viewpoints=True, anchor=poses[0])
     surface_path = path.with_name(path.stem + "_surface.npz")
-    np.savez_compressed(surface_path, points_m=points, viewpoints_m=seen)
+    write_atomically(surface_path, lambda fh: np.savez_compressed(fh, points_m=points, viewpoints_m=seen))
     return {"name": name, "path": str(path), "surface": str(surface_path), "n_experiences": slam.object_map.n_experiences,
             "n_points": int(len(points)), "whisks": len(poses)}
 
