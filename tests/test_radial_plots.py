@@ -52,3 +52,22 @@ def test_histogram_without_outliers_has_no_note() -> None:
     fig = plot_histograms({"m": np.linspace(0.0, 1.0, 11)}, "e", value_range=(0.0, 1.0))
     assert not fig.axes[0].texts
     plt.close(fig)
+
+
+def test_the_histogram_titles_carry_the_unit_given() -> None:
+    fig = plot_histograms({"m": np.array([1.0, 2.0, 3.0])}, "point-to-mesh distance (mm)", unit="mm")
+    assert fig.axes[0].get_title() == "m\nmedian 2 mm, std 0.816 mm"  # std of 1, 2, 3: sqrt(2/3)
+    plt.close(fig)
+
+
+def test_a_box_reaching_above_ymax_is_named_with_its_median_and_quartile() -> None:
+    inside, tall = np.linspace(0.0, 10.0, 11), np.linspace(0.0, 100.0, 11)  # quartiles 2.5/7.5 and 25/75
+    fig = plot_boxplots({"low": inside, "high": tall}, "e", ymax=60)
+    ax = fig.axes[0]
+    texts = " ".join(t.get_text() for t in ax.texts)
+    assert "high: median 50, upper quartile 75" in texts and "low" not in texts
+    assert [tuple(line.get_xydata()[0]) for line in ax.lines if line.get_marker() == "^"] == [(2.0, 60.0)]
+    plt.close(fig)
+    fig = plot_boxplots({"low": inside}, "e", ymax=60)  # nothing above: no note, no mark
+    assert not fig.axes[0].texts and not [line for line in fig.axes[0].lines if line.get_marker() == "^"]
+    plt.close(fig)

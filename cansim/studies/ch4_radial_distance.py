@@ -116,8 +116,11 @@ def _svr_vs_poly(groups: dict[str, np.ndarray], where: str, notes: list[str], he
             )
 
 
-def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
-    """Run the whole study, write tables and figures into ``out``; returns the key numbers."""
+def run(out: Path, quick: bool = False, seed: int = 0, progress: bool = True) -> dict[str, object]:
+    """Run the whole study, write tables and figures into ``out``; returns the key numbers.
+
+    ``progress`` shows progress bars (on stderr) while the data sets are simulated and the
+    models trained."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -131,10 +134,10 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
     held: list[str] = []  # the thesis' findings this run reproduces, with their figures
 
     print("1/5 simulating data sets", flush=True)
-    train = make_training_set(tp, progress=True)
-    val = make_validation_set(vp, progress=True)
-    evans = make_evans_set(ep, progress=True)
-    rod_unseen = make_training_set(replace(tp, lengths_mm=UNSEEN_LENGTHS_MM, seed=seed + 3), progress=True)
+    train = make_training_set(tp, progress=progress)
+    val = make_validation_set(vp, progress=progress)
+    evans = make_evans_set(ep, progress=progress)
+    rod_unseen = make_training_set(replace(tp, lengths_mm=UNSEEN_LENGTHS_MM, seed=seed + 3), progress=progress)
     print(f"    training {len(train)} contacts, validation {len(val.data)} "
           f"({int(val.unseen.sum())} on unseen lengths), Evans {len(evans)}, unseen-length rod {len(rod_unseen)}")
 
@@ -155,7 +158,7 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
 
     print("3/5 training the 12 Table 4.1 models + baselines (CV on training only)", flush=True)
     t_train = time.perf_counter()
-    models = train_models(train, settings=settings, progress=True)
+    models = train_models(train, settings=settings, progress=progress)
     t_train = time.perf_counter() - t_train
     for lab in ("svr9", "svr10"):
         save_model(models[lab], out / f"{lab}.skops")
@@ -171,7 +174,7 @@ def run(out: Path, quick: bool = False, seed: int = 0) -> dict[str, object]:
         out / "fig4_9_radial_error.png", dpi=110
     )
     plot_histograms({s.model: 1e3 * s.mesh_distances_m for s in scores}, "point-to-mesh distance (mm)",
-                    title="Fig 4.8: reconstructed contact point to object surface, per model").savefig(
+                    title="Fig 4.8: reconstructed contact point to object surface, per model", unit="mm").savefig(
         out / "fig4_8_mesh_distance.png", dpi=110
     )
     by = {s.model: s for s in scores}
@@ -293,6 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="reduced data sets and grids (smoke run)")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output directory (default: working directory)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the simulated data sets and the searches (default 0)")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     args = ap.parse_args(argv)
     if args.seed < 0:  # refused before any work (numpy raised ValueError after the data sets were built)
         ap.error(f"--seed must be >= 0, got {args.seed}")
@@ -301,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
     from sklearn.exceptions import ConvergenceWarning
 
     warnings.filterwarnings("ignore", category=ConvergenceWarning)
-    run(args.out, quick=args.quick, seed=args.seed)
+    run(args.out, quick=args.quick, seed=args.seed, progress=not args.no_progress)
     return 0
 
 

@@ -50,6 +50,7 @@ def plot_histograms(
     value_range: tuple[float, float] | None = None,
     ncols: int = 4,
     title: str | None = None,
+    unit: str = "",
 ) -> Any:
     """One histogram per model with its median and standard deviation (Fig 4.8/4.9 style).
 
@@ -71,6 +72,9 @@ def plot_histograms(
     ncols : int
     title : str, optional
         Figure title (what the panels show), above the per-model panels.
+    unit : str
+        The values' unit, written after the median and standard deviation in each panel's title
+        (e.g. ``"mm"``; default none, for a ratio).
 
     Returns
     -------
@@ -90,7 +94,8 @@ def plot_histograms(
         ax.set_xlim(lo, hi)
         ax.axvline(0.0, color="k", lw=0.6)
         if v.size:
-            ax.set_title(f"{lab}\nmedian {np.median(v):.3g}, std {np.std(v):.3g}", fontsize=8)
+            u = f" {unit}" if unit else ""
+            ax.set_title(f"{lab}\nmedian {np.median(v):.3g}{u}, std {np.std(v):.3g}{u}", fontsize=8)
         if below or above:
             ax.text(
                 0.98, 0.97, f"outside the axis: {below} below, {above} above\n(of {v.size}; not drawn)",
@@ -128,7 +133,9 @@ def plot_boxplots(
     ax : Axes, optional
     title : str, optional
     ymax : float, optional
-        Upper y-limit (the thesis caps at 30 % of whisker length).
+        Upper y-limit (the thesis caps at 30 % of whisker length). A box or whisker that
+        reaches above it is named in a note at the top of the axes, with its median and
+        upper quartile, and marked by a triangle at the top edge.
     xlabel : str
         What the groups are (default "model").
     """
@@ -142,6 +149,16 @@ def plot_boxplots(
         ax.legend(handles=boxplot_handles(parts), fontsize=7, loc="best")
     if ymax is not None:
         ax.set_ylim(bottom=0.0, top=ymax)
+        above = []
+        for i, k in enumerate(labels):
+            v = np.asarray(groups[k], dtype=float)
+            v = v[np.isfinite(v)]
+            if v.size and max(float(np.max(parts["whiskers"][2 * i + 1].get_ydata())), float(np.percentile(v, 75))) > ymax:
+                above.append(f"{k}: median {np.median(v):.3g}, upper quartile {np.percentile(v, 75):.3g}")
+                ax.plot([i + 1], [ymax], marker="^", color="tab:red", ms=7, clip_on=False)
+        if above:
+            ax.text(0.02, 0.98, "beyond the axis (not all drawn):\n" + "\n".join(above), transform=ax.transAxes,
+                    ha="left", va="top", fontsize=6, color="tab:red")
     if title:
         ax.set_title(title, fontsize=9)
     fig.tight_layout()
