@@ -54,6 +54,14 @@ def test_every_command_has_help(command):
     assert proc.stdout.startswith(f"usage: cansim {command}")
 
 
+@pytest.mark.parametrize("study", ["ch3", "ch4", "ch5", "ch6", "recognition", "rat"])
+def test_every_study_takes_the_same_options_for_its_mode_folder_and_progress_bars(study):
+    proc = cansim("study", study, "--help")
+    assert proc.returncode == 0, proc.stderr
+    for option in ("--quick", "--out", "--no-progress"):
+        assert re.search(rf"^\s+{option}\b", proc.stdout, re.M), (study, option)
+
+
 @pytest.mark.parametrize("argv,usage,option", [
     (("study", "ch5", "--help"), "usage: cansim study ch5", "--scale-to-m"),
     (("study", "--quick", "recognition", "-h"), "usage: cansim study recognition", "--roll-deg"),

@@ -284,3 +284,13 @@ def test_the_landmark_radius_flag_reaches_every_run_and_the_metrics(tmp_path):
             rt.main([*args, "--landmark-radius-m", bad, "--out", str(tmp_path / "bad")])
         assert stop.value.code == 2
     assert not (tmp_path / "bad").exists()
+
+
+@needs_data
+def test_the_progress_bar_counts_the_runs_and_no_progress_hides_it(tmp_path, capsys):
+    args = ["--duration-s", "30", "--seeds", "1", "--no-spiking"]
+    assert rt.main([*args, "--out", str(tmp_path / "shown")]) == 0
+    shown = capsys.readouterr().err
+    assert "rat study" in shown and f"{2 * (len(rt.MODELS) - 1)}/{2 * (len(rt.MODELS) - 1)}" in shown  # models x anchoring
+    assert rt.main([*args, "--no-progress", "--out", str(tmp_path / "hidden")]) == 0
+    assert "rat study" not in capsys.readouterr().err

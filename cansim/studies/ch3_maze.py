@@ -787,7 +787,8 @@ def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[t
     """
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(CONTROLS), len(CONTACT_ANGLES), figsize=(15.0, 7.5), sharex=True)
+    fig, axes = plt.subplots(len(CONTROLS), len(CONTACT_ANGLES), figsize=(17.0, 7.5), sharex=True, layout="constrained",
+                             squeeze=False)
     bins = np.linspace(0.0, 80.0, 81)
     for r, control in enumerate(CONTROLS):
         for c, m in enumerate(CONTACT_ANGLES):
@@ -802,12 +803,14 @@ def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[t
                 ax.axvline(calibration[(control, m)][0], color="0.3", ls="--", lw=1.0, label="sequence threshold")
             ax.set_title(f"{control.replace('_', ' ')}, {m.replace('_', ' ')}", fontsize="small")
             ax.set_yscale("log")
-            ax.set_ylabel("probability density (log)", fontsize="small")
-            if r == len(CONTROLS) - 1:
-                ax.set_xlabel(f"Eq 3.1 dissimilarity, mean per image (sqrt(grey level)); above {bins[-1]:g}: last bin")
-    axes[0, 0].legend(fontsize="x-small")
+            if c == 0:
+                ax.set_ylabel("probability density (log)", fontsize="small")
+    # one axis label and one legend for all panels, outside them (per panel they overlapped and covered the data)
+    fig.supxlabel(f"Eq 3.1 dissimilarity, mean per image (sqrt(grey level)); values above {bins[-1]:g} in the last bin",
+                  fontsize="small")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize="x-small")
     fig.suptitle("Tactile place recognition: Eq 3.1 dissimilarity, same place on another pass vs different places (tuning runs)")
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -1009,6 +1012,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--recognition", choices=RECOGNITIONS, default="sequence",
                         help="place recognition: 'sequence' (default, sequence matching, threshold calibrated from the "
                              "same/different-place distributions) or 'thesis_ch3' (Table 3.1: one image, grid search)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--relaxation", choices=RELAXATIONS, default=None,
                         help="relaxation of the scored map: 'least_squares' (default with sequence recognition: every "
                              "traversal, views tied) or 'eq2_25' (the map's own, Table 3.1; default with thesis_ch3)")
@@ -1038,7 +1042,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     n_grid = len(settings.thresholds) * len(settings.energies)
     n_conditions = len(CONTROLS) * len(CONTACT_ANGLES)
     total = len(CONTROLS) * (len(settings.tuning_seeds) + len(seeds)) + n_conditions * (n_grid * len(settings.tuning_seeds) + 2 * len(seeds))
-    progress = tqdm(total=total, desc="ch3 study", unit="step")
+    progress = tqdm(total=total, desc="ch3 study", unit="step", disable=args.no_progress)
 
     calibration: dict[tuple[str, str], tuple[float, float]] = {}
     grid_rows: list[dict[str, Any]] = []

@@ -807,7 +807,8 @@ def summarise(runs: Sequence[DriftRun]) -> list[dict]:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Command line: ``cansim study rat [--quick] [--trajectory NAME] [--start-s S] [--duration-s S] [--seeds N] [--out DIR]``."""
+    """Command line: ``cansim study rat [--quick] [--trajectory NAME] [--start-s S] [--duration-s S] [--seeds N] [--out DIR]
+    [--no-progress]``."""
     ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two seeds, coarser spiking calibration (~2.5 min)")
     ap.add_argument("--trajectory", choices=TRAJECTORIES, default="sargolini")
@@ -821,6 +822,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                     help="radius of the landmark discs, m (default %(default)s, chosen in Sargolini's 1 m box; "
                          "0.15 covers the same share of Tanni's 3.5 x 2.5 m arena)")
     ap.add_argument("--out", type=Path, default=Path("."), help="output folder (default: working directory)")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(list(argv) if argv is not None else None)
     duration = args.duration_s
     args.seeds = args.seeds if args.seeds is not None else (2 if args.quick else 3)
@@ -839,13 +841,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if "spiking_ring" in models:
         n_sub = max(1, int(round(traj.dt_s / DEFAULTS["spiking_dt_s"])))
         calibrated = spiking_ring_params({"quick_calibration": args.quick}, traj.dt_s / n_sub)
+    from tqdm import tqdm
+
+    bar = tqdm(total=args.seeds * len(models) * 2, desc="rat study", unit="run", disable=args.no_progress)
     for seed in range(args.seed, args.seed + args.seeds):
         for model in models:
             for anchoring in (False, True):
+                bar.set_postfix_str(f"seed {seed} {model}{' re-anchored' if anchoring else ''}")
                 r = simulate(traj, {"model": model, "anchoring": anchoring, "quick_calibration": args.quick,
                                     "landmark_radius_m": args.landmark_radius_m}, seed, spiking_params=calibrated)
                 runs.append(r)
                 log.info("seed %d %s anchoring=%s: %s", seed, model, anchoring, r.summary())
+                bar.update(1)
+    bar.close()
     rows = summarise(runs)
     window = f" from {args.start_s:g} s" if args.start_s else ""
     print(f"{traj.name}: {traj.duration_s:.0f} s{window} at {1 / traj.dt_s:.0f} Hz, {args.seeds} odometry-noise seeds (mean)")
