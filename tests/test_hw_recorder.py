@@ -234,3 +234,62 @@ def test_recorder_process_killed_keeps_every_completed_whisk(tmp_path):
         assert len(list(tmp_path.glob("whisk_*.csv"))) == 18 * len(cycles)
         item = rec.record(_state(float(len(cycles))), _records(0))
     assert item.entry.whisk_file == f"whisk_{len(cycles):06d}"
+
+
+def _two_cycles(folder):
+    with Recorder(folder) as rec:
+        rec.record(_state(5.0), _records(0))
+        rec.record(_state(6.0), _records(1, value=1.0))
+
+
+def test_a_folder_of_whisk_files_without_a_pose_log_is_refused_and_nothing_is_deleted(tmp_path):
+    _two_cycles(tmp_path)
+    (tmp_path / "pose_log.csv").rename(tmp_path / "poses_elsewhere.csv")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(InvalidInputError, match="has no pose_log.csv: not a session a recorder left"):
+        Recorder(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # all four whisk files kept
+
+
+def test_whisk_files_beyond_the_cycle_in_progress_are_refused_and_kept(tmp_path):
+    _two_cycles(tmp_path)
+    for cycle in (2, 3):  # 2 is what a killed recorder leaves; 3 it cannot have left
+        (tmp_path / f"whisk_00000{cycle}_A1.csv").write_text("angle_rad,x_deflection_counts,y_deflection_counts,spare\n")
+    with pytest.raises(InvalidInputError, match=r"whisk_000003_A1.csv\) but whose cycles lie beyond"):
+        Recorder(tmp_path)
+    assert (tmp_path / "whisk_000002_A1.csv").exists() and (tmp_path / "whisk_000003_A1.csv").exists()
+
+
+def test_a_torn_last_pose_line_is_cut_off_before_the_resumed_session_appends(tmp_path, caplog):
+    _two_cycles(tmp_path)
+    log = tmp_path / "pose_log.csv"
+    good = log.read_bytes()
+    with open(log, "ab") as fh:  # a crash during the third line's append
+        fh.write(b"7.0,0.4,0.0,0.4,1.0,0.0,0.0,0.0")
+    (tmp_path / "whisk_000002_A1.csv").write_bytes((tmp_path / "whisk_000001_A1.csv").read_bytes())
+    with caplog.at_level("WARNING"), Recorder(tmp_path) as rec:
+        assert log.read_bytes() == good  # cut back to the last whole line
+        rec.record(_state(8.0), _records(0, value=3.0))
+    assert "torn final line" in caplog.text
+    cycles = list(replay(tmp_path))
+    assert [c.entry.time_s for c in cycles] == [5.0, 6.0, 8.0]
+    assert [c.entry.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001", "whisk_000002"]
+    assert float(cycles[2].records["B1"].y_counts[0]) == 3.0  # the new cycle's files, not the interrupted one's
+
+
+def test_a_resumed_session_whose_arm_clock_restarted_stays_in_time_order(tmp_path, caplog):
+    _two_cycles(tmp_path)  # times 5 and 6 s
+    with caplog.at_level("WARNING"), Recorder(tmp_path) as rec:
+        rec.record(_state(0.5), _records(0, value=2.0))  # the arm's clock started again
+        rec.record(_state(1.5), _records(0, value=3.0))
+        with pytest.raises(InvalidInputError, match="time order"):  # within one run, time still only goes forward
+            rec.record(_state(1.0), _records(0))
+    assert "clock restarted" in caplog.text
+    assert [c.entry.time_s for c in replay(tmp_path)] == [5.0, 6.0, 6.5, 7.5]  # shifted by the log's last time
+
+
+def test_a_resumed_session_whose_clock_went_on_keeps_its_times(tmp_path):
+    _two_cycles(tmp_path)
+    with Recorder(tmp_path) as rec:
+        rec.record(_state(9.0), _records(0))
+    assert [c.entry.time_s for c in replay(tmp_path)] == [5.0, 6.0, 9.0]

@@ -59,8 +59,11 @@ class Recorder:
     directory : path-like
         Session directory (created if missing). An existing session is
         resumed: cycle numbering continues after its last pose-log line, and
-        the debris of a killed recorder (temporary files, module files of a
-        cycle without a pose-log line) is removed.
+        the debris of a killed recorder is removed: temporary files, the module
+        files of the one cycle whose pose-log line was never written, and a torn
+        last pose-log line (no newline). A folder with whisk files but no pose
+        log, or with whisk files of cycles beyond the one in progress, is not a
+        session this recorder left: it is refused and nothing is deleted.
     pipeline : callable, optional
         Called with each cycle (a ``ReplayedCycle``) once it is on disk; its
         return values are collected in :attr:`results`.
@@ -76,6 +79,11 @@ class Recorder:
     -----
     Cycles are numbered by the recorder (0, 1, 2, ... in arrival order), not
     by the device, so a device restart cannot overwrite earlier files.
+    The pose log's times are the arm's time stamps. When a resumed session's first
+    new time stamp is earlier than the log's last (the arm's clock restarted: a
+    rebooted controller, a new simulated arm), this recorder's times are written
+    shifted by the log's last time, with a logged warning, so the session stays
+    in time order and the intervals within each run are kept.
     Use as a context manager: on any exception the pose log is closed and
     everything written so far stays valid.
     """
@@ -89,23 +97,37 @@ class Recorder:
         numbers = [int(m.group(1)) for e in existing
                    if (m := re.fullmatch(r"whisk_(\d+)", e.whisk_file))]
         self._next_cycle = max(numbers) + 1 if numbers else 0
-        self._remove_debris()
+        self._last_logged_s = existing[-1].time_s if existing else None
+        self._time_offset_s = 0.0
+        self._remove_debris(log_path.exists() and log_path.stat().st_size > 0)
         self._writer = RecordingWriter(self.directory)
         self._pipeline = pipeline
         self.n_cycles = 0
         self.results: list[Any] = []
         self.closed = False
 
-    def _remove_debris(self) -> None:
-        """Delete what a killed process can leave: temporary files of the atomic
-        writer and module files of a cycle whose pose-log line was never written."""
-        for path in self.directory.glob(".whisk_*.tmp"):
-            path.unlink(missing_ok=True)
+    def _remove_debris(self, has_log: bool) -> None:
+        """Delete what a killed recorder can leave: temporary files of the atomic writer and the module
+        files of the one cycle whose pose-log line was never written; refuse (deleting nothing) whisk
+        files it cannot have left."""
+        unlogged = []
         for path in self.directory.glob("whisk_*_*.csv"):
             m = re.match(r"whisk_(\d+)_", path.name)
             if m and int(m.group(1)) >= self._next_cycle:
-                _LOG.warning("removing %s: its cycle was interrupted before its pose-log line", path)
-                path.unlink(missing_ok=True)
+                unlogged.append((int(m.group(1)), path))
+        foreign = sorted(str(p.name) for c, p in unlogged if not has_log or c > self._next_cycle)
+        if foreign:
+            why = (f"has no {POSE_LOG_NAME}" if not has_log else
+                   f"whose cycles lie beyond the pose log's last line (the next cycle is {self._next_cycle})")
+            raise InvalidInputError(
+                f"{self.directory} holds {len(foreign)} whisk file(s) ({', '.join(foreign[:3])}"
+                f"{', ...' if len(foreign) > 3 else ''}) but {why}: not a session a recorder left here, so nothing "
+                "is resumed or deleted; record into another folder, or move those files away")
+        for path in self.directory.glob(".whisk_*.tmp"):
+            path.unlink(missing_ok=True)
+        for _, path in unlogged:
+            _LOG.warning("removing %s: its cycle was interrupted before its pose-log line", path)
+            path.unlink(missing_ok=True)
 
     def record(self, state: ArmState, records: Sequence[WhiskRecord]) -> ReplayedCycle:
         """Write one whisk cycle with the arm state it was taken at.
@@ -134,9 +156,16 @@ class Recorder:
             raise InvalidInputError(f"recorder for {self.directory} is closed")
         cycle = self._next_cycle
         relabelled = [r if r.cycle == cycle else _with_cycle(r, cycle) for r in records]
+        time_s = state.timestamp + self._time_offset_s
+        last = self._last_logged_s
+        if self.n_cycles == 0 and last is not None and time_s < last:  # the arm's clock restarted since the log's end
+            self._time_offset_s = last
+            time_s = state.timestamp + last
+            _LOG.warning("%s: the arm's time %.6g s is earlier than the pose log's last %.6g s (its clock restarted): "
+                         "this run's times are written %.6g s later, so the session stays in time order",
+                         self.directory, state.timestamp, last, last)
         try:
-            entry = self._writer.write_cycle(relabelled, time_s=state.timestamp,
-                                             pose=state.pose)
+            entry = self._writer.write_cycle(relabelled, time_s=time_s, pose=state.pose)
         except BaseException:
             # the cycle has no pose-log line: remove its module files written so far
             for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):

@@ -303,7 +303,8 @@ class PoseLogWriter:
     path : path-like
         The pose log. A missing or empty file gets the header; an existing one is
         checked and appended to (resuming a session), and its last time stamp
-        is the lower bound for the next line.
+        is the lower bound for the next line. A torn final line (no newline: a
+        crash during an append) is cut off first, with a logged warning.
 
     Raises
     ------
@@ -318,6 +319,7 @@ class PoseLogWriter:
             entries = read_pose_log(self.path)
             if entries:
                 self._last_time = entries[-1].time_s
+            self._cut_torn_line()
             needs_header = False
         else:
             needs_header = True
@@ -325,6 +327,25 @@ class PoseLogWriter:
         if needs_header:
             self._write(",".join(POSE_LOG_HEADER) + "\n")
             sync_folder(self.path.parent)
+
+    def _cut_torn_line(self) -> None:
+        """Cut a final line without its newline (a write torn by a crash, which :func:`read_pose_log` ignores) off
+        the log before anything is appended: the next line would otherwise be glued onto it."""
+        with open(self.path, "rb+") as fh:
+            data = fh.read()
+            if data.endswith(b"\n"):
+                return
+            keep = data.rfind(b"\n") + 1
+            log.warning("%s: cutting off the torn final line (%d bytes, no newline) before appending", self.path,
+                        len(data) - keep)
+            fh.truncate(keep)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    @property
+    def last_time_s(self) -> float:
+        """The time of the log's last line, s (-inf for a log without lines)."""
+        return self._last_time
 
     def _write(self, text: str) -> None:
         self._fh.write(text)
