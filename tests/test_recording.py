@@ -152,6 +152,8 @@ def test_pose_log_out_of_time_order_is_a_typed_error_with_line(tmp_path):
         ("1.0,0,x,0,0,0,0,1,whisk_000000", "not a number"),
         ("1.0,0,0,0,0,0,0,2,whisk_000000", "unit norm"),
         ("nan,0,0,0,0,0,0,1,whisk_000000", "NaN"),
+        ("1.0,0,nan,0,0,0,0,1,whisk_000000", "repair this line of the pose log"),
+        ("1.0,-80,-320,150,0,0,0,1,whisk_000000", "millimetres?"),  # mm written as m
     ],
 )
 def test_malformed_pose_log_line(tmp_path, row, what):
@@ -306,3 +308,69 @@ def test_from_float_rows_is_typed_or_valid(a, names, cycle):
     assert all(m.isalnum() for m in names) and [r.module for r in rows] == names
     for i, r in enumerate(rows):
         np.testing.assert_array_equal(r.angle_rad, a[i])
+
+
+def test_a_whisk_file_named_by_two_pose_lines_is_refused_by_the_reader_and_the_writer(tmp_path):
+    path = tmp_path / POSE_LOG_NAME
+    path.write_text("time_s,x_m,y_m,z_m,qx,qy,qz,qw,whisk_file\n1.0,0,0,0,0,0,0,1,whisk_000000\n"
+                    "2.0,0,0,0,0,0,0,1,whisk_000001\n3.0,0,0,0,0,0,0,1,whisk_000000\n")
+    with pytest.raises(CorruptFileError, match="line 4: whisk file 'whisk_000000' is line 2's too"):
+        read_pose_log(path)
+    with PoseLogWriter(tmp_path / "other.csv") as w:
+        w.append(1.0, ([0, 0, 0], _identity_quat()), "whisk_000000")
+        with pytest.raises(InvalidInputError, match="already in"):
+            w.append(2.0, ([0, 0, 0], _identity_quat()), "whisk_000000")
+    assert len(read_pose_log(tmp_path / "other.csv")) == 1
+
+
+def test_angles_in_degrees_under_the_radian_header_are_refused_naming_the_line(tmp_path):
+    rec = _record(module="A1", cycle=0)
+    path = tmp_path / whisk_file_name(0, "A1")
+    body = "\n".join(f"{float(np.rad2deg(a))!r},{float(x)!r},{float(y)!r},0" for a, x, y in zip(rec.angle_rad, rec.x_counts, rec.y_counts))
+    path.write_text("angle_rad,x_deflection_counts,y_deflection_counts,spare\n" + body + "\n")
+    with pytest.raises(CorruptFileError, match=r"line 2: angle -49.99.*beyond \+-pi rad: degrees\?"):
+        read_whisk_csv(path)
+    path.write_text(body + "\n")  # no header: read as radians, the same
+    with pytest.raises(CorruptFileError, match="line 1: angle"):
+        read_whisk_csv(path)
+    path.write_text("angle_deg,x_deflection_counts,y_deflection_counts,spare\n" + body + "\n")  # said so: read
+    np.testing.assert_allclose(read_whisk_csv(path).angle_rad, rec.angle_rad, rtol=0, atol=1e-12)
+
+
+def test_a_byte_order_mark_before_the_header_is_read_past(tmp_path):
+    rec = _record(module="A1", cycle=0)
+    path = tmp_path / whisk_file_name(0, "A1")
+    write_whisk_csv(path, rec)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())  # Excel's "CSV UTF-8"
+    np.testing.assert_array_equal(read_whisk_csv(path).y_counts, rec.y_counts)
+
+
+def test_a_cycle_whose_modules_hold_different_numbers_of_samples_is_refused(tmp_path):
+    with RecordingWriter(tmp_path) as w:
+        w.write_cycle([_record("A1", 0, n=40), _record("B1", 0, n=40)], 0.0, ([0, 0, 0], _identity_quat()))
+    path = tmp_path / whisk_file_name(0, "B1")
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:30]))  # a copy cut at a line boundary
+    with pytest.raises(CorruptFileError, match=r"line 2: the modules of whisk_000000 hold different numbers of "
+                                               r"samples \(B1: 29, A1: 40\): whisk_000000_B1.csv was cut short"):
+        list(replay(tmp_path))
+
+
+@settings(max_examples=60, deadline=None)
+@given(position=st.lists(st.floats(-20.0, 20.0), min_size=3, max_size=3), times=st.lists(st.floats(0.0, 10.0), min_size=1,
+       max_size=4), names=st.lists(st.sampled_from(["whisk_000000", "whisk_000001", "whisk_000002"]), min_size=4,
+       max_size=4))
+def test_what_the_pose_log_writer_takes_its_reader_reads_back(tmp_path_factory, position, times, names):
+    """check_entry refuses exactly what read_pose_log would refuse after the lines before: every line written reads
+    back, in order; a refused line leaves the file as it was."""
+    path = tmp_path_factory.mktemp("log") / POSE_LOG_NAME
+    written = []
+    with PoseLogWriter(path) as w:
+        for t, name in zip(times, names):
+            before = path.read_bytes()
+            try:
+                written.append(w.append(t, (position, _identity_quat()), name))
+            except InvalidInputError:
+                assert path.read_bytes() == before
+    back = read_pose_log(path)
+    assert [(e.time_s, e.whisk_file) for e in back] == [(e.time_s, e.whisk_file) for e in written]

@@ -98,6 +98,7 @@ __all__ = [
     "read_whisk_csv",
     "PoseLogWriter",
     "read_pose_log",
+    "MAX_POSE_DISTANCE_M",
     "RecordingWriter",
     "replay",
 ]
@@ -111,6 +112,9 @@ _WHISK_HEADER_DEG: tuple[str, ...] = ("angle_deg",) + WHISK_HEADER[1:]
 POSE_LOG_HEADER: tuple[str, ...] = ("time_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw", "whisk_file")
 #: File name of the pose log inside a session directory.
 POSE_LOG_NAME: str = "pose_log.csv"
+#: Largest distance of a pose-log position from the arm's base, m (no arm reaches farther: a larger one
+#: is millimetres written as metres).
+MAX_POSE_DISTANCE_M: float = 10.0
 
 _FILE_RE = re.compile(r"^whisk_(\d+)_([A-Za-z0-9]+)\.csv$")
 
@@ -178,26 +182,24 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
 def _read_lines(path: Path, what: str) -> list[str]:
     """The file's lines split on ``\\n`` (the last one empty when the file ends with a newline)."""
     try:
-        return path.read_text(encoding="utf-8").split("\n")
+        return path.read_text(encoding="utf-8-sig").split("\n")  # a leading byte-order mark (Excel's "CSV UTF-8") dropped
     except FileNotFoundError:
         raise CorruptFileError(f"{path}: {what} not found") from None
     except UnicodeDecodeError as exc:
         raise CorruptFileError(f"{path}: not UTF-8 text ({exc.reason})") from None
 
 
-def _parse_float(token: str, path: Path, lineno: int, column: str) -> float:
+def _parse_float(token: str, path: Path, lineno: int, column: str, what: str = "whisk file") -> float:
     try:
         value = float(token)
     except ValueError:
         raise CorruptFileError(
             f"{path}: line {lineno}: column '{column}' is not a number ({token.strip()!r}); "
-            "the file is corrupt or not a whisk CSV"
+            f"the file is corrupt or not a {'whisk CSV' if what == 'whisk file' else what}"
         ) from None
     if not math.isfinite(value):
-        raise CorruptFileError(
-            f"{path}: line {lineno}: column '{column}' holds {token.strip()!r} (NaN/inf sample); "
-            "repair or drop this whisk file"
-        )
+        fix = "repair or drop this whisk file" if what == "whisk file" else f"repair this line of the {what}"
+        raise CorruptFileError(f"{path}: line {lineno}: column '{column}' holds {token.strip()!r} (NaN/inf); {fix}")
     return value
 
 
@@ -271,9 +273,17 @@ def read_whisk_csv(
                 )
             for j, tok in enumerate(tokens):
                 data[i, j] = _parse_float(tok, p, lineno, WHISK_HEADER[j])
+    angle_rad = data[:, 0] * scale if scale != 1.0 else data[:, 0]
+    beyond = np.flatnonzero(np.abs(angle_rad) > math.pi)
+    if beyond.size:  # a whisk sweeps well within +-pi: these are degrees under an angle_rad header (or none)
+        k = int(beyond[0])
+        raise CorruptFileError(
+            f"{p}: line {k + first_data + 1}: angle {float(data[k, 0])!r} lies beyond +-pi rad: degrees? A whisk file holds "
+            f"radians under the header {','.join(WHISK_HEADER)!r}, or degrees under {','.join(_WHISK_HEADER_DEG)!r}"
+        )
     return WhiskRecord(
         module=module,
-        angle_rad=data[:, 0] * scale if scale != 1.0 else data[:, 0],
+        angle_rad=angle_rad,
         x_counts=data[:, 1],
         y_counts=data[:, 2],
         sample_rate_hz=sample_rate_hz,
@@ -315,8 +325,10 @@ class PoseLogWriter:
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         self._last_time = -math.inf
+        self._files: set[str] = set()  # whisk files the log names
         if self.path.exists() and self.path.stat().st_size > 0:
             entries = read_pose_log(self.path)
+            self._files = {e.whisk_file for e in entries}
             if entries:
                 self._last_time = entries[-1].time_s
             self._cut_torn_line()
@@ -378,9 +390,10 @@ class PoseLogWriter:
         if self._fh.closed:
             raise InvalidInputError(f"pose log {self.path} is closed; open a new PoseLogWriter")
         entry = PoseEntry(time_s, pose, whisk_file)
-        self.check_time(entry.time_s)
+        self.check_entry(entry)
         self._write(_pose_line(entry))
         self._last_time = entry.time_s
+        self._files.add(entry.whisk_file)
         return entry
 
     def check_time(self, time_s: float) -> None:
@@ -390,6 +403,18 @@ class PoseLogWriter:
                 f"pose time {time_s!r} s is earlier than the previous line's {self._last_time!r} s; "
                 "the pose log must be in time order"
             )
+
+    def check_entry(self, entry: PoseEntry) -> None:
+        """Raise :class:`InvalidInputError` for a line :func:`read_pose_log` would refuse after this log's lines:
+        out of time order, a position beyond :data:`MAX_POSE_DISTANCE_M`, or a whisk file already named."""
+        self.check_time(entry.time_s)
+        reach = float(np.linalg.norm(entry.pose.position_m))
+        if reach > MAX_POSE_DISTANCE_M:
+            raise InvalidInputError(f"pose position {entry.pose.position_m.tolist()} lies {reach:.4g} m from the arm's "
+                                    f"base, beyond {MAX_POSE_DISTANCE_M:g} m: give metres, not millimetres")
+        if entry.whisk_file in self._files:
+            raise InvalidInputError(f"whisk file {entry.whisk_file!r} is already in {self.path}; each line names its "
+                                    "own cycle's files")
 
     def close(self) -> None:
         """Close the file (idempotent)."""
@@ -415,7 +440,9 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
     ------
     CorruptFileError
         Missing file, wrong header, a line without 9 columns, a non-numeric or
-        non-finite value, a non-unit quaternion, or a time stamp earlier than
+        non-finite value, a non-unit quaternion, a position farther than
+        :data:`MAX_POSE_DISTANCE_M` from the base (millimetres written as metres),
+        a whisk file named by an earlier line too, or a time stamp earlier than
         the line before (out of time order); the message names the file and the
         1-based line. A final line without a newline (a write torn by a crash) is
         ignored with a warning.
@@ -432,6 +459,7 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
             f"{p}: line 1: unexpected header {lines[0]!r}; expected {','.join(POSE_LOG_HEADER)!r}"
         )
     entries: list[PoseEntry] = []
+    first_line: dict[str, int] = {}  # whisk file -> the line naming it
     for i, line in enumerate(lines[1:], start=2):
         tokens = line.split(",")
         if len(tokens) != len(POSE_LOG_HEADER):
@@ -439,11 +467,21 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
                 f"{p}: line {i}: expected {len(POSE_LOG_HEADER)} columns ({','.join(POSE_LOG_HEADER)}), "
                 f"found {len(tokens)}"
             )
-        vals = [_parse_float(tok, p, i, POSE_LOG_HEADER[j]) for j, tok in enumerate(tokens[:8])]
+        vals = [_parse_float(tok, p, i, POSE_LOG_HEADER[j], "pose log") for j, tok in enumerate(tokens[:8])]
         try:
             entry = PoseEntry(vals[0], (vals[1:4], vals[4:8]), tokens[8].strip())
         except InvalidInputError as exc:
             raise CorruptFileError(f"{p}: line {i}: {exc}") from None
+        reach = float(np.linalg.norm(vals[1:4]))
+        if reach > MAX_POSE_DISTANCE_M:
+            raise CorruptFileError(
+                f"{p}: line {i}: position {vals[1:4]} lies {reach:.4g} m from the arm's base, beyond any arm's reach "
+                f"({MAX_POSE_DISTANCE_M:g} m): millimetres? The pose log holds metres")
+        if entry.whisk_file in first_line:
+            raise CorruptFileError(
+                f"{p}: line {i}: whisk file {entry.whisk_file!r} is line {first_line[entry.whisk_file]}'s too; each "
+                "line names its own cycle's files")
+        first_line[entry.whisk_file] = i
         if entries and entry.time_s < entries[-1].time_s:
             raise CorruptFileError(
                 f"{p}: line {i}: time {entry.time_s!r} s is earlier than line {i - 1}'s "
@@ -512,7 +550,7 @@ class RecordingWriter:
             raise InvalidInputError(f"duplicate modules in one cycle: {sorted(modules)}")
         stem = whisk_file_stem(recs[0].cycle)
         entry = PoseEntry(time_s, pose, stem)
-        self._pose_log.check_time(entry.time_s)
+        self._pose_log.check_entry(entry)
         for r in recs:
             write_whisk_csv(self.directory / whisk_file_name(r.cycle, r.module), r)
         return self._pose_log.append(entry.time_s, entry.pose, stem)
@@ -552,8 +590,9 @@ def replay(
     Raises
     ------
     CorruptFileError
-        A malformed pose log or whisk file (naming file and line), or a pose
-        line whose cycle has no whisk files / lacks a requested module.
+        A malformed pose log or whisk file (naming file and line), a pose
+        line whose cycle has no whisk files / lacks a requested module, or a
+        cycle whose modules hold different numbers of samples.
     """
     d = Path(directory)
     pose_path = d / POSE_LOG_NAME
@@ -576,4 +615,11 @@ def replay(
             mod: read_whisk_csv(by_module[mod], module=mod, cycle=cycle, sample_rate_hz=sample_rate_hz)
             for mod in wanted
         }
+        lengths = {mod: r.n_samples for mod, r in records.items()}
+        if len(set(lengths.values())) > 1:  # one whisk samples every module together: a file was cut or mixed up
+            shortest = min(lengths, key=lengths.__getitem__)
+            raise CorruptFileError(
+                f"{pose_path}: line {lineno}: the modules of {entry.whisk_file} hold different numbers of samples "
+                f"({shortest}: {lengths[shortest]}, {max(lengths, key=lengths.__getitem__)}: {max(lengths.values())}): "
+                f"{by_module[shortest].name} was cut short or belongs to another whisk")
         yield ReplayedCycle(entry=entry, records=MappingProxyType(records))
