@@ -652,7 +652,11 @@ class ExperienceMap:
         CorruptFileError
             The file is unreadable, or a field is missing or has the wrong type, shape or value.
         """
-        return cls.from_arrays(read_npz(path))
+        arrays = read_npz(path)
+        try:
+            return cls.from_arrays(arrays)
+        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
+            raise exc.located(path) from exc.__cause__
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ExperienceMap":

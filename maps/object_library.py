@@ -133,7 +133,11 @@ class ObjectLibrary:
         CorruptFileError
             The file is unreadable, or a field is missing or malformed.
         """
-        return cls.from_arrays(read_npz(path))
+        arrays = read_npz(path)
+        try:
+            return cls.from_arrays(arrays)
+        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
+            raise exc.located(path) from exc.__cause__
 
 
 def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_offsets: Sequence[int],

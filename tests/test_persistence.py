@@ -278,3 +278,54 @@ def test_every_save_names_its_file_as_numpy_does_and_loads_by_the_name_given(tmp
         assert type(cls.load(tmp_path / name)) is type(obj)
     obj.save(str(tmp_path / "other.npz"))  # a name with .npz keeps it
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.npz", "state.npz"]
+
+
+def test_an_object_library_or_a_radial_model_given_as_a_model_is_named_with_the_file(tmp_path):
+    """An ObjectLibrary.save file or a .skops file given where a model goes (a robot lab's --map, session 48) was
+    "field 'model': missing; the file is corrupt ..." with that sentence twice and no file named."""
+    import zipfile
+
+    from cansim.explore.explorer import KnownObject
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
+
+    library, _ = _saveable("ObjectLibrary")
+    library.save(tmp_path / "library.npz")
+    with zipfile.ZipFile(tmp_path / "svr10.skops", "w") as z:  # what skops writes: a zip with schema.json
+        z.writestr("schema.json", '{"__class__": "SVR"}')
+    for cls in (WhiskerRatSLAM, KnownObject):
+        with pytest.raises(CorruptFileError) as exc:
+            cls.load(tmp_path / "library.npz")
+        assert str(exc.value).startswith(f"{tmp_path / 'library.npz'}: this file holds an object library")
+        assert "ObjectLibrary.load" in str(exc.value) and "corrupt" not in str(exc.value)
+        with pytest.raises(CorruptFileError) as exc:
+            cls.load(tmp_path / "svr10.skops")
+        assert str(exc.value).startswith(f"{tmp_path / 'svr10.skops'}: this file is a scikit-learn model")
+
+
+def test_a_models_load_error_names_the_file_and_says_corrupt_once(tmp_path):
+    from cansim.models.ratslam import RatSLAM
+
+    RatSLAM(backend="numpy", xy_cells=9, heading_cells=12, cell_size_m=0.1).save(tmp_path / "m.npz")
+    arrays = dict(np.load(tmp_path / "m.npz"))
+    del arrays["model"]
+    np.savez(tmp_path / "broken.npz", **arrays)
+    with pytest.raises(CorruptFileError) as exc:
+        RatSLAM.load(tmp_path / "broken.npz")
+    assert exc.value.path == str(tmp_path / "broken.npz") and exc.value.field == "model"
+    assert str(exc.value).count("the file is corrupt") == 1
+
+
+@pytest.mark.parametrize("fmt", [np.int64(2), np.int64(0), np.int64(-5), np.float64(1.0), np.array([1])])
+def test_a_model_file_of_another_layout_is_refused(tmp_path, fmt):
+    from cansim.models.ratslam import RatSLAM
+
+    slam = RatSLAM(backend="numpy", xy_cells=9, heading_cells=12, cell_size_m=0.1)
+    slam.save(tmp_path / "m.npz")
+    arrays = dict(np.load(tmp_path / "m.npz"))
+    arrays["loop_format"] = fmt
+    np.savez(tmp_path / "other.npz", **arrays)
+    with pytest.raises(CorruptFileError, match="field 'loop_format': layout .*this version reads 1"):
+        RatSLAM.load(tmp_path / "other.npz")
+    del arrays["loop_format"]  # a file without it has this layout
+    np.savez(tmp_path / "plain.npz", **arrays)
+    assert RatSLAM.load(tmp_path / "plain.npz").iteration == slam.iteration

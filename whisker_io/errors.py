@@ -26,6 +26,7 @@ keeps the state it had before the call.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 __all__ = [
     "CansimError",
@@ -124,7 +125,17 @@ class CorruptFileError(CansimError, ValueError):
         message = ": ".join(where + [problem])
         if field is not None:
             message += "; the file is corrupt or was not written by this library - re-save it or restore a backup"
+        self.problem = problem
         super().__init__(message)
+
+    def located(self, path: str | os.PathLike[str] | Any) -> "CorruptFileError":
+        """This error naming ``path`` (itself when it already names a file): for a loader that read the
+        arrays first and met the fault while rebuilding the object from them."""
+        if self.path is not None:
+            return self
+        located = type(self)(self.problem, path=path, field=self.field, line=self.line)
+        located.__cause__ = self.__cause__
+        return located
 
 
 class HardwareError(CansimError, RuntimeError):

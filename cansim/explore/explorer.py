@@ -273,7 +273,10 @@ class KnownObject:
             A bare model file without ``name``.
         """
         arrays = read_npz(path)
-        model = WhiskerRatSLAM.from_arrays(arrays)
+        try:
+            model = WhiskerRatSLAM.from_arrays(arrays)
+        except CorruptFileError as exc:  # the fault met while rebuilding the model: name the file
+            raise exc.located(path) from exc.__cause__
         if not isinstance(model, WhiskerRatSLAM):
             raise CorruptFileError(f"holds a {type(model).__name__}, not a WhiskerRatSLAM", path=path, field="model")
         om = model.object_map

@@ -385,7 +385,11 @@ class SlamLoop:
         CorruptFileError
             The file is unreadable, or a field is missing or malformed (named in the error).
         """
-        return cls.from_arrays(read_npz(path))
+        arrays = read_npz(path)
+        try:
+            return cls.from_arrays(arrays)
+        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
+            raise exc.located(path) from exc.__cause__
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> "SlamLoop":
@@ -400,8 +404,22 @@ class SlamLoop:
             raise CorruptFileError(f"this file holds an experience map (ExperienceMap.save, or the experience_map.npz "
                                    f"of cansim replay), not a whole {cls.__name__} model: read it with "
                                    "maps.experience_map.ExperienceMap.load")
+        if "model" not in arrays and "exp_object" in arrays and "names" in arrays:
+            raise CorruptFileError(f"this file holds an object library (ObjectLibrary.save: which experience belongs to "
+                                   f"which object), not a whole {cls.__name__} model: read it with "
+                                   "maps.object_library.ObjectLibrary.load")
+        if "model" not in arrays and "schema.json" in arrays:
+            raise CorruptFileError(f"this file is a scikit-learn model (.skops: a Ch.4 radial-distance model), not a "
+                                   f"{cls.__name__} model: load it with whisker_io.radial.persistence.load_model")
+        if "loop_format" in arrays:  # files before it had the same layout
+            fmt = np.asarray(arrays["loop_format"])
+            if fmt.shape != () or fmt.dtype.kind not in "iu" or int(fmt) != _LOOP_FORMAT:
+                raise CorruptFileError(f"layout {fmt.tolist()!r}, this version reads {_LOOP_FORMAT} (a file of another "
+                                       "cansim version: load it there and re-save, or rebuild the model)",
+                                       field="loop_format")
+        description = need("model")
         try:
-            model = cls.from_description(json.loads(str(need("model"))))
+            model = cls.from_description(json.loads(str(description)))
         except (json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
             raise CorruptFileError(f"not a valid model description ({exc})", field="model") from exc
         pc = model.pose_cells
