@@ -34,7 +34,11 @@ Exit status (one line on stderr says why, never a traceback):
 4      no whisker array found on USB
 5      the session stopped on a fault (completed whisks are kept on disk)
 6      the ``hw`` extra (ur-rtde, pyusb) is not installed
+130    interrupted (Ctrl-C): the arm and array are stopped, completed whisks are kept on disk
 =====  =====================================================================
+
+The last line names the decision: the known object whose integrated confidence reached
+``--threshold`` first (:func:`maps.recognition.decide`), or "nothing".
 """
 
 from __future__ import annotations
@@ -53,7 +57,7 @@ from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED  # noqa: F401 - the exit table
 
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2  # 3-6: whisker_io.hw.platform (a hardware fault)
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130  # 3-6: whisker_io.hw.platform (a hardware fault)
 #: RCP retract-at-maximum threshold (counts; 98 % of the 2047-count maximum, Sec 4.1.1).
 RCP_THRESHOLD = 2000.0
 
@@ -82,8 +86,22 @@ def load_known(specs: Sequence[str]) -> list[Any]:
         name, sep, path = spec.partition("=")
         if not sep or not name or not path:
             raise ValueError(f"--map takes NAME=PATH, got {spec!r}")
-        known.append(KnownObject.load(path, name=name))
+        if name in [k.name for k in known]:
+            raise ValueError(f"{name} is given twice; give each known object once, with its own name")
+        obj = KnownObject.load(path, name=name)
+        if obj.model.object_map.n_experiences == 0:
+            raise ValueError(f"{name}={path}: the map holds no experience (its mapping never observed a region); "
+                             "map the object again closer to it")
+        known.append(obj)
     return known
+
+
+def decision(names: Sequence[str], result: Any, threshold: float) -> str:
+    """The run's decision in words: the object whose IC reached ``threshold`` first, or nothing."""
+    from maps.recognition import decide
+
+    k = decide(np.asarray(result.ic, dtype=float).reshape(len(result.ic), len(names)), threshold) if len(result.ic) else None
+    return f"decided: {names[k]} (IC >= {threshold:g})" if k is not None else f"decided: nothing (no IC reached {threshold:g})"
 
 
 def write_trace(path: Path, names: Sequence[str], result: Any) -> None:
@@ -185,6 +203,7 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
         write_trace(out / "exploration_replay.csv", names, result)
         print(f"replayed {len(result.ic)} whisks ({result.stop_reason}); final IC "
               + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+        print(decision(names, result, args.threshold))
         return EXIT_OK
     if not args.robot_ip:
         return fail(EXIT_USAGE, "--robot-ip is needed (or --replay DIR)")
@@ -196,9 +215,14 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
     from whisker_io.hw.usb_array import FrameLayout
 
     layout = FrameLayout(**{k: v for k, v in (("vendor_id", args.vendor_id), ("product_id", args.product_id)) if v is not None})
+    try:  # before connecting: a folder that is no session of a recorder is refused with nothing deleted
+        Recorder.check_folder(args.out)
+    except (CansimError, OSError) as exc:
+        return fail(EXIT_USAGE, f"--out {args.out}: {exc}")
     recorder = None
     try:
-        with open_platform(args.robot_ip, envelope, layout, control_factory=control_factory, usb_backend=usb_backend) as (arm, array):
+        with open_platform(args.robot_ip, envelope, layout, control_factory=control_factory,
+                           usb_backend=usb_backend) as (arm, array):
             with array.whisking(WhiskPattern(), "retract_on_max", RCP_THRESHOLD), Recorder(args.out) as recorder:
                 def sensor(pose: Any) -> Any:
                     # the state with the pose the explorer whisks at, so a replay sees the same poses
@@ -208,10 +232,13 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
                 result = make_explorer(sensor, arm).run()
     except HardwareError as exc:
         return fail(*session_failure(exc, recorder.n_cycles if recorder is not None else 0))
+    except KeyboardInterrupt:  # the platform's exit has stopped the arm and the array
+        return fail(EXIT_INTERRUPTED, f"interrupted after {recorder.n_cycles if recorder is not None else 0} whisks, kept in {args.out}; "
+                                      f"their trace: --replay {args.out}")
     write_trace(args.out / "exploration.csv", names, result)
-    ident = int(np.argmax(result.ic[-1])) if len(result.ic) else None
-    print(f"{len(result.ic)} whisks ({result.stop_reason}), {result.refused_commands} refused commands; "
-          f"highest IC: {names[ident] if ident is not None else '-'} " + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+    print(f"{len(result.ic)} whisks ({result.stop_reason}), {result.refused_commands} refused commands; final IC "
+          + ", ".join(f"{n} {v:.1f}" for n, v in zip(names, result.ic[-1])))
+    print(decision(names, result, args.threshold))
     return EXIT_OK
 
 

@@ -16,11 +16,12 @@ Exit status (one line on stderr says why, never a traceback):
 =====  =====================================================================
 0      done
 1      any other failure reported by the library (a typed ``CansimError``)
-2      usage error: bad command line or invalid safety-envelope arguments
+2      usage error: bad command line, invalid safety-envelope arguments, an ``--out`` folder that is no session
 3      no robot reachable at ``--robot-ip``
 4      no whisker array found on USB
 5      the session stopped on a fault or a safety refusal (completed whisks are kept)
 6      the ``hw`` extra (ur-rtde, pyusb) is not installed
+130    interrupted (Ctrl-C): the arm and array are stopped, completed whisks are kept
 =====  =====================================================================
 """
 
@@ -39,7 +40,7 @@ from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout
 
 
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2  # 3-6: whisker_io.hw.platform (a hardware fault)
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130  # 3-6: whisker_io.hw.platform (a hardware fault)
 
 
 def fail(status: int, message: str) -> int:
@@ -74,15 +75,22 @@ def _session(argv: list[str] | None) -> int:
         envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
     except CansimError as exc:
         return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
+    try:  # before connecting: a folder that is no session of a recorder is refused with nothing deleted
+        Recorder.check_folder(args.out)
+    except (CansimError, OSError) as exc:
+        return fail(EXIT_USAGE, f"--out {args.out}: {exc}")
     recorder = None
     try:
-        with open_platform(args.robot_ip, envelope, FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id)) as (arm, array):
+        with open_platform(args.robot_ip, envelope,
+                           FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id)) as (arm, array):
             with array.whisking(WhiskPattern(), args.mode, args.rcp_threshold):
                 targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
                 with Recorder(args.out) as recorder:
                     explore(arm, array, recorder, targets, description="exploring")
     except HardwareError as exc:
         return fail(*session_failure(exc, recorder.n_cycles if recorder is not None else 0))
+    except KeyboardInterrupt:  # the platform's exit has stopped the arm and the array
+        return fail(EXIT_INTERRUPTED, f"interrupted after {recorder.n_cycles if recorder is not None else 0} whisks, kept in {args.out}/")
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/")
     return EXIT_OK
 

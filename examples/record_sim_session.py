@@ -54,7 +54,8 @@ def main() -> None:
     add_mesh_options(ap)
     ap.add_argument("--out", type=Path, default=Path("sim_session"), help="session directory")
     ap.add_argument("--distance", type=float, default=0.32,
-                    help="end effector to the object's axis, m (whiskers reach ~0.36 m)")
+                    help="end effector to the object's axis, m (0.2-0.6; the whiskers touch a surface up to about "
+                         "0.08 m beyond the front bases, 0.28 m from the end effector)")
     ap.add_argument("--nx", type=int, default=5, help="raster poses across")
     ap.add_argument("--nz", type=int, default=4, help="raster poses up")
     ap.add_argument("--seed", type=int, default=0)
@@ -69,13 +70,24 @@ def main() -> None:
     # the array looks along +y at the object; its tool z-axis points up
     envelope = SafetyEnvelope(workspace_min=(-0.3, -0.6, 0.02), workspace_max=(0.3, -0.2, 0.5),
                               tool_reference_axis=(0.0, 0.0, 1.0), max_tool_tilt=0.5)
+    if not (args.nx >= 1 and args.nz >= 1):
+        ap.error(f"--nx and --nz must be >= 1, got {args.nx} and {args.nz}")
     centre = Pose([0.0, -args.distance, 0.18], [0.0, 0.0, 0.0, 1.0])
     targets = raster_poses(centre, width_m=0.16, height_m=0.24, n_x=args.nx, n_z=args.nz)
-
-    arm = SimArm(targets[0], envelope, rate_limited=True, control_period=0.008)
+    try:
+        arm = SimArm(targets[0], envelope, rate_limited=True, control_period=0.008)
+        for target in targets:
+            envelope.check_pose(target)
+    except CansimError as exc:  # e.g. --distance 0.19: the raster leaves the workspace
+        ap.error(f"--distance {args.distance}: the raster leaves the arm's workspace ({exc}); "
+                 "give a distance between 0.2 and 0.6 m")
     simulator = ArraySimulator(seed=args.seed, controller=RetractAtMax())
     array = SimArray.from_simulator(simulator, mesh, arm.pose)
-    with Recorder(args.out, pipeline=contacts) as recorder:
+    try:
+        recorder = Recorder(args.out, pipeline=contacts)
+    except CansimError as exc:  # a folder of whisk files this recorder did not leave: nothing is deleted
+        ap.error(f"--out {args.out}: {exc}")
+    with recorder:
         try:
             explore(arm, array, recorder, targets, progress=not args.no_progress,
                     description=f"whisking the {args.object}")
@@ -83,9 +95,13 @@ def main() -> None:
             code, message = session_failure(exc, recorder.n_cycles)
             print(f"record_sim_session: {message}; a larger --distance keeps the array off the object", file=sys.stderr)
             raise SystemExit(code) from None
+        except KeyboardInterrupt:
+            print(f"record_sim_session: interrupted after {recorder.n_cycles} whisks, kept in {args.out}/ "
+                  "(run again to go on)", file=sys.stderr)
+            raise SystemExit(130) from None
     live = recorder.results
     n_contacts = sum(c is not None for cycle in live for c in cycle)
-    replayed = replay_session(args.out, contacts)
+    replayed = replay_session(args.out, contacts)[-recorder.n_cycles:]  # this run's cycles (a resumed session has more)
     print(f"{recorder.n_cycles} whisks recorded in {args.out}/ over {arm.time:.1f} s of arm "
           f"motion; {n_contacts} contacts detected; replay identical: {replayed == live}")
     if not n_contacts:

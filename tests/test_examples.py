@@ -6,6 +6,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -50,3 +51,27 @@ def test_record_sim_session_takes_a_users_mesh_and_says_when_nothing_touched(tmp
     rec.main()
     out, err = capsys.readouterr()
     assert "0 contacts detected" in out and "warning: no whisker touched" in err
+
+
+
+def test_record_sim_session_run_twice_goes_on_and_a_raster_outside_the_workspace_is_a_usage_error(tmp_path, monkeypatch,
+                                                                                                      capsys):
+    """Run twice into one folder, the second run ended in a traceback (the simulated arm's clock starts at 0 again);
+    --distance 0.19 too (the raster leaves the workspace)."""
+    import sys
+
+    from whisker_io.records.recording import replay
+
+    rec = _load("record_sim_session")
+    argv = ["record_sim_session.py", "--nx", "2", "--nz", "1", "--out", str(tmp_path / "s"), "--no-progress"]
+    for run in (1, 2):
+        monkeypatch.setattr(sys, "argv", argv)
+        rec.main()
+        assert "2 whisks recorded" in capsys.readouterr().out
+    times = [c.entry.time_s for c in replay(tmp_path / "s")]
+    assert len(times) == 4 and times == sorted(times) and times[2] > times[1]
+    monkeypatch.setattr(sys, "argv", argv[:-3] + ["--distance", "0.19", "--out", str(tmp_path / "near")])
+    with pytest.raises(SystemExit) as exc:
+        rec.main()
+    assert exc.value.code == 2 and "leaves the arm's workspace" in capsys.readouterr().err
+    assert not (tmp_path / "near").exists()

@@ -56,6 +56,26 @@ def test_usage_errors_exit_2(assets, capsys):
     assert hx.main(["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "svr10.skops"), "--map", "box"]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and "invalid --map" in err
+    # a map given twice, an empty map, an object library: usage errors saying so (they were exit 1 or "corrupt")
+    from cansim.models.whisker_ratslam import WhiskerRatSLAM
+
+    WhiskerRatSLAM(backend="numpy").save(assets / "empty.npz")
+    base = ["--robot-ip", "127.0.0.3", "--radial-model", str(assets / "svr10.skops")]
+    for maps, says in (([f"box={assets / 'box.npz'}", f"box={assets / 'box_known.npz'}"], "box is given twice"),
+                       ([f"nothing={assets / 'empty.npz'}"], "the map holds no experience"),
+                       ([f"box={assets / 'svr10.skops'}"], "this file is a scikit-learn model")):
+        assert hx.main(base + [a for m in maps for a in ("--map", m)]) == hx.EXIT_USAGE
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err and "Traceback" not in err
+
+
+def test_the_decision_is_the_first_ic_over_the_threshold_or_nothing():
+    from types import SimpleNamespace
+
+    ic = [[0.0, 0.0], [120.0, 310.0], [320.0, 400.0]]  # b reaches 300 first (whisk 1), a later
+    assert hx.decision(["a", "b"], SimpleNamespace(ic=ic), 300.0) == "decided: b (IC >= 300)"
+    assert hx.decision(["a", "b"], SimpleNamespace(ic=[[0.0, 0.0]] * 3), 300.0) == "decided: nothing (no IC reached 300)"
+    assert hx.decision(["a", "b"], SimpleNamespace(ic=[]), 300.0) == "decided: nothing (no IC reached 300)"
 
 
 @needs_hw
@@ -67,7 +87,7 @@ def test_no_robot_reachable_exits_3(assets, capsys):
 
 
 @needs_hw
-def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
+def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path, capsys):
     from whisker_io.hw.safety import SafetyEnvelope
     from whisker_io.hw.usb_array import FrameLayout
     from whisker_io.pose import Pose
@@ -93,6 +113,8 @@ def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
     except FakeServerError as exc:
         pytest.skip(f"cannot run the fake RTDE server on port 30004: {exc}")
     assert rc == hx.EXIT_OK
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[-1] == "decided: nothing (no IC reached 300)"  # not the first object of a row of zeros
     # RCP retract-at-max was set on the array before whisking
     assert len(backend.commands) >= 3
     from scipy.spatial.transform import Rotation
@@ -126,3 +148,45 @@ def test_end_to_end_on_the_fakes_and_replay(assets, tmp_path):
         assert [r["ic_box"] for r in csv.DictReader(f)] == [r["ic_box"] for r in live][:3]
     assert hx.main(["--replay", str(tmp_path / "no_session"), "--radial-model", str(assets / "svr10.skops"),
                     "--map", f"box={assets / 'box.npz'}"]) == hx.EXIT_USAGE
+
+
+@needs_hw
+def test_ctrl_c_stops_with_one_line_and_keeps_the_whisks(assets, tmp_path, capsys):
+    from whisker_io.hw.usb_array import FrameLayout
+    from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeServerError, fake_rtde_server
+    from whisker_io.testing.fake_usb_backend import FakeUSBBackend
+
+    T, M = 2000, 18
+
+    def whisk(k):
+        if k == 3:
+            raise KeyboardInterrupt  # the user's Ctrl-C during the fourth whisk
+        s = np.zeros((T, M, 3))
+        s[:, :, 0] = np.linspace(-0.8727, 0.8727, T)[:, None]
+        return s
+
+    out = tmp_path / "session"
+    args = ["--robot-ip", "127.0.0.1", "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}",
+            "--iterations", "6", "--object-centre", "0.4", "0.0", "0.3", "--object-radius", "0.1", "--out", str(out)]
+    try:
+        with fake_rtde_server("stream"):
+            rc = hx.main(args, control_factory=lambda h: FakeControlInterface(),
+                         usb_backend=FakeUSBBackend(FrameLayout(), source=whisk))
+    except FakeServerError as exc:
+        pytest.skip(f"cannot run the fake RTDE server on port 30004: {exc}")
+    err = capsys.readouterr().err
+    assert rc == hx.EXIT_INTERRUPTED and "Traceback" not in err
+    assert err.strip() == f"hardware_exploration: interrupted after 3 whisks, kept in {out}; their trace: --replay {out}"
+    from whisker_io.records.recording import replay
+
+    assert len(list(replay(out))) == 3
+
+
+def test_an_out_folder_that_is_no_session_is_refused_before_the_arm_moves(assets, tmp_path, capsys):
+    (tmp_path / "whisk_000000_A1.csv").write_text("angle_rad,x_deflection_counts,y_deflection_counts,spare\n0,0,0,0\n")
+    calls = []
+    rc = hx.main(["--robot-ip", "127.0.0.1", "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}",
+                  "--out", str(tmp_path)], control_factory=lambda h: calls.append(h))
+    assert rc == hx.EXIT_USAGE and not calls  # no connection was made
+    assert "has no pose_log.csv" in capsys.readouterr().err
+    assert (tmp_path / "whisk_000000_A1.csv").exists()

@@ -13,6 +13,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
@@ -293,3 +295,37 @@ def test_a_resumed_session_whose_clock_went_on_keeps_its_times(tmp_path):
     with Recorder(tmp_path) as rec:
         rec.record(_state(9.0), _records(0))
     assert [c.entry.time_s for c in replay(tmp_path)] == [5.0, 6.0, 9.0]
+
+
+@settings(max_examples=40, deadline=None)
+@given(logged=st.integers(0, 3), files=st.lists(st.integers(0, 6), max_size=4), with_log=st.booleans())
+def test_check_folder_refuses_exactly_what_the_recorder_refuses_and_changes_nothing(tmp_path_factory, logged, files,
+                                                                                     with_log):
+    import shutil
+
+    folder = tmp_path_factory.mktemp("session")
+    with Recorder(folder) as rec:
+        for k in range(logged):
+            rec.record(_state(float(k)), _records(k))
+    if not with_log:
+        (folder / "pose_log.csv").unlink()
+    for cycle in files:
+        (folder / f"whisk_{cycle:06d}_C3.csv").write_text("angle_rad,x_deflection_counts,y_deflection_counts,spare\n0,0,0,0\n")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    copy = tmp_path_factory.mktemp("copy")
+    shutil.copytree(folder, copy, dirs_exist_ok=True)
+    try:
+        Recorder.check_folder(folder)
+        checked = None
+    except InvalidInputError as exc:
+        checked = str(exc).replace(str(folder), "")
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before  # nothing created, changed or deleted
+    try:
+        Recorder(copy).close()
+        opened = None
+    except InvalidInputError as exc:
+        opened = str(exc).replace(str(copy), "")
+    assert checked == opened
+    # with a log: files beyond the cycle in progress (the next one); without: any whisk file at all
+    expect_refused = any(c > logged for c in files) if with_log else (logged > 0 or bool(files))
+    assert (checked is not None) == expect_refused

@@ -92,42 +92,34 @@ class Recorder:
                  pipeline: Optional[Pipeline] = None) -> None:
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
-        log_path = self.directory / POSE_LOG_NAME
-        existing = read_pose_log(log_path) if log_path.exists() and log_path.stat().st_size else []
-        numbers = [int(m.group(1)) for e in existing
-                   if (m := re.fullmatch(r"whisk_(\d+)", e.whisk_file))]
-        self._next_cycle = max(numbers) + 1 if numbers else 0
+        existing, self._next_cycle, unlogged = _session_state(self.directory)
         self._last_logged_s = existing[-1].time_s if existing else None
         self._time_offset_s = 0.0
-        self._remove_debris(log_path.exists() and log_path.stat().st_size > 0)
+        for path in self.directory.glob(".whisk_*.tmp"):  # what a killed recorder can leave
+            path.unlink(missing_ok=True)
+        for path in unlogged:
+            _LOG.warning("removing %s: its cycle was interrupted before its pose-log line", path)
+            path.unlink(missing_ok=True)
         self._writer = RecordingWriter(self.directory)
         self._pipeline = pipeline
         self.n_cycles = 0
         self.results: list[Any] = []
         self.closed = False
 
-    def _remove_debris(self, has_log: bool) -> None:
-        """Delete what a killed recorder can leave: temporary files of the atomic writer and the module
-        files of the one cycle whose pose-log line was never written; refuse (deleting nothing) whisk
-        files it cannot have left."""
-        unlogged = []
-        for path in self.directory.glob("whisk_*_*.csv"):
-            m = re.match(r"whisk_(\d+)_", path.name)
-            if m and int(m.group(1)) >= self._next_cycle:
-                unlogged.append((int(m.group(1)), path))
-        foreign = sorted(str(p.name) for c, p in unlogged if not has_log or c > self._next_cycle)
-        if foreign:
-            why = (f"has no {POSE_LOG_NAME}" if not has_log else
-                   f"whose cycles lie beyond the pose log's last line (the next cycle is {self._next_cycle})")
-            raise InvalidInputError(
-                f"{self.directory} holds {len(foreign)} whisk file(s) ({', '.join(foreign[:3])}"
-                f"{', ...' if len(foreign) > 3 else ''}) but {why}: not a session a recorder left here, so nothing "
-                "is resumed or deleted; record into another folder, or move those files away")
-        for path in self.directory.glob(".whisk_*.tmp"):
-            path.unlink(missing_ok=True)
-        for _, path in unlogged:
-            _LOG.warning("removing %s: its cycle was interrupted before its pose-log line", path)
-            path.unlink(missing_ok=True)
+    @staticmethod
+    def check_folder(directory: str | os.PathLike[str]) -> None:
+        """Raise what opening a :class:`Recorder` on ``directory`` would raise, without creating or changing
+        anything: for a script to refuse a folder before it connects to an arm.
+
+        Raises
+        ------
+        InvalidInputError
+            Whisk files without a pose log, or beyond the cycle in progress.
+        CorruptFileError
+            A malformed pose log.
+        """
+        if Path(directory).is_dir():
+            _session_state(Path(directory))
 
     def record(self, state: ArmState, records: Sequence[WhiskRecord]) -> ReplayedCycle:
         """Write one whisk cycle with the arm state it was taken at.
@@ -190,6 +182,30 @@ class Recorder:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def _session_state(directory: Path) -> tuple[list[Any], int, list[Path]]:
+    """A session folder's pose-log entries, its next cycle and the module files of the one cycle in progress (what
+    a killed recorder leaves); whisk files no recorder can have left there are refused, deleting nothing."""
+    log_path = directory / POSE_LOG_NAME
+    has_log = log_path.exists() and log_path.stat().st_size > 0
+    existing = read_pose_log(log_path) if has_log else []
+    numbers = [int(m.group(1)) for e in existing if (m := re.fullmatch(r"whisk_(\d+)", e.whisk_file))]
+    next_cycle = max(numbers) + 1 if numbers else 0
+    unlogged = []
+    for path in directory.glob("whisk_*_*.csv"):
+        m = re.match(r"whisk_(\d+)_", path.name)
+        if m and int(m.group(1)) >= next_cycle:
+            unlogged.append((int(m.group(1)), path))
+    foreign = sorted(p.name for c, p in unlogged if not has_log or c > next_cycle)
+    if foreign:
+        why = (f"has no {POSE_LOG_NAME}" if not has_log else
+               f"whose cycles lie beyond the pose log's last line (the next cycle is {next_cycle})")
+        raise InvalidInputError(
+            f"{directory} holds {len(foreign)} whisk file(s) ({', '.join(foreign[:3])}"
+            f"{', ...' if len(foreign) > 3 else ''}) but {why}: not a session a recorder left here, so nothing "
+            "is resumed or deleted; record into another folder, or move those files away")
+    return existing, next_cycle, [p for _, p in unlogged]
 
 
 def _with_cycle(record: WhiskRecord, cycle: int) -> WhiskRecord:
