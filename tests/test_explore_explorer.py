@@ -817,3 +817,15 @@ def test_the_default_surface_matcher_assumes_the_known_objects_odometry_noise(wo
     given = SurfaceMatchConfig(rotation_sigma_deg=1.0)
     assert Explorer(quarter, None, None, _odometry(1), search, matcher="surface",
                     surface_config=given)._surface_config is given
+
+
+def test_a_replay_in_which_nothing_touched_says_so_once(world, recorded, caplog):
+    cycles = recorded[0]
+    with caplog.at_level(logging.WARNING, logger="cansim.explore.explorer"):
+        _replayer(world).replay([(pose, None) for pose, _ in cycles[:5]])  # whisks without contact (volts read as counts)
+    said = [r for r in caplog.records if "replayed whisks touched anything" in r.getMessage()]
+    assert len(said) == 1 and "none of the 5 replayed whisks" in said[0].getMessage()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="cansim.explore.explorer"):
+        _replayer(world).replay(cycles[:5])  # the recorded whisks touched
+    assert not [r for r in caplog.records if "touched anything" in r.getMessage()]

@@ -976,12 +976,20 @@ class Explorer:
         """
         if not isinstance(stop_at_threshold, (bool, np.bool_)):
             raise InvalidInputError(f"stop_at_threshold must be True or False, got {stop_at_threshold!r}")
+        whisks = touched = 0
+        reason = "iterations"
         for pose, obs in cycles:
             self.observe(pose, obs)
             self._strats.append("none")
+            whisks += 1
+            touched += _contacts(obs) is not None or (obs is not None and not hasattr(obs, "contact_points_m"))
             if stop_at_threshold and self._ic.max() >= self.stop_threshold:
-                return self.result("threshold")
-        return self.result("iterations")
+                reason = "threshold"
+                break
+        if whisks and not touched:
+            _LOG.warning("none of the %d replayed whisks touched anything: was the object within reach, and does the "
+                         "recording hold deflections in counts and angles in radians?", whisks)
+        return self.result(reason)
 
     def result(self, reason: str) -> ExplorationResult:
         """The traces so far."""
