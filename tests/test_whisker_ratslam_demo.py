@@ -38,9 +38,13 @@ def test_quick_demo_writes_figures_and_metrics(tmp_path):
                                  (0.0500, 0.1000, "the map beats dead reckoning."),
                                  (0.1020, 0.1000, "the map does NOT beat dead reckoning"),
                                  (0.0011, 0.0020, "the map beats dead reckoning.")):
-        text = demo_summary({**m, "map_estimate_median_position_error_m": map_m,
+        text = demo_summary({**m, "loops": 2, "map_estimate_median_position_error_m": map_m,
                              "dr_last_loop_median_position_error_m": dr_m}, tmp_path, [])
         assert f"=> {verdict}" in text, (map_m, dr_m, text)
+    # one loop revisits nothing: the quick run says so instead of judging the map against dead reckoning
+    assert m["loops"] == 1
+    text = demo_summary(m, tmp_path, [])
+    assert "=> one loop (--quick): no place is revisited" in text and "beats dead reckoning." not in text
 
 
 @pytest.mark.slow
