@@ -226,7 +226,7 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
             with array.whisking(WhiskPattern(), "retract_on_max", RCP_THRESHOLD), Recorder(args.out) as recorder:
                 def sensor(pose: Any) -> Any:
                     # the state with the pose the explorer whisks at, so a replay sees the same poses
-                    cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk())
+                    cycle = recorder.record(dataclasses.replace(arm.state(), pose=pose), array.read_whisk_retrying())
                     return chain(cycle)[1]
 
                 result = make_explorer(sensor, arm).run()

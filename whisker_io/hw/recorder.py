@@ -31,7 +31,7 @@ import numpy as np
 from whisker_io.errors import InvalidInputError
 from whisker_io.hw.arm import Arm, ArmState
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.hw.usb_array import Array
+from whisker_io.hw.usb_array import FRAME_RETRIES, Array
 from whisker_io.records.recording import (
     POSE_LOG_NAME,
     RecordingWriter,
@@ -263,11 +263,12 @@ def raster_poses(centre: PoseLike, width_m: float, height_m: float, n_x: int,
 
 
 def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLike], *,
-            progress: bool = True, description: str = "exploring") -> int:
+            progress: bool = True, description: str = "exploring", frame_retries: int = FRAME_RETRIES) -> int:
     """Visit each target pose, take one whisk there, record it.
 
     For each target: ``arm.move_linear(target)`` (checked by the arm's
-    safety envelope) -> ``array.read_whisk()`` -> a fresh ``arm.state()``
+    safety envelope) -> ``array.read_whisk_retrying(frame_retries)`` (a whisk lost to a
+    transient USB frame fault is taken again at the same pose) -> a fresh ``arm.state()``
     (stale or lost state raises here) -> ``recorder.record`` (on disk before
     anything else can fail) -> ``arm.guard_deflection`` (stops the arm on
     overload). This is the one loop used for the simulator and the robot.
@@ -276,6 +277,8 @@ def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLi
     ----------
     progress : bool
         Show a tqdm progress bar.
+    frame_retries : int
+        Retakes of a whisk after a USB frame fault (0: the first fault ends the run).
 
     Returns
     -------
@@ -296,7 +299,7 @@ def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLi
     try:
         for target in tqdm(targets, desc=description, disable=not progress, unit="whisk"):
             arm.move_linear(target)
-            records = array.read_whisk()
+            records = array.read_whisk_retrying(frame_retries)
             state = arm.state()
             recorder.record(state, records)
             n += 1

@@ -74,13 +74,16 @@ from whisker_io.hw.optional import require
 from whisker_io.records.whisk_record import SAMPLE_RATE_HZ, WhiskRecord
 
 __all__ = [
-    "Array", "USBArray", "SimArray", "FrameLayout", "Frame", "USBCounters", "PATTERN_MODES",
+    "Array", "USBArray", "SimArray", "FrameLayout", "Frame", "USBCounters", "PATTERN_MODES", "FRAME_RETRIES",
     "ShortFrameError", "CRCMismatchError", "SequenceGapError",
     "encode_frames", "parse_frame", "encode_command", "parse_command",
     "OP_SET_PATTERN", "OP_SET_RCP_THRESHOLD", "OP_START", "OP_STOP",
 ]
 
 _LOG = logging.getLogger(__name__)
+
+#: Retakes of a whisk after a transient USB frame fault (:meth:`Array.read_whisk_retrying`).
+FRAME_RETRIES = 2
 
 _HEADER = struct.Struct("<2sBBIIHHB3x")
 _CRC = struct.Struct("<I")
@@ -319,6 +322,34 @@ class Array(abc.ABC):
     def read_whisk(self) -> list[WhiskRecord]:
         """Block until the next complete whisk cycle; one record per module
         (angle rad, x/y counts), all with the cycle index from the device."""
+
+    def read_whisk_retrying(self, retries: int = FRAME_RETRIES) -> list[WhiskRecord]:
+        """:meth:`read_whisk`, taken again (at most ``retries`` times) after a transient frame fault.
+
+        A short frame, a CRC mismatch, a lost frame or a malformed header
+        (:class:`~whisker_io.errors.USBFrameError`) discards the whisk in progress and the
+        next read re-synchronises; the arm has not moved, so the whisk is simply taken
+        again (a warning each time). A timeout or an unplugged array is no transient
+        fault: it is raised at once, as is the frame fault after ``retries`` retakes.
+
+        Raises
+        ------
+        InvalidInputError
+            ``retries`` not a count >= 0.
+        HardwareError
+            As :meth:`read_whisk`.
+        """
+        if isinstance(retries, bool) or not isinstance(retries, (int, np.integer)) or retries < 0:
+            raise InvalidInputError(f"retries must be a count >= 0, got {retries!r}")
+        for attempt in range(int(retries) + 1):
+            try:
+                return self.read_whisk()
+            except USBFrameError as exc:
+                if attempt == retries:
+                    raise
+                _LOG.warning("whisk discarded on a USB frame fault (%s): taking it again (retake %d of %d)", exc,
+                             attempt + 1, retries)
+        raise AssertionError("unreachable")  # pragma: no cover - the loop returns or raises
 
     @abc.abstractmethod
     def set_pattern(self, pattern: WhiskPattern, mode: str = "open_loop") -> None:
