@@ -352,3 +352,18 @@ def test_records_with_arbitrary_deflections_give_valid_features(seed, y_amp, x_a
 
 
 _WALL_CHAIN = WhiskChain(_wall(), contact_noise=None)
+
+
+def test_a_session_of_another_array_says_which_modules_it_holds_and_what_to_do():
+    from types import MappingProxyType
+
+    from whisker_io.records.recording import ReplayedCycle
+    from whisker_io.records.whisk_record import PoseEntry, WhiskRecord
+
+    records = {f"W{k:02d}": WhiskRecord(f"W{k:02d}", np.zeros(4), np.zeros(4), np.zeros(4), cycle=0) for k in range(12)}
+    cycle = ReplayedCycle(entry=PoseEntry(0.0, ([0.4, 0.0, 0.2], [0, 0, 0, 1]), "whisk_000000"),
+                          records=MappingProxyType(records))
+    with pytest.raises(InvalidInputError) as exc:
+        RecordedChain()(cycle)
+    text = str(exc.value)
+    assert "holds modules ['W00'," in text and "the chain's array has 18" in text and "another array" in text

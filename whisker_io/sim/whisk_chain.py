@@ -535,7 +535,10 @@ class RecordedChain:
             raise InvalidInputError(f"expected a ReplayedCycle, got {type(cycle).__name__}")
         missing = [m for m in self.array.names if m not in cycle.records]
         if missing:
-            raise InvalidInputError(f"cycle {cycle.entry.whisk_file} has no record of modules {missing}")
+            raise InvalidInputError(
+                f"cycle {cycle.entry.whisk_file} holds modules {sorted(cycle.records)}, the chain's array has "
+                f"{len(self.array.names)} ({', '.join(self.array.names)}): {missing} missing. Was the session recorded "
+                "with another array? Give the chain that array (array=WhiskerArray(...)), or record with this one")
         if self.contact_noise is not None:
             raise InvalidInputError("a pipeline call draws no noise; call features(records, rng) to add contact_noise")
         return cycle.entry.pose, self._features([cycle.records[m] for m in self.array.names], None)
