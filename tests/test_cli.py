@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cansim.tools import cli
-from cansim.backends import registered_backends
+from cansim.backends import backend_status, registered_backends
 
 ROOT = Path(__file__).resolve().parents[1]
 TESTS = Path(__file__).resolve().parent
@@ -275,8 +275,34 @@ def test_bench_quick_writes_a_comparable_json(tmp_path, capsys):
     for r in doc["results"]:
         assert 0 < r["min_us"] <= r["median_us"] and r["rounds"] == 5 and r["steps"] >= 1
     text = capsys.readouterr().out
-    assert "ring360" in text and "numba median / min (us)" in text and "thread(s)" in text
+    n = numba.get_num_threads()
+    assert f"numba, {n} thread{'s' if n != 1 else ''}: median / min (us)" in text and "numpy, 1 thread:" in text
+    assert doc["backends"]["numba"]["threads"] == n and doc["backends"]["numpy"]["threads"] == 1
+    assert doc["machine"]["numba_jit"] is True
     assert cli.main(["bench", "--quick", "--backends", "cuda", "--out", str(out)]) == 3
+
+
+def test_bench_checks_its_output_and_backends_before_timing_and_fails_when_asked_for_is_not_timed(tmp_path, capsys,
+                                                                                                 monkeypatch):
+    """A folder as --out failed after every timing (results lost); --backends "" and a requested backend that
+    cannot run here timed nothing (or not it) and exited 0 (a benchmark user's pass, session 48)."""
+    import cansim.tools.benchmark as benchmark
+
+    timed = []
+    monkeypatch.setattr(benchmark, "_time", lambda fn, *a: timed.append(fn) or (1.0, 1.0, 1))
+    assert cli.main(["bench", "--quick", "--out", str(tmp_path), "--no-progress"]) == 3
+    assert "is a folder" in capsys.readouterr().err and not timed
+    assert cli.main(["bench", "--quick", "--backends", "", "--out", str(tmp_path / "b.json")]) == 3
+    assert "names no backend" in capsys.readouterr().err and not timed
+    status = dict(backend_status())
+    status["opencl"] = (False, "no OpenCL platform here")
+    monkeypatch.setattr("cansim.backends.backend_status", lambda **k: status)
+    code = cli.main(["bench", "--quick", "--backends", "numpy,opencl", "--workloads", "ring360", "--out",
+                     str(tmp_path / "b.json"), "--no-progress"])
+    captured = capsys.readouterr()
+    assert code == 6 and "opencl asked for with --backends but not timed" in captured.err
+    assert "not timed: opencl - no OpenCL platform here" in captured.out
+    assert json.loads((tmp_path / "b.json").read_text())["results"]  # what did run is kept
 
 
 def test_replay_command_writes_map_trajectory_and_figure(tmp_path, capsys):
@@ -330,3 +356,13 @@ def test_bench_refuses_unknown_names_before_timing_anything(names, which):
         return
     with pytest.raises(InvalidInputError, match=f"unknown {which[:-1]}"):
         run_suite(quick=True, **{which: names})
+
+
+def test_numba_with_its_jit_disabled_is_said_to_run_interpreted(monkeypatch):
+    numba = pytest.importorskip("numba")
+    from cansim.backends import _probe_numba
+
+    monkeypatch.setattr(numba.config, "DISABLE_JIT", True)
+    assert "NUMBA_DISABLE_JIT set: its kernels run as interpreted Python" in _probe_numba(None)
+    monkeypatch.setattr(numba.config, "DISABLE_JIT", False)
+    assert _probe_numba(None).endswith("compiles for this CPU")

@@ -132,6 +132,9 @@ def _probe_numba(backend: Backend) -> str:
 
     if _one(1) != 2:  # pragma: no cover - a broken compiler
         raise BackendUnavailableError("numba compiled a function that returned a wrong result")
+    if numba.config.DISABLE_JIT:
+        return (f"numba {numba.__version__} with NUMBA_DISABLE_JIT set: its kernels run as interpreted Python, "
+                "10-100x slower than compiled (unset NUMBA_DISABLE_JIT to compile them)")
     return f"numba {numba.__version__} compiles for this CPU"
 
 

@@ -42,7 +42,8 @@ import numpy as np
 
 from cansim.errors import InvalidInputError
 
-__all__ = ["WORKLOADS", "SCALING_WORKLOADS", "BenchRecord", "BenchReport", "machine_info", "run_suite", "format_tables"]
+__all__ = ["WORKLOADS", "SCALING_WORKLOADS", "BenchRecord", "BenchReport", "backend_threads", "machine_info", "run_suite",
+           "format_tables"]
 
 #: workload name -> cells (a RatSLAM iteration: its pose cells)
 WORKLOADS = {"ring360": 360, "21x21x36": 21 * 21 * 36, "5^6": 5**6, "ratslam": 21 * 21 * 36}
@@ -136,9 +137,32 @@ def machine_info() -> dict[str, Any]:
 
         info["numba"] = numba.__version__
         info["numba_max_threads"] = int(numba.config.NUMBA_NUM_THREADS)
+        info["numba_jit"] = not numba.config.DISABLE_JIT
     except ImportError:
         info["numba"] = None
     return info
+
+
+def backend_threads(name: str) -> int | None:
+    """Threads a backend's default runs use here: numba's current count, numpy's 1, the OpenCL CPU runtime's
+    (PoCL's ``POCL_MAX_PTHREAD_COUNT`` when set, else every usable CPU); None when unknown (a backend of one's own)."""
+    if name == "numpy":
+        return 1
+    if name == "numba":
+        try:
+            import numba
+        except ImportError:
+            return None
+        return int(numba.get_num_threads())
+    if name == "opencl":
+        pocl = os.environ.get("POCL_MAX_PTHREAD_COUNT", "").strip()
+        if pocl.isdigit() and int(pocl) > 0:
+            return int(pocl)
+        try:
+            return len(os.sched_getaffinity(0))
+        except AttributeError:
+            return os.cpu_count()
+    return None
 
 
 # ------------------------------------------------------------------ workloads
@@ -273,7 +297,8 @@ def run_suite(
             records.append(BenchRecord(name, backend, None, cells, med, low, 3 if slow else rounds, steps))
     if "numba" in chosen and status.get("numba", (False, ""))[0]:
         records += _scaling(chosen_w, rounds, settle, min_round_s, quick, max_threads, say, get_backend)
-    backends_json = {name: {"usable": ok, "reason": why} for name, (ok, why) in status.items()}
+    backends_json = {name: {"usable": ok, "reason": why, "threads": backend_threads(name) if ok else None}
+                     for name, (ok, why) in status.items()}
     return BenchReport(records=records, machine=machine_info(), backends=backends_json, quick=quick)
 
 
@@ -283,7 +308,10 @@ def _scaling(workloads: dict[str, int], rounds: int, settle: int, min_round_s: f
 
     from cansim.backends.numba_backend import NumbaBackend
 
-    top = int(numba.config.NUMBA_NUM_THREADS) if max_threads is None else min(max_threads, int(numba.config.NUMBA_NUM_THREADS))
+    most = int(numba.config.NUMBA_NUM_THREADS)
+    if max_threads is not None and max_threads > most:
+        say(f"--max-threads {max_threads} is more than numba's {most} (NUMBA_NUM_THREADS): scaling up to {most}")
+    top = most if max_threads is None else min(max_threads, most)
     counts = sorted({1, top}) if quick else list(range(1, top + 1))
     before = numba.get_num_threads()
     out = []
@@ -310,7 +338,12 @@ def format_tables(report: BenchReport) -> str:
     backends = list(dict.fromkeys(r.backend for r in recs))
     workloads = list(dict.fromkeys(r.workload for r in recs))
     by = {(r.workload, r.backend): r for r in recs}
-    head = ["workload", "cells", *[f"{b} median / min (us)" for b in backends]]
+
+    def on(b: str) -> str:
+        n = report.backends.get(b, {}).get("threads")
+        return "" if n is None else f", {n} thread{'s' if n != 1 else ''}"
+
+    head = ["workload", "cells", *[f"{b}{on(b)}: median / min (us)" for b in backends]]
     rows = []
     for w in workloads:
         cells = next(r.cells for r in recs if r.workload == w)
@@ -321,7 +354,8 @@ def format_tables(report: BenchReport) -> str:
     if scal:
         threads = sorted({r.threads for r in scal if r.threads is not None})
         sby = {(r.workload, r.threads): r for r in scal}
-        head = ["numba, every pass parallel", *[f"{n} thread(s) median (us)" for n in threads], "speed-up"]
+        head = ["numba, every pass split over threads", *[f"{n} thread(s) median (us)" for n in threads],
+                f"speed-up {threads[0]} -> {threads[-1]}"]
         rows = []
         for w in dict.fromkeys(r.workload for r in scal):
             meds = [sby[w, n].median_us if (w, n) in sby else float("nan") for n in threads]

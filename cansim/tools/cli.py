@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 import tempfile
 import textwrap
@@ -25,7 +26,7 @@ from types import ModuleType
 from typing import Any
 
 from whisker_io.command_line import CommandParser
-from whisker_io.errors import CansimError
+from whisker_io.errors import CansimError, InvalidInputError
 
 __all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
 
@@ -206,17 +207,33 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if not args.no_progress:
             print(f"  timing {line}", file=sys.stderr, flush=True)
 
-    report = run_suite(quick=args.quick, backends=split(args.backends), workloads=split(args.workloads),
+    out = Path(args.out)
+    if out.is_dir():  # found before the timings, not after them (they were lost)
+        raise InvalidInputError(f"--out {out} is a folder; give a file name, e.g. {out / 'cansim_bench.json'}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not os.access(out.parent, os.W_OK):
+        raise InvalidInputError(f"--out {out}: cannot write into {out.parent}; give another file")
+    asked = split(args.backends)
+    if asked is not None and not asked:
+        raise InvalidInputError("--backends names no backend; give e.g. --backends numpy,numba (or leave it out: every "
+                                "usable one)")
+    report = run_suite(quick=args.quick, backends=asked, workloads=split(args.workloads),
                        max_threads=args.max_threads, progress=say)
     m = report.machine
     print(f"{m['cpu']}, {m['usable_cpus']} usable CPU(s), load {m['load_average']}; cansim {m['cansim']}, "
           f"numpy {m['numpy']}, numba {m.get('numba')}, Python {m['python']} ({'quick' if report.quick else 'full'} run)")
+    if m.get("numba_jit") is False:
+        print("warning: NUMBA_DISABLE_JIT is set: the numba figures are interpreted Python, not compiled code")
     print(format_tables(report))
     for name, info in report.backends.items():
         if not info["usable"]:
             print(f"not timed: {name} - {info['reason']}")
-    path = report.to_json(args.out)
+    path = report.to_json(out)
     print(f"wrote {path}")
+    untimed = [b for b in asked or () if not report.backends.get(b, {}).get("usable")]
+    if untimed:  # asked for by name and not timed: not a success
+        print(f"cansim bench: {', '.join(untimed)} asked for with --backends but not timed (above: why)", file=sys.stderr)
+        return EXIT_MISSING_EXTRA
     return EXIT_OK
 
 
