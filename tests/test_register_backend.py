@@ -117,3 +117,20 @@ def test_only_a_new_name_that_the_class_carries_is_registered(name):
         assert name == "mine" and backends._REGISTRY["mine"].cls == "MineBackend"
         backends._REGISTRY.clear()
         backends._REGISTRY.update(before)
+
+
+@settings(max_examples=40, deadline=None)
+@given(name=st.text(min_size=0, max_size=8))
+def test_a_model_config_names_its_backend_when_it_is_made(name):
+    """RatSLAMConfig(backend="cuda") was accepted and failed only at RatSLAM(cfg) (a benchmark user's pass, s48)."""
+    from cansim.backends import registered_backends
+    from cansim.errors import ConfigError
+    from cansim.models.ratslam_config import RatSLAMConfig
+    from cansim.models.whisker_ratslam import WhiskerRatSLAMConfig
+
+    for cls in (RatSLAMConfig, WhiskerRatSLAMConfig):
+        if name in registered_backends():
+            assert cls(backend=name).backend == name
+        else:
+            with pytest.raises(ConfigError, match="is not a backend here"):
+                cls(backend=name)

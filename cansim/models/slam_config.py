@@ -107,6 +107,11 @@ class SlamConfig(ConfigDataclass):
         validate_fields(self)
         if not isinstance(self.attractor, AttractorParams):
             raise ConfigError(f"attractor must be an AttractorParams (cansim.params), got {self.attractor!r}")
+        from cansim.backends import registered_backends
+
+        if self.backend not in registered_backends():  # named when the config is made, as pose_cells is
+            raise ConfigError(f"backend {self.backend!r} is not a backend here; one of {', '.join(registered_backends())} "
+                              "(a backend of your own: cansim.backends.register_backend first)")
 
     # ---------------------------------------------------------- save / load
     def to_dict(self) -> dict[str, Any]:
