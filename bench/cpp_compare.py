@@ -424,10 +424,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--steps and --reps must be >= 1")
     grids = a.grid or [21, 61]
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
+    routes = [r.strip() for r in a.routes.split(",") if r.strip()]
+    unknown = [r for r in routes if r not in ("trace", "circle", "walk")]
+    if unknown or not routes:  # before the checkout, Boost and the compiler are looked for
+        ap.error(f"--routes {a.routes!r}: use trace, circle and/or walk")
+    if routes == ["trace"] and (a.grid or a.steps != ap.get_default("steps")):
+        log("--grid and --steps apply to the generated routes (circle, walk); the trace is fixed: 300 steps, 21x21x36")
     try:
         checkout = check_checkout(a.openratslam)
         boost = find_boost(a.boost_include)
-        cases = build_cases([r.strip() for r in a.routes.split(",") if r.strip()], grids, a.steps, a.seed)
+        cases = build_cases(routes, grids, a.steps, a.seed)
         with tempfile.TemporaryDirectory(prefix="cansim_cpp_") as tmp:
             work = Path(a.build_dir) if a.build_dir else Path(tmp)
             log(f"compiling the driver against {checkout} ...")

@@ -1,5 +1,7 @@
 """The explorer's per-whisk odometry conversion: _odometry_of (typed errors) against the bare SpatialOdometry(*...)."""
 import timeit, numpy as np
+from _script_args import script_args
+script_args(__doc__, "python bench/explorer_odometry_check.py (no arguments)")
 from cansim.explore.explorer import _odometry_of
 from maps.odometry import SpatialOdometry
 from whisker_io.sim.odometry_noise import noisy_odometry

@@ -175,4 +175,7 @@ def _timed(fn) -> float:
 
 
 if __name__ == "__main__":
+    from _script_args import script_args
+
+    script_args(__doc__, "python bench/step_bandwidth.py (no arguments; run from a checkout's root)")
     main()

@@ -11,10 +11,15 @@ lets one script time commits that predate it. Not collected by pytest (no ``test
 Usage: ``cd CHECKOUT && LOOP_REPS=5 python /path/to/bench/step_loop.py [pop|slam|both]``
 """
 import os, sys, time, math
+from _script_args import script_args
+ARGS = script_args(__doc__, "LOOP_REPS=5 python bench/step_loop.py [pop|slam|both]",
+                   lambda a: len(a) <= 1 and all(x in ("pop", "slam", "both") for x in a))
 sys.path.insert(0, os.getcwd())  # the tree we stand in, not the installed checkout
 import numpy as np
 import cansim
-assert os.path.dirname(os.path.dirname(os.path.abspath(cansim.__file__))) == os.getcwd(), cansim.__file__
+if os.path.dirname(os.path.dirname(os.path.abspath(cansim.__file__))) != os.getcwd():
+    raise SystemExit(f"run this from a checkout's root: it times the cansim of the current directory, and here "
+                     f"{os.getcwd()} has none (cansim came from {cansim.__file__})")
 from cansim import Population
 try:
     from cansim.models.ratslam import RatSLAM, RatSLAMConfig
@@ -30,7 +35,7 @@ def view(k):
     return int(((0.1 * k) % (2 * math.pi)) / (2 * math.pi) * 30) % 30
 
 
-which = sys.argv[1] if len(sys.argv) > 1 else "both"
+which = ARGS[0] if ARGS else "both"
 out = []
 if which in ("both", "pop"):
     ts = []
@@ -42,7 +47,8 @@ if which in ("both", "pop"):
         for k in range(N):
             best = pop.step(0.5, 0.1, 1.0)
         ts.append(time.perf_counter() - t0)
-    out.append(f"pop {min(ts)*1e3:.1f} ms (min of {REPS}) {best.round(6).tolist()}")
+    out.append(f"pop {min(ts)*1e3:.1f} ms for {N} steps ({min(ts) / N * 1e6:.1f} us a step, min of {REPS}) "
+               f"decoded {best.round(6).tolist()}")
 if which in ("both", "slam"):
     ts = []
     for r in range(REPS):
@@ -53,5 +59,6 @@ if which in ("both", "slam"):
         for k in range(N):
             s = slam.step(0.5, 0.1, 1.0, view(WARM + k))
         ts.append(time.perf_counter() - t0)
-    out.append(f"slam {min(ts)*1e3:.1f} ms (min of {REPS}) {s.exp_id} {np.round(s.best_pc, 6).tolist()}")
+    out.append(f"slam {min(ts)*1e3:.1f} ms for {N} steps ({min(ts) / N * 1e6:.1f} us a step, min of {REPS}) "
+               f"experience {s.exp_id} packet {np.round(s.best_pc, 6).tolist()}")
 print(" | ".join(out))

@@ -11,21 +11,29 @@ checkouts can be run alternately on the same work. Not collected by pytest.
 Usage: ``cd CHECKOUT && python /path/to/bench/whisk_rate.py [mug,kettle] [ROUNDS]``
 """
 import os
+import re
 import sys
 import time
+
+from _script_args import script_args
+
+ARGS = script_args(__doc__, "python bench/whisk_rate.py [OBJECT,OBJECT,...] [ROUNDS]",
+                   lambda a: len(a) <= 2 and (len(a) < 2 or bool(re.fullmatch(r"[1-9]\d*", a[1]))))
 
 sys.path.insert(0, os.getcwd())  # the tree we stand in, not the installed checkout
 import numpy as np  # noqa: E402
 
 import whisker_io  # noqa: E402
 
-assert os.path.dirname(os.path.dirname(os.path.abspath(whisker_io.__file__))) == os.getcwd(), whisker_io.__file__
+if os.path.dirname(os.path.dirname(os.path.abspath(whisker_io.__file__))) != os.getcwd():
+    raise SystemExit(f"run this from a checkout's root: it times the whisker_io of the current directory, and here "
+                     f"{os.getcwd()} has none (whisker_io came from {whisker_io.__file__})")
 from whisker_io.sim.objects import make_object  # noqa: E402
 from whisker_io.sim.trajectories import object_trajectory  # noqa: E402
 from whisker_io.sim.whisk_chain import WhiskChain  # noqa: E402
 
-names = sys.argv[1].split(",") if len(sys.argv) > 1 else ["mug", "kettle"]
-rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 5
+names = ARGS[0].split(",") if ARGS else ["mug", "kettle"]
+rounds = int(ARGS[1]) if len(ARGS) > 1 else 5
 out = []
 for name in names:
     mesh = make_object(name)
