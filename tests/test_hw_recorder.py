@@ -329,3 +329,63 @@ def test_check_folder_refuses_exactly_what_the_recorder_refuses_and_changes_noth
     # with a log: files beyond the cycle in progress (the next one); without: any whisk file at all
     expect_refused = any(c > logged for c in files) if with_log else (logged > 0 or bool(files))
     assert (checked is not None) == expect_refused
+
+
+def test_an_interrupt_after_the_pose_line_keeps_the_complete_cycle(tmp_path, monkeypatch):
+    """Ctrl-C just after the pose-log line's fsync deleted the cycle's files and left the line: the session no
+    longer replayed (the review of session 48)."""
+    import whisker_io.records.recording as recording
+
+    real = recording.PoseLogWriter.append
+    calls = []
+
+    def append_then_interrupt(self, *args, **kwargs):
+        entry = real(self, *args, **kwargs)
+        calls.append(entry.whisk_file)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the line is on disk
+        return entry
+
+    monkeypatch.setattr(recording.PoseLogWriter, "append", append_then_interrupt)
+    with pytest.raises(KeyboardInterrupt), Recorder(tmp_path) as rec:
+        rec.record(_state(0.0), _records(0))
+        rec.record(_state(1.0), _records(1, value=1.0))
+    assert rec.n_cycles == 2
+    cycles = list(replay(tmp_path))
+    assert [c.entry.whisk_file for c in cycles] == ["whisk_000000", "whisk_000001"]
+    assert float(cycles[1].records["B1"].y_counts[0]) == 1.0
+    monkeypatch.setattr(recording.PoseLogWriter, "append", real)
+    with Recorder(tmp_path) as rec:  # resumes after it
+        assert rec.record(_state(2.0), _records(0)).entry.whisk_file == "whisk_000002"
+
+
+@pytest.mark.parametrize("below", [False, True])
+def test_a_file_given_as_the_session_folder_is_a_typed_error(tmp_path, below):
+    (tmp_path / "notes.txt").write_text("mine")
+    folder = tmp_path / "notes.txt" / "session" if below else tmp_path / "notes.txt"
+    for check in (Recorder.check_folder, Recorder):
+        with pytest.raises(InvalidInputError, match="notes.txt is a file, not a folder"):
+            check(folder)
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_a_whole_last_pose_line_without_its_newline_keeps_its_cycle(tmp_path, caplog):
+    """A hand edit that dropped the final newline: the whole line and its cycle were cut and deleted (review, s48)."""
+    with Recorder(tmp_path) as rec:
+        for k in range(3):
+            rec.record(_state(float(k)), _records(k, value=float(k)))
+    log = tmp_path / "pose_log.csv"
+    log.write_bytes(log.read_bytes().rstrip(b"\n"))
+    with caplog.at_level("WARNING"), Recorder(tmp_path) as rec:
+        rec.record(_state(5.0), _records(0, value=5.0))
+    assert "lacked its newline; added" in caplog.text
+    cycles = list(replay(tmp_path))
+    assert [c.entry.whisk_file for c in cycles] == [f"whisk_{k:06d}" for k in range(4)]
+    assert [float(c.records["B1"].y_counts[0]) for c in cycles] == [0.0, 1.0, 2.0, 5.0]
+    # the same line whose whisk files are gone is no whole cycle: cut, as a torn line is
+    log.write_bytes(log.read_bytes().rstrip(b"\n"))
+    for p in tmp_path.glob("whisk_000003_*.csv"):
+        p.unlink()
+    with Recorder(tmp_path) as rec:
+        pass
+    assert [c.entry.whisk_file for c in replay(tmp_path)] == [f"whisk_{k:06d}" for k in range(3)]

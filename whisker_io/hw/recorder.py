@@ -37,6 +37,7 @@ from whisker_io.records.recording import (
     RecordingWriter,
     ReplayedCycle,
     read_pose_log,
+    repair_last_line,
     replay,
     whisk_file_stem,
 )
@@ -91,7 +92,12 @@ class Recorder:
     def __init__(self, directory: str | os.PathLike[str],
                  pipeline: Optional[Pipeline] = None) -> None:
         self.directory = Path(directory)
+        _not_a_file(self.directory)
         self.directory.mkdir(parents=True, exist_ok=True)
+        _session_state(self.directory)  # a folder it did not leave is refused before anything changes
+        log_path = self.directory / POSE_LOG_NAME
+        if log_path.exists() and log_path.stat().st_size:
+            repair_last_line(log_path)  # a whole last line keeps its cycle; a torn one's files are debris below
         existing, self._next_cycle, unlogged = _session_state(self.directory)
         self._last_logged_s = existing[-1].time_s if existing else None
         self._time_offset_s = 0.0
@@ -114,10 +120,12 @@ class Recorder:
         Raises
         ------
         InvalidInputError
-            Whisk files without a pose log, or beyond the cycle in progress.
+            A file (or a path through one) where the folder should be; whisk files without a
+            pose log, or beyond the cycle in progress.
         CorruptFileError
             A malformed pose log.
         """
+        _not_a_file(Path(directory))
         if Path(directory).is_dir():
             _session_state(Path(directory))
 
@@ -159,6 +167,11 @@ class Recorder:
         try:
             entry = self._writer.write_cycle(relabelled, time_s=time_s, pose=state.pose)
         except BaseException:
+            if _logged(self.directory / POSE_LOG_NAME, whisk_file_stem(cycle)):
+                # interrupted after its pose-log line was on disk: the cycle is complete, its files stay
+                self._next_cycle += 1
+                self.n_cycles += 1
+                raise
             # the cycle has no pose-log line: remove its module files written so far
             for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):
                 path.unlink(missing_ok=True)
@@ -182,6 +195,25 @@ class Recorder:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def _not_a_file(directory: Path) -> None:
+    """Refuse a session folder that is a file, or lies below one."""
+    for part in (directory, *directory.parents):
+        if part.exists() and not part.is_dir():
+            raise InvalidInputError(f"{directory}: {part} is a file, not a folder; record into a folder")
+
+
+def _logged(log_path: Path, stem: str) -> bool:
+    """Whether the pose log's last whole line names ``stem`` (read after a failed :meth:`Recorder.record`)."""
+    try:
+        with open(log_path, "rb") as fh:
+            fh.seek(max(0, os.fstat(fh.fileno()).st_size - 4096))
+            tail = fh.read()
+    except OSError:
+        return False
+    whole = tail[: tail.rfind(b"\n") + 1].decode("utf-8", "replace").splitlines()
+    return bool(whole) and whole[-1].rsplit(",", 1)[-1].strip() == stem
 
 
 def _session_state(directory: Path) -> tuple[list[Any], int, list[Path]]:
@@ -294,6 +326,8 @@ def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLi
     """
     from tqdm.auto import tqdm
 
+    if isinstance(frame_retries, bool) or not isinstance(frame_retries, (int, np.integer)) or frame_retries < 0:
+        raise InvalidInputError(f"frame_retries must be a count >= 0, got {frame_retries!r}")  # before the arm moves
     targets = list(targets)
     n = 0
     try:
