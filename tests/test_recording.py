@@ -328,7 +328,7 @@ def test_angles_in_degrees_under_the_radian_header_are_refused_naming_the_line(t
     path = tmp_path / whisk_file_name(0, "A1")
     body = "\n".join(f"{float(np.rad2deg(a))!r},{float(x)!r},{float(y)!r},0" for a, x, y in zip(rec.angle_rad, rec.x_counts, rec.y_counts))
     path.write_text("angle_rad,x_deflection_counts,y_deflection_counts,spare\n" + body + "\n")
-    with pytest.raises(CorruptFileError, match=r"line 2: angle -49.99.*beyond \+-pi rad: degrees\?"):
+    with pytest.raises(CorruptFileError, match=r"line 2: angle -49.99.*beyond \+-6.283 rad \(2 pi\): degrees\?"):
         read_whisk_csv(path)
     path.write_text(body + "\n")  # no header: read as radians, the same
     with pytest.raises(CorruptFileError, match="line 1: angle"):
@@ -374,3 +374,23 @@ def test_what_the_pose_log_writer_takes_its_reader_reads_back(tmp_path_factory, 
                 assert path.read_bytes() == before
     back = read_pose_log(path)
     assert [(e.time_s, e.whisk_file) for e in back] == [(e.time_s, e.whisk_file) for e in written]
+
+
+def test_the_writer_refuses_what_the_reader_refuses_before_writing_anything(tmp_path):
+    """Angles beyond 2 pi (degrees) and modules of unequal length were written, then refused on replay (review, s48);
+    an angle within the USB frame's +-3.28 rad is a whisk's, written and read back."""
+    deg = _record("B1", 0)
+    deg = WhiskRecord("B1", np.rad2deg(deg.angle_rad), deg.x_counts, deg.y_counts, cycle=0)
+    short = _record("B1", 0, n=30)
+    for bad, says in ((deg, "beyond"), (short, "same number of samples")):
+        with RecordingWriter(tmp_path / says.replace(" ", "_")) as w:
+            with pytest.raises(InvalidInputError, match=says):
+                w.write_cycle([_record("A1", 0), bad], 0.0, ([0, 0, 0], _identity_quat()))
+        assert sorted(p.name for p in (tmp_path / says.replace(" ", "_")).iterdir()) == [POSE_LOG_NAME]
+    with pytest.raises(InvalidInputError, match="beyond"):
+        write_whisk_csv(tmp_path, deg)
+    base = _record("A1", 0)
+    angles = base.angle_rad.copy()
+    angles[3] = 3.2767  # the largest angle a USB frame holds
+    path = write_whisk_csv(tmp_path, WhiskRecord("A1", angles, base.x_counts, base.y_counts, cycle=0))
+    assert read_whisk_csv(path).angle_rad[3] == 3.2767

@@ -75,6 +75,7 @@ import logging
 import math
 import os
 import re
+import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,6 +99,8 @@ __all__ = [
     "read_whisk_csv",
     "PoseLogWriter",
     "read_pose_log",
+    "repair_last_line",
+    "MAX_ANGLE_RAD",
     "MAX_POSE_DISTANCE_M",
     "RecordingWriter",
     "replay",
@@ -112,6 +115,9 @@ _WHISK_HEADER_DEG: tuple[str, ...] = ("angle_deg",) + WHISK_HEADER[1:]
 POSE_LOG_HEADER: tuple[str, ...] = ("time_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw", "whisk_file")
 #: File name of the pose log inside a session directory.
 POSE_LOG_NAME: str = "pose_log.csv"
+#: Largest whisk angle a whisk file holds, rad (2 pi): a whisk sweeps about +-0.9 rad and the USB frame's
+#: angle field reaches +-3.28 rad, while a whisk in degrees goes far beyond.
+MAX_ANGLE_RAD: float = 2.0 * math.pi
 #: Largest distance of a pose-log position from the arm's base, m (no arm reaches farther: a larger one
 #: is millimetres written as metres).
 MAX_POSE_DISTANCE_M: float = 10.0
@@ -172,6 +178,10 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
         p = p / whisk_file_name(record.cycle, record.module)
     if not p.parent.is_dir():
         raise InvalidInputError(f"directory {p.parent} does not exist; create it before writing whisks")
+    beyond = _angle_beyond(record.angle_rad)
+    if beyond is not None:  # a file its reader would refuse is never written
+        raise InvalidInputError(f"{record.module}: sample {beyond} angle {float(record.angle_rad[beyond])!r} rad lies "
+                                f"beyond +-{MAX_ANGLE_RAD:.4g} rad: degrees? WhiskRecord angles are radians")
     cols = record.as_columns()
     body = "\n".join(",".join(format(v, ".17g") for v in row) for row in cols.tolist())
     text = ",".join(WHISK_HEADER) + "\n" + body + "\n"
@@ -274,12 +284,12 @@ def read_whisk_csv(
             for j, tok in enumerate(tokens):
                 data[i, j] = _parse_float(tok, p, lineno, WHISK_HEADER[j])
     angle_rad = data[:, 0] * scale if scale != 1.0 else data[:, 0]
-    beyond = np.flatnonzero(np.abs(angle_rad) > math.pi)
-    if beyond.size:  # a whisk sweeps well within +-pi: these are degrees under an angle_rad header (or none)
-        k = int(beyond[0])
+    k = _angle_beyond(angle_rad)
+    if k is not None:  # degrees under an angle_rad header (or none)
         raise CorruptFileError(
-            f"{p}: line {k + first_data + 1}: angle {float(data[k, 0])!r} lies beyond +-pi rad: degrees? A whisk file holds "
-            f"radians under the header {','.join(WHISK_HEADER)!r}, or degrees under {','.join(_WHISK_HEADER_DEG)!r}"
+            f"{p}: line {k + first_data + 1}: angle {float(data[k, 0])!r} lies beyond +-{MAX_ANGLE_RAD:.4g} rad (2 pi): "
+            f"degrees? A whisk file holds radians under the header {','.join(WHISK_HEADER)!r}, or degrees under "
+            f"{','.join(_WHISK_HEADER_DEG)!r}"
         )
     return WhiskRecord(
         module=module,
@@ -290,6 +300,12 @@ def read_whisk_csv(
         cycle=cycle,
         spare=data[:, 3],
     )
+
+
+def _angle_beyond(angle_rad: np.ndarray) -> int | None:
+    """The first sample whose angle lies beyond :data:`MAX_ANGLE_RAD` (None: all within)."""
+    beyond = np.flatnonzero(np.abs(np.asarray(angle_rad, dtype=float)) > MAX_ANGLE_RAD)
+    return int(beyond[0]) if beyond.size else None
 
 
 def _looks_numeric(token: str) -> bool:
@@ -313,8 +329,8 @@ class PoseLogWriter:
     path : path-like
         The pose log. A missing or empty file gets the header; an existing one is
         checked and appended to (resuming a session), and its last time stamp
-        is the lower bound for the next line. A torn final line (no newline: a
-        crash during an append) is cut off first, with a logged warning.
+        is the lower bound for the next line. Its last line, when it lacks its
+        newline, is repaired first (:func:`repair_last_line`).
 
     Raises
     ------
@@ -327,11 +343,11 @@ class PoseLogWriter:
         self._last_time = -math.inf
         self._files: set[str] = set()  # whisk files the log names
         if self.path.exists() and self.path.stat().st_size > 0:
+            repair_last_line(self.path)
             entries = read_pose_log(self.path)
             self._files = {e.whisk_file for e in entries}
             if entries:
                 self._last_time = entries[-1].time_s
-            self._cut_torn_line()
             needs_header = False
         else:
             needs_header = True
@@ -339,20 +355,6 @@ class PoseLogWriter:
         if needs_header:
             self._write(",".join(POSE_LOG_HEADER) + "\n")
             sync_folder(self.path.parent)
-
-    def _cut_torn_line(self) -> None:
-        """Cut a final line without its newline (a write torn by a crash, which :func:`read_pose_log` ignores) off
-        the log before anything is appended: the next line would otherwise be glued onto it."""
-        with open(self.path, "rb+") as fh:
-            data = fh.read()
-            if data.endswith(b"\n"):
-                return
-            keep = data.rfind(b"\n") + 1
-            log.warning("%s: cutting off the torn final line (%d bytes, no newline) before appending", self.path,
-                        len(data) - keep)
-            fh.truncate(keep)
-            fh.flush()
-            os.fsync(fh.fileno())
 
     @property
     def last_time_s(self) -> float:
@@ -426,6 +428,59 @@ class PoseLogWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def repair_last_line(path: str | os.PathLike[str]) -> str:
+    """Make a pose log end with a whole line before anything is appended to it.
+
+    A last line without its newline is either a whole line (an edit that dropped the final
+    newline: 9 columns that parse into a line :func:`read_pose_log` accepts after the others,
+    naming whisk files that exist beside the log) - the newline is added - or a write torn
+    by a crash - it is cut off, as :func:`read_pose_log` ignores it (the cycle's whisk files
+    are then debris of an interrupted cycle). Either way a warning is logged; the next line
+    would otherwise be glued onto it.
+
+    Returns
+    -------
+    str
+        ``"completed"``, ``"cut"`` or ``""`` (the log ended with a newline, or is empty).
+    """
+    p = Path(path)
+    with open(p, "rb+") as fh:
+        data = fh.read()
+        if not data or data.endswith(b"\n"):
+            return ""
+        keep = data.rfind(b"\n") + 1
+        tail = data[keep:].decode("utf-8", "replace")
+        if _whole_line(p, data[:keep], tail):
+            fh.write(b"\n")
+            log.warning("%s: its last line lacked its newline; added (the line is whole and its whisk files exist)", p)
+            what = "completed"
+        else:
+            fh.truncate(keep)
+            log.warning("%s: cutting off the torn last line (%d bytes, no newline) before appending", p,
+                        len(data) - keep)
+            what = "cut"
+        fh.flush()
+        os.fsync(fh.fileno())
+    return what
+
+
+def _whole_line(path: Path, before: bytes, tail: str) -> bool:
+    """Whether ``tail`` (the log's last line, without its newline) is a line the log would take after ``before``."""
+    tokens = tail.split(",")
+    if len(tokens) != len(POSE_LOG_HEADER) or not re.fullmatch(r"whisk_\d+", tokens[8].strip()):
+        return False
+    if not any(path.parent.glob(f"{tokens[8].strip()}_*.csv")):
+        return False
+    with tempfile.TemporaryDirectory() as d:  # the log with the line made whole must read back, the line included
+        trial = Path(d) / path.name
+        trial.write_bytes(before + tail.encode("utf-8") + b"\n")
+        try:
+            entries = read_pose_log(trial)
+        except CorruptFileError:
+            return False
+    return bool(entries) and entries[-1].whisk_file == tokens[8].strip()
 
 
 def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
@@ -530,7 +585,8 @@ class RecordingWriter:
 
         All records must share one cycle index and have distinct modules. The
         pose is validated before any file is written, so a bad pose or an
-        out-of-order time leaves the directory unchanged.
+        out-of-order time leaves the directory unchanged. Modules of unequal length, or an
+        angle beyond :data:`MAX_ANGLE_RAD`, are refused before anything is written.
 
         Returns
         -------
@@ -548,6 +604,14 @@ class RecordingWriter:
         modules = [r.module for r in recs]
         if len(set(modules)) != len(modules):
             raise InvalidInputError(f"duplicate modules in one cycle: {sorted(modules)}")
+        lengths = {r.module: r.n_samples for r in recs}
+        if len(set(lengths.values())) > 1:  # replay refuses such a cycle: it is never written
+            raise InvalidInputError(f"the modules of one whisk must hold the same number of samples, got {lengths}")
+        for r in recs:  # before any file: write_whisk_csv would refuse it after the others were written
+            k = _angle_beyond(r.angle_rad)
+            if k is not None:
+                raise InvalidInputError(f"{r.module}: sample {k} angle {float(r.angle_rad[k])!r} rad lies beyond "
+                                        f"+-{MAX_ANGLE_RAD:.4g} rad: degrees? WhiskRecord angles are radians")
         stem = whisk_file_stem(recs[0].cycle)
         entry = PoseEntry(time_s, pose, stem)
         self._pose_log.check_entry(entry)
