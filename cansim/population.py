@@ -632,7 +632,8 @@ class Population:
         """Write the population - grid, kernels, dtype, backend, motion model, decode window and its
         activity - to an ``.npz`` file (no pickle); :meth:`load` gives one that continues exactly as this
         one would. A file name is written to a temporary name beside it and renamed (a crash never
-        leaves half a file); an open binary file is written as is.
+        leaves half a file); an open binary file is written as is. As :func:`numpy.savez`, ``.npz``
+        is added to a name without it (``save("run")`` writes ``run.npz``, which ``load("run")`` reads).
 
         Raises
         ------

@@ -95,7 +95,7 @@ from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
 from whisker_io.persistence import read_npz, write_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
-from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, naming_file
 from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = [
@@ -653,10 +653,8 @@ class ExperienceMap:
             The file is unreadable, or a field is missing or has the wrong type, shape or value.
         """
         arrays = read_npz(path)
-        try:
+        with naming_file(path):  # a fault met while rebuilding names the file
             return cls.from_arrays(arrays)
-        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
-            raise exc.located(path) from exc.__cause__
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> "ExperienceMap":

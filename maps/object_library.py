@@ -32,7 +32,7 @@ import numpy as np
 
 from maps.object_map import ObjectMap
 from whisker_io.persistence import read_npz, write_npz
-from whisker_io.errors import CorruptFileError, InvalidInputError
+from whisker_io.errors import CorruptFileError, InvalidInputError, naming_file
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
 
@@ -121,6 +121,8 @@ class ObjectLibrary:
 
         A file name is written to a temporary name beside it and renamed, so a crash never
         leaves a half-written library under that name; an open binary file is written as is.
+        As :func:`numpy.savez`, ``.npz`` is added to a name without it (``save("lib")`` writes
+        ``lib.npz``, which ``load("lib")`` reads).
         """
         write_npz(path, self.to_arrays())
 
@@ -134,10 +136,8 @@ class ObjectLibrary:
             The file is unreadable, or a field is missing or malformed.
         """
         arrays = read_npz(path)
-        try:
+        with naming_file(path):  # a fault met while rebuilding names the file
             return cls.from_arrays(arrays)
-        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
-            raise exc.located(path) from exc.__cause__
 
 
 def append_object_maps(maps: Sequence[ObjectMap], names: Sequence[str], view_offsets: Sequence[int],

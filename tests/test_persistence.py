@@ -329,3 +329,35 @@ def test_a_model_file_of_another_layout_is_refused(tmp_path, fmt):
     del arrays["loop_format"]  # a file without it has this layout
     np.savez(tmp_path / "plain.npz", **arrays)
     assert RatSLAM.load(tmp_path / "plain.npz").iteration == slam.iteration
+
+
+def test_an_older_file_under_the_bare_name_beside_the_npz_is_ambiguous_not_read_silently(tmp_path):
+    """save("ring") writes ring.npz; an older save wrote ring: load("ring") read the older one (review, s48)."""
+    from cansim import Axis, Population
+
+    old = Population([Axis.angle("th", 12)], backend="numpy")
+    with open(tmp_path / "ring", "wb") as fh:  # what a save before this version wrote under the bare name
+        old.save(fh)
+    new = Population([Axis.angle("th", 12)], backend="numpy")
+    new.save(tmp_path / "ring")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ring", "ring.npz"]
+    with pytest.raises(CorruptFileError, match="ring.npz exist, and a save"):
+        Population.load(tmp_path / "ring")
+    assert Population.load(tmp_path / "ring.npz").shape == new.shape  # the full name is never ambiguous
+    (tmp_path / "ring.npz").unlink()
+    assert Population.load(tmp_path / "ring").shape == old.shape  # an older file alone still loads
+
+
+def test_a_new_file_follows_the_umask_of_the_moment(tmp_path):
+    import os
+    import stat
+
+    from whisker_io.persistence import write_atomically
+
+    before = os.umask(0o027)
+    try:
+        write_atomically(tmp_path / "f.bin", lambda fh: fh.write(b"x"))
+        assert stat.S_IMODE((tmp_path / "f.bin").stat().st_mode) == 0o640
+        assert os.umask(0o027) == 0o027  # and the umask was left as it was
+    finally:
+        os.umask(before)

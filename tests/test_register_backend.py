@@ -134,3 +134,15 @@ def test_a_model_config_names_its_backend_when_it_is_made(name):
         else:
             with pytest.raises(ConfigError, match="is not a backend here"):
                 cls(backend=name)
+
+
+def test_a_model_saved_with_an_unregistered_backend_says_to_register_it_not_corrupt(registry, tmp_path):
+    from cansim.errors import UnknownBackendError
+    from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+
+    backends.register_backend("mine", MineBackend)
+    RatSLAM(RatSLAMConfig(backend="mine", frontend="ids", xy_cells=9, heading_cells=12)).save(tmp_path / "m.npz")
+    del backends._REGISTRY["mine"]
+    with pytest.raises(UnknownBackendError, match="register it before loading") as exc:
+        RatSLAM.load(tmp_path / "m.npz")
+    assert "corrupt" not in str(exc.value) and "'mine'" in str(exc.value)

@@ -43,15 +43,21 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """All members of an ``.npz`` archive written by a ``save()`` of this library.
 
     A ``path`` that names no file but whose :func:`npz_path` does is read from there: a
-    model saved as ``save("run")`` (numpy writes ``run.npz``) loads as ``load("run")``.
+    model saved as ``save("run")`` (numpy writes ``run.npz``) loads as ``load("run")``. When
+    both ``run`` and ``run.npz`` exist the name is ambiguous (an older save wrote ``run``):
+    that is an error naming both, never the older file read silently.
 
     Raises
     ------
     CorruptFileError
         The file is missing, empty, truncated, not an ``.npz`` archive (or one of a zip
-        version or compression this Python cannot read), or a member is damaged.
+        version or compression this Python cannot read), a member is damaged, or the
+        name is ambiguous (above).
     """
-    if isinstance(path, (str, os.PathLike)) and not os.path.exists(path) and os.path.isfile(npz_path(path)):
+    if isinstance(path, (str, os.PathLike)) and npz_path(path) != path and os.path.isfile(npz_path(path)):
+        if os.path.exists(path):  # an older file under the bare name beside what save() writes now: which one?
+            raise CorruptFileError(f"both this file and {os.fspath(npz_path(path))} exist, and a save() to this name "
+                                   "writes the .npz one; load the one you mean by its full name", path=path)
         path = npz_path(path)
     if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path):
         what = "a folder, not a file" if os.path.isdir(path) else "no such file"
@@ -142,7 +148,17 @@ def sync_folder(folder: str | os.PathLike[str]) -> None:
 
 
 def _new_file_mode() -> int:
-    """The permissions :func:`open` gives a new file here: 0666 less the process' umask."""
-    umask = os.umask(0)
+    """The permissions :func:`open` gives a new file here: 0666 less the process' umask.
+
+    Read from ``/proc/self/status`` where there is one (Linux): setting the umask to read it
+    back would change it for every thread of the process for a moment."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    umask = os.umask(0)  # elsewhere: the only portable way to read it
     os.umask(umask)
     return 0o666 & ~umask

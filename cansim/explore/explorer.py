@@ -83,7 +83,7 @@ from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
 from maps.recognition import MATCHERS, LeakyIntegrator, first_crossing, leaky_step
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
-from whisker_io.errors import SafetyViolationError
+from whisker_io.errors import SafetyViolationError, naming_file
 from whisker_io.features.region import MIN_OBSERVATION_CONTACTS
 from whisker_io.persistence import read_npz, write_npz
 from whisker_io.pose import Pose
@@ -203,7 +203,8 @@ class KnownObject:
         (n,), ``known_contact_counts`` (n,; -1 for a whisk without a contact array) and
         ``known_contacts`` (sum of the counts, 3; m, end-effector frame). :meth:`load`
         gives back an object whose :meth:`stored_surface` and :meth:`fresh_model` are
-        those of this one. Written to a temporary name and renamed (no half-written file).
+        those of this one. Written to a temporary name and renamed (no half-written file); as
+        :func:`numpy.savez`, ``.npz`` is added to a name without it.
         No pickle.
 
         Raises
@@ -273,10 +274,8 @@ class KnownObject:
             A bare model file without ``name``.
         """
         arrays = read_npz(path)
-        try:
+        with naming_file(path):  # a fault met while rebuilding names the file
             model = WhiskerRatSLAM.from_arrays(arrays)
-        except CorruptFileError as exc:  # the fault met while rebuilding the model: name the file
-            raise exc.located(path) from exc.__cause__
         if not isinstance(model, WhiskerRatSLAM):
             raise CorruptFileError(f"holds a {type(model).__name__}, not a WhiskerRatSLAM", path=path, field="model")
         om = model.object_map
@@ -524,6 +523,11 @@ def _odometry_of(odometry: Odometry, prev: Pose, now: Pose) -> SpatialOdometry:
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"odometry(prev, now) must return (v (3,) m/s, omega (3,) rad/s, dt s) in the "
                                 f"end-effector frame, got {type(value).__name__}: {exc}") from None
+
+
+def _touched(obs: object) -> bool:
+    """Whether a whisk touched anything: contact points, or an observation of another kind (a test double's)."""
+    return _contacts(obs) is not None or (obs is not None and not hasattr(obs, "contact_points_m"))
 
 
 def _contacts(obs: object) -> np.ndarray | None:
@@ -926,7 +930,7 @@ class Explorer:
             pose = self.arm.pose()  # type: ignore[attr-defined]
             obs = self.sensor(pose)
             whisks += 1
-            touched += _contacts(obs) is not None or (obs is not None and not hasattr(obs, "contact_points_m"))
+            touched += _touched(obs)
             # (an observation without contact points - a (pfh, sda) pair - counts as touching: no false warning)
             reloc = self.observe(pose, obs)
             if self._ic.max() >= self.stop_threshold:
@@ -982,7 +986,7 @@ class Explorer:
             self.observe(pose, obs)
             self._strats.append("none")
             whisks += 1
-            touched += _contacts(obs) is not None or (obs is not None and not hasattr(obs, "contact_points_m"))
+            touched += _touched(obs)
             if stop_at_threshold and self._ic.max() >= self.stop_threshold:
                 reason = "threshold"
                 break

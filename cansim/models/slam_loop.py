@@ -32,7 +32,8 @@ from typing import Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
-from cansim.errors import CorruptFileError, InvalidInputError
+from cansim.errors import CorruptFileError, InvalidInputError, UnknownBackendError
+from whisker_io.errors import naming_file
 from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
@@ -386,10 +387,8 @@ class SlamLoop:
             The file is unreadable, or a field is missing or malformed (named in the error).
         """
         arrays = read_npz(path)
-        try:
+        with naming_file(path):  # a fault met while rebuilding names the file
             return cls.from_arrays(arrays)
-        except CorruptFileError as exc:  # the fault met while rebuilding: name the file
-            raise exc.located(path) from exc.__cause__
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> "SlamLoop":
@@ -419,7 +418,19 @@ class SlamLoop:
                                        field="loop_format")
         description = need("model")
         try:
-            model = cls.from_description(json.loads(str(description)))
+            parsed = json.loads(str(description))
+        except (json.JSONDecodeError, TypeError, ValueError) as exc:
+            raise CorruptFileError(f"not a valid model description ({exc})", field="model") from exc
+        saved_backend = parsed.get("config", {}).get("backend") if isinstance(parsed, dict) and isinstance(
+            parsed.get("config"), dict) else None
+        from cansim.backends import registered_backends
+
+        if isinstance(saved_backend, str) and saved_backend not in registered_backends():  # not the file's fault
+            raise UnknownBackendError(f"this model was saved with the backend {saved_backend!r}, which is not registered in "
+                                      "this process: cansim.backends.register_backend: register it before loading a "
+                                      "model saved with it")
+        try:
+            model = cls.from_description(parsed)
         except (json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
             raise CorruptFileError(f"not a valid model description ({exc})", field="model") from exc
         pc = model.pose_cells

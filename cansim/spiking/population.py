@@ -454,7 +454,8 @@ class SpikingPopulation:
         :meth:`load` gives a population that continues exactly as this one would (the same
         spikes); a NIR graph (:func:`cansim.spiking.to_nir`) carries the network only.
         A file name is written to a temporary name beside it and renamed, so a crash never
-        leaves a half-written file; an open binary file is written as is.
+        leaves a half-written file; an open binary file is written as is. As :func:`numpy.savez`,
+        ``.npz`` is added to a name without it (``save("ring")`` writes ``ring.npz``).
         """
         from dataclasses import asdict
 
