@@ -147,6 +147,8 @@ def main(argv: Sequence[str] | None = None, *, control_factory: Callable[[str], 
         return _session(argv, control_factory, usb_backend)
     except CansimError as exc:
         return fail(EXIT_FAILURE, f"{type(exc).__name__}: {exc}")
+    except KeyboardInterrupt:  # loading maps, a replay, writing the trace (a live run's own says what was kept)
+        return fail(EXIT_INTERRUPTED, "interrupted")
 
 
 def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any) -> int:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 from whisker_io.array.control import WhiskPattern
 from whisker_io.command_line import CommandParser
@@ -48,14 +49,18 @@ def fail(status: int, message: str) -> int:
     return status
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, control_factory: Any = None, usb_backend: Any = None) -> int:
+    """Run (see the module docstring). ``control_factory`` and ``usb_backend`` are test doubles
+    (:mod:`whisker_io.testing`), as in ``hardware_exploration.main``."""
     try:
-        return _session(argv)
+        return _session(argv, control_factory, usb_backend)
     except CansimError as exc:  # anything the library reports that is not handled below
         return fail(EXIT_FAILURE, f"{type(exc).__name__}: {exc}")
+    except KeyboardInterrupt:  # before or after the session (the session's own says how many whisks were kept)
+        return fail(EXIT_INTERRUPTED, "interrupted")
 
 
-def _session(argv: list[str] | None) -> int:
+def _session(argv: list[str] | None, control_factory: Any = None, usb_backend: Any = None) -> int:
     ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot-ip", required=True, help="UR controller address")
     ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=FrameLayout.vendor_id)
@@ -81,8 +86,8 @@ def _session(argv: list[str] | None) -> int:
         return fail(EXIT_USAGE, f"--out {args.out}: {exc}")
     recorder = None
     try:
-        with open_platform(args.robot_ip, envelope,
-                           FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id)) as (arm, array):
+        with open_platform(args.robot_ip, envelope, FrameLayout(vendor_id=args.vendor_id, product_id=args.product_id),
+                           control_factory=control_factory, usb_backend=usb_backend) as (arm, array):
             with array.whisking(WhiskPattern(), args.mode, args.rcp_threshold):
                 targets = raster_poses(arm.pose(), args.width, args.height, args.nx, args.nz)
                 with Recorder(args.out) as recorder:

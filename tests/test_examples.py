@@ -67,7 +67,8 @@ def test_record_sim_session_run_twice_goes_on_and_a_raster_outside_the_workspace
     for run in (1, 2):
         monkeypatch.setattr(sys, "argv", argv)
         rec.main()
-        assert "2 whisks recorded" in capsys.readouterr().out
+        out = capsys.readouterr().out
+        assert "2 whisks recorded" in out and "replay identical: True" in out  # this run's whisks, not the session's
     times = [c.entry.time_s for c in replay(tmp_path / "s")]
     assert len(times) == 4 and times == sorted(times) and times[2] > times[1]
     monkeypatch.setattr(sys, "argv", argv[:-3] + ["--distance", "0.19", "--out", str(tmp_path / "near")])
@@ -75,3 +76,26 @@ def test_record_sim_session_run_twice_goes_on_and_a_raster_outside_the_workspace
         rec.main()
     assert exc.value.code == 2 and "leaves the arm's workspace" in capsys.readouterr().err
     assert not (tmp_path / "near").exists()
+
+
+def test_record_sim_session_ctrl_c_is_one_line_and_keeps_the_whisks(tmp_path, monkeypatch, capsys):
+    import sys
+
+    from whisker_io.records.recording import replay
+
+    rec = _load("record_sim_session")
+    real = rec.explore
+
+    def explore_then_interrupt(arm, array, recorder, targets, **kw):
+        real(arm, array, recorder, targets[:2], **kw)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(rec, "explore", explore_then_interrupt)
+    monkeypatch.setattr(sys, "argv", ["record_sim_session.py", "--nx", "2", "--nz", "2", "--out", str(tmp_path / "s"),
+                                      "--no-progress"])
+    with pytest.raises(SystemExit) as exc:
+        rec.main()
+    err = capsys.readouterr().err
+    assert exc.value.code == 130 and "Traceback" not in err
+    assert f"interrupted after 2 whisks, kept in {tmp_path / 's'}/" in err
+    assert len(list(replay(tmp_path / "s"))) == 2

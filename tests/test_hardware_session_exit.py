@@ -38,3 +38,45 @@ def test_no_robot_reachable_exits_3_with_one_line():
     assert proc.returncode == 3, proc.stderr
     err = proc.stderr.strip()
     assert err.count("\n") == 0 and "no robot reachable at 127.0.0.3" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rtde_receive") is None or importlib.util.find_spec("usb") is None,
+                    reason='needs the hw extra (pip install -e ".[hw]")')
+@pytest.mark.parametrize("interrupt_at", [None, 2])
+def test_a_session_on_the_test_doubles_and_ctrl_c_in_it(tmp_path, capsys, interrupt_at):
+    """main(control_factory=, usb_backend=) runs on the fakes, as hardware_exploration's does; Ctrl-C during the third
+    whisk ends with one line, status 130, the two whisks before it kept."""
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "examples"))
+    import hardware_session as hs
+
+    from whisker_io.hw.usb_array import FrameLayout
+    from whisker_io.records.recording import replay
+    from whisker_io.testing.fake_rtde_server import FakeControlInterface, FakeServerError, fake_rtde_server
+    from whisker_io.testing.fake_usb_backend import FakeUSBBackend
+
+    def whisk(k):
+        if k == interrupt_at:
+            raise KeyboardInterrupt
+        s = np.zeros((2000, 18, 3))
+        s[:, :, 0] = np.linspace(-0.8727, 0.8727, 2000)[:, None]
+        return s
+
+    out = tmp_path / "session"
+    try:
+        with fake_rtde_server("stream"):
+            rc = hs.main(["--robot-ip", "127.0.0.1", "--out", str(out), "--nx", "2", "--nz", "2"],
+                         control_factory=lambda host: FakeControlInterface(),
+                         usb_backend=FakeUSBBackend(FrameLayout(), source=whisk))
+    except FakeServerError as exc:
+        pytest.skip(f"cannot run the fake RTDE server on port 30004: {exc}")
+    captured = capsys.readouterr()
+    if interrupt_at is None:
+        assert rc == hs.EXIT_OK and "4 whisks recorded" in captured.out
+        assert len(list(replay(out))) == 4
+    else:
+        assert rc == hs.EXIT_INTERRUPTED and "Traceback" not in captured.err
+        lines = [ln for ln in captured.err.splitlines() if "exploring:" not in ln and ln.strip()]  # the progress bar
+        assert lines == [f"hardware_session: interrupted after 2 whisks, kept in {out}/"]
+        assert len(list(replay(out))) == 2

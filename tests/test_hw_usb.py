@@ -240,6 +240,17 @@ def test_a_frame_fault_in_a_session_retakes_the_whisk_at_the_same_pose(tmp_path,
     assert getattr(arr.counters, FAULTS[fault][1]) == 1
 
 
+@pytest.mark.parametrize("fault", ["short", "gap", "crc"])
+def test_with_no_retakes_a_frame_fault_ends_the_session_keeping_the_complete_whisks(tmp_path, fault):
+    arr, backend = open_array(7)
+    backend.inject(fault, after_frames=3 * FRAMES_PER_WHISK + 11)  # inside whisk 3
+    arm = SimArm()
+    with pytest.raises(USBFrameError):
+        with Recorder(tmp_path) as rec:
+            explore(arm, arr, rec, targets(6), progress=False, frame_retries=0)
+    assert rec.n_cycles == 3 and len(list(replay(tmp_path))) == 3 and arm.received[-1].kind == "stop"
+
+
 def test_frame_faults_beyond_the_retakes_are_raised_and_bad_counts_refused():
     arr, backend = open_array(4)
     for whisk in (0, 1):  # a fault inside whisks 0 and 1: one retake is not enough, two are
