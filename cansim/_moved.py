@@ -33,6 +33,6 @@ MOVED: dict[str, str] = {
 def alias_module(old: str) -> None:
     """Make the moved module importable under its old name ``old``, with a DeprecationWarning."""
     new = MOVED[old]
-    warnings.warn(f"{old} moved to {new} in cansim 0.2; import {new} (the old path goes in 0.3)",
+    warnings.warn(f"{old} moved to {new} (before the first release); import {new} (the old path goes in 0.3)",
                   DeprecationWarning, stacklevel=3)
     sys.modules[old] = importlib.import_module(new)

@@ -59,7 +59,7 @@ def take_renamed(kwargs: Mapping[str, Any], renames: Mapping[str, str], owner: s
         if new in out:
             raise ConfigError(f"{owner}: {old} is the old name of {new}; give {new} only")
         warnings.warn(
-            f"{owner}: the keyword {old} is now {new} (renamed in cansim 0.2, the old name goes in {REMOVED_IN})",
+            f"{owner}: the keyword {old} is now {new} (renamed before the first release, the old name goes in {REMOVED_IN})",
             DeprecationWarning, stacklevel=stacklevel,
         )
         out[new] = out.pop(old)

@@ -156,7 +156,7 @@ class LocalViewParams(ConfigDataclass):
     @property
     def inject_gain(self) -> float:
         """Deprecated name of :attr:`inject_energy` (learnt mode's delta); goes in 0.3."""
-        warnings.warn("LocalViewParams.inject_gain is now inject_energy (renamed in cansim 0.2, the old name goes in 0.3)",
+        warnings.warn("LocalViewParams.inject_gain is now inject_energy (renamed before the first release, the old name goes in 0.3)",
                       DeprecationWarning, stacklevel=2)
         return self.inject_energy
 

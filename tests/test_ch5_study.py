@@ -541,3 +541,16 @@ def test_the_objects_help_lists_every_registered_name(capsys) -> None:
         ch5_study.main(["--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert f"registered names ({', '.join(OBJECT_NAMES)})" in text and {"box_stack", "skull"} <= set(OBJECT_NAMES)
+
+
+def test_without_a_novel_object_findings_4_and_7_are_not_measured():
+    """cansim study ch5 --novel (nothing after the flag) said "NOT reproduced" and "every novel run seldom touched" of
+    runs that never happened (review, session 48)."""
+    s = ch5_study.StudyConfig(1, 0.3, {"tip": (0.9, 0.3)}, None, 0)
+    build = dict(object="mug", config=ch5_study.BEST, position_m=[0.0], rotation_deg=[0.0], step_m=0.1, step_deg=10.0,
+                 n_experiences=1, n_regions=1, n_iterations=10, dr_error_m=[0.0], matching="mapping")
+    text = ch5_study.summary([build], [_id_row("mug", "A", 5.0, 90), _id_row("mug", "B", 5.0, 90)], [], s,
+                             ch5_study.BEST, True)
+    for finding in ("4.", "7."):
+        line = _finding(text, finding)
+        assert "NOT measured: no novel object was presented" in line and "NOT reproduced" not in line, line

@@ -366,3 +366,20 @@ def test_numba_with_its_jit_disabled_is_said_to_run_interpreted(monkeypatch):
     assert "NUMBA_DISABLE_JIT set: its kernels run as interpreted Python" in _probe_numba(None)
     monkeypatch.setattr(numba.config, "DISABLE_JIT", False)
     assert _probe_numba(None).endswith("compiles for this CPU")
+
+
+def test_bench_says_when_max_threads_is_above_numbas_and_records_pocls_threads(tmp_path, monkeypatch, caplog):
+    numba = pytest.importorskip("numba")
+    import cansim.tools.benchmark as benchmark
+
+    monkeypatch.setattr(benchmark, "_time", lambda fn, *a: (1.0, 1.0, 1))
+    most = int(numba.config.NUMBA_NUM_THREADS)
+    with caplog.at_level("WARNING", logger="cansim.tools.benchmark"):
+        report = benchmark.run_suite(quick=True, backends=["numba"], workloads=["21x21x36"], max_threads=most + 3)
+    assert f"max_threads {most + 3} is more than numba's {most}" in caplog.text
+    assert max(r.threads for r in report.records if r.threads is not None) == most
+    monkeypatch.setenv("POCL_MAX_PTHREAD_COUNT", "3")
+    assert benchmark.backend_threads("opencl") == 3
+    monkeypatch.setenv("POCL_MAX_PTHREAD_COUNT", "")
+    assert benchmark.backend_threads("opencl") == len(os.sched_getaffinity(0))
+    assert benchmark.backend_threads("numpy") == 1 and benchmark.backend_threads("mine") is None

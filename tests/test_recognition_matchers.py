@@ -373,3 +373,11 @@ def test_the_confusion_counts_keep_an_object_labelled_none_apart_from_no_decisio
     _, _, part = recognition.confusion(rows[:2], presented, decided)
     assert part.tolist() == [[1, 0, 1], [0, 0, 0], [0, 0, 0]]
     assert recognition.NO_DECISION not in {"none", "mug", "knot"}
+
+
+def test_the_confusion_counts_refuse_a_run_outside_the_rows_and_columns_given() -> None:
+    rows = [{"presented": "mug", "decision": "box", "novel": False}]
+    with pytest.raises(InvalidInputError, match="decides 'box': not among"):
+        recognition.confusion(rows, ["mug"], ["mug", None])
+    with pytest.raises(InvalidInputError, match="presents 'mug'"):
+        recognition.confusion(rows, ["cup"], ["box", None])

@@ -924,13 +924,14 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
         touched = [r for r in sk if not 0 <= r.get("n_observations", -1) < 0.5 * r["n_iterations"]]
         unseen = sorted({label[r["presented"]] + " (" + r["trajectory"] + ")" for r in sk if r not in touched})
         seldom = f" (seldom touched, not judged: {', '.join(unseen)})" if unseen else ""
-        if sk and sk_max >= RC_THRESHOLD:
+        if not sk:
+            verdict = "NOT measured: no novel object was presented"
+        elif sk_max >= RC_THRESHOLD:
             verdict = "NOT reproduced"
         elif touched:
             verdict = ("REPRODUCED" if max(r["max_confidence"] for r in touched) < RC_THRESHOLD else "NOT reproduced") + seldom
         else:
-            verdict = ("NOT measured: every novel run observed a region (3 contacts or more) in under half its whisks"
-                       if sk else "NOT reproduced")
+            verdict = "NOT measured: every novel run observed a region (3 contacts or more) in under half its whisks"
         lines.append(f"  4. Thesis: the novel object (the thesis' Skull; here {novel}) has very low confidence for every map. Measured: max confidence {fmt(sk_max, '.2f')} "
                      f"(RC threshold {RC_THRESHOLD:g}), largest final IC {fmt(sk_ic, '.1f')} (IC threshold {IC_THRESHOLD:g}). "
                      f"{verdict}.")
@@ -960,7 +961,9 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                             + (f" (not judged: {', '.join(unjudged)}, a map without an experience)" if unjudged else ""))
                          + ".")
         fired = [r for r in sk if r["ic_decision"]]
-        if fired:
+        if not sk:
+            outcome = "NOT measured: no novel object was presented"
+        elif fired:
             outcome = "fired for " + ", ".join(sorted({r["map_identity"] + " (" + r["trajectory"] + ")" for r in fired}))
         elif not touched:
             outcome = "never fired (every novel run seldom touched: says little)"

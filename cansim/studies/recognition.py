@@ -258,6 +258,7 @@ from cansim.studies.object_options import (add_mesh_options, check_distinct, che
 from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 from whisker_io.command_line import CommandParser
+from whisker_io.errors import InvalidInputError
 from whisker_io.persistence import write_atomically
 from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
 
@@ -954,6 +955,11 @@ def confusion(rows: Sequence[dict[str, Any]], presented: Sequence[str] | None = 
         (:data:`NO_DECISION` in the figure; an object may well be labelled "none").
     counts : ndarray, shape (len(presented), len(decided))
         Runs per presented object and decision.
+
+    Raises
+    ------
+    InvalidInputError
+        A run whose presented object or decision is not among the rows or columns given.
     """
     presented = list(dict.fromkeys(r["presented"] for r in rows)) if presented is None else list(presented)
     if decided is None:
@@ -961,6 +967,9 @@ def confusion(rows: Sequence[dict[str, Any]], presented: Sequence[str] | None = 
     decided = list(decided)
     counts = np.zeros((len(presented), len(decided)))
     for r in rows:
+        if r["presented"] not in presented or (r["decision"] or None) not in decided:
+            raise InvalidInputError(f"a run presents {r['presented']!r} and decides {r['decision']!r}: not among the "
+                                    f"rows {presented} and columns {decided} given")
         counts[presented.index(r["presented"]), decided.index(r["decision"] or None)] += 1
     return presented, decided, counts
 

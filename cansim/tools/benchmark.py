@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import os
 import platform
 import socket
@@ -41,6 +42,8 @@ from typing import Any
 import numpy as np
 
 from cansim.errors import InvalidInputError
+
+_LOG = logging.getLogger(__name__)
 
 __all__ = ["WORKLOADS", "SCALING_WORKLOADS", "BenchRecord", "BenchReport", "backend_threads", "machine_info", "run_suite",
            "format_tables"]
@@ -309,8 +312,9 @@ def _scaling(workloads: dict[str, int], rounds: int, settle: int, min_round_s: f
     from cansim.backends.numba_backend import NumbaBackend
 
     most = int(numba.config.NUMBA_NUM_THREADS)
-    if max_threads is not None and max_threads > most:
-        say(f"--max-threads {max_threads} is more than numba's {most} (NUMBA_NUM_THREADS): scaling up to {most}")
+    if max_threads is not None and max_threads > most:  # said whatever the progress lines do
+        _LOG.warning("max_threads %d is more than numba's %d (NUMBA_NUM_THREADS): the scaling runs go up to %d",
+                     max_threads, most, most)
     top = most if max_threads is None else min(max_threads, most)
     counts = sorted({1, top}) if quick else list(range(1, top + 1))
     before = numba.get_num_threads()
