@@ -803,11 +803,10 @@ def figure_distances(recordings: dict[str, list[Recording]], calibration: dict[t
                 ax.axvline(calibration[(control, m)][0], color="0.3", ls="--", lw=1.0, label="sequence threshold")
             ax.set_title(f"{control.replace('_', ' ')}, {m.replace('_', ' ')}", fontsize="small")
             ax.set_yscale("log")
-            if c == 0:
-                ax.set_ylabel("probability density (log)", fontsize="small")
-    # one axis label and one legend for all panels, outside them (per panel they overlapped and covered the data)
-    fig.supxlabel(f"Eq 3.1 dissimilarity, mean per image (sqrt(grey level)); values above {bins[-1]:g} in the last bin",
-                  fontsize="small")
+            ax.set_ylabel("density (log)", fontsize="small")
+            if r == len(CONTROLS) - 1:  # short, on the bottom row (shared x): the long one overlapped its neighbours
+                ax.set_xlabel(f"Eq 3.1 dissimilarity (sqrt grey level); > {bins[-1]:g} in the last bin", fontsize="small")
+    # one legend for all panels, beside them (in a panel it covered the data)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize="x-small")
     fig.suptitle("Tactile place recognition: Eq 3.1 dissimilarity, same place on another pass vs different places (tuning runs)")
