@@ -92,10 +92,10 @@ from maps.experience_map_io import (  # noqa: F401 (FORMAT_VERSION: this module'
     write_map_arrays,
 )
 from maps.link_average import LINK_UPDATES, average_se2_link, invert_se2_link
-from whisker_io.persistence import read_npz, write_npz
+from whisker_io.persistence import naming_file, read_npz, write_npz
 from maps.se2 import SE2Geometry, clip_rad_180, signed_delta_rad
 from maps.se3 import SE3Geometry
-from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, naming_file
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError
 from whisker_io.validation import ConfigDataclass, checked, config_field, validate_fields
 
 __all__ = [

@@ -31,8 +31,8 @@ from typing import BinaryIO
 import numpy as np
 
 from maps.object_map import ObjectMap
-from whisker_io.persistence import read_npz, write_npz
-from whisker_io.errors import CorruptFileError, InvalidInputError, naming_file
+from whisker_io.persistence import naming_file, read_npz, write_npz
+from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["ObjectLibrary", "append_object_maps"]
 

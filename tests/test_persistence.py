@@ -361,3 +361,23 @@ def test_a_new_file_follows_the_umask_of_the_moment(tmp_path):
         assert os.umask(0o027) == 0o027  # and the umask was left as it was
     finally:
         os.umask(before)
+
+
+@settings(max_examples=40, deadline=None)
+@given(problem=st.text(min_size=1, max_size=20), field=st.one_of(st.none(), st.text(min_size=1, max_size=8)),
+       named=st.booleans())
+def test_naming_file_names_the_file_once_and_keeps_the_cause(problem, field, named):
+    from whisker_io.persistence import naming_file
+
+    original = CorruptFileError(problem, field=field, path="first.npz" if named else None)
+    with pytest.raises(CorruptFileError) as exc:
+        with naming_file("model.npz"):
+            raise original
+    if named:  # it names a file already: raised as it was
+        assert exc.value is original
+    else:
+        assert exc.value.path == "model.npz" and exc.value.field == field and exc.value.__cause__ is original
+        assert str(exc.value).startswith("model.npz: ") and str(exc.value).count("model.npz") == 1
+    with pytest.raises(KeyError):  # anything else passes through untouched
+        with naming_file("model.npz"):
+            raise KeyError("x")

@@ -25,9 +25,7 @@ keeps the state it had before the call.
 
 from __future__ import annotations
 
-import contextlib
 import os
-from collections.abc import Iterator
 from typing import Any
 
 __all__ = [
@@ -37,7 +35,6 @@ __all__ = [
     "ConfigError",
     "UnknownFieldError",
     "CorruptFileError",
-    "naming_file",
     "HardwareError",
     "MissingDependencyError",
     "ConnectionFailedError",
@@ -140,19 +137,6 @@ class CorruptFileError(CansimError, ValueError):
         located.__cause__ = self.__cause__
         return located
 
-
-@contextlib.contextmanager
-def naming_file(path: str | os.PathLike[str] | Any) -> Iterator[None]:
-    """Within the block, a :class:`CorruptFileError` that names no file is raised again naming ``path`` (chained to
-    the original, whose traceback says where it was met): for a loader that read a file's arrays first and
-    rebuilds its object from them."""
-    try:
-        yield
-    except CorruptFileError as exc:
-        located = exc.located(path)
-        if located is exc:
-            raise
-        raise located from exc
 
 
 class HardwareError(CansimError, RuntimeError):

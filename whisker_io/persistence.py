@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import tempfile
 import zipfile
+from collections.abc import Iterator
 from typing import Any, BinaryIO, Callable, Mapping
 
 import numpy as np
 
 from whisker_io.errors import CorruptFileError
 
-__all__ = ["npz_path", "read_npz", "sync_folder", "write_atomically", "write_npz"]
+__all__ = ["naming_file", "npz_path", "read_npz", "sync_folder", "write_atomically", "write_npz"]
 
 
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
@@ -82,6 +84,20 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
             if isinstance(exc, ValueError) and "pickle" in str(exc):  # numpy's message would suggest loading it unsafely
                 raise CorruptFileError(_PICKLED, path=path) from exc
             raise CorruptFileError(f"damaged archive member ({exc})", path=path) from exc
+
+
+@contextlib.contextmanager
+def naming_file(path: str | os.PathLike[str] | Any) -> Iterator[None]:
+    """Within the block, a :class:`CorruptFileError` that names no file is raised again naming ``path`` (chained to
+    the original, whose traceback says where it was met): for a loader that read a file's arrays first and
+    rebuilds its object from them."""
+    try:
+        yield
+    except CorruptFileError as exc:
+        located = exc.located(path)
+        if located is exc:
+            raise
+        raise located from exc
 
 
 def write_npz(path: str | os.PathLike[str] | BinaryIO, arrays: Mapping[str, Any]) -> None:

@@ -83,9 +83,9 @@ from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
 from maps.odometry import SpatialOdometry
 from maps.recognition import MATCHERS, LeakyIntegrator, first_crossing, leaky_step
 from maps.surface_match import SurfaceLibrary, SurfaceMatchConfig, SurfaceMatcher
-from whisker_io.errors import SafetyViolationError, naming_file
+from whisker_io.errors import SafetyViolationError
 from whisker_io.features.region import MIN_OBSERVATION_CONTACTS
-from whisker_io.persistence import read_npz, write_npz
+from whisker_io.persistence import naming_file, read_npz, write_npz
 from whisker_io.pose import Pose
 from whisker_io.validation import config_field, finite_array, scale_factor
 

@@ -33,12 +33,11 @@ from typing import Any, Callable, Mapping, Protocol, Sequence
 import numpy as np
 
 from cansim.errors import CorruptFileError, InvalidInputError, UnknownBackendError
-from whisker_io.errors import naming_file
 from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
 from maps.odometry import Odometry
-from whisker_io.persistence import read_npz, write_npz
+from whisker_io.persistence import naming_file, read_npz, write_npz
 
 __all__ = ["FrontEnd", "PoseCells", "SlamLoop", "SlamLog", "SlamState", "configured"]
 
