@@ -383,3 +383,28 @@ def test_bench_says_when_max_threads_is_above_numbas_and_records_pocls_threads(t
     monkeypatch.setenv("POCL_MAX_PTHREAD_COUNT", "")
     assert benchmark.backend_threads("opencl") == len(os.sched_getaffinity(0))
     assert benchmark.backend_threads("numpy") == 1 and benchmark.backend_threads("mine") is None
+
+
+def test_bench_says_when_it_compiles_and_marks_a_median_far_above_the_minimum(monkeypatch):
+    import threading
+
+    import cansim.tools.benchmark as benchmark
+
+    monkeypatch.setattr(benchmark, "COMPILE_NOTICE_S", 0.01)
+    said = threading.Event()
+    first = []
+
+    def slow_first_call():  # the first call waits until the notice has been given, as a compiling kernel would
+        if not first:
+            first.append(1)
+            assert said.wait(timeout=30), "no compiling notice while the first call ran"
+
+    benchmark._time(slow_first_call, 1, 2, 0.0, said.set)
+    rec = lambda med, low: benchmark.BenchRecord("ring360", "numpy", None, 360, med, low, 5, 1)  # noqa: E731
+    report = benchmark.BenchReport([rec(10.0, 9.0), rec(100.0, 9.0)], {}, {}, True)
+    report.records[1] = benchmark.BenchRecord("21x21x36", "numpy", None, 15876, 100.0, 9.0, 5, 1)
+    text = benchmark.format_tables(report)
+    assert text.count(" !") == 1  # only the stalled row
+    assert "100.0 / 9.0 !" in text and "some rounds met a stall" in text
+    calm = benchmark.format_tables(benchmark.BenchReport([rec(10.0, 9.0)], {}, {}, True))
+    assert "!" not in calm and "stall" not in calm

@@ -33,6 +33,7 @@ import os
 import platform
 import socket
 import statistics
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -48,6 +49,10 @@ _LOG = logging.getLogger(__name__)
 __all__ = ["WORKLOADS", "SCALING_WORKLOADS", "BenchRecord", "BenchReport", "backend_threads", "machine_info", "run_suite",
            "format_tables"]
 
+#: Seconds of settling after which the progress says kernels are compiling (s).
+COMPILE_NOTICE_S = 3.0
+#: A median above this multiple of the minimum marks a row whose rounds met a stall (another job, paging).
+STALL_RATIO = 3.0
 #: workload name -> cells (a RatSLAM iteration: its pose cells)
 WORKLOADS = {"ring360": 360, "21x21x36": 21 * 21 * 36, "5^6": 5**6, "ratslam": 21 * 21 * 36}
 _FULL_ONLY = {"61x61x36": 61 * 61 * 36, "10^6": 10**6}
@@ -218,9 +223,18 @@ def _step_fn(workload: str, backend: Any) -> Callable[[], Any]:
     return one_step
 
 
-def _time(fn: Callable[[], Any], rounds: int, settle: int, min_round_s: float) -> tuple[float, float, int]:
-    for _ in range(settle):  # settle the packet and compile
-        fn()
+def _time(fn: Callable[[], Any], rounds: int, settle: int, min_round_s: float,
+          compiling: Callable[[], None] | None = None) -> tuple[float, float, int]:
+    timer = threading.Timer(COMPILE_NOTICE_S, compiling) if compiling is not None else None
+    if timer is not None:  # settling takes this long only while kernels compile (a cold cache): say so meanwhile
+        timer.daemon = True
+        timer.start()
+    try:
+        for _ in range(settle):  # settle the packet and compile
+            fn()
+    finally:
+        if timer is not None:
+            timer.cancel()
     t0 = time.perf_counter()
     fn()
     once = max(time.perf_counter() - t0, 1e-7)
@@ -296,7 +310,9 @@ def run_suite(
         for name, cells in chosen_w.items():
             slow = backend != "numba" and cells >= 10**6
             say(f"{name} on {backend}")
-            med, low, steps = _time(_step_fn(name, backend), 3 if slow else rounds, 2 if slow else settle, min_round_s)
+            med, low, steps = _time(_step_fn(name, backend), 3 if slow else rounds, 2 if slow else settle, min_round_s,
+                                    lambda: say(f"{name} on {backend}: compiling its kernels (a first run on this cache: "
+                                                "up to a minute; they are kept on disk for the next)"))
             records.append(BenchRecord(name, backend, None, cells, med, low, 3 if slow else rounds, steps))
     if "numba" in chosen and status.get("numba", (False, ""))[0]:
         records += _scaling(chosen_w, rounds, settle, min_round_s, quick, max_threads, say, get_backend)
@@ -351,9 +367,11 @@ def format_tables(report: BenchReport) -> str:
     rows = []
     for w in workloads:
         cells = next(r.cells for r in recs if r.workload == w)
-        rows.append([w, f"{cells:,}", *[f"{_fmt(by[w, b].median_us)} / {_fmt(by[w, b].min_us)}" if (w, b) in by else "-"
-                                        for b in backends]])
+        rows.append([w, f"{cells:,}", *[_cell(by[w, b]) if (w, b) in by else "-" for b in backends]])
     text = [_table(head, rows)]
+    if any(r.median_us > STALL_RATIO * r.min_us for r in recs):
+        text.append(f"! median over {STALL_RATIO:g}x the minimum: some rounds met a stall (another job on the cores?); "
+                    "the minimum is the better guide, or run again")
     scal = [r for r in report.records if r.threads is not None]
     if scal:
         threads = sorted({r.threads for r in scal if r.threads is not None})
@@ -366,6 +384,11 @@ def format_tables(report: BenchReport) -> str:
             rows.append([w, *[_fmt(m) for m in meds], f"{meds[0] / meds[-1]:.2f}x"])
         text.append(_table(head, rows))
     return "\n\n".join(text)
+
+
+def _cell(r: BenchRecord) -> str:
+    stall = " !" if r.median_us > STALL_RATIO * r.min_us else ""
+    return f"{_fmt(r.median_us)} / {_fmt(r.min_us)}{stall}"
 
 
 def _table(head: list[str], rows: list[list[str]]) -> str:
