@@ -111,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pi-cells", type=int, default=120)
     ap.add_argument("--out", type=Path, default=Path("nir_consumers.json"))
+    ap.add_argument("--no-progress", action="store_true", help="no progress line per simulator")
     args = ap.parse_args(argv)
     nrn = NeuronParams(noise_sigma=0.0, refractory_s=DT, bias_current=0.95)
     pop = SpikingPopulation((Axis.angle("heading", 360),),
@@ -128,7 +129,11 @@ def main(argv: list[str] | None = None) -> int:
         else:
             print(f"{name}: not run ({status[name][1]})")
     results = {}
-    for name, make in runs.items():
+    from tqdm import tqdm
+
+    bar = tqdm(runs.items(), desc="simulators", unit="simulator", disable=args.no_progress)
+    for name, make in bar:  # a consumer can take minutes (snnTorch, Norse: ~18 min for 60 s of a ring)
+        bar.set_postfix_str(f"{name}: the held and the turning ring")
         t0 = time.perf_counter()
         results[name] = {"stationary": stationary(make(g_still)), "turning": turning(make(g_pi), args.pi_cells, cal)}
         results[name]["wall_s"] = time.perf_counter() - t0
