@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import math
+import os
 import time
 
 import numpy as np
@@ -18,7 +19,7 @@ from hypothesis import strategies as st
 
 from whisker_io.contact.detection import detect_contacts
 from whisker_io.array.control import RetractAtMax
-from whisker_io.errors import (ConnectionFailedError, HardwareError, InvalidInputError,
+from whisker_io.errors import (ConnectionFailedError, CorruptFileError, HardwareError, InvalidInputError,
                                StaleStateError)
 from whisker_io.hw.arm import ArmState, SimArm, URArm
 from whisker_io.testing.fake_rtde_server import (FakeControlInterface, FakeServerError,
@@ -389,3 +390,61 @@ def test_a_whole_last_pose_line_without_its_newline_keeps_its_cycle(tmp_path, ca
     with Recorder(tmp_path) as rec:
         pass
     assert [c.entry.whisk_file for c in replay(tmp_path)] == [f"whisk_{k:06d}" for k in range(3)]
+
+
+def test_an_interrupt_between_the_pose_lines_write_and_its_fsync_keeps_the_cycle_and_the_writer_in_step(tmp_path,
+                                                                                                          monkeypatch):
+    """The line written but not yet flushed sat in a Python buffer, the cycle's files were removed as unlogged and
+    close() then wrote the line (second review of session 48): the log is unbuffered now."""
+    import whisker_io.records.recording as recording
+
+    real = recording.PoseLogWriter._write
+
+    def write_then_interrupt(self, text):
+        self._fh.write(text.encode("utf-8"))  # the bytes are in the file; the fsync never came
+        if text.endswith(",whisk_000001\n"):
+            raise KeyboardInterrupt
+        os.fsync(self._fh.fileno())
+
+    monkeypatch.setattr(recording.PoseLogWriter, "_write", write_then_interrupt)
+    rec = Recorder(tmp_path)
+    rec.record(_state(0.0), _records(0))
+    with pytest.raises(KeyboardInterrupt):
+        rec.record(_state(1.0), _records(1, value=1.0))
+    monkeypatch.setattr(recording.PoseLogWriter, "_write", real)
+    with pytest.raises(InvalidInputError, match="time order"):  # the writer knows the interrupted line
+        rec.record(_state(0.5), _records(2))
+    assert rec.record(_state(2.0), _records(2, value=2.0)).entry.whisk_file == "whisk_000002"
+    rec.close()
+    assert [float(c.records["B1"].y_counts[0]) for c in replay(tmp_path)] == [0.0, 1.0, 2.0]
+
+
+def test_a_torn_header_is_a_log_without_lines_and_a_wrong_whole_last_line_is_refused_not_cut(tmp_path):
+    torn = tmp_path / "torn"
+    torn.mkdir()
+    (torn / "pose_log.csv").write_text("time_s,x_m,y_m,z")  # a crash while the header was written
+    Recorder.check_folder(torn)
+    with Recorder(torn) as rec:
+        rec.record(_state(0.0), _records(0))
+    assert len(list(replay(torn))) == 1
+    wrong = tmp_path / "wrong"
+    with Recorder(wrong) as rec:
+        rec.record(_state(5.0), _records(0))
+        rec.record(_state(6.0), _records(1))
+    log = wrong / "pose_log.csv"
+    lines = log.read_text().splitlines()
+    log.write_text("\n".join(lines[:-1] + [lines[-1].replace("6,", "4,", 1)]))  # whole, no newline, time earlier
+    with pytest.raises(CorruptFileError, match="earlier than line 2"):
+        Recorder(wrong)
+    assert len(list(wrong.glob("whisk_000001_*.csv"))) == 2  # its cycle's files kept for the user to repair
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_explore_refuses_bad_frame_retries_before_the_arm_moves(tmp_path, bad):
+    arm = SimArm()
+    sent = len(arm.received)
+    with pytest.raises(InvalidInputError, match="frame_retries must be a count"):
+        with Recorder(tmp_path) as rec:
+            explore(arm, SimArray(lambda pose: np.zeros((2000, 18, 3)), arm.pose), rec,
+                    [Pose([0.4, -0.1, 0.4], [1.0, 0.0, 0.0, 0.0])], progress=False, frame_retries=bad)
+    assert len(arm.received) == sent  # no command went to the arm

@@ -168,9 +168,10 @@ class Recorder:
             entry = self._writer.write_cycle(relabelled, time_s=time_s, pose=state.pose)
         except BaseException:
             if _logged(self.directory / POSE_LOG_NAME, whisk_file_stem(cycle)):
-                # interrupted after its pose-log line was on disk: the cycle is complete, its files stay
+                # interrupted after its pose-log line was written: the cycle is complete, its files stay
                 self._next_cycle += 1
                 self.n_cycles += 1
+                self._writer.resync()  # the writer's last time and files, whether or not its append finished
                 raise
             # the cycle has no pose-log line: remove its module files written so far
             for path in self.directory.glob(f"{whisk_file_stem(cycle)}_*.csv"):
@@ -198,9 +199,9 @@ class Recorder:
 
 
 def _not_a_file(directory: Path) -> None:
-    """Refuse a session folder that is a file, or lies below one."""
+    """Refuse a session folder that is a file (or a broken link), or lies below one."""
     for part in (directory, *directory.parents):
-        if part.exists() and not part.is_dir():
+        if os.path.lexists(part) and not part.is_dir():
             raise InvalidInputError(f"{directory}: {part} is a file, not a folder; record into a folder")
 
 

@@ -75,7 +75,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -343,7 +342,8 @@ class PoseLogWriter:
         self._last_time = -math.inf
         self._files: set[str] = set()  # whisk files the log names
         if self.path.exists() and self.path.stat().st_size > 0:
-            repair_last_line(self.path)
+            repair_last_line(self.path)  # may leave nothing (a torn header): then the header is written below
+        if self.path.exists() and self.path.stat().st_size > 0:
             entries = read_pose_log(self.path)
             self._files = {e.whisk_file for e in entries}
             if entries:
@@ -351,7 +351,9 @@ class PoseLogWriter:
             needs_header = False
         else:
             needs_header = True
-        self._fh = open(self.path, "a", encoding="utf-8", newline="\n")
+        # unbuffered: once write() returns, the line is in the file (a Python buffer could hold it past an
+        # interrupt, to be flushed on close after its cycle's files were removed as unlogged)
+        self._fh = open(self.path, "ab", buffering=0)
         if needs_header:
             self._write(",".join(POSE_LOG_HEADER) + "\n")
             sync_folder(self.path.parent)
@@ -362,9 +364,17 @@ class PoseLogWriter:
         return self._last_time
 
     def _write(self, text: str) -> None:
-        self._fh.write(text)
-        self._fh.flush()
+        data = memoryview(text.encode("utf-8"))
+        while data:  # a raw write may take part of the bytes
+            data = data[self._fh.write(data):]
         os.fsync(self._fh.fileno())
+
+    def resync(self) -> None:
+        """Take the log's last time and whisk files from the file again (after an append was interrupted, when
+        its line may or may not have reached the file)."""
+        entries = read_pose_log(self.path) if self.path.stat().st_size else []
+        self._files = {e.whisk_file for e in entries}
+        self._last_time = entries[-1].time_s if entries else -math.inf
 
     def append(
         self,
@@ -434,11 +444,11 @@ def repair_last_line(path: str | os.PathLike[str]) -> str:
     """Make a pose log end with a whole line before anything is appended to it.
 
     A last line without its newline is either a whole line (an edit that dropped the final
-    newline: 9 columns that parse into a line :func:`read_pose_log` accepts after the others,
-    naming whisk files that exist beside the log) - the newline is added - or a write torn
-    by a crash - it is cut off, as :func:`read_pose_log` ignores it (the cycle's whisk files
-    are then debris of an interrupted cycle). Either way a warning is logged; the next line
-    would otherwise be glued onto it.
+    newline: 9 columns naming whisk files that exist beside the log) - the newline is added,
+    and :func:`read_pose_log` then reads it or refuses it with its reason - or a write torn by
+    a crash - it is cut off, as :func:`read_pose_log` ignores it (the cycle's whisk files are
+    then debris of an interrupted cycle; a torn header leaves an empty log). Either way a
+    warning is logged; the next line would otherwise be glued onto it.
 
     Returns
     -------
@@ -452,7 +462,7 @@ def repair_last_line(path: str | os.PathLike[str]) -> str:
             return ""
         keep = data.rfind(b"\n") + 1
         tail = data[keep:].decode("utf-8", "replace")
-        if _whole_line(p, data[:keep], tail):
+        if _whole_line(p, tail):
             fh.write(b"\n")
             log.warning("%s: its last line lacked its newline; added (the line is whole and its whisk files exist)", p)
             what = "completed"
@@ -466,21 +476,14 @@ def repair_last_line(path: str | os.PathLike[str]) -> str:
     return what
 
 
-def _whole_line(path: Path, before: bytes, tail: str) -> bool:
-    """Whether ``tail`` (the log's last line, without its newline) is a line the log would take after ``before``."""
+def _whole_line(path: Path, tail: str) -> bool:
+    """Whether ``tail`` (the log's last line, without its newline) is a whole line: 9 columns naming whisk files that
+    exist. A write torn inside its last column names none (the stems are ``whisk_`` and six digits or more); a line
+    that is whole but wrong is kept, for :func:`read_pose_log` to refuse with its reason, never cut with its cycle."""
     tokens = tail.split(",")
     if len(tokens) != len(POSE_LOG_HEADER) or not re.fullmatch(r"whisk_\d+", tokens[8].strip()):
         return False
-    if not any(path.parent.glob(f"{tokens[8].strip()}_*.csv")):
-        return False
-    with tempfile.TemporaryDirectory() as d:  # the log with the line made whole must read back, the line included
-        trial = Path(d) / path.name
-        trial.write_bytes(before + tail.encode("utf-8") + b"\n")
-        try:
-            entries = read_pose_log(trial)
-        except CorruptFileError:
-            return False
-    return bool(entries) and entries[-1].whisk_file == tokens[8].strip()
+    return any(path.parent.glob(f"{tokens[8].strip()}_*.csv"))
 
 
 def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
@@ -500,13 +503,15 @@ def read_pose_log(path: str | os.PathLike[str]) -> list[PoseEntry]:
         a whisk file named by an earlier line too, or a time stamp earlier than
         the line before (out of time order); the message names the file and the
         1-based line. A final line without a newline (a write torn by a crash) is
-        ignored with a warning.
+        ignored with a warning; a torn header is a log without lines.
     """
     p = Path(path)
     lines = _read_lines(p, "pose log")
     tail = lines.pop()  # "" when the file ends with a newline
     if tail:
         log.warning("%s: ignoring torn final line %d (no newline): %r", p, len(lines) + 1, tail)
+        if not lines and ",".join(POSE_LOG_HEADER).startswith(tail.strip()):
+            return []  # the header itself was torn: a log without lines
     if not lines:
         raise CorruptFileError(f"{p}: line 1: empty pose log; expected header {','.join(POSE_LOG_HEADER)!r}")
     if tuple(t.strip() for t in lines[0].split(",")) != POSE_LOG_HEADER:
@@ -618,6 +623,10 @@ class RecordingWriter:
         for r in recs:
             write_whisk_csv(self.directory / whisk_file_name(r.cycle, r.module), r)
         return self._pose_log.append(entry.time_s, entry.pose, stem)
+
+    def resync(self) -> None:
+        """:meth:`PoseLogWriter.resync` of the session's pose log (after an interrupted :meth:`write_cycle`)."""
+        self._pose_log.resync()
 
     def close(self) -> None:
         """Close the pose log (idempotent)."""
