@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from whisker_io.persistence import read_npz
-from whisker_io.errors import CorruptFileError
+from whisker_io.errors import CorruptFileError, InvalidInputError
 
 
 def _patched(tmp_path, offset_in_record: int, value: bytes, signature: bytes = b"PK\x01\x02"):
@@ -338,14 +338,22 @@ def test_an_older_file_under_the_bare_name_beside_the_npz_is_ambiguous_not_read_
     old = Population([Axis.angle("th", 12)], backend="numpy")
     with open(tmp_path / "ring", "wb") as fh:  # what a save before this version wrote under the bare name
         old.save(fh)
-    new = Population([Axis.angle("th", 12)], backend="numpy")
+    new = Population([Axis.angle("th", 16)], backend="numpy")  # another size: which file was read shows
     new.save(tmp_path / "ring")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ring", "ring.npz"]
-    with pytest.raises(CorruptFileError, match="ring.npz exist, and a save"):
+    with pytest.raises(InvalidInputError, match="ring.npz exist, and a save"):
         Population.load(tmp_path / "ring")
     assert Population.load(tmp_path / "ring.npz").shape == new.shape  # the full name is never ambiguous
     (tmp_path / "ring.npz").unlink()
     assert Population.load(tmp_path / "ring").shape == old.shape  # an older file alone still loads
+    # not ambiguous: a folder of that name beside the .npz, or a link to it
+    (tmp_path / "ring").unlink()
+    new.save(tmp_path / "ring")
+    (tmp_path / "ring").mkdir()
+    assert Population.load(tmp_path / "ring").shape == new.shape
+    (tmp_path / "ring").rmdir()
+    (tmp_path / "ring").symlink_to(tmp_path / "ring.npz")
+    assert Population.load(tmp_path / "ring").shape == new.shape
 
 
 def test_a_new_file_follows_the_umask_of_the_moment(tmp_path):
@@ -381,3 +389,15 @@ def test_naming_file_names_the_file_once_and_keeps_the_cause(problem, field, nam
     with pytest.raises(KeyError):  # anything else passes through untouched
         with naming_file("model.npz"):
             raise KeyError("x")
+
+
+@pytest.mark.parametrize("description", ["[]", "null", '"x"', "3"])
+def test_a_model_description_that_is_no_json_object_is_a_corrupt_file(tmp_path, description):
+    from cansim.models.ratslam import RatSLAM
+
+    RatSLAM(backend="numpy", xy_cells=9, heading_cells=12, cell_size_m=0.1).save(tmp_path / "m.npz")
+    arrays = dict(np.load(tmp_path / "m.npz"))
+    arrays["model"] = np.array(description)
+    np.savez(tmp_path / "odd.npz", **arrays)
+    with pytest.raises(CorruptFileError, match="field 'model': not a model description"):
+        RatSLAM.load(tmp_path / "odd.npz")

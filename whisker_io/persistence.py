@@ -12,7 +12,7 @@ from typing import Any, BinaryIO, Callable, Mapping
 
 import numpy as np
 
-from whisker_io.errors import CorruptFileError
+from whisker_io.errors import CorruptFileError, InvalidInputError
 
 __all__ = ["naming_file", "npz_path", "read_npz", "sync_folder", "write_atomically", "write_npz"]
 
@@ -53,14 +53,17 @@ def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     ------
     CorruptFileError
         The file is missing, empty, truncated, not an ``.npz`` archive (or one of a zip
-        version or compression this Python cannot read), a member is damaged, or the
-        name is ambiguous (above).
+        version or compression this Python cannot read), or a member is damaged.
+    InvalidInputError
+        The name is ambiguous (above).
     """
     if isinstance(path, (str, os.PathLike)) and npz_path(path) != path and os.path.isfile(npz_path(path)):
-        if os.path.exists(path):  # an older file under the bare name beside what save() writes now: which one?
-            raise CorruptFileError(f"both this file and {os.fspath(npz_path(path))} exist, and a save() to this name "
-                                   "writes the .npz one; load the one you mean by its full name", path=path)
-        path = npz_path(path)
+        if os.path.isfile(path) and not os.path.samefile(path, npz_path(path)):
+            # an older file under the bare name beside what save() writes now: which one?
+            raise InvalidInputError(f"{os.fspath(path)}: both this file and {os.fspath(npz_path(path))} exist, and a "
+                                    "save() to this name writes the .npz one; load the one you mean by its full name")
+        if not os.path.isfile(path):  # no file of that name (or a folder): the .npz save() wrote
+            path = npz_path(path)
     if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path):
         what = "a folder, not a file" if os.path.isdir(path) else "no such file"
         raise CorruptFileError(f"{what}; check the path", path=path)

@@ -420,8 +420,9 @@ class SlamLoop:
             parsed = json.loads(str(description))
         except (json.JSONDecodeError, TypeError, ValueError) as exc:
             raise CorruptFileError(f"not a valid model description ({exc})", field="model") from exc
-        saved_backend = parsed.get("config", {}).get("backend") if isinstance(parsed, dict) and isinstance(
-            parsed.get("config"), dict) else None
+        if not isinstance(parsed, dict):
+            raise CorruptFileError(f"not a model description (a JSON object), got {type(parsed).__name__}", field="model")
+        saved_backend = parsed["config"].get("backend") if isinstance(parsed.get("config"), dict) else None
         from cansim.backends import registered_backends
 
         if isinstance(saved_backend, str) and saved_backend not in registered_backends():  # not the file's fault
