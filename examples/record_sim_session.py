@@ -47,6 +47,15 @@ def contacts(cycle):
 
 
 def main() -> None:
+    """Run (see the module docstring); Ctrl-C ends with one line and status 130, never a traceback."""
+    try:
+        _main()
+    except KeyboardInterrupt:  # before or after the whisking (the whisking's own says how many whisks were kept)
+        print("record_sim_session: interrupted", file=sys.stderr)
+        raise SystemExit(130) from None
+
+
+def _main() -> None:
     ap = CommandParser(description=__doc__.splitlines()[0])
     ap.add_argument("--object", default="box", metavar="NAME_OR_MESH",
                     help=f"a registered object ({', '.join(sorted(OBJECT_NAMES))}), a procedural shape or a mesh file "

@@ -99,3 +99,18 @@ def test_record_sim_session_ctrl_c_is_one_line_and_keeps_the_whisks(tmp_path, mo
     assert exc.value.code == 130 and "Traceback" not in err
     assert f"interrupted after 2 whisks, kept in {tmp_path / 's'}/" in err
     assert len(list(replay(tmp_path / "s"))) == 2
+
+
+def test_record_sim_session_ctrl_c_before_the_whisking_is_one_line(tmp_path, monkeypatch, capsys):
+    import sys
+
+    rec = _load("record_sim_session")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt  # while the object loads
+
+    monkeypatch.setattr(rec, "resolve_object", interrupted)
+    monkeypatch.setattr(sys, "argv", ["record_sim_session.py", "--out", str(tmp_path / "s")])
+    with pytest.raises(SystemExit) as exc:
+        rec.main()
+    assert exc.value.code == 130 and capsys.readouterr().err.strip() == "record_sim_session: interrupted"

@@ -190,3 +190,14 @@ def test_an_out_folder_that_is_no_session_is_refused_before_the_arm_moves(assets
     assert rc == hx.EXIT_USAGE and not calls  # no connection was made
     assert "has no pose_log.csv" in capsys.readouterr().err
     assert (tmp_path / "whisk_000000_A1.csv").exists()
+
+
+def test_ctrl_c_outside_the_live_run_is_one_line_and_130(assets, capsys, monkeypatch):
+    """Loading the maps (or a replay, or writing the trace) interrupted: one line, status 130, no traceback."""
+    def interrupted(specs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hx, "load_known", interrupted)
+    rc = hx.main(["--replay", str(assets), "--radial-model", str(assets / "svr10.skops"), "--map", f"box={assets / 'box.npz'}"])
+    err = capsys.readouterr().err
+    assert rc == hx.EXIT_INTERRUPTED and err.strip() == "hardware_exploration: interrupted"

@@ -80,3 +80,15 @@ def test_a_session_on_the_test_doubles_and_ctrl_c_in_it(tmp_path, capsys, interr
         lines = [ln for ln in captured.err.splitlines() if "exploring:" not in ln and ln.strip()]  # the progress bar
         assert lines == [f"hardware_session: interrupted after 2 whisks, kept in {out}/"]
         assert len(list(replay(out))) == 2
+
+
+def test_ctrl_c_before_the_session_is_one_line_and_130(capsys, monkeypatch):
+    sys.path.insert(0, str(ROOT / "examples"))
+    import hardware_session as hs
+
+    def interrupted(**kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hs, "SafetyEnvelope", interrupted)
+    assert hs.main(["--robot-ip", "127.0.0.3"]) == hs.EXIT_INTERRUPTED
+    assert capsys.readouterr().err.strip() == "hardware_session: interrupted"

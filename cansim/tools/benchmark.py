@@ -235,6 +235,7 @@ def _time(fn: Callable[[], Any], rounds: int, settle: int, min_round_s: float,
     finally:
         if timer is not None:
             timer.cancel()
+            timer.join()  # a notice already under way ends before the next workload's line
     t0 = time.perf_counter()
     fn()
     once = max(time.perf_counter() - t0, 1e-7)
@@ -311,8 +312,10 @@ def run_suite(
             slow = backend != "numba" and cells >= 10**6
             say(f"{name} on {backend}")
             med, low, steps = _time(_step_fn(name, backend), 3 if slow else rounds, 2 if slow else settle, min_round_s,
-                                    lambda: say(f"{name} on {backend}: compiling its kernels (a first run on this cache: "
-                                                "up to a minute; they are kept on disk for the next)"))
+                                    lambda name=name, backend=backend: say(
+                                        f"{name} on {backend}: still settling after {COMPILE_NOTICE_S:g} s - its kernels "
+                                        "compiling on a cold cache (up to a minute, once: kept on disk), or a slow "
+                                        "machine"))
             records.append(BenchRecord(name, backend, None, cells, med, low, 3 if slow else rounds, steps))
     if "numba" in chosen and status.get("numba", (False, ""))[0]:
         records += _scaling(chosen_w, rounds, settle, min_round_s, quick, max_threads, say, get_backend)

@@ -47,7 +47,8 @@ EXIT_CODES = {
     EXIT_BAD_INPUT: "bad input: a malformed spec, config or bag, a missing file, a value out of range",
     EXIT_FAILED: "runtime failure: the run could not finish, or some sweep tasks failed",
     EXIT_NOT_BUILT: "not available here: the study is not built yet",
-    EXIT_MISSING_EXTRA: "an optional dependency is missing (the message names the pip extra)",
+    EXIT_MISSING_EXTRA: ("an optional dependency is missing, or a backend asked for cannot run here (the message "
+                         "names the pip extra or says why)"),
     EXIT_INTERRUPTED: "interrupted (Ctrl-C); a sweep resumes when run again",
 }
 
