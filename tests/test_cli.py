@@ -18,7 +18,7 @@ from cansim.backends import backend_status, registered_backends
 
 ROOT = Path(__file__).resolve().parents[1]
 TESTS = Path(__file__).resolve().parent
-COMMANDS = ("demo", "sweep", "study", "replay", "backends", "bench")
+COMMANDS = ("demo", "sweep", "study", "replay", "backends", "bench", "warm-up")
 
 
 def _env():
@@ -408,3 +408,32 @@ def test_bench_says_when_it_compiles_and_marks_a_median_far_above_the_minimum(mo
     assert "100.0 / 9.0 !" in text and "some rounds met a stall" in text
     calm = benchmark.format_tables(benchmark.BenchReport([rec(10.0, 9.0)], {}, {}, True))
     assert "!" not in calm and "stall" not in calm
+
+
+@settings(max_examples=25, deadline=None)
+@given(models=st.lists(st.sampled_from(["ratslam", "whisker", "population", "pop", "", "RatSLAM"]), max_size=3))
+def test_warm_up_warms_what_it_is_told_or_refuses_before_any_work(models):
+    """cansim warm-up --models: each named model warmed and said, in order; anything else a usage error (3)."""
+    import contextlib
+    import io
+
+    spec = ",".join(models)
+    names = [m for m in models if m]
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli.main(["warm-up", "--models", spec, "--backend", "numpy", "--no-progress"])
+    valid = bool(names) and all(m in ("ratslam", "whisker", "population") for m in names)
+    if valid:
+        assert code == 0, err.getvalue()
+        lines = out.getvalue().splitlines()
+        assert [ln.split(":")[0] for ln in lines[:-1]] == names and lines[-1].startswith("warmed in")
+    else:
+        assert code == 3 and "give some of ratslam, whisker, population" in err.getvalue() and not out.getvalue()
+
+
+def test_warm_up_refuses_a_backend_that_cannot_run_here(monkeypatch, capsys):
+    status = dict(backend_status())
+    status["opencl"] = (False, "no OpenCL platform here")
+    monkeypatch.setattr("cansim.backends.backend_status", lambda **k: status)
+    assert cli.main(["warm-up", "--backend", "opencl"]) == 3
+    assert "--backend opencl: no OpenCL platform here" in capsys.readouterr().err

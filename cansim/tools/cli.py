@@ -25,6 +25,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import numpy as np
+
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, InvalidInputError
 
@@ -198,6 +200,54 @@ def _cmd_backends(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+#: What ``cansim warm-up`` compiles: name -> (what it is, a function building the model or population).
+WARM_UP_TARGETS = ("ratslam", "whisker", "population")
+
+
+def _cmd_warm_up(args: argparse.Namespace) -> int:
+    import time
+
+    from cansim.backends import backend_status
+    from cansim.backends.kernel_cache import kernel_cache_dir
+
+    names = [t.strip() for t in args.models.split(",") if t.strip()] if args.models is not None else list(WARM_UP_TARGETS)
+    bad = [n for n in names if n not in WARM_UP_TARGETS]
+    if bad or not names:
+        raise InvalidInputError(f"--models {args.models!r}: give some of {', '.join(WARM_UP_TARGETS)}")
+    usable, why = backend_status().get(args.backend, (False, f"{args.backend!r} is no backend here"))
+    if not usable:
+        raise InvalidInputError(f"--backend {args.backend}: {why}")
+    progress = not args.no_progress
+    t_all = time.perf_counter()
+    for name in names:
+        t0 = time.perf_counter()
+        if name == "ratslam":
+            from cansim.models.ratslam import RatSLAM, RatSLAMConfig
+
+            what = "RatSLAM (default config: 21 x 21 x 36 pose cells, view ids)"
+            RatSLAM(RatSLAMConfig(backend=args.backend)).warm_up(progress=progress)
+        elif name == "whisker":
+            from cansim.models.whisker_ratslam import WhiskerRatSLAM, WhiskerRatSLAMConfig
+
+            what = "WhiskerRatSLAM (default and mapping configs: 6-D pose cells, regions, object map)"
+            for cfg in (WhiskerRatSLAMConfig(backend=args.backend), WhiskerRatSLAMConfig.mapping(backend=args.backend)):
+                WhiskerRatSLAM(cfg).warm_up(progress=progress)
+        else:
+            from cansim.population import Population
+
+            what = "Population presets (360-cell ring, 21 x 21 x 36, 5^6), step and run"
+            for pop, v, w in ((Population.head_direction(360, backend=args.backend), 0.01, None),
+                              (Population.openratslam(21, 36, backend=args.backend), 0.3, 0.05),
+                              (Population.whisker6d(5, 0.02, backend=args.backend), np.full(3, 0.003), np.full(3, 0.02))):
+                pop.warm_up(v, w, run=True, progress=progress)
+        print(f"{name}: {time.perf_counter() - t0:.1f} s - {what}")
+    where = (f"; numba's cache: {os.environ.get('NUMBA_CACHE_DIR') or 'beside the installed modules (__pycache__)'}, "
+             f"generated kernels: {kernel_cache_dir()} - a later process loads them instead of compiling"
+             if args.backend == "numba" else "")
+    print(f"warmed in {time.perf_counter() - t_all:.1f} s on {args.backend}{where}")
+    return EXIT_OK
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from cansim.tools.benchmark import format_tables, run_suite
 
@@ -331,6 +381,17 @@ def build_parser() -> argparse.ArgumentParser:
             "List every registered backend (numpy, numba, opencl): usable here or why not, and what to install.")
     p.add_argument("--refresh", action="store_true", help="probe again instead of using this process' cached answer")
     p.set_defaults(func=_cmd_backends)
+
+    p = add("warm-up", "compile the models' kernels into the disk cache now (for a CI or container image)",
+            "Compile (or load) every kernel of the default RatSLAM, WhiskerRatSLAM and Population presets, so that a "
+            "later process - a test run, a container built from this image - loads them from the disk cache instead "
+            "of compiling for up to a minute in its first step. Configurations of other grid sizes compile their "
+            "own generated kernels once, on their first use.")
+    p.add_argument("--models", default=None, metavar="NAMES",
+                   help=f"comma-separated, some of {', '.join(WARM_UP_TARGETS)} (default: all)")
+    p.add_argument("--backend", default="numba", help="backend to warm (default numba)")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=_cmd_warm_up)
 
     p = add("bench", "time the standard workloads on every backend",
             "The benchmark suite: a Population step on a 360 ring, 21x21x36 and 5^6 grids and a RatSLAM iteration on "
