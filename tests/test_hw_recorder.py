@@ -448,3 +448,26 @@ def test_explore_refuses_bad_frame_retries_before_the_arm_moves(tmp_path, bad):
             explore(arm, SimArray(lambda pose: np.zeros((2000, 18, 3)), arm.pose), rec,
                     [Pose([0.4, -0.1, 0.4], [1.0, 0.0, 0.0, 0.0])], progress=False, frame_retries=bad)
     assert len(arm.received) == sent  # no command went to the arm
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 3), cut=st.floats(0.0, 1.0))
+def test_a_last_line_torn_anywhere_resumes_with_every_whole_line_and_nothing_else(tmp_path_factory, n, cut):
+    """A crash stops the log anywhere in its last line (a cycle's files come before its line, so no earlier line can
+    be torn): the resumed session keeps that line when it is whole (with or without its newline), else drops it with
+    its cycle's files, and appends after them."""
+    folder = tmp_path_factory.mktemp("cut")
+    with Recorder(folder) as rec:
+        for k in range(n):
+            rec.record(_state(float(k)), _records(k, value=float(k)))
+    log = folder / "pose_log.csv"
+    data = log.read_bytes()
+    start = data.rstrip(b"\n").rfind(b"\n") + 1  # the last line's first byte
+    at = start + int(cut * (len(data) - start))
+    log.write_bytes(data[:at])
+    whole = n - 1 + (at >= len(data) - 1)  # the last line is whole when at most its newline is missing
+    with Recorder(folder) as rec:
+        rec.record(_state(10.0), _records(0, value=10.0))
+    values = [float(c.records["B1"].y_counts[0]) for c in replay(folder)]
+    assert values == [float(k) for k in range(whole)] + [10.0]
+    assert len(list(folder.glob("whisk_*.csv"))) == 2 * (whole + 1)  # no file of a dropped cycle is left

@@ -11,6 +11,8 @@ import struct
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from whisker_io.array.control import WhiskPattern
 from whisker_io.errors import (ConnectionFailedError, DeviceRemovedError, DeviceTimeoutError,
@@ -319,3 +321,22 @@ def test_whisking_block_starts_and_always_stops():
         with arr.whisking(mode="wiggle"):
             pass
     assert backend.commands == []
+
+
+@settings(max_examples=30, deadline=None)
+@given(faults=st.lists(st.sampled_from(["short", "gap", "crc"]), max_size=3), retries=st.integers(0, 3),
+       at=st.integers(1, FRAMES_PER_WHISK - 1))
+def test_read_whisk_retrying_returns_the_first_whole_whisk_within_its_retakes(faults, retries, at):
+    """k consecutive whisks spoiled by frame faults: within k <= retries retakes the next whole whisk (index k) comes
+    back, its samples intact; beyond, the last fault is raised. Counted from the queue, not from the function."""
+    arr, backend = open_array(len(faults) + 1)
+    for k, fault in enumerate(faults):  # one fault inside each of whisks 0 .. k-1
+        backend.inject(fault, after_frames=k * FRAMES_PER_WHISK + at)  # never a whisk's first frame
+    if len(faults) <= retries:
+        recs = arr.read_whisk_retrying(retries)
+        assert recs[0].cycle == len(faults)
+        assert np.array_equal(recs[12].y_counts, quantised(whisk_samples(len(faults)))[:, 12, 2])
+    else:
+        with pytest.raises(USBFrameError):
+            arr.read_whisk_retrying(retries)
+    assert arr.counters.discarded_whisks == min(len(faults), retries + 1)
