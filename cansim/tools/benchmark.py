@@ -104,9 +104,12 @@ class BenchReport:
 
     def to_json(self, path: str | os.PathLike[str]) -> Path:
         """Write :meth:`to_dict` to ``path`` (UTF-8, indented); returns the path."""
+        from whisker_io.persistence import write_atomically
+
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
+        text = json.dumps(self.to_dict(), indent=2) + "\n"
+        write_atomically(p, lambda fh: fh.write(text.encode("utf-8")))  # an earlier report is never half replaced
         return p
 
 
@@ -226,7 +229,7 @@ def _step_fn(workload: str, backend: Any) -> Callable[[], Any]:
 def _time(fn: Callable[[], Any], rounds: int, settle: int, min_round_s: float,
           compiling: Callable[[], None] | None = None) -> tuple[float, float, int]:
     timer = threading.Timer(COMPILE_NOTICE_S, compiling) if compiling is not None else None
-    if timer is not None:  # settling takes this long only while kernels compile (a cold cache): say so meanwhile
+    if timer is not None:  # a settle this long is kernels compiling (a cold cache) or a slow machine: say so meanwhile
         timer.daemon = True
         timer.start()
     try:

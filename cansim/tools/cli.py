@@ -25,8 +25,6 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-import numpy as np
-
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, InvalidInputError
 
@@ -200,17 +198,24 @@ def _cmd_backends(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-#: What ``cansim warm-up`` compiles: name -> (what it is, a function building the model or population).
+#: The names ``cansim warm-up --models`` takes: the default RatSLAM, WhiskerRatSLAM and Population presets.
 WARM_UP_TARGETS = ("ratslam", "whisker", "population")
+
+
+def _names(text: str | None) -> list[str] | None:
+    """A comma-separated option as a list of names (None when the option was not given)."""
+    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
 
 
 def _cmd_warm_up(args: argparse.Namespace) -> int:
     import time
 
+    import numpy as np
+
     from cansim.backends import backend_status
     from cansim.backends.kernel_cache import kernel_cache_dir
 
-    names = [t.strip() for t in args.models.split(",") if t.strip()] if args.models is not None else list(WARM_UP_TARGETS)
+    names = _names(args.models) if args.models is not None else list(WARM_UP_TARGETS)
     bad = [n for n in names if n not in WARM_UP_TARGETS]
     if bad or not names:
         raise InvalidInputError(f"--models {args.models!r}: give some of {', '.join(WARM_UP_TARGETS)}")
@@ -251,9 +256,6 @@ def _cmd_warm_up(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     from cansim.tools.benchmark import format_tables, run_suite
 
-    def split(text: str | None) -> list[str] | None:
-        return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
-
     def say(line: str) -> None:
         if not args.no_progress:
             print(f"  timing {line}", file=sys.stderr, flush=True)
@@ -264,11 +266,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     if not os.access(out.parent, os.W_OK):
         raise InvalidInputError(f"--out {out}: cannot write into {out.parent}; give another file")
-    asked = split(args.backends)
+    asked = _names(args.backends)
     if asked is not None and not asked:
         raise InvalidInputError("--backends names no backend; give e.g. --backends numpy,numba (or leave it out: every "
                                 "usable one)")
-    report = run_suite(quick=args.quick, backends=asked, workloads=split(args.workloads),
+    report = run_suite(quick=args.quick, backends=asked, workloads=_names(args.workloads),
                        max_threads=args.max_threads, progress=say)
     m = report.machine
     print(f"{m['cpu']}, {m['usable_cpus']} usable CPU(s), load {m['load_average']}; cansim {m['cansim']}, "

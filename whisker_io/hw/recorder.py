@@ -31,7 +31,7 @@ import numpy as np
 from whisker_io.errors import InvalidInputError
 from whisker_io.hw.arm import Arm, ArmState
 from whisker_io.pose import Pose, PoseLike, as_pose
-from whisker_io.hw.usb_array import FRAME_RETRIES, Array
+from whisker_io.hw.usb_array import FRAME_RETRIES, Array, retake_count
 from whisker_io.records.recording import (
     POSE_LOG_NAME,
     RecordingWriter,
@@ -94,11 +94,12 @@ class Recorder:
         self.directory = Path(directory)
         _not_a_file(self.directory)
         self.directory.mkdir(parents=True, exist_ok=True)
-        _session_state(self.directory)  # a folder it did not leave is refused before anything changes
+        state = _session_state(self.directory)  # a folder it did not leave is refused before anything changes
         log_path = self.directory / POSE_LOG_NAME
-        if log_path.exists() and log_path.stat().st_size:
-            repair_last_line(log_path)  # a whole last line keeps its cycle; a torn one's files are debris below
-        existing, self._next_cycle, unlogged = _session_state(self.directory)
+        # a whole last line keeps its cycle, a torn one's files are debris below: read again only when it changed
+        if log_path.exists() and log_path.stat().st_size and repair_last_line(log_path):
+            state = _session_state(self.directory)
+        existing, self._next_cycle, unlogged = state
         self._last_logged_s = existing[-1].time_s if existing else None
         self._time_offset_s = 0.0
         for path in self.directory.glob(".whisk_*.tmp"):  # what a killed recorder can leave
@@ -327,8 +328,7 @@ def explore(arm: Arm, array: Array, recorder: Recorder, targets: Iterable[PoseLi
     """
     from tqdm.auto import tqdm
 
-    if isinstance(frame_retries, bool) or not isinstance(frame_retries, (int, np.integer)) or frame_retries < 0:
-        raise InvalidInputError(f"frame_retries must be a count >= 0, got {frame_retries!r}")  # before the arm moves
+    retake_count(frame_retries, "frame_retries")  # before the arm moves
     targets = list(targets)
     n = 0
     try:

@@ -306,6 +306,13 @@ def _records(layout: FrameLayout, whisk: int, samples: np.ndarray) -> list[Whisk
             for m, name in enumerate(layout.modules)]
 
 
+def retake_count(value: object, name: str) -> int:
+    """``value`` as a count of retakes (an int >= 0; a bool or a float is refused), or :class:`InvalidInputError`."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidInputError(f"{name} must be a count >= 0, got {value!r}")
+    return int(value)
+
+
 # --------------------------------------------------------------- interface
 class Array(abc.ABC):
     """A whisker array delivering whisk cycles.
@@ -339,9 +346,8 @@ class Array(abc.ABC):
         HardwareError
             As :meth:`read_whisk`.
         """
-        if isinstance(retries, bool) or not isinstance(retries, (int, np.integer)) or retries < 0:
-            raise InvalidInputError(f"retries must be a count >= 0, got {retries!r}")
-        for attempt in range(int(retries) + 1):
+        retries = retake_count(retries, "retries")
+        for attempt in range(retries + 1):
             try:
                 return self.read_whisk()
             except USBFrameError as exc:

@@ -177,10 +177,7 @@ def write_whisk_csv(path: str | os.PathLike[str], record: WhiskRecord) -> Path:
         p = p / whisk_file_name(record.cycle, record.module)
     if not p.parent.is_dir():
         raise InvalidInputError(f"directory {p.parent} does not exist; create it before writing whisks")
-    beyond = _angle_beyond(record.angle_rad)
-    if beyond is not None:  # a file its reader would refuse is never written
-        raise InvalidInputError(f"{record.module}: sample {beyond} angle {float(record.angle_rad[beyond])!r} rad lies "
-                                f"beyond +-{MAX_ANGLE_RAD:.4g} rad: degrees? WhiskRecord angles are radians")
+    _refuse_degrees(record)  # a file its reader would refuse is never written
     cols = record.as_columns()
     body = "\n".join(",".join(format(v, ".17g") for v in row) for row in cols.tolist())
     text = ",".join(WHISK_HEADER) + "\n" + body + "\n"
@@ -307,6 +304,14 @@ def _angle_beyond(angle_rad: np.ndarray) -> int | None:
     return int(beyond[0]) if beyond.size else None
 
 
+def _refuse_degrees(record: WhiskRecord) -> None:
+    """Refuse to write a record whose angles :func:`read_whisk_csv` would refuse (beyond :data:`MAX_ANGLE_RAD`)."""
+    k = _angle_beyond(record.angle_rad)
+    if k is not None:
+        raise InvalidInputError(f"{record.module}: sample {k} angle {float(record.angle_rad[k])!r} rad lies beyond "
+                                f"+-{MAX_ANGLE_RAD:.4g} rad: degrees? WhiskRecord angles are radians")
+
+
 def _looks_numeric(token: str) -> bool:
     try:
         float(token)
@@ -357,11 +362,6 @@ class PoseLogWriter:
         if needs_header:
             self._write(",".join(POSE_LOG_HEADER) + "\n")
             sync_folder(self.path.parent)
-
-    @property
-    def last_time_s(self) -> float:
-        """The time of the log's last line, s (-inf for a log without lines)."""
-        return self._last_time
 
     def _write(self, text: str) -> None:
         data = memoryview(text.encode("utf-8"))
@@ -613,10 +613,7 @@ class RecordingWriter:
         if len(set(lengths.values())) > 1:  # replay refuses such a cycle: it is never written
             raise InvalidInputError(f"the modules of one whisk must hold the same number of samples, got {lengths}")
         for r in recs:  # before any file: write_whisk_csv would refuse it after the others were written
-            k = _angle_beyond(r.angle_rad)
-            if k is not None:
-                raise InvalidInputError(f"{r.module}: sample {k} angle {float(r.angle_rad[k])!r} rad lies beyond "
-                                        f"+-{MAX_ANGLE_RAD:.4g} rad: degrees? WhiskRecord angles are radians")
+            _refuse_degrees(r)
         stem = whisk_file_stem(recs[0].cycle)
         entry = PoseEntry(time_s, pose, stem)
         self._pose_log.check_entry(entry)
