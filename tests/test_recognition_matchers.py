@@ -381,3 +381,21 @@ def test_the_confusion_counts_refuse_a_run_outside_the_rows_and_columns_given() 
         recognition.confusion(rows, ["mug"], ["mug", None])
     with pytest.raises(InvalidInputError, match="presents 'mug'"):
         recognition.confusion(rows, ["cup"], ["box", None])
+
+
+@settings(max_examples=50, deadline=None)
+@given(runs=st.lists(st.tuples(st.sampled_from(["mug", "none", "knot"]), st.sampled_from(["mug", "none", ""])),
+                     max_size=12))
+def test_the_confusion_counts_are_the_runs_counted_by_hand(runs) -> None:
+    """Every run lands in exactly one cell: its presented object's row and its decision's column (None: nothing).
+    As in the study, every library object a run may decide is presented too (two runs that decide nothing)."""
+    runs = [("mug", ""), ("none", ""), *runs]
+    rows = [{"presented": p, "decision": d, "novel": p == "knot"} for p, d in runs]
+    presented, decided, counts = recognition.confusion(rows)
+    assert presented == list(dict.fromkeys(p for p, _ in runs))
+    assert decided == [p for p in presented if p != "knot"] + [None]
+    for i, p in enumerate(presented):
+        for j, d in enumerate(decided):
+            by_hand = sum(1 for q, e in runs if q == p and (e or None) == d)
+            assert counts[i, j] == by_hand
+    assert counts.sum() == len(runs)
