@@ -23,6 +23,10 @@ Usage::
         --map box=box.npz --map box_stack=box_stack.npz --object-centre 0.4 0 0.2 [--out hw_explore]
 
 Replay a recorded session through the same code: ``--replay DIR`` (no robot needed).
+Give your cell's safety limits with ``--envelope cell.json`` (a JSON object of
+:class:`~whisker_io.hw.safety.SafetyEnvelope` fields, fields left out keep their
+defaults; with the defaults many of the search's faces round the default object centre
+are refused and re-planned).
 
 Exit status (one line on stderr says why, never a traceback):
 
@@ -55,7 +59,8 @@ import numpy as np
 
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
-from whisker_io.hw.platform import EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED  # noqa: F401 - the exit table
+from whisker_io.hw.platform import (EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED,  # noqa: F401 - the exit table
+                                    add_envelope_options, envelope_from_options)
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130  # 3-6: whisker_io.hw.platform (a hardware fault)
 #: RCP retract-at-maximum threshold (counts; 98 % of the 2047-count maximum, Sec 4.1.1).
@@ -135,8 +140,7 @@ def _parser() -> argparse.ArgumentParser:
                          "--threshold as a live run does)")
     ap.add_argument("--vendor-id", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--product-id", type=lambda s: int(s, 0), default=None)
-    ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
-                    help="nominal tool z-axis in the base frame (safety envelope)")
+    add_envelope_options(ap)
     return ap
 
 
@@ -156,15 +160,14 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
     from cansim.explore.explorer import Explorer
     from cansim.explore.placement import PlacementParams
     from cansim.explore.search import DefaultSearch
-    from whisker_io.hw.safety import SafetyEnvelope
     from whisker_io.sim.whisk_chain import RecordedChain
 
     if not (args.iterations >= 1 and args.threshold > 0 and args.object_radius > 0):
         return fail(EXIT_USAGE, "--iterations >= 1, --threshold > 0 and --object-radius > 0 are needed")
     try:
-        envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
-    except CansimError as exc:
-        return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
+        envelope = envelope_from_options(args)
+    except (CansimError, OSError) as exc:
+        return fail(EXIT_USAGE, f"invalid safety envelope: {exc}")
     if not args.map:
         return fail(EXIT_USAGE, "give at least one known object with --map NAME=PATH")
     try:

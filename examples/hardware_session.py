@@ -35,9 +35,8 @@ from whisker_io.array.control import WhiskPattern
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, HardwareError
 from whisker_io.hw.platform import (EXIT_NO_ARRAY, EXIT_NO_EXTRA, EXIT_NO_ROBOT, EXIT_STOPPED,  # noqa: F401 - the exit table
-                                    open_platform, session_failure)
+                                    add_envelope_options, envelope_from_options, open_platform, session_failure)
 from whisker_io.hw.recorder import Recorder, explore, raster_poses
-from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import PATTERN_MODES, FrameLayout
 
 
@@ -72,14 +71,13 @@ def _session(argv: list[str] | None, control_factory: Any = None, usb_backend: A
     ap.add_argument("--nz", type=int, default=3)
     ap.add_argument("--mode", choices=PATTERN_MODES, default="retract_on_max")
     ap.add_argument("--rcp-threshold", type=float, default=2000.0, help="counts")
-    ap.add_argument("--tool-axis", type=float, nargs=3, default=(0.0, 0.0, -1.0),
-                    help="nominal tool z-axis in the base frame (safety envelope)")
+    add_envelope_options(ap)
     args = ap.parse_args(argv)  # exits with status 2 on a usage error
 
     try:
-        envelope = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis))
-    except CansimError as exc:
-        return fail(EXIT_USAGE, f"invalid --tool-axis: {exc}")
+        envelope = envelope_from_options(args)
+    except (CansimError, OSError) as exc:
+        return fail(EXIT_USAGE, f"invalid safety envelope: {exc}")
     try:  # before connecting: a folder that is no session of a recorder is refused with nothing deleted
         Recorder.check_folder(args.out)
     except (CansimError, OSError) as exc:

@@ -28,7 +28,45 @@ def test_usage_error_exits_2():
 def test_invalid_envelope_argument_is_a_usage_error():
     proc = _run("--robot-ip", "127.0.0.3", "--tool-axis", "0", "0", "0")
     assert proc.returncode == 2
-    assert proc.stderr.strip().count("\n") == 0 and "invalid --tool-axis" in proc.stderr
+    assert proc.stderr.strip().count("\n") == 0 and "invalid safety envelope: --tool-axis" in proc.stderr
+
+
+def test_the_envelope_file_is_the_one_the_platform_gets(tmp_path, monkeypatch, capsys):
+    """--envelope FILE: the platform is opened with that file's limits (and --tool-axis in place of its axis); a file
+    breaking a limit, of another format, or naming another axis than --tool-axis is a usage error naming the file."""
+    sys.path.insert(0, str(ROOT / "examples"))
+    import hardware_session as hs
+
+    got = []
+
+    def fake_open_platform(ip, envelope, layout, **kwargs):
+        got.append(envelope)
+        raise KeyboardInterrupt  # stop before anything else: the envelope is what is checked here
+
+    monkeypatch.setattr(hs, "open_platform", fake_open_platform)
+    path = tmp_path / "cell.json"
+    path.write_text('{"workspace_min": [0.2, -0.4, 0.02], "workspace_max": [0.8, 0.4, 0.6], "max_tool_tilt": 2.0}')
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path)]) == hs.EXIT_INTERRUPTED
+    assert got[-1].workspace_min == (0.2, -0.4, 0.02) and got[-1].workspace_max == (0.8, 0.4, 0.6)
+    assert got[-1].max_tool_tilt == 2.0 and got[-1].max_tcp_speed == 0.1  # a field left out keeps its default
+    assert got[-1].tool_reference_axis == (0.0, 0.0, -1.0)
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--tool-axis", "1", "0", "0"]) == hs.EXIT_INTERRUPTED
+    assert got[-1].tool_reference_axis == (1.0, 0.0, 0.0) and got[-1].workspace_min == (-0.5, -0.5, 0.05)
+    capsys.readouterr()
+    n_opened = len(got)
+    for text, says in (('{"max_tool_tilt": 4.0}', "max_tool_tilt must be"), ("max_tool_tilt = 1", "not a JSON file"),
+                       ('{"max_tool_tlt": 1.0}', "did you mean 'max_tool_tilt'")):
+        path.write_text(text)
+        assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path)]) == hs.EXIT_USAGE
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err and str(path) in err and "Traceback" not in err
+    path.write_text('{"tool_reference_axis": [0, 0, -1]}')
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path),
+                    "--tool-axis", "1", "0", "0"]) == hs.EXIT_USAGE
+    assert "give the axis in one place" in capsys.readouterr().err
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(tmp_path / "none.json")]) == hs.EXIT_USAGE
+    assert "none.json" in capsys.readouterr().err
+    assert len(got) == n_opened  # no refused envelope reached the platform
 
 
 @pytest.mark.skipif(importlib.util.find_spec("rtde_receive") is None, reason='needs the hw extra (pip install -e ".[hw]")')
@@ -86,9 +124,9 @@ def test_ctrl_c_before_the_session_is_one_line_and_130(capsys, monkeypatch):
     sys.path.insert(0, str(ROOT / "examples"))
     import hardware_session as hs
 
-    def interrupted(**kwargs):
+    def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(hs, "SafetyEnvelope", interrupted)
+    monkeypatch.setattr(hs, "envelope_from_options", interrupted)
     assert hs.main(["--robot-ip", "127.0.0.3"]) == hs.EXIT_INTERRUPTED
     assert capsys.readouterr().err.strip() == "hardware_session: interrupted"

@@ -359,3 +359,47 @@ def test_staleness_limit():
         ENV.check_fresh(0.3)
     with pytest.raises(StaleStateError):
         ENV.check_fresh(math.nan)
+
+
+# ----------------------------------------------------------------- the envelope in a file
+_LIMITS = st.fixed_dictionaries({}, optional={
+    "max_tool_tilt": st.floats(0.01, math.pi), "max_tcp_speed": st.floats(0.001, 0.5),
+    "max_servo_step": st.floats(1e-4, 0.02), "staleness_timeout": st.floats(0.01, 1.0),
+    "overload_samples": st.integers(1, 2000),
+    "workspace_min": st.tuples(*[st.floats(-1.0, -0.01)] * 3), "workspace_max": st.tuples(*[st.floats(0.06, 1.0)] * 3),  # above the default minimum (z 0.05)
+    "tool_reference_axis": st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda a: math.hypot(*a) > 0.1),
+})
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(limits=_LIMITS)
+def test_an_envelope_saved_loads_back_equal_and_a_hand_written_file_keeps_the_defaults(tmp_path, limits):
+    import json
+
+    env = SafetyEnvelope(**limits)
+    env.save(tmp_path / "env.json")
+    assert SafetyEnvelope.load(tmp_path / "env.json") == env
+    (tmp_path / "hand.json").write_text(json.dumps({k: list(v) if isinstance(v, tuple) else v for k, v in limits.items()}))
+    hand = SafetyEnvelope.load(tmp_path / "hand.json")
+    for name in SafetyEnvelope.__dataclass_fields__:  # what the file names, as given; the rest the defaults
+        want = limits.get(name, getattr(ENV, name))
+        assert getattr(hand, name) == (tuple(float(v) for v in want) if isinstance(want, tuple) else want), name
+
+
+@pytest.mark.parametrize("text, error, says", [
+    ("", "CorruptFileError", "not a JSON file"),
+    ("[0.1, 0.2]", "CorruptFileError", "a JSON object of safety limits"),
+    ('{"max_tcp_speed": 0.6}', "ConfigError", "max_tcp_speed must be"),  # above its hard ceiling
+    ('{"max_tcp_speed": NaN}', "ConfigError", "max_tcp_speed must be finite"),
+    ('{"workspace_min": [0, 0, 0], "workspace_max": [1, 1, 0]}', "ConfigError", "workspace_min must be < workspace_max"),
+    ('{"max_tcp_sped": 0.1}', "UnknownFieldError", "did you mean 'max_tcp_speed'"),
+])
+def test_a_bad_envelope_file_is_refused_naming_the_file(tmp_path, text, error, says):
+    import whisker_io.errors as errors
+
+    path = tmp_path / "cell.json"
+    path.write_text(text)
+    with pytest.raises(getattr(errors, error)) as exc:
+        SafetyEnvelope.load(path)
+    assert says in str(exc.value) and str(path) in str(exc.value)
+

@@ -15,6 +15,7 @@ which cable or package to check::
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 from typing import Any, Callable, Iterator, NamedTuple, Optional
 
@@ -24,7 +25,8 @@ from whisker_io.hw.arm import URArm
 from whisker_io.hw.safety import SafetyEnvelope
 from whisker_io.hw.usb_array import FrameLayout, USBArray
 
-__all__ = ["EXIT_NO_ARRAY", "EXIT_NO_EXTRA", "EXIT_NO_ROBOT", "EXIT_STOPPED", "Platform", "open_platform", "session_failure"]
+__all__ = ["EXIT_NO_ARRAY", "EXIT_NO_EXTRA", "EXIT_NO_ROBOT", "EXIT_STOPPED", "Platform", "add_envelope_options",
+           "envelope_from_options", "open_platform", "session_failure"]
 
 #: Exit statuses of the hardware scripts (``examples/hardware_*.py``) for a hardware fault.
 EXIT_NO_ROBOT, EXIT_NO_ARRAY, EXIT_STOPPED, EXIT_NO_EXTRA = 3, 4, 5, 6
@@ -110,3 +112,45 @@ def session_failure(exc: HardwareError, whisks_done: int) -> tuple[int, str]:
     if isinstance(exc, ArrayNotFoundError):
         return EXIT_NO_ARRAY, str(exc)
     return EXIT_STOPPED, f"stopped after {whisks_done} whisks ({type(exc).__name__}): {exc}"
+
+
+def add_envelope_options(parser: argparse.ArgumentParser) -> None:
+    """Give a hardware command line its safety-envelope options: ``--envelope FILE`` (a JSON file of
+    :class:`SafetyEnvelope` fields, :meth:`SafetyEnvelope.load`; the lab's cell: workspace box, tilt,
+    speeds) and ``--tool-axis X Y Z`` (the nominal tool z-axis, base frame; default straight down)."""
+    parser.add_argument("--envelope", default=None, metavar="FILE",
+                        help="safety limits of your cell: a JSON object of SafetyEnvelope fields, e.g. "
+                             '{"workspace_min": [0.2, -0.4, 0.02], "workspace_max": [0.8, 0.4, 0.6], '
+                             '"max_tool_tilt": 2.0} (fields left out keep their defaults)')
+    parser.add_argument("--tool-axis", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                        help="nominal tool z-axis in the base frame (safety envelope; default 0 0 -1, or the "
+                             "--envelope file's tool_reference_axis)")
+
+
+def envelope_from_options(args: argparse.Namespace) -> SafetyEnvelope:
+    """The envelope :func:`add_envelope_options`' options describe: the ``--envelope`` file's (or the
+    defaults), with ``--tool-axis`` given in place of its tool axis.
+
+    Raises
+    ------
+    ConfigError
+        The file or the axis breaks a limit, or the file and ``--tool-axis`` name different axes (the
+        message names the option to mend).
+    CorruptFileError, OSError
+        The ``--envelope`` file is unreadable or not a JSON object of limits.
+    """
+    import dataclasses
+
+    from whisker_io.errors import ConfigError
+
+    envelope = SafetyEnvelope.load(args.envelope) if args.envelope is not None else SafetyEnvelope()
+    if args.tool_axis is None:
+        return envelope
+    try:
+        axis = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis)).tool_reference_axis
+    except ConfigError as exc:
+        raise ConfigError(f"--tool-axis: {exc}") from None
+    if args.envelope is not None and axis != envelope.tool_reference_axis:
+        raise ConfigError(f"--tool-axis {' '.join(f'{v:g}' for v in axis)} and the --envelope file's tool_reference_axis "
+                          f"{list(envelope.tool_reference_axis)} differ: give the axis in one place")
+    return dataclasses.replace(envelope, tool_reference_axis=axis)

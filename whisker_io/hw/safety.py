@@ -20,14 +20,17 @@ base, the tool pointing down within 90 degrees, 0.1 m/s TCP speed.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+import os
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from whisker_io.errors import ConfigError, InvalidInputError, SafetyViolationError, StaleStateError
+from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, SafetyViolationError, StaleStateError
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields, whole_number
 
@@ -169,6 +172,48 @@ class SafetyEnvelope(ConfigDataclass):
             raise ConfigError("tool_reference_axis must be a non-zero vector")
         if self.min_servo_period > self.max_servo_period:
             raise ConfigError("min_servo_period must be <= max_servo_period")
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the envelope as a JSON object of its fields (SI units, as the fields' names say).
+
+        A lab keeps its cell's limits in such a file and gives it to the hardware examples
+        (``--envelope FILE``); :meth:`load` reads it back to an equal envelope. The file is
+        written whole or not at all (:func:`whisker_io.persistence.write_atomically`).
+        """
+        from whisker_io.persistence import write_atomically
+
+        text = json.dumps(dataclasses.asdict(self), indent=2) + "\n"
+        write_atomically(path, lambda fh: fh.write(text.encode("utf-8")))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> "SafetyEnvelope":
+        """Read an envelope written by :meth:`save`, or by hand: a JSON object whose keys are
+        field names; a field left out keeps its default (e.g. ``{"workspace_min": [0.2, -0.4,
+        0.02], "workspace_max": [0.8, 0.4, 0.6], "max_tool_tilt": 2.0}``).
+
+        Raises
+        ------
+        FileNotFoundError
+            No such file.
+        CorruptFileError
+            The file is not JSON, or not one JSON object (message names the file).
+        ConfigError
+            A key names no field (:class:`~whisker_io.errors.UnknownFieldError`, with the nearest
+            field's name), or a value breaks its limit (message names the field and the file).
+        """
+        try:
+            with open(path, encoding="utf-8-sig") as fh:
+                data: Any = json.load(fh)
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise CorruptFileError(f"{os.fspath(path)}: not a JSON file of safety limits ({exc})") from None
+        if not isinstance(data, dict):
+            raise CorruptFileError(f"{os.fspath(path)}: a JSON object of safety limits (field: value) was expected, "
+                                   f"got {type(data).__name__}")
+        try:
+            return cls(**data)
+        except ConfigError as exc:
+            raise type(exc)(f"{os.fspath(path)}: {exc}") from None
 
     # ------------------------------------------------------------------ poses
     def _tilt(self, rotation: Rotation) -> np.ndarray:
