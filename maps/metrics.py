@@ -84,8 +84,10 @@ def experience_metric(
     *,
     combine: Literal["or", "and"] = "or",
     wrap_angles: bool = True,
+    perceived: Literal["first", "last"] = "first",
+    inclusive: bool = True,
 ) -> ExperienceMetricResult:
-    """Experience Metric: ARR and ARCR, a transcription of Alg 1 of the thesis (Sec 3.2.3.1).
+    """Experience Metric: ARR and ARCR, Alg 1 of the thesis (Sec 3.2.3.1) read with its text.
 
     Parameters
     ----------
@@ -111,6 +113,17 @@ def experience_metric(
         Line 22 takes ``abs(theta_true - theta_perceived)``; with True (default)
         the difference is wrapped to [-pi, pi) first, so headings either side
         of +-180 deg compare as close. False = literal.
+    perceived : {"first", "last"}
+        Which earlier pose of ``e_i`` is its "perceived" pose. The text of Sec 3.2.3.1
+        says the true pose "at the time at which the experience was first generated":
+        ``"first"`` (default). The printed line 18 takes the *last* earlier time ``e_i``
+        was active: ``"last"``. They differ once an experience has been re-localised to
+        from a drifted pose: with ``"last"`` a chain of small drifts each passes the
+        thresholds while the experience wanders from where it was made.
+    inclusive : bool
+        True (default): a re-localisation is correct when its errors "do not exceed"
+        ``pos_threshold`` and ``angle_threshold_deg`` (the text), i.e. ``<=``. False: the
+        printed line 23's strict ``<``.
 
     Returns
     -------
@@ -123,7 +136,8 @@ def experience_metric(
     (``r1 and not r2``) when ``e_i`` occurred before and it is not merely a
     stay on the previous experience that was not itself a re-localisation
     target. Each re-localisation is judged against the ground truth at the
-    last earlier time ``e_i`` was active (its "perceived" pose). While the
+    time ``e_i`` was first active (its "perceived" pose; ``perceived="last"``: the
+    last earlier time). While the
     last judged re-localisation was correct (``rc``), the previous experience
     joins the valid set ``C``; after an incorrect one, new experiences are
     invalid until a correct re-localisation.
@@ -137,6 +151,10 @@ def experience_metric(
         raise InvalidInputError(f"base_end must be an integer in [1, {n - 1}] (entries in the base set), got {base_end!r}")
     if combine not in ("or", "and"):
         raise InvalidInputError(f"combine must be 'or' or 'and', got {combine!r}")
+    if perceived not in ("first", "last"):
+        raise InvalidInputError(f"perceived must be 'first' or 'last', got {perceived!r}")
+    if not isinstance(inclusive, (bool, np.bool_)):
+        raise InvalidInputError(f"inclusive must be True or False, got {inclusive!r}")
     if not (pos_threshold > 0 and angle_threshold_deg > 0):
         raise InvalidInputError("pos_threshold and angle_threshold_deg must be > 0")
     ang_thr = math.radians(angle_threshold_deg)
@@ -144,25 +162,27 @@ def experience_metric(
     valid = set(ids[:base_end])  # C
     reloc_set: set[int] = set()  # R (membership is all Alg 1 needs)
     correct_set: set[int] = set()  # R_c
-    last_seen: dict[int, int] = {}
+    seen: dict[int, int] = {}  # the perceived pose's index of every id seen: its first or its last time
     for j in range(base_end):
-        last_seen[ids[j]] = j
+        if perceived == "last" or ids[j] not in seen:
+            seen[ids[j]] = j
+    within = (lambda err, limit: err <= limit) if inclusive else (lambda err, limit: err < limit)
     reloc_idx: list[int] = []
     correct_idx: list[int] = []
     rc = True
     for i in range(base_end, n):
         e_prev, e_i = ids[i - 1], ids[i]
-        r1 = e_i in last_seen  # e_i in E_past = E[:i]
+        r1 = e_i in seen  # e_i in E_past = E[:i]
         r2 = e_i == e_prev and e_prev not in reloc_set
         if r1 and not r2:
             reloc_set.add(e_i)
             reloc_idx.append(i)
         if e_i in reloc_set:
-            i_past = last_seen[e_i]
+            i_past = seen[e_i]
             eps_p = math.hypot(truth[i, 0] - truth[i_past, 0], truth[i, 1] - truth[i_past, 1])
             dth = truth[i, 2] - truth[i_past, 2]
             eps_th = abs(float(wrap_to_pi(dth))) if wrap_angles else abs(dth)
-            c1 = e_i in valid and eps_p < pos_threshold and eps_th < ang_thr
+            c1 = e_i in valid and within(eps_p, pos_threshold) and within(eps_th, ang_thr)
             c2 = e_i == e_prev and e_prev in correct_set
             if (c1 or c2) if combine == "or" else (c1 and c2):
                 correct_set.add(e_i)
@@ -172,7 +192,8 @@ def experience_metric(
                 rc = False
         if rc and e_prev not in valid:
             valid.add(e_prev)
-        last_seen[e_i] = i
+        if perceived == "last" or e_i not in seen:
+            seen[e_i] = i
     eta, eta_c, eta_exp = len(reloc_idx), len(correct_idx), n - base_end
     return ExperienceMetricResult(
         arr=eta / eta_exp,

@@ -44,7 +44,11 @@ What runs
   (:meth:`whisker_io.contact.contact_angle.ContactAngleParams.ch3`); the Ch.5 pipeline's
   500 counts missed three maze contacts in four.
 * Metrics (:mod:`maps.metrics`): ARR and ARCR (Alg 1 with the project's reading of it;
-  base set = the start and the first loop; 0.1 m / 25 deg), the Energy Metric
+  base set = the start and the first loop; 0.1 m / 25 deg, "do not exceed"; a
+  re-localisation judged against the true pose where the experience was first made, as
+  Sec 3.2.3.1's text says - since 2026-12-06; the ARCR figures below dated earlier took
+  the printed line 18's last earlier occurrence and ``<``: on the quick study's 24 runs the
+  change moved ARCR by -0.004 to +0.008, ARR not at all, the calibration not at all), the Energy Metric
   (Eq 3.2-3.3) over the relations between consecutive experiences - each experience
   taken at the iteration it became the active one, its relaxed map pose against the
   true pose then - and the absolute trajectory errors (RMSE after rigid alignment)
