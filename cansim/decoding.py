@@ -44,7 +44,12 @@ def circular_mean_index(profile: np.ndarray) -> float:
 def window_indices(centre: int, window: int, n: int) -> np.ndarray:
     """Indices ``centre - window .. centre + window`` wrapped into ``[0, n)``.
 
-    Clipped to the whole axis when ``2 * window + 1 >= n`` so no cell appears twice.
+    Clipped to the whole axis when ``2 * window + 1 >= n`` so no cell appears twice. On an
+    odd axis that is the cap ``window <= (n - 1) // 2``; on an even axis of ``n <= 2 * window``
+    cells (4 or 6 with the default 3) the window is all ``n`` cells, the cell opposite the
+    peak included, where that cap would leave it out (decision: every cell counted once
+    either way; the thesis' axes, 5, 21, 30 and 36 cells, never meet the case). Every
+    backend's decoding follows this rule.
     """
     if 2 * window + 1 >= n:
         return np.arange(n)
