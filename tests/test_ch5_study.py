@@ -20,7 +20,7 @@ from cansim.models.whisker_ratslam import WhiskerRatSLAM
 from maps.object_library import append_object_maps
 from maps.object_map import ObjectMap
 from maps.odometry import SpatialOdometry
-from whisker_io.errors import ConfigError, InvalidInputError
+from whisker_io.errors import CansimError, ConfigError, InvalidInputError
 
 from cansim.studies import ch5_object_maps as ch5_study
 
@@ -531,6 +531,34 @@ def test_training_the_ch4_model_for_the_svr_contacts_is_announced(tmp_path: Path
     assert any("training it once" in r.getMessage() and "--radial-model PATH reuses one" in r.getMessage()
                for r in caplog.records)
     assert ch5_study._ensure_radial_model("given.skops", tmp_path) == "given.skops" and len(calls) == 1
+    ch5_study._ensure_radial_model(None, tmp_path / "quiet", progress=False)  # --no-progress reaches the Ch.4 run
+    assert calls[-1] == ["--quick", "--out", str(tmp_path / "quiet" / "ch5_radial"), "--no-progress"]
+
+
+def test_the_svr_models_extrapolation_is_said_once_naming_the_whiskers_outside_its_lengths() -> None:
+    """The study's 18-whisker array has 60, 100 and 160-mm whiskers (Sec 6.1.3.1.2); a model trained on 65-137 mm
+    (the margin of TrainedModel.predict's warning: 10 % of 137 mm) extrapolates on the 160-mm ones only."""
+    note = ch5_study._extrapolation_note("svr9.skops", {"WL": (0.065, 0.137), "CA": (586.1, 2004.0), "AV": (1.0, 5.0)})
+    assert "svr9.skops" in note and "WL 0.065 to 0.137 m" in note and "CA 586.1 to 2004 counts" in note
+    assert "the array's 160-mm whiskers" in note and "60-mm" not in note.replace("160-mm", "") and "100-mm" not in note
+    wide = ch5_study._extrapolation_note("m.skops", {"WL": (0.05, 0.2)})
+    assert "whiskers (Sec" not in wide and "extrapolations" in wide
+    assert "whiskers (Sec" not in ch5_study._extrapolation_note("svr10.skops", {"CA": (586.1, 2004.0)})  # no WL input
+
+
+def test_maps_an_earlier_run_left_in_the_folder_are_named(tmp_path: Path) -> None:
+    for name in ("mug.npz", "barrel.npz", "kettle.npz", "notes.txt"):
+        (tmp_path / name).write_bytes(b"")
+    assert ch5_study._stale_maps(tmp_path, [str(tmp_path / "mug.npz"), tmp_path / "box.npz"]) == ["barrel.npz", "kettle.npz"]
+    assert ch5_study._stale_maps(tmp_path, [tmp_path / n for n in ("mug.npz", "barrel.npz", "kettle.npz")]) == []
+
+
+def test_a_bad_object_leaves_no_out_folder_behind(tmp_path: Path) -> None:
+    """Every argument is checked before --out is made: a refused run left an empty folder (a student's pass)."""
+    out = tmp_path / "never"
+    with pytest.raises((SystemExit, CansimError)):
+        ch5_study.main(["--quick", "--out", str(out), "--objects", "mug", "--novel", "mug"])
+    assert not out.exists()
 
 
 def test_the_objects_help_lists_every_registered_name(capsys) -> None:
@@ -550,7 +578,8 @@ def test_without_a_novel_object_findings_4_and_7_are_not_measured():
     build = dict(object="mug", config=ch5_study.BEST, position_m=[0.0], rotation_deg=[0.0], step_m=0.1, step_deg=10.0,
                  n_experiences=1, n_regions=1, n_iterations=10, dr_error_m=[0.0], matching="mapping")
     text = ch5_study.summary([build], [_id_row("mug", "A", 5.0, 90), _id_row("mug", "B", 5.0, 90)], [], s,
-                             ch5_study.BEST, True)
+                             ch5_study.BEST, True, notes=["A note said once"])
+    assert text.count("A note said once.") == 1
     for finding in ("4.", "7."):
         line = _finding(text, finding)
         assert "NOT measured: no novel object was presented" in line and "NOT reproduced" not in line, line

@@ -4,6 +4,7 @@ thread per worker process, the jobs run in this process when ``workers <= 1``.""
 from __future__ import annotations
 
 import os
+import warnings
 
 import numba
 from hypothesis import given, settings
@@ -35,3 +36,23 @@ def test_one_worker_runs_the_jobs_here_on_this_process_threads() -> None:
 def test_any_jobs_any_workers_give_the_in_order_results(jobs: list[int], workers: int) -> None:
     out = pool_map(_square_and_threads, jobs, workers=workers, desc="test", progress=False)
     assert [r[0] for r in out] == [x * x for x in jobs]
+
+
+def _warn_twice(k: int) -> tuple[int, int]:
+    """Warn a FutureWarning and a UserWarning (messages unique per job, so no once-per-place registry hides them);
+    how many of each were shown."""
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.warn(f"future {k}", FutureWarning)
+        warnings.warn(f"user {k}", UserWarning)
+    return sum(w.category is FutureWarning for w in shown), sum(w.category is UserWarning for w in shown)
+
+
+def test_quiet_warnings_are_not_shown_by_the_jobs_here_or_in_the_workers() -> None:
+    """quiet=(FutureWarning,): the jobs show no FutureWarning, in this process and in worker processes; other
+    warnings still show; and this process' own filters are as they were afterwards."""
+    before = list(warnings.filters)
+    for workers in (1, 2):
+        assert pool_map(_warn_twice, [0, 1, 2], workers, "test", False, quiet=(FutureWarning,)) == [(0, 1)] * 3
+        assert pool_map(_warn_twice, [3, 4], workers, "test", False) == [(1, 1)] * 2
+    assert warnings.filters == before
+

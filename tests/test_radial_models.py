@@ -15,7 +15,7 @@ import pytest
 import trimesh
 
 from whisker_io.errors import InvalidInputError, CansimError
-from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError
+from whisker_io.radial.errors import EmptyDatasetError, ExtrapolationWarning, FeatureMismatchError
 from whisker_io.radial.evaluation import (
     RESULT_COLUMNS,
     evaluate_models,
@@ -248,7 +248,7 @@ def test_inputs_outside_the_training_data_are_warned_of_once_and_still_estimated
     wrong_units = test.features.copy()
     wrong_units[:3, FEATURE_NAMES.index("AV")] *= 180 / np.pi  # deg/s
     wrong_units[5, FEATURE_NAMES.index("WL")] = 0.3  # a 300-mm whisker
-    with pytest.warns(UserWarning) as record:
+    with pytest.warns(ExtrapolationWarning) as record:
         out = svr.predict(wrong_units)
     assert len(record) == 1 and record[0].filename == __file__  # pointing at the caller
     text = str(record[0].message)

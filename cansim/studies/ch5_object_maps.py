@@ -1,4 +1,4 @@
-"""Thesis Ch.5 in one command: 6-D localisation on seven objects and object identification (Table 5.1, Fig 5.14-5.17).
+"""Thesis Ch.5 in one command: 6-D localisation on six mapped objects and identification, a novel seventh included (Table 5.1, Fig 5.14-5.17).
 
 Run::
 
@@ -24,7 +24,10 @@ fixed seed per run derived from ``--seed``, the run's object, configuration and 
    WhiskerRatSLAM run over ``--loops`` loops of trajectory A with Eq 6.4-6.11 odometry
    noise and Sec 6.1.3.1.2 contact noise scaled by ``--noise-scale``. At every
    re-localisation the error is the distance between the true pose now and the true pose
-   when the experience was created (:func:`maps.localisation.relocalisation_errors`).
+   when the experience was created (:func:`maps.localisation.relocalisation_errors`; the
+   thesis compares the truth with the "re-localization estimate", Sec 5.2.2.1: the place
+   the experience stands for. Trajectory A repeats its poses exactly, so a correct
+   re-localisation's error is 0 and most runs' medians are 0).
    The pass mark is the median step between whisks (Sec 5.2.2.1).
 3. **Identification** (Fig 5.16-5.17): the object maps of one configuration
    (``--id-config``, default the thesis' best: both features, no update, SVR) are
@@ -160,7 +163,8 @@ from __future__ import annotations
 import csv
 import logging
 import math
-from collections.abc import Iterable, Sequence
+import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -168,7 +172,7 @@ from typing import Any
 import numpy as np
 
 from cansim.seeding import derive_seed
-from whisker_io.array.geometry import THESIS_POSITIONS_MM
+from whisker_io.array.geometry import THESIS_LENGTHS_M, THESIS_POSITIONS_MM
 from cansim.studies.object_options import (add_mesh_options, check_distinct, conform_objects, labelled_rows, object_labels,
                                            seed_name)
 from cansim.studies.process_pool import pool_map
@@ -575,7 +579,11 @@ def _calibrate_job(job: tuple[float, float, int, str, str | None]) -> dict[str, 
 
 
 # --------------------------------------------------------------------------- the study
-def _ensure_radial_model(path: str | None, out: Path) -> str:
+def _ensure_radial_model(path: str | None, out: Path, progress: bool = True) -> str:
+    """The SVR contact model: ``path``, or ``svr9`` of a quick Ch.4 run trained once into ``out/ch5_radial``.
+
+    ``svr9`` rather than the thesis' ``svr10`` (Sec 6.1.4): in this library's Ch.4 reproduction svr10 (no
+    whisker length among its inputs) errs far more than svr9 (:mod:`cansim.studies.ch4_radial_distance`)."""
     if path:
         return path
     model = out / "ch5_radial" / "svr9.skops"
@@ -584,8 +592,33 @@ def _ensure_radial_model(path: str | None, out: Path) -> str:
 
         logger.info("The SVR contact estimate needs the Ch.4 radial-distance model: training it once (the Ch.4 study's "
                     "--quick run) into %s; --radial-model PATH reuses one, --contacts tip needs none", model.parent)
-        ch4_radial_distance.main(["--quick", "--out", str(model.parent)])
+        ch4_radial_distance.main(["--quick", "--out", str(model.parent)] + ([] if progress else ["--no-progress"]))
     return str(model)
+
+
+def _stale_maps(folder: Path, written: Iterable[str | os.PathLike[str]]) -> list[str]:
+    """The ``.npz`` maps in ``folder`` that are not among ``written`` (an earlier run's, e.g. a full run's beside a
+    ``--quick`` one's), sorted by name: the study warns of them and leaves them."""
+    mine = {Path(p).resolve() for p in written}
+    return sorted(p.name for p in folder.glob("*.npz") if p.resolve() not in mine)
+
+
+def _extrapolation_note(name: str, trained: Mapping[str, tuple[float, float]]) -> str:
+    """One line on where the SVR contact model ``name``, trained on ``trained`` (its ``training_range``), extrapolates
+    on the study's array (said once; the jobs do not repeat the model's own
+    :class:`~whisker_io.radial.errors.ExtrapolationWarning`)."""
+    from whisker_io.radial.features import FEATURE_UNITS
+    from whisker_io.radial.models import OUTSIDE_MARGIN
+    said = [f"{f} {lo:.4g} to {hi:.4g} {FEATURE_UNITS[f]}" for f, (lo, hi) in trained.items() if f in ("WL", "CA")]
+    outside = []
+    if "WL" in trained:
+        lo, hi = trained["WL"]
+        pad = OUTSIDE_MARGIN * max(hi - lo, abs(hi), abs(lo))
+        outside = [f"{1000 * v:.0f}-mm" for v in sorted(set(THESIS_LENGTHS_M.values())) if not lo - pad <= v <= hi + pad]
+    lengths = (f"the array's {' and '.join(outside)} whiskers (Sec 6.1.3.1.2) lie outside that, and " if outside else "")
+    return (f"The SVR contact model {name} was trained on {'; '.join(said) or 'its own range'}: {lengths}contacts "
+            "beyond its training data are extrapolations (the thesis, too, applied its Ch.4 model to this array); "
+            "the model's warning of them is said here once, not in every run")
 
 
 def localisation_rows(builds: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -681,31 +714,34 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     fig.tight_layout()
     fig.savefig(out / "fig5_14b_dead_reckoning.png", dpi=110)
     plt.close(fig)
-    # Fig 5.15: error box plots per object, step drawn, best configuration starred
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    # Fig 5.15: error box plots per object, step drawn, best configuration starred (its median under the tick
+    # label: annotations beside the stars overlapped, most medians being 0 - trajectory A repeats its poses)
+    matching = {"mapping": "pose-consistent matching", "thesis": "Eq 5.5 matching alone"}.get(builds[0]["matching"], "") \
+        if builds else ""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
-        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=[label[o] for o in objs],
-                           showfliers=False)
+        ticks = []
         for i, o in enumerate(objs):
             st = next(b[step_key] for b in builds if b["object"] == o)
             ax.hlines(st, i + 0.6, i + 1.4, colors="tab:red", linestyles="--")
             sb = [b for b in builds if b["object"] == o and b["config"] == star and len(b[key])]
             if sb:
                 m = _median(sb[0][key])
-                ax.plot(i + 1, m, marker="*", ms=14, color="gold", mec="k")
-                ax.annotate(f"median {m:.3g} {unit}", (i + 1, m), textcoords="offset points", xytext=(6, 6), fontsize=7)
-        ax.set_xlabel("object")
+                ax.plot(i + 1, m, marker="*", ms=14, color="gold", mec="k", zorder=3)
+            ticks.append(f"{label[o]}\n\u2605 {_median(sb[0][key]):.3g}" if sb else f"{label[o]}\n\u2605 -")
+        parts = ax.boxplot([v if len(v) else np.zeros(1) for v in vals], tick_labels=ticks, showfliers=False)
+        ax.set_xlabel(f"object (\u2605: median of {star.label}, {unit})")
         ax.set_ylabel(f"re-localisation error ({unit})")
     from matplotlib.lines import Line2D
 
-    legend = [Line2D([], [], color="tab:red", ls="--", label="step between whisks"),
+    legend = [Line2D([], [], color="tab:red", ls="--", label="step between whisks (the pass mark)"),
               Line2D([], [], marker="*", ms=12, color="gold", mec="k", ls="", label=f"median of {star.label}"),
               *boxplot_handles(parts)]
-    axes[0].legend(handles=legend, fontsize=7, loc="upper left")
-    axes[0].set_title("Fig 5.15: position error per object (boxes: all configurations)")
-    axes[1].set_title("Fig 5.15: rotation error per object")
-    fig.tight_layout()
+    axes[0].set_title(f"Fig 5.15: position error, {matching} (boxes: all configurations)", fontsize=10)
+    axes[1].set_title(f"Fig 5.15: rotation error, {matching}", fontsize=10)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    fig.legend(handles=legend, fontsize=7, loc="lower center", ncol=len(legend), frameon=False)
     fig.savefig(out / "fig5_15_localisation.png", dpi=110)
     plt.close(fig)
     # Fig 5.16: experience history + confidence course for one presentation (plane or the first, trajectory A)
@@ -735,7 +771,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
         a1.set_title(f"Fig 5.16: {label.get(r['presented'], r['presented'])} presented (trajectory A)")
         for k, name in enumerate(r["names"]):
             a2.plot(r["confidence"][:, k], color=cmap(k), label=label.get(name, name))
-        a2.axhline(RC_THRESHOLD, color="tab:red", lw=1, label=f"threshold {RC_THRESHOLD:g}")
+        a2.axhline(RC_THRESHOLD, color="k", lw=1, ls="--", label=f"threshold {RC_THRESHOLD:g}")  # no object's colour
         a2.set_xlabel("iteration of the exploration")
         a2.set_ylabel("confidence c_k")
         a2.set_title("raw confidence of each map identity during the presentation")
@@ -762,6 +798,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
             ax.set_xlabel("map identity")
             ax.set_title(f"Fig 5.17: max confidence, trajectory {fam}")
         axes[0].set_ylabel("presented object")
+        fig.subplots_adjust(bottom=0.25)  # room for the rotated identities and the axis label under them
         fig.colorbar(im, ax=axes, shrink=0.8, label="max raw confidence c_k over the run")
         fig.savefig(out / "fig5_17_confidence.png", dpi=110)
         plt.close(fig)
@@ -853,11 +890,12 @@ def _localisation_findings(builds: Sequence[dict[str, Any]], star: Config, tag: 
 
 
 def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cals: Sequence[dict[str, Any]], s: StudyConfig,
-            star: Config, quick: bool, compare: Sequence[dict[str, Any]] = ()) -> str:
+            star: Config, quick: bool, compare: Sequence[dict[str, Any]] = (), notes: Sequence[str] = ()) -> str:
     """``ch5_summary.txt``: each thesis finding, the measured figure, reproduced or not.
 
     ``builds`` are the localisation runs of the study's matching (``s.matching``), whose
-    maps identification uses; ``compare`` the same runs with the other matching.
+    maps identification uses; ``compare`` the same runs with the other matching; ``notes``
+    lines on the run's set-up said once (e.g. :func:`_extrapolation_note`), after the thresholds.
     """
     mapped = {b["object"] for b in builds}
     # one label per object for the whole summary, in the order figures() labels them (mapped, then presented)
@@ -870,8 +908,9 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
          "uses Eq 5.5 alone (WhiskerRatSLAM.library: the maps are in other frames than the exploration)."),
         (f"Contact noise: {s.noise_scale:g} x Sec 6.1.3.1.2 (position N(0, {0.25 * s.noise_scale:.3g} x whisker length) "
          f"along the shaft, slope N(0, {0.33 * s.noise_scale:.3g})); the Ch.5 noise is not printed in the thesis."),
-        (f"Steps: largest {STEP[0]:g} m / {STEP[1]:g} deg between whisks, the Box {BOX_STEP[0]:g} m / {BOX_STEP[1]:g} deg "
-         "(the thesis' Box 3 cm and 3 deg cannot both hold on a loop around it: module docstring)."),
+        (f"Steps: trajectory A's whisks at most {STEP[0]:g} m / {STEP[1]:g} deg apart (the thesis' about 11 cm / 12 deg), "
+         f"the Box's {BOX_STEP[0]:g} m / {BOX_STEP[1]:g} deg (the thesis' 3 cm and 3 deg cannot both hold on a loop "
+         "around it: module docstring); each run's pass mark below is its own median step."),
     ]
     from whisker_io.sim.trajectories import REACH_CONTACTS
 
@@ -891,6 +930,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                      f"median NMSE same {cal['same_nmse_median']:.3g} vs next {cal['next_nmse_median']:.3g}; "
                      f"next-pose pairs under the thresholds: chi2 {cal['next_chi2_below_threshold']:.2f}, "
                      f"NMSE {cal['next_nmse_below_threshold']:.2f}).")
+    lines += [f"{note}." for note in notes]
     lines += [f"Warning: {line}." for line in empty_maps(builds, label, star)]
     lines.append("")
     lines.append(f"Localisation, {_matching_name(s.matching)} (Fig 5.15; median re-localisation error vs step size; "
@@ -1003,7 +1043,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"contact noise as a multiple of Sec 6.1.3.1.2 (default {DEFAULT_NOISE_SCALE}; 1 = the Ch.6 values)")
     ap.add_argument("--pfh-threshold", type=float, help="T_pfh for every contact model (default: calibrated per model)")
     ap.add_argument("--sda-threshold", type=float, help="T_sda for every contact model (default: calibrated per model)")
-    ap.add_argument("--calibration-quantile", type=float, default=0.75)
+    ap.add_argument("--calibration-quantile", type=float, default=0.75,
+                    help="the T_pfh / T_sda thresholds are this quantile of the same-pose distances (0-1; default 0.75: "
+                         "three quarters of true revisits are candidates)")
     ap.add_argument("--thesis-matching", action="store_true",
                     help="build the maps with Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis) instead of "
                          "pose-consistent matching (WhiskerRatSLAMConfig.mapping)")
@@ -1032,11 +1074,11 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--calibration-quantile must lie in (0, 1], got {a.calibration_quantile}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     out = a.out
-    out.mkdir(parents=True, exist_ok=True)
-    # a bad name or mesh fails here, with the reason, before any work; mesh files changed by
-    # --scale-to-m / --up-axis are run from their copies in out/objects
+    # a bad name or mesh fails here, with the reason, before any work (and before --out is made); mesh
+    # files changed by --scale-to-m / --up-axis are run from their copies in out/objects
     given = list(a.objects or (("mug", "box", "plane") if a.quick else MAPPED))
     check_distinct(given, a.novel)
+    out.mkdir(parents=True, exist_ok=True)
     conformed = conform_objects([*given, *a.novel], out / "objects", scale_to_m=a.scale_to_m, up_axis=a.up_axis)
     objects, novel = conformed[:len(given)], conformed[len(given):]
     loops = a.loops or (2 if a.quick else 3)
@@ -1049,9 +1091,18 @@ def main(argv: list[str] | None = None) -> int:
     id_cfg = _config(a.id_config)
     if id_cfg not in configs:
         id_cfg = configs[-1]
-    radial = _ensure_radial_model(a.radial_model, out) if "svr" in contacts else None
+    radial = _ensure_radial_model(a.radial_model, out, progress=not a.no_progress) if "svr" in contacts else None
+    quiet: tuple[type[Warning], ...] = ()
+    notes = []
+    if radial is not None:  # the model extrapolates on this array on purpose: said once (the summary), not per job
+        from whisker_io.radial.errors import ExtrapolationWarning
+
+        from whisker_io.radial.persistence import load_model
+
+        notes.append(_extrapolation_note(Path(radial).name, load_model(radial).training_range))
+        quiet = (ExtrapolationWarning,)
     cals = pool_map(_calibrate_job, [(a.noise_scale, a.calibration_quantile, a.seed, c, radial) for c in contacts],
-                     a.workers, "ch5 thresholds", not a.no_progress)
+                     a.workers, "ch5 thresholds", not a.no_progress, quiet)
     _write_csv(out / "ch5_calibration.csv", cals, list(cals[0]))
     thresholds = {r["contact_model"]: (r["pfh_threshold"] if a.pfh_threshold is None else a.pfh_threshold,
                                        r["sda_threshold"] if a.sda_threshold is None else a.sda_threshold) for r in cals}
@@ -1062,23 +1113,27 @@ def main(argv: list[str] | None = None) -> int:
     # one file per object, named by its stem (a mesh file's path is no file name; distinct stems)
     label = object_labels([*objects, *novel])  # one name per object: the CSVs', the summary's, its map file's
     map_path = {o: str(maps_dir / f"{label[o]}.npz") for o in objects}
+    stale = _stale_maps(maps_dir, map_path.values())
+    if stale:
+        logger.warning("%s holds maps this run does not write (an earlier run's): %s - they are not part of this "
+                       "run's results; give another --out to keep runs apart", maps_dir, ", ".join(stale))
     jobs = [(o, c, s, map_path[o] if c == id_cfg else None) for o in objects for c in configs]
     other = replace(s, matching="mapping" if a.thesis_matching else "thesis")
     if not a.no_compare:
         jobs += [(o, c, other, None) for o in objects for c in configs]
-    runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)", not a.no_progress)
+    runs = pool_map(build_job, jobs, a.workers, "ch5 maps (trajectory A)", not a.no_progress, quiet)
     builds = [b for b in runs if b["matching"] == matching]
     compare = [b for b in runs if b["matching"] != matching]
     _write_csv(out / "ch5_localisation.csv", labelled_rows(localisation_rows(runs), label, ("object",), of="object"),
                LOC_COLUMNS)
     paths = [map_path[o] for o in objects]
     id_jobs = [(p, fam, paths, list(objects), id_cfg, s) for fam in "AB" for p in (*objects, *novel)]
-    ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification", not a.no_progress)
+    ids = pool_map(identify_job, id_jobs, a.workers, "ch5 identification", not a.no_progress, quiet)
     id_rows = identification_rows(ids)
     _write_csv(out / "ch5_identification.csv", labelled_rows(id_rows, label, ("presented", "map_identity"), of="presented"),
                ID_COLUMNS)
     figures(out, builds, ids, id_rows, id_cfg)
-    text = summary(builds, id_rows, cals, s, id_cfg, a.quick, compare)
+    text = summary(builds, id_rows, cals, s, id_cfg, a.quick, compare, notes)
     (out / "ch5_summary.txt").write_text(text)
     print(text)
     return 0

@@ -12,6 +12,7 @@ kernels give the same bits on any number of threads.
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -22,14 +23,17 @@ J = TypeVar("J")
 R = TypeVar("R")
 
 
-def _one_numba_thread() -> None:
-    """Worker initialiser: this process's parallel kernels on one thread."""
+def _one_numba_thread(quiet: tuple[type[Warning], ...] = ()) -> None:
+    """Worker initialiser: this process's parallel kernels on one thread, the ``quiet`` warnings silenced."""
     import numba
 
     numba.set_num_threads(1)
+    for category in quiet:
+        warnings.simplefilter("ignore", category)
 
 
-def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, progress: bool = True) -> list[R]:
+def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, progress: bool = True,
+             quiet: tuple[type[Warning], ...] = ()) -> list[R]:
     """``[fn(j) for j in jobs]`` in order, in ``workers`` processes when ``workers > 1``.
 
     Parameters
@@ -44,6 +48,8 @@ def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, p
         The progress bar's label (tqdm, on stderr).
     progress : bool
         Show the progress bar.
+    quiet : tuple of Warning classes
+        Warnings the jobs do not show (the caller says them once instead of once per job and process).
 
     Returns
     -------
@@ -53,8 +59,11 @@ def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, p
     from tqdm import tqdm
 
     if workers <= 1:
-        return [fn(j) for j in tqdm(jobs, desc=desc, file=sys.stderr, disable=not progress)]
-    with ProcessPoolExecutor(max_workers=workers, initializer=_one_numba_thread) as pool:
+        with warnings.catch_warnings():
+            for category in quiet:
+                warnings.simplefilter("ignore", category)
+            return [fn(j) for j in tqdm(jobs, desc=desc, file=sys.stderr, disable=not progress)]
+    with ProcessPoolExecutor(max_workers=workers, initializer=_one_numba_thread, initargs=(tuple(quiet),)) as pool:
         results: list[Any] = list(tqdm(pool.map(fn, jobs), total=len(jobs), desc=desc, file=sys.stderr,
                                        disable=not progress))
     return results

@@ -11,6 +11,7 @@ from whisker_io.errors import CansimError, CorruptFileError, InvalidInputError
 __all__ = [
     "CorruptFileError",
     "EmptyDatasetError",
+    "ExtrapolationWarning",
     "FeatureMismatchError",
     "ModelVersionError",
     "NotFittedModelError",
@@ -34,3 +35,9 @@ class ModelVersionError(CorruptFileError):
 
 class NotFittedModelError(CansimError, RuntimeError):
     """A model was used before ``fit``; call ``fit`` (or load a fitted model) first."""
+
+
+class ExtrapolationWarning(UserWarning):
+    """A trained model was given contacts outside the data it was trained on (:meth:`TrainedModel.predict`:
+    once per model); its estimates there are extrapolations. A study that extrapolates on purpose filters
+    this category and says so once."""

@@ -52,7 +52,7 @@ from threadpoolctl import threadpool_limits
 from whisker_io.errors import InvalidInputError
 from whisker_io.validation import ConfigDataclass, caller_stacklevel, checked, number_tuple, validate_fields
 from whisker_io._deprecated import renamed_attributes
-from whisker_io.radial.errors import EmptyDatasetError, FeatureMismatchError, NotFittedModelError
+from whisker_io.radial.errors import EmptyDatasetError, ExtrapolationWarning, FeatureMismatchError, NotFittedModelError
 from whisker_io.radial.features import FEATURE_NAMES, FEATURE_UNITS, RadialDataset, feature_indices
 
 __all__ = [
@@ -152,7 +152,7 @@ def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
     if outside:
         warnings.warn(f"{int(rows.sum())} of {len(X)} contacts lie outside the data model {label!r} was trained on: "
                       + "; ".join(outside) + " - check the units (WL in m, AV in rad/s, AA in rad/s^2) and the "
-                      "whisker lengths; estimates there are extrapolations (warned once per model)", UserWarning,
+                      "whisker lengths; estimates there are extrapolations (warned once per model)", ExtrapolationWarning,
                       stacklevel=caller_stacklevel())
     return bool(outside)
 
