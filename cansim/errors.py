@@ -10,7 +10,8 @@ that raised it is left unchanged.
 
 from __future__ import annotations
 
-from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, ShapeError, UnknownFieldError
+from whisker_io.errors import (CansimError, ConfigError, CorruptFileError, InvalidInputError, MissingExtraError, ShapeError,
+                               UnknownFieldError, missing_extra)
 
 __all__ = [
     "CansimError",
@@ -19,6 +20,7 @@ __all__ = [
     "ConfigError",
     "UnknownFieldError",
     "CorruptFileError",
+    "MissingExtraError",
     "ZeroActivityError",
     "BackendUnavailableError",
     "UnknownBackendError",
@@ -40,5 +42,6 @@ class UnknownBackendError(CansimError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
-class BackendUnavailableError(CansimError, ImportError):
-    """A registered backend whose optional dependency is not installed or has no device."""
+class BackendUnavailableError(MissingExtraError):
+    """A registered backend whose optional dependency is not installed or has no device (the message says which
+    extra to install, or what the device lacks)."""

@@ -15,7 +15,7 @@ thesis' region match; it needs maps saved with ``KnownObject.save`` (the model a
 mapping log; the object where it was mapped), bare model files are refused (status 2). Odometry is the arm's (exact). The run stops at the IC
 threshold or after ``--iterations`` whisks; ``exploration.csv`` in ``--out`` holds the
 per-whisk raw and integrated confidence of every known object.
-Needs the ``hw`` extra: ``pip install cansim[hw]``.
+Needs the ``hw`` extra: ``pip install "cansim[hw]"``.
 
 Usage::
 

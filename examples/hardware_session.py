@@ -5,7 +5,7 @@ with :class:`~whisker_io.hw.arm.URArm` and :class:`~whisker_io.hw.usb_array.USBA
 instead of the simulated twins. The arm explores a raster around its current
 pose (in the plane perpendicular to the array axis), every command checked by
 the safety envelope inside the driver; each whisk is on disk (CSV + pose log)
-before the next move. Needs the ``hw`` extra: ``pip install cansim[hw]``.
+before the next move. Needs the ``hw`` extra: ``pip install "cansim[hw]"``.
 
 Usage::
 

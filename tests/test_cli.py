@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cansim.tools import cli
+from extras import needs
 from cansim.backends import backend_status, registered_backends
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,6 +129,7 @@ def test_a_malformed_spec_exits_3_with_one_line_naming_the_key(tmp_path):
     assert proc.returncode == 3 and "no such sweep spec file" in _one_line_error(proc.stderr, "sweep")
 
 
+@needs("distributed", "sweep")
 @pytest.mark.parametrize("param, value", [("global_inhibition", -1.0), ("n_cells", -5), ("duration_steps", 0)])
 def test_an_out_of_range_cell_exits_3_before_any_task_runs(tmp_path, param, value):
     """A negative parameter was caught only when each task ran (exit 4); now the experiment's
@@ -164,6 +166,7 @@ def test_a_huge_n_seeds_exits_3_at_once(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@needs("distributed", "sweep")
 def test_a_sweep_with_failing_cells_exits_4_after_recording_every_row(tmp_path, capsys):
     spec = tmp_path / "flaky.toml"
     spec.write_text('experiment = "sweep_fixtures:flaky"\nmetrics = ["value"]\n[grid]\na = [1, 2]\nb = [0, 1]\n')
@@ -435,5 +438,7 @@ def test_warm_up_refuses_a_backend_that_cannot_run_here(monkeypatch, capsys):
     status = dict(backend_status())
     status["opencl"] = (False, "no OpenCL platform here")
     monkeypatch.setattr("cansim.backends.backend_status", lambda **k: status)
-    assert cli.main(["warm-up", "--backend", "opencl"]) == 3
+    assert cli.main(["warm-up", "--backend", "opencl"]) == 6  # cannot run here: as cansim bench --backends says it
     assert "--backend opencl: no OpenCL platform here" in capsys.readouterr().err
+    assert cli.main(["warm-up", "--backend", "cuda"]) == 3  # no such backend: bad input
+    assert "--backend cuda: no such backend" in capsys.readouterr().err

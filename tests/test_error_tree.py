@@ -27,11 +27,19 @@ def _modules() -> list[str]:
 
 
 def test_every_exception_class_is_in_the_tree():
+    """Every error class derives from CansimError (a warning category is no error: it is never raised); a module
+    that needs an extra which is not installed says so with the tree's own error when imported."""
+    from whisker_io.errors import MissingExtraError
+
     outside = []
     for name in _modules():
-        module = importlib.import_module(name)
+        try:
+            module = importlib.import_module(name)
+        except MissingExtraError:  # e.g. the OpenCL backend or the fake USB backend on a base install
+            continue
         for cls_name, cls in inspect.getmembers(module, inspect.isclass):
-            if cls.__module__ == name and issubclass(cls, BaseException) and not issubclass(cls, CansimError):
+            if (cls.__module__ == name and issubclass(cls, BaseException) and not issubclass(cls, Warning)
+                    and not issubclass(cls, CansimError)):
                 outside.append(f"{name}.{cls_name}")
     assert outside == []
 

@@ -145,6 +145,7 @@ def free_port():
 
 @pytest.fixture
 def rtde_server(request):
+    pytest.importorskip("rtde_receive", reason='the URArm client needs the hw extra (ur-rtde): pip install -e ".[hw]"')
     mode = getattr(request, "param", "stream")
     try:
         with fake_rtde_server(mode) as (proc, port):

@@ -78,6 +78,7 @@ def _small_whisk(k, n=200):
 
 @pytest.fixture
 def rtde_server():
+    pytest.importorskip("rtde_receive", reason='the URArm client needs the hw extra (ur-rtde): pip install -e ".[hw]"')
     try:
         with fake_rtde_server("stream") as (proc, _):
             yield proc

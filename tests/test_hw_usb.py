@@ -19,7 +19,8 @@ from whisker_io.errors import (ConnectionFailedError, DeviceRemovedError, Device
                                HardwareError, InvalidInputError, USBFrameError)
 from whisker_io.array.geometry import WhiskerArray
 from whisker_io.hw.arm import SimArm
-from whisker_io.testing.fake_usb_backend import FakeUSBBackend
+pytest.importorskip("usb", reason='the USB array tests need the hw extra (pyusb): pip install -e ".[hw]"')
+from whisker_io.testing.fake_usb_backend import FakeUSBBackend  # noqa: E402
 from whisker_io.pose import Pose
 from whisker_io.hw.recorder import Recorder, explore
 from whisker_io.hw.usb_array import (OP_SET_PATTERN, OP_SET_RCP_THRESHOLD, OP_START, OP_STOP,

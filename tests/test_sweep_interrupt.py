@@ -16,11 +16,12 @@ import time
 from pathlib import Path
 
 import pytest
+from extras import needs
 
 ROOT = Path(__file__).resolve().parents[1]
 TESTS = Path(__file__).resolve().parent
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "killpg"), reason="process groups are POSIX")
+pytestmark = [pytest.mark.skipif(not hasattr(os, "killpg"), reason="process groups are POSIX"), needs("distributed", "sweep")]
 
 
 def _wait_for(condition, timeout_s: float, what: str) -> None:

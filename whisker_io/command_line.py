@@ -21,16 +21,34 @@ default): an abbreviation silently changes meaning when an option is added - the
 recognition study's ``--seed 3`` meant ``--seeds 3`` until it had a ``--seed`` of its own.
 
 The commands of :mod:`whisker_io` (``python -m whisker_io.radial``), of ``cansim`` and of its
-demos, studies and examples all parse with it.
+demos, studies and examples all parse with it. :func:`run_command` runs a script's ``main`` so
+that a missing extra ends it with one line naming the extra and status 6
+(:data:`EXIT_MISSING_EXTRA`, as ``cansim`` does), not a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["CommandParser"]
+__all__ = ["CommandParser", "EXIT_MISSING_EXTRA", "run_command"]
+
+#: Exit status of a command whose optional dependency (a pip extra) is not installed.
+EXIT_MISSING_EXTRA = 6
+
+
+def run_command(main: Callable[[], int], prog: str) -> int:
+    """``main()``'s status; a :class:`~whisker_io.errors.MissingExtraError` is one line on stderr (``prog: ...``,
+    naming the extra) and :data:`EXIT_MISSING_EXTRA`. For a script's ``raise SystemExit(run_command(main, "name"))``."""
+    from whisker_io.errors import MissingExtraError
+
+    try:
+        return main()
+    except MissingExtraError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return EXIT_MISSING_EXTRA
 
 
 class _StoreOnce(argparse._StoreAction):

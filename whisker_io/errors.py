@@ -18,6 +18,9 @@ One class per concept:
   ``line`` say where.
 * :class:`HardwareError` (a ``RuntimeError``) and its subclasses - faults reported by
   the arm and array drivers; :class:`SafetyViolationError` for a refused command.
+* :class:`MissingExtraError` (an ``ImportError``) - an optional dependency is not
+  installed; the message names the pip extra to install (``pip install "cansim[sweep]"``).
+  :class:`MissingDependencyError` is the hardware extra's.
 
 Each message says what went wrong and what to do about it; the object that raised
 keeps the state it had before the call.
@@ -35,6 +38,7 @@ __all__ = [
     "ConfigError",
     "UnknownFieldError",
     "CorruptFileError",
+    "MissingExtraError",
     "HardwareError",
     "MissingDependencyError",
     "ConnectionFailedError",
@@ -143,10 +147,22 @@ class HardwareError(CansimError, RuntimeError):
     """Base class of faults reported by a hardware driver (arm or array)."""
 
 
-class MissingDependencyError(HardwareError, ImportError):
+class MissingExtraError(CansimError, ImportError):
+    """An optional dependency is not installed: the message names the extra that brings it
+    (e.g. ``pip install "cansim[sweep]"``) - see :func:`missing_extra`."""
+
+
+def missing_extra(what: str, module: str, extra: str) -> MissingExtraError:
+    """The error for ``what`` needing ``module``, which the pip extra ``extra`` installs (raise it
+    ``from None`` or from the ``ImportError``)."""
+    return MissingExtraError(f"{what} needs the Python module {module!r}, which is not installed: "
+                             f'pip install "cansim[{extra}]"')
+
+
+class MissingDependencyError(HardwareError, MissingExtraError):
     """An optional hardware dependency (ur-rtde, pyusb) is not installed.
 
-    Install the ``hw`` extra: ``pip install cansim[hw]``.
+    Install the ``hw`` extra: ``pip install "cansim[hw]"``.
     """
 
 

@@ -89,7 +89,13 @@ from cansim.backends.opencl_runtime import INTEL_PLATFORM_NAME, register_icds
 #: what the ICD registration did (it must run before pyopencl lists platforms)
 ICD_REGISTRATION = register_icds()
 
-import pyopencl as cl  # noqa: E402
+try:
+    import pyopencl as cl  # noqa: E402
+except ImportError:  # a base install: say what to install, not ModuleNotFoundError
+    from cansim.errors import BackendUnavailableError as _Unavailable
+
+    raise _Unavailable('the opencl backend (and list_devices) needs pyopencl and an OpenCL runtime: '
+                       'pip install "cansim[opencl]"') from None
 
 from cansim.backends.base import Backend, RunInputs, RunResult  # noqa: E402
 from cansim.decoding import population_vector_window  # noqa: E402

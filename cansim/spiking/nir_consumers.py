@@ -73,7 +73,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from cansim.errors import ConfigError, InvalidInputError, ShapeError
+from cansim.errors import ConfigError, InvalidInputError, MissingExtraError, ShapeError, missing_extra
 
 __all__ = ["NIR_CONSUMERS", "PRECISIONS", "consumer_status", "ConsumerRunner"]
 
@@ -187,7 +187,7 @@ class ConsumerRunner:
         try:
             import torch
         except ImportError as exc:
-            raise ConfigError("running NIR consumers needs torch: pip install 'cansim[nir-consumers]'") from exc
+            raise missing_extra("running NIR consumers", "torch", "nir-consumers") from exc
         self._torch = torch
         self.consumer = consumer
         g = copy.deepcopy(graph)
@@ -204,7 +204,7 @@ class ConsumerRunner:
                     else:
                         self._module = mod.from_nir(g)
         except ImportError as exc:
-            raise ConfigError(f"{consumer} cannot be imported: {exc}; pip install 'cansim[nir-consumers]'") from exc
+            raise MissingExtraError(f"{consumer} cannot be imported: {exc}; pip install \"cansim[nir-consumers]\"") from exc
         if sink.getvalue():
             log.debug("%s reader said: %s", consumer, sink.getvalue().strip())
         self.precision = precision

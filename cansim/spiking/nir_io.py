@@ -91,7 +91,7 @@ from typing import Any, Optional
 import numpy as np
 
 from cansim.axes import Axis
-from cansim.errors import ConfigError
+from cansim.errors import ConfigError, missing_extra
 from cansim.params import AttractorParams
 from cansim.spiking.connectivity import RecurrentKernel
 from cansim.spiking.neurons import NeuronParams
@@ -125,7 +125,7 @@ def _nir():
     try:
         import nir
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ConfigError("NIR export needs the 'nir' package: pip install 'cansim[spiking]'") from exc
+        raise missing_extra("NIR export and import", "nir", "spiking") from exc
     return nir
 
 

@@ -9,7 +9,7 @@ Run::
 Data: the two recorded trajectories the ``ratinabox`` package ships
 (``ratinabox/data/sargolini.npz``, 600 s at 50 Hz in a 1 m x 1 m box, Sargolini et al.
 2006; ``tanni.npz``, about 2 h at 30 Hz in a 3.5 m x 2.5 m arena, Tanni et al. 2022).
-They are read from the installed package at run time (``pip install cansim[rat]``), never
+They are read from the installed package at run time (``pip install "cansim[rat]"``), never
 copied into this repository; without the package :func:`load_trajectory` raises
 :class:`TrajectoryDataUnavailableError`.
 
@@ -142,7 +142,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from cansim.axes import Axis
-from cansim.errors import CansimError, InvalidInputError, ZeroActivityError
+from cansim.errors import InvalidInputError, MissingExtraError, ZeroActivityError
 from cansim.experiments.params import checked_seed, require, resolve
 from cansim.local_view import LocalViewCells, LocalViewParams
 from cansim.params import AttractorParams
@@ -221,9 +221,9 @@ DEFAULTS: dict = {
 }
 
 
-class TrajectoryDataUnavailableError(CansimError, ImportError):
+class TrajectoryDataUnavailableError(MissingExtraError):
     """The recorded trajectories are read from the ``ratinabox`` package, which is not installed
-    (or lacks the file). Install the extra: ``pip install cansim[rat]``."""
+    (or lacks the file). Install the extra: ``pip install "cansim[rat]"``."""
 
 
 # ---------------------------------------------------------------- trajectories
@@ -284,11 +284,11 @@ def _data_file(name: str) -> Path:
     except ModuleNotFoundError:
         raise TrajectoryDataUnavailableError(
             "the recorded rat trajectories come from the ratinabox package, which is not installed; "
-            "pip install cansim[rat] (or pip install ratinabox)") from None
+            'pip install "cansim[rat]" (or pip install ratinabox)') from None
     path = Path(str(folder / f"{name}.npz"))
     if not path.is_file():
         raise TrajectoryDataUnavailableError(
-            f"the installed ratinabox has no data/{name}.npz ({path}); pip install --upgrade cansim[rat] "
+            f"the installed ratinabox has no data/{name}.npz ({path}); pip install --upgrade \"cansim[rat]\" "
             "(ratinabox >= 1.15 ships sargolini.npz and tanni.npz)")
     return path
 
@@ -324,7 +324,7 @@ def load_trajectory(
     Raises
     ------
     TrajectoryDataUnavailableError
-        ``ratinabox`` (or its data file) is not installed: ``pip install cansim[rat]``.
+        ``ratinabox`` (or its data file) is not installed: ``pip install "cansim[rat]"``.
     InvalidInputError
         An unknown name or a bad duration / start / smoothing.
     """
@@ -887,3 +887,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     print(f"wrote rat_trajectories_paths.png, rat_trajectories_errors.png, rat_trajectories_metrics.json in {args.out} "
           f"in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+if __name__ == "__main__":
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "rat_trajectories"))

@@ -56,7 +56,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from cansim.errors import ConfigError, CorruptFileError, InvalidInputError
+from cansim.errors import ConfigError, CorruptFileError, InvalidInputError, missing_extra
 from cansim.frontends.visual import VisualTemplateConfig
 from cansim.models.openratslam_config import REPLAY_KEYS
 from cansim.models.ratslam import RatSLAM
@@ -85,7 +85,7 @@ def _need_rosbags() -> Any:
         import rosbags.highlevel  # noqa: F401
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
-        raise ImportError('bag replay reads bags with rosbags: pip install "cansim[bags]"') from None
+        raise missing_extra("bag replay (reading bags)", "rosbags", "bags") from None
     return Stores, get_typestore
 
 
@@ -152,7 +152,7 @@ def decode_image(msg: Any, msgtype: str) -> np.ndarray:
         try:
             from PIL import Image
         except ImportError:
-            raise ImportError('compressed images are decoded with Pillow: pip install "cansim[bags]"') from None
+            raise missing_extra("decoding a CompressedImage", "PIL (Pillow)", "bags") from None
         try:
             with Image.open(io.BytesIO(bytes(msg.data))) as im:
                 im.load()

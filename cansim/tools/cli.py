@@ -25,6 +25,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from whisker_io import command_line
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import CansimError, InvalidInputError
 
@@ -36,7 +37,7 @@ EXIT_USAGE = 2
 EXIT_BAD_INPUT = 3
 EXIT_FAILED = 4
 EXIT_NOT_BUILT = 5
-EXIT_MISSING_EXTRA = 6
+EXIT_MISSING_EXTRA = command_line.EXIT_MISSING_EXTRA  # 6
 EXIT_INTERRUPTED = 130
 
 #: exit code -> meaning
@@ -219,9 +220,14 @@ def _cmd_warm_up(args: argparse.Namespace) -> int:
     bad = [n for n in names if n not in WARM_UP_TARGETS]
     if bad or not names:
         raise InvalidInputError(f"--models {args.models!r}: give some of {', '.join(WARM_UP_TARGETS)}")
-    usable, why = backend_status().get(args.backend, (False, f"{args.backend!r} is no backend here"))
-    if not usable:
-        raise InvalidInputError(f"--backend {args.backend}: {why}")
+    status = backend_status()
+    if args.backend not in status:
+        raise InvalidInputError(f"--backend {args.backend}: no such backend; give one of {', '.join(status)}")
+    usable, why = status[args.backend]
+    if not usable:  # a backend that exists but cannot run here: status 6, as cansim bench --backends says it
+        from cansim.errors import BackendUnavailableError
+
+        raise BackendUnavailableError(f"--backend {args.backend}: {why}")
     progress = not args.no_progress
     t_all = time.perf_counter()
     for name in names:
@@ -446,13 +452,13 @@ _positive_int = _int_at_least(1, "a positive integer")
 
 # ------------------------------------------------------------------ main
 def _classify(exc: BaseException) -> tuple[int, str]:
-    from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
+    from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, MissingExtraError
 
     if isinstance(exc, CommandError):
         return exc.code, str(exc)
     if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
         return EXIT_BAD_INPUT, str(exc)
-    if isinstance(exc, ImportError) and "pip install" in str(exc):
+    if isinstance(exc, MissingExtraError) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
         return EXIT_MISSING_EXTRA, str(exc)
     if isinstance(exc, FileNotFoundError):
         return EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"

@@ -86,7 +86,7 @@ from typing import Any
 
 import numpy as np
 
-from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError
+from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, missing_extra
 from whisker_io.persistence import write_atomically
 from whisker_io.validation import config_field
 
@@ -678,7 +678,7 @@ def _pa():
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise ImportError('sweeps write Parquet through pyarrow: pip install "cansim[sweep]"') from None
+        raise missing_extra("a sweep (writing Parquet)", "pyarrow", "sweep") from None
     return pa, pq
 
 
@@ -850,7 +850,7 @@ def _client(address: str | None, workers: int | None, connect_timeout_s: float) 
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise ImportError('sweeps run on dask.distributed: pip install "cansim[sweep]"') from None
+        raise missing_extra("a sweep (running on dask.distributed)", "distributed", "sweep") from None
     if address:
         try:
             return Client(address, timeout=connect_timeout_s), None

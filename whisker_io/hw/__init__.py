@@ -15,7 +15,7 @@ Poses cross these interfaces as the package's one pose type,
 :class:`whisker_io.pose.Pose`. The test doubles of the devices themselves (a
 fake RTDE server, a fake USB backend) live in :mod:`whisker_io.testing`.
 
-Hardware drivers need the optional ``hw`` extra (``pip install cansim[hw]``);
+Hardware drivers need the optional ``hw`` extra (``pip install "cansim[hw]"``);
 it is imported lazily, so this package imports without it.
 """
 

@@ -427,7 +427,7 @@ class URArm(Arm):
     ConnectionFailedError
         Unreachable host, a server that never answers, or no states streamed.
     MissingDependencyError
-        ur-rtde is not installed (``pip install cansim[hw]``).
+        ur-rtde is not installed (``pip install "cansim[hw]"``).
 
     Notes
     -----

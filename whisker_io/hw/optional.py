@@ -25,4 +25,4 @@ def require(module: str, what: str) -> ModuleType:
     except ImportError as exc:
         raise MissingDependencyError(
             f"{what} needs the Python module {module!r}, which is not installed; "
-            "install the hardware extra: pip install cansim[hw]") from exc
+            'install the hardware extra: pip install "cansim[hw]"') from exc

@@ -521,7 +521,7 @@ class USBArray(Array):
     ConnectionFailedError
         No device with the layout's vendor/product id (or no USB backend).
     MissingDependencyError
-        pyusb not installed (``pip install cansim[hw]``).
+        pyusb not installed (``pip install "cansim[hw]"``).
 
     Attributes
     ----------

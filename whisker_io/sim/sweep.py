@@ -154,7 +154,7 @@ class MeshTarget:
         if engine == "embree":
             if not embree_available():
                 raise InvalidInputError(
-                    "engine='embree' needs the 'embreex' package (pip install embreex); "
+                    "engine='embree' needs the 'embreex' package (pip install \"cansim[embree]\"); "
                     "use engine='triangle' or 'auto'"
                 )
             self._embree = _EmbreeScene(mesh)

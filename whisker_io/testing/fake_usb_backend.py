@@ -27,10 +27,14 @@ from types import SimpleNamespace
 from typing import Any, Callable, Optional
 
 import numpy as np
-import usb.backend
-import usb.core
 
 from whisker_io.errors import InvalidInputError
+from whisker_io.hw.optional import require
+
+require("usb", "the fake USB backend (it subclasses pyusb's backend)")  # a base install: say what to install
+import usb.backend  # noqa: E402
+import usb.core  # noqa: E402
+
 from whisker_io.hw.usb_array import FrameLayout, encode_frames, parse_command
 
 __all__ = ["FakeUSBBackend", "FAULTS"]
