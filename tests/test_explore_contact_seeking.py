@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 from cansim.errors import CansimError, ConfigError, InvalidInputError
@@ -160,6 +160,7 @@ def test_contacts_beside_or_far_ahead_leave_the_goal():
 @given(st.floats(-math.pi, math.pi), st.floats(-1.4, 1.4),
        st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(-0.1, 0.5), st.floats(-0.3, 0.3)), max_size=8),
        st.floats(0.05, 0.4), st.floats(0.02, 0.3))
+@example(1.072064815449135, 0.41213063240790015, [(0.0, 0.0, 0.25)], 0.25, 0.25)  # a contact on the radius: moved
 def test_after_the_guard_every_contact_before_the_array_is_clear(yaw, pitch, local, ahead, radius):
     pose = Pose.from_rotation([0.1, -0.2, 0.4], Rotation.from_euler("zx", [yaw, pitch]))
     contacts = pose.apply(np.array(local, dtype=float).reshape(-1, 3)) if local else np.zeros((0, 3))
@@ -170,10 +171,13 @@ def test_after_the_guard_every_contact_before_the_array_is_clear(yaw, pitch, loc
     assert np.allclose(moved, (moved @ y) * y, atol=1e-12) and moved @ y <= 1e-12  # only back along the axis
     if len(contacts):
         loc = g.inverse().apply(contacts)
-        front = np.hypot(loc[:, 0], loc[:, 2]) < radius
-        assert (loc[front, 1] >= ahead - 1e-9).all()
+        off_axis = np.hypot(loc[:, 0], loc[:, 2])
+        # a contact on the radius itself may count either way (the pose's round trip moves it by ~1e-17 m: a draw
+        # with a contact at exactly radius_m found it, a base install's run): the clearance is asserted strictly
+        # inside, the nearest one the move was for within the radius' rounding
+        assert (loc[off_axis < radius - 1e-9, 1] >= ahead - 1e-9).all()
         if moved @ y < -1e-12:  # moved only as far as the nearest contact before the array needs
-            assert np.isclose(loc[front, 1].min(), ahead)
+            assert np.isclose(loc[off_axis < radius + 1e-9, 1].min(), ahead)
 
 
 @settings(max_examples=30, deadline=None)
