@@ -1,4 +1,4 @@
-"""Deprecated import paths of modules that moved in 0.2 (issue 21: folders by stage).
+"""Deprecated import paths of modules that moved before the first release (issue 21: folders by stage).
 
 Each old module (``cansim/ratslam.py`` ...) is a three-line stub that calls
 :func:`alias_module`: it warns once and puts the new module in ``sys.modules`` under the

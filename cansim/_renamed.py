@@ -1,4 +1,4 @@
-"""Keyword arguments renamed in 0.2 (issue 21: one name per concept), accepted for one release.
+"""Keyword arguments renamed before the first release (issue 21: one name per concept), accepted for one release.
 
 The names in the configs are the names everywhere (``xy_cells``, ``heading_cells``,
 ``cell_size_m``, ``grid_cells``, ``angle_cells``, ``inject_energy``). A function or class

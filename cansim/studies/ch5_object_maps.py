@@ -998,6 +998,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                          + ("NOT measured: no mapped object was presented" if not top and not unjudged
                             else "NOT measured: no presented object has a map with an experience" if not top
                             else ("REPRODUCED" if all(top) else "NOT reproduced")
+                            + " (judged on the highest final IC; the RC and IC decisions are told, not judged)"
                             + (f" (not judged: {', '.join(unjudged)}, a map without an experience)" if unjudged else ""))
                          + ".")
         fired = [r for r in sk if r["ic_decision"]]
