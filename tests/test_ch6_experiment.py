@@ -150,14 +150,17 @@ def test_bad_arguments_exit_2_naming_the_option(tmp_path_factory, args):
 
 def _summary_rows(im: dict[str, float], identity: str, correct_at: dict[float, int]) -> list[dict]:
     """Strategy-study rows of two objects: IM / SRT per strategy, the identity decided, and how many of a
-    threshold's runs named the correct object first (the first ``correct_at[t]`` rows of that threshold)."""
+    threshold's runs named the correct object first (the first ``correct_at[t]`` rows of that threshold).
+
+    100-whisk runs: with an identity decided both identities crossed within the run (SRT 50 - IM / 2, so the
+    incorrect one at 50 + IM / 2 < 100: nothing censored); without one neither did (SRT 100, IM 0)."""
     rows = []
     for t in ch6.THRESHOLDS:
         k = 0
         for p in ("box", "box_stack"):
             for s in ch6.STRATEGY_NAMES:
                 rows.append({"seed": 0, "presented": p, "strategy": s, "spc": "on", "threshold": t, "study": "strategy",
-                             "im": im[s], "srt": 100.0 - im[s], "identity": identity,
+                             "im": im[s], "srt": 50.0 - im[s] / 2 if identity else 100.0, "identity": identity,
                              "correct_first": k < correct_at.get(t, 0), "mean_correct_confidence": 0.5,
                              "mean_incorrect_confidence": 0.1, "iterations": 100, "refused_commands": 0,
                              "commands_outside_envelope": 0, "whisks_base_inside": 0, "whisks_without_contact": 10,
@@ -187,6 +190,162 @@ def test_the_findings_say_tied_or_not_measured_instead_of_picking_one():
                        setup, args, 1.0)
     assert "REPRODUCED (highest IM: lsr, lowest SRT: lsr)" in lead and "Best by correct-first count: 300. REPRODUCED" in lead
     assert "NOT measured: no strategy run" in ch6.summary([], setup, args, 1.0)
+
+
+def _row(**kw) -> dict:
+    """One hand-made ``ch6_runs.csv`` row of a 100-whisk strategy run (SPC on), with ``kw`` changed."""
+    row = {"seed": 0, "presented": "box", "strategy": "default", "spc": "on", "threshold": 100.0, "study": "strategy",
+           "im": 30.0, "srt": 20.0, "identity": "box", "correct_first": True, "mean_correct_confidence": 0.5,
+           "mean_incorrect_confidence": 0.1, "iterations": 100, "refused_commands": 0, "commands_outside_envelope": 0,
+           "whisks_base_inside": 0, "whisks_without_contact": 10, "stop_reason": "iterations"}
+    return {**row, **kw}
+
+
+def _censored_rows() -> list[dict]:
+    """Six 100-whisk runs (3 strategies x 2 objects) per threshold, their censoring set by hand:
+
+    * IC 100: both identities cross in every run (nothing censored), the correct one first in 3;
+    * IC 300: the correct identity first in all 6; no incorrect identity crosses in 4 (IM 60 = 100 - SRT 40:
+      censored), it crosses at whisk 70 in 2 (IM 30);
+    * IC 600: the correct identity crosses at 80 in 2 runs, no incorrect one (IM 20: censored); neither in 4;
+    * IC 900: neither identity crosses (SRT 100, IM 0).
+
+    IM censored 0, 4, 6, 6 of 6; SRT censored 0, 0, 4, 6 of 6. By correct-first count IC 300 is best (6 of 6).
+    """
+    neither = {"im": 0.0, "srt": 100.0, "identity": "", "correct_first": False}
+    rows = []
+    for k, (p, s) in enumerate((p, s) for p in ("box", "box_stack") for s in ch6.STRATEGY_NAMES):
+        other = "box" if p == "box_stack" else "box_stack"
+
+        def run(**kw) -> dict:
+            return _row(**{"presented": p, "strategy": s, "identity": p, **kw})
+
+        rows += [run(threshold=100.0, srt=20.0, im=30.0) if k < 3 else
+                 run(threshold=100.0, srt=30.0, im=-10.0, identity=other, correct_first=False),
+                 run(threshold=300.0, srt=40.0, im=60.0 if k < 4 else 30.0),
+                 run(threshold=600.0, srt=80.0, im=20.0) if k < 2 else run(threshold=600.0, **neither),
+                 run(threshold=900.0, **neither)]
+    return rows
+
+
+def _setup_args(**kw):
+    """A stand-in setup (no maps) and the study's arguments (100-whisk quick run, seed 0, 1 seed; ``kw`` changed)."""
+    import argparse
+    import types
+
+    setup = types.SimpleNamespace(objects=("box", "box_stack"), known=[], pfh_threshold=0.1, sda_threshold=0.1,
+                                  noise_scale=0.3, contact_model="tip", odometry_scale=1.0, believed_scale=1.0,
+                                  contact_seeking=False)
+    return setup, argparse.Namespace(**{"quick": True, "seed": 0, "seeds": 1, "iterations": 100, **kw})
+
+
+def _finding(text: str, number: str) -> str:
+    """The summary line of finding ``number`` (e.g. ``"2. "``)."""
+    return next(line for line in text.splitlines() if line.startswith(number))
+
+
+def test_the_summary_counts_censored_im_per_threshold_and_finding_3_does_not_claim_censored_medians():
+    """An IM is censored when no incorrect identity crossed within the run (IM = run length - SRT, a lower bound):
+    the summary counts those runs per threshold, and finding 3 (the threshold Sec 6.2 picks by the IM median) says
+    NOT measured where censoring can move the medians it compares, instead of REPRODUCED by correct-first count."""
+    setup, args = _setup_args()
+    text = ch6.summary(_censored_rows(), setup, args, 1.0)
+    assert ("IM censored, no incorrect identity crossed - 100: 0 of 6, 300: 4 of 6, 600: 6 of 6, 900: 6 of 6; "
+            "SRT censored, the correct identity never crossed - 100: 0 of 6, 300: 0 of 6, 600: 4 of 6, 900: 6 of 6") in text
+    assert "lower bound set by the run length (100 whisks)" in text
+    f3 = _finding(text, "3. ")
+    # IM at 100: 30, 30, 30, -10, -10, -10 (median 10, measured); at 300: 60 (x4, censored), 30, 30: a bound
+    assert "100: 3/6/6/0/10; 300: 6/6/6/4/>= 60;" in f3
+    assert "Best by correct-first count: 300. NOT measured: the IM medians compared are censored - IM censored in " \
+           "4 of 6 runs at IC 300, 6 of 6 runs at IC 600, 6 of 6 runs at IC 900" in f3
+    assert "REPRODUCED" not in f3 and "--iterations" in f3
+
+
+def test_finding_2_says_not_measured_when_every_im_it_compares_is_censored():
+    """A short run (--quick) in which no incorrect identity crosses IC 300: LSR's IM median 70 over the others' 60
+    is only bounds against bounds, so which strategy has the highest IM is NOT measured (the run length), although
+    LSR's SRT is the lowest; with the incorrect identity crossing the same medians are measured: REPRODUCED."""
+    setup, args = _setup_args()
+    rows, measured = [], []
+    for p in ("box", "box_stack"):
+        for s in ch6.STRATEGY_NAMES:
+            srt = 30.0 if s == "lsr" else 40.0
+            rows.append(_row(presented=p, identity=p, strategy=s, threshold=300.0, srt=srt, im=100.0 - srt))
+            measured.append(_row(presented=p, identity=p, strategy=s, threshold=300.0, srt=srt, im=90.0 - srt))
+    f2 = _finding(ch6.summary(rows, setup, args, 1.0), "2. ")
+    assert "lsr IM >= 70 SRT 30" in f2
+    assert "NOT measured: which strategy has the highest IM median (IM censored in 6 of 6 runs at IC 300" in f2
+    assert "set by the run length, 100 whisks" in f2 and "--iterations" in f2 and "REPRODUCED" not in f2
+    f2 = _finding(ch6.summary(measured, setup, args, 1.0), "2. ")
+    assert "REPRODUCED (highest IM: lsr, lowest SRT: lsr)" in f2 and "censored" not in f2
+
+
+def _spc_rows(on: list[float], off: list[float], on_i: float, off_i: float) -> list[dict]:
+    """The SPC study's rows (default search, Box-Stack presented): per seed the correct / incorrect confidence."""
+    return [_row(study="spc", presented="box_stack", identity="box_stack", spc=spc, seed=i,
+                 mean_correct_confidence=c, mean_incorrect_confidence=inc)
+            for spc, values, inc in (("on", on, on_i), ("off", off, off_i)) for i, c in enumerate(values)]
+
+
+def test_finding_1_is_partly_reproduced_when_the_incorrect_confidence_falls():
+    """Fig 6.6: the SPC raises the correct confidence (4 seeds, all above: one-sided p = 1/70) and the incorrect one by
+    less. The incorrect confidence falling is the second half going the other way: PARTLY reproduced."""
+    setup, args = _setup_args(seeds=4)
+    up = [0.9, 0.95, 1.0, 1.05]
+    down = [0.5, 0.55, 0.6, 0.65]
+    f1 = _finding(ch6.summary(_spc_rows(up, down, 0.1, 0.2), setup, args, 1.0), "1. ")
+    assert "PARTLY reproduced: the correct confidence rises significantly; the incorrect confidence -0.100 vs the " \
+           "correct +0.400: it falls where the thesis saw it rise" in f1
+    assert "REPRODUCED" not in f1
+    f1 = _finding(ch6.summary(_spc_rows(up, down, 0.25, 0.2), setup, args, 1.0), "1. ")
+    assert "REPRODUCED (the incorrect confidence +0.050 vs the correct +0.400: it rises by less" in f1
+    f1 = _finding(ch6.summary(_spc_rows(up[:2], down[:2], 0.25, 0.2), setup, _setup_args(seeds=2)[1], 1.0), "1. ")
+    assert "NOT measured: with 2 and 2 seeds a one-sided Mann-Whitney p cannot fall below 0.05" in f1  # 1/6 at best
+
+
+def test_the_summary_states_the_seeds_and_counts_each_run_once():
+    """The header names the seeds run (``--seed 1 --seeds 2``: 1 and 2); the SPC study's SPC-on run is the strategy
+    study's default run on the Box-Stack, listed again: 6 strategy runs + 1 SPC-off run are 7 runs, and their
+    refused commands (1 a run here) are counted once each."""
+    rows = [dict(x, refused_commands=1) for x in _censored_rows()]
+    rows += [dict(x, study="spc") for x in rows if x["presented"] == "box_stack" and x["strategy"] == "default"]
+    rows += [dict(x, spc="off") for x in rows if x["study"] == "spc"]
+    setup, args = _setup_args(seed=1, seeds=2)
+    text = ch6.summary(rows, setup, args, 1.0)
+    assert text.startswith("Thesis Ch.6 active exploration (quick run, seeds 1-2, ")
+    assert "Runs: 7 (6 strategy runs, of which 1 is also the SPC study's SPC-on run, + 1 SPC-off); stopped by " \
+           "iterations 7." in text
+    assert "refused commands (re-planned) 7;" in text
+    assert ch6.summary(rows, setup, _setup_args(seed=3, seeds=1)[1], 1.0).startswith(
+        "Thesis Ch.6 active exploration (quick run, seed 3, ")
+
+
+def test_the_figures_name_the_seed_and_the_censored_share(tmp_path, monkeypatch):
+    """Fig 6.4's title names its run's seed; Fig 6.7 (median IM per threshold) gives each threshold's share of runs
+    with IM censored and the total, and Fig 6.8-6.9 their share at IC 300 (:func:`_censored_rows`: 4 of 6 IM)."""
+    import types
+
+    import matplotlib.figure
+
+    seen = {}
+
+    def record(fig, fname, *a, **k):
+        seen[str(fname).rsplit("/", 1)[-1]] = (
+            [ax.get_title() for ax in fig.axes], [t.get_text() for ax in fig.axes for t in ax.get_xticklabels()])
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", record)
+    rows = _censored_rows()
+    rows += [dict(x, study="spc", spc=spc) for x in rows if x["presented"] == "box_stack"
+             and x["strategy"] == "default" for spc in ("on", "off")]
+    result = types.SimpleNamespace(confidence=np.zeros((5, 2)), ic=np.zeros((5, 2)), poses=[])
+    runs = [{"result": result, "objects": ("box", "box_stack"), "presented": "box", "strategy": "default", "seed": 7}]
+    ch6.figures(tmp_path, runs, [], rows)
+    assert "Fig 6.4: box presented, default, seed 7" in seen["fig6_4_rc_ic.png"][0]
+    titles, ticks = seen["fig6_7_im_threshold.png"]
+    assert ticks == ["100\nIM censored\n0/6", "300\nIM censored\n4/6", "600\nIM censored\n6/6", "900\nIM censored\n6/6"]
+    assert "IM censored in 16 of 24 runs" in titles[0] and "lower bound set by the run length" in titles[0]
+    assert "IM censored at the run's end (a lower bound) in 4 of 6 runs" in seen["fig6_8_im_strategy.png"][0][0]
+    assert "SRT censored at the run's end (a lower bound) in 0 of 6 runs" in seen["fig6_9_srt_strategy.png"][0][0]
 
 
 def test_a_short_run_is_named_as_the_cause_of_seldom_touching():
