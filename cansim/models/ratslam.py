@@ -112,7 +112,8 @@ class RatSLAM(SlamLoop):
             frontend,
             ExperienceMap(cfg.map_config(), cfg.map_geometry()),
             PlanarOdometry,
-            check_odometry=self._check_strict if cfg.strict_translation else self._check_plausible,
+            check_odometry=self._check_spiking if cfg.pose_cells == "spiking"
+            else self._check_strict if cfg.strict_translation else self._check_plausible,
         )
         self._warm = False  # warm_up() has run (the first step or run runs it)
         self._one_cell_m = cfg.cell_size_m * (1 + 1e-12)
@@ -129,6 +130,14 @@ class RatSLAM(SlamLoop):
             )
         if abs(odo.omega * odo.dt) > math.pi:
             self._warn_implausible(odo)
+
+    def _check_spiking(self, odo: PlanarOdometry) -> None:
+        """The spiking pose cells run for ``dt`` of network time: a sample of no duration is refused (before the view
+        changes anything), then the rate engines' checks."""
+        if not odo.dt > 0:
+            raise InvalidInputError(f"dt = {odo.dt:g} s: the spiking pose cells need dt > 0 (they run for dt of network "
+                                    "time); merge or drop odometry samples with equal timestamps")
+        (self._check_strict if self.config.strict_translation else self._check_plausible)(odo)
 
     def _check_plausible(self, odo: PlanarOdometry) -> None:
         """Warn (once each) of a step that moves the packet a quarter of the grid or turns more than half a circle."""
@@ -227,8 +236,16 @@ class RatSLAM(SlamLoop):
             raise InvalidInputError(f"vtrans, vrot and observations must have the same length, got {n}, {len(vrot)}, {len(observations)}")
         if not self._warm:
             self.warm_up(next((o for o in observations if o is not None), None), progress=progress)
-        dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+        try:
+            dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"dt must be a number or one per sample ({n}), s: {exc}") from None
         odometry = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
+        if self.config.pose_cells == "spiking":  # refused before any sample is applied, as the rest of the odometry
+            zero = np.flatnonzero(~(dts > 0))
+            if len(zero):
+                raise InvalidInputError(f"sample {zero[0]}: dt = {dts[zero[0]]:g} s; the spiking pose cells need dt > 0 "
+                                        "(merge or drop samples with equal timestamps); nothing was applied")
         return super().run(odometry, observations, progress=progress)
 
     # ------------------------------------------------------- save / resume

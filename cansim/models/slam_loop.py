@@ -32,7 +32,7 @@ from typing import Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
-from cansim.errors import CorruptFileError, InvalidInputError, UnknownBackendError
+from cansim.errors import CansimError, CorruptFileError, InvalidInputError, UnknownBackendError
 from cansim.frontends.store import ViewMatch
 from cansim.local_view import LocalViewCells
 from maps.experience_map import Action, ExperienceMap
@@ -137,6 +137,15 @@ class SlamLog:
     best_pc: np.ndarray
     view_ids: np.ndarray
 
+
+
+def _at_sample(exc: CansimError, message: str) -> CansimError:
+    """``exc`` told again with ``message`` (which sample of a run, and what was applied): the same class when it takes
+    a message alone, else an :class:`InvalidInputError`."""
+    try:
+        return type(exc)(message)
+    except Exception:  # noqa: BLE001 - an error class with other arguments
+        return InvalidInputError(message)
 
 class SlamLoop:
     """Runs a composition of front end, local-view cells, pose cells and map.
@@ -311,6 +320,14 @@ class SlamLoop:
         n = len(odometry)
         if len(observations) != n:
             raise InvalidInputError(f"odometry and observations must have the same length, got {n} and {len(observations)}")
+        kind = self._odometry
+        for k, o in enumerate(odometry):  # every sample's odometry checked before the first is applied
+            if isinstance(o, kind):
+                continue
+            try:
+                kind(*(o if isinstance(o, tuple) else (o,)))
+            except CansimError as exc:
+                raise _at_sample(exc, f"sample {k}: {exc}; nothing was applied") from None
         exp_ids = np.empty(n, dtype=np.int64)
         reloc = np.empty(n, dtype=bool)
         best = np.empty((n, len(self._best)))
@@ -325,7 +342,11 @@ class SlamLoop:
             if isinstance(obs, np.integer):
                 obs = int(obs)
             o = odometry[k]
-            s = self.step(*(o if isinstance(o, tuple) else (o,)), obs)
+            try:
+                s = self.step(*(o if isinstance(o, tuple) else (o,)), obs)
+            except CansimError as exc:  # an observation, or a check that needs the model's state
+                applied = f"samples 0-{k - 1} were applied: the model holds their state" if k else "nothing was applied"
+                raise _at_sample(exc, f"sample {k}: {exc}; {applied}") from exc
             exp_ids[k], reloc[k], best[k], vids[k] = s.exp_id, s.relocalised, s.best_pc, s.view_id
         return SlamLog(exp_ids=exp_ids, relocalised=reloc, best_pc=best, view_ids=vids)
 
