@@ -132,7 +132,7 @@ def test_urarm_read_only_refuses_commands():
 def test_urarm_missing_ur_rtde_names_hw_extra(monkeypatch):
     monkeypatch.setattr(arm_module, "probe_rtde", lambda *a, **k: None)
     monkeypatch.setitem(sys.modules, "rtde_receive", None)
-    with pytest.raises(MissingDependencyError, match=r"pip install cansim\[hw\]"):
+    with pytest.raises(MissingDependencyError, match=r'pip install "cansim\[hw\]"'):
         URArm(HOST)
 
 

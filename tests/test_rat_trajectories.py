@@ -44,7 +44,7 @@ def sargolini_60s():
 # ------------------------------------------------------------------ the data
 def test_missing_package_is_a_typed_error_that_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "ratinabox", None)  # import ratinabox -> ModuleNotFoundError
-    with pytest.raises(rt.TrajectoryDataUnavailableError, match=r"pip install cansim\[rat\]") as info:
+    with pytest.raises(rt.TrajectoryDataUnavailableError, match=r'pip install "cansim\[rat\]"') as info:
         rt.load_trajectory("sargolini")
     assert isinstance(info.value, CansimError) and isinstance(info.value, ImportError)
 
