@@ -243,3 +243,14 @@ def test_export_warns_of_what_the_consumers_will_run_otherwise():
         to_nir(one_step)
     with pytest.warns(UserWarning, match="snnTorch runs every graph at 0.0001 s"):
         to_nir(one_step, dt_s=5e-5)
+
+
+def test_to_nir_of_ratslams_spiking_pose_cells_says_to_export_the_ring_and_the_sheet():
+    """A neuromorphic user's pass (session 49): to_nir(slam.pose_cells) said only that it needs a SpikingPopulation."""
+    from cansim.models.spiking_pose_cells import SpikingPoseCells
+
+    cells = SpikingPoseCells(21, 36, 0.05)
+    with pytest.raises(ConfigError, match=r"holds ring and sheet: export \.ring, \.sheet one at a time"):
+        to_nir(cells)
+    with pytest.raises(ConfigError, match="needs a cansim.spiking.SpikingPopulation, got str"):
+        to_nir("ring")

@@ -26,9 +26,18 @@ current of 3-60 threshold units did not move the sheet's packet, 150 moves it 3 
 two iterations) and the sheet's recurrent weight (100, the ring's, lets a 2-D packet die;
 300 holds it). Limits: the velocity leads are calibrated along one axis at 10-80 cells/s,
 and a sheet packet pins to the lattice below ~5 cells/s per axis, so the decoded (x', y')
-wander from the rate model's by a median 3-7 pose cells on that route; the map still
-closes its loops because the views re-anchor the packets (1,002 re-localisations against
-the rate model's 899).
+wander from the rate model's: on that route (seed 0) by a median 2.8 cells in x' and 7.7 in
+y', where random points of the 21 x 21 grid lie 8.4 apart - between views y' is not
+tracked (a user's check, session 49); the map still closes its loops because the views
+re-anchor the packets (1,002 re-localisations against the rate model's 899). A sheet too
+weak to hold a packet is not always caught: :class:`~cansim.errors.ZeroActivityError` comes
+only when no spike is left, and a few noise spikes still decode (a
+``sheet_recurrent_weight`` of 0 gave poses from 4-5 spikes). Cost: 10.2 ms an iteration
+against the rate engine's 0.11 ms (~90x; the route 15 s against 0.2 s; ``bench/README.md``).
+Export: :func:`cansim.spiking.to_nir` takes the ring (``.ring``) and the sheet (``.sheet``)
+one at a time, each a still attractor; the ring-to-sheet coupling, the velocity shifts and
+the view currents have no NIR form, and NIR's LIF cell drops the 2 ms refractory period
+(``to_nir`` warns: their rates outside cansim are many times these).
 """
 
 from __future__ import annotations

@@ -239,9 +239,14 @@ def to_nir(population: SpikingPopulation, *, dt_s: float = NIR_STEP_S, max_dense
         Poisson neurons (NIR has no Poisson node), a grid larger than ``max_dense_cells``,
         or a bad step.
     """
-    nir = _nir()
     if not isinstance(population, SpikingPopulation):
-        raise ConfigError("to_nir needs a cansim.spiking.SpikingPopulation")
+        parts = [n for n in ("ring", "sheet") if isinstance(getattr(population, n, None), SpikingPopulation)]
+        if parts:  # RatSLAM's spiking pose cells: two populations coupled in Python
+            raise ConfigError(f"to_nir takes one SpikingPopulation; {type(population).__name__} holds "
+                              f"{' and '.join(parts)}: export {', '.join('.' + n for n in parts)} one at a time "
+                              "(the coupling between them, the velocity shifts and the view currents have no NIR form)")
+        raise ConfigError(f"to_nir needs a cansim.spiking.SpikingPopulation, got {type(population).__name__}")
+    nir = _nir()
     p = population.params
     nrn = p.neurons
     if nrn.model != "lif":
