@@ -87,9 +87,10 @@ class RatSLAM(SlamLoop):
         cfg = self.config = configured(RatSLAMConfig, config, params)
         pose_cells: Any
         if cfg.pose_cells == "spiking":  # opt-in; imported here so that the rate engines import nothing spiking
-            from cansim.models.spiking_pose_cells import SpikingPoseCells
+            from cansim.models.spiking_pose_cells import SpikingPoseCellParams, SpikingPoseCells
 
-            pose_cells = SpikingPoseCells(cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, frame=cfg.frame)
+            pose_cells = SpikingPoseCells(cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m,
+                                          cfg.spiking if cfg.spiking is not None else SpikingPoseCellParams(), frame=cfg.frame)
         elif cfg.pose_cells == "openratslam":
             pose_cells = PosecellNetwork(
                 cfg.xy_cells, cfg.heading_cells, cfg.cell_size_m, params=cfg.attractor, decode_window=cfg.decode_window,

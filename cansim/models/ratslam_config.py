@@ -123,8 +123,11 @@ class RatSLAMConfig(SlamConfig):
         backend and dtype), :class:`~cansim.models.posecell_network.PosecellNetwork` (the
         C++ core's arithmetic bit for bit, float64, numba) or
         :class:`~cansim.models.spiking_pose_cells.SpikingPoseCells` (a spiking HD ring x
-        place sheet, its default :class:`~cansim.models.spiking_pose_cells.SpikingPoseCellParams`;
-        ``backend`` and ``dtype`` do not apply).
+        place sheet, with ``spiking``'s parameters; ``backend`` and ``dtype`` do not apply).
+    spiking : SpikingPoseCellParams or None
+        The spiking pose cells' parameters (:class:`~cansim.models.spiking_pose_cells.SpikingPoseCellParams`:
+        seed, step ``dt_s``, network time per iteration, weights); None (default): its defaults. Only with
+        ``pose_cells="spiking"``; saved with the model.
     keep_first_accumulator : bool
         OpenRatSLAM does not reset its dead reckoning when it creates the very first
         experience, so the motion before experience 0 is counted again in the link to
@@ -155,6 +158,7 @@ class RatSLAMConfig(SlamConfig):
     strict_translation: bool = checked(False, bool)
     pose_cells: str = checked("population", str, choices=("population", "openratslam", "spiking"))
     keep_first_accumulator: bool = checked(True, bool)
+    spiking: Any = None  # SpikingPoseCellParams | None (imported only when given: the rate engines import nothing spiking)
 
     @classmethod
     def check_names(cls, names: Any) -> None:
@@ -178,6 +182,15 @@ class RatSLAMConfig(SlamConfig):
         self._check_grid_size(x=self.xy_cells, y=self.xy_cells, heading=self.heading_cells)
         if self.pose_cells == "spiking" and self.frame != "standard":
             raise ConfigError("pose_cells='spiking' uses frame='standard' (heading 0 along +x')")
+        if self.spiking is not None:
+            from cansim.models.spiking_pose_cells import SpikingPoseCellParams
+
+            if not isinstance(self.spiking, SpikingPoseCellParams):
+                raise ConfigError(f"spiking must be a SpikingPoseCellParams (cansim.models.spiking_pose_cells) or None, "
+                                  f"got {type(self.spiking).__name__}")
+            if self.pose_cells != "spiking":
+                raise ConfigError(f"spiking parameters are for pose_cells='spiking', not {self.pose_cells!r}: "
+                                  "set pose_cells='spiking' or leave spiking out")
         self._check_attractor()
         fe = self.frontend
         if not ((isinstance(fe, str) and fe == "ids") or isinstance(fe, (VisualTemplateConfig, TactileTemplateConfig))):
@@ -274,6 +287,10 @@ class RatSLAMConfig(SlamConfig):
     @classmethod
     def _fields_from_dict(cls, d: dict[str, Any]) -> dict[str, Any]:
         d = super()._fields_from_dict(d)
+        if isinstance(d.get("spiking"), dict):
+            from cansim.models.spiking_pose_cells import SpikingPoseCellParams
+
+            d["spiking"] = SpikingPoseCellParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in d["spiking"].items()})
         fe = d.get("frontend")
         if isinstance(fe, dict):
             fe = dict(fe)
