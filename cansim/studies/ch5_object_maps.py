@@ -992,7 +992,7 @@ def summary(builds: Sequence[dict[str, Any]], id_rows: list[dict[str, Any]], cal
                 ic_ok += any(r["ic_decision"] and r["map_identity"] == p for r in rr)
             rc_ok = sum(1 for r in rows(fam, lambda r: r["presented"] == r["map_identity"]) if r["rc_decision"])
             lines.append(f"  6{fam}. Thesis: activity highest for the correct object (trajectory {fam}). Measured (judged on the "
-                         "highest final IC; the RC and IC decisions are told, not judged): own map has the highest "
+                         "highest final IC; the RC and IC decisions are reported beside it): own map has the highest "
                          f"final IC for {sum(top)} of {len(top)} mapped objects; RC decisions (threshold {RC_THRESHOLD:g}) correct "
                          f"{rc_ok} of {len(pres)}; the IC decision (threshold {IC_THRESHOLD:g}, Ch.6) fired for {ic_fired} of "
                          f"{len(pres)}, correct {ic_ok}. "
