@@ -46,7 +46,7 @@ def test_an_observation_only_a_step_can_refuse_names_its_sample_and_what_was_app
 
 def test_the_spiking_pose_cells_refuse_a_sample_of_no_duration_before_anything_changes():
     s = RatSLAM(RatSLAMConfig(pose_cells="spiking"))
-    with pytest.raises(InvalidInputError, match=r"^sample 1: dt = 0 s; the spiking pose cells need dt > 0"):
+    with pytest.raises(InvalidInputError, match=r"^sample 1: dt = 0 s: the spiking pose cells need dt > 0 .*nothing was applied$"):
         s.run([0.25] * 3, [0.0] * 3, [0.2, 0.0, 0.2], [0, 1, 2])
     assert s.iteration == 0 and s.n_views == 0
     with pytest.raises(InvalidInputError, match="need dt > 0"):
@@ -55,3 +55,29 @@ def test_the_spiking_pose_cells_refuse_a_sample_of_no_duration_before_anything_c
     rate = RatSLAM(RatSLAMConfig(backend="numpy"))
     rate.run([0.25] * 3, [0.0] * 3, [0.2, 0.0, 0.2], [0, 1, 2])  # the rate engines take a zero-duration sample
     assert rate.iteration == 3
+
+
+def test_a_step_strict_translation_refuses_is_refused_before_the_first_sample_too():
+    """The model's own refusals (strict_translation's one cell a step) are checked up front as well (the review: a
+    run applied two samples before refusing the third), and a sample of the wrong number of fields is a typed error."""
+    s = RatSLAM(RatSLAMConfig(backend="numpy", strict_translation=True))
+    s.step(0.01, 0.0, 0.2, 0)
+    before = _state(s)
+    with pytest.raises(InvalidInputError, match=r"^sample 2: vtrans\*dt = 20 m moves the packet .*nothing was applied"):
+        s.run([0.01, 0.01, 100.0], [0.0] * 3, 0.2, [1, 2, 3])
+    assert _state(s) == before
+    with pytest.raises(InvalidInputError, match=r"^sample 1: odometry sample must be a PlanarOdometry or its fields"):
+        s._checked_samples([(0.1, 0.0, 0.2), (0.1, 0.0)])
+
+
+def test_an_error_told_at_its_sample_keeps_its_class_and_data():
+    from whisker_io.errors import CorruptFileError, SequenceGapError
+
+    from cansim.models.slam_loop import _at_sample
+
+    e = CorruptFileError("bad member", path="a.npz", field="x")
+    _at_sample(e, 3, "nothing was applied")
+    assert str(e).startswith("sample 3: a.npz: field 'x': bad member") and e.path == "a.npz" and e.field == "x"
+    g = SequenceGapError("frames lost", 4)
+    _at_sample(g, 0, "nothing was applied")
+    assert str(g) == "sample 0: frames lost; nothing was applied" and g.lost == 4

@@ -113,36 +113,37 @@ class RatSLAM(SlamLoop):
             frontend,
             ExperienceMap(cfg.map_config(), cfg.map_geometry()),
             PlanarOdometry,
-            check_odometry=self._check_spiking if cfg.pose_cells == "spiking"
-            else self._check_strict if cfg.strict_translation else self._check_plausible,
+            check_odometry=self._check,
+            refuse_odometry=self._refuse,
         )
         self._warm = False  # warm_up() has run (the first step or run runs it)
         self._one_cell_m = cfg.cell_size_m * (1 + 1e-12)
         self._quarter_grid_m = cfg.xy_cells * cfg.cell_size_m / 4  # a step this long is no robot's: units?
         self._warned: set[str] = set()  # the implausible-odometry warnings given (once each per model)
+        self._strict, self._spiking = bool(cfg.strict_translation), cfg.pose_cells == "spiking"
 
-    def _check_strict(self, odo: PlanarOdometry) -> None:
-        step_m = abs(odo.v * odo.dt)
-        if step_m > self._one_cell_m:
-            raise InvalidInputError(
-                f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
-                "OpenRatSLAM's path integration is valid for at most one cell per step - "
-                f"raise cell_size_m ({key_of('cell_size_m')} in an OpenRatSLAM config file) or split the step"
-            )
-        if abs(odo.omega * odo.dt) > math.pi:
-            self._warn_implausible(odo)
-
-    def _check_spiking(self, odo: PlanarOdometry) -> None:
-        """The spiking pose cells run for ``dt`` of network time: a sample of no duration is refused (before the view
-        changes anything), then the rate engines' checks."""
-        if not odo.dt > 0:
+    def _refuse(self, odo: PlanarOdometry) -> None:
+        """The odometry this model refuses, with no side effect (``run`` checks every sample with it first): a step of
+        more than one cell with ``strict_translation``; a sample of no duration for the spiking pose cells (they run
+        for ``dt`` of network time)."""
+        if self._spiking and not odo.dt > 0:
             raise InvalidInputError(f"dt = {odo.dt:g} s: the spiking pose cells need dt > 0 (they run for dt of network "
                                     "time); merge or drop odometry samples with equal timestamps")
-        (self._check_strict if self.config.strict_translation else self._check_plausible)(odo)
+        if self._strict:
+            step_m = abs(odo.v * odo.dt)
+            if step_m > self._one_cell_m:
+                raise InvalidInputError(
+                    f"vtrans*dt = {odo.v * odo.dt:g} m moves the packet {step_m / self.config.cell_size_m:.3g} cells; "
+                    "OpenRatSLAM's path integration is valid for at most one cell per step - "
+                    f"raise cell_size_m ({key_of('cell_size_m')} in an OpenRatSLAM config file) or split the step"
+                )
 
-    def _check_plausible(self, odo: PlanarOdometry) -> None:
-        """Warn (once each) of a step that moves the packet a quarter of the grid or turns more than half a circle."""
-        if abs(odo.v * odo.dt) >= self._quarter_grid_m or abs(odo.omega * odo.dt) > math.pi:
+    def _check(self, odo: PlanarOdometry) -> None:
+        """:meth:`_refuse`, then a warning (once each) of a turn of more than half a circle in one step and, without
+        ``strict_translation``, of a step that moves the packet a quarter of the grid or more."""
+        if self._spiking or self._strict:
+            self._refuse(odo)
+        if abs(odo.omega * odo.dt) > math.pi or (not self._strict and abs(odo.v * odo.dt) >= self._quarter_grid_m):
             self._warn_implausible(odo)
 
     def _warn_implausible(self, odo: PlanarOdometry) -> None:
@@ -235,19 +236,15 @@ class RatSLAM(SlamLoop):
         n = len(vtrans)
         if len(vrot) != n or len(observations) != n:
             raise InvalidInputError(f"vtrans, vrot and observations must have the same length, got {n}, {len(vrot)}, {len(observations)}")
-        if not self._warm:
-            self.warm_up(next((o for o in observations if o is not None), None), progress=progress)
         try:
             dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         except (TypeError, ValueError) as exc:
             raise InvalidInputError(f"dt must be a number or one per sample ({n}), s: {exc}") from None
-        odometry = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
-        if self.config.pose_cells == "spiking":  # refused before any sample is applied, as the rest of the odometry
-            zero = np.flatnonzero(~(dts > 0))
-            if len(zero):
-                raise InvalidInputError(f"sample {zero[0]}: dt = {dts[zero[0]]:g} s; the spiking pose cells need dt > 0 "
-                                        "(merge or drop samples with equal timestamps); nothing was applied")
-        return super().run(odometry, observations, progress=progress)
+        samples = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
+        self._checked_samples(samples)  # refused before the warm-up (seconds with spiking pose cells) and any sample
+        if not self._warm:
+            self.warm_up(next((o for o in observations if o is not None), None), progress=progress)
+        return self._run_checked(samples, observations, progress)  # lengths checked above
 
     # ------------------------------------------------------- save / resume
     def extra_arrays(self) -> dict[str, np.ndarray]:

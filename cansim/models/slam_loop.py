@@ -139,13 +139,11 @@ class SlamLog:
 
 
 
-def _at_sample(exc: CansimError, message: str) -> CansimError:
-    """``exc`` told again with ``message`` (which sample of a run, and what was applied): the same class when it takes
-    a message alone, else an :class:`InvalidInputError`."""
-    try:
-        return type(exc)(message)
-    except Exception:  # noqa: BLE001 - an error class with other arguments
-        return InvalidInputError(message)
+def _at_sample(exc: CansimError, k: int, applied: str) -> None:
+    """Prefix ``exc``'s message with the run's sample ``k`` and say what was ``applied``, in place: the same error
+    (its class and its data, e.g. a corrupt file's path) re-raised by the caller."""
+    if exc.args and isinstance(exc.args[0], str):
+        exc.args = (f"sample {k}: {exc.args[0]}; {applied}", *exc.args[1:])
 
 class SlamLoop:
     """Runs a composition of front end, local-view cells, pose cells and map.
@@ -162,7 +160,10 @@ class SlamLoop:
         :class:`~maps.odometry.PlanarOdometry` or :class:`~maps.odometry.SpatialOdometry`:
         the kind of odometry the parts take (``step``'s arguments build one).
     check_odometry : callable, optional
-        Extra model-specific check of a validated odometry (raises InvalidInputError).
+        Extra model-specific check of a validated odometry (raises InvalidInputError; may warn).
+    refuse_odometry : callable, optional
+        The part of ``check_odometry`` that raises, with no side effect (no warning): :meth:`run` checks every
+        sample with it before the first is applied. Default: ``check_odometry`` itself.
     """
 
     def __init__(
@@ -173,6 +174,7 @@ class SlamLoop:
         experience_map: ExperienceMap,
         odometry: type,
         check_odometry: Callable[[Odometry], None] | None = None,
+        refuse_odometry: Callable[[Odometry], None] | None = None,
     ) -> None:
         if tuple(local_view.shape) != tuple(pose_cells.shape) or tuple(experience_map.config.pc_shape) != tuple(pose_cells.shape):
             raise InvalidInputError(
@@ -185,6 +187,7 @@ class SlamLoop:
         self.experience_map = experience_map
         self._odometry = odometry
         self._check = check_odometry
+        self._refuse = refuse_odometry if refuse_odometry is not None else check_odometry
         ndim = len(pose_cells.shape)
         self._best = np.asarray(pose_cells.decode(), dtype=np.float64)
         self.iteration = 0
@@ -320,14 +323,12 @@ class SlamLoop:
         n = len(odometry)
         if len(observations) != n:
             raise InvalidInputError(f"odometry and observations must have the same length, got {n} and {len(observations)}")
-        kind = self._odometry
-        for k, o in enumerate(odometry):  # every sample's odometry checked before the first is applied
-            if isinstance(o, kind):
-                continue
-            try:
-                kind(*(o if isinstance(o, tuple) else (o,)))
-            except CansimError as exc:
-                raise _at_sample(exc, f"sample {k}: {exc}; nothing was applied") from None
+        self._checked_samples(odometry)  # every sample's odometry refused or taken before the first is applied
+        return self._run_checked(odometry, observations, progress)
+
+    def _run_checked(self, odometry: Sequence[Any], observations: Sequence[Any], progress: bool) -> SlamLog:
+        """:meth:`run`'s loop, for samples :meth:`_checked_samples` took (and as many observations)."""
+        n = len(odometry)
         exp_ids = np.empty(n, dtype=np.int64)
         reloc = np.empty(n, dtype=bool)
         best = np.empty((n, len(self._best)))
@@ -344,11 +345,30 @@ class SlamLoop:
             o = odometry[k]
             try:
                 s = self.step(*(o if isinstance(o, tuple) else (o,)), obs)
-            except CansimError as exc:  # an observation, or a check that needs the model's state
-                applied = f"samples 0-{k - 1} were applied: the model holds their state" if k else "nothing was applied"
-                raise _at_sample(exc, f"sample {k}: {exc}; {applied}") from exc
+            except CansimError as exc:  # an observation (only a step reads it)
+                _at_sample(exc, k, f"samples 0-{k - 1} were applied: the model holds their state" if k else
+                           "nothing was applied")
+                raise
             exp_ids[k], reloc[k], best[k], vids[k] = s.exp_id, s.relocalised, s.best_pc, s.view_id
         return SlamLog(exp_ids=exp_ids, relocalised=reloc, best_pc=best, view_ids=vids)
+
+    def _checked_samples(self, odometry: Sequence[Any]) -> list[Odometry]:
+        """Every sample's odometry object (built from its fields), each refused as :meth:`step` would refuse it
+        (``refuse_odometry``), before any is applied; an error names its sample."""
+        kind, out = self._odometry, []
+        for k, o in enumerate(odometry):
+            try:
+                try:
+                    odo = o if isinstance(o, kind) else kind(*(o if isinstance(o, tuple) else (o,)))
+                except TypeError as exc:  # a sample of the wrong number of fields
+                    raise InvalidInputError(f"odometry sample must be a {kind.__name__} or its fields: {exc}") from None
+                if self._refuse is not None:
+                    self._refuse(odo)
+            except CansimError as exc:
+                _at_sample(exc, k, "nothing was applied")
+                raise
+            out.append(odo)
+        return out
 
     # ------------------------------------------------------- save / resume
     def describe(self) -> dict[str, Any]:
