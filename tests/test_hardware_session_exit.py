@@ -64,9 +64,16 @@ def test_the_envelope_file_is_the_one_the_platform_gets(tmp_path, monkeypatch, c
     assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path),
                     "--tool-axis", "1", "0", "0"]) == hs.EXIT_USAGE
     assert "give the axis in one place" in capsys.readouterr().err
+    path.write_text('{"tool_reference_axis": [0, 0, -2]}')  # the same direction, another length: no conflict
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path),
+                    "--tool-axis", "0", "0", "-1"]) == hs.EXIT_INTERRUPTED
+    path.write_text('{"max_tool_tilt": 2.0}')  # a file that names no axis takes --tool-axis's (review)
+    assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(path),
+                    "--tool-axis", "0", "1", "0"]) == hs.EXIT_INTERRUPTED
+    assert got[-1].tool_reference_axis == (0.0, 1.0, 0.0) and got[-1].max_tool_tilt == 2.0
     assert hs.main(["--robot-ip", "x", "--out", str(tmp_path / "s"), "--envelope", str(tmp_path / "none.json")]) == hs.EXIT_USAGE
     assert "none.json" in capsys.readouterr().err
-    assert len(got) == n_opened  # no refused envelope reached the platform
+    assert len(got) == n_opened + 2  # no refused envelope reached the platform
 
 
 @pytest.mark.skipif(importlib.util.find_spec("rtde_receive") is None, reason='needs the hw extra (pip install -e ".[hw]")')

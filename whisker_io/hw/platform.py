@@ -140,6 +140,9 @@ def envelope_from_options(args: argparse.Namespace) -> SafetyEnvelope:
         The ``--envelope`` file is unreadable or not a JSON object of limits.
     """
     import dataclasses
+    import json
+
+    import numpy as np
 
     from whisker_io.errors import ConfigError
 
@@ -150,7 +153,11 @@ def envelope_from_options(args: argparse.Namespace) -> SafetyEnvelope:
         axis = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis)).tool_reference_axis
     except ConfigError as exc:
         raise ConfigError(f"--tool-axis: {exc}") from None
-    if args.envelope is not None and axis != envelope.tool_reference_axis:
-        raise ConfigError(f"--tool-axis {' '.join(f'{v:g}' for v in axis)} and the --envelope file's tool_reference_axis "
-                          f"{list(envelope.tool_reference_axis)} differ: give the axis in one place")
+    if args.envelope is not None:  # the file was read above: it is a JSON object
+        with open(args.envelope, encoding="utf-8-sig") as fh:
+            named = "tool_reference_axis" in json.load(fh)
+        unit = [np.asarray(a, dtype=float) / np.linalg.norm(a) for a in (axis, envelope.tool_reference_axis)]
+        if named and not np.allclose(*unit, atol=1e-9):  # only an axis the file names can disagree with --tool-axis
+            raise ConfigError(f"--tool-axis {' '.join(f'{v:g}' for v in axis)} and the --envelope file's "
+                              f"tool_reference_axis {list(envelope.tool_reference_axis)} differ: give the axis in one place")
     return dataclasses.replace(envelope, tool_reference_axis=axis)
