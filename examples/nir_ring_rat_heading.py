@@ -49,7 +49,12 @@ def rat_heading(
     lowpass_s: float = 0.2,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(time_s, heading_rad)`` (unwrapped movement direction, see the module docstring) of ``seconds`` from ``start_s``."""
-    import ratinabox
+    try:
+        import ratinabox
+    except ImportError:
+        from whisker_io.errors import missing_extra
+
+        raise missing_extra("the recorded rat heading (ratinabox's data)", "ratinabox", "rat") from None
 
     d = np.load(os.path.join(os.path.dirname(ratinabox.__file__), "data", f"{data}.npz"))
     t, pos = d["t"] - d["t"][0], d["pos"]
@@ -154,4 +159,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "nir_ring_rat_heading"))
