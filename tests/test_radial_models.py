@@ -12,6 +12,8 @@ import csv
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 import trimesh
 
 from whisker_io.errors import InvalidInputError, CansimError
@@ -289,3 +291,24 @@ def test_a_whisker_length_of_zero_or_less_and_an_unfitted_model_are_typed_errors
     with pytest.raises(InvalidInputError, match="save_model takes a TrainedModel"):
         save_model(svr.estimator, tmp_path / "pipe.skops")
     assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_the_training_band_of_the_whisker_lengths_by_hand():
+    """65-137 mm: the margin is 10 % of the larger end, 13.7 mm (the width is 72 mm): 51.3-150.7 mm, so a 160-mm
+    whisker is outside and a 60-mm one inside (the Ch.5 study's note rests on it)."""
+    from whisker_io.radial.models import training_band
+
+    low, high = training_band(0.065, 0.137)
+    assert low == pytest.approx(0.0513) and high == pytest.approx(0.1507)
+    assert low <= 0.060 <= high and not 0.160 <= high
+
+
+@given(st.floats(-1e6, 1e6), st.floats(0.0, 1e6))
+def test_the_training_band_holds_the_range_and_a_tenth_of_its_width_or_size_more(lo, width):
+    from whisker_io.radial.models import training_band
+
+    hi = lo + width
+    low, high = training_band(lo, hi)
+    pad = lo - low
+    assert high - hi == pytest.approx(pad) and pad > 0
+    assert pad >= 0.1 * width * (1 - 1e-12) and pad >= 0.1 * max(abs(lo), abs(hi)) * (1 - 1e-12)

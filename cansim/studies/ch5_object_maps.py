@@ -608,13 +608,12 @@ def _extrapolation_note(name: str, trained: Mapping[str, tuple[float, float]]) -
     on the study's array (said once; the jobs do not repeat the model's own
     :class:`~whisker_io.radial.errors.ExtrapolationWarning`)."""
     from whisker_io.radial.features import FEATURE_UNITS
-    from whisker_io.radial.models import OUTSIDE_MARGIN
+    from whisker_io.radial.models import training_band
     said = [f"{f} {lo:.4g} to {hi:.4g} {FEATURE_UNITS[f]}" for f, (lo, hi) in trained.items() if f in ("WL", "CA")]
     outside = []
     if "WL" in trained:
-        lo, hi = trained["WL"]
-        pad = OUTSIDE_MARGIN * max(hi - lo, abs(hi), abs(lo))
-        outside = [f"{1000 * v:.0f}-mm" for v in sorted(set(THESIS_LENGTHS_M.values())) if not lo - pad <= v <= hi + pad]
+        low, high = training_band(*trained["WL"])
+        outside = [f"{1000 * v:.0f}-mm" for v in sorted(set(THESIS_LENGTHS_M.values())) if not low <= v <= high]
     lengths = (f"the array's {' and '.join(outside)} whiskers (Sec 6.1.3.1.2) lie outside that, and " if outside else "")
     return (f"The SVR contact model {name} was trained on {'; '.join(said) or 'its own range'}: {lengths}contacts "
             "beyond its training data are extrapolations (the thesis, too, applied its Ch.4 model to this array); "

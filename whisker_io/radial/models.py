@@ -69,6 +69,7 @@ __all__ = [
     "train_models",
     "model_features",
     "check_feature_matrix",
+    "training_band",
 ]
 
 log = logging.getLogger(__name__)
@@ -133,6 +134,13 @@ def check_feature_matrix(X: Any, what: str = "X") -> np.ndarray:
 OUTSIDE_MARGIN = 0.1
 
 
+def training_band(lo: float, hi: float) -> tuple[float, float]:
+    """The inputs a model trained on ``[lo, hi]`` takes without an extrapolation warning: the range widened by
+    :data:`OUTSIDE_MARGIN` of its width, or of its ends' larger magnitude when that is larger (same unit as ``lo``)."""
+    pad = OUTSIDE_MARGIN * max(hi - lo, abs(hi), abs(lo), 1e-12)
+    return lo - pad, hi + pad
+
+
 def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
                   training_range: Mapping[str, tuple[float, float]]) -> bool:
     """One warning naming the features of ``X`` (rows) outside ``training_range`` by more than the margin;
@@ -142,9 +150,9 @@ def _warn_outside(label: str, X: np.ndarray, features: Sequence[str],
         if f not in training_range:
             continue
         lo, hi = training_range[f]
-        pad = OUTSIDE_MARGIN * max(hi - lo, abs(hi), abs(lo), 1e-12)
+        low, high = training_band(lo, hi)
         col = X[:, FEATURE_NAMES.index(f)]
-        bad = (col < lo - pad) | (col > hi + pad)
+        bad = (col < low) | (col > high)
         if bad.any():
             rows |= bad
             worst = col[bad][np.argmax(np.abs(col[bad] - (lo + hi) / 2))]
