@@ -42,6 +42,6 @@ class UnknownBackendError(CansimError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
-class BackendUnavailableError(MissingExtraError):
-    """A registered backend whose optional dependency is not installed or has no device (the message says which
-    extra to install, or what the device lacks)."""
+class BackendUnavailableError(CansimError, ImportError):
+    """A registered backend that cannot run here: its optional dependency is not installed, or it has no usable
+    device (the message says which extra to install, or what the device lacks)."""

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cansim.errors import BackendUnavailableError, CansimError, MissingExtraError
+from cansim.errors import CansimError, MissingExtraError
 from whisker_io.command_line import EXIT_MISSING_EXTRA, run_command
 from whisker_io.errors import MissingDependencyError, missing_extra
 
@@ -49,7 +49,7 @@ def test_a_missing_module_is_a_missing_extra_error_naming_the_extra(monkeypatch,
 
 
 @pytest.mark.parametrize("module, hide, error, extra", [
-    ("cansim.backends.opencl_backend", "pyopencl", BackendUnavailableError, "opencl"),
+    ("cansim.backends.opencl_backend", "pyopencl", MissingExtraError, "opencl"),
     ("whisker_io.testing.fake_usb_backend", "usb", MissingDependencyError, "hw"),
 ])
 def test_a_module_that_needs_an_extra_says_so_when_imported(monkeypatch, module, hide, error, extra):

@@ -92,10 +92,9 @@ ICD_REGISTRATION = register_icds()
 try:
     import pyopencl as cl  # noqa: E402
 except ImportError:  # a base install: say what to install, not ModuleNotFoundError
-    from cansim.errors import BackendUnavailableError as _Unavailable
+    from cansim.errors import missing_extra as _missing_extra
 
-    raise _Unavailable('the opencl backend (and list_devices) needs pyopencl and an OpenCL runtime: '
-                       'pip install "cansim[opencl]"') from None
+    raise _missing_extra("the opencl backend (and list_devices)", "pyopencl", "opencl") from None
 
 from cansim.backends.base import Backend, RunInputs, RunResult  # noqa: E402
 from cansim.decoding import population_vector_window  # noqa: E402

@@ -469,7 +469,8 @@ _INSIDE_DIRECTIONS /= np.linalg.norm(_INSIDE_DIRECTIONS, axis=1, keepdims=True)
 def bases_inside(mesh: Any, poses: Sequence[Any]) -> np.ndarray:
     """Per pose, whether a whisker base of the array there lies inside ``mesh`` (an impossible placement), (n,) bool.
 
-    A point is inside when ray parity says so along at least two of three fixed directions: the same on every run
+    A point is inside when ray parity says so along at least two of three fixed directions (a direction whose two
+    opposite rays disagree, e.g. along an edge, votes outside): the same on every run
     (``trimesh``'s ``contains`` retries a point its two opposite rays disagree on along a direction drawn from an
     unseeded generator, so the count changed between identical runs: 149, 150 and 167 of 3600 whisks).
     """

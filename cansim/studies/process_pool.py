@@ -58,6 +58,7 @@ def pool_map(fn: Callable[[J], R], jobs: Sequence[J], workers: int, desc: str, p
     """
     from tqdm import tqdm
 
+    quiet = (quiet,) if isinstance(quiet, type) else tuple(quiet)
     if workers <= 1:
         with warnings.catch_warnings():
             for category in quiet:

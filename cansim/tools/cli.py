@@ -452,13 +452,14 @@ _positive_int = _int_at_least(1, "a positive integer")
 
 # ------------------------------------------------------------------ main
 def _classify(exc: BaseException) -> tuple[int, str]:
-    from cansim.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, MissingExtraError
+    from cansim.errors import (BackendUnavailableError, CansimError, ConfigError, CorruptFileError, InvalidInputError,
+                               MissingExtraError)
 
     if isinstance(exc, CommandError):
         return exc.code, str(exc)
     if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
         return EXIT_BAD_INPUT, str(exc)
-    if isinstance(exc, MissingExtraError) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
+    if isinstance(exc, (MissingExtraError, BackendUnavailableError)) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
         return EXIT_MISSING_EXTRA, str(exc)
     if isinstance(exc, FileNotFoundError):
         return EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"
