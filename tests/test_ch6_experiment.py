@@ -554,3 +554,28 @@ def test_bases_inside_a_box_by_hand_and_the_same_on_every_call(positions):
     got = ch6.bases_inside(box, poses)
     assert got.tolist() == want and ch6.bases_inside(box, poses).tolist() == want
 
+
+
+def test_ctrl_c_keeps_the_finished_runs_rows_and_a_complete_run_removes_them(tmp_path, monkeypatch):
+    """An interrupted study (a student's pass: Ctrl-C left only maps/) keeps its finished runs in ch6_runs_interrupted.csv,
+    ch6_runs.csv's columns, and re-raises (status 130 on the command line); a later complete run removes that file."""
+    real, calls = ch6.run_one, []
+
+    def interrupted_at_the_third(*args, **kwargs):
+        calls.append(args[1:5])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(ch6, "run_one", interrupted_at_the_third)
+    argv = ["--quick", "--seeds", "1", "--iterations", "20", "--out", str(tmp_path), "--no-progress"]
+    with pytest.raises(KeyboardInterrupt):
+        ch6.main(argv)
+    with open(tmp_path / ch6.INTERRUPTED_CSV) as f:
+        rows = list(csv.DictReader(f))
+    runs = {(r["presented"], r["strategy"], r["spc"], r["seed"]) for r in rows}
+    assert len(runs) == 2 and len(rows) == 2 * len(ch6.THRESHOLDS)  # the two finished runs, every threshold's row
+    assert not (tmp_path / "ch6_runs.csv").exists()
+    monkeypatch.setattr(ch6, "run_one", real)
+    assert ch6.main(argv) == 0
+    assert (tmp_path / "ch6_runs.csv").exists() and not (tmp_path / ch6.INTERRUPTED_CSV).exists()
