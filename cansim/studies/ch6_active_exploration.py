@@ -768,9 +768,10 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     fig, ax = plt.subplots(figsize=(6, 4.6))
     for s in STRATEGY_NAMES:
         rng = [_median_range([x for x in strat_rows if x["strategy"] == s and x["threshold"] == t], "im") for t in THRESHOLDS]
-        line, = ax.plot(THRESHOLDS, [m for m, _, _ in rng], label=s)
+        line, = ax.plot(THRESHOLDS, [m for m, _, _ in rng], marker="o", label=s)
         for t, (m, lo, hi) in zip(THRESHOLDS, rng):
-            ax.plot([t], [m], marker="o", color=line.get_color(), markerfacecolor="white" if lo < hi else line.get_color())
+            if lo < hi:  # a censored median: its marker drawn again, hollow (the line's own style: its legend entry)
+                ax.plot([t], [m], marker="o", color=line.get_color(), markerfacecolor="white")
     at = [[x for x in strat_rows if x["threshold"] == t] for t in THRESHOLDS]
     n_cens = [sum(_im_censored(x) for x in v) for v in at]
     ax.set_xticks(THRESHOLDS, [f"{t:.0f}\nIM censored\n{c}/{len(v)}" for t, c, v in zip(THRESHOLDS, n_cens, at)], fontsize=7)
