@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cansim.errors import CansimError, ConfigError, InvalidInputError
+from cansim.errors import CansimError, ConfigError, InvalidInputError, ZeroActivityError
 from cansim.models.spiking_pose_cells import SpikingPoseCellParams, SpikingPoseCells
 
 XY, TH, CELL = 21, 36, 0.05
@@ -107,7 +107,7 @@ def test_ratslam_config_takes_spiking_pose_cells_opt_in():
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), dt_s=st.sampled_from([0.0005, 0.001, 0.002]),
-       sheet=st.floats(0.0, 1000.0), ring=st.floats(0.0, 1000.0))
+       sheet=st.floats(150.0, 1000.0), ring=st.floats(100.0, 1000.0))
 def test_ratslam_takes_the_spiking_parameters_and_its_config_round_trips_them(seed, dt_s, sheet, ring):
     """RatSLAMConfig(spiking=SpikingPoseCellParams(...)): the seed, step and weights reach the pose cells (they could
     not: RatSLAM built the defaults, a neuromorphic user's pass), and to_dict / from_dict (the saved form) keep them."""
@@ -133,6 +133,27 @@ def test_the_warm_up_survives_a_seed_whose_packet_its_quarter_turns_outrun():
     assert slam.warm_up() >= 0 and slam.best_pc == before and slam.iteration == 0
     slam.step(0.05, 0.0, 1.0, 0)
     assert slam.iteration == 1
+
+
+@pytest.mark.parametrize("field", ["sheet_recurrent_weight", "ring_recurrent_weight"])
+def test_a_population_too_weak_to_hold_its_packet_is_refused_when_made(field):
+    """A weight of 0 left the kicked packet to noise (~5 spikes in the window) and poses were decoded from those spikes
+    (a neuromorphic user's pass): the pose cells now refuse to be made, naming the weight."""
+    with pytest.raises(ZeroActivityError, match=rf"did not hold its packet: \d spikes .* raise {field}"):
+        SpikingPoseCells(21, 36, 0.05, SpikingPoseCellParams(**{field: 0.0}))
+
+
+def test_a_packet_that_dies_in_a_step_is_caught_not_decoded(pc):
+    """A packet whose window falls under a tenth of its settled count has died out: decoding raises instead of reading
+    the few noise spikes left (5 spikes here, where the sheet's settled window held hundreds)."""
+    from cansim.models.spiking_pose_cells import MIN_LIVING_SHARE
+
+    settled = pc._settled[1]
+    assert settled * MIN_LIVING_SHARE > 5  # the default sheet settles with hundreds of spikes in its window
+    pc._sheet_dec = type(pc._sheet_dec)(pc.sheet.axes, pc._window, half_width=3 * pc._k)  # its window emptied ...
+    pc._sheet_dec.add(np.array([0, 7, 50, 400, 1000]))  # ... but for five noise spikes
+    with pytest.raises(ZeroActivityError, match=rf"sheet packet died out \(5 spikes in its window against {settled}"):
+        pc._decode()
 
 
 def test_spiking_parameters_need_the_spiking_pose_cells():

@@ -29,10 +29,12 @@ and a sheet packet pins to the lattice below ~5 cells/s per axis, so the decoded
 wander from the rate model's: on that route (seed 0) by a median 2.8 cells in x' and 7.7 in
 y', where random points of the 21 x 21 grid lie 8.4 apart - between views y' is not
 tracked (a user's check, session 49); the map still closes its loops because the views
-re-anchor the packets (1,002 re-localisations against the rate model's 899). A sheet too
-weak to hold a packet is not always caught: :class:`~cansim.errors.ZeroActivityError` comes
-only when no spike is left, and a few noise spikes still decode (a
-``sheet_recurrent_weight`` of 0 gave poses from 4-5 spikes). Cost: 10.2 ms an iteration
+re-anchor the packets (1,002 re-localisations against the rate model's 899). A population
+too weak to hold its packet raises :class:`~cansim.errors.ZeroActivityError`: when made, if
+its kicked packet does not settle (:data:`MIN_SETTLED_SPIKES` in the decoding window; noise
+alone gives ~5, and a ``sheet_recurrent_weight`` of 0 once decoded poses from them), and in a
+step whose window falls under :data:`MIN_LIVING_SHARE` of its settled count (on the route the
+windows keep 85-95 % of it, seeds 0, 3 and 5). Cost: 10.2 ms an iteration
 against the rate engine's 0.11 ms (~90x; the route 15 s against 0.2 s; ``bench/README.md``).
 Export: :func:`cansim.spiking.to_nir` takes the ring (``.ring``) and the sheet (``.sheet``)
 one at a time, each a still attractor; the ring-to-sheet coupling, the velocity shifts and
@@ -62,6 +64,13 @@ from whisker_io.validation import ConfigDataclass, checked, config_field, valida
 
 __all__ = ["SpikingPoseCellParams", "SpikingPoseCells"]
 
+
+
+#: A packet whose decoding window holds under this share of the spikes it held when it settled has died out.
+MIN_LIVING_SHARE = 0.1
+#: Fewest spikes in the decoding window of a packet that settled: below it the kick did not hold (noise alone gives
+#: ~5 in the 50 ms window; the default ring's packet 145, the sheet's 680; a sheet of weight 100 still 198).
+MIN_SETTLED_SPIKES = 20
 
 
 @dataclass(frozen=True)
@@ -174,7 +183,14 @@ class SpikingPoseCells:
         for _ in range(int(round(0.3 / self._params.dt_s))):
             self._ring_dec.add(self._ring.step())
             self._sheet_dec.add(self._sheet.step())
+        settled = (int(self._ring_dec.counts.sum()), int(self._sheet_dec.counts.sum()))
+        for name, count, weight in (("ring", settled[0], "ring_recurrent_weight"), ("sheet", settled[1], "sheet_recurrent_weight")):
+            if count < MIN_SETTLED_SPIKES:  # noise alone: the kicked packet did not hold (a silent sheet gives ~5)
+                raise ZeroActivityError(f"the spiking pose cells' {name} did not hold its packet: {count} spikes in the "
+                                        f"{self._window}-step window after settling; raise {weight} (its default holds it)")
+        self._settled = None
         self._best = self._decode()
+        self._settled = settled  # the settled packets' window counts: what a living packet's are measured against
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -225,6 +241,12 @@ class SpikingPoseCells:
 
     # ---------------------------------------------------------- dynamics
     def _decode(self) -> np.ndarray:
+        if self._settled is not None:  # a few noise spikes would still decode: a packet under a tenth of its settled
+            # window count has died out (a sheet_recurrent_weight of 0 decoded poses from 4-5 spikes)
+            for name, dec, settled in (("ring", self._ring_dec, self._settled[0]), ("sheet", self._sheet_dec, self._settled[1])):
+                if dec.counts.sum() < MIN_LIVING_SHARE * settled:
+                    raise ZeroActivityError(f"the spiking pose cells' {name} packet died out ({int(dec.counts.sum())} spikes "
+                                            f"in its window against {settled} when it settled); raise its recurrent weight")
         try:
             xy = self._sheet_dec.decode() / self._k
             th = self._ring_dec.decode()[0] / self._r
