@@ -11,7 +11,7 @@ that raised it is left unchanged.
 from __future__ import annotations
 
 from whisker_io.errors import (CansimError, ConfigError, CorruptFileError, InvalidInputError, MissingExtraError, ShapeError,
-                               UnknownFieldError, missing_extra)
+                               UnknownFieldError, missing_extra)  # noqa: F401 - missing_extra re-exported
 
 __all__ = [
     "CansimError",

@@ -1159,7 +1159,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                  + f"); stopped by {', '.join(f'{k} {v}' for k, v in reasons.items())}.")
     if strat:
         at = {t: [x for x in strat if x["threshold"] == t] for t in THRESHOLDS}
-        lines.append(f"Censored at the run's end (strategy runs, per IC threshold): IM censored, no incorrect identity "
+        lines.append("Censored at the run's end (strategy runs, per IC threshold): IM censored, no incorrect identity "
                      "crossed - "
                      + ", ".join(f"{t:.0f}: {sum(_im_censored(x) for x in v)} of {len(v)}" for t, v in at.items())
                      + "; SRT censored, the correct identity never crossed - "
