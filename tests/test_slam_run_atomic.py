@@ -81,3 +81,13 @@ def test_an_error_told_at_its_sample_keeps_its_class_and_data():
     g = SequenceGapError("frames lost", 4)
     _at_sample(g, 0, "nothing was applied")
     assert str(g) == "sample 0: frames lost; nothing was applied" and g.lost == 4
+
+
+def test_a_run_of_values_that_are_no_numbers_is_typed_and_applies_nothing():
+    s = RatSLAM(RatSLAMConfig(backend="numpy"))
+    with pytest.raises(InvalidInputError, match="vtrans and vrot must be numbers"):
+        s.run([0.25, "fast"], [0.0, 0.0], 0.2, [1, 2])
+    with pytest.raises(InvalidInputError, match="dt must be a number or one per sample"):
+        s.run([0.25, 0.25], [0.0, 0.0], [0.2, 0.2, 0.2], [1, 2])
+    assert s.iteration == 0 and s.n_views == 0
+

@@ -240,7 +240,10 @@ class RatSLAM(SlamLoop):
             dts = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         except (TypeError, ValueError) as exc:
             raise InvalidInputError(f"dt must be a number or one per sample ({n}), s: {exc}") from None
-        samples = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
+        try:
+            samples = [(float(vtrans[k]), float(vrot[k]), float(dts[k])) for k in range(n)]
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"vtrans and vrot must be numbers (m/s, rad/s), one per sample: {exc}") from None
         self._checked_samples(samples)  # refused before the warm-up (seconds with spiking pose cells) and any sample
         if not self._warm:
             self.warm_up(next((o for o in observations if o is not None), None), progress=progress)
