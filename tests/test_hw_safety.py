@@ -393,6 +393,7 @@ def test_an_envelope_saved_loads_back_equal_and_a_hand_written_file_keeps_the_de
     ('{"max_tcp_speed": NaN}', "ConfigError", "max_tcp_speed must be finite"),
     ('{"workspace_min": [0, 0, 0], "workspace_max": [1, 1, 0]}', "ConfigError", "workspace_min must be < workspace_max"),
     ('{"max_tcp_sped": 0.1}', "UnknownFieldError", "did you mean 'max_tcp_speed'"),
+    ('{"max_tool_tilt": null}', "ConfigError", "max_tool_tilt: null is no limit; give a number or leave the field out"),
 ])
 def test_a_bad_envelope_file_is_refused_naming_the_file(tmp_path, text, error, says):
     import whisker_io.errors as errors

@@ -210,6 +210,10 @@ class SafetyEnvelope(ConfigDataclass):
         if not isinstance(data, dict):
             raise CorruptFileError(f"{os.fspath(path)}: a JSON object of safety limits (field: value) was expected, "
                                    f"got {type(data).__name__}")
+        nulls = [k for k, v in data.items() if v is None]
+        if nulls:  # JSON's null is no limit (it would be read as NaN)
+            raise ConfigError(f"{os.fspath(path)}: {', '.join(nulls)}: null is no limit; give a number or leave the "
+                              "field out for its default")
         try:
             return cls(**data)
         except ConfigError as exc:
