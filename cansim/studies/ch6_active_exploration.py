@@ -744,8 +744,12 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
         for thr in THRESHOLDS:
             axes[1].axhline(thr, ls=":", color="grey", lw=0.7)
         axes[1].set_title("integrated confidence (dotted: the IC thresholds)", fontsize=9)
+        # Sec 6.1.2.4: with the RC method a threshold of 3 selects one identity and a "slight change", 4, another
+        for thr, ls in ((3.0, "--"), (4.0, "-.")):
+            axes[0].axhline(thr, ls=ls, color="k", lw=0.8, label=f"RC threshold {thr:g} (Sec 6.1.2.4)")
     axes[0].set_ylabel("raw confidence"); axes[1].set_ylabel("integrated confidence"); axes[1].set_xlabel("whisk")
-    axes[0].legend(); axes[0].set_title(f"Fig 6.4: {label[runs[0]['presented']]} presented, {runs[0]['strategy']}, seed {runs[0]['seed']}"
+    axes[0].set_ylim(top=max(5.5, 1.4 * axes[0].get_ylim()[1]))  # room above the data and the thresholds for the legend
+    axes[0].legend(loc="upper left", ncol=2, fontsize=7); axes[0].set_title(f"Fig 6.4: {label[runs[0]['presented']]} presented, {runs[0]['strategy']}, seed {runs[0]['seed']}"
                       if runs else "")
     fig.tight_layout(); fig.savefig(out / "fig6_4_rc_ic.png", dpi=100); plt.close(fig)
 
