@@ -749,6 +749,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
         r = pick[0]
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6), sharex=False)
         h, n0 = r["history"], r["n_lib_hist"]
+        h = np.where(np.asarray(h) < 0, np.nan, h)  # -1: a map had no experience yet (a gap, not experience 0)
         t = np.arange(len(h))
         cmap = plt.get_cmap("tab10")
         for k, name in enumerate(r["names"]):
