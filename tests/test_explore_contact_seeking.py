@@ -262,10 +262,11 @@ def peanut_runs():
 
 
 def _whisks_base_inside(mesh, poses):
-    from whisker_io.array.geometry import WhiskerArray
+    """Whisks with a base of the thesis array inside ``mesh``, counted as the Ch.6 study counts them (a vote over fixed
+    ray directions: the same on every run, where trimesh's contains retries ambiguous points at random)."""
+    from cansim.studies.ch6_active_exploration import bases_inside
 
-    bases = np.asarray(WhiskerArray.thesis().positions_m)
-    return sum(bool(mesh.contains(p.apply(bases)).any()) for p in poses)
+    return int(bases_inside(mesh, poses).sum())
 
 
 def test_the_contact_guard_puts_fewer_bases_inside_the_held_out_shape(peanut_runs):
