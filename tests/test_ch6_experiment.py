@@ -579,3 +579,30 @@ def test_ctrl_c_keeps_the_finished_runs_rows_and_a_complete_run_removes_them(tmp
     monkeypatch.setattr(ch6, "run_one", real)
     assert ch6.main(argv) == 0
     assert (tmp_path / "ch6_runs.csv").exists() and not (tmp_path / ch6.INTERRUPTED_CSV).exists()
+
+
+def test_a_strategy_study_without_lsr_does_not_judge_finding_2():
+    """--strategies default feh: finding 2 (LSR against the others) is NOT measured, naming what ran; the per-strategy
+    lines list only the strategies run."""
+    setup, args = _setup_args()
+    rows = [r for r in _summary_rows({"default": 30.0, "feh": 20.0, "lsr": 40.0}, "box", {300.0: 2})
+            if r["strategy"] != "lsr"]
+    text = ch6.summary(rows, setup, args, 1.0)
+    assert "NOT measured: only default, feh ran; LSR and another strategy must (--strategies)" in _finding(text, "2. ")
+    assert "Correct identity first at IC 300, per strategy: default 1/2; feh 1/2" in text and "lsr" not in \
+        text.split("Correct identity first at IC 300, per strategy:")[1].splitlines()[0]
+
+
+def test_the_strategy_study_runs_the_strategies_asked_for(tmp_path):
+    """--strategies lsr: the strategy study runs LSR only; the SPC study still runs the default search, on and off, and
+    each run is counted once."""
+    assert ch6.main(["--quick", "--seeds", "1", "--iterations", "20", "--strategies", "lsr", "--out", str(tmp_path),
+                     "--no-progress"]) == 0
+    with open(tmp_path / "ch6_runs.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["threshold"] == str(ch6.THRESHOLDS[0])]
+    assert {r["strategy"] for r in rows if r["study"] == "strategy"} == {"lsr"}
+    assert sorted((r["strategy"], r["spc"]) for r in rows if r["study"] == "spc") == [("default", "off"), ("default", "on")]
+    summary = (tmp_path / "ch6_summary.txt").read_text()
+    assert "Runs: 4 (2 strategy runs, + 1 SPC-on run of the default search, + 1 SPC-off)" in summary
+    with pytest.raises(SystemExit):
+        ch6.main(["--strategies", "random", "--out", str(tmp_path)])

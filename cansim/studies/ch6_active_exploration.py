@@ -4,6 +4,7 @@ Run::
 
     python examples/ch6_active_exploration.py            # 10 seeds x 3 strategies, up to 1000 whisks a run
     python examples/ch6_active_exploration.py --quick    # 2 seeds, 300 whisks a run (< 3 min)
+    python examples/ch6_active_exploration.py --strategies lsr --seeds 4   # one strategy (the SPC study: default)
 
 Steps:
 
@@ -770,7 +771,8 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     # crossed within the run: IM a lower bound set by the run length) is drawn hollow, each threshold's censored
     # share under its tick
     fig, ax = plt.subplots(figsize=(6, 4.6))
-    for s in STRATEGY_NAMES:
+    shown = [s for s in STRATEGY_NAMES if any(x["strategy"] == s for x in strat_rows)]  # the strategies run
+    for s in shown:
         rng = [_median_range([x for x in strat_rows if x["strategy"] == s and x["threshold"] == t], "im") for t in THRESHOLDS]
         line, = ax.plot(THRESHOLDS, [m for m, _, _ in rng], marker="o", label=s)
         for t, (m, lo, hi) in zip(THRESHOLDS, rng):
@@ -787,11 +789,11 @@ def figures(out: Path, runs: Sequence[dict[str, Any]], spc_runs: Sequence[dict[s
     for col, fname, title in (("im", "fig6_8_im_strategy.png", "Fig 6.8: identity margin (IM) at IC 300"),
                               ("srt", "fig6_9_srt_strategy.png", "Fig 6.9: successful recognition time (SRT) at IC 300")):
         fig, ax = plt.subplots(figsize=(6, 4))
-        d = [[x[col] for x in strat_rows if x["strategy"] == s and x["threshold"] == 300.0] or [np.nan] for s in STRATEGY_NAMES]
+        d = [[x[col] for x in strat_rows if x["strategy"] == s and x["threshold"] == 300.0] or [np.nan] for s in shown]
         parts = ax.boxplot(d, notch=True)
         v300 = [x for x in strat_rows if x["threshold"] == 300.0]
         n_cens = sum(_im_censored(x) if col == "im" else not _crossed(x)[0] for x in v300)
-        ax.set_xticks([1, 2, 3], list(STRATEGY_NAMES)); ax.set_ylabel(f"{col.upper()} (whisks)")
+        ax.set_xticks(range(1, len(shown) + 1), shown); ax.set_ylabel(f"{col.upper()} (whisks)")
         ax.set_title(f"{title}\n{col.upper()} censored at the run's end (a lower bound) in {n_cens} of {len(v300)} runs",
                      fontsize=9)
         ax.set_xlabel("exploration strategy")
@@ -1034,7 +1036,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
         f1 += "NOT reproduced" + (f" ({second})" if second else "")
     lines.append(f1)
     strat = [x for x in rows if x.get("study") == "strategy"]
-    at300 = {s: [x for x in strat if x["strategy"] == s and x["threshold"] == 300.0] for s in STRATEGY_NAMES}
+    present = tuple(s for s in STRATEGY_NAMES if any(x["strategy"] == s for x in strat))  # those run (--strategies)
+    at300 = {s: [x for x in strat if x["strategy"] == s and x["threshold"] == 300.0] for s in present}
     im_rng = {s: _median_range(v, "im") for s, v in at300.items()}
     srt_rng = {s: _median_range(v, "srt") for s, v in at300.items()}
     groups_im = [[x["im"] for x in v] for v in at300.values() if v]
@@ -1045,17 +1048,19 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
         return stats.kruskal(*g).pvalue if len(g) > 1 and len(set(flat)) > 1 else math.nan
 
     p_im, p_srt = kw(groups_im), kw(groups_srt)
-    measured = [s for s in STRATEGY_NAMES if math.isfinite(im_rng[s][0]) and math.isfinite(srt_rng[s][0])]
+    measured = [s for s in present if math.isfinite(im_rng[s][0]) and math.isfinite(srt_rng[s][0])]
     crossed_300 = any(x["identity"] != "" for v in at300.values() for x in v)
     n_whisks = f"the run's {args.iterations} whisks"
     # a censored value is where the run stopped, not where the IC would have crossed: the medians it moves are bounds
     bound = (f"a censored IM or SRT is set by the run length, {args.iterations} whisks, not measured; run longer with "
              "--iterations")
     finding = "2. LSR has the highest IM median and the lowest SRT median, neither significant at 5% (Fig 6.8-6.9): " \
-        + "; ".join(f"{s} IM {_fmt_median(*im_rng[s])} SRT {_fmt_median(*srt_rng[s])}" for s in STRATEGY_NAMES) \
+        + "; ".join(f"{s} IM {_fmt_median(*im_rng[s])} SRT {_fmt_median(*srt_rng[s])}" for s in present) \
         + f"; Kruskal-Wallis p(IM) = {fmt(p_im, '.3g')}, p(SRT) = {fmt(p_srt, '.3g')}. "
     if not strat:
         lines.append(finding + "NOT measured: no strategy run")
+    elif "lsr" not in present or len(present) < 2:
+        lines.append(finding + f"NOT measured: only {', '.join(present)} ran; LSR and another strategy must (--strategies)")
     elif not measured or not crossed_300:  # every run censored: the medians are the runs' ends, not the strategies'
         lines.append(finding + "NOT measured: no run crossed IC 300 (every IM / SRT censored at the run's end)")
     else:  # every strategy that shares the best median is named: a tie is not LSR's lead
@@ -1111,7 +1116,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
     lines.append("Correct identity first, per strategy and threshold (runs where it crossed first / runs): "
                  + "; ".join(f"{t:.0f}: " + ", ".join(
                      f"{s} {sum(x['correct_first'] for x in strat if x['strategy'] == s and x['threshold'] == t)}"
-                     f"/{sum(1 for x in strat if x['strategy'] == s and x['threshold'] == t)}" for s in STRATEGY_NAMES)
+                     f"/{sum(1 for x in strat if x['strategy'] == s and x['threshold'] == t)}" for s in present)
                      for t in THRESHOLDS))
     for p in setup.objects:
         v = [x for x in strat if x["threshold"] == 300.0 and x["presented"] == p]
@@ -1150,15 +1155,18 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
         lines.append(f"SPC adjustments per region (runs with SPC on): {len(seq)} regions, median {np.median(seq):.0f}, "
                      f"{np.mean(np.array(seq) <= 5):.0%} within 5, {np.mean(np.array(seq) >= 10):.0%} stopped at the limit of 10")
     # each run once: the SPC study's SPC-on runs are the strategy study's default-search runs, listed again
-    distinct = [x for x in first if x.get("study") in ("strategy", "novel") or x["spc"] == "off"]
+    reused = "default" in present  # the SPC study's SPC-on runs are then the strategy study's default-search runs
+    distinct = [x for x in first if x.get("study") in ("strategy", "novel") or x["spc"] == "off" or not reused]
     reasons = {}
     for x in distinct:
         reasons[x["stop_reason"]] = reasons.get(x["stop_reason"], 0) + 1
     n_study = {k: sum(x.get("study") == k for x in distinct) for k in ("strategy", "novel")}
     n_spc = {k: sum(x["spc"] == k for x in spc_rows) for k in ("on", "off")}
-    lines.append(f"Runs: {len(distinct)} ({n_study['strategy']} strategy runs, of which {n_spc['on']} "
-                 f"{'is' if n_spc['on'] == 1 else 'are'} also the SPC study's SPC-on "
-                 f"{'run' if n_spc['on'] == 1 else 'runs'}, + {n_spc['off']} SPC-off"
+    on_runs = f"run{'' if n_spc['on'] == 1 else 's'}"
+    lines.append(f"Runs: {len(distinct)} ({n_study['strategy']} strategy runs, "
+                 + (f"of which {n_spc['on']} {'is' if n_spc['on'] == 1 else 'are'} also the SPC study's SPC-on {on_runs}, "
+                    if reused else f"+ {n_spc['on']} SPC-on {on_runs} of the default search, ")
+                 + f"+ {n_spc['off']} SPC-off"
                  + (f", + {n_study['novel']} novel-object" if n_study["novel"] else "")
                  + f"); stopped by {', '.join(f'{k} {v}' for k, v in reasons.items())}.")
     if strat:
@@ -1202,6 +1210,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="s.d. of the presented object's seeded x/y offset from where the explorer believes it, m (default 0)")
     ap.add_argument("--object-yaw-deg", type=float, default=0.0,
                     help="s.d. of the presented object's seeded yaw, deg (default 0)")
+    ap.add_argument("--strategies", nargs="+", choices=STRATEGY_NAMES, default=list(STRATEGY_NAMES),
+                    help="the strategy study's search strategies (default all three); the SPC study always runs the "
+                         "default search")
     ap.add_argument("--objects", nargs=2, default=list(OBJECTS), metavar="NAME_OR_MESH",
                     help="the two known objects (registered names, procedural shapes or mesh files in metres, z up "
                          "unless --scale-to-m / --up-axis say otherwise); each is mapped and presented (default: box "
@@ -1263,14 +1274,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         k.save(args.out / "maps" / f"{labels[k.name]}.npz")
     for k in setup.known:
         k.exploring_model()  # an object whose map holds no experience fails here, saying why, before the runs
-    jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in STRATEGY_NAMES for p in args.objects]
+    strategies = tuple(s for s in STRATEGY_NAMES if s in args.strategies)  # the study's order, each once
+    jobs = [("strategy", p, s, True, args.seed + i) for i in range(args.seeds) for s in strategies for p in args.objects]
     jobs += [("spc", args.objects[-1], "default", spc, args.seed + i) for i in range(args.seeds) for spc in (True, False)]
     jobs += [("novel", p, "default", True, args.seed + i) for i in range(args.seeds) for p in args.novel]
     runs, spc_runs, rows = [], [], []
     interrupted = args.out / INTERRUPTED_CSV
     try:
         for study, p, s, spc, seed in tqdm(jobs, desc="runs", file=sys.stderr, disable=args.no_progress):
-            if study == "spc" and spc:  # the SPC-on default runs of the strategy study are the same runs
+            if study == "spc" and spc and "default" in strategies:  # the strategy study's SPC-on default runs
                 r = next(x for x in runs if x["seed"] == seed and x["presented"] == p and x["strategy"] == s)
             else:
                 r = run_one(setup, p, s, spc, seed, args.iterations, args.object_offset_m, args.object_yaw_deg,
