@@ -404,3 +404,19 @@ def test_a_bad_envelope_file_is_refused_naming_the_file(tmp_path, text, error, s
         SafetyEnvelope.load(path)
     assert says in str(exc.value) and str(path) in str(exc.value)
 
+
+
+@settings(max_examples=40, deadline=None)
+@given(limits=_LIMITS)
+def test_from_limits_is_the_constructor_with_the_files_name_on_its_errors(limits):
+    """from_limits(mapping) equals SafetyEnvelope(**mapping); a refused mapping's message begins with its source."""
+    assert SafetyEnvelope.from_limits(dict(limits)) == SafetyEnvelope(**limits)
+    with pytest.raises(ConfigError, match=r"^cell\.json: max_tool_tilt must be"):
+        SafetyEnvelope.from_limits({**limits, "max_tool_tilt": 9.0}, source="cell.json")
+
+
+def test_read_limits_gives_the_files_mapping_unchecked(tmp_path):
+    from whisker_io.hw.safety import read_limits
+
+    (tmp_path / "c.json").write_text('{"max_tool_tilt": 9.0, "nonsense": 1}')
+    assert read_limits(tmp_path / "c.json") == {"max_tool_tilt": 9.0, "nonsense": 1}

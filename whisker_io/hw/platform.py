@@ -140,24 +140,23 @@ def envelope_from_options(args: argparse.Namespace) -> SafetyEnvelope:
         The ``--envelope`` file is unreadable or not a JSON object of limits.
     """
     import dataclasses
-    import json
 
     import numpy as np
 
     from whisker_io.errors import ConfigError
+    from whisker_io.hw.safety import read_limits
 
-    envelope = SafetyEnvelope.load(args.envelope) if args.envelope is not None else SafetyEnvelope()
+    limits = read_limits(args.envelope) if args.envelope is not None else {}  # the file read once
+    envelope = SafetyEnvelope.from_limits(limits, source=args.envelope or "")
     if args.tool_axis is None:
         return envelope
     try:
         axis = SafetyEnvelope(tool_reference_axis=tuple(args.tool_axis)).tool_reference_axis
     except ConfigError as exc:
         raise ConfigError(f"--tool-axis: {exc}") from None
-    if args.envelope is not None:  # the file was read above: it is a JSON object
-        with open(args.envelope, encoding="utf-8-sig") as fh:
-            named = "tool_reference_axis" in json.load(fh)
+    if "tool_reference_axis" in limits:  # only an axis the file names can disagree with --tool-axis
         unit = [np.asarray(a, dtype=float) / np.linalg.norm(a) for a in (axis, envelope.tool_reference_axis)]
-        if named and not np.allclose(*unit, atol=1e-9):  # only an axis the file names can disagree with --tool-axis
+        if not np.allclose(*unit, atol=1e-9):
             raise ConfigError(f"--tool-axis {' '.join(f'{v:g}' for v in axis)} and the --envelope file's "
                               f"tool_reference_axis {list(envelope.tool_reference_axis)} differ: give the axis in one place")
     return dataclasses.replace(envelope, tool_reference_axis=axis)

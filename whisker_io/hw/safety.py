@@ -25,6 +25,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any, Optional
 
 import numpy as np
@@ -34,7 +35,7 @@ from whisker_io.errors import ConfigError, CorruptFileError, InvalidInputError, 
 from whisker_io.pose import Pose, PoseLike, as_pose
 from whisker_io.validation import ConfigDataclass, checked, finite_scalar, finite_vector, validate_fields, whole_number
 
-__all__ = ["SafetyEnvelope", "HARD_CEILINGS"]
+__all__ = ["SafetyEnvelope", "HARD_CEILINGS", "read_limits"]
 
 #: Ceilings no configuration may exceed (unit in the name of the field).
 HARD_CEILINGS = {
@@ -202,22 +203,28 @@ class SafetyEnvelope(ConfigDataclass):
             A key names no field (:class:`~whisker_io.errors.UnknownFieldError`, with the nearest
             field's name), or a value breaks its limit (message names the field and the file).
         """
-        try:
-            with open(path, encoding="utf-8-sig") as fh:
-                data: Any = json.load(fh)
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise CorruptFileError(f"{os.fspath(path)}: not a JSON file of safety limits ({exc})") from None
-        if not isinstance(data, dict):
-            raise CorruptFileError(f"{os.fspath(path)}: a JSON object of safety limits (field: value) was expected, "
-                                   f"got {type(data).__name__}")
-        nulls = [k for k, v in data.items() if v is None]
+        return cls.from_limits(read_limits(path), source=os.fspath(path))
+
+    @classmethod
+    def from_limits(cls, limits: Mapping[str, Any], *, source: str = "") -> "SafetyEnvelope":
+        """The envelope of ``limits`` (field name -> value, as :func:`read_limits` gives them; a field left out
+        keeps its default). ``source`` (the file) begins every error message.
+
+        Raises
+        ------
+        ConfigError
+            A null value, a key that names no field (:class:`~whisker_io.errors.UnknownFieldError`) or a value
+            that breaks its limit.
+        """
+        where = f"{source}: " if source else ""
+        nulls = [k for k, v in limits.items() if v is None]
         if nulls:  # JSON's null is no limit (it would be read as NaN)
-            raise ConfigError(f"{os.fspath(path)}: {', '.join(nulls)}: null is no limit; give a number or leave the "
-                              "field out for its default")
+            raise ConfigError(f"{where}{', '.join(nulls)}: null is no limit; give a number or leave the field out "
+                              "for its default")
         try:
-            return cls(**data)
+            return cls(**limits)
         except ConfigError as exc:
-            raise type(exc)(f"{os.fspath(path)}: {exc}") from None
+            raise type(exc)(f"{where}{exc}") from None
 
     # ------------------------------------------------------------------ poses
     def _tilt(self, rotation: Rotation) -> np.ndarray:
@@ -391,3 +398,26 @@ class SafetyEnvelope(ConfigDataclass):
             raise StaleStateError(
                 f"arm state is {age:.3f} s old (limit {self.staleness_timeout} s): the robot "
                 "link has stalled or dropped; check the network cable and the controller")
+
+
+def read_limits(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The safety limits a JSON file holds, field name -> value, unchecked (:meth:`SafetyEnvelope.from_limits`
+    checks them; :meth:`SafetyEnvelope.load` does both).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    CorruptFileError
+        The file is not JSON, or not one JSON object (the message names the file).
+    """
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            data: Any = json.load(fh)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CorruptFileError(f"{os.fspath(path)}: not a JSON file of safety limits ({exc})") from None
+    if not isinstance(data, dict):
+        raise CorruptFileError(f"{os.fspath(path)}: a JSON object of safety limits (field: value) was expected, "
+                               f"got {type(data).__name__}")
+    return data
+
