@@ -152,11 +152,12 @@ class MissingExtraError(CansimError, ImportError):
     (e.g. ``pip install "cansim[sweep]"``) - see :func:`missing_extra`."""
 
 
-def missing_extra(what: str, module: str, extra: str) -> MissingExtraError:
+def missing_extra(what: str, module: str, extra: str, error: type[MissingExtraError] | None = None) -> MissingExtraError:
     """The error for ``what`` needing ``module``, which the pip extra ``extra`` installs (raise it
-    ``from None`` or from the ``ImportError``)."""
-    return MissingExtraError(f"{what} needs the Python module {module!r}, which is not installed: "
-                             f'pip install "cansim[{extra}]"')
+    ``from None`` or from the ``ImportError``); ``error`` a kind of :class:`MissingExtraError` (default itself,
+    e.g. :class:`MissingDependencyError` for the hardware extra)."""
+    return (error or MissingExtraError)(f"{what} needs the Python module {module!r}, which is not installed: "
+                                        f'pip install "cansim[{extra}]"')
 
 
 class MissingDependencyError(HardwareError, MissingExtraError):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from whisker_io.errors import MissingDependencyError
+from whisker_io.errors import MissingDependencyError, missing_extra
 
 __all__ = ["require"]
 
@@ -23,6 +23,4 @@ def require(module: str, what: str) -> ModuleType:
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        raise MissingDependencyError(
-            f"{what} needs the Python module {module!r}, which is not installed; "
-            'install the hardware extra: pip install "cansim[hw]"') from exc
+        raise missing_extra(what, module, "hw", MissingDependencyError) from exc
