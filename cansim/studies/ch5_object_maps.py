@@ -715,8 +715,7 @@ def figures(out: Path, builds: Sequence[dict[str, Any]], ids: Sequence[dict[str,
     plt.close(fig)
     # Fig 5.15: error box plots per object, step drawn, best configuration starred (its median under the tick
     # label: annotations beside the stars overlapped, most medians being 0 - trajectory A repeats its poses)
-    matching = {"mapping": "pose-consistent matching", "thesis": "Eq 5.5 matching alone"}.get(builds[0]["matching"], "") \
-        if builds else ""
+    matching = _matching_name(builds[0]["matching"], with_config=False) if builds else ""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     for ax, key, step_key, unit in ((axes[0], "position_m", "step_m", "m"), (axes[1], "rotation_deg", "step_deg", "deg")):
         vals = [np.concatenate([b[key] for b in builds if b["object"] == o] + [np.zeros(0)]) for o in objs]
@@ -819,9 +818,11 @@ def _localisation_lines(builds: Sequence[dict[str, Any]], label: dict[str, str])
     return lines
 
 
-def _matching_name(m: str) -> str:
-    return ("pose-consistent matching (WhiskerRatSLAMConfig.mapping)" if m == "mapping"
-            else "the thesis' Eq 5.5 matching alone (WhiskerRatSLAMConfig.thesis)")
+def _matching_name(m: str, with_config: bool = True) -> str:
+    """The matching a run's ``matching`` names, in words (``with_config``: and its configuration preset)."""
+    name, preset = (("pose-consistent matching", "mapping") if m == "mapping"
+                    else ("the thesis' Eq 5.5 matching alone", "thesis"))
+    return f"{name} (WhiskerRatSLAMConfig.{preset})" if with_config else name
 
 
 def _without_experience(builds: Sequence[dict[str, Any]], star: Config | None = None) -> dict[str, dict[str, Any]]:
