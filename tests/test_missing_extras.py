@@ -69,3 +69,11 @@ def test_a_script_ends_on_a_missing_extra_with_one_line_and_status_6(capsys):
     assert run_command(lambda: 0, "x") == 0 and run_command(lambda: 3, "x") == 3
     with pytest.raises(ValueError):  # any other error is the script's own to report
         run_command(lambda: int("x"), "x")
+
+
+@given(st.integers(-255, 255), _NAME)
+def test_run_command_passes_a_status_through_and_ends_a_missing_extra_with_6(status, extra):
+    assert run_command(lambda: status, "prog") == status
+    def needs():
+        raise missing_extra("it", "mod", extra)
+    assert run_command(needs, "prog") == EXIT_MISSING_EXTRA
