@@ -2,4 +2,6 @@
 from cansim.studies.whisker_ratslam_demo import main
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "whisker_ratslam_object"))

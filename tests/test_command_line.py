@@ -214,3 +214,76 @@ def test_ch5_takes_map_loops_as_recognition_does(capsys, tmp_path):
         with pytest.raises(SystemExit) as exc:
             ch5.main(["--quick", "--out", str(tmp_path), *argv])
         assert exc.value.code == 2 and says in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ how a script ends on an error (run_command)
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from whisker_io import errors as werr  # noqa: E402
+from whisker_io.command_line import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERNAL, EXIT_MISSING_EXTRA,  # noqa: E402
+                                     error_status, run_command)
+
+# the statuses README's table of `cansim` exit codes gives, by hand: 3 bad input, 4 failure, 6 missing extra, 1 a bug
+_BY_HAND = [
+    (werr.InvalidInputError("no mesh file at x.obj"), 3),
+    (werr.CorruptFileError("not a readable GLB mesh"), 3),
+    (werr.ConfigError("seed must be >= 0"), 3),
+    (FileNotFoundError(2, "No such file", "x.csv"), 3),
+    (werr.MissingExtraError("nir needs cansim[spiking]"), 6),
+    (ImportError("install it: pip install 'cansim[sweep]'"), 6),
+    (werr.CansimError("the run could not finish"), 4),
+    (PermissionError(13, "Permission denied", "/out"), 4),
+    (RuntimeError("worker died"), 4),
+    (ValueError("invalid literal"), 1),
+    (KeyError("x"), 1),
+]
+
+
+@pytest.mark.parametrize("exc,status", _BY_HAND, ids=[f"{type(e).__name__}-{s}" for e, s in _BY_HAND])
+def test_error_status_gives_the_statuses_of_the_exit_code_table(exc, status):
+    assert error_status(exc)[0] == status
+    assert (EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSING_EXTRA) == (1, 3, 4, 6)
+    assert cli._classify(exc)[0] == status  # `cansim` and the scripts classify alike
+
+
+@pytest.mark.parametrize("exc,status", [x for x in _BY_HAND if x[1] != 1])
+def test_a_script_ends_on_a_known_error_with_one_line_and_its_status(capsys, exc, status):
+    def main() -> int:
+        raise exc
+
+    assert run_command(main, "prog") == status
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("prog: ")
+    assert ("error:" in err) == (status != EXIT_MISSING_EXTRA)
+
+
+@pytest.mark.parametrize("exc", [x[0] for x in _BY_HAND if x[1] == 1])
+def test_a_script_ends_on_an_unknown_error_with_its_traceback(exc):
+    def main() -> int:
+        raise exc
+
+    with pytest.raises(type(exc)):
+        run_command(main, "prog")
+
+
+@given(st.text(min_size=0, max_size=60), st.sampled_from([werr.InvalidInputError, werr.CorruptFileError, werr.ConfigError,
+                                                          werr.CansimError, werr.MissingExtraError, RuntimeError]))
+@settings(max_examples=60, deadline=None)
+def test_any_message_of_a_known_error_ends_in_one_line(message, kind):
+    code, line = error_status(kind(message))
+    assert code in (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSING_EXTRA) and "\n" not in line and "\r" not in line
+
+
+@pytest.mark.parametrize("module", ["cansim.studies.whisker_ratslam_demo", "cansim.studies.ch5_object_maps",
+                                    "cansim.studies.ch6_active_exploration", "cansim.studies.recognition"])
+def test_a_study_run_as_a_module_refuses_a_missing_mesh_file_in_one_line(tmp_path, module):
+    option = "--object" if module.endswith("demo") else "--objects"
+    objects = ["nope.obj"] if option == "--object" else ["nope.obj", "mug"]
+    proc = subprocess.run([sys.executable, "-m", module, "--quick", "--no-progress", "--out", str(tmp_path / "out"),
+                           option, *objects], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert proc.returncode == EXIT_BAD_INPUT, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr and "no mesh file at nope.obj" in proc.stderr
+    assert [ln for ln in proc.stderr.splitlines() if "error:" in ln] == [proc.stderr.strip().splitlines()[-1]]
+    assert not Path(tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.csv"))

@@ -22,8 +22,8 @@ recognition study's ``--seed 3`` meant ``--seeds 3`` until it had a ``--seed`` o
 
 The commands of :mod:`whisker_io` (``python -m whisker_io.radial``), of ``cansim`` and of its
 demos, studies and examples all parse with it. :func:`run_command` runs a script's ``main`` so
-that a missing extra ends it with one line naming the extra and status 6
-(:data:`EXIT_MISSING_EXTRA`, as ``cansim`` does), not a traceback.
+that a missing extra or bad input ends it with one line and the status ``cansim`` gives it
+(:func:`error_status`: 6 for a missing extra, 3 for bad input), not a traceback.
 """
 
 from __future__ import annotations
@@ -33,22 +33,65 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["CommandParser", "EXIT_MISSING_EXTRA", "run_command"]
+__all__ = ["CommandParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERNAL", "EXIT_MISSING_EXTRA", "error_status",
+           "run_command"]
 
+#: Exit status of a command that ended on an error nobody foresaw (a bug: its traceback is shown).
+EXIT_INTERNAL = 1
+#: Exit status of a command given bad input: a malformed or missing file, a value out of range, a bad configuration.
+EXIT_BAD_INPUT = 3
+#: Exit status of a command that could not finish for another reason the project names (its own errors, the system's).
+EXIT_FAILED = 4
 #: Exit status of a command whose optional dependency (a pip extra) is not installed.
 EXIT_MISSING_EXTRA = 6
 
 
-def run_command(main: Callable[[], int], prog: str) -> int:
-    """``main()``'s status; a :class:`~whisker_io.errors.MissingExtraError` is one line on stderr (``prog: ...``,
-    naming the extra) and :data:`EXIT_MISSING_EXTRA`. For a script's ``raise SystemExit(run_command(main, "name"))``."""
-    from whisker_io.errors import MissingExtraError
+def error_status(exc: BaseException) -> tuple[int, str]:
+    """The exit status and the one-line message of a command that ended on ``exc``.
 
+    One classification for ``cansim`` and for the scripts :func:`run_command` runs: the
+    user's input (:class:`~whisker_io.errors.ConfigError`, :class:`~whisker_io.errors.InvalidInputError`,
+    :class:`~whisker_io.errors.CorruptFileError`, a missing file) is :data:`EXIT_BAD_INPUT`; a missing
+    extra :data:`EXIT_MISSING_EXTRA`; the project's other errors and the system's (``OSError``,
+    ``RuntimeError``) :data:`EXIT_FAILED`; anything else :data:`EXIT_INTERNAL`.
+
+    Returns
+    -------
+    (int, str)
+        The status and the message (whitespace folded to single spaces: one line).
+    """
+    from whisker_io.errors import CansimError, ConfigError, CorruptFileError, InvalidInputError, MissingExtraError
+
+    if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
+        code, message = EXIT_BAD_INPUT, str(exc)
+    elif isinstance(exc, MissingExtraError) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
+        code, message = EXIT_MISSING_EXTRA, str(exc)
+    elif isinstance(exc, FileNotFoundError):
+        code, message = EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"
+    elif isinstance(exc, (CansimError, OSError, RuntimeError)):
+        code, message = EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    else:
+        code, message = EXIT_INTERNAL, f"{type(exc).__name__}: {exc}"
+    return code, " ".join(message.split())
+
+
+def run_command(main: Callable[[], int], prog: str) -> int:
+    """``main()``'s status, or the status :func:`error_status` gives the error it ended on, said in one line on stderr.
+
+    For a script's ``raise SystemExit(run_command(main, "name"))``: a missing extra is
+    ``prog: ...`` naming the extra (:data:`EXIT_MISSING_EXTRA`), bad input ``prog: error: ...``
+    (:data:`EXIT_BAD_INPUT`), as ``cansim`` ends on them, never a traceback. An error
+    :func:`error_status` does not know (:data:`EXIT_INTERNAL`, a bug) is raised as it is,
+    with its traceback.
+    """
     try:
         return main()
-    except MissingExtraError as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return EXIT_MISSING_EXTRA
+    except Exception as exc:
+        code, message = error_status(exc)
+        if code == EXIT_INTERNAL:
+            raise
+        print(f"{prog}: {message}" if code == EXIT_MISSING_EXTRA else f"{prog}: error: {message}", file=sys.stderr)
+        return code
 
 
 class _StoreOnce(argparse._StoreAction):

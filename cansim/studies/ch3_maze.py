@@ -1153,4 +1153,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 __getattr__ = renamed_attributes(__name__, {"StudySettings": "StudyConfig"}, globals())
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "ch3_maze"))

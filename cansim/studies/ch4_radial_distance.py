@@ -64,7 +64,6 @@ CV on the training set, the data-set generators use geometry only.
 from __future__ import annotations
 
 import logging
-import sys
 import time
 import warnings
 from dataclasses import replace
@@ -310,4 +309,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "ch4_radial_distance"))

@@ -1146,5 +1146,7 @@ __getattr__ = renamed_attributes(__name__, {"Settings": "StudyConfig"}, globals(
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "ch5_object_maps"))
 

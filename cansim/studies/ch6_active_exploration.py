@@ -1322,4 +1322,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "ch6_active_exploration"))

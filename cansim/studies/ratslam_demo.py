@@ -15,7 +15,6 @@ Usage::
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -105,4 +104,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "ratslam_demo"))

@@ -1240,4 +1240,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "recognition"))

@@ -101,7 +101,6 @@ from __future__ import annotations
 import json
 import math
 import logging
-import sys
 import time
 from pathlib import Path
 
@@ -424,4 +423,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "whisker_ratslam_demo"))

@@ -32,10 +32,10 @@ from whisker_io.errors import CansimError, InvalidInputError
 __all__ = ["main", "build_parser", "EXIT_CODES", "STUDIES", "DEMOS"]
 
 EXIT_OK = 0
-EXIT_INTERNAL = 1
+EXIT_INTERNAL = command_line.EXIT_INTERNAL  # 1
 EXIT_USAGE = 2
-EXIT_BAD_INPUT = 3
-EXIT_FAILED = 4
+EXIT_BAD_INPUT = command_line.EXIT_BAD_INPUT  # 3
+EXIT_FAILED = command_line.EXIT_FAILED  # 4
 EXIT_NOT_BUILT = 5
 EXIT_MISSING_EXTRA = command_line.EXIT_MISSING_EXTRA  # 6
 EXIT_INTERRUPTED = 130
@@ -452,20 +452,13 @@ _positive_int = _int_at_least(1, "a positive integer")
 
 # ------------------------------------------------------------------ main
 def _classify(exc: BaseException) -> tuple[int, str]:
-    from cansim.errors import (BackendUnavailableError, CansimError, ConfigError, CorruptFileError, InvalidInputError,
-                               MissingExtraError)
+    from cansim.errors import BackendUnavailableError
 
     if isinstance(exc, CommandError):
         return exc.code, str(exc)
-    if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
-        return EXIT_BAD_INPUT, str(exc)
-    if isinstance(exc, (MissingExtraError, BackendUnavailableError)) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
+    if isinstance(exc, BackendUnavailableError):
         return EXIT_MISSING_EXTRA, str(exc)
-    if isinstance(exc, FileNotFoundError):
-        return EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"
-    if isinstance(exc, (CansimError, OSError, RuntimeError)):
-        return EXIT_FAILED, f"{type(exc).__name__}: {exc}"
-    return EXIT_INTERNAL, f"{type(exc).__name__}: {exc}"
+    return command_line.error_status(exc)  # the classification the studies' and examples' scripts share
 
 
 def main(argv: Sequence[str] | None = None) -> int:
