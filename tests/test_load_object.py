@@ -227,7 +227,7 @@ MALFORMED = [
     ("missing.obj", None, InvalidInputError, "no mesh file"),
     ("empty.obj", "", InvalidInputError, "no triangles"),
     ("empty.stl", "", InvalidInputError, "no triangles"),
-    ("text.stl", "hello, not a mesh\n", InvalidInputError, r"no triangles: .*or is not a STL file \(check its format"),
+    ("text.stl", "hello, not a mesh\n", InvalidInputError, r"no triangles: .*or its content is not STL \(check its format"),
     ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", InvalidInputError, "no triangles"),
     ("nan.obj", "v 0 0 nan\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, "NaN/inf"),
     ("inf.obj", "v 0 0 inf\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n", InvalidInputError, "NaN/inf"),
@@ -491,3 +491,87 @@ def test_a_non_finite_size_is_called_what_it_is(size):
     with pytest.raises(InvalidInputError, match="non-finite vertex coordinates") as info:
         check_extent(size, "the mesh")
     assert "scale_to_m" not in str(info.value)  # no scale can repair it
+
+
+# ------------------------------------------------------------------ files a reviewer downloads (session 50's pass)
+def test_a_file_in_centimetres_is_told_the_centimetre_scale_and_a_3_m_one_no_refused_value():
+    with pytest.raises(InvalidInputError, match=r"36 m across.*centimetres it is 0\.36 m across: pass scale_to_m=0\.36"):
+        load_object(trimesh.creation.box(extents=(16.0, 16.0, 36.0)))  # 0.16 x 0.16 x 0.36 m, written in cm
+    with pytest.raises(InvalidInputError) as info:
+        load_object(trimesh.creation.box(extents=(1.0, 1.0, 3.0)))  # 3 m: not mm (0.003 m) nor cm (0.03 m)
+    message = str(info.value)
+    assert "scale_to_m=0.35" in message and "0.003" not in message and "0.03 " not in message
+    # every value a hint names is one --scale-to-m takes (0.01-2 m) and gives 5 cm or more
+    for extent in (2.5, 6.0, 36.0, 150.0, 360.0, 1999.0, 5000.0):
+        with pytest.raises(InvalidInputError) as info:
+            load_object(trimesh.creation.box(extents=(extent / 2, extent / 2, extent)))
+        for value in [float(v) for v in __import__("re").findall(r"scale_to_m=([0-9.]+)", str(info.value))]:
+            assert 0.05 <= value <= 2.0, (extent, str(info.value))
+
+
+def _spheres(gap_m: float) -> trimesh.Trimesh:
+    a = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    b = a.copy()
+    b.apply_translation((0.2 + gap_m, 0.0, 0.0))  # surfaces gap_m apart (radius 0.1 each)
+    return trimesh.util.concatenate([a, b])
+
+
+def test_several_bodies_are_named_and_far_apart_ones_warned_of():
+    far = load_object(_spheres(1.3))  # 1.3 m between the spheres' boxes, 1.6 m across in all
+    (note,) = [n for n in far.notes if "bodies" in n]
+    assert note.startswith("2 separate bodies up to 1.3 m apart") and "give one object per file" in note
+    near = load_object(_spheres(0.05))  # 5 cm apart, 0.45 m across: one object of two parts
+    (note,) = [n for n in near.notes if "bodies" in n]
+    assert note == "2 separate bodies, whisked as one object"
+    assert not [n for n in load_object(trimesh.creation.icosphere(radius=0.1)).notes if "bodies" in n]
+
+
+def test_repeated_faces_are_removed_and_the_mesh_is_closed_again():
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.3))
+    twice = trimesh.Trimesh(box.vertices, np.vstack([box.faces, box.faces[:5]]), process=False)
+    assert not twice.is_watertight
+    loaded = load_object(twice)
+    assert len(loaded.mesh.faces) == 12 and loaded.mesh.is_watertight
+    assert "removed 5 duplicate faces" in loaded.notes
+
+
+def test_a_folder_another_format_and_a_gltf_without_its_buffer_say_what_to_give(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    with pytest.raises(InvalidInputError, match=r"is a folder; give one mesh file \(\.obj"):
+        resolve_object(str(tmp_path / "meshes"))
+    off = tmp_path / "cube.off"
+    off.write_text("OFF\n")
+    with pytest.raises(InvalidInputError, match=r"cube\.off: \.off is not a mesh format read here; convert it"):
+        resolve_object(str(off))
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    trimesh.creation.box(extents=(0.2, 0.2, 0.3)).export(tmp_path / "cube.gltf")
+    # an exporter's .gltf names its buffer file; copied alone, the buffer is missing
+    (lone / "cube.gltf").write_bytes((tmp_path / "cube.gltf").read_bytes())
+    buffers = [p.name for p in tmp_path.iterdir() if p.suffix == ".bin"]
+    if not buffers:
+        pytest.skip("this trimesh writes the buffer inside the .gltf")
+    with pytest.raises(CorruptFileError, match=r"cube\.gltf needs (\S+), which is not beside it; copy the files") as info:
+        load_object(lone / "cube.gltf")
+    assert __import__("re").search(r"needs (\S+), which", str(info.value)).group(1) in buffers
+
+
+def test_a_flat_file_far_from_the_origin_is_told_to_re_export_centred():
+    sheet = trimesh.creation.box(extents=(0.3, 0.3, 1e-6))
+    sheet.apply_translation((4.5e5, 5.4e6, 0.0))  # map coordinates, as a single-precision file leaves them
+    with pytest.raises(InvalidInputError, match=r"is flat.*coordinates reach 5\.4e\+06.*re-export it centred"):
+        load_object(sheet)
+    with pytest.raises(InvalidInputError) as info:
+        load_object(trimesh.creation.box(extents=(0.3, 0.3, 1e-6)))  # at the origin: no such advice
+    assert "re-export it centred" not in str(info.value)
+
+
+def test_one_bad_vertex_is_one_vertex():
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.3))
+    v = box.vertices.copy()
+    v[3, 1] = np.nan
+    with pytest.raises(InvalidInputError, match=r"has 1 vertex with NaN/inf coordinates \(first: index 3\)"):
+        load_object(trimesh.Trimesh(v, box.faces, process=False))
+    v[5, 0] = np.inf
+    with pytest.raises(InvalidInputError, match=r"has 2 vertices with NaN/inf"):
+        load_object(trimesh.Trimesh(v, box.faces, process=False))

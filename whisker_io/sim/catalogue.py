@@ -85,6 +85,12 @@ def object_name(spec: str) -> tuple[str, str]:
         return key, "registered object"
     if is_shape_name(spec.strip()):
         return spec.strip(), "procedural shape"
+    path = Path(spec)
+    if path.is_dir():
+        raise InvalidInputError(f"{spec} is a folder; give one mesh file ({', '.join(MESH_SUFFIXES)}) per object")
+    if path.is_file():
+        raise InvalidInputError(f"{spec}: {path.suffix or 'a file without an ending'} is not a mesh format read here; "
+                                f"convert it to one of {', '.join(MESH_SUFFIXES)} (e.g. with trimesh or MeshLab)")
     raise InvalidInputError(
         f"{spec!r} is neither a registered object ({', '.join(OBJECT_NAMES)}), a procedural shape "
         f"(families {', '.join(SHAPE_FAMILIES)}, optionally '-v<N>' or '-h<N>') nor a mesh file "

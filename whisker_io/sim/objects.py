@@ -382,9 +382,14 @@ def check_extent(size_m: float, where: str, *, minimum_m: float = MIN_EXTENT_M, 
     if not math.isfinite(size_m):
         raise InvalidInputError(f"{where} has non-finite vertex coordinates (its size is {size_m}); repair or re-export it")
     if size_m > maximum_m:
-        mm = f"{size_m / 1000:.3g}"
-        hint = (f"if it is in millimetres it is {mm} m across: pass scale_to_m={mm} (--scale-to-m {mm} on the "
-                "command line)" + ("" if mm == "0.35" else ", or 0.35 for the thesis objects' size"))
+        # a file in millimetres or centimetres (both common): suggest each unit that gives an object of a size the
+        # whiskers can explore (5 cm - maximum_m), never a value scale_to_m would refuse
+        units = [(f"{size_m / div:.3g}", unit) for div, unit in ((1000, "millimetres"), (100, "centimetres"))
+                 if 0.05 <= size_m / div <= maximum_m]
+        hint = "; ".join(f"if it is in {unit} it is {m} m across: pass scale_to_m={m} (--scale-to-m {m} on the "
+                         "command line)" for m, unit in units)
+        hint = (hint + ("" if [m for m, _ in units] == ["0.35"] else ", or 0.35 for the thesis objects' size")) if hint else \
+            "pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its real size in metres"
     else:
         hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
                 "real size in metres")
@@ -415,6 +420,11 @@ def _read_mesh_file(path: Path) -> list[trimesh.Trimesh]:
         )
     try:
         return _scene_meshes(trimesh.load_scene(path, process=False))
+    except FileNotFoundError as exc:  # a .gltf (or .obj) names a buffer or texture file that is not beside it
+        raise CorruptFileError(
+            f"{path.name} needs {Path(str(exc.filename or exc)).name}, which is not beside it; copy the files it names "
+            "into its folder, or export a single-file .glb", path=path
+        ) from None
     except Exception as exc:  # trimesh's parsers raise every kind of error on a malformed file
         raise CorruptFileError(
             f"not a readable {path.suffix.lower()[1:].upper()} mesh ({type(exc).__name__}: {exc}); "
@@ -434,7 +444,7 @@ def _as_surface(source: object) -> tuple[trimesh.Trimesh, str, str, list[str]]:
     else:
         raise InvalidInputError(f"expected a mesh file path or a trimesh.Trimesh, got {type(source).__name__}")
     if not parts:
-        kind = f", or is not a {path.suffix[1:].upper()} file (check its format and its file ending)" \
+        kind = f", or its content is not {path.suffix[1:].upper()} (check its format and its file ending)" \
             if isinstance(source, (str, os.PathLike)) else ""
         raise InvalidInputError(f"{where} holds no triangles: it is empty or holds points or lines only{kind}; "
                                 "give a surface mesh")
@@ -452,7 +462,7 @@ def _checked_surface(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
         raise InvalidInputError(
-            f"{where} has {int(bad.sum())} vertices with NaN/inf coordinates (first: index "
+            f"{where} has {int(bad.sum())} vert{'ex' if bad.sum() == 1 else 'ices'} with NaN/inf coordinates (first: index "
             f"{int(np.flatnonzero(bad)[0])}); repair or re-export the mesh"
         )
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
@@ -465,6 +475,20 @@ def _checked_surface(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     if np.ptp(vertices, axis=0).max() < _MIN_SIZE:
         raise InvalidInputError(f"{where} is a single point (all vertices within {_MIN_SIZE:g}); give a mesh with a surface")
     return trimesh.Trimesh(vertices, faces, process=False)
+
+
+def _largest_gap(mesh: trimesh.Trimesh) -> float:
+    """Largest distance between a body's bounding box and the nearest other body's (0 for one body), metres."""
+    labels = trimesh.graph.connected_component_labels(mesh.edges_unique, node_count=len(mesh.vertices))
+    boxes = np.array([[mesh.vertices[labels == k].min(axis=0), mesh.vertices[labels == k].max(axis=0)]
+                      for k in np.unique(labels[np.unique(mesh.faces)])])
+    if len(boxes) < 2 or len(boxes) > 200:
+        return 0.0
+    # distance between boxes i and j: the norm of the per-axis separation (0 where they overlap along an axis)
+    sep = np.maximum(0.0, np.maximum(boxes[:, None, 0] - boxes[None, :, 1], boxes[None, :, 0] - boxes[:, None, 1]))
+    dist = np.linalg.norm(sep, axis=2)
+    np.fill_diagonal(dist, np.inf)
+    return float(dist.min(axis=1).max())
 
 
 def load_object(
@@ -576,6 +600,10 @@ def load_object(
         mesh.update_faces(keep)
         mesh.remove_unreferenced_vertices()
         notes.append(f"removed {int((~keep).sum())} zero-area faces")
+    unique = mesh.unique_faces()  # the same triangle twice (an exporter's repeat): an edge shared by 4 faces, not watertight
+    if not unique.all():
+        mesh.update_faces(unique)
+        notes.append(f"removed {int((~unique).sum())} duplicate faces")
     if mesh.is_watertight:
         faces_before = mesh.faces.copy()
         mesh.fix_normals(multibody=True)
@@ -585,13 +613,24 @@ def load_object(
     else:
         notes.append("not watertight (open or non-manifold edges): ray casting from outside works, volume is undefined")
 
+    bodies = int(mesh.body_count)
+    if bodies > 1:  # a scene of several parts, or separate objects: the simulator whisks them as one object
+        gap = _largest_gap(mesh)
+        far = gap > 0.5 * float(mesh.extents.max())
+        notes.append(f"{bodies} separate bodies" + (f" up to {gap:.3g} m apart" if far else "") + ", whisked as one "
+                     "object" + (": the trajectory runs around all of them and may touch none; give one object per file"
+                                 if far else ""))
     lo, hi = mesh.bounds
     centred = mesh.vertices - mesh.vertices.mean(axis=0)
     thickness = float(np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2][-1]))  # along its thinnest axis
     if thickness < MIN_THICKNESS_M:  # a tilted sheet too, whatever its bounding box
+        reach = float(np.abs(mesh.vertices).max())
+        far = (f"; its coordinates reach {reach:.3g}, far from its size: a file of single-precision coordinates "
+               "(PLY, STL) loses the shape there - re-export it centred on the origin"
+               if reach > 1e4 * max(float(np.ptp(centred, axis=0).max()), 1e-12) else "")
         raise InvalidInputError(f"{source} is flat: {thickness:.3g} m thick in its thinnest dimension "
                                 f"(extents {np.round(hi - lo, 4).tolist()} m); the whisker simulation needs a solid at "
-                                f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it)")
+                                f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it){far}")
     translation = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     mesh.vertices = mesh.vertices + translation  # a plain sum: the lowest vertex lands exactly on z = 0
     if np.abs(translation).max() >= PLACEMENT_NOTE_M:  # where the file's frame lies against the object's, in one line
