@@ -123,11 +123,18 @@ def test_seed_names_follow_the_file_not_its_path(tmp_path, monkeypatch):
         check_distinct(["a/cup.stl", "c/tin.stl"])  # the same mesh under two names
 
 
-def test_without_the_options_nothing_is_copied(tmp_path):
+def test_without_the_options_nothing_is_copied(tmp_path, caplog):
     path = tmp_path / "cube.obj"
-    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(path)
-    assert conform_objects([str(path), "box"], tmp_path / "objects") == [str(path), "box"]
-    assert not (tmp_path / "objects").exists()
+    trimesh.creation.box(extents=(0.2, 0.2, 0.3)).export(path)
+    with caplog.at_level("WARNING", logger="cansim.studies.object_options"):
+        assert conform_objects([str(path), "box"], tmp_path / "objects") == [str(path), "box"]
+    # what was assumed is said once, with the size as run, for the file (not for the named box)
+    (said,) = [r.getMessage() for r in caplog.records]
+    assert said.startswith(f"{path}: 0.200 x 0.200 x 0.300 m; assumed in metres and z up")
+    assert sorted(p.name for p in (tmp_path / "objects").iterdir()) == ["sources.json"]  # no copy, only the record
+    (entry,) = json.loads((tmp_path / "objects" / "sources.json").read_text())
+    assert entry["copy"] is None and entry["given"] == str(path)
+    assert any(n.startswith("assumed in metres and z up") for n in entry["changes"])
 
 
 def test_options_without_a_mesh_file_are_refused(tmp_path):

@@ -218,15 +218,26 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
     # leaves no copy, and no record of one, behind
     loaded = {i: load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
               for i, (spec, stem, copy) in enumerate(zip(specs, stems, copied)) if copy}
+    as_given: dict[int, Any] = {}  # mesh files run as given (each process loads them): what load_object assumed and changed, said too
     for i, spec in enumerate(specs):
         if i not in loaded:
-            resolve_object(spec)
+            obj = resolve_object(spec)
+            if is_mesh_file(spec):
+                as_given[i] = obj
+    for i, obj in as_given.items():  # said once every object has passed its checks
+        said = [n for n in obj.notes if n.startswith("assumed") or " m apart" in n]  # what may be wrong
+        log.warning("%s: %s m%s", specs[i], " x ".join(f"{x:.3f}" for x in obj.extents_m), "".join(f"; {n}" for n in said))
     record = folder / SOURCES_FILE
     record.unlink(missing_ok=True)  # this run's record or none: never an earlier run's
     out, sources = [], []
     for i, (spec, stem) in enumerate(zip(specs, stems)):
         if i not in loaded:  # a mesh file as an absolute path (links not followed: its name is the object's)
             out.append(os.path.abspath(spec) if is_mesh_file(spec) else spec)
+            if i in as_given:
+                obj = as_given[i]
+                sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": None,
+                                "changes": list(obj.notes), "scale_factor": float(obj.scale_factor),
+                                "extents_m": [float(x) for x in obj.extents_m]})
             continue
         path, obj = folder / f"{stem}.ply", loaded[i]
         folder.mkdir(parents=True, exist_ok=True)
@@ -242,6 +253,7 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
                         " x ".join(f"{x:.3f}" for x in obj.extents_m), path)
         out.append(os.path.abspath(path))
     if sources:  # which file each copy came from (written whole, then renamed: never half a file)
+        folder.mkdir(parents=True, exist_ok=True)
         text = json.dumps(sources, indent=2).encode()
         write_atomically(record, lambda fh: fh.write(text))
     return out
