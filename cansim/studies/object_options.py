@@ -22,7 +22,8 @@ writes each mesh file it changed, in the conventions, to ``<out>/objects/<label>
 :func:`~whisker_io.sim.catalogue.object_labels`) and hands on that path: the study's
 ``mesh_file`` columns name that file, which keeps the object exactly as run
 (:func:`labelled_rows`). ``<out>/objects/sources.json`` says which file each copy was made from and
-what was changed (:data:`SOURCES_FILE`).
+what was changed, and for a file run as it is what was assumed (:data:`SOURCES_FILE`; the same is
+logged once per file as a warning).
 """
 
 from __future__ import annotations
@@ -46,10 +47,11 @@ __all__ = ["SOURCES_FILE", "add_mesh_options", "check_distinct", "check_mesh_opt
 
 log = logging.getLogger(__name__)
 
-#: Written beside the copies by :func:`conform_objects`: a JSON list, one entry per copy, with
+#: Written beside the copies by :func:`conform_objects`: a JSON list, one entry per mesh file, with
 #: ``given`` (the file as given on the command line), ``given_path`` (its absolute path),
-#: ``copy`` (the copy the run used), ``changes`` (what :func:`~whisker_io.sim.objects.load_object`
-#: changed, one sentence each), ``scale_factor`` and ``extents_m`` (the copy's, m).
+#: ``copy`` (the copy the run used; null for a file run as it is), ``changes`` (what
+#: :func:`~whisker_io.sim.objects.load_object` assumed and changed, one sentence each),
+#: ``scale_factor`` and ``extents_m`` (of the object as run, m).
 SOURCES_FILE = "sources.json"
 
 
