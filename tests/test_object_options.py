@@ -380,3 +380,87 @@ def test_labelled_rows_name_objects_by_label_and_their_mesh_files(pairs):
         assert os.path.isabs(r["mesh_file"]) or r["mesh_file"] == ""
     with pytest.raises(KeyError):  # an object the labels do not know is a bug, not a silent raw name
         labelled_rows([{"presented": "teapot", "decision": ""}], labels, ("presented",), of="presented")
+
+
+# ------------------------------------------------------------------ one value per mesh file (a folder of downloads)
+from cansim.studies.object_options import check_mesh_options, per_mesh_file  # noqa: E402
+
+
+def test_one_value_per_mesh_file_in_their_order():
+    specs = ["mug", "a.obj", "duck-v2", "b.glb"]
+    assert per_mesh_file(specs, None, "--up-axis") == [None] * 4
+    assert per_mesh_file(specs, "y", "--up-axis") == [None, "y", None, "y"]
+    assert per_mesh_file(specs, ["y"], "--up-axis") == [None, "y", None, "y"]
+    assert per_mesh_file(specs, ["z", "y"], "--up-axis") == [None, "z", None, "y"]
+    assert per_mesh_file(specs, [0.35, 0.2], "--scale-to-m") == [None, 0.35, None, 0.2]
+    with pytest.raises(InvalidInputError, match=r"--up-axis takes one value for every mesh file or one per mesh file, "
+                                                r"in their order \(2 here: a, b\); got 3"):
+        per_mesh_file(specs, ["z", "y", "x"], "--up-axis")
+    with pytest.raises(InvalidInputError, match="one per mesh file"):
+        check_mesh_options(specs, scale_to_m=[0.3, 0.3, 0.3])
+
+
+_SPEC = st.one_of(st.sampled_from(["mug", "box", "duck-v1", "torus_flat"]),
+                  st.builds(lambda n, e: f"{n}{e}", st.sampled_from(["a", "b", "c d"]), st.sampled_from([".obj", ".STL", ".glb"])))
+
+
+@given(st.lists(_SPEC, max_size=6), st.lists(st.floats(0.05, 2.0), min_size=1, max_size=6))
+@settings(max_examples=80, deadline=None)
+def test_per_mesh_file_places_the_values_on_the_files_or_refuses(specs, values):
+    files = [i for i, s in enumerate(specs) if is_mesh_file(s)]
+    if len(values) not in (1, len(files)):
+        with pytest.raises(InvalidInputError, match=f"{len(files)} here"):
+            per_mesh_file(specs, values, "--scale-to-m")
+        return
+    out = per_mesh_file(specs, values, "--scale-to-m")
+    assert len(out) == len(specs)
+    assert [i for i, v in enumerate(out) if v is not None] == files
+    assert [out[i] for i in files] == (values * len(files) if len(values) == 1 else values)
+
+
+def test_a_y_up_glb_and_a_z_up_stl_in_one_run_each_stand_upright(tmp_path):
+    # the same 0.16 x 0.16 x 0.36 m block: the STL z-up, the GLB y-up (its 0.36 along y)
+    trimesh.creation.box(extents=(0.16, 0.16, 0.36)).export(tmp_path / "tall.stl")
+    trimesh.creation.box(extents=(0.16, 0.36, 0.16)).export(tmp_path / "tall.glb")
+    out = conform_objects([str(tmp_path / "tall.stl"), "mug", str(tmp_path / "tall.glb")], tmp_path / "objects",
+                          up_axis=["z", "y"])
+    assert out[1] == "mug"
+    for path in (out[0], out[2]):
+        assert np.allclose(sorted(trimesh.load(path).extents), [0.16, 0.16, 0.36], atol=1e-6)
+        assert trimesh.load(path).extents[2] == pytest.approx(0.36, abs=1e-6)  # upright, both
+    # one value for both lays the STL on its side
+    out = conform_objects([str(tmp_path / "tall.stl"), str(tmp_path / "tall.glb")], tmp_path / "objects2", up_axis="y")
+    assert trimesh.load(out[0]).extents[2] == pytest.approx(0.16, abs=1e-6)
+
+
+@pytest.mark.parametrize("module", ["cansim.studies.ch5_object_maps", "cansim.studies.ch6_active_exploration",
+                                    "cansim.studies.recognition"])
+def test_the_studies_take_a_value_per_mesh_file(module, tmp_path):
+    import importlib
+
+    main = importlib.import_module(module).main
+    with pytest.raises(InvalidInputError, match=r"--up-axis takes one value for every mesh file or one per mesh file"):
+        trimesh.creation.box(extents=(0.2, 0.2, 0.3)).export(tmp_path / "a.obj")
+        trimesh.creation.box(extents=(0.2, 0.3, 0.2)).export(tmp_path / "b.obj")
+        main(["--quick", "--no-progress", "--out", str(tmp_path / "out"), "--objects", str(tmp_path / "a.obj"),
+              str(tmp_path / "b.obj"), "--up-axis", "z", "y", "x"])
+
+
+def test_the_ch6_study_says_first_when_a_narrower_object_stands_inside_the_believed_volume(tmp_path):
+    from cansim.studies.ch6_active_exploration import seldom_touched
+
+    path = tmp_path / "capsule.obj"
+    trimesh.creation.box(extents=(0.16, 0.16, 0.36)).export(path)
+    row = {"presented": str(path), "whisks_without_contact": 300, "iterations": 300, "threshold": 100.0,
+           "study": "strategy", "spc": "on"}
+    wide = trimesh.creation.box(extents=(0.26, 0.24, 0.36))  # 5 cm beyond its sides in x, 4 in y
+    (line,) = seldom_touched([row], believed=wide)
+    advice = line.split("; ", 1)[1]
+    assert advice.startswith("it is 0.16 x 0.16 m across, the believed volume (the known objects' common box) "
+                             "0.26 x 0.24 m: the search places the array before that volume, up to 5 cm from this "
+                             "object's sides, beyond most whiskers' reach; --contact-seeking moves the array")
+    assert line.count("--contact-seeking") == 1
+    (line,) = seldom_touched([row], believed=trimesh.creation.box(extents=(0.24, 0.24, 0.36)))  # 4 cm: within reach
+    assert "believed volume" not in line and "--contact-seeking" in line
+    (line,) = seldom_touched([row], contact_seeking=True, believed=wide)  # it was on: nothing to advise of it
+    assert "believed volume" not in line and "--contact-seeking" not in line

@@ -1036,7 +1036,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"thesis' six, {' '.join(MAPPED)}; --quick: mug box plane)")
     ap.add_argument("--novel", nargs="*", default=[NOVEL], metavar="NAME_OR_MESH",
                     help=f"objects presented but not mapped (default {NOVEL}; none after the flag: no novel object)")
-    add_mesh_options(ap)
+    add_mesh_options(ap, per_file=True)
     ap.add_argument("--loops", "--map-loops", type=int, help="loops of trajectory A per map (default 3; --quick 2)")
     ap.add_argument("--id-loops", type=int, default=1, help="least loops per identification run (default 1)")
     ap.add_argument("--id-whisks", type=int,

@@ -14,9 +14,9 @@ by :func:`add_mesh_options`:
 * ``--up-axis AXIS``: every mesh file's up axis (``x``, ``y``, ``z``, ``-x``, ``-y``,
   ``-z``; glTF/GLB files are y-up by their specification).
 
-The options apply to every mesh file of the command (files in different units or with
-different up axes: bring each to the conventions first with ``load_object`` and export
-it). A study runs its objects in worker processes by name, so :func:`conform_objects`
+In a study, which takes several objects, each option takes one value for every mesh file
+or one per mesh file in the order they are given (``--objects`` first, then ``--novel``):
+``--objects part.stl scene.glb --up-axis z y`` (:func:`per_mesh_file`). A study runs its objects in worker processes by name, so :func:`conform_objects`
 writes each mesh file it changed, in the conventions, to ``<out>/objects/<label>.ply``
 (single-precision vertices: within a micrometre; the label of
 :func:`~whisker_io.sim.catalogue.object_labels`) and hands on that path: the study's
@@ -43,7 +43,7 @@ from whisker_io.sim.catalogue import is_mesh_file, object_file_name, object_file
 from whisker_io.sim.objects import GLTF_SUFFIXES, UP_AXES, load_object
 
 __all__ = ["SOURCES_FILE", "add_mesh_options", "check_distinct", "check_mesh_options", "conform_objects",
-           "is_mesh_file", "labelled_rows", "object_label", "object_labels", "seed_name"]
+           "is_mesh_file", "labelled_rows", "object_label", "object_labels", "per_mesh_file", "seed_name"]
 
 log = logging.getLogger(__name__)
 
@@ -55,14 +55,59 @@ log = logging.getLogger(__name__)
 SOURCES_FILE = "sources.json"
 
 
-def add_mesh_options(ap: argparse.ArgumentParser) -> None:
-    """Add ``--scale-to-m M`` and ``--up-axis AXIS`` (module docstring) to a runner's parser."""
-    ap.add_argument("--scale-to-m", type=float, default=None, metavar="M",
+def add_mesh_options(ap: argparse.ArgumentParser, *, per_file: bool = False) -> None:
+    """Add ``--scale-to-m M`` and ``--up-axis AXIS`` (module docstring) to a runner's parser.
+
+    With ``per_file`` (a runner of several objects) each option takes one value for every
+    mesh file or one per mesh file, in the order the files are given (:func:`per_mesh_file`).
+    """
+    many = {"nargs": "+"} if per_file else {}
+    each = (" (one value for every mesh file, or one per mesh file in the order given: --objects, then --novel)"
+            if per_file else "")
+    ap.add_argument("--scale-to-m", type=float, default=None, metavar="M", **many,
                     help="scale every mesh file so that its largest extent is M metres (e.g. 0.35, the thesis "
-                         "objects' size; needed for files in millimetres)")
-    ap.add_argument("--up-axis", default=None, metavar="AXIS",
+                         f"objects' size; needed for files in millimetres){each}")
+    ap.add_argument("--up-axis", default=None, metavar="AXIS", **many,
                     help=f"the mesh files' up axis ({', '.join(UP_AXES)}; default z; glTF/GLB files are y-up by "
-                         "their specification)")
+                         f"their specification){each}")
+
+
+def per_mesh_file(specs: Sequence[str], value: Any, option: str) -> list[Any]:
+    """``value`` for each object of ``specs``: None for a name, for a mesh file its value.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        Objects as given (names or mesh files).
+    value : None, a value, or a sequence of values
+        None (the option not given), one value for every mesh file, or a sequence of one
+        value (the same) or one per mesh file in the order they stand in ``specs``.
+    option : str
+        The option's name, for the message.
+
+    Returns
+    -------
+    list, len(specs)
+
+    Raises
+    ------
+    InvalidInputError
+        A sequence of another length than 1 or the number of mesh files.
+    """
+    files = [i for i, spec in enumerate(specs) if is_mesh_file(spec)]
+    out: list[Any] = [None] * len(specs)
+    if value is None:
+        return out
+    values = list(value) if isinstance(value, (list, tuple)) else [value]
+    if len(values) == 1:
+        values = values * len(files)
+    elif len(values) != len(files):
+        named = ", ".join(object_file_name(specs[i]) for i in files) or "none"
+        raise InvalidInputError(f"{option} takes one value for every mesh file or one per mesh file, in their order "
+                                f"({len(files)} here: {named}); got {len(values)}")
+    for i, v in zip(files, values):
+        out[i] = v
+    return out
 
 
 def object_label(spec: str | os.PathLike[str]) -> str:
@@ -71,18 +116,23 @@ def object_label(spec: str | os.PathLike[str]) -> str:
     return object_file_name(spec) if is_mesh_file(spec) else str(spec)
 
 
-def check_mesh_options(specs: Sequence[str], *, scale_to_m: float | None = None, up_axis: str | None = None) -> None:
-    """Refuse ``--scale-to-m`` / ``--up-axis`` on a command whose objects hold no mesh file (they would be ignored).
+def check_mesh_options(specs: Sequence[str], *, scale_to_m: float | Sequence[float] | None = None,
+                       up_axis: str | Sequence[str] | None = None) -> None:
+    """Refuse ``--scale-to-m`` / ``--up-axis`` on a command whose objects hold no mesh file (they would be ignored),
+    or with a list of values that is not one per mesh file (:func:`per_mesh_file`).
 
     Raises
     ------
     InvalidInputError
-        An option given and no object of ``specs`` a mesh file.
+        An option given and no object of ``specs`` a mesh file; a list of values of another
+        length than 1 or the number of mesh files.
     """
     if (scale_to_m is not None or up_axis is not None) and not any(is_mesh_file(s) for s in specs):
         given = ", ".join(map(str, specs)) or "the default objects"
         raise InvalidInputError(f"--scale-to-m / --up-axis apply to mesh files, and no object given is one ({given}); "
                                 "leave them out for named objects")
+    per_mesh_file(specs, scale_to_m, "--scale-to-m")
+    per_mesh_file(specs, up_axis, "--up-axis")
 
 
 def _identity(spec: str) -> tuple[str, str]:
@@ -170,8 +220,9 @@ def labelled_rows(rows: Sequence[Mapping[str, Any]], labels: Mapping[str, str], 
     return out
 
 
-def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, scale_to_m: float | None = None,
-                    up_axis: str | None = None) -> list[str]:
+def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
+                    scale_to_m: float | Sequence[float] | None = None,
+                    up_axis: str | Sequence[str] | None = None) -> list[str]:
     """Check every object of a command line and bring its mesh files to the conventions when told to.
 
     Parameters
@@ -182,7 +233,8 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
         Where a changed mesh file is written, as ``<label>.ply`` (labels of
         :func:`~whisker_io.sim.catalogue.object_labels`: distinct); created when needed.
     scale_to_m, up_axis : optional
-        As :func:`whisker_io.sim.objects.load_object`'s, for every mesh file.
+        As :func:`whisker_io.sim.objects.load_object`'s: one value for every mesh file, or a
+        sequence of one per mesh file in the order they stand in ``specs`` (:func:`per_mesh_file`).
 
     Returns
     -------
@@ -208,9 +260,10 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
         raise InvalidInputError(f"folder must be a path (str or pathlib.Path), got {type(folder).__name__}")
     folder = Path(folder)
     check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
-    given = scale_to_m is not None or up_axis is not None
+    scales, ups = per_mesh_file(specs, scale_to_m, "--scale-to-m"), per_mesh_file(specs, up_axis, "--up-axis")
     stems = object_file_names(specs)
-    copied = [is_mesh_file(s) and (given or Path(s).suffix.lower() in GLTF_SUFFIXES) for s in specs]
+    copied = [is_mesh_file(s) and (scales[i] is not None or ups[i] is not None or Path(s).suffix.lower() in GLTF_SUFFIXES)
+              for i, s in enumerate(specs)]
     targets = {(folder / f"{stem}.ply").resolve() for stem, c in zip(stems, copied) if c}
     for spec in specs:  # before any copy is written: none may land on a file still to be read
         if is_mesh_file(spec) and Path(spec).resolve() in targets:
@@ -218,7 +271,7 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *, sca
                                     "copy?); give the original file, or another --out")
     # every object is read and checked before anything is written: a bad name or mesh fails with its reason and
     # leaves no copy, and no record of one, behind
-    loaded = {i: load_object(spec, scale_to_m=scale_to_m, up_axis=up_axis, name=stem)
+    loaded = {i: load_object(spec, scale_to_m=scales[i], up_axis=ups[i], name=stem)
               for i, (spec, stem, copy) in enumerate(zip(specs, stems, copied)) if copy}
     as_given: dict[int, Any] = {}  # mesh files run as given (each process loads them): what load_object assumed and changed, said too
     for i, spec in enumerate(specs):

@@ -742,8 +742,8 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         matchers: Sequence[str] = DEFAULT_MATCHERS, odometry_scale: float = 1.0,
         calibration: str | Sequence[int] = "first-seed",
         calibration_quantile: float | None = None, reach_contacts: int = REACH_CONTACTS,
-        roll_deg: float | None = None, scale_to_m: float | None = None,
-        up_axis: str | None = None) -> list[dict[str, Any]]:
+        roll_deg: float | None = None, scale_to_m: float | Sequence[float] | None = None,
+        up_axis: str | Sequence[str] | None = None) -> list[dict[str, Any]]:
     """Run the benchmark; returns the CSV rows (also written to ``out`` as ``recognition_runs.csv``; the figures
     and the summary are :func:`figures` and :func:`summary` of the rows, as :func:`main` writes them).
 
@@ -790,9 +790,9 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         ``reach_contacts`` whiskers clearly more often at 0 deg - flat tori, bowls; 90 deg
         with ``reach_contacts=0``); the CSV's ``roll_deg`` column gives it.
     scale_to_m, up_axis : optional
-        Applied to every mesh file of ``objects`` and ``novel``
-        (:func:`cansim.studies.object_options.conform_objects`: the changed files are run from
-        their copies in ``out/objects``), as ``--scale-to-m`` / ``--up-axis``.
+        Applied to every mesh file of ``objects`` and ``novel``, or one value per mesh file in
+        that order (:func:`cansim.studies.object_options.conform_objects`: the changed files are
+        run from their copies in ``out/objects``), as ``--scale-to-m`` / ``--up-axis``.
 
     Raises
     ------
@@ -1130,8 +1130,9 @@ def _summary(rows: Sequence[dict[str, Any]], elapsed_s: float, quick: bool, matc
         if key not in ("trajectory A", "trajectory B", "vp 5-10 cm"):
             lines.append(f"  {key:14s} correct {share(lib, key)} (reported)")
     novel_all = (sum(c for c, _ in nov.values()), sum(n for _, n in nov.values()))
-    lines.append(f"  novel objects  no decision in {novel_all[0]}/{novel_all[1]} presentations "
-                 f"target 95 %: {'HELD' if novel_all[1] and novel_all[0] / novel_all[1] >= 0.95 else 'NOT HELD'}")
+    held = "not measured (no novel object)" if not novel_all[1] else \
+        "HELD" if novel_all[0] / novel_all[1] >= 0.95 else "NOT HELD"
+    lines.append(f"  novel objects  no decision in {novel_all[0]}/{novel_all[1]} presentations target 95 %: {held}")
     taken: dict[str, list[str]] = {}
     for r in rows:  # which library object each decided novel presentation was taken for
         if r["novel"] and r["library_size"] == small and r["decision"]:
@@ -1180,8 +1181,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="12 objects, 1 seed, trajectories A and B and the 5-10 cm viewpoints")
     ap.add_argument("--out", type=Path, default=Path.cwd(), help="output folder (default: working directory)")
     ap.add_argument("--objects", nargs="+", metavar="NAME_OR_MESH", help="library objects (default: the 12-object library)")
-    ap.add_argument("--novel", nargs="+", metavar="NAME_OR_MESH", help="novel objects (default: three held-out shapes)")
-    add_mesh_options(ap)
+    ap.add_argument("--novel", nargs="*", metavar="NAME_OR_MESH",
+                    help="novel objects (default: three held-out shapes; none after the flag: no novel object)")
+    add_mesh_options(ap, per_file=True)
     ap.add_argument("--seeds", type=int, default=None,
                     help="how many seeds: --seed, --seed + 1, ... (default 3, quick 1)")
     ap.add_argument("--seed", type=int, default=0,
