@@ -287,3 +287,31 @@ def test_a_study_run_as_a_module_refuses_a_missing_mesh_file_in_one_line(tmp_pat
     assert "Traceback" not in proc.stderr and "no mesh file at nope.obj" in proc.stderr
     assert [ln for ln in proc.stderr.splitlines() if "error:" in ln] == [proc.stderr.strip().splitlines()[-1]]
     assert not Path(tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.csv"))
+
+
+@pytest.mark.parametrize("module", ["cansim.studies.ch5_object_maps", "cansim.studies.ch6_active_exploration",
+                                    "cansim.studies.recognition"])
+def test_a_novel_flag_with_no_object_means_none(module):
+    """``--novel`` with nothing after it: no novel object, in every study that takes novel objects."""
+    parser = _study_parser(module)
+    assert parser.parse_args(["--novel"]).novel == []
+    assert parser.parse_args(["--novel", "a.obj", "knot"]).novel == ["a.obj", "knot"]
+
+
+def _study_parser(module: str) -> argparse.ArgumentParser:
+    """The study's own parser, caught as its main builds it (main stops at parse_args)."""
+    caught = {}
+    real = CommandParser.parse_args
+
+    def catch(self, *a, **k):
+        caught["parser"] = self
+        raise SystemExit(0)
+
+    mod = importlib.import_module(module)
+    CommandParser.parse_args = catch
+    try:
+        with pytest.raises(SystemExit):
+            mod.main(["--quick"])
+    finally:
+        CommandParser.parse_args = real
+    return caught["parser"]

@@ -287,7 +287,10 @@ def test_the_summary_says_what_a_novel_object_was_taken_for_and_counts_presentat
     text = recognition.summary(rows, 60.0, True)
     assert "library of 2 objects" in text and "odometry noise 1 x Eq 6.4-6.11 (the thesis)" in text
     assert "odometry noise 0.25 x Eq 6.4-6.11;" in recognition.summary(rows, 60.0, True, 0.25)
-    assert "novel objects  no decision in 1/4 presentations" in text
+    assert "novel objects  no decision in 1/4 presentations target 95 %: NOT HELD" in text
+    alone = recognition.summary([r for r in rows if not r["novel"]], 60.0, True)  # no novel object presented
+    assert "novel objects  no decision in 0/0 presentations target 95 %: not measured (no novel object)" in alone
+    assert "NOT HELD" not in alone.split("novel objects")[1].splitlines()[0]
     assert "the bucket (novel) was taken for the barrel 2x" in text and "the knot (novel) was taken for the mug 1x" in text
     one = recognition.summary([dict(r, library_size=1) for r in rows[:1]], 60.0, True)
     assert "library of 1 object," in one and "with one library object every decision names it" in one

@@ -826,7 +826,12 @@ def spc_sequences(runs: Sequence[dict[str, Any]]) -> list[int]:
     return out
 
 
-def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False) -> list[str]:
+#: How far inside the believed volume's side an object's side may lie before the search's placements are said to stand
+#: out of its whiskers' reach (m): about half the array's reach beyond its front bases (8 cm on a wall faced squarely).
+NARROW_GAP_M = 0.04
+
+
+def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False, believed: Any = None) -> list[str]:
     """One line for each presented object whose whisks observed no region (under 3 contacts) more often than not.
 
     Over the strategy study's and the novel objects' runs that presented it (each run once: the rows of its first IC
@@ -834,7 +839,10 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     the array round the believed volume, not the object, so an object that does not reach
     the volume's faces, or that is flat or thin, is seldom touched: its IC metrics then say
     little about recognition. The advice names what the run can change: a mesh file's
-    conventions, and contact seeking when it was off (``contact_seeking``).
+    conventions, and contact seeking when it was off (``contact_seeking``). Given the
+    ``believed`` volume (a trimesh box, :attr:`Setup.believed`), an object whose side lies
+    more than :data:`NARROW_GAP_M` inside the volume's (a narrower object beside a wider
+    known one: the volume is their common box) is told so first.
     """
     counts: dict[str, list[int]] = {}
     for x in rows:
@@ -850,7 +858,10 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
                       "rows of whiskers"]
             if is_mesh_file(p):
                 advice.insert(0, "check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis)")
-            if not contact_seeking:
+            narrow = _narrower_than(p, believed)
+            if narrow and not contact_seeking:
+                advice.insert(0, narrow + "; --contact-seeking moves the array until whiskers touch")
+            elif not contact_seeking:
                 advice.append("--contact-seeking moves the array until whiskers touch")
             if n < SHORT_RUN_WHISKS * runs:  # the first whisks of a run stand before the believed volume
                 advice.insert(0, f"the runs are short ({n / runs:.0f} whisks each): a run's first whisks place the array "
@@ -859,6 +870,23 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
                          f"whisks: the search does not reach its surface well, so its recognition figures say little; "
                          + "; ".join(advice))
     return lines
+
+
+def _narrower_than(presented: str, believed: Any) -> str:
+    """Why the search stands out of reach of ``presented`` when its footprint lies inside the ``believed`` box by more
+    than :data:`NARROW_GAP_M` on a side (x or y), else ``""``."""
+    if believed is None:
+        return ""
+    from whisker_io.sim.catalogue import resolve_object
+
+    obj = np.asarray(resolve_object(presented).mesh.extents[:2], dtype=float)
+    box = np.asarray(believed.extents[:2], dtype=float)
+    gap = float(np.max((box - obj) / 2))
+    if gap <= NARROW_GAP_M:
+        return ""
+    return (f"it is {obj[0]:.2f} x {obj[1]:.2f} m across, the believed volume (the known objects' common box) "
+            f"{box[0]:.2f} x {box[1]:.2f} m: the search places the array before that volume, up to {100 * gap:.0f} cm "
+            "from this object's sides, beyond most whiskers' reach")
 
 
 def poorly_mapped(setup: Setup, labels: Mapping[str, str] | None = None) -> list[str]:
@@ -1200,7 +1228,8 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      "lets a base pass into the mesh; contact feedback alone cannot prevent it with the thesis array "
                      "(its whiskers sweep no space straight ahead of the front bases: cansim.explore.contact_seeking), "
                      "so on hardware keep the arm's envelope and speed limits conservative.")
-    lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)))]
+    lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)),
+                                                            setup.believed)]
     lines += [f"Warning: {line}." for line in poorly_mapped(setup, label)]
     return "\n".join(lines) + "\n"
 
@@ -1227,9 +1256,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="the two known objects (registered names, procedural shapes or mesh files in metres, z up "
                          "unless --scale-to-m / --up-axis say otherwise); each is mapped and presented (default: box "
                          "box_stack)")
-    add_mesh_options(ap)
+    add_mesh_options(ap, per_file=True)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar (e.g. in logs)")
-    ap.add_argument("--novel", nargs="+", default=[], metavar="NAME_OR_MESH",
+    ap.add_argument("--novel", nargs="*", default=[], metavar="NAME_OR_MESH",
                     help="objects presented but never mapped (names or mesh files), each explored by the default "
                          "search for every seed: a decision for any known object is wrong (Fig 5.17's Skull)")
     ap.add_argument("--believed-scale", type=float, default=1.0,
@@ -1312,7 +1341,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise
     _write_runs(args.out / "ch6_runs.csv", rows, labels)
     interrupted.unlink(missing_ok=True)  # an earlier interrupted run's rows: this run has them all
-    for line in seldom_touched(rows, args.contact_seeking):
+    for line in seldom_touched(rows, args.contact_seeking, setup.believed):
         logger.warning(line)
     figures(args.out, runs, spc_runs, rows)
     text = summary(rows, setup, args, time.monotonic() - t0, runs)
