@@ -126,3 +126,21 @@ def test_a_flat_torus_the_thesis_poses_miss_is_reached_and_mapped(tmp_path, caps
     assert "moves forward along its axis to reach for 3 whiskers (array rolled 0 deg)" in text and "Warning: only" not in text
     mug = demo.run("mug", loops=1, progress=False)["metrics"]
     assert mug["trajectory_reach_contacts"] == 0 and mug["standoff_touch_share"] >= MIN_STANDOFF_SHARE
+
+
+def test_a_mesh_file_given_by_a_relative_path_is_recorded_by_its_absolute_one(tmp_path, monkeypatch):
+    """The metrics name the user's mesh as the studies' CSVs do (an absolute path) and say what was assumed and
+    changed: a file 5 m from the origin is moved, a named object has no file."""
+    import trimesh
+
+    demo = _load()
+    monkeypatch.chdir(tmp_path)
+    block = trimesh.creation.box(extents=(0.25, 0.25, 0.35))
+    block.apply_translation((5.0, 0.0, 0.175))
+    block.export(tmp_path / "block.obj")
+    run = demo.run("block.obj", loops=1, progress=False)["metrics"]
+    assert run["object_source"] == str(tmp_path / "block.obj")
+    assert any(c.startswith("assumed in metres and z up") for c in run["object_changes"])
+    assert any(c.startswith("moved by (-5, 0, 0) m") for c in run["object_changes"])
+    assert run["object_extents_m"] == pytest.approx([0.25, 0.25, 0.35])
+    assert demo.run("mug", loops=1, progress=False)["metrics"]["object_source"] == "registered object"

@@ -99,8 +99,9 @@ re-localisations on loop 2, 55-75 % exact, and the map at 0.10-0.30 m.)
 from __future__ import annotations
 
 import json
-import math
 import logging
+import math
+import os
 import time
 from pathlib import Path
 
@@ -113,7 +114,7 @@ from maps.odometry import SpatialOdometry
 from cansim.studies.object_options import add_mesh_options, check_mesh_options
 from cansim.studies.report import fmt
 from whisker_io.command_line import CommandParser
-from whisker_io.sim.catalogue import resolve_object
+from whisker_io.sim.catalogue import is_mesh_file, resolve_object
 from whisker_io.sim.objects import OBJECT_NAMES
 from whisker_io.sim.odometry_noise import integrate_odometry, noisy_odometry
 from whisker_io.sim.trajectories import REACH_CONTACTS, choose_reach, object_trajectory
@@ -216,7 +217,8 @@ def run(
     map_err = np.array([np.linalg.norm(om[e, :3] - t.position_m) if e >= 0 else np.nan for e, t in zip(exp_ids, rel_true)])
     metrics = {
         "object": object_name,
-        "object_source": loaded.source,
+        # a mesh file by its absolute path, as the studies' CSVs name it (whatever the working directory was)
+        "object_source": os.path.abspath(loaded.source) if is_mesh_file(loaded.source) else loaded.source,
         "object_extents_m": [float(x) for x in loaded.extents_m],
         "object_changes": list(loaded.notes),
         "matching": "thesis" if thesis_matching else "pose-consistent",
