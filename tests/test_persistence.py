@@ -401,3 +401,33 @@ def test_a_model_description_that_is_no_json_object_is_a_corrupt_file(tmp_path, 
     np.savez(tmp_path / "odd.npz", **arrays)
     with pytest.raises(CorruptFileError, match="field 'model': not a model description"):
         RatSLAM.load(tmp_path / "odd.npz")
+
+
+# ------------------------------------------------------------------ write_csv: a study's table, whole or not at all
+_CELL = st.one_of(st.text(max_size=12), st.integers(-10**6, 10**6), st.booleans())
+
+
+@given(st.lists(st.fixed_dictionaries({"a": _CELL, "b c": _CELL, "d": _CELL}), max_size=8))
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_write_csv_reads_back_as_written(tmp_path, rows):
+    import csv
+
+    from whisker_io.persistence import write_csv
+
+    path = tmp_path / "t.csv"
+    write_csv(path, ("a", "b c", "d"), rows)
+    with open(path, newline="", encoding="utf-8") as fh:
+        back = list(csv.DictReader(fh))
+    assert [list(r) for r in back] == [["a", "b c", "d"]] * len(rows)
+    assert back == [{k: str(v) for k, v in r.items()} for r in rows]
+
+
+def test_write_csv_with_a_bad_row_leaves_the_earlier_table(tmp_path):
+    from whisker_io.persistence import write_csv
+
+    path = tmp_path / "t.csv"
+    write_csv(path, ("x", "y"), [{"x": 1, "y": 2}])
+    assert path.read_bytes() == b"x,y\r\n1,2\r\n"  # csv's own line ends, by hand
+    with pytest.raises(ValueError, match="fields not in fieldnames"):
+        write_csv(path, ("x", "y"), [{"x": 3, "y": 4}, {"x": 5, "z": 6}])
+    assert path.read_bytes() == b"x,y\r\n1,2\r\n" and [p.name for p in tmp_path.iterdir()] == ["t.csv"]

@@ -402,3 +402,44 @@ def test_the_confusion_counts_are_the_runs_counted_by_hand(runs) -> None:
             by_hand = sum(1 for q, e in runs if q == p and (e or None) == d)
             assert counts[i, j] == by_hand
     assert counts.sum() == len(runs)
+
+
+def test_an_interrupted_run_keeps_its_finished_seeds_runs_whole(tmp_path: Path, monkeypatch) -> None:
+    """Ctrl-C during seed 1's presentations: seed 0's runs are written to recognition_runs_interrupted.csv (whole,
+    in the study's columns), no recognition_runs.csv is left; a complete run then writes its CSV and drops the
+    interrupted one (the mapping and presentations are stand-ins: this tests the run's bookkeeping)."""
+    import csv as _csv
+
+    def fake_map(job):
+        name, setup, stem = job
+        return {"name": name, "path": str(tmp_path / f"{stem}.npz"), "surface": "", "n_experiences": 3, "n_points": 9,
+                "whisks": 10}
+
+    stop_at = {"seed": 1}
+
+    def fake_present(job):
+        presented, novel, presentation, vp, lib_paths, names, setup, library = job
+        if setup.seed == stop_at["seed"]:
+            raise KeyboardInterrupt
+        return [{c: "" for c in recognition.COLUMNS} | {"seed": setup.seed, "presented": presented, "novel": novel,
+                                                        "presentation": presentation, "decision": presented,
+                                                        "library_size": len(names), "matcher": "thesis"}]
+
+    monkeypatch.setattr(recognition, "map_job", fake_map)
+    monkeypatch.setattr(recognition, "present_job", fake_present)
+    monkeypatch.setattr(recognition, "calibrated_thresholds", lambda *a, **k: (1.0, 0.3))
+    out = tmp_path / "out"
+    kw = dict(objects=["mug", "box"], novel=[], bins=(), seeds=(0, 1, 2), progress=False, workers=1,
+              matchers=("thesis",), roll_deg=90.0, library_sizes=(2,))
+    with pytest.raises(KeyboardInterrupt):
+        recognition.run(out, **kw)
+    assert not (out / "recognition_runs.csv").exists()
+    with open(out / recognition.INTERRUPTED_CSV, newline="") as fh:
+        kept = list(_csv.DictReader(fh))
+    assert tuple(kept[0]) == recognition.COLUMNS
+    assert sorted((r["seed"], r["presented"], r["presentation"]) for r in kept) == \
+        [("0", "box", "A"), ("0", "box", "B"), ("0", "mug", "A"), ("0", "mug", "B")]
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+    stop_at["seed"] = -1
+    rows = recognition.run(out, **kw)
+    assert len(rows) == 12 and (out / "recognition_runs.csv").exists() and not (out / recognition.INTERRUPTED_CSV).exists()

@@ -7,14 +7,14 @@ import errno
 import os
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from typing import Any, BinaryIO, Callable, Mapping
 
 import numpy as np
 
 from whisker_io.errors import CorruptFileError, InvalidInputError
 
-__all__ = ["naming_file", "npz_path", "read_npz", "sync_folder", "write_atomically", "write_npz"]
+__all__ = ["naming_file", "npz_path", "read_npz", "sync_folder", "write_atomically", "write_csv", "write_npz"]
 
 
 _PICKLED = "holds pickled objects, which are never loaded (they can run code): not a file a save() here wrote"
@@ -149,6 +149,28 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], o
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def write_csv(path: str | os.PathLike[str], columns: Sequence[str], rows: Iterable[Mapping[str, Any]]) -> None:
+    """``rows`` as a CSV file with a header of ``columns`` (:class:`csv.DictWriter`), written whole or not at all
+    (:func:`write_atomically`): a study's table never ends half-written, whatever stops it.
+
+    Raises
+    ------
+    ValueError
+        A row with a key outside ``columns`` (as :class:`csv.DictWriter`); nothing is written.
+    FileNotFoundError
+        ``path``'s folder does not exist.
+    """
+    import csv
+    import io
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=list(columns))
+    w.writeheader()
+    w.writerows(rows)
+    data = buf.getvalue().encode("utf-8")
+    write_atomically(path, lambda fh: fh.write(data))
 
 
 def sync_folder(folder: str | os.PathLike[str]) -> None:

@@ -160,7 +160,6 @@ M, seed)`` as ``tests/test_ch5_study.py`` builds them.
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 import os
@@ -660,11 +659,10 @@ def identification_rows(ids: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], columns: Sequence[str]) -> None:
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(columns))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: r[k] for k in columns})
+    """``rows`` (their ``columns``) as a CSV file, written whole or not at all."""
+    from whisker_io.persistence import write_csv
+
+    write_csv(path, columns, ({k: r[k] for k in columns} for r in rows))
 
 
 def _median(x: Sequence[float]) -> float:

@@ -327,7 +327,6 @@ these runs):
 from __future__ import annotations
 
 import argparse
-import csv
 import logging
 import math
 import sys
@@ -1011,15 +1010,10 @@ INTERRUPTED_CSV = "ch6_runs_interrupted.csv"
 
 def _write_runs(path: Path, rows: list[dict[str, Any]], labels: Mapping[str, str]) -> None:
     """``rows`` as ``ch6_runs.csv`` (its columns, the objects by their labels), written whole or not at all."""
-    import io
+    from whisker_io.persistence import write_csv
 
-    from whisker_io.persistence import write_atomically
-
-    buf = io.StringIO(newline="")
-    w = csv.DictWriter(buf, fieldnames=[*COLUMNS, "study", *SETTING_COLUMNS, "mesh_file"])
-    w.writeheader()
-    w.writerows(labelled_rows(rows, labels, ("presented", "identity"), of="presented"))
-    write_atomically(path, lambda fh: fh.write(buf.getvalue().encode("utf-8")))
+    write_csv(path, [*COLUMNS, "study", *SETTING_COLUMNS, "mesh_file"],
+              labelled_rows(rows, labels, ("presented", "identity"), of="presented"))
 
 
 def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, elapsed_s: float,

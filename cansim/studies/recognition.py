@@ -66,7 +66,9 @@ What runs
 
 Outputs (``--out``)
 -------------------
-* ``recognition_runs.csv`` - one row per run (columns :data:`COLUMNS`; among them
+* ``recognition_runs.csv`` - written whole once every seed has run (an interrupted run, Ctrl-C,
+  keeps its finished seeds' runs in ``recognition_runs_interrupted.csv``, :data:`INTERRUPTED_CSV`,
+  with the same columns) - one row per run (columns :data:`COLUMNS`; among them
   ``whisks_with_contact``, the whisks that observed a region - 3 contacts or more, Eq 5.5 -,
   and, with the surface matcher, ``unmapped_contact_fraction``, the share of the
   presentation's contacts where the presented object's map felt nothing,
@@ -241,7 +243,6 @@ are not reached; :mod:`maps.surface_match` (Status) says what limits each.
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 import time
@@ -259,7 +260,7 @@ from cansim.studies.process_pool import pool_map
 from maps.recognition import MATCHERS  # thesis | surface
 from whisker_io.command_line import CommandParser
 from whisker_io.errors import InvalidInputError
-from whisker_io.persistence import write_atomically
+from whisker_io.persistence import write_atomically, write_csv
 from whisker_io.sim.trajectories import REACH_CONTACTS as TRAJECTORY_REACH_CONTACTS
 
 logger = logging.getLogger(__name__)
@@ -844,44 +845,65 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
         rolls = tuple(pool_map(roll_job, [(n, int(reach)) for n in whisked], workers, "choosing the rolls", progress))
     else:
         rolls = tuple((n, float(roll)) for n in whisked)
-    for seed in seeds:
-        setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
-                      odometry_scale=float(odometry_scale), reach_contacts=int(reach), rolls_deg=rolls)
-        maps = pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
-                         progress)
-        unfelt = [m for m in maps if m.get("n_points", 3) < 3]
-        if "surface" in matchers and unfelt:  # the surface matcher needs a felt surface of every library object
-            from whisker_io.errors import InvalidInputError
-
-            raise InvalidInputError("; ".join(f"the {labels[m['name']]} was touched at {m['n_points']} points in its "
-                                              f"{m['whisks']} mapping whisks" for m in unfelt)
-                                    + ": the surface matcher has no surface to match it against. The study's "
-                                    "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, "
-                                    "--up-axis); leave the object out, or run --matchers thesis")
-        empty = [m["name"] for m in maps if m["n_experiences"] == 0]
-        if empty:  # once per seed: the presentation jobs build the library without repeating it
-            logger.warning("seed %d: the map of %s holds no experience (no whisk observed a region of 3 contacts or "
-                           "more): the thesis matcher can name nothing as it", seed, ", ".join(labels[n] for n in empty))
-        paths = {m["name"]: m["path"] for m in maps}
-        surface_paths = {m["name"]: m["surface"] for m in maps}
-        jobs = []
-        for size in sizes:
-            names = everything[:size]
-            lib_paths = [paths[n] for n in names]
-            kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
-            # named by seed_name: the matcher's per-object random streams (keyed by name) do not depend on the
-            # folder a mesh file was given from, and a registered object's name is its own
-            library = (load_surface_library([surface_paths[n] for n in names], [seed_name(n) for n in names])
-                       if "surface" in matchers else None)
-            for presentation, vp in kinds:
-                jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
-                jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
-        rows += [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
+    try:
+        for seed in seeds:
+            rows += _seed_rows(seed, out, everything, novel, stems, labels, sizes, chosen, thresholds, rolls, map_loops,
+                               whisks, matchers, odometry_scale, reach, workers, progress)
+    except KeyboardInterrupt:  # the finished seeds' runs are kept (a seed's runs are written whole or not at all)
+        done = sorted({r["seed"] for r in rows})
+        write_csv(out / INTERRUPTED_CSV, COLUMNS, labelled_rows(rows, labels, ("presented", "decision"), of="presented"))
+        logger.warning("interrupted: the runs of %d finished seed(s) of %d (%s) are in %s (no figures or summary); a "
+                       "complete run writes recognition_runs.csv", len(done), len(seeds),
+                       ", ".join(map(str, done)) or "none", out / INTERRUPTED_CSV)
+        raise
     rows = labelled_rows(rows, labels, ("presented", "decision"), of="presented")
-    with open(out / "recognition_runs.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(out / "recognition_runs.csv", COLUMNS, rows)
+    (out / INTERRUPTED_CSV).unlink(missing_ok=True)  # an earlier interrupted run's rows: this run has them all
+    return rows
+
+
+#: Where an interrupted run (Ctrl-C) keeps the runs of its finished seeds (``recognition_runs.csv``'s columns).
+INTERRUPTED_CSV = "recognition_runs_interrupted.csv"
+
+
+def _seed_rows(seed: int, out: Path, everything: list[str], novel: list[str], stems: list[str], labels: dict[str, str],
+               sizes: list[int], chosen: list[Any], thresholds: Any, rolls: tuple[tuple[str, float], ...], map_loops: int,
+               whisks: int, matchers: tuple[str, ...], odometry_scale: float, reach: int, workers: int,
+               progress: bool) -> list[dict[str, Any]]:
+    """One seed of :func:`run`: its maps, then its presentations' rows (unlabelled)."""
+    rows: list[dict[str, Any]] = []
+    setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
+                  odometry_scale=float(odometry_scale), reach_contacts=int(reach), rolls_deg=rolls)
+    maps = pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
+                     progress)
+    unfelt = [m for m in maps if m.get("n_points", 3) < 3]
+    if "surface" in matchers and unfelt:  # the surface matcher needs a felt surface of every library object
+        from whisker_io.errors import InvalidInputError
+
+        raise InvalidInputError("; ".join(f"the {labels[m['name']]} was touched at {m['n_points']} points in its "
+                                          f"{m['whisks']} mapping whisks" for m in unfelt)
+                                + ": the surface matcher has no surface to match it against. The study's "
+                                "trajectories suit objects about 0.35 m across, in metres and z up (--scale-to-m, "
+                                "--up-axis); leave the object out, or run --matchers thesis")
+    empty = [m["name"] for m in maps if m["n_experiences"] == 0]
+    if empty:  # once per seed: the presentation jobs build the library without repeating it
+        logger.warning("seed %d: the map of %s holds no experience (no whisk observed a region of 3 contacts or "
+                       "more): the thesis matcher can name nothing as it", seed, ", ".join(labels[n] for n in empty))
+    paths = {m["name"]: m["path"] for m in maps}
+    surface_paths = {m["name"]: m["surface"] for m in maps}
+    jobs = []
+    for size in sizes:
+        names = everything[:size]
+        lib_paths = [paths[n] for n in names]
+        kinds = [("A", None), ("B", None), *(("viewpoints", b) for b in chosen)] if size == sizes[0] else [("B", None)]
+        # named by seed_name: the matcher's per-object random streams (keyed by name) do not depend on the
+        # folder a mesh file was given from, and a registered object's name is its own
+        library = (load_surface_library([surface_paths[n] for n in names], [seed_name(n) for n in names])
+                   if "surface" in matchers else None)
+        for presentation, vp in kinds:
+            jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
+            jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
+    rows += [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
     return rows
 
 

@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import csv
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -337,12 +336,11 @@ def write_results_csv(scores: Sequence[ModelScore], path: str | os.PathLike[str]
     A figure a model does not have (the baselines' cross-validation error, a mesh distance
     without a mesh) is an empty cell, not ``nan``.
     """
+    from whisker_io.persistence import write_csv
+
     path = Path(path)
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(RESULT_COLUMNS))
-        w.writeheader()
-        for s in scores:
-            w.writerow({k: ((f"{v:.6g}" if np.isfinite(v) else "") if isinstance(v, float) else v) for k, v in s.row().items()})
+    write_csv(path, RESULT_COLUMNS, ({k: ((f"{v:.6g}" if np.isfinite(v) else "") if isinstance(v, float) else v)
+                                      for k, v in s.row().items()} for s in scores))
     return path
 
 
