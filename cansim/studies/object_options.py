@@ -16,8 +16,8 @@ by :func:`add_mesh_options`:
 
 In a study, which takes several objects, each option takes one value for every mesh file
 or one per mesh file in the order they are given (``--objects`` first, then ``--novel``):
-``--objects part.stl scene.glb --up-axis z y`` (:func:`per_mesh_file`). A study runs its objects in worker processes by name, so :func:`conform_objects`
-writes each mesh file it changed, in the conventions, to ``<out>/objects/<label>.ply``
+``--objects part.stl scene.glb --up-axis z y`` (:func:`per_mesh_file`). A study runs its
+objects in worker processes by name, so :func:`conform_objects` writes each mesh file it changed, in the conventions, to ``<out>/objects/<label>.ply``
 (single-precision vertices: within a micrometre; the label of
 :func:`~whisker_io.sim.catalogue.object_labels`) and hands on that path: the study's
 ``mesh_file`` columns name that file, which keeps the object exactly as run
@@ -262,8 +262,8 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
     check_mesh_options(specs, scale_to_m=scale_to_m, up_axis=up_axis)
     scales, ups = per_mesh_file(specs, scale_to_m, "--scale-to-m"), per_mesh_file(specs, up_axis, "--up-axis")
     stems = object_file_names(specs)
-    copied = [is_mesh_file(s) and (scales[i] is not None or ups[i] is not None or Path(s).suffix.lower() in GLTF_SUFFIXES)
-              for i, s in enumerate(specs)]
+    copied = [is_mesh_file(s) and (scales[i] is not None or ups[i] is not None
+                                   or Path(s).suffix.lower() in GLTF_SUFFIXES) for i, s in enumerate(specs)]
     targets = {(folder / f"{stem}.ply").resolve() for stem, c in zip(stems, copied) if c}
     for spec in specs:  # before any copy is written: none may land on a file still to be read
         if is_mesh_file(spec) and Path(spec).resolve() in targets:
@@ -273,7 +273,8 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
     # leaves no copy, and no record of one, behind
     loaded = {i: load_object(spec, scale_to_m=scales[i], up_axis=ups[i], name=stem)
               for i, (spec, stem, copy) in enumerate(zip(specs, stems, copied)) if copy}
-    as_given: dict[int, Any] = {}  # mesh files run as given (each process loads them): what load_object assumed and changed, said too
+    # mesh files run as given (each process loads them): what load_object assumed and changed is said too
+    as_given: dict[int, Any] = {}
     for i, spec in enumerate(specs):
         if i not in loaded:
             obj = resolve_object(spec)
@@ -281,7 +282,8 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
                 as_given[i] = obj
     for i, obj in as_given.items():  # said once every object has passed its checks
         said = [n for n in obj.notes if n.startswith("assumed") or " m apart" in n]  # what may be wrong
-        log.warning("%s: %s m%s", specs[i], " x ".join(f"{x:.3f}" for x in obj.extents_m), "".join(f"; {n}" for n in said))
+        log.warning("%s: %s m%s", specs[i], " x ".join(f"{x:.3f}" for x in obj.extents_m),
+                    "".join(f"; {n}" for n in said))
     record = folder / SOURCES_FILE
     record.unlink(missing_ok=True)  # this run's record or none: never an earlier run's
     out, sources = [], []
