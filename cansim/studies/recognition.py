@@ -151,9 +151,10 @@ accurate as the odometry lets the maps be.
 warm caches on a quiet machine, 2026-12-05 - 35 s with warm and 53 s with empty caches
 before the poses reached for contact; 3.6-4.5 min at load 2-4), correct IC decisions thesis / surface:
 
-* Eq 6.4-6.11's odometry noise (the default): along A 11/12 / 12/12, along B 0/12 / 8/12,
+* Eq 6.4-6.11's odometry noise (the default): along A 11/12 / 12/12, along B 0/12 / 7/12,
   viewpoints 0/12 / 7/12, novel objects without a decision 9/9 / 5/9, wrong decisions
-  (another library object) 0/36 / 3/36 - the surface matcher names more objects, and
+  (another library object) 0/36 / 2/36 (re-run 2026-12-06; 8/12 and 3/36 were said before,
+  and the same command gives 7 and 2 at the commit that said so) - the surface matcher names more objects, and
   makes a few wrong decisions where the thesis' makes none; the own map leads every run
   along A for both. (Since the matcher's filters draw from one random stream per object,
   2026-12-05, :mod:`maps.surface_match` Status; before, with one stream for all: surface

@@ -45,7 +45,8 @@ EXIT_CODES = {
     EXIT_OK: "success",
     EXIT_INTERNAL: "internal error (a bug: the traceback is printed; please report it)",
     EXIT_USAGE: "usage error (unknown command or option, missing argument)",
-    EXIT_BAD_INPUT: "bad input: a malformed spec, config or bag, a missing file, a value out of range",
+    EXIT_BAD_INPUT: ("bad input: a malformed spec, config, bag or mesh file, a missing file, a value out of range in a "
+                     "file or a call (an option's value out of range on the command line is a usage error, 2)"),
     EXIT_FAILED: "runtime failure: the run could not finish, or some sweep tasks failed",
     EXIT_NOT_BUILT: "not available here: the study is not built yet",
     EXIT_MISSING_EXTRA: ("an optional dependency is missing, or a backend asked for cannot run here (the message "
