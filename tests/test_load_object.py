@@ -575,3 +575,18 @@ def test_one_bad_vertex_is_one_vertex():
     v[5, 0] = np.inf
     with pytest.raises(InvalidInputError, match=r"has 2 vertices with NaN/inf"):
         load_object(trimesh.Trimesh(v, box.faces, process=False))
+
+
+def test_two_objects_of_several_parts_far_apart_are_warned_of_and_stray_vertices_are_no_body():
+    # each side is two touching boxes: every body's nearest neighbour is beside it, yet the halves are 1.2 m apart
+    def pair(x):
+        a, b = trimesh.creation.box(extents=(0.1, 0.1, 0.2)), trimesh.creation.box(extents=(0.1, 0.1, 0.2))
+        a.apply_translation((x, 0.0, 0.1))
+        b.apply_translation((x + 0.11, 0.0, 0.1))
+        return [a, b]
+    two = load_object(trimesh.util.concatenate([*pair(0.0), *pair(1.41)]))
+    (note,) = [n for n in two.notes if "bodies" in n]
+    assert note.startswith("4 separate bodies up to 1.2 m apart"), note
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.3))
+    stray = np.vstack([box.vertices, [[0.05, 0.05, 0.05], [0.0, 0.0, 0.02]]])  # vertices no face uses
+    assert not [n for n in load_object(trimesh.Trimesh(stray, box.faces, process=False)).notes if "bodies" in n]

@@ -388,11 +388,12 @@ def check_extent(size_m: float, where: str, *, minimum_m: float = MIN_EXTENT_M, 
                  if 0.05 <= size_m / div <= maximum_m]
         hint = "; ".join(f"if it is in {unit} it is {m} m across: pass scale_to_m={m} (--scale-to-m {m} on the "
                          "command line)" for m, unit in units)
-        hint = (hint + ("" if [m for m, _ in units] == ["0.35"] else ", or 0.35 for the thesis objects' size")) if hint else \
-            "pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its real size in metres"
+        if hint:
+            hint += "" if [m for m, _ in units] == ["0.35"] else ", or 0.35 for the thesis objects' size"
     else:
-        hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
-                "real size in metres")
+        hint = ""
+    hint = hint or ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
+                    "real size in metres")
     raise InvalidInputError(
         f"{where} is {size_m:.4g} m across (largest extent); it must be {minimum_m:g}-{maximum_m:g} m: {hint}"
     )
@@ -477,18 +478,27 @@ def _checked_surface(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     return trimesh.Trimesh(vertices, faces, process=False)
 
 
-def _largest_gap(mesh: trimesh.Trimesh) -> float:
-    """Largest distance between a body's bounding box and the nearest other body's (0 for one body), metres."""
+def _bodies(mesh: trimesh.Trimesh, most: int = 200) -> tuple[int, float]:
+    """(bodies, gap): the mesh's bodies (sets of faces joined by edges; a vertex no face uses is none) and the widest
+    gap that splits them into two groups, metres (the longest edge of the minimum spanning tree over the distances
+    between the bodies' bounding boxes: two objects of several parts each, far apart, are one such gap); 0 for one
+    body or more than ``most``."""
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
     labels = trimesh.graph.connected_component_labels(mesh.edges_unique, node_count=len(mesh.vertices))
-    boxes = np.array([[mesh.vertices[labels == k].min(axis=0), mesh.vertices[labels == k].max(axis=0)]
-                      for k in np.unique(labels[np.unique(mesh.faces)])])
-    if len(boxes) < 2 or len(boxes) > 200:
-        return 0.0
+    used = np.unique(mesh.faces)
+    _, body = np.unique(labels[used], return_inverse=True)
+    n = int(body.max()) + 1
+    if n < 2 or n > most:
+        return n, 0.0
+    lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
+    np.minimum.at(lo, body, mesh.vertices[used])
+    np.maximum.at(hi, body, mesh.vertices[used])
     # distance between boxes i and j: the norm of the per-axis separation (0 where they overlap along an axis)
-    sep = np.maximum(0.0, np.maximum(boxes[:, None, 0] - boxes[None, :, 1], boxes[None, :, 0] - boxes[:, None, 1]))
-    dist = np.linalg.norm(sep, axis=2)
-    np.fill_diagonal(dist, np.inf)
-    return float(dist.min(axis=1).max())
+    sep = np.maximum(0.0, np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]))
+    dist = np.linalg.norm(sep, axis=2) + 1e-12  # csgraph reads 0 as "no edge": touching boxes are a tiny one
+    np.fill_diagonal(dist, 0.0)
+    return n, max(float(minimum_spanning_tree(dist).max()) - 1e-12, 0.0)
 
 
 def load_object(
@@ -613,9 +623,8 @@ def load_object(
     else:
         notes.append("not watertight (open or non-manifold edges): ray casting from outside works, volume is undefined")
 
-    bodies = int(mesh.body_count)
+    bodies, gap = _bodies(mesh)
     if bodies > 1:  # a scene of several parts, or separate objects: the simulator whisks them as one object
-        gap = _largest_gap(mesh)
         far = gap > 0.5 * float(mesh.extents.max())
         notes.append(f"{bodies} separate bodies" + (f" up to {gap:.3g} m apart" if far else "") + ", whisked as one "
                      "object" + (": the trajectory runs around all of them and may touch none; give one object per file"
