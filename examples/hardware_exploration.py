@@ -248,4 +248,6 @@ def _session(argv: Sequence[str] | None, control_factory: Any, usb_backend: Any)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "hardware_exploration"))

@@ -99,4 +99,6 @@ def _session(argv: list[str] | None, control_factory: Any = None, usb_backend: A
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "hardware_session"))

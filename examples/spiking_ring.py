@@ -199,4 +199,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from whisker_io.command_line import run_command
+
+    raise SystemExit(run_command(main, "spiking_ring"))

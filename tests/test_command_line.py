@@ -233,6 +233,7 @@ _BY_HAND = [
     (FileNotFoundError(2, "No such file", "x.csv"), 3),
     (werr.MissingExtraError("nir needs cansim[spiking]"), 6),
     (ImportError("install it: pip install 'cansim[sweep]'"), 6),
+    (__import__("cansim.errors").errors.BackendUnavailableError("--backend opencl: no OpenCL device"), 6),
     (werr.CansimError("the run could not finish"), 4),
     (PermissionError(13, "Permission denied", "/out"), 4),
     (RuntimeError("worker died"), 4),
@@ -315,3 +316,20 @@ def _study_parser(module: str) -> argparse.ArgumentParser:
     finally:
         CommandParser.parse_args = real
     return caught["parser"]
+
+
+def test_a_script_stopped_by_ctrl_c_ends_as_cansim_does(capsys, monkeypatch):
+    from whisker_io.command_line import EXIT_INTERRUPTED
+
+    def main() -> int:
+        raise KeyboardInterrupt
+
+    assert run_command(main, "prog") == EXIT_INTERRUPTED == cli.EXIT_INTERRUPTED
+    assert capsys.readouterr().err == "prog: interrupted\n"
+
+    def fails() -> int:
+        raise RuntimeError("worker died")
+
+    monkeypatch.setenv("CANSIM_DEBUG", "1")  # a failure's traceback, when asked for
+    with pytest.raises(RuntimeError):
+        run_command(fails, "prog")

@@ -29,12 +29,13 @@ that a missing extra or bad input ends it with one line and the status ``cansim`
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["CommandParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERNAL", "EXIT_MISSING_EXTRA", "error_status",
-           "run_command"]
+__all__ = ["CommandParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_MISSING_EXTRA",
+           "error_status", "run_command"]
 
 #: Exit status of a command that ended on an error nobody foresaw (a bug: its traceback is shown).
 EXIT_INTERNAL = 1
@@ -44,6 +45,8 @@ EXIT_BAD_INPUT = 3
 EXIT_FAILED = 4
 #: Exit status of a command whose optional dependency (a pip extra) is not installed.
 EXIT_MISSING_EXTRA = 6
+#: Exit status of a command stopped by Ctrl-C (``KeyboardInterrupt``), as ``cansim``'s.
+EXIT_INTERRUPTED = 130
 
 
 def error_status(exc: BaseException) -> tuple[int, str]:
@@ -64,7 +67,8 @@ def error_status(exc: BaseException) -> tuple[int, str]:
 
     if isinstance(exc, (ConfigError, InvalidInputError, CorruptFileError)):
         code, message = EXIT_BAD_INPUT, str(exc)
-    elif isinstance(exc, MissingExtraError) or (isinstance(exc, ImportError) and "pip install" in str(exc)):
+    elif isinstance(exc, MissingExtraError) or (isinstance(exc, ImportError)  # cansim's BackendUnavailableError too
+                                                 and (isinstance(exc, CansimError) or "pip install" in str(exc))):
         code, message = EXIT_MISSING_EXTRA, str(exc)
     elif isinstance(exc, FileNotFoundError):
         code, message = EXIT_BAD_INPUT, f"{exc.filename or exc}: no such file or folder"
@@ -82,13 +86,18 @@ def run_command(main: Callable[[], int], prog: str) -> int:
     ``prog: ...`` naming the extra (:data:`EXIT_MISSING_EXTRA`), bad input ``prog: error: ...``
     (:data:`EXIT_BAD_INPUT`), as ``cansim`` ends on them, never a traceback. An error
     :func:`error_status` does not know (:data:`EXIT_INTERNAL`, a bug) is raised as it is,
-    with its traceback.
+    with its traceback; so is a failure (:data:`EXIT_FAILED`: an ``OSError``, a ``RuntimeError``) when the
+    environment sets ``CANSIM_DEBUG`` (``cansim --debug``'s counterpart). Ctrl-C is ``prog: interrupted`` and
+    :data:`EXIT_INTERRUPTED`, as ``cansim`` ends on it.
     """
     try:
         return main()
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except Exception as exc:
         code, message = error_status(exc)
-        if code == EXIT_INTERNAL:
+        if code == EXIT_INTERNAL or (code == EXIT_FAILED and os.environ.get("CANSIM_DEBUG")):
             raise
         print(f"{prog}: {message}" if code == EXIT_MISSING_EXTRA else f"{prog}: error: {message}", file=sys.stderr)
         return code

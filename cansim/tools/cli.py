@@ -38,7 +38,7 @@ EXIT_BAD_INPUT = command_line.EXIT_BAD_INPUT  # 3
 EXIT_FAILED = command_line.EXIT_FAILED  # 4
 EXIT_NOT_BUILT = 5
 EXIT_MISSING_EXTRA = command_line.EXIT_MISSING_EXTRA  # 6
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = command_line.EXIT_INTERRUPTED  # 130
 
 #: exit code -> meaning
 EXIT_CODES = {
@@ -453,12 +453,8 @@ _positive_int = _int_at_least(1, "a positive integer")
 
 # ------------------------------------------------------------------ main
 def _classify(exc: BaseException) -> tuple[int, str]:
-    from cansim.errors import BackendUnavailableError
-
     if isinstance(exc, CommandError):
         return exc.code, str(exc)
-    if isinstance(exc, BackendUnavailableError):
-        return EXIT_MISSING_EXTRA, str(exc)
     return command_line.error_status(exc)  # the classification the studies' and examples' scripts share
 
 
