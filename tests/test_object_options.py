@@ -464,3 +464,14 @@ def test_the_ch6_study_says_first_when_a_narrower_object_stands_inside_the_belie
     assert "believed volume" not in line and "--contact-seeking" in line
     (line,) = seldom_touched([row], contact_seeking=True, believed=wide)  # it was on: nothing to advise of it
     assert "believed volume" not in line and "--contact-seeking" not in line
+
+
+def test_a_negative_up_axis_stands_in_a_list_as_one_word():
+    from whisker_io.command_line import CommandParser
+
+    ap = CommandParser(prog="x")
+    ap.add_argument("--objects", nargs="+")
+    add_mesh_options(ap, per_file=True)
+    a = ap.parse_args(["--objects", "a.stl", "mug", "b.glb", "--up-axis=z,-y"])
+    assert per_mesh_file(a.objects, a.up_axis, "--up-axis") == ["z", None, "-y"]
+    assert per_mesh_file(["a.stl", "b.glb"], "-y", "--up-axis") == ["-y", "-y"]

@@ -845,11 +845,14 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     conventions, and contact seeking when it was off (``contact_seeking``). Given the
     ``believed`` volume (a trimesh box, :attr:`Setup.believed`), an object whose side lies
     more than :data:`NARROW_GAP_M` inside the volume's (a narrower object beside a wider
-    known one: the volume is their common box) is told so first.
+    known one: the volume is their common box, enlarged by ``--believed-scale``) is told so
+    first, unless contact seeking was on.
     """
     counts: dict[str, list[int]] = {}
+    scale = 1.0  # the believed volume's enlargement (--believed-scale), as the rows record it
     for x in rows:
         if x["threshold"] == THRESHOLDS[0] and x.get("study", "strategy") in ("strategy", "novel"):
+            scale = float(x.get("believed_scale") or 1.0)
             c = counts.setdefault(x["presented"], [0, 0, 0])
             c[0] += x["whisks_without_contact"]
             c[1] += x["iterations"]
@@ -861,7 +864,7 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
                       "rows of whiskers"]
             if is_mesh_file(p):
                 advice.insert(0, "check that the mesh is in metres, z up and about 0.35 m across (--scale-to-m, --up-axis)")
-            narrow = _narrower_than(p, believed)
+            narrow = _narrower_than(p, believed, scale)
             if narrow and not contact_seeking:
                 advice.insert(0, narrow + "; --contact-seeking moves the array until whiskers touch")
             elif not contact_seeking:
@@ -875,7 +878,7 @@ def seldom_touched(rows: Sequence[dict[str, Any]], contact_seeking: bool = False
     return lines
 
 
-def _narrower_than(presented: str, believed: Any) -> str:
+def _narrower_than(presented: str, believed: Any, scale: float = 1.0) -> str:
     """Why the search stands out of reach of ``presented`` when its footprint lies inside the ``believed`` box by more
     than :data:`NARROW_GAP_M` on a side (x or y), else ``""``."""
     if believed is None:
@@ -887,7 +890,8 @@ def _narrower_than(presented: str, believed: Any) -> str:
     gap = float(np.max((box - obj) / 2))
     if gap <= NARROW_GAP_M:
         return ""
-    return (f"it is {obj[0]:.2f} x {obj[1]:.2f} m across, the believed volume (the known objects' common box) "
+    what = "the known objects' common box" + (f" enlarged {scale:g} x by --believed-scale" if scale > 1 else "")
+    return (f"it is {obj[0]:.2f} x {obj[1]:.2f} m across, the believed volume ({what}) "
             f"{box[0]:.2f} x {box[1]:.2f} m: the search places the array before that volume, up to {100 * gap:.0f} cm "
             "from this object's sides, beyond most whiskers' reach")
 
@@ -1332,7 +1336,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                            contact_seeking=setup.contact_seeking)
                 rows.append(row)
     except KeyboardInterrupt:  # the finished runs are kept, apart from a complete run's file
-        _write_runs(interrupted, rows, labels)
+        if rows:  # none finished: an earlier interrupted run's file, if any, is left as it was
+            _write_runs(interrupted, rows, labels)
         logger.warning("interrupted: the %d finished runs of %d are in %s (no figures or summary); a complete run "
                        "writes ch6_runs.csv", len({(x["study"], x["presented"], x["strategy"], x["spc"], x["seed"])
                                                    for x in rows}), len(jobs), interrupted)

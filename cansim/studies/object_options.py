@@ -64,12 +64,13 @@ def add_mesh_options(ap: argparse.ArgumentParser, *, per_file: bool = False) -> 
     many = {"nargs": "+"} if per_file else {}
     each = (" (one value for every mesh file, or one per mesh file in the order given: --objects, then --novel)"
             if per_file else "")
+    axes = ("; a list with a negative axis as one word after '=': --up-axis=z,-y" if per_file else "")
     ap.add_argument("--scale-to-m", type=float, default=None, metavar="M", **many,
                     help="scale every mesh file so that its largest extent is M metres (e.g. 0.35, the thesis "
                          f"objects' size; needed for files in millimetres){each}")
     ap.add_argument("--up-axis", default=None, metavar="AXIS", **many,
                     help=f"the mesh files' up axis ({', '.join(UP_AXES)}; default z; glTF/GLB files are y-up by "
-                         f"their specification){each}")
+                         f"their specification){each}{axes}")
 
 
 def per_mesh_file(specs: Sequence[str], value: Any, option: str) -> list[Any]:
@@ -99,6 +100,9 @@ def per_mesh_file(specs: Sequence[str], value: Any, option: str) -> list[Any]:
     if value is None:
         return out
     values = list(value) if isinstance(value, (list, tuple)) else [value]
+    # 'z,-y' as one word: argparse takes a '-y' standing alone for an option, so '--up-axis=z,-y' is how a
+    # negative axis stands in a list
+    values = [w.strip() for v in values for w in v.split(",")] if all(isinstance(v, str) for v in values) else values
     if len(values) == 1:
         values = values * len(files)
     elif len(values) != len(files):
@@ -220,6 +224,13 @@ def labelled_rows(rows: Sequence[Mapping[str, Any]], labels: Mapping[str, str], 
     return out
 
 
+def _source_entry(spec: str, obj: Any, copy: str | None) -> dict[str, Any]:
+    """One entry of :data:`SOURCES_FILE`: the file as given, the copy run (None: the file itself) and what
+    :func:`~whisker_io.sim.objects.load_object` assumed and changed."""
+    return {"given": spec, "given_path": str(Path(spec).resolve()), "copy": copy, "changes": list(obj.notes),
+            "scale_factor": float(obj.scale_factor), "extents_m": [float(x) for x in obj.extents_m]}
+
+
 def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
                     scale_to_m: float | Sequence[float] | None = None,
                     up_axis: str | Sequence[str] | None = None) -> list[str]:
@@ -291,17 +302,12 @@ def conform_objects(specs: Sequence[str], folder: str | os.PathLike[str], *,
         if i not in loaded:  # a mesh file as an absolute path (links not followed: its name is the object's)
             out.append(os.path.abspath(spec) if is_mesh_file(spec) else spec)
             if i in as_given:
-                obj = as_given[i]
-                sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": None,
-                                "changes": list(obj.notes), "scale_factor": float(obj.scale_factor),
-                                "extents_m": [float(x) for x in obj.extents_m]})
+                sources.append(_source_entry(spec, as_given[i], None))
             continue
         path, obj = folder / f"{stem}.ply", loaded[i]
         folder.mkdir(parents=True, exist_ok=True)
         obj.mesh.export(path)
-        sources.append({"given": spec, "given_path": str(Path(spec).resolve()), "copy": os.path.abspath(path),
-                        "changes": list(obj.notes), "scale_factor": float(obj.scale_factor),
-                        "extents_m": [float(x) for x in obj.extents_m]})
+        sources.append(_source_entry(spec, obj, os.path.abspath(path)))
         changes = [n for n in obj.notes if n.startswith("rotated")]
         if obj.scale_factor != 1.0:
             changes += [n for n in obj.notes if n.startswith("scaled")]
