@@ -443,3 +443,30 @@ def test_an_interrupted_run_keeps_its_finished_seeds_runs_whole(tmp_path: Path, 
     stop_at["seed"] = -1
     rows = recognition.run(out, **kw)
     assert len(rows) == 12 and (out / "recognition_runs.csv").exists() and not (out / recognition.INTERRUPTED_CSV).exists()
+
+
+def test_a_bad_calibration_rule_is_refused_before_any_copy_is_written(tmp_path: Path) -> None:
+    import trimesh
+
+    from cansim.errors import ConfigError
+
+    trimesh.creation.box(extents=(0.2, 0.2, 0.3)).export(tmp_path / "block.stl")
+    with pytest.raises(ConfigError, match="calibration must be one of"):
+        recognition.run(tmp_path / "out", objects=[str(tmp_path / "block.stl"), "mug"], novel=[], seeds=(0,),
+                        calibration="median", progress=False, workers=1, up_axis="z")
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_interrupt_before_any_seed_finished_keeps_an_earlier_interrupted_runs_rows(tmp_path: Path, monkeypatch) -> None:
+    def stop(job):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(recognition, "map_job", stop)
+    monkeypatch.setattr(recognition, "calibrated_thresholds", lambda *a, **k: (1.0, 0.3))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / recognition.INTERRUPTED_CSV).write_text("seed,presented\n0,mug\n")  # an earlier run's finished seed
+    with pytest.raises(KeyboardInterrupt):
+        recognition.run(out, objects=["mug", "box"], novel=[], bins=(), seeds=(0,), progress=False, workers=1,
+                        matchers=("thesis",), roll_deg=90.0)
+    assert (out / recognition.INTERRUPTED_CSV).read_text() == "seed,presented\n0,mug\n"

@@ -694,6 +694,22 @@ def calibration_seeds(k: int = CALIBRATION_SEEDS, base: int = 0) -> tuple[int, .
     return tuple(derive_seed(int(base), "calibration", i) for i in range(int(k)))
 
 
+def _calibration_seeds(calibration: str | Sequence[int], seeds: Sequence[int]) -> int | Sequence[int]:
+    """The seed(s) :func:`calibrated_thresholds` calibrates on; a bad rule or no seed is refused here, before any
+    work (:func:`run` asks before it writes anything)."""
+    from cansim.errors import ConfigError, InvalidInputError
+
+    if not isinstance(calibration, str):
+        return calibration
+    if calibration not in CALIBRATIONS:
+        raise ConfigError(f"calibration must be one of {CALIBRATIONS} or a sequence of seeds, got {calibration!r}")
+    if calibration == "pooled":
+        return calibration_seeds()
+    if not len(seeds):
+        raise InvalidInputError("calibration 'first-seed' needs at least one seed in seeds")
+    return seeds[0]
+
+
 def calibrated_thresholds(calibration: str | Sequence[int], seeds: Sequence[int],
                           quantile: float | None = None) -> tuple[float, float]:
     """(T_pfh, T_sda) of the maps (tip contacts, :data:`NOISE_SCALE`), dimensionless.
@@ -717,19 +733,7 @@ def calibrated_thresholds(calibration: str | Sequence[int], seeds: Sequence[int]
         No seeds for ``first-seed``, or bad calibration seeds
         (:func:`cansim.studies.ch5_object_maps.calibrate`).
     """
-    from cansim.errors import ConfigError, InvalidInputError
-
-    if isinstance(calibration, str):
-        if calibration not in CALIBRATIONS:
-            raise ConfigError(f"calibration must be one of {CALIBRATIONS} or a sequence of seeds, got {calibration!r}")
-        if calibration == "pooled":
-            cal_seeds: int | Sequence[int] = calibration_seeds()
-        else:
-            if not len(seeds):
-                raise InvalidInputError("calibration 'first-seed' needs at least one seed in seeds")
-            cal_seeds = seeds[0]
-    else:
-        cal_seeds = calibration
+    cal_seeds = _calibration_seeds(calibration, seeds)
     if quantile is None:
         quantile = 0.75 if calibration == "first-seed" else CALIBRATION_QUANTILE
     cal = _ch5().calibrate(NOISE_SCALE, quantile, cal_seeds, CONTACT_MODEL)
@@ -828,6 +832,7 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
     # a novel object the library holds, an object named twice: before any work, and before the copies (one
     # file given twice would get two)
     check_distinct(everything, novel)
+    _calibration_seeds(calibration, seeds)  # a bad rule before the copies of the mesh files are written
     if any(map(is_mesh_file, (*everything, *novel))):  # mesh files changed by the options: run from their copies
         conformed = conform_objects([*everything, *novel], out / "objects", scale_to_m=scale_to_m, up_axis=up_axis)
         everything, novel = conformed[:len(everything)], conformed[len(everything):]
@@ -852,10 +857,12 @@ def run(out: Path, objects: Sequence[str] | None = None, novel: Sequence[str] | 
                                whisks, matchers, odometry_scale, reach, workers, progress)
     except KeyboardInterrupt:  # the finished seeds' runs are kept (a seed's runs are written whole or not at all)
         done = sorted({r["seed"] for r in rows})
-        write_csv(out / INTERRUPTED_CSV, COLUMNS, labelled_rows(rows, labels, ("presented", "decision"), of="presented"))
-        logger.warning("interrupted: the runs of %d finished seed(s) of %d (%s) are in %s (no figures or summary); a "
-                       "complete run writes recognition_runs.csv", len(done), len(seeds),
-                       ", ".join(map(str, done)) or "none", out / INTERRUPTED_CSV)
+        if rows:  # none finished: an earlier interrupted run's file, if any, is left as it was
+            write_csv(out / INTERRUPTED_CSV, COLUMNS, labelled_rows(rows, labels, ("presented", "decision"),
+                                                                    of="presented"))
+        logger.warning("interrupted: %s (no figures or summary); a complete run writes recognition_runs.csv",
+                       f"the runs of {len(done)} finished seed(s) of {len(seeds)} ({', '.join(map(str, done))}) are in "
+                       f"{out / INTERRUPTED_CSV}" if rows else "no seed had finished")
         raise
     rows = labelled_rows(rows, labels, ("presented", "decision"), of="presented")
     write_csv(out / "recognition_runs.csv", COLUMNS, rows)
@@ -879,8 +886,6 @@ def _seed_rows(seed: int, out: Path, everything: list[str], novel: list[str], st
                      progress)
     unfelt = [m for m in maps if m.get("n_points", 3) < 3]
     if "surface" in matchers and unfelt:  # the surface matcher needs a felt surface of every library object
-        from whisker_io.errors import InvalidInputError
-
         raise InvalidInputError("; ".join(f"the {labels[m['name']]} was touched at {m['n_points']} points in its "
                                           f"{m['whisks']} mapping whisks" for m in unfelt)
                                 + ": the surface matcher has no surface to match it against. The study's "
