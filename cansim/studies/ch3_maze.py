@@ -251,7 +251,6 @@ wall times are in the README).
 
 # no ``from __future__ import annotations``: the dataclasses below must also build when a
 # runner loads this file with importlib without registering it in sys.modules
-import csv
 import dataclasses
 import math
 import sys
@@ -1087,22 +1086,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                     progress.update(1)
     progress.close()
 
-    with open(out / "ch3_metrics.csv", "w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow((*METRIC_COLUMNS, "seed"))
-        for r in rows:
-            writer.writerow([_fmt(r[c]) for c in (*METRIC_COLUMNS, "seed")])
+    from whisker_io.persistence import write_csv
+
+    columns = (*METRIC_COLUMNS, "seed")
+    write_csv(out / "ch3_metrics.csv", columns, ({c: _fmt(r[c]) for c in columns} for r in rows))
     grid_columns: tuple[str, ...] = ("control", "contact_angle", "match_threshold", "inject_energy", "ARR", "ARCR", "chosen")
     if args.recognition == "sequence":
         grid_columns = ("control", "contact_angle", "match_threshold", "inject_energy", "same_median", "same_p90", "different_p1",
                         "different_median", "recall_at_threshold")
         grid_rows = [{"control": c, "contact_angle": m, "match_threshold": calibration[(c, m)][0], "inject_energy": calibration[(c, m)][1],
                       **distributions[(c, m)]} for c in CONTROLS for m in CONTACT_ANGLES]
-    with open(out / "ch3_calibration.csv", "w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(grid_columns)
-        for g in grid_rows:
-            writer.writerow([_fmt(g[c]) for c in grid_columns])
+    write_csv(out / "ch3_calibration.csv", grid_columns, ({c: _fmt(g[c]) for c in grid_columns} for g in grid_rows))
     figure_distances(tuning_recordings, calibration if args.recognition == "sequence" else None, out / "ch3_distances.png")
     aliasing = {(c, m): aliasing_stats(tuning_recordings[c][0], m, calibrate_sequence(tuning_recordings[c], m)[0])
                 for c in CONTROLS for m in CONTACT_ANGLES}
