@@ -1231,7 +1231,7 @@ def summary(rows: list[dict[str, Any]], setup: Setup, args: argparse.Namespace, 
                      "(its whiskers sweep no space straight ahead of the front bases: cansim.explore.contact_seeking), "
                      "so on hardware keep the arm's envelope and speed limits conservative.")
     lines += [f"Warning: {line}." for line in seldom_touched(rows, bool(getattr(args, "contact_seeking", False)),
-                                                            setup.believed)]
+                                                            getattr(setup, "believed", None))]
     lines += [f"Warning: {line}." for line in poorly_mapped(setup, label)]
     return "\n".join(lines) + "\n"
 
