@@ -120,9 +120,12 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         return _train(args) if args.command == "train" else _evaluate(args)
-    except CansimError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    except CansimError as exc:  # the status cansim gives it (3: a corrupt model file; 6: a missing extra)
+        from whisker_io.command_line import error_status
+
+        code, message = error_status(exc)
+        print(f"{ap.prog}: error: {message}", file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":
