@@ -381,19 +381,17 @@ def check_extent(size_m: float, where: str, *, minimum_m: float = MIN_EXTENT_M, 
         return
     if not math.isfinite(size_m):
         raise InvalidInputError(f"{where} has non-finite vertex coordinates (its size is {size_m}); repair or re-export it")
-    if size_m > maximum_m:
-        # a file in millimetres or centimetres (both common): suggest each unit that gives an object of a size the
-        # whiskers can explore (5 cm - maximum_m), never a value scale_to_m would refuse
-        units = [(f"{size_m / div:.3g}", unit) for div, unit in ((1000, "millimetres"), (100, "centimetres"))
-                 if 0.05 <= size_m / div <= maximum_m]
+    # too large: a file in millimetres or centimetres (both common); suggest each unit that gives an object of a size
+    # the whiskers can explore (5 cm - maximum_m), never a value scale_to_m would refuse
+    units = [(f"{size_m / div:.3g}", unit) for div, unit in ((1000, "millimetres"), (100, "centimetres"))
+             if size_m > maximum_m and 0.05 <= size_m / div <= maximum_m]
+    if units:
         hint = "; ".join(f"if it is in {unit} it is {m} m across: pass scale_to_m={m} (--scale-to-m {m} on the "
                          "command line)" for m, unit in units)
-        if hint:
-            hint += "" if [m for m, _ in units] == ["0.35"] else ", or 0.35 for the thesis objects' size"
+        hint += "" if [m for m, _ in units] == ["0.35"] else ", or 0.35 for the thesis objects' size"
     else:
-        hint = ""
-    hint = hint or ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
-                    "real size in metres")
+        hint = ("pass scale_to_m=0.35 (--scale-to-m 0.35 on the command line: the thesis objects' size) or its "
+                "real size in metres")
     raise InvalidInputError(
         f"{where} is {size_m:.4g} m across (largest extent); it must be {minimum_m:g}-{maximum_m:g} m: {hint}"
     )
@@ -636,7 +634,7 @@ def load_object(
         reach = float(np.abs(mesh.vertices).max())
         far = (f"; its coordinates reach {reach:.3g}, far from its size: a file of single-precision coordinates "
                "(PLY, STL) loses the shape there - re-export it centred on the origin"
-               if reach > 1e4 * max(float(np.ptp(centred, axis=0).max()), 1e-12) else "")
+               if reach > 1e4 * max(float((hi - lo).max()), 1e-12) else "")
         raise InvalidInputError(f"{source} is flat: {thickness:.3g} m thick in its thinnest dimension "
                                 f"(extents {np.round(hi - lo, 4).tolist()} m); the whisker simulation needs a solid at "
                                 f"least {MIN_THICKNESS_M * 1000:g} mm thick - give the sheet a thickness (extrude it){far}")
