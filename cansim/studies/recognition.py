@@ -879,7 +879,6 @@ def _seed_rows(seed: int, out: Path, everything: list[str], novel: list[str], st
                whisks: int, matchers: tuple[str, ...], odometry_scale: float, reach: int, workers: int,
                progress: bool) -> list[dict[str, Any]]:
     """One seed of :func:`run`: its maps, then its presentations' rows (unlabelled)."""
-    rows: list[dict[str, Any]] = []
     setup = Setup(seed=seed, map_loops=map_loops, whisks=whisks, thresholds=thresholds, out=str(out), matchers=matchers,
                   odometry_scale=float(odometry_scale), reach_contacts=int(reach), rolls_deg=rolls)
     maps = pool_map(map_job, [(n, setup, f) for n, f in zip(everything, stems)], workers, f"mapping (seed {seed})",
@@ -909,8 +908,7 @@ def _seed_rows(seed: int, out: Path, everything: list[str], novel: list[str], st
         for presentation, vp in kinds:
             jobs += [(p, False, presentation, vp, lib_paths, names, setup, library) for p in names]
             jobs += [(p, True, presentation, vp, lib_paths, names, setup, library) for p in novel]
-    rows += [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
-    return rows
+    return [r for rs in pool_map(present_job, jobs, workers, f"presentations (seed {seed})", progress) for r in rs]
 
 
 def whisks_to_decide(threshold: float = IC_THRESHOLD) -> int:
