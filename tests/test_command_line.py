@@ -273,8 +273,18 @@ def test_a_script_ends_on_an_unknown_error_with_its_traceback(exc):
                                                           werr.CansimError, werr.MissingExtraError, RuntimeError]))
 @settings(max_examples=60, deadline=None)
 def test_any_message_of_a_known_error_ends_in_one_line(message, kind):
+    import contextlib
+    import io
+
+    from whisker_io.command_line import report_error
+
     code, line = error_status(kind(message))
     assert code in (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_MISSING_EXTRA) and "\n" not in line and "\r" not in line
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert report_error(kind(message), "prog") == code
+    said = err.getvalue()
+    assert said.count("\n") == 1 and said.endswith("\n") and "\r" not in said and said.startswith("prog: ")
 
 
 @pytest.mark.parametrize("module", ["cansim.studies.whisker_ratslam_demo", "cansim.studies.ch5_object_maps",

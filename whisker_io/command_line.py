@@ -35,7 +35,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 __all__ = ["CommandParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_MISSING_EXTRA",
-           "error_status", "run_command"]
+           "error_status", "report_error", "run_command"]
 
 #: Exit status of a command that ended on an error nobody foresaw (a bug: its traceback is shown).
 EXIT_INTERNAL = 1
@@ -96,11 +96,18 @@ def run_command(main: Callable[[], int], prog: str) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as exc:
-        code, message = error_status(exc)
+        code = error_status(exc)[0]
         if code == EXIT_INTERNAL or (code == EXIT_FAILED and os.environ.get("CANSIM_DEBUG")):
             raise
-        print(f"{prog}: {message}" if code == EXIT_MISSING_EXTRA else f"{prog}: error: {message}", file=sys.stderr)
-        return code
+        return report_error(exc, prog)
+
+
+def report_error(exc: BaseException, prog: str) -> int:
+    """Say ``exc`` in one line on stderr as the command ``prog`` ends on it (``prog: ...`` naming a missing extra,
+    ``prog: error: ...`` otherwise) and return its status (:func:`error_status`)."""
+    code, message = error_status(exc)
+    print(f"{prog}: {message}" if code == EXIT_MISSING_EXTRA else f"{prog}: error: {message}", file=sys.stderr)
+    return code
 
 
 class _StoreOnce(argparse._StoreAction):

@@ -121,11 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _train(args) if args.command == "train" else _evaluate(args)
     except CansimError as exc:  # the status cansim gives it (3: a corrupt model file; 6: a missing extra)
-        from whisker_io.command_line import error_status
+        from whisker_io.command_line import report_error
 
-        code, message = error_status(exc)
-        print(f"{ap.prog}: error: {message}", file=sys.stderr)
-        return code
+        return report_error(exc, ap.prog)
 
 
 if __name__ == "__main__":
